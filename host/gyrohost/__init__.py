@@ -1,0 +1,5 @@
+"""Host controller for the gyroscopic tensegrity rig: drivers, estimator, schedule, simulated rig."""
+
+from gyrotensegrity import __version__
+
+__all__ = ["__version__"]

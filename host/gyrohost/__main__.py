@@ -1,0 +1,5 @@
+import sys
+
+from gyrohost.cli import main
+
+sys.exit(main())

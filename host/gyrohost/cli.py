@@ -1,0 +1,51 @@
+"""The ``gyrotens`` command line: one entry point, one module per subcommand.
+
+Each module named in ``COMMANDS`` lives in ``gyrohost.commands`` and provides
+``register(subparsers)``, which adds its parser and sets ``func`` to a callable
+``func(args) -> int`` (the exit status). A subcommand raises ``CliError`` for a
+user mistake; the message is printed without a traceback and the exit status is 2.
+"""
+
+import argparse
+import importlib
+import sys
+
+from gyrotensegrity import __version__
+
+COMMANDS = ["demo"]
+
+
+class CliError(Exception):
+    """A user-facing error: printed as ``gyrotens: error: <message>``, exit status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gyrotens",
+        description="Gyroscopic tensegrity robots: simulate, benchmark, run the rig.",
+    )
+    parser.add_argument("--version", action="version", version=f"gyrotens {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"gyrohost.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "func"):
+        parser.print_help()
+        return 0
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"gyrotens {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"gyrotens {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Subcommands of ``gyrotens``; see ``gyrohost.cli``."""
