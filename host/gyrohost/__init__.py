@@ -1,4 +1,4 @@
-"""Host controller for the gyroscopic tensegrity rig: drivers, estimator, schedule, simulated rig."""
+"""Host controller for the gyroscopic tensegrity rig: drivers, estimator, schedule, rig."""
 
 from gyrotensegrity import __version__
 
