@@ -1,0 +1,202 @@
+"""Run logs: a folder of append-only CSV streams plus a self-describing ``meta.json``.
+
+Layout of a log folder::
+
+    meta.json        format version, software versions, configuration, scene, stream schemas
+    <stream>.csv     one file per stream (``imu``, ``wheels``, ``servos``, ``estimate``, ...)
+
+Every CSV starts with a header line of column names that carry their units (``t_s``,
+``omega_x_rad_s``); every row is written whole and flushed at once, so a log survives Ctrl-C or a
+crash with at most the row being written lost. Any stream reads in one line::
+
+    np.genfromtxt("imu.csv", delimiter=",", names=True)      # or pandas.read_csv("imu.csv")
+
+Floats are written with 17 significant digits, so a replay reads back bit-identical numbers.
+"""
+
+import json
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+FORMAT = "gyrotens-log"
+FORMAT_VERSION = 1
+
+
+class LogError(ValueError):
+    """A log folder or row that does not follow the format; the message names the file and row."""
+
+
+class Stream:
+    """One append-only CSV stream with a fixed list of columns."""
+
+    def __init__(self, path: Path, columns: Sequence[str]):
+        self.path = path
+        self.columns = tuple(columns)
+        self._file = open(path, "x", buffering=1, encoding="ascii")  # line-buffered
+        self._file.write(",".join(self.columns) + "\n")
+        self.rows = 0
+
+    def write(self, *values) -> None:
+        """Append one row; ``values`` in column order (numbers, or strings without commas)."""
+        if len(values) != len(self.columns):
+            raise LogError(
+                f"{self.path.name}: row has {len(values)} values, "
+                f"columns are {len(self.columns)}: {', '.join(self.columns)}"
+            )
+        self._file.write(",".join(_format(v) for v in values) + "\n")
+        self.rows += 1
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _format(value) -> str:
+    if isinstance(value, str):
+        if "," in value or "\n" in value:
+            raise LogError(f"string value {value!r} contains a comma or newline")
+        return value
+    if isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    x = float(value)
+    return "nan" if math.isnan(x) else repr(x)
+
+
+class RunLog:
+    """A log folder being written. Use as a context manager so streams close on any exit.
+
+    Parameters
+    ----------
+    folder : path
+        Created if missing; must not already hold a log.
+    meta : dict
+        JSON-serialisable description of the run (configuration, scene, command line, ...).
+    """
+
+    def __init__(self, folder: Path | str, meta: dict):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        if (self.folder / "meta.json").exists():
+            raise LogError(f"{self.folder}: already holds a log (meta.json exists)")
+        self.meta = {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "created_unix_s": time.time(),
+            "streams": {},
+            **meta,
+        }
+        self.streams: dict[str, Stream] = {}
+        self._write_meta()
+
+    def stream(
+        self,
+        name: str,
+        columns: Sequence[str],
+        text_columns: Sequence[str] = (),
+        description: str = "",
+    ) -> Stream:
+        """Open a new stream ``<name>.csv``; ``columns`` carry units, ``text_columns`` hold words."""
+        if name in self.streams:
+            raise LogError(f"{self.folder}: stream {name!r} is already open")
+        unknown = set(text_columns) - set(columns)
+        if unknown:
+            raise LogError(f"stream {name!r}: text columns {sorted(unknown)} are not columns")
+        s = Stream(self.folder / f"{name}.csv", columns)
+        self.streams[name] = s
+        self.meta["streams"][name] = {
+            "columns": list(columns),
+            "text_columns": list(text_columns),
+            "description": description,
+        }
+        self._write_meta()
+        return s
+
+    def update_meta(self, **items) -> None:
+        """Add or replace top-level items of ``meta.json`` (e.g. a summary at the end of a run)."""
+        self.meta.update(items)
+        self._write_meta()
+
+    def _write_meta(self) -> None:
+        tmp = self.folder / "meta.json.tmp"
+        tmp.write_text(json.dumps(self.meta, indent=2, default=_json_default) + "\n")
+        tmp.replace(self.folder / "meta.json")
+
+    def close(self) -> None:
+        for s in self.streams.values():
+            s.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.generic,)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"meta item of type {type(obj).__name__} is not JSON-serialisable")
+
+
+def read_meta(folder: Path | str) -> dict:
+    """Read and check ``meta.json`` of a log folder."""
+    path = Path(folder) / "meta.json"
+    try:
+        meta = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise LogError(f"{folder}: not a log folder (no meta.json)") from None
+    except json.JSONDecodeError as exc:
+        raise LogError(f"{path}: not valid JSON ({exc})") from None
+    if meta.get("format") != FORMAT:
+        raise LogError(f"{path}: format is {meta.get('format')!r}, expected {FORMAT!r}")
+    if meta.get("format_version", 0) > FORMAT_VERSION:
+        raise LogError(
+            f"{path}: format version {meta['format_version']} is newer than this reader "
+            f"({FORMAT_VERSION}); update gyrotens"
+        )
+    return meta
+
+
+def read_stream(folder: Path | str, name: str) -> np.ndarray:
+    """Read one stream as a structured array (one field per column).
+
+    A last row cut short by a crash is dropped; any other malformed row raises ``LogError`` naming
+    the file and row.
+    """
+    path = Path(folder) / f"{name}.csv"
+    schema = read_meta(folder)["streams"].get(name)
+    if schema is None or not path.exists():
+        raise LogError(f"{folder}: no stream {name!r} ({path.name} or its schema missing)")
+    text = set(schema.get("text_columns", ()))
+    lines = path.read_text(encoding="ascii").split("\n")
+    header = lines[0].split(",")
+    rows = lines[1:]
+    if rows and rows[-1] == "":
+        rows.pop()  # the file ends with a newline: complete
+    elif rows:
+        rows.pop()  # no final newline: the last row was being written when the run stopped
+    dtype = [(c, "U64" if c in text else "f8") for c in header]
+    out = np.empty(len(rows), dtype=dtype)
+    for i, line in enumerate(rows):
+        fields = line.split(",")
+        if len(fields) != len(header):
+            raise LogError(
+                f"{path}: row {i + 2} has {len(fields)} fields, header has {len(header)}"
+            )
+        try:
+            out[i] = tuple(
+                f if c in text else float(f) for c, f in zip(header, fields, strict=True)
+            )
+        except ValueError:
+            raise LogError(f"{path}: row {i + 2} holds a non-number: {line!r}") from None
+    return out

@@ -1,0 +1,94 @@
+import json
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gyrohost.runlog import LogError, RunLog, read_meta, read_stream
+
+
+def _log_with_imu(folder, rows):
+    with RunLog(folder, {"config": {"rate_hz": 100}}) as log:
+        s = log.stream("imu", ["t_s", "omega_x_rad_s", "event"], text_columns=["event"])
+        for r in rows:
+            s.write(*r)
+    return folder
+
+
+def test_round_trip_is_bit_exact(tmp_path):
+    rng = np.random.default_rng(1)
+    values = rng.normal(size=50) * 1e-7
+    rows = [(i * 0.01, v, "ok") for i, v in enumerate(values)]
+    data = read_stream(_log_with_imu(tmp_path / "log", rows), "imu")
+    assert np.array_equal(data["omega_x_rad_s"], values)
+    assert list(data["event"]) == ["ok"] * 50
+
+
+def test_numpy_reads_a_stream_in_one_line(tmp_path):
+    folder = _log_with_imu(tmp_path / "log", [(0.0, 1.5, "a"), (0.01, -2.0, "b")])
+    arr = np.genfromtxt(folder / "imu.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert arr["omega_x_rad_s"].tolist() == [1.5, -2.0]
+
+
+def test_meta_is_self_describing(tmp_path):
+    meta = read_meta(_log_with_imu(tmp_path / "log", []))
+    assert meta["streams"]["imu"]["columns"] == ["t_s", "omega_x_rad_s", "event"]
+    assert meta["config"] == {"rate_hz": 100}
+
+
+def test_row_cut_short_by_a_crash_is_dropped(tmp_path):
+    folder = _log_with_imu(tmp_path / "log", [(0.0, 1.0, "a"), (0.01, 2.0, "b")])
+    with open(folder / "imu.csv", "a") as f:
+        f.write("0.02,3.")
+    assert read_stream(folder, "imu")["omega_x_rad_s"].tolist() == [1.0, 2.0]
+
+
+def test_malformed_row_names_file_and_row(tmp_path):
+    folder = _log_with_imu(tmp_path / "log", [(0.0, 1.0, "a")])
+    with open(folder / "imu.csv", "a") as f:
+        f.write("0.02,x,b\n")
+    with pytest.raises(LogError, match=r"imu.csv: row 3 holds a non-number"):
+        read_stream(folder, "imu")
+
+
+def test_wrong_number_of_values_is_refused(tmp_path):
+    with RunLog(tmp_path / "log", {}) as log:
+        s = log.stream("wheels", ["t_s", "omega_rad_s"])
+        with pytest.raises(LogError, match="row has 3 values, columns are 2"):
+            s.write(0.0, 1.0, 2.0)
+
+
+def test_refuses_to_overwrite_a_log(tmp_path):
+    _log_with_imu(tmp_path / "log", [])
+    with pytest.raises(LogError, match="already holds a log"):
+        RunLog(tmp_path / "log", {})
+
+
+def test_not_a_log_folder(tmp_path):
+    with pytest.raises(LogError, match="no meta.json"):
+        read_meta(tmp_path)
+    (tmp_path / "meta.json").write_text(json.dumps({"format": "other"}))
+    with pytest.raises(LogError, match="format is 'other'"):
+        read_meta(tmp_path)
+
+
+def test_rows_survive_sigint(tmp_path):
+    """Every row written before Ctrl-C is on disk, without any close()."""
+    script = f"""
+import time
+from gyrohost.runlog import RunLog
+log = RunLog({str(tmp_path / "log")!r}, {{}})
+s = log.stream("wheels", ["t_s", "omega_rad_s"])
+for i in range(100):
+    s.write(i * 0.001, float(i))
+print("written", flush=True)
+time.sleep(30)
+"""
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "written"
+    p.send_signal(signal.SIGINT)
+    p.wait(timeout=10)
+    data = read_stream(tmp_path / "log", "wheels")
+    assert data["omega_rad_s"].tolist() == [float(i) for i in range(100)]
