@@ -100,7 +100,7 @@ class RunLog:
         text_columns: Sequence[str] = (),
         description: str = "",
     ) -> Stream:
-        """Open a new stream ``<name>.csv``; ``columns`` carry units, ``text_columns`` hold words."""
+        """Open stream ``<name>.csv``; ``columns`` carry units, ``text_columns`` hold words."""
         if name in self.streams:
             raise LogError(f"{self.folder}: stream {name!r} is already open")
         unknown = set(text_columns) - set(columns)
