@@ -1,0 +1,283 @@
+"""Rig configuration: TOML file -> frozen dataclasses, with every default in this module.
+
+The file layout is described in ``docs/rig-config.md``. Every table maps onto one dataclass below;
+a key the dataclass does not have, a value of the wrong type or outside its range raises
+:class:`ConfigError` naming the file and the dotted key (``servos.servo[1].pulley_radius_m``).
+
+Range and choice constraints live in each field's metadata (``min``, ``max``, ``choices``) so the
+loader checks them all the same way; cross-field rules live in each class's ``problems`` method.
+"""
+
+import math
+import tomllib
+import typing
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
+from pathlib import Path
+
+EMULATED_PORT = "emulator"
+"""Port value meaning: start the device emulator and use its pseudo-terminal."""
+
+MX_POSITION_LIMIT = 28672
+"""Largest magnitude of an MX-12W multi-turn position, steps (7 turns at divider 1)."""
+
+
+class ConfigError(ValueError):
+    """A rig configuration file or value is invalid; the message names the file and key."""
+
+
+def _spec(*, lo=None, hi=None, choices=None, doc: str = "") -> dict:
+    return {"min": lo, "max": hi, "choices": choices, "doc": doc}
+
+
+@dataclass(frozen=True)
+class StreamFaultConfig:
+    """Faults applied to the bytes an emulator sends (see ``gyrohost.rig.faults``)."""
+
+    corrupt_byte_prob: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
+    drop_byte_prob: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
+    silent: bool = False
+    stall_period_s: float = field(default=0.0, metadata=_spec(lo=0.0, doc="0 = never"))
+    stall_duration_s: float = field(default=0.0, metadata=_spec(lo=0.0))
+    seed: int = field(default=0, metadata=_spec(lo=0))
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.stall_period_s > 0 and self.stall_duration_s >= self.stall_period_s:
+            return [("stall_duration_s", "must be shorter than stall_period_s")]
+        return []
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """WitMotion BWT61CL link and mounting."""
+
+    port: str = "/dev/rfcomm0"
+    baud: int = field(default=115200, metadata=_spec(choices=(9600, 115200)))
+    rate_hz: int = field(default=100, metadata=_spec(choices=(20, 100)))
+    mounting: str = field(default="horizontal", metadata=_spec(choices=("horizontal", "vertical")))
+    mounting_rpy_rad: tuple[float, float, float] = field(
+        default=(0.0, 0.0, 0.0), metadata=_spec(lo=-math.pi, hi=math.pi)
+    )
+    timeout_s: float = field(default=0.1, metadata=_spec(lo=0.001, hi=10.0))
+
+
+@dataclass(frozen=True)
+class ServoConfig:
+    """One string servo: Dynamixel ID, pulley calibration, hard limits."""
+
+    name: str
+    id: int = field(metadata=_spec(lo=0, hi=252))
+    pulley_radius_m: float = field(metadata=_spec(lo=1e-4, hi=0.1))
+    zero_position: int = field(
+        default=0, metadata=_spec(lo=-MX_POSITION_LIMIT, hi=MX_POSITION_LIMIT)
+    )
+    length_at_zero_m: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))
+    length_sign: int = field(default=1, metadata=_spec(choices=(-1, 1)))
+    min_length_m: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))
+    max_length_m: float = field(default=1.0, metadata=_spec(lo=0.0, hi=10.0))
+    max_speed_m_s: float = field(default=0.05, metadata=_spec(lo=1e-4, hi=2.0))
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.min_length_m >= self.max_length_m:
+            return [("min_length_m", "must be smaller than max_length_m")]
+        return []
+
+
+@dataclass(frozen=True)
+class ServoBusConfig:
+    """The Dynamixel bus (U2D2 adapter) and its servos."""
+
+    port: str = "/dev/ttyUSB0"
+    baud: int = field(
+        default=1_000_000, metadata=_spec(choices=(57600, 115200, 500000, 1_000_000, 2_000_000))
+    )
+    read_mode: str = field(default="bulk", metadata=_spec(choices=("bulk", "per_servo")))
+    servo: tuple[ServoConfig, ...] = ()
+
+    def problems(self) -> list[tuple[str, str]]:
+        ids = [s.id for s in self.servo]
+        if len(set(ids)) != len(ids):
+            return [("servo", f"duplicate servo IDs in {ids}")]
+        return []
+
+
+@dataclass(frozen=True)
+class WheelboardConfig:
+    """Wheel board link (fields beyond port and baud belong to the wheel-board driver)."""
+
+    port: str = "/dev/ttyACM0"
+    baud: int = field(default=500_000, metadata=_spec(lo=1200, hi=4_000_000))
+
+
+@dataclass(frozen=True)
+class ImuEmuConfig:
+    """Simulated BWT61CL: MPU6050-like noise (datasheet densities), bias, temperature."""
+
+    gyro_noise_density_rad_s_rthz: float = field(
+        default=math.radians(0.005), metadata=_spec(lo=0.0, hi=1.0)
+    )
+    accel_noise_density_m_s2_rthz: float = field(
+        default=400e-6 * 9.80665, metadata=_spec(lo=0.0, hi=10.0)
+    )
+    gyro_bias_std_rad_s: float = field(default=math.radians(0.5), metadata=_spec(lo=0.0, hi=1.0))
+    accel_bias_std_m_s2: float = field(default=0.05, metadata=_spec(lo=0.0, hi=5.0))
+    angle_noise_std_rad: float = field(default=math.radians(0.05), metadata=_spec(lo=0.0, hi=0.5))
+    temperature_degC: float = field(default=25.0, metadata=_spec(lo=-40.0, hi=85.0))
+    seed: int = field(default=1, metadata=_spec(lo=0))
+    faults: StreamFaultConfig = StreamFaultConfig()
+
+
+@dataclass(frozen=True)
+class ServoEmuConfig:
+    """Simulated MX-12W bus: motor figures and servo-level faults."""
+
+    return_delay_us: int = field(default=20, metadata=_spec(lo=0, hi=508))
+    no_load_speed_rpm: float = field(default=470.0, metadata=_spec(lo=1.0, hi=1000.0))
+    stall_torque_N_m: float = field(default=0.2, metadata=_spec(lo=1e-3, hi=10.0))
+    overload_ids: tuple[int, ...] = field(default=(), metadata=_spec(lo=0, hi=252))
+    no_reply_ids: tuple[int, ...] = field(default=(), metadata=_spec(lo=0, hi=252))
+    faults: StreamFaultConfig = StreamFaultConfig()
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Parameters of the simulated devices (used only for ports set to ``"emulator"``)."""
+
+    imu: ImuEmuConfig = ImuEmuConfig()
+    servos: ServoEmuConfig = ServoEmuConfig()
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
+
+    scene: str = "scenes/dbar.toml"
+    imu: ImuConfig = ImuConfig()
+    servos: ServoBusConfig = ServoBusConfig()
+    wheelboard: WheelboardConfig = WheelboardConfig()
+    sim: SimConfig = SimConfig()
+    source: str = field(default="<defaults>", metadata={"internal": True})
+
+    @property
+    def scene_path(self) -> Path:
+        """Scene file, resolved relative to the configuration file's folder."""
+        base = Path(self.source).parent if self.source.endswith(".toml") else Path.cwd()
+        return (base / self.scene).resolve()
+
+
+def load_rig_config(path: str | Path) -> RigConfig:
+    """Read and validate a rig configuration TOML file.
+
+    Raises
+    ------
+    ConfigError
+        The file is missing or not TOML, or a key is unknown, mistyped, out of range or missing.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    return rig_config_from_dict(data, str(path))
+
+
+def rig_config_from_dict(data: dict, source: str = "<dict>") -> RigConfig:
+    """Build a :class:`RigConfig` from parsed TOML ``data``; ``source`` names it in errors."""
+    return replace(_build(RigConfig, data, "", source), source=source)
+
+
+def _build(cls: type, table: object, where: str, source: str):
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: key '{where.rstrip('.') or '<root>'}' must be a table")
+    hints = typing.get_type_hints(cls)
+    known = {f.name: f for f in fields(cls) if not f.metadata.get("internal")}
+    for key in table:
+        if key not in known:
+            raise ConfigError(
+                f"{source}: unknown key '{where}{key}' (known here: {', '.join(sorted(known))})"
+            )
+    values = {}
+    for name, f in known.items():
+        key = f"{where}{name}"
+        if name in table:
+            values[name] = _convert(hints[name], table[name], key, source)
+            _check_range(f.metadata, values[name], key, source)
+        elif f.default is MISSING and f.default_factory is MISSING:
+            raise ConfigError(f"{source}: missing required key '{key}'")
+    obj = cls(**values)
+    for sub, message in getattr(obj, "problems", lambda: [])():
+        raise ConfigError(f"{source}: key '{where}{sub}': {message}")
+    return obj
+
+
+def _convert(hint, value, key: str, source: str):
+    origin = typing.get_origin(hint)
+    if is_dataclass(hint):
+        return _build(hint, value, key + ".", source)
+    if origin is tuple:
+        return _convert_tuple(typing.get_args(hint), value, key, source)
+    if hint is float:
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            if not math.isfinite(value):
+                raise ConfigError(f"{source}: key '{key}' must be finite, got {value}")
+            return float(value)
+    elif hint in (int, str, bool):
+        if isinstance(value, hint) and not (hint is int and isinstance(value, bool)):
+            return value
+    else:  # pragma: no cover - a programming error in this module, not a user error
+        raise TypeError(f"unsupported field type {hint} for {key}")
+    raise ConfigError(
+        f"{source}: key '{key}' must be {_type_name(hint)}, got {type(value).__name__} {value!r}"
+    )
+
+
+def _convert_tuple(args: tuple, value, key: str, source: str) -> tuple:
+    if not isinstance(value, list):
+        raise ConfigError(f"{source}: key '{key}' must be an array, got {type(value).__name__}")
+    variadic = len(args) == 2 and args[1] is Ellipsis
+    if not variadic and len(value) != len(args):
+        raise ConfigError(f"{source}: key '{key}' must have {len(args)} elements, got {len(value)}")
+    item_types = [args[0]] * len(value) if variadic else list(args)
+    return tuple(
+        _convert(t, v, f"{key}[{i}]", source)
+        for i, (t, v) in enumerate(zip(item_types, value, strict=True))
+    )
+
+
+def _check_range(meta: typing.Mapping, value, key: str, source: str) -> None:
+    items = value if isinstance(value, tuple) else (value,)
+    for item in items:
+        if is_dataclass(item):
+            continue
+        if meta.get("choices") is not None and item not in meta["choices"]:
+            raise ConfigError(
+                f"{source}: key '{key}' is {item!r}, must be one of {list(meta['choices'])}"
+            )
+        if meta.get("min") is not None and item < meta["min"]:
+            raise ConfigError(f"{source}: key '{key}' is {item}, below the minimum {meta['min']}")
+        if meta.get("max") is not None and item > meta["max"]:
+            raise ConfigError(f"{source}: key '{key}' is {item}, above the maximum {meta['max']}")
+
+
+def _type_name(hint) -> str:
+    names = {float: "a number", int: "an integer", str: "a string", bool: "true or false"}
+    return names.get(hint, str(hint))
+
+
+__all__ = [
+    "EMULATED_PORT",
+    "MX_POSITION_LIMIT",
+    "ConfigError",
+    "ImuConfig",
+    "ImuEmuConfig",
+    "RigConfig",
+    "ServoBusConfig",
+    "ServoConfig",
+    "ServoEmuConfig",
+    "SimConfig",
+    "StreamFaultConfig",
+    "WheelboardConfig",
+    "load_rig_config",
+    "rig_config_from_dict",
+]

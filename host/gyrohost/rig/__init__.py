@@ -1,0 +1,5 @@
+"""Simulated rig: pseudo-terminal device emulators and fault injection.
+
+Submodules: ``pty_link`` (pty pair and the emulator's I/O loop), ``faults`` (byte-stream fault
+filter), ``imu_emu`` (WitMotion BWT61CL), ``servo_emu`` (Dynamixel MX-12W bus).
+"""

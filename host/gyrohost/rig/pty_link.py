@@ -1,0 +1,178 @@
+"""Pseudo-terminal pair and the I/O loop shared by the device emulators.
+
+The emulator owns the master side of a pty; the driver under test opens ``slave_path`` like any
+serial port (pyserial or dynamixel-sdk). A pty ignores baud rate and latency, so delays and faults
+are injected on purpose by a :class:`~gyrohost.rig.faults.FaultFilter` on the emulator's write side.
+
+An emulator subclasses :class:`PtyDevice` and implements ``handle_rx`` (bytes the driver sent) and
+``tick`` (periodic work such as emitting samples or moving a servo). It runs either in a background
+thread (:meth:`PtyDevice.start`) or is polled by the caller (:meth:`PtyDevice.poll`), which makes
+simulated-time runs deterministic.
+"""
+
+import errno
+import os
+import select
+import threading
+import time
+import tty
+
+from gyrohost.rig.faults import FaultFilter
+
+
+class PtyLinkError(RuntimeError):
+    """The pseudo-terminal pair could not be created or used."""
+
+
+class PtyLink:
+    """A raw pseudo-terminal pair; this object keeps both ends open until :meth:`close`.
+
+    Keeping the slave end open means the master never sees end-of-file when a driver closes and
+    reopens the port. Writes are non-blocking: when nobody reads the slave side and the kernel
+    buffer is full, bytes are dropped and counted, as a real UART would lose them.
+    """
+
+    def __init__(self) -> None:
+        try:
+            self._master_fd, self._slave_fd = os.openpty()
+        except OSError as exc:
+            raise PtyLinkError(f"cannot create a pseudo-terminal pair: {exc}") from exc
+        tty.setraw(self._slave_fd)  # no echo, no line discipline: bytes pass unchanged
+        os.set_blocking(self._master_fd, False)
+        self.slave_path = os.ttyname(self._slave_fd)
+        self.overflow_bytes = 0
+        self._closed = False
+
+    def write(self, data: bytes) -> int:
+        """Write to the driver's side; return the number of bytes accepted (rest counted lost)."""
+        if self._closed or not data:
+            return 0
+        try:
+            n = os.write(self._master_fd, data)
+        except BlockingIOError:
+            n = 0
+        except OSError as exc:
+            if exc.errno in (errno.EIO, errno.EBADF):
+                n = 0
+            else:
+                raise PtyLinkError(f"write to {self.slave_path} master failed: {exc}") from exc
+        self.overflow_bytes += len(data) - n
+        return n
+
+    def read(self, timeout_s: float = 0.0) -> bytes:
+        """Read what the driver wrote, waiting at most ``timeout_s`` s; ``b""`` if nothing came."""
+        if self._closed:
+            return b""
+        ready, _, _ = select.select([self._master_fd], [], [], max(timeout_s, 0.0))
+        if not ready:
+            return b""
+        try:
+            return os.read(self._master_fd, 4096)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as exc:
+            if exc.errno == errno.EIO:  # slave side hung up: nothing to read
+                return b""
+            raise PtyLinkError(f"read from {self.slave_path} master failed: {exc}") from exc
+
+    def close(self) -> None:
+        """Close both ends (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for fd in (self._master_fd, self._slave_fd):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
+class PtyDevice:
+    """Base of an emulated serial device on a :class:`PtyLink`.
+
+    Parameters
+    ----------
+    faults : FaultFilter, optional
+        Filter applied to every byte the device sends; a transparent filter by default.
+    """
+
+    def __init__(self, faults: FaultFilter | None = None) -> None:
+        self.link = PtyLink()
+        self.faults = faults if faults is not None else FaultFilter()
+        self.lock = threading.RLock()
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.loop_error: BaseException | None = None
+
+    @property
+    def slave_path(self) -> str:
+        """Path of the pty slave: give this to the driver as its serial port."""
+        return self.link.slave_path
+
+    # --- to be implemented by an emulator -------------------------------------------------
+    def handle_rx(self, data: bytes, now_s: float) -> None:
+        """Consume bytes the driver sent (called with ``lock`` held)."""
+        raise NotImplementedError
+
+    def tick(self, now_s: float) -> None:
+        """Periodic work at time ``now_s`` s (called with ``lock`` held)."""
+        raise NotImplementedError
+
+    # --- shared machinery -----------------------------------------------------------------
+    def send(self, data: bytes, now_s: float) -> None:
+        """Send bytes to the driver through the fault filter."""
+        self.link.write(self.faults.process(data, now_s))
+
+    def poll(self, now_s: float | None = None, timeout_s: float = 0.0) -> None:
+        """Run one iteration: read input (waiting up to ``timeout_s`` s), tick, release stalls.
+
+        Parameters
+        ----------
+        now_s : float, optional
+            Emulator time, s; ``time.monotonic()`` when omitted (read after the wait).
+        timeout_s : float
+            Longest wait for input, s.
+        """
+        data = self.link.read(timeout_s)
+        t = time.monotonic() if now_s is None else now_s
+        with self.lock:
+            if data:
+                self.handle_rx(data, t)
+            self.tick(t)
+            self.link.write(self.faults.release(t))
+
+    def start(self, period_s: float = 0.0005) -> "PtyDevice":
+        """Run :meth:`poll` in a daemon thread until :meth:`stop`; returns ``self``."""
+        if self._thread is not None:
+            return self
+        self._stop.clear()
+        self._thread = threading.Thread(
+            target=self._run, args=(period_s,), name=type(self).__name__, daemon=True
+        )
+        self._thread.start()
+        return self
+
+    def _run(self, period_s: float) -> None:
+        try:
+            while not self._stop.is_set():
+                self.poll(timeout_s=period_s)
+        except BaseException as exc:  # kept for the owner to report; the thread must not vanish
+            self.loop_error = exc
+
+    def stop(self) -> None:
+        """Stop the background thread (if any) and wait for it."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+
+    def close(self) -> None:
+        """Stop and close the pty pair."""
+        self.stop()
+        self.link.close()
+
+    def __enter__(self) -> "PtyDevice":
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
