@@ -1,0 +1,211 @@
+"""Emulated WitMotion BWT61CL on a pseudo-terminal.
+
+The truth arrives through :class:`ImuTruth` (body angular rate, specific force, attitude), either
+pushed with :meth:`Bwt61Emulator.set_truth` or pulled from ``truth_source(t_s)`` at every output
+sample. The emulator rotates it into the sensor axes (mounting rotation ``mounting_rpy_rad``, then
+the device's horizontal/vertical mode), adds MPU6050-like white noise (noise density times the
+square root of half the output rate) and a constant bias drawn once, quantises to the int16 scales
+of the wire format and sends 0x51, 0x52, 0x53 frames at 100 Hz or 20 Hz.
+
+It answers the configuration commands: ``FF AA 52`` (present yaw becomes zero), ``67`` (the
+accelerometer bias is removed, as a level calibration would), ``63``/``64`` (100 Hz/20 Hz; the pty
+ignores baud), ``65``/``66`` (horizontal/vertical mode). Modelling choice, not from the datasheet:
+vertical mode turns the output axes by -90 deg about the sensor x axis.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gyrohost.config import ImuConfig, ImuEmuConfig
+from gyrohost.drivers.imu import (
+    ACCEL_SCALE_M_S2,
+    ANGLE_SCALE_RAD,
+    RATE_SCALE_RAD_S,
+    STANDARD_GRAVITY_M_S2,
+    TEMP_OFFSET_DEGC,
+    TEMP_SCALE_DEGC,
+    FrameType,
+    encode_frame,
+)
+from gyrohost.rig.faults import FaultFilter
+from gyrohost.rig.pty_link import PtyDevice
+
+
+@dataclass(frozen=True)
+class ImuTruth:
+    """The true motion of the body the IMU is fixed to.
+
+    Attributes
+    ----------
+    omega_rad_s : ndarray, shape (3,), rad/s
+        Body angular rate in body axes.
+    specific_force_m_s2 : ndarray, shape (3,), m/s^2
+        Specific force (acceleration minus gravity) in body axes; at rest, level: (0, 0, g).
+    R_wb : ndarray, shape (3, 3)
+        Attitude: body axes expressed in the world frame (z up).
+    """
+
+    omega_rad_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    specific_force_m_s2: np.ndarray = field(
+        default_factory=lambda: np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
+    )
+    R_wb: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+
+def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rotation matrix ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, shape (3, 3); angles in rad."""
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))  # fmt: skip
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def euler_zyx(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (Z-Y-X) of rotation ``R``, shape (3,), rad."""
+    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
+
+
+def quantise(values: np.ndarray, scale: float) -> list[int]:
+    """Raw int16 counts of ``values`` at ``scale`` units per count (rounded, saturated)."""
+    counts = np.clip(np.rint(np.asarray(values) / scale), -32768, 32767)
+    return [int(c) for c in counts]
+
+
+_VERTICAL = rotation_zyx(-np.pi / 2, 0.0, 0.0)
+_RATES = {0x63: 100, 0x64: 20}
+_BAUDS = {100: 115200, 20: 9600}
+
+
+class Bwt61Emulator(PtyDevice):
+    """BWT61CL emulator; see the module docstring.
+
+    Parameters
+    ----------
+    emu : ImuEmuConfig, optional
+        Noise, bias, temperature, seed and stream faults.
+    imu : ImuConfig, optional
+        Output rate and mounting (rotation and mode).
+    truth_source : callable, optional
+        ``truth_source(t_s) -> ImuTruth`` called at each output sample; when absent the last
+        :meth:`set_truth` value (level and still at first) is used.
+    """
+
+    def __init__(
+        self,
+        emu: ImuEmuConfig | None = None,
+        imu: ImuConfig | None = None,
+        truth_source: Callable[[float], ImuTruth] | None = None,
+    ) -> None:
+        emu = emu if emu is not None else ImuEmuConfig()
+        imu = imu if imu is not None else ImuConfig()
+        super().__init__(FaultFilter(emu.faults))
+        self.emu = emu
+        self.truth_source = truth_source
+        self.rate_hz = imu.rate_hz
+        self.baud = _BAUDS[imu.rate_hz]
+        self.vertical = imu.mounting == "vertical"
+        self.R_bs = rotation_zyx(*imu.mounting_rpy_rad)
+        self.yaw_offset_rad = 0.0
+        self.samples_sent = 0
+        self.commands_seen: list[int] = []
+        self._rng = np.random.default_rng(emu.seed)
+        self.gyro_bias_rad_s = self._rng.normal(0.0, emu.gyro_bias_std_rad_s, 3)
+        self.accel_bias_m_s2 = self._rng.normal(0.0, emu.accel_bias_std_m_s2, 3)
+        self._truth = ImuTruth()
+        self._rx = bytearray()
+        self._next_emit_s: float | None = None
+
+    # --- truth and configuration --------------------------------------------------------------
+    def set_truth(
+        self, omega_rad_s: np.ndarray, specific_force_m_s2: np.ndarray, R_wb: np.ndarray
+    ) -> None:
+        """Set the truth used from the next sample on (shapes (3,), (3,), (3, 3); SI units)."""
+        truth = ImuTruth(
+            np.array(omega_rad_s, dtype=float),
+            np.array(specific_force_m_s2, dtype=float),
+            np.array(R_wb, dtype=float),
+        )
+        with self.lock:
+            self._truth = truth
+
+    @property
+    def period_s(self) -> float:
+        """Output period, s."""
+        return 1.0 / self.rate_hz
+
+    def _R_bo(self) -> np.ndarray:
+        """Output axes in body axes: mounting rotation, then the device's mode."""
+        return self.R_bs @ _VERTICAL if self.vertical else self.R_bs
+
+    # --- encoding -----------------------------------------------------------------------------
+    def encode_sample(self, truth: ImuTruth) -> bytes:
+        """The 33 bytes (0x51, 0x52, 0x53 frames) of one sample of ``truth``, noise included."""
+        R_bo = self._R_bo()
+        emu = self.emu
+        rng = self._rng
+        bandwidth_rthz = np.sqrt(self.rate_hz / 2.0)
+        omega = R_bo.T @ truth.omega_rad_s + self.gyro_bias_rad_s
+        omega += rng.normal(0.0, emu.gyro_noise_density_rad_s_rthz * bandwidth_rthz, 3)
+        accel = R_bo.T @ truth.specific_force_m_s2 + self.accel_bias_m_s2
+        accel += rng.normal(0.0, emu.accel_noise_density_m_s2_rthz * bandwidth_rthz, 3)
+        euler = euler_zyx(truth.R_wb @ R_bo) + rng.normal(0.0, emu.angle_noise_std_rad, 3)
+        euler[2] = _wrap(euler[2] - self.yaw_offset_rad)
+        temp = int(round((emu.temperature_degC - TEMP_OFFSET_DEGC) / TEMP_SCALE_DEGC))
+        return b"".join(
+            (
+                encode_frame(FrameType.ACCEL, (*quantise(accel, ACCEL_SCALE_M_S2), temp)),
+                encode_frame(FrameType.RATE, (*quantise(omega, RATE_SCALE_RAD_S), temp)),
+                encode_frame(FrameType.ANGLE, (*quantise(euler, ANGLE_SCALE_RAD), temp)),
+            )
+        )
+
+    def _current_truth(self, now_s: float) -> ImuTruth:
+        return self.truth_source(now_s) if self.truth_source is not None else self._truth
+
+    # --- PtyDevice hooks ----------------------------------------------------------------------
+    def tick(self, now_s: float) -> None:
+        if self._next_emit_s is None or now_s - self._next_emit_s > self.period_s:
+            self._next_emit_s = now_s  # start, or the loop fell behind: do not send a backlog
+        if now_s < self._next_emit_s:
+            return
+        self.send(self.encode_sample(self._current_truth(now_s)), now_s)
+        self.samples_sent += 1
+        self._next_emit_s += self.period_s
+
+    def handle_rx(self, data: bytes, now_s: float) -> None:
+        self._rx += data
+        while True:
+            pos = self._rx.find(b"\xff\xaa")
+            if pos < 0:
+                del self._rx[:-1]  # a trailing 0xFF may start the next command
+                return
+            if len(self._rx) < pos + 3:
+                del self._rx[:pos]
+                return
+            self._apply(self._rx[pos + 2], now_s)
+            del self._rx[: pos + 3]
+
+    def _apply(self, code: int, now_s: float) -> None:
+        self.commands_seen.append(code)
+        if code == 0x52:
+            true_yaw = euler_zyx(self._current_truth(now_s).R_wb @ self._R_bo())[2]
+            self.yaw_offset_rad = float(true_yaw)
+        elif code == 0x67:
+            self.accel_bias_m_s2 = np.zeros(3)
+        elif code in _RATES:
+            self.rate_hz = _RATES[code]
+            self.baud = _BAUDS[self.rate_hz]
+        elif code in (0x65, 0x66):
+            self.vertical = code == 0x66
+
+
+def _wrap(angle_rad: float) -> float:
+    return float((angle_rad + np.pi) % (2.0 * np.pi) - np.pi)
