@@ -1,0 +1,750 @@
+/*
+ * fil_harness.c - firmware-in-the-loop harness for the wheel board (ATmega2560).
+ *
+ * Runs the real firmware ELF in simavr and closes the loop around it:
+ *   - UART0 is exposed as a pseudo-terminal (uart_pty); its path is printed as "PTY <path>"
+ *     and optionally linked at --pty-link.
+ *   - Four AS5048A encoders are emulated on SPI, selected by PA4..PA7 (active low).
+ *   - Four motors are modelled from the PWM compare registers of Timers 1/3/4/5 (fast PWM,
+ *     TOP = ICRn) and the enables PA0..PA3: applied voltage space vector (Clarke transform of the
+ *     three duties around 50 %), torque = k_t |V| sin(angle(V) - p theta), J dw/dt = torque - b w.
+ *   - The control step is timed in CPU cycles between the firmware's writes GPIOR0 = 1 and
+ *     GPIOR0 = 0; min/mean/max are printed periodically ("STATS ...") and at exit ("FINAL ...").
+ *
+ * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
+ * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "quit".
+ * The harness never calls uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
+ */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <simavr/avr_ioport.h>
+#include <simavr/avr_spi.h>
+#include <simavr/avr_uart.h>
+#include <simavr/parts/uart_pty.h>
+#include <simavr/sim_avr.h>
+#include <simavr/sim_elf.h>
+#include <simavr/sim_io.h>
+#include <simavr/sim_irq.h>
+
+/* ATmega2560 data-space addresses (avr-libc iomxx0_1.h, I/O address + 0x20). */
+enum {
+    ADDR_PORTA = 0x22,
+    ADDR_DDRA = 0x21,
+    ADDR_GPIOR0 = 0x3E,
+    ADDR_SPDR = 0x4E,
+};
+
+#define N_MOTORS 4
+#define TWO_PI 6.283185307179586
+#define ENC_COUNTS 16384
+
+/* Timer register block of one motor: TCCRnA, TCCRnB, ICRn, OCRnA/B/C (16-bit, low byte first). */
+typedef struct {
+    uint16_t tccra, tccrb, icr, ocr[3];
+} timer_regs_t;
+
+static const timer_regs_t k_timers[N_MOTORS] = {
+    {0x80, 0x81, 0x86, {0x88, 0x8A, 0x8C}},       /* M0: Timer1 */
+    {0x90, 0x91, 0x96, {0x98, 0x9A, 0x9C}},       /* M1: Timer3 */
+    {0xA0, 0xA1, 0xA6, {0xA8, 0xAA, 0xAC}},       /* M2: Timer4 */
+    {0x120, 0x121, 0x126, {0x128, 0x12A, 0x12C}}, /* M3: Timer5 */
+};
+
+typedef enum {
+    ENC_OK = 0,
+    ENC_FAULT_ERRFLAG, /* answers with the error flag (bit 14) set */
+    ENC_FAULT_HIGH,    /* no answer, MISO pulled high: reads 0xFFFF */
+    ENC_FAULT_LOW,     /* no answer, MISO stuck low: reads 0x0000 */
+    ENC_FAULT_PARITY,  /* angle with a wrong parity bit */
+} enc_fault_t;
+
+static const char* const k_fault_names[] = {"none", "error", "high", "low", "parity"};
+
+typedef struct {
+    /* motor model */
+    double theta_rad; /* mechanical rotor angle */
+    double omega_rad_s;
+    double load_nm; /* extra load torque (opposes positive rotation), set from stdin */
+    double v_alpha, v_beta;
+    int enabled;
+    /* AS5048A emulation */
+    int selected;       /* chip select currently low */
+    int byte_in_frame;  /* bytes exchanged since CS fell */
+    uint16_t rx_word;   /* command being shifted in */
+    uint16_t tx_word;   /* answer being shifted out */
+    uint16_t last_cmd;  /* command latched at the last complete frame */
+    int error_flag;     /* sticky error flag as in the chip's error register */
+    volatile int fault; /* enc_fault_t, may be changed from the stdin thread */
+    unsigned frames;
+} motor_t;
+
+typedef struct {
+    double k_t_nm_per_v;
+    double k_e_vs_rad;
+    double j_kgm2;
+    double b_nms;
+    double vbus_v;
+    double elec_offset_rad;
+    int pole_pairs;
+    uint32_t model_cycles;
+} params_t;
+
+static params_t g_par = {
+    /* GB54-1 gimbal motor driving a 100 g rotor wheel: defaults are deliberately round numbers
+       of the right order (see docs/fil.md); every one is an option. */
+    .k_t_nm_per_v = 0.01, .k_e_vs_rad = 0.04,     .j_kgm2 = 1.8e-4, .b_nms = 2.0e-5,
+    .vbus_v = 12.0,       .elec_offset_rad = 0.0, .pole_pairs = 7,  .model_cycles = 1000,
+};
+
+static motor_t g_mot[N_MOTORS];
+static avr_t* g_avr;
+static uart_pty_t g_pty;
+
+/* control-step cycle statistics */
+typedef struct {
+    uint64_t n, sum, min, max, overruns;
+} cyc_stats_t;
+static cyc_stats_t g_cyc_total, g_cyc_window;
+static avr_cycle_count_t g_step_start;
+static int g_step_open;
+static uint64_t g_tick_cycles = 16000;
+
+static volatile sig_atomic_t g_stop;
+static volatile int g_stats_request;
+static double g_stats_period_s = 1.0;
+static int g_free_running;
+static double g_wall_t0;
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double sim_time_s(void) {
+    return (double)g_avr->cycle / (double)g_avr->frequency;
+}
+
+static uint16_t read16(uint16_t addr) {
+    return (uint16_t)(g_avr->data[addr] | ((uint16_t)g_avr->data[addr + 1] << 8));
+}
+
+/* ---------------------------------------------------------------- cycle counting (GPIOR0) */
+
+static void cyc_add(cyc_stats_t* s, uint64_t c) {
+    if (s->n == 0 || c < s->min) s->min = c;
+    if (c > s->max) s->max = c;
+    s->sum += c;
+    s->n++;
+    if (c > g_tick_cycles) s->overruns++;
+}
+
+static void gpior0_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v; /* the register must still hold what the firmware wrote */
+    if (v == 1) {
+        g_step_start = avr->cycle;
+        g_step_open = 1;
+    } else if (v == 0 && g_step_open) {
+        uint64_t c = avr->cycle - g_step_start;
+        cyc_add(&g_cyc_total, c);
+        cyc_add(&g_cyc_window, c);
+        g_step_open = 0;
+    }
+}
+
+/* ---------------------------------------------------------------- AS5048A emulation */
+
+static uint16_t with_even_parity(uint16_t w15) {
+    uint16_t x = w15 & 0x7FFF;
+    int ones = __builtin_popcount(x);
+    return (uint16_t)(x | ((ones & 1) ? 0x8000 : 0));
+}
+
+static uint16_t encoder_angle_code(const motor_t* m) {
+    double turns = m->theta_rad / TWO_PI;
+    turns -= floor(turns);
+    return (uint16_t)((int)(turns * ENC_COUNTS) & 0x3FFF);
+}
+
+/* Answer of the frame that starts now, given the command latched in the previous frame. */
+static uint16_t encoder_answer(motor_t* m) {
+    switch ((enc_fault_t)m->fault) {
+        case ENC_FAULT_HIGH:
+            return 0xFFFF;
+        case ENC_FAULT_LOW:
+            return 0x0000;
+        default:
+            break;
+    }
+    uint16_t cmd = m->last_cmd;
+    uint16_t data;
+    if (cmd == 0x0000) {
+        data = 0; /* NOP */
+    } else if ((cmd & 0x3FFF) == 0x3FFF && (cmd & 0x4000)) {
+        data = encoder_angle_code(m);
+    } else if ((cmd & 0x3FFF) == 0x0001 && (cmd & 0x4000)) {
+        data = m->error_flag ? 0x0001 : 0; /* clear error flag register: reading clears it */
+        m->error_flag = 0;
+    } else if ((cmd & 0x3FFF) == 0x3FFD && (cmd & 0x4000)) {
+        data = 0x0100; /* diagnostics: OCF (offset compensation finished), no COF/COMP */
+    } else {
+        data = 0;
+        m->error_flag = 1; /* invalid command */
+    }
+    if (m->fault == ENC_FAULT_ERRFLAG) m->error_flag = 1;
+    uint16_t w = (uint16_t)((data & 0x3FFF) | (m->error_flag ? 0x4000 : 0));
+    w = with_even_parity(w);
+    if (m->fault == ENC_FAULT_PARITY) w ^= 0x8000;
+    return w;
+}
+
+static void chip_select_changed(struct avr_irq_t* irq, uint32_t value, void* param) {
+    (void)irq;
+    motor_t* m = (motor_t*)param;
+    int sel = (value == 0);
+    if (sel && !m->selected) {
+        m->byte_in_frame = 0;
+        m->rx_word = 0;
+        m->tx_word = encoder_answer(m);
+    } else if (!sel && m->selected) {
+        if (m->byte_in_frame == 2) {
+            /* A command with a wrong parity sets the chip's error flag. */
+            if (with_even_parity(m->rx_word) != m->rx_word) m->error_flag = 1;
+            m->last_cmd = m->rx_word;
+            m->frames++;
+        }
+    }
+    m->selected = sel;
+}
+
+/* One byte on the bus: every selected slave shifts out its byte (wired-AND of MISO). */
+static uint8_t slaves_exchange(uint8_t mosi) {
+    uint8_t miso = 0xFF;
+    for (int i = 0; i < N_MOTORS; i++) {
+        motor_t* m = &g_mot[i];
+        if (!m->selected) continue;
+        uint8_t out = 0xFF;
+        if (m->byte_in_frame == 0) {
+            out = (uint8_t)(m->tx_word >> 8);
+            m->rx_word = (uint16_t)(mosi << 8);
+        } else if (m->byte_in_frame == 1) {
+            out = (uint8_t)(m->tx_word & 0xFF);
+            m->rx_word |= mosi;
+        }
+        m->byte_in_frame++;
+        miso &= out;
+    }
+    return miso;
+}
+
+/*
+ * SPI master transfers. simavr 1.6 completes every SPDR write after a fixed 100 us whatever the
+ * SPI clock (avr_spi.c: avr_cycle_timer_register_usec(avr, 100, ...)), which would charge the
+ * firmware 1,600 cycles per byte instead of 8 SCK periods. The harness takes over the SPDR write:
+ * the byte completes after 8 * (SPI clock divider) CPU cycles, the answer goes into simavr's input
+ * register and SPIF is raised through simavr's own interrupt vector (so SPIE works too); the SPDR
+ * read stays simavr's.
+ */
+static avr_spi_t* g_spi;
+static uint8_t g_spi_mosi;
+static unsigned long long g_spi_bytes;
+
+static avr_cycle_count_t spi_byte_done(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)when;
+    (void)param;
+    g_spi->input_data_register = slaves_exchange(g_spi_mosi);
+    g_spi_bytes++;
+    avr_raise_interrupt(avr, &g_spi->spi);
+    return 0;
+}
+
+static uint32_t spi_byte_cycles(avr_t* avr) {
+    static const uint32_t div[4] = {4, 16, 64, 128};
+    uint32_t d =
+        div[avr_regbit_get(avr, g_spi->spr[0]) | (avr_regbit_get(avr, g_spi->spr[1]) << 1)];
+    if (avr_regbit_get(avr, g_spi->spr[2])) d /= 2;
+    return 8 * d;
+}
+
+static void spdr_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v;
+    if (!avr_regbit_get(avr, g_spi->spe) || !avr_regbit_get(avr, g_spi->mstr)) return;
+    avr_regbit_clear(avr, g_spi->spi.raised);
+    g_spi_mosi = v;
+    avr_cycle_timer_cancel(avr, spi_byte_done, NULL);
+    avr_cycle_timer_register(avr, spi_byte_cycles(avr), spi_byte_done, NULL);
+}
+
+/* ---------------------------------------------------------------- PWM timers */
+
+/*
+ * simavr 1.6 schedules a cycle-timer event for every overflow and compare match of a running
+ * timer and looks the output pin up through avr_ioctl() each time: four timers at 20 kHz cost
+ * more host time than the whole CPU (measured: a busy loop ran 13x real time with no PWM timer,
+ * 1.2x with four). The motor model reads OCRnx/ICRn itself, so by default the control registers
+ * of Timers 1/3/4/5 are plain storage and those timers never start. TCNTn, their interrupts and
+ * OC pin levels are then not simulated (warned about if the firmware enables such an
+ * interrupt); --sim-pwm-timers restores simavr's own handling.
+ */
+static const uint16_t k_timsk[N_MOTORS] = {0x6F, 0x71, 0x72, 0x73};
+static int g_sim_pwm_timers;
+static int g_timsk_warned;
+
+static void plain_store(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v;
+}
+
+static void detach_pwm_timers(avr_t* avr) {
+    for (int i = 0; i < N_MOTORS; i++) {
+        /* TCCRnA, TCCRnB, TCCRnC are consecutive */
+        for (uint16_t a = k_timers[i].tccra; a <= k_timers[i].tccra + 2; a++) {
+            avr->io[AVR_DATA_TO_IO(a)].w.c = plain_store;
+            avr->io[AVR_DATA_TO_IO(a)].w.param = NULL;
+        }
+    }
+}
+
+static void check_timer_interrupts(void) {
+    if (g_sim_pwm_timers || g_timsk_warned) return;
+    for (int i = 0; i < N_MOTORS; i++) {
+        if (g_avr->data[k_timsk[i]] != 0) {
+            printf(
+                "WARN firmware enabled TIMSK 0x%02x = 0x%02x on a PWM timer; its interrupts "
+                "are not simulated without --sim-pwm-timers\n",
+                k_timsk[i], g_avr->data[k_timsk[i]]);
+            g_timsk_warned = 1;
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- motor model */
+
+static double phase_duty(const timer_regs_t* t, int ch, uint16_t top) {
+    uint8_t com = (uint8_t)((g_avr->data[t->tccra] >> (6 - 2 * ch)) & 3);
+    double d = (double)read16(t->ocr[ch]) / (double)top;
+    if (d > 1.0) d = 1.0;
+    if (com == 3) d = 1.0 - d; /* inverting */
+    if (com < 2) d = 0.5;      /* output disconnected from the pin: phase floats, no drive */
+    return d;
+}
+
+static uint16_t pwm_top(const timer_regs_t* t) {
+    int wgm = (g_avr->data[t->tccra] & 3) | ((g_avr->data[t->tccrb] >> 1) & 0x0C);
+    switch (wgm) {
+        case 5:
+            return 0xFF;
+        case 6:
+            return 0x1FF;
+        case 7:
+            return 0x3FF;
+        case 14:
+            return read16(t->icr);
+        case 15:
+            return read16(t->ocr[0]);
+        default:
+            return 0; /* not a fast PWM mode: no drive (phase-correct does not run in simavr) */
+    }
+}
+
+static void motor_voltage(int i, motor_t* m) {
+    const timer_regs_t* t = &k_timers[i];
+    uint8_t porta = g_avr->data[ADDR_PORTA] & g_avr->data[ADDR_DDRA];
+    uint16_t top = pwm_top(t);
+    m->enabled = ((porta >> i) & 1) && top > 0;
+    if (!m->enabled) {
+        m->v_alpha = m->v_beta = 0.0;
+        return;
+    }
+    double va = (phase_duty(t, 0, top) - 0.5) * g_par.vbus_v;
+    double vb = (phase_duty(t, 1, top) - 0.5) * g_par.vbus_v;
+    double vc = (phase_duty(t, 2, top) - 0.5) * g_par.vbus_v;
+    /* amplitude-invariant Clarke transform: the common mode drops out */
+    m->v_alpha = (2.0 / 3.0) * (va - 0.5 * vb - 0.5 * vc);
+    m->v_beta = (2.0 / 3.0) * (0.8660254037844386 * (vb - vc));
+}
+
+static void motor_step(motor_t* m, double dt) {
+    double e = g_par.pole_pairs * m->theta_rad + g_par.elec_offset_rad;
+    /* k_t (|V| sin(angle(V) - e) - k_e w): the quadrature voltage, written without atan2,
+       minus the back-EMF, drives the (resistive) winding current; k_t = K_torque / R */
+    double v_q = m->v_beta * cos(e) - m->v_alpha * sin(e);
+    double torque = m->enabled ? g_par.k_t_nm_per_v * (v_q - g_par.k_e_vs_rad * m->omega_rad_s) : 0;
+    double load = m->load_nm;
+    if (m->omega_rad_s < 0) load = -load;
+    double acc = (torque - g_par.b_nms * m->omega_rad_s - load) / g_par.j_kgm2;
+    m->omega_rad_s += acc * dt; /* semi-implicit Euler */
+    m->theta_rad += m->omega_rad_s * dt;
+    if (m->theta_rad > 1e6 || m->theta_rad < -1e6) m->theta_rad = fmod(m->theta_rad, TWO_PI);
+}
+
+static double rpm(const motor_t* m) {
+    return m->omega_rad_s * 60.0 / TWO_PI;
+}
+
+/* ---------------------------------------------------------------- stats output */
+
+static void print_stats(const char* tag, const cyc_stats_t* s) {
+    double mean = s->n ? (double)s->sum / (double)s->n : 0.0;
+    double wall = now_s() - g_wall_t0;
+    double t = sim_time_s();
+    printf(
+        "%s t_s=%.3f wall_s=%.3f rt=%.3f steps=%llu cyc_min=%llu cyc_mean=%.1f cyc_max=%llu "
+        "load_pct=%.2f overruns=%llu rpm=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s\n",
+        tag, t, wall, wall > 0 ? t / wall : 0.0, (unsigned long long)s->n,
+        (unsigned long long)s->min, mean, (unsigned long long)s->max,
+        100.0 * (double)s->max / (double)g_tick_cycles, (unsigned long long)s->overruns,
+        rpm(&g_mot[0]), rpm(&g_mot[1]), rpm(&g_mot[2]), rpm(&g_mot[3]),
+        k_fault_names[g_mot[0].fault], k_fault_names[g_mot[1].fault], k_fault_names[g_mot[2].fault],
+        k_fault_names[g_mot[3].fault]);
+    fflush(stdout);
+}
+
+/* ---------------------------------------------------------------- periodic work */
+
+static avr_cycle_count_t model_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)param;
+    double dt = (double)g_par.model_cycles / (double)avr->frequency;
+    for (int i = 0; i < N_MOTORS; i++) {
+        motor_voltage(i, &g_mot[i]);
+        motor_step(&g_mot[i], dt);
+    }
+    check_timer_interrupts();
+    return when + g_par.model_cycles;
+}
+
+static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)param;
+    if (!g_free_running) {
+        double ahead = sim_time_s() - (now_s() - g_wall_t0);
+        if (ahead > 0.0005) {
+            struct timespec ts = {0, (long)(ahead * 1e9)};
+            nanosleep(&ts, NULL);
+        }
+    }
+    return when + avr->frequency / 1000; /* every simulated millisecond */
+}
+
+static avr_cycle_count_t stats_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)param;
+    print_stats("STATS", &g_cyc_window);
+    memset(&g_cyc_window, 0, sizeof(g_cyc_window));
+    return when + (avr_cycle_count_t)(g_stats_period_s * avr->frequency);
+}
+
+/* ---------------------------------------------------------------- stdin commands */
+
+static int parse_fault(const char* s) {
+    for (int i = 0; i < (int)(sizeof(k_fault_names) / sizeof(k_fault_names[0])); i++) {
+        if (strcmp(s, k_fault_names[i]) == 0) return i;
+    }
+    return -1;
+}
+
+static void* stdin_thread(void* arg) {
+    (void)arg;
+    char line[128];
+    while (fgets(line, sizeof(line), stdin)) {
+        char cmd[16] = "", mode[16] = "";
+        int motor = -1;
+        double value = 0.0;
+        int n = sscanf(line, "%15s %d %15s", cmd, &motor, mode);
+        int motor_ok = motor >= 0 && motor < N_MOTORS;
+        if (n >= 1 && strcmp(cmd, "quit") == 0) {
+            g_stop = 1;
+        } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
+            g_stats_request = 1;
+        } else if (n == 3 && strcmp(cmd, "fault") == 0 && motor_ok && parse_fault(mode) >= 0) {
+            g_mot[motor].fault = parse_fault(mode);
+            printf("OK fault %d %s\n", motor, mode);
+        } else if (n == 2 && strcmp(cmd, "clear") == 0 && motor_ok) {
+            g_mot[motor].fault = ENC_OK;
+            printf("OK clear %d\n", motor);
+        } else if (n == 3 && strcmp(cmd, "load") == 0 && motor_ok &&
+                   sscanf(mode, "%lf", &value) == 1) {
+            g_mot[motor].load_nm = value;
+            printf("OK load %d %g\n", motor, value);
+        } else {
+            printf("ERR unknown command: %s", line);
+        }
+        fflush(stdout);
+    }
+    return NULL; /* stdin closed: keep running */
+}
+
+static void on_signal(int sig) {
+    (void)sig;
+    g_stop = 1;
+}
+
+static void on_usr1(int sig) {
+    (void)sig;
+    g_stats_request = 1;
+}
+
+/* The pacing is ours: never let simavr usleep() on CPU sleep. */
+static void no_sleep(avr_t* avr, avr_cycle_count_t how_long) {
+    (void)avr;
+    (void)how_long;
+}
+
+/* ---------------------------------------------------------------- set-up */
+
+static void usage(const char* prog) {
+    fprintf(stderr,
+            "usage: %s [options] firmware.elf\n"
+            "  -t, --time S           run S simulated seconds (default: until killed / quit)\n"
+            "  -f, --free             free-running (default: paced to wall-clock time)\n"
+            "  -l, --pty-link PATH    symlink PATH to the UART0 pseudo-terminal\n"
+            "  -s, --stats-period S   simulated seconds between STATS lines (default 1, 0 = off)\n"
+            "  -e, --enc-fault M:MODE encoder M (0..3) fault from start: "
+            "error|high|low|parity\n"
+            "      --kt NM_PER_V      torque per volt of applied vector (default %g)\n"
+            "      --ke V_S_PER_RAD   back-EMF per rad/s, active while enabled (default %g)\n"
+            "      --inertia KGM2     rotor + wheel inertia (default %g)\n"
+            "      --damping NMS      viscous damping (default %g)\n"
+            "      --vbus V           bridge supply (default %g)\n"
+            "      --pole-pairs N     (default %d)\n"
+            "      --elec-offset DEG  electrical angle at encoder zero (default 0)\n"
+            "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
+            "      --freq HZ          CPU clock (default 16000000)\n"
+            "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
+            "                         firmware uses their counters or interrupts)\n",
+            prog, g_par.k_t_nm_per_v, g_par.k_e_vs_rad, g_par.j_kgm2, g_par.b_nms, g_par.vbus_v,
+            g_par.pole_pairs, g_par.model_cycles);
+}
+
+enum {
+    OPT_KT = 256,
+    OPT_KE,
+    OPT_J,
+    OPT_B,
+    OPT_VBUS,
+    OPT_PP,
+    OPT_OFFSET,
+    OPT_MODEL,
+    OPT_FREQ,
+    OPT_SIMPWM
+};
+
+typedef struct {
+    const char* elf;
+    const char* pty_link;
+    double run_s;
+    uint32_t freq_hz;
+} options_t;
+
+static double parse_double(const char* s, const char* what) {
+    char* end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v)) {
+        fprintf(stderr, "fil_harness: bad value '%s' for %s\n", s, what);
+        exit(2);
+    }
+    return v;
+}
+
+static void parse_enc_fault(const char* s) {
+    int motor = -1;
+    char mode[16] = "";
+    if (sscanf(s, "%d:%15s", &motor, mode) != 2 || motor < 0 || motor >= N_MOTORS ||
+        parse_fault(mode) < 0) {
+        fprintf(stderr, "fil_harness: bad --enc-fault '%s' (want M:error|high|low|parity)\n", s);
+        exit(2);
+    }
+    g_mot[motor].fault = parse_fault(mode);
+}
+
+static void parse_options(int argc, char** argv, options_t* o) {
+    static const struct option longopts[] = {
+        {"time", required_argument, 0, 't'},
+        {"free", no_argument, 0, 'f'},
+        {"pty-link", required_argument, 0, 'l'},
+        {"stats-period", required_argument, 0, 's'},
+        {"enc-fault", required_argument, 0, 'e'},
+        {"kt", required_argument, 0, OPT_KT},
+        {"inertia", required_argument, 0, OPT_J},
+        {"damping", required_argument, 0, OPT_B},
+        {"vbus", required_argument, 0, OPT_VBUS},
+        {"pole-pairs", required_argument, 0, OPT_PP},
+        {"elec-offset", required_argument, 0, OPT_OFFSET},
+        {"model-cycles", required_argument, 0, OPT_MODEL},
+        {"freq", required_argument, 0, OPT_FREQ},
+        {"sim-pwm-timers", no_argument, 0, OPT_SIMPWM},
+        {"ke", required_argument, 0, OPT_KE},
+        {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
+    };
+    int c;
+    while ((c = getopt_long(argc, argv, "t:fl:s:e:h", longopts, NULL)) != -1) {
+        switch (c) {
+            case 't':
+                o->run_s = parse_double(optarg, "--time");
+                break;
+            case 'f':
+                g_free_running = 1;
+                break;
+            case 'l':
+                o->pty_link = optarg;
+                break;
+            case 's':
+                g_stats_period_s = parse_double(optarg, "--stats-period");
+                break;
+            case 'e':
+                parse_enc_fault(optarg);
+                break;
+            case OPT_KT:
+                g_par.k_t_nm_per_v = parse_double(optarg, "--kt");
+                break;
+            case OPT_J:
+                g_par.j_kgm2 = parse_double(optarg, "--inertia");
+                break;
+            case OPT_B:
+                g_par.b_nms = parse_double(optarg, "--damping");
+                break;
+            case OPT_VBUS:
+                g_par.vbus_v = parse_double(optarg, "--vbus");
+                break;
+            case OPT_PP:
+                g_par.pole_pairs = (int)parse_double(optarg, "--pole-pairs");
+                break;
+            case OPT_OFFSET:
+                g_par.elec_offset_rad = parse_double(optarg, "--elec-offset") * TWO_PI / 360.0;
+                break;
+            case OPT_MODEL:
+                g_par.model_cycles = (uint32_t)parse_double(optarg, "--model-cycles");
+                break;
+            case OPT_FREQ:
+                o->freq_hz = (uint32_t)parse_double(optarg, "--freq");
+                break;
+            case OPT_SIMPWM:
+                g_sim_pwm_timers = 1;
+                break;
+            case OPT_KE:
+                g_par.k_e_vs_rad = parse_double(optarg, "--ke");
+                break;
+            default:
+                usage(argv[0]);
+                exit(c == 'h' ? 0 : 2);
+        }
+    }
+    if (optind != argc - 1) {
+        usage(argv[0]);
+        exit(2);
+    }
+    o->elf = argv[optind];
+    if (g_par.j_kgm2 <= 0 || g_par.model_cycles == 0 || g_par.pole_pairs <= 0) {
+        fprintf(stderr, "fil_harness: --inertia, --model-cycles, --pole-pairs must be > 0\n");
+        exit(2);
+    }
+}
+
+static void connect_peripherals(avr_t* avr, const char* pty_link) {
+    /* UART0: no console echo, no usleep while the firmware polls an empty receiver */
+    uint32_t flags = 0;
+    avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+    flags &= ~(uint32_t)(AVR_UART_FLAG_POLL_SLEEP | AVR_UART_FLAG_STDIO);
+    avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+    uart_pty_init(avr, &g_pty);
+    uart_pty_connect(&g_pty, '0');
+    printf("PTY %s\n", g_pty.pty.slavename);
+    if (pty_link) {
+        unlink(pty_link);
+        if (symlink(g_pty.pty.slavename, pty_link) != 0) {
+            fprintf(stderr, "fil_harness: cannot link %s: %s\n", pty_link, strerror(errno));
+            exit(1);
+        }
+    }
+
+    g_spi = (avr_spi_t*)avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param;
+    if (!g_spi || g_spi->r_spdr != ADDR_SPDR) {
+        fprintf(stderr, "fil_harness: SPI module not found at SPDR 0x%02x\n", ADDR_SPDR);
+        exit(1);
+    }
+    /* replace, not chain: avr_register_io_write() would add ours next to simavr's handler */
+    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.c = spdr_write;
+    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param = NULL;
+    for (int i = 0; i < N_MOTORS; i++) {
+        /* pin IRQs fire on changes only and start at 0: begin as "not selected" and let the
+           firmware's first high write be a no-op, its first low write a frame start */
+        g_mot[i].selected = 0;
+        avr_irq_register_notify(
+            avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('A'), IOPORT_IRQ_PIN4 + i),
+            chip_select_changed, &g_mot[i]);
+    }
+    avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
+}
+
+int main(int argc, char** argv) {
+    options_t opt = {0};
+    opt.freq_hz = 16000000;
+    parse_options(argc, argv, &opt);
+    setvbuf(stdout, NULL, _IOLBF, 0);
+
+    elf_firmware_t fw;
+    memset(&fw, 0, sizeof(fw));
+    if (access(opt.elf, R_OK) != 0 || elf_read_firmware(opt.elf, &fw) != 0) {
+        fprintf(stderr, "fil_harness: cannot read firmware ELF %s\n", opt.elf);
+        return 1;
+    }
+    g_avr = avr_make_mcu_by_name("atmega2560");
+    if (!g_avr) {
+        fprintf(stderr, "fil_harness: simavr has no atmega2560\n");
+        return 1;
+    }
+    avr_init(g_avr);
+    strcpy(fw.mmcu, "atmega2560");
+    fw.frequency = opt.freq_hz;
+    avr_load_firmware(g_avr, &fw);
+    g_avr->frequency = opt.freq_hz;
+    g_avr->sleep = no_sleep;
+    g_tick_cycles = opt.freq_hz / 1000;
+
+    connect_peripherals(g_avr, opt.pty_link);
+    if (!g_sim_pwm_timers) detach_pwm_timers(g_avr);
+    avr_cycle_timer_register(g_avr, g_par.model_cycles, model_timer, NULL);
+    avr_cycle_timer_register(g_avr, opt.freq_hz / 1000, pace_timer, NULL);
+    if (g_stats_period_s > 0) {
+        avr_cycle_timer_register(g_avr, (avr_cycle_count_t)(g_stats_period_s * opt.freq_hz),
+                                 stats_timer, NULL);
+    }
+
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    signal(SIGUSR1, on_usr1);
+    pthread_t cmd_thread;
+    pthread_create(&cmd_thread, NULL, stdin_thread, NULL);
+    pthread_detach(cmd_thread);
+
+    avr_cycle_count_t end_cycle =
+        opt.run_s > 0 ? (avr_cycle_count_t)(opt.run_s * opt.freq_hz) : (avr_cycle_count_t)-1;
+    g_wall_t0 = now_s();
+    int state = cpu_Running;
+    while (!g_stop && g_avr->cycle < end_cycle) {
+        state = avr_run(g_avr);
+        if (state == cpu_Done || state == cpu_Crashed) break;
+        if (g_stats_request) {
+            g_stats_request = 0;
+            print_stats("STATS", &g_cyc_total);
+        }
+    }
+    if (state == cpu_Crashed) printf("CRASHED pc=0x%05x\n", (unsigned)g_avr->pc);
+    print_stats("FINAL", &g_cyc_total);
+    /* no uart_pty_stop(): it hangs in pthread_join (simavr 1.6); exit ends its thread */
+    if (opt.pty_link) unlink(opt.pty_link);
+    fflush(stdout);
+    _exit(state == cpu_Crashed ? 3 : 0);
+}
