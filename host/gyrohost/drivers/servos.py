@@ -1,0 +1,486 @@
+"""Two (or more) Dynamixel MX-12W string servos through dynamixel-sdk, Protocol 1.0.
+
+Each servo winds one string on a pulley of radius ``r`` in multi-turn mode (CW = CCW = 4095,
+positions -28672..28672 steps, 4096 steps per turn). The string length is
+``L = length_at_zero_m + length_sign * (p - zero_position) * 2 pi r / 4096`` (see
+:func:`steps_to_length`). Limits on length and speed are checked before anything is sent:
+a command outside them is refused with :class:`ServoLimitError` naming the servo, value and limit.
+
+SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
+
+- ``GroupBulkRead.txRxPacket`` raises ``TypeError`` for Protocol 1.0; the bulk read here calls
+  ``makeParam``, ``bulkReadTx`` and one ``readRx`` per servo itself (which also keeps each
+  servo's error byte, which the group discards). ``read_mode = "per_servo"`` uses ``readTxRx``.
+- The SDK returns raw unsigned words: positions are 16-bit two's complement, present speed and
+  load are sign-magnitude (bit 10 = clockwise = negative here); converted in this module.
+- ``GroupSyncWrite`` is a broadcast without a status reply: goals are confirmed by reading back.
+- pyserial's low-latency ioctl fails on a pty; it is attempted and the failure tolerated.
+"""
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import dynamixel_sdk as sdk
+
+from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
+
+MODEL_MX12W = 104
+STEPS_PER_TURN = 4096
+SPEED_UNIT_RAD_S = 0.916 * 2.0 * math.pi / 60.0
+"""Moving/present speed per unit, rad/s (0.916 rpm)."""
+LOAD_UNIT = 0.001
+"""Present load per unit, fraction of the maximum torque (0.1 %)."""
+MULTI_TURN_LIMIT = 4095
+SPEED_MAX_UNITS = 1023
+
+
+class Addr:
+    """MX-12W control table addresses (Protocol 1.0)."""
+
+    MODEL = 0
+    ID = 3
+    BAUD = 4
+    RETURN_DELAY = 5
+    CW_LIMIT = 6
+    CCW_LIMIT = 8
+    STATUS_RETURN = 16
+    SHUTDOWN = 18
+    MULTI_TURN_OFFSET = 20
+    RESOLUTION_DIVIDER = 22
+    TORQUE_ENABLE = 24
+    GOAL_POSITION = 30
+    MOVING_SPEED = 32
+    TORQUE_LIMIT = 34
+    PRESENT_POSITION = 36
+    PRESENT_SPEED = 38
+    PRESENT_LOAD = 40
+    MOVING = 46
+    GOAL_ACCELERATION = 73
+
+
+FAULT_BITS = {
+    0x01: "input voltage",
+    0x02: "angle limit",
+    0x04: "overheating",
+    0x08: "range",
+    0x10: "checksum",
+    0x20: "overload",
+    0x40: "instruction",
+}
+"""Status packet error bits and their names."""
+
+
+class ServoError(RuntimeError):
+    """A servo or its bus failed."""
+
+
+class ServoCommError(ServoError):
+    """No valid status packet (timeout, corrupt packet, port busy or failed)."""
+
+    def __init__(self, message: str, servo_id: int, result: int) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.result = result
+
+
+class ServoFaultError(ServoError):
+    """A servo reported faults in its status error byte.
+
+    Attributes
+    ----------
+    servo_id : int
+    faults : tuple of str
+        Names from :data:`FAULT_BITS`.
+    states : list of ServoState
+        Everything read in the same call (when raised by :meth:`StringServoBus.read_states`).
+    """
+
+    def __init__(self, message: str, servo_id: int, faults: tuple[str, ...], states=()) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.faults = faults
+        self.states = list(states)
+
+
+class ServoLimitError(ValueError):
+    """A command outside a configured limit was refused; nothing was sent."""
+
+
+def fault_names(error: int) -> tuple[str, ...]:
+    """Names of the fault bits set in a status ``error`` byte."""
+    return tuple(name for bit, name in FAULT_BITS.items() if error & bit)
+
+
+def int16_from_word(word: int) -> int:
+    """Signed value of a 16-bit two's complement ``word``."""
+    word &= 0xFFFF
+    return word - 0x10000 if word & 0x8000 else word
+
+
+def word_from_int16(value: int) -> int:
+    """16-bit two's complement word of a signed ``value`` in -32768..32767."""
+    if not -0x8000 <= value <= 0x7FFF:
+        raise ValueError(f"{value} does not fit a signed 16-bit word")
+    return value & 0xFFFF
+
+
+def signed_from_sign_magnitude(word: int) -> int:
+    """Signed value of an MX sign-magnitude word (bits 0-9 magnitude, bit 10 = negative)."""
+    magnitude = word & 0x3FF
+    return -magnitude if word & 0x400 else magnitude
+
+
+def sign_magnitude_from_signed(value: int) -> int:
+    """MX sign-magnitude word of a signed ``value`` in -1023..1023."""
+    if abs(value) > 0x3FF:
+        raise ValueError(f"{value} does not fit a 10-bit magnitude")
+    return (abs(value) & 0x3FF) | (0x400 if value < 0 else 0)
+
+
+def steps_per_metre(servo: ServoConfig) -> float:
+    """Position steps per metre of string."""
+    return STEPS_PER_TURN / (2.0 * math.pi * servo.pulley_radius_m)
+
+
+def length_to_steps(servo: ServoConfig, length_m: float) -> float:
+    """Servo position, steps (not rounded), at which the string is ``length_m`` m long."""
+    delta_m = length_m - servo.length_at_zero_m
+    return servo.zero_position + servo.length_sign * delta_m * steps_per_metre(servo)
+
+
+def steps_to_length(servo: ServoConfig, position_steps: float) -> float:
+    """String length, m, at servo position ``position_steps``."""
+    delta_steps = position_steps - servo.zero_position
+    return servo.length_at_zero_m + servo.length_sign * delta_steps / steps_per_metre(servo)
+
+
+def string_speed_per_unit(servo: ServoConfig) -> float:
+    """String speed, m/s, of one moving-speed unit."""
+    return SPEED_UNIT_RAD_S * servo.pulley_radius_m
+
+
+@dataclass(frozen=True)
+class ServoState:
+    """One servo read back.
+
+    Attributes
+    ----------
+    name : str
+    servo_id : int
+    position_steps : int
+        Present position, steps (multi-turn, signed).
+    length_m : float
+        String length at that position, m.
+    speed_m_s : float
+        Rate of change of the string length, m/s.
+    load_fraction : float
+        Present load, fraction of the maximum torque; positive = counter-clockwise torque.
+    faults : tuple of str
+        Fault names from the status error byte (empty when healthy).
+    t_ns : int
+        ``time.monotonic_ns`` when the reply was read, ns.
+    """
+
+    name: str
+    servo_id: int
+    position_steps: int
+    length_m: float
+    speed_m_s: float
+    load_fraction: float
+    faults: tuple[str, ...]
+    t_ns: int
+
+
+def _set_low_latency(port: sdk.PortHandler) -> bool:
+    """Ask for the FTDI low-latency mode; a pty (or non-Linux) refuses, which is fine."""
+    try:
+        port.ser.set_low_latency_mode(True)
+    except (ValueError, OSError, NotImplementedError, AttributeError):
+        return False
+    return True
+
+
+class StringServoBus:
+    """MX-12W string servos on one Dynamixel bus.
+
+    Parameters
+    ----------
+    config : ServoBusConfig
+        Port, baud, read mode and the servos (calibration and limits).
+    """
+
+    def __init__(self, config: ServoBusConfig) -> None:
+        if not config.servo:
+            raise ServoLimitError(f"servo bus on {config.port}: no servos configured")
+        self.config = config
+        self.servos = {s.name: s for s in config.servo}
+        for servo in config.servo:
+            _check_config_limits(servo)
+        self.port = sdk.PortHandler(config.port)
+        self.packets = sdk.PacketHandler(1.0)
+        self.low_latency = False
+        self._open = False
+
+    # --- port ---------------------------------------------------------------------------------
+    def open(self) -> "StringServoBus":
+        """Open the port at the configured baud rate (idempotent); returns ``self``."""
+        if self._open:
+            return self
+        try:
+            opened = self.port.openPort() and self.port.setBaudRate(self.config.baud)
+        except OSError as exc:  # pyserial's SerialException is an OSError
+            raise ServoError(f"servo bus: cannot open {self.config.port}: {exc}") from exc
+        if not opened:
+            raise ServoError(f"servo bus: {self.config.port} refused baud {self.config.baud}")
+        self.low_latency = _set_low_latency(self.port)
+        self._open = True
+        return self
+
+    def close(self) -> None:
+        """Close the port (idempotent)."""
+        if self._open:
+            self.port.closePort()
+            self._open = False
+
+    def __enter__(self) -> "StringServoBus":
+        return self.open()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # --- setup --------------------------------------------------------------------------------
+    def ping_all(self) -> dict[str, int]:
+        """Ping every servo; return name -> model number. Raises if one is not an MX-12W."""
+        models = {}
+        for servo in self.config.servo:
+            model, result, error = self.packets.ping(self.port, servo.id)
+            self._check(servo, result, error, "ping")
+            if model != MODEL_MX12W:
+                raise ServoError(
+                    f"servo '{servo.name}' (ID {servo.id}): model {model}, expected MX-12W "
+                    f"({MODEL_MX12W})"
+                )
+            models[servo.name] = model
+        return models
+
+    def configure(self) -> None:
+        """Ping, select multi-turn mode (CW = CCW = 4095), enable torque and hold position."""
+        self.ping_all()
+        for servo in self.config.servo:
+            for addr in (Addr.CW_LIMIT, Addr.CCW_LIMIT):
+                result, error = self.packets.write2ByteTxRx(
+                    self.port, servo.id, addr, MULTI_TURN_LIMIT
+                )
+                self._check(servo, result, error, f"write angle limit at {addr}")
+        self.hold()
+
+    def set_torque(self, enable: bool) -> None:
+        """Enable or disable the torque of every servo."""
+        for servo in self.config.servo:
+            result, error = self.packets.write1ByteTxRx(
+                self.port, servo.id, Addr.TORQUE_ENABLE, int(enable)
+            )
+            self._check(servo, result, error, "write torque enable")
+
+    # --- commands -----------------------------------------------------------------------------
+    def command_lengths(
+        self,
+        lengths_m: Mapping[str, float] | Sequence[float],
+        speeds_m_s: Mapping[str, float] | Sequence[float] | None = None,
+    ) -> dict[str, int]:
+        """Send string length goals (and speed limits) to the servos in one sync write.
+
+        Parameters
+        ----------
+        lengths_m : mapping name -> float, or sequence in configuration order, m
+            Goal string lengths.
+        speeds_m_s : same form, optional, m/s
+            Speed limits (positive); each servo's ``max_speed_m_s`` when omitted.
+
+        Returns
+        -------
+        dict
+            Servo name -> goal position sent, steps.
+
+        Raises
+        ------
+        ServoLimitError
+            A length or speed is outside its limit; then nothing at all is sent.
+        """
+        lengths = self._by_name(lengths_m, "lengths_m")
+        speeds = self._by_name(speeds_m_s, "speeds_m_s") if speeds_m_s is not None else {}
+        goals = {}
+        for name, length in lengths.items():
+            servo = self.servos[name]
+            speed = speeds.get(name, servo.max_speed_m_s)
+            goals[name] = (_goal_steps(servo, length), _speed_units(servo, speed))
+        self._sync_write_goals(goals)
+        return {name: steps for name, (steps, _) in goals.items()}
+
+    def hold(self) -> list[ServoState]:
+        """Safe state: enable torque and make each present position the goal.
+
+        Fault bits do not stop this (it is what a fault handler calls); communication
+        failures do. Returns the states read, faults included.
+        """
+        states = self._read_all()
+        goals = {}
+        for state in states:
+            servo = self.servos[state.name]
+            goals[state.name] = (state.position_steps, _speed_units(servo, servo.max_speed_m_s))
+        self._sync_write_goals(goals)
+        for servo in self.config.servo:
+            result, _ = self.packets.write1ByteTxRx(self.port, servo.id, Addr.TORQUE_ENABLE, 1)
+            self._check(servo, result, 0, "write torque enable")
+        return states
+
+    # --- read back ----------------------------------------------------------------------------
+    def read_states(self) -> list[ServoState]:
+        """Read position, speed and load of every servo (configuration order).
+
+        Raises
+        ------
+        ServoFaultError
+            A servo's error byte was non-zero (``states`` holds everything read).
+        ServoCommError
+            A servo did not answer or the answer was corrupt.
+        """
+        states = self._read_all()
+        for state in states:
+            if state.faults:
+                raise ServoFaultError(
+                    f"servo '{state.name}' (ID {state.servo_id}) reports: "
+                    f"{', '.join(state.faults)}",
+                    state.servo_id,
+                    state.faults,
+                    states,
+                )
+        return states
+
+    def read_lengths(self) -> dict[str, float]:
+        """Present string lengths, name -> m."""
+        return {s.name: s.length_m for s in self.read_states()}
+
+    # --- internals ----------------------------------------------------------------------------
+    def _by_name(self, values, what: str) -> dict[str, float]:
+        if isinstance(values, Mapping):
+            unknown = set(values) - set(self.servos)
+            if unknown:
+                raise ServoLimitError(f"{what}: unknown servo(s) {sorted(unknown)}")
+            return {name: float(v) for name, v in values.items()}
+        values = list(values)
+        if len(values) != len(self.config.servo):
+            raise ServoLimitError(
+                f"{what}: {len(values)} values for {len(self.config.servo)} servos"
+            )
+        return {s.name: float(v) for s, v in zip(self.config.servo, values, strict=True)}
+
+    def _sync_write_goals(self, goals: dict[str, tuple[int, int]]) -> None:
+        group = sdk.GroupSyncWrite(self.port, self.packets, Addr.GOAL_POSITION, 4)
+        for name, (steps, speed) in goals.items():
+            word = word_from_int16(steps)
+            group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
+        result = group.txPacket()
+        if result != sdk.COMM_SUCCESS:
+            raise ServoCommError(
+                f"servo bus {self.config.port}: sync write of goals failed: "
+                f"{self.packets.getTxRxResult(result)}",
+                sdk.BROADCAST_ID,
+                result,
+            )
+
+    def _read_all(self) -> list[ServoState]:
+        n = Addr.PRESENT_LOAD + 2 - Addr.PRESENT_POSITION
+        if self.config.read_mode == "bulk":
+            raw = self._bulk_read(Addr.PRESENT_POSITION, n)
+        else:
+            raw = {}
+            for servo in self.config.servo:
+                data, result, error = self.packets.readTxRx(
+                    self.port, servo.id, Addr.PRESENT_POSITION, n
+                )
+                self._check(servo, result, 0, "read present position/speed/load")
+                raw[servo.name] = (data, error, time.monotonic_ns())
+        return [self._state(self.servos[name], *raw[name]) for name in raw]
+
+    def _bulk_read(self, addr: int, n: int) -> dict[str, tuple[list[int], int, int]]:
+        group = sdk.GroupBulkRead(self.port, self.packets)
+        for servo in self.config.servo:
+            group.addParam(servo.id, addr, n)
+        group.makeParam()
+        result = self.packets.bulkReadTx(self.port, group.param, 3 * len(self.config.servo))
+        if result != sdk.COMM_SUCCESS:
+            self._check(self.config.servo[0], result, 0, "bulk read request")
+        raw = {}
+        for servo in self.config.servo:
+            data, result, error = self.packets.readRx(self.port, servo.id, n)
+            self._check(servo, result, 0, "bulk read reply")
+            raw[servo.name] = (data, error, time.monotonic_ns())
+        return raw
+
+    def _state(self, servo: ServoConfig, data: list[int], error: int, t_ns: int) -> ServoState:
+        position = int16_from_word(data[0] | data[1] << 8)
+        speed_units = signed_from_sign_magnitude(data[2] | data[3] << 8)
+        load_units = signed_from_sign_magnitude(data[4] | data[5] << 8)
+        return ServoState(
+            name=servo.name,
+            servo_id=servo.id,
+            position_steps=position,
+            length_m=steps_to_length(servo, position),
+            speed_m_s=servo.length_sign * speed_units * string_speed_per_unit(servo),
+            load_fraction=load_units * LOAD_UNIT,
+            faults=fault_names(error),
+            t_ns=t_ns,
+        )
+
+    def _check(self, servo: ServoConfig, result: int, error: int, what: str) -> None:
+        where = f"servo '{servo.name}' (ID {servo.id}) on {self.config.port}"
+        if result != sdk.COMM_SUCCESS:
+            raise ServoCommError(
+                f"{where}: {what}: {self.packets.getTxRxResult(result)}", servo.id, result
+            )
+        if error:
+            faults = fault_names(error)
+            raise ServoFaultError(f"{where}: {what}: {', '.join(faults)}", servo.id, faults)
+
+
+def _check_config_limits(servo: ServoConfig) -> None:
+    """The configured length range must map into the multi-turn range; a speed unit must fit."""
+    for length in (servo.min_length_m, servo.max_length_m):
+        steps = length_to_steps(servo, length)
+        if abs(steps) > MX_POSITION_LIMIT:
+            raise ServoLimitError(
+                f"servo '{servo.name}' (ID {servo.id}): length limit {length} m maps to "
+                f"position {steps:.0f}, outside +-{MX_POSITION_LIMIT} steps"
+            )
+    if servo.max_speed_m_s < string_speed_per_unit(servo):
+        raise ServoLimitError(
+            f"servo '{servo.name}' (ID {servo.id}): max_speed_m_s {servo.max_speed_m_s} is below "
+            f"one speed unit ({string_speed_per_unit(servo):.2e} m/s)"
+        )
+
+
+def _goal_steps(servo: ServoConfig, length_m: float) -> int:
+    where = f"servo '{servo.name}' (ID {servo.id})"
+    if not math.isfinite(length_m):
+        raise ServoLimitError(f"{where}: string length {length_m} m is not finite")
+    if not servo.min_length_m <= length_m <= servo.max_length_m:
+        raise ServoLimitError(
+            f"{where}: string length {length_m:.4f} m is outside the limit "
+            f"[{servo.min_length_m}, {servo.max_length_m}] m"
+        )
+    return int(round(length_to_steps(servo, length_m)))
+
+
+def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:
+    """Moving speed units for a string speed; never 0 (which the MX reads as 'no limit')."""
+    where = f"servo '{servo.name}' (ID {servo.id})"
+    if not (math.isfinite(speed_m_s) and 0.0 < speed_m_s <= servo.max_speed_m_s):
+        raise ServoLimitError(
+            f"{where}: string speed {speed_m_s} m/s is outside the limit "
+            f"(0, {servo.max_speed_m_s}] m/s"
+        )
+    units = math.floor(speed_m_s / string_speed_per_unit(servo))
+    return min(max(units, 1), SPEED_MAX_UNITS)
