@@ -122,7 +122,7 @@ static uint64_t g_tick_cycles = 16000;
 static volatile sig_atomic_t g_stop;
 static volatile int g_stats_request;
 static double g_stats_period_s = 1.0;
-static int g_free_running;
+static double g_rate = 1.0; /* simulated seconds per wall second; 0 = free-running */
 static double g_wall_t0;
 
 static double now_s(void) {
@@ -427,8 +427,8 @@ static avr_cycle_count_t model_timer(avr_t* avr, avr_cycle_count_t when, void* p
 
 static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)param;
-    if (!g_free_running) {
-        double ahead = sim_time_s() - (now_s() - g_wall_t0);
+    if (g_rate > 0) {
+        double ahead = sim_time_s() / g_rate - (now_s() - g_wall_t0);
         if (ahead > 0.0005) {
             struct timespec ts = {0, (long)(ahead * 1e9)};
             nanosleep(&ts, NULL);
@@ -507,6 +507,7 @@ static void usage(const char* prog) {
             "usage: %s [options] firmware.elf\n"
             "  -t, --time S           run S simulated seconds (default: until killed / quit)\n"
             "  -f, --free             free-running (default: paced to wall-clock time)\n"
+            "  -r, --rate X           pace to X simulated seconds per wall second (default 1)\n"
             "  -l, --pty-link PATH    symlink PATH to the UART0 pseudo-terminal\n"
             "  -s, --stats-period S   simulated seconds between STATS lines (default 1, 0 = off)\n"
             "  -e, --enc-fault M:MODE encoder M (0..3) fault from start: "
@@ -572,6 +573,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
     static const struct option longopts[] = {
         {"time", required_argument, 0, 't'},
         {"free", no_argument, 0, 'f'},
+        {"rate", required_argument, 0, 'r'},
         {"pty-link", required_argument, 0, 'l'},
         {"stats-period", required_argument, 0, 's'},
         {"enc-fault", required_argument, 0, 'e'},
@@ -589,13 +591,16 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {0, 0, 0, 0},
     };
     int c;
-    while ((c = getopt_long(argc, argv, "t:fl:s:e:h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "t:fr:l:s:e:h", longopts, NULL)) != -1) {
         switch (c) {
             case 't':
                 o->run_s = parse_double(optarg, "--time");
                 break;
             case 'f':
-                g_free_running = 1;
+                g_rate = 0;
+                break;
+            case 'r':
+                g_rate = parse_double(optarg, "--rate");
                 break;
             case 'l':
                 o->pty_link = optarg;
