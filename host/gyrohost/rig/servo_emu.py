@@ -22,6 +22,7 @@ Modelling choice: with torque off the position stays (the MX gearbox is not back
 
 import math
 import time
+from dataclasses import dataclass
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoConfig, ServoEmuConfig
 from gyrohost.drivers.servos import (
@@ -72,9 +73,63 @@ _READ_ONLY = set(range(0, 3)) | set(range(36, 47))
 
 
 def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
-    """A Protocol 1.0 status packet."""
-    body = bytes((servo_id, len(params) + 2, error)) + params
-    return b"\xff\xff" + body + bytes(((~sum(body)) & 0xFF,))
+    """A Protocol 1.0 status packet (same layout as an instruction, error in place of it)."""
+    return Packet(servo_id, error, params, True).encode()
+
+
+@dataclass(frozen=True)
+class Packet:
+    """One Protocol 1.0 packet as cut from a stream (``params`` without the checksum)."""
+
+    servo_id: int
+    instruction: int
+    params: bytes
+    checksum_ok: bool
+
+    def encode(self) -> bytes:
+        """The packet's bytes (with a correct checksum)."""
+        body = bytes((self.servo_id, len(self.params) + 2, self.instruction)) + self.params
+        return b"\xff\xff" + body + bytes(((~sum(body)) & 0xFF,))
+
+
+class PacketCutter:
+    """Incremental Protocol 1.0 packet cutter: bytes in, :class:`Packet` out; never raises.
+
+    A packet with a bad checksum is reported (``checksum_ok`` False) and only its header is
+    consumed, so a real packet hidden inside a bogus length is still found.
+    """
+
+    def __init__(self) -> None:
+        self._rx = bytearray()
+
+    def feed(self, data: bytes) -> list[Packet]:
+        """Add ``data``; return the packets it completed."""
+        self._rx += data
+        packets = []
+        while (packet := self._next()) is not None:
+            packets.append(packet)
+        return packets
+
+    def _next(self) -> Packet | None:
+        rx = self._rx
+        while True:
+            pos = rx.find(b"\xff\xff")
+            if pos < 0:
+                del rx[:-1]  # a trailing 0xFF may start the next header
+                return None
+            del rx[:pos]
+            if len(rx) < 4:
+                return None
+            if rx[2] == 0xFF or rx[3] < 2:  # a third 0xFF or an impossible length: resync
+                del rx[:1]
+                continue
+            total = rx[3] + 4
+            if len(rx) < total:
+                return None
+            ok = rx[total - 1] == (~sum(rx[2 : total - 1])) & 0xFF
+            packet = Packet(rx[2], rx[4], bytes(rx[5 : total - 1]), ok)
+            del rx[: total if ok else 2]
+            return packet
 
 
 class EmulatedMx12:
@@ -248,7 +303,7 @@ class Mx12Bus(PtyDevice):
             self._servo(servo_id).no_reply = True
         self.packets_seen = 0
         self.bad_checksums = 0
-        self._rx = bytearray()
+        self.cutter = PacketCutter()
         self._last_s: float | None = None
 
     # --- truth and fault hooks ----------------------------------------------------------------
@@ -290,38 +345,13 @@ class Mx12Bus(PtyDevice):
         self._last_s = now_s
 
     def handle_rx(self, data: bytes, now_s: float) -> None:
-        self._rx += data
-        while True:
-            packet = self._next_packet()
-            if packet is None:
-                return
-            self._dispatch(*packet, now_s)
+        for packet in self.cutter.feed(data):
+            self._dispatch(packet, now_s)
 
-    def _next_packet(self) -> tuple[int, int, bytes, bool] | None:
-        """Cut one packet from the input: (id, instruction, params, checksum ok)."""
-        rx = self._rx
-        while True:
-            pos = rx.find(b"\xff\xff")
-            if pos < 0:
-                del rx[:-1]
-                return None
-            del rx[:pos]
-            if len(rx) < 4:
-                return None
-            if rx[2] == 0xFF or rx[3] < 2:  # a third 0xFF or an impossible length: resync
-                del rx[:1]
-                continue
-            total = rx[3] + 4
-            if len(rx) < total:
-                return None
-            ok = rx[total - 1] == (~sum(rx[2 : total - 1])) & 0xFF
-            packet = (rx[2], rx[4], bytes(rx[5 : total - 1]), ok)
-            del rx[: total if ok else 2]
-            return packet
-
-    def _dispatch(self, servo_id: int, inst: int, params: bytes, ok: bool, now_s: float) -> None:
+    def _dispatch(self, packet: Packet, now_s: float) -> None:
+        servo_id, inst, params = packet.servo_id, packet.instruction, packet.params
         self.packets_seen += 1
-        if not ok:
+        if not packet.checksum_ok:
             self.bad_checksums += 1
             if servo_id in self.servos:
                 self._reply(self.servos[servo_id], ERR_CHECKSUM, b"", now_s)
