@@ -1,0 +1,338 @@
+#include "app.h"
+
+#include "cmt.h"
+#include "enc.h"
+#include "ramp.h"
+
+static uint16_t sat_inc(uint16_t x) {
+    return x < 0xFFFFu ? static_cast<uint16_t>(x + 1) : x;
+}
+
+static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+    uint8_t wire[PROTO_MAX_WIRE];
+    uint8_t n = proto_build(id, payload, len, wire);
+    if (n == 0 || !a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+}
+
+static void app_send_ack(app_state* a, uint8_t req_id) {
+    app_send(a, PROTO_ID_ACK, &req_id, 1);
+}
+
+static void app_send_error(app_state* a, uint8_t req_id, uint8_t code, uint8_t detail) {
+    uint8_t p[PROTO_LEN_ERROR] = {req_id, code, detail};
+    app_send(a, PROTO_ID_ERROR, p, sizeof p);
+}
+
+static void app_send_param(app_state* a, uint8_t id) {
+    uint8_t p[PROTO_LEN_PARAM_VALUE];
+    p[0] = id;
+    proto_put_i32(&p[1], a->prm.v[id]);
+    app_send(a, PROTO_ID_PARAM_VALUE, p, sizeof p);
+}
+
+static void app_reset_wheel(app_wheel* w) {
+    spd_init(&w->spd);
+    pi_reset(&w->pi);
+    w->target_mrad_s = 0;
+    w->sp_mrad_s = 0;
+    w->speed_mrad_s = 0;
+    w->ol_phase = 0;
+    w->drive_q15 = 0;
+}
+
+void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults) {
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        app_reset_wheel(&a->w[i]);
+        for (uint8_t k = 0; k < 3; k++) a->pwm[i][k] = 0;
+    }
+    flt_init(&a->flt);
+    proto_rx_init(&a->rx);
+    a->cnt = app_counters();
+    a->tx = tx;
+    a->seq = 0;
+    a->telem_count = 0;
+    a->stopping = 0;
+    a->enable_mask = 0;
+    if (!prm_init(&a->prm, ee)) boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
+    flt_set(&a->flt, boot_faults);
+}
+
+// ---------------------------------------------------------------- dispatcher
+
+static void app_on_set_speeds(app_state* a, const uint8_t* p) {
+    if (flt_blocks_setpoints(&a->flt)) {
+        app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+        return;
+    }
+    int32_t vmax = a->prm.v[PRM_SPEED_MAX_MRAD_S];
+    int32_t sp[APP_WHEELS];
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        sp[i] = proto_get_i32(&p[4 * i]);
+        if (sp[i] > vmax || sp[i] < -vmax) {  // whole message refused, nothing changes
+            app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_SETPOINT_ABOVE_MAX, i);
+            return;
+        }
+    }
+    for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = sp[i];
+    a->stopping = 0;
+}
+
+static void app_on_param_set(app_state* a, const uint8_t* p) {
+    uint8_t id = p[0];
+    int32_t value = proto_get_i32(&p[1]);
+    bool structural = (id == PRM_MODE || id == PRM_POLE_PAIRS);
+    if ((structural && a->enable_mask) || a->prm.saving) {
+        app_send_error(a, PROTO_ID_PARAM_SET, PROTO_ERR_BUSY, id);
+        return;
+    }
+    prm_result r = prm_set(&a->prm, id, value);
+    if (r == PRM_UNKNOWN) {
+        app_send_error(a, PROTO_ID_PARAM_SET, PROTO_ERR_UNKNOWN_PARAM, id);
+    } else if (r == PRM_OUT_OF_RANGE) {
+        app_send_error(a, PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, id);
+    } else {
+        if (structural) {
+            for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
+        }
+        app_send_param(a, id);
+    }
+}
+
+static void app_on_simple(app_state* a, uint8_t id) {
+    switch (id) {
+        case PROTO_ID_STOP_ALL:
+            for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
+            a->stopping = 1;
+            app_send_ack(a, id);
+            break;
+        case PROTO_ID_PARAM_SAVE:
+            if (a->prm.saving) {
+                app_send_error(a, id, PROTO_ERR_BUSY, 0);
+            } else {
+                prm_save_begin(&a->prm);  // ACK when the last byte is written (app_poll)
+            }
+            break;
+        case PROTO_ID_PARAM_DEFAULTS:
+            if (a->enable_mask || a->prm.saving) {
+                app_send_error(a, id, PROTO_ERR_BUSY, 0);
+            } else {
+                prm_defaults(&a->prm);
+                for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
+                app_send_ack(a, id);
+            }
+            break;
+        case PROTO_ID_CLEAR_FAULTS:
+            flt_clear(&a->flt);
+            app_send_ack(a, id);
+            break;
+        default:
+            break;
+    }
+}
+
+static void app_send_hello(app_state* a) {
+    uint8_t p[PROTO_LEN_HELLO_REPLY] = {
+        PROTO_VERSION, FW_VERSION_MAJOR, FW_VERSION_MINOR, APP_WHEELS, PRM_COUNT, 0, 0};
+    proto_put_u16(&p[5], APP_TICK_HZ);
+    app_send(a, PROTO_ID_HELLO_REPLY, p, sizeof p);
+}
+
+static void app_send_stats(app_state* a) {
+    uint8_t p[PROTO_LEN_STATS];
+    const uint16_t v[10] = {a->cnt.bad_crc,    a->cnt.short_frame,   a->cnt.oversize,
+                            a->cnt.bad_cobs,   a->cnt.unknown_id,    a->cnt.bad_length,
+                            a->cnt.tx_dropped, a->cnt.tick_overruns, a->cnt.rx_overflow,
+                            a->cnt.step_max_us};
+    for (uint8_t i = 0; i < 10; i++) proto_put_u16(&p[2 * i], v[i]);
+    app_send(a, PROTO_ID_STATS, p, sizeof p);
+}
+
+static void app_dispatch(app_state* a, const proto_frame* f) {
+    flt_host_alive(&a->flt);
+    switch (f->id) {
+        case PROTO_ID_HELLO:
+            app_send_hello(a);
+            break;
+        case PROTO_ID_HEARTBEAT:
+            break;
+        case PROTO_ID_SET_SPEEDS:
+            app_on_set_speeds(a, f->payload);
+            break;
+        case PROTO_ID_PARAM_GET:
+            if (f->payload[0] < PRM_COUNT) {
+                app_send_param(a, f->payload[0]);
+            } else {
+                app_send_error(a, f->id, PROTO_ERR_UNKNOWN_PARAM, f->payload[0]);
+            }
+            break;
+        case PROTO_ID_PARAM_SET:
+            app_on_param_set(a, f->payload);
+            break;
+        case PROTO_ID_GET_STATS:
+            app_send_stats(a);
+            break;
+        case PROTO_ID_STOP_ALL:
+        case PROTO_ID_PARAM_SAVE:
+        case PROTO_ID_PARAM_DEFAULTS:
+        case PROTO_ID_CLEAR_FAULTS:
+            app_on_simple(a, f->id);
+            break;
+        default:  // a device-to-host id sent to the device
+            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
+            app_send_error(a, f->id, PROTO_ERR_UNKNOWN_MESSAGE, f->id);
+            break;
+    }
+}
+
+void app_rx_byte(app_state* a, uint8_t byte) {
+    proto_frame f;
+    switch (proto_rx_push(&a->rx, byte, &f)) {
+        case PROTO_RX_NONE:
+            break;
+        case PROTO_RX_FRAME:
+            app_dispatch(a, &f);
+            break;
+        case PROTO_RX_BAD_CRC:
+            a->cnt.bad_crc = sat_inc(a->cnt.bad_crc);
+            break;
+        case PROTO_RX_SHORT:
+            a->cnt.short_frame = sat_inc(a->cnt.short_frame);
+            break;
+        case PROTO_RX_OVERSIZE:
+            a->cnt.oversize = sat_inc(a->cnt.oversize);
+            break;
+        case PROTO_RX_BAD_COBS:
+            a->cnt.bad_cobs = sat_inc(a->cnt.bad_cobs);
+            break;
+        case PROTO_RX_UNKNOWN_ID:
+            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
+            app_send_error(a, f.id, PROTO_ERR_UNKNOWN_MESSAGE, f.id);
+            break;
+        case PROTO_RX_BAD_LENGTH:
+            a->cnt.bad_length = sat_inc(a->cnt.bad_length);
+            app_send_error(a, f.id, PROTO_ERR_BAD_LENGTH, f.len);
+            break;
+    }
+}
+
+void app_poll(app_state* a) {
+    if (prm_save_poll(&a->prm)) app_send_ack(a, PROTO_ID_PARAM_SAVE);
+}
+
+// ---------------------------------------------------------------- control step
+
+static void app_wheel_off(app_state* a, uint8_t i) {
+    app_wheel* w = &a->w[i];
+    pi_reset(&w->pi);
+    w->drive_q15 = 0;
+    for (uint8_t k = 0; k < 3; k++) a->pwm[i][k] = 0;
+}
+
+void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
+    const int32_t* v = a->prm.v;
+    const bool closed = v[PRM_MODE] == 0;
+    const uint8_t pp = static_cast<uint8_t>(v[PRM_POLE_PAIRS]);
+    const bool failsafe = flt_heartbeat_tick(&a->flt, static_cast<uint16_t>(v[PRM_HEARTBEAT_MS]));
+    const int32_t step = (failsafe || a->stopping) ? v[PRM_DECEL_RAD_S2] : v[PRM_ACCEL_RAD_S2];
+    const pi_gains g = {static_cast<int16_t>(v[PRM_KP_Q8]), static_cast<int16_t>(v[PRM_KI_Q8]),
+                        static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]),
+                        static_cast<int16_t>(v[PRM_SLEW_Q15])};
+    uint8_t enable = 0;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        app_wheel* w = &a->w[i];
+        bool disabled = false;
+        if (closed) {
+            uint16_t angle;
+            bool good = enc_parse(enc_words[i], &angle) == ENC_OK;
+            disabled =
+                flt_encoder_sample(&a->flt, i, good, static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]));
+            if (good) {
+                spd_update(&w->spd, angle, static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
+            } else {
+                spd_skip(&w->spd);
+            }
+            w->speed_mrad_s = w->spd.speed_mrad_s;
+        }
+        int32_t target = (failsafe || disabled) ? 0 : w->target_mrad_s;
+        w->sp_mrad_s = ramp_step(w->sp_mrad_s, target, step);
+        if (disabled || (w->sp_mrad_s == 0 && target == 0)) {
+            if (!closed) w->speed_mrad_s = 0;
+            app_wheel_off(a, i);
+            continue;
+        }
+        uint16_t angle16;
+        int16_t amp;
+        if (closed) {
+            w->drive_q15 = pi_step(&w->pi, &g, w->sp_mrad_s, w->speed_mrad_s);
+            // Advance the angle by speed * lead to cover the sensor-to-PWM delay and half a tick.
+            int32_t inc = cmt_phase_inc(w->speed_mrad_s, pp);
+            int16_t lead = static_cast<int16_t>(((inc >> 16) * v[PRM_LEAD_Q8]) >> 8);
+            angle16 = static_cast<uint16_t>(
+                cmt_elec_angle(w->spd.last_angle, pp,
+                               static_cast<uint16_t>(v[PRM_ENC_OFFSET_M0 + i])) +
+                static_cast<uint16_t>(lead));
+            // Torque-producing vector: 90 degrees electrical ahead of (or behind) the rotor.
+            if (w->drive_q15 >= 0) {
+                angle16 = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
+                amp = w->drive_q15;
+            } else {
+                angle16 = static_cast<uint16_t>(angle16 - CMT_ANGLE_90);
+                amp = static_cast<int16_t>(-w->drive_q15);
+            }
+        } else {
+            w->ol_phase += static_cast<uint32_t>(cmt_phase_inc(w->sp_mrad_s, pp));
+            angle16 = static_cast<uint16_t>(w->ol_phase >> 16);
+            amp = static_cast<int16_t>(v[PRM_OPEN_LOOP_DRIVE_Q15]);
+            w->drive_q15 = w->sp_mrad_s >= 0 ? amp : static_cast<int16_t>(-amp);
+            w->speed_mrad_s = w->sp_mrad_s;
+        }
+        cmt_phases(angle16, amp, a->pwm[i]);
+        enable = static_cast<uint8_t>(enable | (1u << i));
+    }
+    a->enable_mask = enable;
+}
+
+uint8_t app_status(const app_state* a) {
+    uint8_t s = 0;
+    if (a->enable_mask) s |= PROTO_STATUS_OUTPUTS_ENABLED;
+    if (a->prm.v[PRM_MODE] != 0) s |= PROTO_STATUS_OPEN_LOOP;
+    if (a->flt.faults & PROTO_FAULT_HEARTBEAT_LOST) s |= PROTO_STATUS_FAILSAFE;
+    if (a->prm.saving) s |= PROTO_STATUS_SAVING;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        if ((a->enable_mask & (1u << i)) && a->w[i].pi.saturated) {
+            s = static_cast<uint8_t>(s | (PROTO_STATUS_SATURATED_M0 << i));
+        }
+    }
+    return s;
+}
+
+void app_telemetry(app_state* a, uint32_t t_us) {
+    uint8_t div = static_cast<uint8_t>(a->prm.v[PRM_TELEMETRY_DIV]);
+    if (div == 0) return;
+    if (++a->telem_count < div) return;
+    a->telem_count = 0;
+    uint8_t p[PROTO_LEN_TELEMETRY];
+    proto_put_u32(&p[0], t_us);
+    proto_put_u16(&p[4], a->seq++);
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        proto_put_i32(&p[6 + 4 * i], a->w[i].speed_mrad_s);
+        proto_put_u16(&p[22 + 2 * i], static_cast<uint16_t>(a->w[i].drive_q15));
+    }
+    p[30] = app_status(a);
+    proto_put_u16(&p[31], a->flt.faults);
+    app_send(a, PROTO_ID_TELEMETRY, p, sizeof p);
+}
+
+void app_note_overrun(app_state* a, uint8_t missed_ticks) {
+    for (uint8_t i = 0; i < missed_ticks; i++) a->cnt.tick_overruns = sat_inc(a->cnt.tick_overruns);
+    flt_set(&a->flt, PROTO_FAULT_TICK_OVERRUN);
+}
+
+void app_note_rx_overflow(app_state* a) {
+    a->cnt.rx_overflow = sat_inc(a->cnt.rx_overflow);
+    flt_set(&a->flt, PROTO_FAULT_RX_OVERFLOW);
+}
+
+void app_note_step_time(app_state* a, uint16_t us) {
+    if (us > a->cnt.step_max_us) a->cnt.step_max_us = us;
+}

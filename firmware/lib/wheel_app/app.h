@@ -1,0 +1,80 @@
+// app.h - the wheel-board application: control step of four wheels, message dispatcher,
+// telemetry and fail-safes. Portable: the board layer feeds it encoder words, received bytes and
+// tick events, and applies the PWM compare values and enable mask it produces.
+#ifndef APP_H
+#define APP_H
+
+#include <stdint.h>
+
+#include "flt.h"
+#include "pi.h"
+#include "prm.h"
+#include "proto.h"
+#include "spd.h"
+
+#define APP_WHEELS 4
+#define APP_TICK_HZ 1000
+
+// Enqueue one whole frame for transmission; false if it does not fit (the frame is dropped).
+typedef bool (*app_tx_fn)(const uint8_t* data, uint8_t len);
+
+struct app_counters {
+    uint16_t bad_crc;
+    uint16_t short_frame;
+    uint16_t oversize;
+    uint16_t bad_cobs;
+    uint16_t unknown_id;
+    uint16_t bad_length;
+    uint16_t tx_dropped;
+    uint16_t tick_overruns;
+    uint16_t rx_overflow;
+    uint16_t step_max_us;
+};
+
+struct app_wheel {
+    spd_state spd;
+    pi_state pi;
+    int32_t target_mrad_s;  // accepted setpoint
+    int32_t sp_mrad_s;      // ramped setpoint fed to the controller
+    int32_t speed_mrad_s;   // measured (closed loop) or commanded (open loop) speed
+    uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
+    int16_t drive_q15;      // signed drive level
+};
+
+struct app_state {
+    app_wheel w[APP_WHEELS];
+    prm_store prm;
+    flt_state flt;
+    proto_rx rx;
+    app_counters cnt;
+    app_tx_fn tx;
+    uint16_t seq;
+    uint8_t telem_count;
+    uint8_t stopping;             // STOP_ALL in progress: ramp with DECEL
+    uint16_t pwm[APP_WHEELS][3];  // compare values 0..CMT_PWM_TOP
+    uint8_t enable_mask;          // bit w: driver stage of wheel w enabled
+};
+
+// boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
+void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
+
+// Feed one byte received from the host; complete frames are dispatched at once.
+void app_rx_byte(app_state* a, uint8_t byte);
+
+// Background work of the main loop (EEPROM save progress).
+void app_poll(app_state* a);
+
+// One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
+void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
+
+// Send telemetry if this tick is due (TELEMETRY_DIV); t_us: time stamp of the step.
+void app_telemetry(app_state* a, uint32_t t_us);
+
+// Board events.
+void app_note_overrun(app_state* a, uint8_t missed_ticks);
+void app_note_rx_overflow(app_state* a);
+void app_note_step_time(app_state* a, uint16_t us);
+
+uint8_t app_status(const app_state* a);
+
+#endif  // APP_H

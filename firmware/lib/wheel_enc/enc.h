@@ -1,0 +1,33 @@
+// enc.h - AS5048A 14-bit magnetic encoder frames (SPI mode 1, 16-bit words).
+//
+// Read sequence used by the board layer, per encoder and per control tick:
+//   transaction 1: send ENC_CMD_READ_ANGLE (0xFFFF), ignore the reply (it answers the previous
+//   one); CS high for at least 350 ns; transaction 2: send ENC_CMD_READ_ANGLE again, the reply
+//   carries the angle latched at the end of transaction 1. The angle is therefore fresh (a few
+//   microseconds old), not one tick old.
+// Reply word: bit 15 even parity over bits 14..0, bit 14 error flag, bits 13..0 angle.
+#ifndef ENC_H
+#define ENC_H
+
+#include <stdint.h>
+
+#define ENC_COUNTS 16384u
+#define ENC_MASK 0x3FFFu
+#define ENC_CMD_READ_ANGLE 0xFFFFu
+
+enum enc_status : uint8_t {
+    ENC_OK = 0,
+    ENC_PARITY = 1,  // parity bit does not match: corrupted word
+    ENC_ERROR = 2,   // error flag set by the sensor (previous command failed)
+};
+
+// Even parity of a 16-bit word: true if the number of set bits is even.
+bool enc_even_parity(uint16_t word);
+
+// Decode one reply word; on ENC_OK stores the 14-bit angle in *angle.
+enc_status enc_parse(uint16_t word, uint16_t* angle);
+
+// Build a valid reply word for an angle (used by tests and simulations).
+uint16_t enc_make_reply(uint16_t angle, bool error_flag);
+
+#endif  // ENC_H

@@ -1,0 +1,96 @@
+#include "proto.h"
+
+#include "crc16.h"
+
+// Compile-time check that each payload length matches its struct format in the table.
+static constexpr uint8_t proto_char_size(char c) {
+    return (c == 'B' || c == 'b') ? 1 : (c == 'H' || c == 'h') ? 2 : (c == 'I' || c == 'i') ? 4 : 0;
+}
+static constexpr uint8_t proto_fmt_size(const char* f) {
+    return *f == 0 ? 0 : static_cast<uint8_t>(proto_char_size(*f) + proto_fmt_size(f + 1));
+}
+#define PROTO_MSG(name, id, dir, len, fmt, fields)                                 \
+    static_assert(proto_fmt_size(fmt) == (len), "format/length mismatch: " #name); \
+    static_assert((len) <= PROTO_MAX_PAYLOAD, "payload too long: " #name);
+#include "proto_messages.def"
+#undef PROTO_MSG
+
+int16_t proto_payload_len(uint8_t id) {
+    switch (id) {
+#define PROTO_MSG(name, id, dir, len, fmt, fields) \
+    case id:                                       \
+        return len;
+#include "proto_messages.def"
+#undef PROTO_MSG
+        default:
+            return -1;
+    }
+}
+
+void proto_rx_init(proto_rx* rx) {
+    rx->n = 0;
+    rx->overflow = 0;
+}
+
+static proto_rx_result proto_rx_finish(proto_rx* rx, proto_frame* out) {
+    if (rx->overflow) return PROTO_RX_OVERSIZE;
+    if (rx->n == 0) return PROTO_RX_NONE;
+    int16_t n = cobs_decode(rx->buf, rx->n, rx->buf);
+    if (n < 0) return PROTO_RX_BAD_COBS;
+    if (n < 3) return PROTO_RX_SHORT;
+    uint8_t body = static_cast<uint8_t>(n - 2);
+    uint16_t crc = proto_get_u16(&rx->buf[body]);
+    if (crc16_ccitt(rx->buf, body) != crc) return PROTO_RX_BAD_CRC;
+    out->id = rx->buf[0];
+    out->len = static_cast<uint8_t>(body - 1);
+    out->payload = &rx->buf[1];
+    int16_t expect = proto_payload_len(out->id);
+    if (expect < 0) return PROTO_RX_UNKNOWN_ID;
+    if (expect != out->len) return PROTO_RX_BAD_LENGTH;
+    return PROTO_RX_FRAME;
+}
+
+proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out) {
+    if (byte == 0) {
+        proto_rx_result r = proto_rx_finish(rx, out);
+        rx->n = 0;
+        rx->overflow = 0;
+        return r;
+    }
+    if (rx->n < PROTO_MAX_ENCODED) {
+        rx->buf[rx->n++] = byte;
+    } else {
+        rx->overflow = 1;  // keep discarding until the next delimiter
+    }
+    return PROTO_RX_NONE;
+}
+
+uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out) {
+    if (len > PROTO_MAX_PAYLOAD) return 0;
+    uint8_t raw[PROTO_MAX_RAW];
+    raw[0] = id;
+    for (uint8_t i = 0; i < len; i++) raw[1 + i] = payload[i];
+    uint8_t body = static_cast<uint8_t>(len + 1);
+    proto_put_u16(&raw[body], crc16_ccitt(raw, body));
+    uint8_t n = cobs_encode(raw, static_cast<uint8_t>(body + 2), out);
+    out[n] = 0;
+    return static_cast<uint8_t>(n + 1);
+}
+
+void proto_put_u16(uint8_t* p, uint16_t v) {
+    p[0] = static_cast<uint8_t>(v);
+    p[1] = static_cast<uint8_t>(v >> 8);
+}
+
+void proto_put_u32(uint8_t* p, uint32_t v) {
+    proto_put_u16(p, static_cast<uint16_t>(v));
+    proto_put_u16(p + 2, static_cast<uint16_t>(v >> 16));
+}
+
+uint16_t proto_get_u16(const uint8_t* p) {
+    return static_cast<uint16_t>(p[0] | (static_cast<uint16_t>(p[1]) << 8));
+}
+
+uint32_t proto_get_u32(const uint8_t* p) {
+    return proto_get_u16(p) | (static_cast<uint32_t>(proto_get_u16(p + 2)) << 16);
+}

@@ -1,0 +1,92 @@
+// proto.h - wheel-board frames: message ids from proto_messages.def, framing, byte packing.
+//
+// Wire frame: COBS( id | payload | crc16 ) 0x00. The CRC-16/CCITT-FALSE covers id and payload
+// and is sent low byte first; all multi-byte fields are little-endian. See docs/protocol.md.
+#ifndef PROTO_H
+#define PROTO_H
+
+#include <stdint.h>
+
+#include "cobs.h"
+#include "proto_version.h"
+
+#define PROTO_MAX_PAYLOAD 40
+#define PROTO_MAX_RAW (1 + PROTO_MAX_PAYLOAD + 2)
+#define PROTO_MAX_ENCODED COBS_ENCODED_SIZE(PROTO_MAX_RAW)
+#define PROTO_MAX_WIRE (PROTO_MAX_ENCODED + 1)
+
+enum proto_id : uint8_t {
+#define PROTO_MSG(name, id, dir, len, fmt, fields) PROTO_ID_##name = id,
+#include "proto_messages.def"
+#undef PROTO_MSG
+};
+
+enum proto_len : uint8_t {
+#define PROTO_MSG(name, id, dir, len, fmt, fields) PROTO_LEN_##name = len,
+#include "proto_messages.def"
+#undef PROTO_MSG
+};
+
+enum proto_fault_bit : uint16_t {
+#define PROTO_FAULT(name, bit, text) PROTO_FAULT_##name = 1u << bit,
+#include "proto_codes.def"
+};
+
+enum proto_status_bit : uint8_t {
+#define PROTO_STATUS(name, bit, text) PROTO_STATUS_##name = 1u << bit,
+#include "proto_codes.def"
+};
+
+enum proto_error_code : uint8_t {
+#define PROTO_ERROR(name, code, text) PROTO_ERR_##name = code,
+#include "proto_codes.def"
+};
+
+enum proto_rx_result : uint8_t {
+    PROTO_RX_NONE = 0,    // byte consumed, no frame complete (or an empty frame: 0x00 0x00)
+    PROTO_RX_FRAME,       // a valid frame is in *out
+    PROTO_RX_BAD_CRC,     // dropped
+    PROTO_RX_SHORT,       // decoded frame shorter than id + crc: dropped
+    PROTO_RX_OVERSIZE,    // more than PROTO_MAX_ENCODED bytes before the delimiter: dropped
+    PROTO_RX_BAD_COBS,    // not valid COBS: dropped
+    PROTO_RX_UNKNOWN_ID,  // CRC good, id not in the table: out->id/len set, not acted on
+    PROTO_RX_BAD_LENGTH,  // CRC good, payload length differs from the table: out->id/len set
+};
+
+struct proto_frame {
+    uint8_t id;
+    uint8_t len;             // payload length
+    const uint8_t* payload;  // points into the receiver's buffer, valid until the next push
+};
+
+struct proto_rx {
+    uint8_t buf[PROTO_MAX_ENCODED];
+    uint8_t n;
+    uint8_t overflow;
+};
+
+// Payload length of a message id from the table, or -1 if the id is unknown.
+int16_t proto_payload_len(uint8_t id);
+
+void proto_rx_init(proto_rx* rx);
+
+// Feed one received byte. Returns PROTO_RX_NONE until a delimiter completes a frame.
+proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out);
+
+// Build the wire bytes (COBS + trailing 0x00) of a message into out (PROTO_MAX_WIRE bytes).
+// Returns the number of bytes, or 0 if len > PROTO_MAX_PAYLOAD.
+uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out);
+
+// Little-endian packing.
+void proto_put_u16(uint8_t* p, uint16_t v);
+void proto_put_u32(uint8_t* p, uint32_t v);
+uint16_t proto_get_u16(const uint8_t* p);
+uint32_t proto_get_u32(const uint8_t* p);
+inline void proto_put_i32(uint8_t* p, int32_t v) {
+    proto_put_u32(p, static_cast<uint32_t>(v));
+}
+inline int32_t proto_get_i32(const uint8_t* p) {
+    return static_cast<int32_t>(proto_get_u32(p));
+}
+
+#endif  // PROTO_H

@@ -1,0 +1,40 @@
+// spd.h - fixed-point wheel speed estimator from 14-bit encoder angles sampled at the control tick.
+//
+// Speed unit everywhere: mrad/s in int32 (3000 rpm = 314159 mrad/s). One encoder count per 1 ms
+// tick is 2*pi/16384 rad/ms = 383.495 mrad/s; the conversion uses 98175 / 256 = 383.496 (relative
+// error 3e-6). Angle differences are wrapped at 14 bits, so a delta is unambiguous up to
+// +-8191 counts per tick (30000 rpm).
+// Filter: first-order low pass y += (x - y) / 2^shift, kept as acc = y * 2^shift so that a constant
+// input gives exactly that output. shift = 0 disables filtering. |acc| <= 8192 * 383.5 * 2^8 <
+// 2^31.
+#ifndef SPD_H
+#define SPD_H
+
+#include <stdint.h>
+
+#define SPD_TICK_HZ 1000
+#define SPD_MAX_SHIFT 8
+
+struct spd_state {
+    int32_t acc;           // filtered speed * 2^shift, mrad/s
+    int32_t speed_mrad_s;  // filtered speed, mrad/s
+    uint16_t last_angle;   // last good 14-bit angle
+    uint8_t primed;        // 0 until the first good angle
+    uint8_t missed;        // ticks since the last good angle, minus one
+};
+
+void spd_init(spd_state* s);
+
+// Signed difference b - a of two 14-bit angles, wrapped into [-8192, 8191] counts.
+int16_t spd_wrap_delta(uint16_t a, uint16_t b);
+
+// Counts per tick to mrad/s (symmetric rounding towards zero).
+int32_t spd_counts_to_mrad_s(int16_t counts_per_tick);
+
+// Feed one good angle; returns the filtered speed in mrad/s. shift is clamped to SPD_MAX_SHIFT.
+int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift);
+
+// The sample of this tick was bad: hold the estimate, the next good sample spans the gap.
+void spd_skip(spd_state* s);
+
+#endif  // SPD_H

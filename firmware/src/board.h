@@ -1,0 +1,60 @@
+// board.h - every pin and register of the wheel board (Arduino Mega 2560, ATmega2560 @ 16 MHz).
+// The pin map is fixed in docs/hardware.md; the simavr harness (firmware/sim/) relies on it.
+#ifndef BOARD_H
+#define BOARD_H
+
+#include <avr/io.h>
+#include <stdint.h>
+
+#define BOARD_WHEELS 4
+
+// ---- Motor phases: hardware PWM, fast PWM mode 14 (TOP = ICRn), prescaler 1 -> 20 kHz.
+#define BOARD_PWM_TOP 799
+// M0 Timer1: OC1A PB5 (D11), OC1B PB6 (D12), OC1C PB7 (D13)
+// M1 Timer3: OC3A PE3 (D5),  OC3B PE4 (D2),  OC3C PE5 (D3)
+// M2 Timer4: OC4A PH3 (D6),  OC4B PH4 (D7),  OC4C PH5 (D8)
+// M3 Timer5: OC5A PL3 (D46), OC5B PL4 (D45), OC5C PL5 (D44)
+#define BOARD_M0_DDR DDRB
+#define BOARD_M0_PINS (_BV(PB5) | _BV(PB6) | _BV(PB7))
+#define BOARD_M1_DDR DDRE
+#define BOARD_M1_PINS (_BV(PE3) | _BV(PE4) | _BV(PE5))
+#define BOARD_M2_DDR DDRH
+#define BOARD_M2_PINS (_BV(PH3) | _BV(PH4) | _BV(PH5))
+#define BOARD_M3_DDR DDRL
+#define BOARD_M3_PINS (_BV(PL3) | _BV(PL4) | _BV(PL5))
+// TCCRnA: non-inverting on A/B/C, WGMn1; TCCRnB: WGMn3 | WGMn2 | CSn0 (mode 14, clk/1).
+#define BOARD_PWM_TCCRA(n) (_BV(COM##n##A1) | _BV(COM##n##B1) | _BV(COM##n##C1) | _BV(WGM##n##1))
+#define BOARD_PWM_TCCRB(n) (_BV(WGM##n##3) | _BV(WGM##n##2) | _BV(CS##n##0))
+
+// ---- Driver enables M0..M3: PA0..PA3 (D22..D25), active high.
+#define BOARD_EN_PORT PORTA
+#define BOARD_EN_DDR DDRA
+#define BOARD_EN_SHIFT 0
+#define BOARD_EN_MASK 0x0Fu
+
+// ---- Encoders: AS5048A on SPI (mode 1, MSB first, clk/4 = 4 MHz; the sensor allows 10 MHz).
+// SPI master pins: PB0 SS (D53, kept as output so the SPI stays master), PB1 SCK (D52),
+// PB2 MOSI (D51), PB3 MISO (D50). Chip selects M0..M3: PA4..PA7 (D26..D29), active low.
+#define BOARD_SPI_DDR DDRB
+#define BOARD_SPI_OUT_PINS (_BV(PB0) | _BV(PB1) | _BV(PB2))
+#define BOARD_SPI_SPCR (_BV(SPE) | _BV(MSTR) | _BV(CPHA))
+#define BOARD_CS_PORT PORTA
+#define BOARD_CS_DDR DDRA
+#define BOARD_CS_SHIFT 4
+#define BOARD_CS_MASK 0xF0u
+
+// ---- Control tick: Timer2 CTC, clk/64, OCR2A = 249 -> 1 kHz; TCNT2 counts 4 us steps.
+#define BOARD_TICK_TCCRA _BV(WGM21)
+#define BOARD_TICK_TCCRB _BV(CS22)
+#define BOARD_TICK_OCR 249
+#define BOARD_TICK_US_PER_COUNT 4
+
+// ---- Host link: UART0 (D0 RX, D1 TX via the USB bridge), 500000 baud exact: U2X, UBRR0 = 3.
+#define BOARD_UART_UBRR 3
+#define BOARD_UART_RX_SIZE 128  // power of two
+#define BOARD_UART_TX_SIZE 256  // power of two (8-bit indices)
+
+// ---- Cycle measurement: GPIOR0 = 1 just before the control step of all wheels, 0 right after.
+#define BOARD_CYCLE_MARK GPIOR0
+
+#endif  // BOARD_H

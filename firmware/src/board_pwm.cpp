@@ -1,0 +1,50 @@
+// board_pwm.cpp - 12 PWM channels on Timers 1/3/4/5 and the four driver enables.
+#include "board.h"
+#include "board_io.h"
+#include "cmt.h"
+
+static_assert(BOARD_PWM_TOP == CMT_PWM_TOP, "commutation and timer TOP differ");
+
+void pwm_init() {
+    BOARD_EN_PORT &= static_cast<uint8_t>(~BOARD_EN_MASK);  // drivers off first
+    BOARD_EN_DDR |= BOARD_EN_MASK;
+    ICR1 = BOARD_PWM_TOP;
+    ICR3 = BOARD_PWM_TOP;
+    ICR4 = BOARD_PWM_TOP;
+    ICR5 = BOARD_PWM_TOP;
+    OCR1A = OCR1B = OCR1C = 0;
+    OCR3A = OCR3B = OCR3C = 0;
+    OCR4A = OCR4B = OCR4C = 0;
+    OCR5A = OCR5B = OCR5C = 0;
+    TCCR1A = BOARD_PWM_TCCRA(1);
+    TCCR3A = BOARD_PWM_TCCRA(3);
+    TCCR4A = BOARD_PWM_TCCRA(4);
+    TCCR5A = BOARD_PWM_TCCRA(5);
+    TCCR1B = BOARD_PWM_TCCRB(1);
+    TCCR3B = BOARD_PWM_TCCRB(3);
+    TCCR4B = BOARD_PWM_TCCRB(4);
+    TCCR5B = BOARD_PWM_TCCRB(5);
+    BOARD_M0_DDR |= BOARD_M0_PINS;
+    BOARD_M1_DDR |= BOARD_M1_PINS;
+    BOARD_M2_DDR |= BOARD_M2_PINS;
+    BOARD_M3_DDR |= BOARD_M3_PINS;
+}
+
+void pwm_apply(const uint16_t duty[][3], uint8_t enable_mask) {
+    // OCRnx are double-buffered in mode 14 (taken over at TOP), so no glitch mid-period.
+    // No ISR touches a 16-bit timer register, so the shared TEMP byte needs no locking.
+    OCR1A = duty[0][0];
+    OCR1B = duty[0][1];
+    OCR1C = duty[0][2];
+    OCR3A = duty[1][0];
+    OCR3B = duty[1][1];
+    OCR3C = duty[1][2];
+    OCR4A = duty[2][0];
+    OCR4B = duty[2][1];
+    OCR4C = duty[2][2];
+    OCR5A = duty[3][0];
+    OCR5B = duty[3][1];
+    OCR5C = duty[3][2];
+    uint8_t en = static_cast<uint8_t>((enable_mask << BOARD_EN_SHIFT) & BOARD_EN_MASK);
+    BOARD_EN_PORT = static_cast<uint8_t>((BOARD_EN_PORT & ~BOARD_EN_MASK) | en);
+}

@@ -1,0 +1,43 @@
+// board_spi.cpp - AS5048A encoders on the hardware SPI master, polled (about 40 us for all four).
+#include "board.h"
+#include "board_io.h"
+#include "enc.h"
+
+// AS5048A timing: CSn high >= 350 ns between frames, CSn low to first clock >= 350 ns.
+// Six NOPs are 375 ns at 16 MHz.
+static inline void spi_wait_350ns() {
+    __asm__ __volatile__("nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop" ::);
+}
+
+void spi_init() {
+    BOARD_CS_PORT |= BOARD_CS_MASK;  // all chip selects high (inactive)
+    BOARD_CS_DDR |= BOARD_CS_MASK;
+    BOARD_SPI_DDR |= BOARD_SPI_OUT_PINS;
+    SPCR = BOARD_SPI_SPCR;
+    SPSR = 0;
+}
+
+static uint8_t spi_xfer(uint8_t out) {
+    SPDR = out;
+    while (!(SPSR & _BV(SPIF))) {
+    }
+    return SPDR;
+}
+
+static uint16_t enc_frame(uint8_t cs_bit) {
+    BOARD_CS_PORT &= static_cast<uint8_t>(~cs_bit);
+    spi_wait_350ns();
+    uint16_t hi = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE >> 8));
+    uint16_t lo = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE & 0xFF));
+    BOARD_CS_PORT |= cs_bit;
+    spi_wait_350ns();
+    return static_cast<uint16_t>((hi << 8) | lo);
+}
+
+void enc_read_all(uint16_t words[4]) {
+    for (uint8_t i = 0; i < BOARD_WHEELS; i++) {
+        uint8_t cs_bit = static_cast<uint8_t>(1u << (BOARD_CS_SHIFT + i));
+        (void)enc_frame(cs_bit);       // command: read angle; reply belongs to the last command
+        words[i] = enc_frame(cs_bit);  // reply: the angle latched by the command above
+    }
+}

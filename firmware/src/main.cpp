@@ -1,0 +1,65 @@
+// main.cpp - wheel board firmware: initialisation and the main loop around the portable app.
+#include <avr/interrupt.h>
+#include <avr/wdt.h>
+
+#include "app.h"
+#include "board.h"
+#include "board_io.h"
+
+// Maximum received bytes handled per loop pass, so that a burst cannot delay the tick much.
+#define MAIN_RX_BYTES_PER_PASS 32
+
+static app_state g_app;
+static uint8_t g_reset_cause __attribute__((section(".noinit")));
+
+// Runs before main (.init3): keep the reset cause and stop a watchdog left running by a
+// watchdog reset (it would otherwise fire again during start-up).
+extern "C" void main_early_init() __attribute__((naked, used, section(".init3")));
+extern "C" void main_early_init() {
+    g_reset_cause = MCUSR;
+    MCUSR = 0;
+    wdt_disable();
+}
+
+static void main_handle_rx() {
+    uint8_t b;
+    for (uint8_t i = 0; i < MAIN_RX_BYTES_PER_PASS && uart_rx_pop(&b); i++) {
+        app_rx_byte(&g_app, b);
+    }
+    if (uart_rx_take_overflow()) app_note_rx_overflow(&g_app);
+}
+
+int main() {
+    pwm_init();
+    spi_init();
+    uart_init();
+    uint16_t boot_faults =
+        (g_reset_cause & _BV(WDRF)) ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
+    app_init(&g_app, &g_board_eeprom, uart_tx_frame, boot_faults);
+    tick_init();
+    wdt_enable(WDTO_30MS);
+    sei();
+
+    uint8_t last_tick = g_tick_count;
+    uint32_t t_ms = 0;
+    for (;;) {
+        wdt_reset();
+        main_handle_rx();
+        app_poll(&g_app);
+        uint8_t now = g_tick_count;
+        uint8_t elapsed = static_cast<uint8_t>(now - last_tick);
+        if (elapsed == 0) continue;
+        if (elapsed > 1) app_note_overrun(&g_app, static_cast<uint8_t>(elapsed - 1));
+        last_tick = now;
+        t_ms += elapsed;
+
+        uint16_t enc[BOARD_WHEELS];
+        enc_read_all(enc);
+        BOARD_CYCLE_MARK = 1;
+        app_control_step(&g_app, enc);
+        BOARD_CYCLE_MARK = 0;
+        pwm_apply(g_app.pwm, g_app.enable_mask);
+        app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
+        app_telemetry(&g_app, t_ms * 1000u);
+    }
+}
