@@ -1,0 +1,72 @@
+"""Diagnostics of a state: constraint errors, energy, momentum (bars, wheels, point masses).
+
+All functions take node matrices, so they apply to run files and to live states alike.
+"""
+
+import numpy as np
+
+
+def bar_length_error(model, N):
+    """|b_i| - l_i, shape (beta,), m."""
+    st = model.structure
+    return np.linalg.norm(N[:, st.bar_end] - N[:, st.bar_start], axis=0) - model.l
+
+
+def joint_error(model, N):
+    """Column norms of N P - D (Eq. 60), shape (c,), m."""
+    st = model.structure
+    return np.linalg.norm(np.asarray(model.P_T @ N.T).T - st.D, axis=0)
+
+
+def wheel_speeds_per_bar(model, omega_w):
+    """Spin of each bar's wheel, shape (beta,), rad/s (0 where a bar has no wheel)."""
+    out = np.zeros(model.beta)
+    out[model.wheel_bars] = omega_w
+    return out
+
+
+def energy(model, N, N_dot, omega_w, rest_length):
+    """Kinetic, elastic and external-force potential energy, J (a dict; 'total' their sum).
+
+    Kinetic energy of bar i: m_t |r_dot|^2 / 2 + J_t |b_dot|^2 / 2 + J_a l^2 omega_w^2 / 2.
+    """
+    st = model.structure
+    B_dot = N_dot[:, st.bar_end] - N_dot[:, st.bar_start]
+    R_dot = 0.5 * (N_dot[:, st.bar_end] + N_dot[:, st.bar_start])
+    w = wheel_speeds_per_bar(model, omega_w)
+    kinetic = 0.5 * (
+        np.sum(model.m_t * np.sum(R_dot**2, axis=0))
+        + np.sum(model.J_t * np.sum(B_dot**2, axis=0))
+        + np.sum(model.J_a * model.l**2 * w**2)
+        + np.sum(model.m_node * np.sum(N_dot**2, axis=0))
+    )
+    s = np.linalg.norm(N[:, st.string_end] - N[:, st.string_start], axis=0)
+    stretch = np.maximum(s - rest_length, 0.0)
+    elastic = 0.5 * np.sum(model.k_s * stretch**2)
+    external = -np.sum(model.W * N)
+    return {
+        "kinetic": kinetic,
+        "elastic": elastic,
+        "external": external,
+        "total": kinetic + elastic + external,
+    }
+
+
+def angular_momentum(model, N, N_dot, omega_w):
+    """Total angular momentum about the origin, shape (3,), kg m^2/s (Eq. 16 plus translation)."""
+    st = model.structure
+    B = N[:, st.bar_end] - N[:, st.bar_start]
+    B_dot = N_dot[:, st.bar_end] - N_dot[:, st.bar_start]
+    R = 0.5 * (N[:, st.bar_end] + N[:, st.bar_start])
+    R_dot = 0.5 * (N_dot[:, st.bar_end] + N_dot[:, st.bar_start])
+    w = wheel_speeds_per_bar(model, omega_w)
+    h = model.m_t * np.cross(R, R_dot, axis=0) + model.J_t * np.cross(B, B_dot, axis=0)
+    h = h + model.J_a * model.l * w * B
+    return np.sum(h, axis=1) + np.cross(N, N_dot, axis=0) @ model.m_node
+
+
+def linear_momentum(model, N_dot):
+    """Total linear momentum, shape (3,), kg m/s."""
+    st = model.structure
+    R_dot = 0.5 * (N_dot[:, st.bar_end] + N_dot[:, st.bar_start])
+    return R_dot @ model.m_t + N_dot @ model.m_node

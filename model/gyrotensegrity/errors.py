@@ -1,0 +1,25 @@
+"""Exception types of the dynamics package (python-control style: they subclass ValueError)."""
+
+
+class SceneError(ValueError):
+    """A scene file or scene dictionary is invalid; the message names the file and the key."""
+
+
+class SimulationError(ValueError):
+    """A run stopped: the state turned non-finite or a constraint error passed its threshold.
+
+    Attributes
+    ----------
+    t : float
+        Time of the failure, s.
+    member : str
+        The node, bar or joint at fault.
+    partial : object or None
+        The run up to the last good sample (a :class:`gyrotensegrity.runfile.Run`), if any.
+    """
+
+    def __init__(self, message: str, t: float, member: str, partial=None):
+        super().__init__(message)
+        self.t = t
+        self.member = member
+        self.partial = partial
