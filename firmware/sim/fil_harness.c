@@ -102,8 +102,17 @@ typedef struct {
 static params_t g_par = {
     /* GB54-1 gimbal motor driving a 100 g rotor wheel: defaults are deliberately round numbers
        of the right order (see docs/fil.md); every one is an option. */
-    .k_t_nm_per_v = 0.01, .k_e_vs_rad = 0.04,     .j_kgm2 = 1.8e-4, .b_nms = 2.0e-5,
-    .vbus_v = 12.0,       .elec_offset_rad = 0.0, .pole_pairs = 7,  .model_cycles = 1000,
+    .k_t_nm_per_v = 0.01,
+    .k_e_vs_rad = 0.02,
+    .j_kgm2 = 1.8e-4,
+    .b_nms = 2.0e-5,
+    .vbus_v = 12.0,
+    /* Duties a = sin(phi), b = sin(phi - 120 deg), c = sin(phi + 120 deg) give a vector at
+       phi - 90 deg; -90 makes the rotor hold where phi = pole_pairs * encoder angle, the
+       convention of the wheel firmware's commutation (cmt.h) with ENC_OFFSET = 0. */
+    .elec_offset_rad = -TWO_PI / 4,
+    .pole_pairs = 7,
+    .model_cycles = 1000,
 };
 
 static motor_t g_mot[N_MOTORS];
@@ -518,7 +527,7 @@ static void usage(const char* prog) {
             "      --damping NMS      viscous damping (default %g)\n"
             "      --vbus V           bridge supply (default %g)\n"
             "      --pole-pairs N     (default %d)\n"
-            "      --elec-offset DEG  electrical angle at encoder zero (default 0)\n"
+            "      --elec-offset DEG  electrical angle at encoder zero (default -90)\n"
             "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
             "      --freq HZ          CPU clock (default 16000000)\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"

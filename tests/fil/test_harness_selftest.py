@@ -79,6 +79,18 @@ def test_encoders_follow_open_loop_field(selftest):
         assert mean_rpm(frames, motor) == pytest.approx(target, abs=2.0), f"M{motor}"
 
 
+def test_held_rotor_sits_at_commutation_zero(selftest):
+    """M3 gets a fixed vector at sine phase 0: the rotor must hold at electrical angle 0 of the
+    firmware convention (cmt.h: elec = pole_pairs * encoder angle), the harness default."""
+    _, port = selftest
+    port.reset_input_buffer()
+    frames = angle_frames(read_lines(port, 0.3))
+    assert frames
+    for _, words in frames:
+        elec = (words[3] & 0x3FFF) * 7 % ENC_COUNTS
+        assert min(elec, ENC_COUNTS - elec) < ENC_COUNTS // 36, f"{words[3]:#06x}"  # 10 deg
+
+
 def test_harness_rotor_speed_matches_field(selftest):
     h, _ = selftest
     window = [h.latest_stats() for _ in range(4)]
