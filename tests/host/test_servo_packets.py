@@ -1,0 +1,285 @@
+"""MX-12W servos on hand-built byte streams: word conversions, status packets the driver must
+survive (through a scripted pty device), instruction packets the emulator must answer, and a
+property test of the emulator's packet cutter."""
+
+import math
+import time
+
+import pytest
+import serial
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.drivers.servos import (
+    FAULT_BITS,
+    Addr,
+    ServoCommError,
+    ServoFaultError,
+    StringServoBus,
+    fault_names,
+    int16_from_word,
+    length_to_steps,
+    sign_magnitude_from_signed,
+    signed_from_sign_magnitude,
+    steps_to_length,
+    word_from_int16,
+)
+from gyrohost.rig.pty_link import PtyDevice
+from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
+
+SERVO = ServoConfig(name="left", id=3, pulley_radius_m=0.01, length_at_zero_m=0.3, max_length_m=0.6)
+
+
+# --- conversions --------------------------------------------------------------------------------
+
+
+def test_sixteen_bit_twos_complement():
+    assert int16_from_word(60536) == -5000  # the SDK's raw read of a -5000 goal
+    assert word_from_int16(-5000) == 60536
+    assert int16_from_word(word_from_int16(-28672)) == -28672
+    with pytest.raises(ValueError, match="signed 16-bit"):
+        word_from_int16(40000)
+
+
+def test_sign_magnitude():
+    assert signed_from_sign_magnitude(0x400 | 100) == -100
+    assert signed_from_sign_magnitude(100) == 100
+    assert sign_magnitude_from_signed(-1023) == 0x7FF
+    with pytest.raises(ValueError, match="10-bit"):
+        sign_magnitude_from_signed(1024)
+
+
+def test_fault_names_cover_every_bit():
+    assert fault_names(0) == ()
+    assert fault_names(0x7F) == tuple(FAULT_BITS.values())
+    assert fault_names(0x21) == ("input voltage", "overload")
+
+
+def test_length_and_steps_are_inverse_and_signed():
+    for sign in (1, -1):
+        servo = ServoConfig(
+            name="s", id=1, pulley_radius_m=0.012, zero_position=-300, length_at_zero_m=0.25,
+            length_sign=sign,
+        )  # fmt: skip
+        one_turn = 2 * math.pi * 0.012
+        assert length_to_steps(servo, 0.25 + one_turn) == pytest.approx(-300 + sign * 4096)
+        assert steps_to_length(servo, length_to_steps(servo, 0.4)) == pytest.approx(0.4)
+
+
+# --- the driver on scripted status packets ------------------------------------------------------
+
+
+class ScriptedServo(PtyDevice):
+    """Answers each instruction packet with the next scripted reply (bytes), or not at all."""
+
+    def __init__(self, replies):
+        super().__init__()
+        self.replies = list(replies)
+        self.received = []
+        self.cutter = PacketCutter()
+
+    def handle_rx(self, data, now_s):
+        for packet in self.cutter.feed(data):
+            self.received.append(packet)
+            if self.replies:
+                self.link.write(self.replies.pop(0))
+
+    def tick(self, now_s):
+        pass
+
+
+@pytest.fixture
+def scripted():
+    made = []
+
+    def make(*replies):
+        device = ScriptedServo(replies).start()
+        bus = StringServoBus(ServoBusConfig(port=device.slave_path, servo=(SERVO,))).open()
+        made.append((device, bus))
+        return device, bus
+
+    yield make
+    for device, bus in made:
+        bus.close()
+        device.close()
+
+
+OK = status_packet(3, 0)
+
+
+def test_clean_reply(scripted):
+    device, bus = scripted(OK)
+    bus.set_torque(True)
+    assert device.received == [Packet(3, 0x03, bytes([Addr.TORQUE_ENABLE, 1]), True)]
+
+
+def test_garbage_before_the_reply_is_skipped(scripted):
+    _, bus = scripted(b"\x00\x13\xff\x42" + OK)
+    bus.set_torque(True)
+
+
+def test_a_reply_from_another_id_is_ignored(scripted):
+    _, bus = scripted(status_packet(9, 0) + OK)
+    bus.set_torque(True)
+
+
+@pytest.mark.parametrize(
+    ("reply", "message"),
+    [
+        (OK[:-1] + bytes([OK[-1] ^ 0xFF]), "Incorrect status packet"),  # bad checksum
+        (OK[:4], "Incorrect status packet"),  # truncated
+        (b"", "There is no status packet"),  # silence
+    ],
+)
+def test_bad_replies_raise_comm_errors_naming_the_servo(scripted, reply, message):
+    _, bus = scripted(reply)
+    with pytest.raises(ServoCommError, match=f"servo 'left' \\(ID 3\\).*{message}") as info:
+        bus.set_torque(True)
+    assert info.value.servo_id == 3
+
+
+@pytest.mark.parametrize(("bit", "name"), list(FAULT_BITS.items()))
+def test_each_error_bit_raises_the_named_fault(scripted, bit, name):
+    _, bus = scripted(status_packet(3, bit))
+    with pytest.raises(ServoFaultError, match=name) as info:
+        bus.set_torque(True)
+    assert info.value.faults == (name,)
+
+
+def test_fault_bits_in_a_read_reach_the_state(scripted):
+    data = bytes([0x78, 0xEC, 0x05, 0x04, 0x0A, 0x00])  # -5000 steps, speed -5, load +10
+    _, bus = scripted(status_packet(3, 0x24, data))
+    with pytest.raises(ServoFaultError, match="overheating, overload") as info:
+        bus.read_states()
+    (state,) = info.value.states
+    assert state.position_steps == -5000
+    assert state.faults == ("overheating", "overload")
+    assert state.load_fraction == pytest.approx(0.010)
+    assert state.speed_m_s < 0
+
+
+# --- the emulator on hand-built instruction packets ---------------------------------------------
+
+
+@pytest.fixture
+def wire():
+    """An emulated bus polled by hand and the raw serial port on its pty."""
+    emu = ServoEmuConfig(return_delay_us=0)
+    device = Mx12Bus([SERVO, ServoConfig(name="right", id=4, pulley_radius_m=0.01)], emu)
+    port = serial.Serial(device.slave_path, timeout=0.05)
+    clock = [0.0]
+
+    def exchange(raw: bytes) -> list[Packet]:
+        port.write(raw)
+        port.flush()
+        time.sleep(0.002)
+        clock[0] += 0.001
+        device.poll(now_s=clock[0], timeout_s=0.05)
+        return PacketCutter().feed(port.read(port.in_waiting or 1))
+
+    yield device, exchange
+    port.close()
+    device.close()
+
+
+def test_emulator_ping_and_read(wire):
+    device, exchange = wire
+    assert exchange(Packet(3, 0x01, b"", True).encode()) == [Packet(3, 0, b"", True)]
+    (reply,) = exchange(Packet(3, 0x02, bytes([Addr.MODEL, 2]), True).encode())
+    assert reply.params == (104).to_bytes(2, "little")
+
+
+@pytest.mark.parametrize(
+    ("packet", "error"),
+    [
+        (Packet(3, 0x03, bytes([Addr.PRESENT_POSITION, 0, 0]), True), 0x08),  # read-only
+        (Packet(3, 0x02, bytes([70, 10]), True), 0x08),  # past the table end
+        (Packet(3, 0x07, b"", True), 0x40),  # unknown instruction
+        (Packet(3, 0x03, bytes([Addr.GOAL_POSITION, 0x00, 0x20]), True), 0x02),  # 8192 > 4095
+    ],
+)
+def test_emulator_error_bits(wire, packet, error):
+    _, exchange = wire
+    (reply,) = exchange(packet.encode())
+    assert reply.instruction == error  # the status packet's error byte sits there
+
+
+def test_emulator_answers_a_bad_checksum_with_the_checksum_bit(wire):
+    device, exchange = wire
+    raw = bytearray(Packet(3, 0x01, b"", True).encode())
+    raw[-1] ^= 0x55
+    (reply,) = exchange(b"\x00\xff" + bytes(raw))
+    assert reply.instruction == 0x10 and device.bad_checksums == 1
+
+
+def test_emulator_status_return_level(wire):
+    _, exchange = wire
+    assert exchange(Packet(3, 0x03, bytes([Addr.STATUS_RETURN, 1]), True).encode()) != []
+    assert exchange(Packet(3, 0x03, bytes([25, 1]), True).encode()) == []  # LED: no status
+    assert len(exchange(Packet(3, 0x02, bytes([Addr.ID, 1]), True).encode())) == 1
+    exchange(Packet(3, 0x03, bytes([Addr.STATUS_RETURN, 0]), True).encode())
+    assert exchange(Packet(3, 0x02, bytes([Addr.ID, 1]), True).encode()) == []
+    assert len(exchange(Packet(3, 0x01, b"", True).encode())) == 1  # ping always answers
+
+
+def test_emulator_sync_write_and_bulk_read(wire):
+    device, exchange = wire
+    sync = bytes([Addr.MOVING_SPEED, 2, 3, 10, 0, 4, 20, 0])
+    assert exchange(Packet(0xFE, 0x83, sync, True).encode()) == []
+    bulk = bytes([0, 2, 4, Addr.MOVING_SPEED, 1, 3, Addr.ID])
+    first, second = exchange(Packet(0xFE, 0x92, bulk, True).encode())
+    assert (first.servo_id, first.params) == (4, bytes([20, 0]))
+    assert (second.servo_id, second.params) == (3, bytes([3]))
+
+
+# --- property: the emulator's packet cutter ----------------------------------------------------
+
+packet_strategy = st.builds(
+    lambda i, inst, params: Packet(i, inst, params, True).encode(),
+    st.integers(0, 0xFE),
+    st.integers(0, 0xFF),
+    st.binary(max_size=12),
+)
+noise_strategy = st.one_of(
+    st.binary(max_size=24),
+    packet_strategy.map(lambda p: p[: len(p) - 2]),  # truncated
+    packet_strategy.map(lambda p: p[:-1] + bytes([p[-1] ^ 0x01])),  # bad checksum
+    st.just(b"\xff\xff\xff"),
+)
+
+
+def fake_packet_at(stream: bytes, starts: set[int]) -> bool:
+    """True if a position that is not an embedded packet parses as a valid packet."""
+    for i in range(len(stream) - 5):
+        if i in starts or stream[i : i + 2] != b"\xff\xff" or stream[i + 2] == 0xFF:
+            continue
+        total = stream[i + 3] + 4
+        if stream[i + 3] >= 2 and i + total <= len(stream):
+            if stream[i + total - 1] == (~sum(stream[i + 2 : i + total - 1])) & 0xFF:
+                return True
+    return False
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(noise_strategy, packet_strategy), max_size=10), st.integers(1, 50))
+def test_every_embedded_packet_is_recovered(pieces, chunk):
+    stream = bytearray()
+    starts = set()
+    for noise, packet in pieces:
+        stream += noise
+        starts.add(len(stream))
+        stream += packet
+    stream += bytes(260)  # the line goes on: a bogus length waiting for bytes is resolved
+    assume(not fake_packet_at(bytes(stream), starts))
+    cutter = PacketCutter()
+    got = []
+    for pos in range(0, len(stream), chunk):
+        got += [p.encode() for p in cutter.feed(bytes(stream[pos : pos + chunk])) if p.checksum_ok]
+    assert got == [packet for _, packet in pieces]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=400))
+def test_cutter_never_raises_on_random_bytes(data):
+    assert all(isinstance(p, Packet) for p in PacketCutter().feed(data))
