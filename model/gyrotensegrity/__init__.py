@@ -1,6 +1,35 @@
 """Dynamics of gyroscopic tensegrity structures (Goyal, Chen, Majji, Skelton).
 
-Depends on numpy and scipy only.
+Depends on numpy and scipy only. Typical use::
+
+    from gyrotensegrity import Model, load_scene, simulate
+    model = Model(load_scene("scenes/dbar-gyro.toml"))
+    run = simulate(model)            # or Stepper(model).step(dt, u)
+    run.save("out/dbar.npz")
+
+See docs/model.md for the equations-to-code map and the API.
 """
 
 __version__ = "0.1.0"
+
+from .dynamics import evaluate, rhs  # noqa: E402
+from .errors import SceneError, SimulationError  # noqa: E402
+from .model import Model  # noqa: E402
+from .runfile import Run, load_run  # noqa: E402
+from .scene import Scene, load_scene, scene_from_dict  # noqa: E402
+from .simulate import Stepper, simulate  # noqa: E402
+
+__all__ = [
+    "Model",
+    "Run",
+    "Scene",
+    "SceneError",
+    "SimulationError",
+    "Stepper",
+    "evaluate",
+    "load_run",
+    "load_scene",
+    "rhs",
+    "scene_from_dict",
+    "simulate",
+]

@@ -147,7 +147,8 @@ class Model:
         self.rest_schedules = [s.rest_length for s in scene.strings]
 
     def _mass_matrix(self, scene, st: Structure):
-        """M_s (Eq. 56) and its inverse from Eq. 47: M_s^-1 = 1/4 C_b^T J_t^-1 C_b + 4 C_r^T m_t^-1 C_r."""
+        """M_s (Eq. 56) and its inverse via Eq. 47:
+        M_s^-1 = 1/4 C_b^T J_t^-1 C_b + 4 C_r^T m_t^-1 C_r (+ point masses)."""
         self.m_node = np.zeros(self.n)
         for name, mass in scene.point_masses.items():
             self.m_node[st.primary[name]] = mass

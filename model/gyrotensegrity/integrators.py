@@ -1,0 +1,72 @@
+"""Integrators chosen by name.
+
+Fixed step: ``rk4`` (classic Runge-Kutta) and ``rk4-projected`` (RK4, then projection of the
+state onto the bar-length constraints after every step, see :mod:`.projection`).
+Adaptive (scipy): ``dop853``, ``rk45`` (explicit), ``radau``, ``bdf`` (implicit, for stiff strings).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import integrate
+
+from .projection import project
+
+FIXED_STEP = ("rk4", "rk4-projected")
+ADAPTIVE = {
+    "dop853": integrate.DOP853,
+    "rk45": integrate.RK45,
+    "radau": integrate.Radau,
+    "bdf": integrate.BDF,
+}
+NAMES = FIXED_STEP + tuple(ADAPTIVE)
+
+
+@dataclass(frozen=True)
+class ExplicitRungeKutta:
+    """A fixed-step explicit Runge-Kutta method given by its Butcher tableau.
+
+    Attributes
+    ----------
+    a : ndarray, shape (s, s), strictly lower triangular
+    b : ndarray, shape (s,)
+    c : ndarray, shape (s,)
+    """
+
+    name: str
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+
+    def step(self, f, t, x, dt):
+        """One step of ``dx/dt = f(t, x)`` from (t, x) over dt; returns the new state."""
+        k = []
+        for i in range(len(self.b)):
+            xi = x + dt * sum(self.a[i, j] * k[j] for j in range(i)) if i else x
+            k.append(f(t + self.c[i] * dt, xi))
+        return x + dt * sum(bi * ki for bi, ki in zip(self.b, k, strict=True))
+
+
+RK4 = ExplicitRungeKutta(
+    "rk4",
+    a=np.array([[0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1.0, 0]]),
+    b=np.array([1, 2, 2, 1]) / 6.0,
+    c=np.array([0, 0.5, 0.5, 1.0]),
+)
+
+
+def check_name(name: str) -> str:
+    if name not in NAMES:
+        raise ValueError(f"unknown integrator '{name}' (choose one of: {', '.join(NAMES)})")
+    return name
+
+
+def fixed_step(name: str, model, f, t, x, dt):
+    """One fixed step of the named method, with the projection for ``rk4-projected``."""
+    x = RK4.step(f, t, x, dt)
+    return project(model, x) if name == "rk4-projected" else x
+
+
+def adaptive_solver(name: str, f, t0, x0, t_bound, rtol, atol, max_step=np.inf):
+    """A scipy ``OdeSolver`` (dense output enabled through ``dense_output()``)."""
+    return ADAPTIVE[name](f, t0, x0, t_bound, rtol=rtol, atol=atol, max_step=max_step)
