@@ -27,6 +27,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_spi.h>
 #include <simavr/avr_uart.h>
@@ -318,8 +319,9 @@ static void plain_store(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) 
 
 static void detach_pwm_timers(avr_t* avr) {
     for (int i = 0; i < N_MOTORS; i++) {
-        /* TCCRnA, TCCRnB, TCCRnC are consecutive */
-        for (uint16_t a = k_timers[i].tccra; a <= k_timers[i].tccra + 2; a++) {
+        /* TCCRnA/B/C, TCNTn, ICRn, OCRnA/B/C are consecutive; an OCR write alone would make
+           simavr reconfigure, and so start, the timer from the stored TCCRnB */
+        for (uint16_t a = k_timers[i].tccra; a <= k_timers[i].ocr[2] + 1; a++) {
             avr->io[AVR_DATA_TO_IO(a)].w.c = plain_store;
             avr->io[AVR_DATA_TO_IO(a)].w.param = NULL;
         }
@@ -729,6 +731,11 @@ int main(int argc, char** argv) {
 
     connect_peripherals(g_avr, opt.pty_link);
     if (!g_sim_pwm_timers) detach_pwm_timers(g_avr);
+    /* INT0..7 default to "low level" sense; simavr 1.6 then polls every low pin every few cycles
+       through avr_ioctl() (avr_extint_poll_level_trig), enabled or not. PE4/PE5 (INT4/5) are
+       the OC3B/OC3C outputs, so that polling alone halved the simulation speed. The wheel
+       firmware uses no external interrupt; level sense then acts like an edge. */
+    for (uint8_t i = 0; i < EXTINT_COUNT; i++) avr_extint_set_strict_lvl_trig(g_avr, i, 0);
     avr_cycle_timer_register(g_avr, g_par.model_cycles, model_timer, NULL);
     avr_cycle_timer_register(g_avr, opt.freq_hz / 1000, pace_timer, NULL);
     if (g_stats_period_s > 0) {

@@ -12,7 +12,7 @@ SIM_LDLIBS   := -lsimavrparts -lsimavr -lpthread -lutil -lm
 SIM_AVR_CC   ?= avr-gcc
 SIM_AVR_FLAGS := -mmcu=atmega2560 -DF_CPU=16000000UL -Os -std=gnu11 -Wall -Wextra -Werror
 
-.PHONY: sim cycles
+.PHONY: sim fil-cycles
 
 sim: $(SIM_HARNESS) $(SIM_SELFTEST)
 
@@ -24,6 +24,7 @@ $(SIM_SELFTEST): $(SIM_DIR)/selftest/selftest.c $(SIM_DIR)/sim.mk
 	@mkdir -p $(@D)
 	$(SIM_AVR_CC) $(SIM_AVR_FLAGS) -o $@ $< -lm
 
-# Control-step cycle figures of the real firmware with all four wheels at 715 rpm.
-cycles: sim
+# Control-step cycle figures of the real firmware (FIL, all four wheels at 715 rpm).
+# Named fil-cycles: firmware/Makefile has its own `cycles` (bench/cycles.c).
+fil-cycles: sim $(ELF)
 	$(SIM_DIR)/cycles.sh
