@@ -1,4 +1,6 @@
 // cmt.h - sine commutation with min-max (SVPWM-equivalent) zero-sequence injection.
+// The voltage space vector of the three duties points at the given electrical angle
+// (phase a = cos(angle), b = cos(angle - 120 deg), c = cos(angle + 120 deg)).
 //
 // Angles are 16-bit: 65536 = one electrical revolution. The table has 256 entries (index = top 8
 // bits of the angle, 1.4 degrees electrical). Drive amplitude is Q15 (32767 = full voltage). The

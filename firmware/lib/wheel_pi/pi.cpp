@@ -27,13 +27,22 @@ int16_t pi_step(pi_state* s, const pi_gains* g, int32_t setpoint, int32_t measur
     if (lo > hi) lo = hi;  // out_max shrank below the last output: move towards it
 
     int32_t ilim = out_max << 8;
+    int32_t p8 = p >> 8;
     int32_t integ = s->integ + clamp32(di, -2 * ilim, 2 * ilim);  // no overflow: |both| <= 2^24
     integ = clamp32(integ, -ilim, ilim);
-    int32_t u = (p >> 8) + (integ >> 8);
-    if ((u > hi && e > 0) || (u < lo && e < 0)) {
-        integ = clamp32(s->integ, -ilim, ilim);  // held by a limit: do not wind up further
-        u = (p >> 8) + (integ >> 8);
+    // Back-calculation: while a limit holds the output in the direction the error pushes, the
+    // integrator may only grow up to the value that just reaches the limit (never beyond it,
+    // and never shrinking because of the clamp itself).
+    if (e > 0 && p8 + (integ >> 8) > hi) {
+        int32_t cap = clamp32(hi - p8, -out_max, out_max) * 256;
+        integ = cap > s->integ ? cap : s->integ;
+        if (integ > ilim) integ = ilim;
+    } else if (e < 0 && p8 + (integ >> 8) < lo) {
+        int32_t cap = clamp32(lo - p8, -out_max, out_max) * 256;
+        integ = cap < s->integ ? cap : s->integ;
+        if (integ < -ilim) integ = -ilim;
     }
+    int32_t u = p8 + (integ >> 8);
     s->integ = integ;
     int32_t y = clamp32(u, lo, hi);
     s->saturated = (y != u) ? 1 : 0;

@@ -5,8 +5,9 @@
 // kp_q8: Q15 counts per mrad/s, times 256.  ki_q8: Q15 counts per mrad/s per tick, times 256.
 // u = (kp*e)/256 + I/256, I += ki*e each tick. The clamp of e only acts where a sane kp saturates
 // the output anyway (65.5 rad/s error).
-// Anti-windup: I is clamped to +-out_max*256 and is not integrated while the output is held by the
-// output or slew limit in the direction the error pushes it (conditional integration).
+// Anti-windup: I is clamped to +-out_max*256; while the output or slew limit holds the output in
+// the direction the error pushes it, I grows at most to the value that just reaches the limit
+// (back-calculation), so it releases at once when the error reverses.
 #ifndef PI_H
 #define PI_H
 

@@ -1,0 +1,364 @@
+// Application: dispatcher replies, refused setpoints, fail-safe timing, corrupt-frame counters,
+// telemetry rate, encoder faults, and the closed speed loop on a simulated gimbal motor.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "app.h"
+#include "cobs.h"
+#include "crc16.h"
+#include "enc.h"
+#include "test_support.h"
+
+namespace {
+
+using Bytes = std::vector<uint8_t>;
+
+// A GB54-1-like gimbal motor on a 12 V bus, voltage mode, resistance-dominated.
+struct Motor {
+    double theta = 0.3, omega = 0;
+    double j = 2e-4, b = 1e-5, kt = 0.05, r = 10.0, vbus = 12.0;
+    int pp = 7;
+    uint16_t word() const {
+        double turns = theta / (2 * M_PI);
+        long counts = static_cast<long>(floor((turns - floor(turns)) * 16384.0)) & 0x3FFF;
+        return enc_make_reply(static_cast<uint16_t>(counts), false);
+    }
+    void run(const uint16_t d[3], bool enabled, double dt) {
+        const int sub = 20;
+        double a = d[0] - 400.0, bb = d[1] - 400.0, c = d[2] - 400.0;
+        double alpha = (2.0 / 3.0) * (a - 0.5 * (bb + c)) * vbus / 800.0;
+        double beta = (bb - c) / sqrt(3.0) * vbus / 800.0;
+        for (int i = 0; i < sub; i++) {
+            double th_e = pp * theta;
+            double vq = enabled ? (-alpha * sin(th_e) + beta * cos(th_e)) : 0.0;
+            double iq = enabled ? (vq - kt * omega) / r : 0.0;
+            double tau = kt * iq - b * omega;
+            omega += tau / j * dt / sub;
+            theta += omega * dt / sub;
+        }
+    }
+};
+
+class AppTest : public ::testing::Test {
+   protected:
+    app_state app;
+    void SetUp() override {
+        FakeEeprom::erase();
+        FakeEeprom::busy_polls = 0;
+        TxCapture::reset();
+        app_init(&app, &FakeEeprom::iface, TxCapture::tx, 0);
+        app.flt.faults = 0;  // blank EEPROM set PARAMS_DEFAULTED; tests start clean
+        TxCapture::frames.clear();
+    }
+    void send_wire(const Bytes& wire) {
+        for (uint8_t b : wire) app_rx_byte(&app, b);
+    }
+    void send(uint8_t id, const Bytes& payload = {}) {
+        uint8_t out[PROTO_MAX_WIRE];
+        uint8_t n = proto_build(id, payload.data(), static_cast<uint8_t>(payload.size()), out);
+        send_wire(Bytes(out, out + n));
+    }
+    static Bytes i32s(std::initializer_list<int32_t> v) {
+        Bytes b;
+        for (int32_t x : v) {
+            uint8_t t[4];
+            proto_put_i32(t, x);
+            b.insert(b.end(), t, t + 4);
+        }
+        return b;
+    }
+    void set_param(uint8_t id, int32_t v) {
+        Bytes p = {id};
+        Bytes x = i32s({v});
+        p.insert(p.end(), x.begin(), x.end());
+        send(PROTO_ID_PARAM_SET, p);
+    }
+    void step(int n = 1) {
+        const uint16_t zero[4] = {enc_make_reply(0, false), enc_make_reply(0, false),
+                                  enc_make_reply(0, false), enc_make_reply(0, false)};
+        for (int i = 0; i < n; i++) app_control_step(&app, zero);
+    }
+    const RxFrame* last(uint8_t id) {
+        for (auto it = TxCapture::frames.rbegin(); it != TxCapture::frames.rend(); ++it) {
+            if (it->id == id) return &*it;
+        }
+        return nullptr;
+    }
+    int count(uint8_t id) {
+        int n = 0;
+        for (auto& f : TxCapture::frames) n += f.id == id;
+        return n;
+    }
+    void expect_error(uint8_t req, uint8_t code, uint8_t detail) {
+        const RxFrame* e = last(PROTO_ID_ERROR);
+        ASSERT_NE(e, nullptr);
+        EXPECT_EQ(e->payload[0], req);
+        EXPECT_EQ(e->payload[1], code);
+        EXPECT_EQ(e->payload[2], detail);
+    }
+};
+
+TEST_F(AppTest, HelloReplyCarriesVersions) {
+    send(PROTO_ID_HELLO);
+    const RxFrame* h = last(PROTO_ID_HELLO_REPLY);
+    ASSERT_NE(h, nullptr);
+    EXPECT_EQ(h->payload[0], PROTO_VERSION);
+    EXPECT_EQ(h->payload[3], 4);
+    EXPECT_EQ(h->payload[4], PRM_COUNT);
+    EXPECT_EQ(proto_get_u16(&h->payload[5]), 1000);
+}
+
+TEST_F(AppTest, SetpointAboveMaxRefusedWholeMessage) {
+    set_param(PRM_MODE, 1);
+    int32_t vmax = app.prm.v[PRM_SPEED_MAX_MRAD_S];
+    send(PROTO_ID_SET_SPEEDS, i32s({1000, 2000, vmax + 1, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_SETPOINT_ABOVE_MAX, 2);
+    for (int i = 0; i < 4; i++) EXPECT_EQ(app.w[i].target_mrad_s, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({-vmax - 1, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_SETPOINT_ABOVE_MAX, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({INT32_MIN, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_SETPOINT_ABOVE_MAX, 0);
+    int errors = count(PROTO_ID_ERROR);
+    send(PROTO_ID_SET_SPEEDS, i32s({vmax, -vmax, 0, 1}));
+    EXPECT_EQ(count(PROTO_ID_ERROR), errors);
+    EXPECT_EQ(app.w[0].target_mrad_s, vmax);
+    EXPECT_EQ(app.w[1].target_mrad_s, -vmax);
+}
+
+TEST_F(AppTest, HeartbeatLossAtConfiguredTimeThenRampToZero) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    set_param(PRM_ACCEL_RAD_S2, 1000);
+    set_param(PRM_DECEL_RAD_S2, 300);
+    send(PROTO_ID_SET_SPEEDS, i32s({50000, -50000, 20000, 0}));
+    step(99);  // 99 ms since the last frame: still alive
+    EXPECT_EQ(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+    EXPECT_EQ(app.w[0].sp_mrad_s, 50000);
+    EXPECT_EQ(app.enable_mask, 0x7);
+    step(1);  // 100 ms: fail-safe latches and the ramp down starts in this very tick
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+    EXPECT_NE(app_status(&app) & PROTO_STATUS_FAILSAFE, 0);
+    EXPECT_EQ(app.w[0].sp_mrad_s, 50000 - 300);
+    EXPECT_EQ(app.w[1].sp_mrad_s, -50000 + 300);
+    int ticks = 1;
+    while (app.enable_mask && ticks < 1000) {
+        step();
+        ticks++;
+    }
+    EXPECT_EQ(ticks, 167);  // ceil(50000 / 300)
+    for (int i = 0; i < 4; i++) EXPECT_EQ(app.w[i].sp_mrad_s, 0);
+    // Setpoints refused until the fault is cleared.
+    send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+    EXPECT_EQ(app.w[0].target_mrad_s, 0);
+    send(PROTO_ID_CLEAR_FAULTS);
+    EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_CLEAR_FAULTS);
+    send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
+    EXPECT_EQ(app.w[0].target_mrad_s, 1000);
+}
+
+TEST_F(AppTest, HeartbeatsKeepTheWheelsRunning) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    for (int i = 0; i < 50; i++) {
+        step(99);
+        send(PROTO_ID_HEARTBEAT);
+    }
+    EXPECT_EQ(app.flt.faults, 0);
+    EXPECT_EQ(app.w[0].sp_mrad_s, 10000);
+}
+
+TEST_F(AppTest, StopAllRampsWithDecelAndAcks) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_DECEL_RAD_S2, 500);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 10000, 10000, 10000}));
+    step(200);
+    send(PROTO_ID_STOP_ALL);
+    EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_STOP_ALL);
+    step(1);
+    EXPECT_EQ(app.w[3].sp_mrad_s, 9500);
+    step(19);
+    EXPECT_EQ(app.enable_mask, 0);
+}
+
+TEST_F(AppTest, CorruptFramesCountedDroppedAndReported) {
+    Bytes bad_crc = {0x04, 0x05, 0x01, 0x02, 0x00};  // PARAM_GET with a wrong CRC
+    send_wire(bad_crc);
+    send_wire({0x02, 0x05, 0x00});  // short: id only
+    send_wire(Bytes(120, 0x33));    // oversize...
+    send_wire({0x00});              // ...ends here
+    send_wire({0x07, 0x01, 0x00});  // bad COBS: code past the end
+    Bytes raw = {0x55, 1};          // unknown id, good CRC
+    uint16_t c = crc16_ccitt(raw.data(), 2);
+    raw.push_back(static_cast<uint8_t>(c));
+    raw.push_back(static_cast<uint8_t>(c >> 8));
+    uint8_t enc[16];
+    uint8_t n = cobs_encode(raw.data(), 4, enc);
+    Bytes w(enc, enc + n);
+    w.push_back(0);
+    send_wire(w);
+    expect_error(0x55, PROTO_ERR_UNKNOWN_MESSAGE, 0x55);
+    send(PROTO_ID_SET_SPEEDS, {1, 2, 3});  // wrong length
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_BAD_LENGTH, 3);
+    send(PROTO_ID_TELEMETRY, Bytes(PROTO_LEN_TELEMETRY, 1));  // device-to-host id
+    expect_error(PROTO_ID_TELEMETRY, PROTO_ERR_UNKNOWN_MESSAGE, PROTO_ID_TELEMETRY);
+    send(PROTO_ID_GET_STATS);
+    const RxFrame* s = last(PROTO_ID_STATS);
+    ASSERT_NE(s, nullptr);
+    const uint16_t want[] = {1, 1, 1, 1, 2, 1};  // crc short oversize cobs unknown length
+    for (int i = 0; i < 6; i++) EXPECT_EQ(proto_get_u16(&s->payload[2 * i]), want[i]) << i;
+    for (int i = 0; i < 4; i++) EXPECT_EQ(app.w[i].target_mrad_s, 0);
+}
+
+TEST_F(AppTest, CorruptFramesDoNotFeedTheHeartbeat) {
+    set_param(PRM_HEARTBEAT_MS, 50);
+    for (int i = 0; i < 50; i++) {
+        send_wire({0x04, 0x05, 0x01, 0x02, 0x00});
+        step();
+    }
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+}
+
+TEST_F(AppTest, ParamGetSetErrorsAndBusy) {
+    send(PROTO_ID_PARAM_GET, {PRM_POLE_PAIRS});
+    EXPECT_EQ(proto_get_i32(&last(PROTO_ID_PARAM_VALUE)->payload[1]), 7);
+    send(PROTO_ID_PARAM_GET, {200});
+    expect_error(PROTO_ID_PARAM_GET, PROTO_ERR_UNKNOWN_PARAM, 200);
+    set_param(PRM_KP_Q8, -1);
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, PRM_KP_Q8);
+    set_param(PRM_COUNT, 1);
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_UNKNOWN_PARAM, PRM_COUNT);
+    set_param(PRM_MODE, 1);
+    send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, 0, 0}));
+    step(10);
+    set_param(PRM_MODE, 0);  // structural change while running
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_BUSY, PRM_MODE);
+    EXPECT_EQ(app.prm.v[PRM_MODE], 1);
+    set_param(PRM_KP_Q8, 300);  // gains may change while running
+    EXPECT_EQ(proto_get_i32(&last(PROTO_ID_PARAM_VALUE)->payload[1]), 300);
+}
+
+TEST_F(AppTest, SaveAcksWhenWrittenAndSurvivesReboot) {
+    FakeEeprom::busy_polls = 2;
+    set_param(PRM_HEARTBEAT_MS, 777);
+    send(PROTO_ID_PARAM_SAVE);
+    EXPECT_EQ(count(PROTO_ID_ACK), 0);
+    EXPECT_NE(app_status(&app) & PROTO_STATUS_SAVING, 0);
+    send(PROTO_ID_PARAM_SAVE);
+    expect_error(PROTO_ID_PARAM_SAVE, PROTO_ERR_BUSY, 0);
+    for (int i = 0; i < 2000 && count(PROTO_ID_ACK) == 0; i++) app_poll(&app);
+    ASSERT_EQ(count(PROTO_ID_ACK), 1);
+    EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_PARAM_SAVE);
+    app_state again;
+    app_init(&again, &FakeEeprom::iface, TxCapture::tx, 0);
+    EXPECT_EQ(again.prm.v[PRM_HEARTBEAT_MS], 777);
+    EXPECT_EQ(again.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0);
+}
+
+TEST_F(AppTest, BlankEepromReportsDefaults) {
+    FakeEeprom::erase();
+    app_state fresh;
+    app_init(&fresh, &FakeEeprom::iface, TxCapture::tx, PROTO_FAULT_WATCHDOG_RESET);
+    EXPECT_NE(fresh.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0);
+    EXPECT_NE(fresh.flt.faults & PROTO_FAULT_WATCHDOG_RESET, 0);
+}
+
+TEST_F(AppTest, TelemetryRateSequenceAndDrops) {
+    set_param(PRM_TELEMETRY_DIV, 2);
+    TxCapture::frames.clear();
+    for (uint32_t t = 0; t < 1000; t++) {
+        step();
+        send(PROTO_ID_HEARTBEAT);
+        app_telemetry(&app, t * 1000);
+    }
+    EXPECT_EQ(count(PROTO_ID_TELEMETRY), 500);  // 500 Hz at the 1 kHz tick
+    const RxFrame* t = last(PROTO_ID_TELEMETRY);
+    EXPECT_EQ(proto_get_u16(&t->payload[4]), 499);
+    EXPECT_EQ(proto_get_u32(&t->payload[0]), 999000u);
+    TxCapture::full = true;
+    step();
+    app_telemetry(&app, 0);
+    step();
+    app_telemetry(&app, 0);
+    EXPECT_EQ(app.cnt.tx_dropped, 1);
+    TxCapture::full = false;
+    step();
+    app_telemetry(&app, 0);
+    step();
+    app_telemetry(&app, 0);
+    EXPECT_EQ(proto_get_u16(&last(PROTO_ID_TELEMETRY)->payload[4]), 501);  // gap shows the drop
+}
+
+TEST_F(AppTest, EncoderFaultLatchesDisablesWheelAndBlocksSetpoints) {
+    set_param(PRM_ENC_FAULT_LIMIT, 3);
+    send(PROTO_ID_SET_SPEEDS, i32s({5000, 5000, 0, 0}));
+    uint16_t words[4] = {enc_make_reply(0, false), enc_make_reply(0, true),
+                         enc_make_reply(0, false), enc_make_reply(0, false)};
+    app_control_step(&app, words);
+    app_control_step(&app, words);
+    EXPECT_EQ(app.flt.faults & PROTO_FAULT_ENCODER_M1, 0);
+    words[1] = static_cast<uint16_t>(enc_make_reply(5, false) ^ 1);  // parity error
+    app_control_step(&app, words);
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_ENCODER_M1, 0);
+    EXPECT_EQ(app.enable_mask & 0x2, 0);
+    EXPECT_NE(app.enable_mask & 0x1, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+}
+
+TEST_F(AppTest, OverrunAndRxOverflowSetFaults) {
+    app_note_overrun(&app, 3);
+    app_note_rx_overflow(&app);
+    EXPECT_EQ(app.cnt.tick_overruns, 3);
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_TICK_OVERRUN, 0);
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_RX_OVERFLOW, 0);
+    EXPECT_FALSE(flt_blocks_setpoints(&app.flt));  // informational faults do not block
+}
+
+TEST_F(AppTest, OpenLoopAdvancesPhaseAtCommandedSpeed) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_ACCEL_RAD_S2, 10000);
+    send(PROTO_ID_SET_SPEEDS, i32s({74870, 0, 0, -74870}));
+    step(100);  // ramp done after 8 ticks
+    uint32_t p0 = app.w[0].ol_phase;
+    step(1000);
+    // 1 s at 74.87 rad/s and 7 pole pairs: 7 * 74.87 / (2 pi) = 83.41 electrical turns.
+    double turns = 7 * 74.870 / (2 * M_PI);
+    double frac = turns - floor(turns);
+    double got = static_cast<uint32_t>(app.w[0].ol_phase - p0) / 4294967296.0;
+    EXPECT_NEAR(got, frac, 1e-3);
+    EXPECT_EQ(app.w[0].speed_mrad_s, 74870);
+    EXPECT_EQ(app.w[0].drive_q15, app.prm.v[PRM_OPEN_LOOP_DRIVE_Q15]);
+    EXPECT_EQ(app.w[3].drive_q15, -app.prm.v[PRM_OPEN_LOOP_DRIVE_Q15]);
+    EXPECT_NE(app_status(&app) & PROTO_STATUS_OPEN_LOOP, 0);
+}
+
+TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
+    set_param(PRM_DRIVE_MAX_Q15, 32767);
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    Motor m[4];
+    const int32_t sp[4] = {74870, -74870, 20000, 0};
+    send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
+    double mean[4] = {0, 0, 0, 0};
+    for (int t = 0; t < 4000; t++) {
+        uint16_t words[4];
+        for (int i = 0; i < 4; i++) words[i] = m[i].word();
+        app_control_step(&app, words);
+        for (int i = 0; i < 4; i++) {
+            m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
+            if (t >= 3000) mean[i] += m[i].omega / 1000.0;
+        }
+    }
+    for (int i = 0; i < 3; i++) {
+        EXPECT_NEAR(mean[i], sp[i] / 1000.0, 0.005 * fabs(sp[i] / 1000.0)) << "wheel " << i;
+        EXPECT_NEAR(app.w[i].speed_mrad_s, sp[i], 1500) << "wheel " << i;
+    }
+    EXPECT_NEAR(m[3].omega, 0.0, 1e-9);
+    EXPECT_EQ(app.flt.faults, 0);
+}
+
+}  // namespace

@@ -1,0 +1,87 @@
+// Commutation: sine table, electrical angle wrap, duty range, space-vector direction, phase rate.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "cmt.h"
+
+TEST(Cmt, TableMatchesSine) {
+    for (int i = 0; i < CMT_TABLE_SIZE; i++) {
+        ASSERT_NEAR(cmt_sine_q15[i], 32767.0 * sin(2 * M_PI * i / 256), 0.5) << "entry " << i;
+    }
+}
+
+TEST(Cmt, ElecAngleWrapsModulo) {
+    for (uint32_t m = 0; m < 16384; m += 7) {
+        for (uint8_t pp : {1, 7, 14, 40}) {
+            uint32_t expect = (m * 4u * pp - 1000u) & 0xFFFFu;
+            ASSERT_EQ(cmt_elec_angle(static_cast<uint16_t>(m), pp, 1000), expect);
+        }
+    }
+    EXPECT_EQ(cmt_elec_angle(0xFFFF, 7, 0), cmt_elec_angle(0x3FFF, 7, 0));  // top bits ignored
+}
+
+static void vector_of(const uint16_t d[3], double* mag, double* ang) {
+    double a = d[0] - 400.0, b = d[1] - 400.0, c = d[2] - 400.0;
+    double alpha = (2.0 / 3.0) * (a - 0.5 * (b + c));
+    double beta = (b - c) / sqrt(3.0);
+    *mag = hypot(alpha, beta);
+    *ang = atan2(beta, alpha);
+}
+
+TEST(Cmt, DutiesInRangeAndVectorPointsAtAngle) {
+    for (int16_t amp : {0, 1, 1000, 16384, 32767}) {
+        for (uint32_t ang = 0; ang < 65536; ang += 256) {
+            uint16_t d[3];
+            cmt_phases(static_cast<uint16_t>(ang), amp, d);
+            for (int k = 0; k < 3; k++) {
+                ASSERT_LE(d[k], CMT_PWM_TOP);
+            }
+            if (amp < 16384) continue;  // small vectors: quantized to a few counts
+            double mag, a;
+            vector_of(d, &mag, &a);
+            double want = 2 * M_PI * ang / 65536.0;
+            double err = remainder(a - want, 2 * M_PI);
+            ASSERT_LT(fabs(err), 0.03) << "angle " << ang << " amp " << amp;
+            ASSERT_NEAR(mag, amp * 460.0 / 32768.0, 4.0);
+        }
+    }
+}
+
+TEST(Cmt, FullAmplitudeUsesWholeRange) {
+    uint16_t lo = 800, hi = 0;
+    for (uint32_t ang = 0; ang < 65536; ang += 64) {
+        uint16_t d[3];
+        cmt_phases(static_cast<uint16_t>(ang), 32767, d);
+        for (int k = 0; k < 3; k++) {
+            if (d[k] < lo) lo = d[k];
+            if (d[k] > hi) hi = d[k];
+        }
+    }
+    EXPECT_LE(lo, 5);
+    EXPECT_GE(hi, 794);
+}
+
+TEST(Cmt, NegativeAmplitudeIsZero) {
+    uint16_t d[3];
+    cmt_phases(1234, -5, d);
+    EXPECT_EQ(d[0], 400);
+    EXPECT_EQ(d[1], 400);
+    EXPECT_EQ(d[2], 400);
+}
+
+TEST(Cmt, PhaseIncrementMatchesExact) {
+    for (int32_t v : {-400000, -74870, -1, 0, 1, 1000, 74870, 314159, 400000}) {
+        for (uint8_t pp : {1, 7}) {
+            double exact = static_cast<double>(v) * pp * 4294967296.0 / (2 * M_PI * 1e6);
+            ASSERT_NEAR(cmt_phase_inc(v, pp), exact, 1.0 + 3e-6 * fabs(exact)) << v;
+        }
+    }
+}
+
+TEST(Cmt, PhaseIncrementClampsAtAliasingLimit) {
+    int32_t top = cmt_phase_inc(400000, 40);  // 1.6e7 electrical mrad/s: clamped, no overflow
+    EXPECT_EQ(top, cmt_phase_inc(CMT_MAX_ELEC_MRAD_S, 1));
+    EXPECT_EQ(cmt_phase_inc(-400000, 40), -top);
+    EXPECT_GT(top, 0);
+}
