@@ -77,6 +77,7 @@ typedef struct {
     double omega_rad_s;
     double load_nm; /* extra load torque (opposes positive rotation), set from stdin */
     double v_alpha, v_beta;
+    double v_q, v_d; /* applied vector in rotor coordinates (q: torque-producing), V */
     int enabled;
     /* AS5048A emulation */
     int selected;       /* chip select currently low */
@@ -108,10 +109,9 @@ static params_t g_par = {
     .j_kgm2 = 1.8e-4,
     .b_nms = 2.0e-5,
     .vbus_v = 12.0,
-    /* Duties a = sin(phi), b = sin(phi - 120 deg), c = sin(phi + 120 deg) give a vector at
-       phi - 90 deg; -90 makes the rotor hold where phi = pole_pairs * encoder angle, the
-       convention of the wheel firmware's commutation (cmt.h) with ENC_OFFSET = 0. */
-    .elec_offset_rad = -TWO_PI / 4,
+    /* 0: the rotor holds where the applied vector points when pole_pairs * encoder angle equals
+       the vector angle, the convention of the wheel firmware (cmt.h) with ENC_OFFSET = 0 */
+    .elec_offset_rad = 0.0,
     .pole_pairs = 7,
     .model_cycles = 1000,
 };
@@ -131,6 +131,7 @@ static uint64_t g_tick_cycles = 16000;
 
 static volatile sig_atomic_t g_stop;
 static volatile int g_stats_request;
+static volatile int g_pwm_request;
 static double g_stats_period_s = 1.0;
 static double g_rate = 1.0; /* simulated seconds per wall second; 0 = free-running */
 static double g_wall_t0;
@@ -391,8 +392,10 @@ static void motor_step(motor_t* m, double dt) {
     double e = g_par.pole_pairs * m->theta_rad + g_par.elec_offset_rad;
     /* k_t (|V| sin(angle(V) - e) - k_e w): the quadrature voltage, written without atan2,
        minus the back-EMF, drives the (resistive) winding current; k_t = K_torque / R */
-    double v_q = m->v_beta * cos(e) - m->v_alpha * sin(e);
-    double torque = m->enabled ? g_par.k_t_nm_per_v * (v_q - g_par.k_e_vs_rad * m->omega_rad_s) : 0;
+    m->v_q = m->v_beta * cos(e) - m->v_alpha * sin(e);
+    m->v_d = m->v_alpha * cos(e) + m->v_beta * sin(e);
+    double torque =
+        m->enabled ? g_par.k_t_nm_per_v * (m->v_q - g_par.k_e_vs_rad * m->omega_rad_s) : 0;
     double load = m->load_nm;
     if (m->omega_rad_s < 0) load = -load;
     double acc = (torque - g_par.b_nms * m->omega_rad_s - load) / g_par.j_kgm2;
@@ -413,13 +416,28 @@ static void print_stats(const char* tag, const cyc_stats_t* s) {
     double t = sim_time_s();
     printf(
         "%s t_s=%.3f wall_s=%.3f rt=%.3f steps=%llu cyc_min=%llu cyc_mean=%.1f cyc_max=%llu "
-        "load_pct=%.2f overruns=%llu rpm=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s\n",
+        "load_pct=%.2f overruns=%llu rpm=%.2f,%.2f,%.2f,%.2f vq=%.2f,%.2f,%.2f,%.2f "
+        "vd=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s\n",
         tag, t, wall, wall > 0 ? t / wall : 0.0, (unsigned long long)s->n,
         (unsigned long long)s->min, mean, (unsigned long long)s->max,
         100.0 * (double)s->max / (double)g_tick_cycles, (unsigned long long)s->overruns,
-        rpm(&g_mot[0]), rpm(&g_mot[1]), rpm(&g_mot[2]), rpm(&g_mot[3]),
+        rpm(&g_mot[0]), rpm(&g_mot[1]), rpm(&g_mot[2]), rpm(&g_mot[3]), g_mot[0].v_q, g_mot[1].v_q,
+        g_mot[2].v_q, g_mot[3].v_q, g_mot[0].v_d, g_mot[1].v_d, g_mot[2].v_d, g_mot[3].v_d,
         k_fault_names[g_mot[0].fault], k_fault_names[g_mot[1].fault], k_fault_names[g_mot[2].fault],
         k_fault_names[g_mot[3].fault]);
+    fflush(stdout);
+}
+
+/* "OK pwm": per motor enable, TOP, the three compare values, rotor angle and speed */
+static void print_pwm(void) {
+    printf("OK pwm");
+    for (int i = 0; i < N_MOTORS; i++) {
+        const timer_regs_t* t = &k_timers[i];
+        printf(" m%d=%d/%u/%u/%u/%u/%.4f/%.3f/%04x", i, g_mot[i].enabled, pwm_top(t),
+               read16(t->ocr[0]), read16(t->ocr[1]), read16(t->ocr[2]), g_mot[i].theta_rad,
+               g_mot[i].omega_rad_s, g_mot[i].tx_word);
+    }
+    printf("\n");
     fflush(stdout);
 }
 
@@ -475,6 +493,8 @@ static void* stdin_thread(void* arg) {
         int motor_ok = motor >= 0 && motor < N_MOTORS;
         if (n >= 1 && strcmp(cmd, "quit") == 0) {
             g_stop = 1;
+        } else if (n >= 1 && strcmp(cmd, "pwm") == 0) {
+            g_pwm_request = 1;
         } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
             g_stats_request = 1;
         } else if (n == 3 && strcmp(cmd, "fault") == 0 && motor_ok && parse_fault(mode) >= 0) {
@@ -529,7 +549,7 @@ static void usage(const char* prog) {
             "      --damping NMS      viscous damping (default %g)\n"
             "      --vbus V           bridge supply (default %g)\n"
             "      --pole-pairs N     (default %d)\n"
-            "      --elec-offset DEG  electrical angle at encoder zero (default -90)\n"
+            "      --elec-offset DEG  electrical angle at encoder zero (default 0)\n"
             "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
             "      --freq HZ          CPU clock (default 16000000)\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
@@ -757,6 +777,10 @@ int main(int argc, char** argv) {
     while (!g_stop && g_avr->cycle < end_cycle) {
         state = avr_run(g_avr);
         if (state == cpu_Done || state == cpu_Crashed) break;
+        if (g_pwm_request) {
+            g_pwm_request = 0;
+            print_pwm();
+        }
         if (g_stats_request) {
             g_stats_request = 0;
             print_stats("STATS", &g_cyc_total);

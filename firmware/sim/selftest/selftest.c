@@ -58,7 +58,8 @@ static uint16_t encoder_read(uint8_t m) {
 
 static void set_duties(volatile uint16_t* ocr_a, volatile uint16_t* ocr_b, volatile uint16_t* ocr_c,
                        uint32_t ph) {
-    uint8_t i = (uint8_t)(ph >> 16);
+    /* cosine pattern: the voltage vector points at the phase angle itself */
+    uint8_t i = (uint8_t)((ph >> 16) + 64);
     *ocr_a = (uint16_t)(TOP / 2 + (int16_t)(((int32_t)AMPL * sine_table[i]) >> 15));
     *ocr_b = (uint16_t)(TOP / 2 + (int16_t)(((int32_t)AMPL * sine_table[(uint8_t)(i - 85)]) >> 15));
     *ocr_c =
