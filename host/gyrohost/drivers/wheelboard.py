@@ -1,0 +1,323 @@
+"""Client of the wheel board (four gimbal-motor speed loops on an ATmega2560) over a serial port.
+
+Protocol: docs/protocol.md, codec: :mod:`gyrohost.wheelproto`. One reader thread decodes every
+frame; telemetry goes to a bounded queue (oldest dropped) and an optional callback, replies to the
+request waiting for them. A heartbeat thread keeps the board's fail-safe from firing while the
+host is alive; if the host dies, the board ramps all wheels to zero on its own.
+
+Speeds are rad/s on this side, mrad/s on the wire.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from gyrohost import wheelproto as wp
+
+BAUD = 500_000
+
+
+class WheelBoardError(RuntimeError):
+    """The board or the link failed (timeouts, refused commands, faults)."""
+
+
+class WheelBoardTimeout(WheelBoardError, TimeoutError):
+    """No reply within the time limit."""
+
+
+class FirmwareMismatchError(WheelBoardError):
+    """The firmware speaks another protocol version than this host."""
+
+
+class DeviceError(WheelBoardError):
+    """The board answered a request with an ERROR reply.
+
+    Attributes: ``request`` (message name), ``code`` (number), ``name``, ``text``, ``detail``.
+    """
+
+    def __init__(self, request: str, code: int, detail: int):
+        self.request, self.code, self.detail = request, code, detail
+        self.name, self.text = wp.error_name(code), wp.error_text(code)
+        super().__init__(
+            f"{request} refused by the wheel board: {self.name} ({self.text}), detail {detail}"
+        )
+
+
+class WheelFaultError(WheelBoardError):
+    """Faults are latched on the board; ``faults`` lists their names."""
+
+    def __init__(self, faults: list[str]):
+        self.faults = faults
+        texts = "; ".join(f"{n}: {_fault_text(n)}" for n in faults)
+        super().__init__(f"wheel board faults latched: {texts}")
+
+
+def _fault_text(name: str) -> str:
+    return next((t for n, t in wp.FAULTS.values() if n == name), "unknown fault")
+
+
+class WheelBoard:
+    """Wheel-board client.
+
+    Parameters
+    ----------
+    port : str or serial-like object
+        Device path (opened with pyserial at 500000 baud) or an object with ``read``/``write``.
+    heartbeat_period_s : float, s
+        Period of the background heartbeat; must be well below the board's HEARTBEAT_MS.
+    on_telemetry : callable(Telemetry) or None
+        Called from the reader thread for every telemetry message.
+    on_fault : callable(list[str]) or None
+        Called from the reader thread when fault bits newly appear in telemetry.
+    telemetry_queue_len : int
+        Capacity of :attr:`telemetry`; when full the oldest sample is dropped.
+    """
+
+    def __init__(
+        self,
+        port: Any,
+        heartbeat_period_s: float = 0.05,
+        on_telemetry: Callable[[wp.Telemetry], None] | None = None,
+        on_fault: Callable[[list[str]], None] | None = None,
+        telemetry_queue_len: int = 2000,
+        reply_timeout_s: float = 0.5,
+    ):
+        if isinstance(port, str):
+            import serial
+
+            port = serial.Serial(port, BAUD, timeout=0.01)
+        self._port = port
+        self.heartbeat_period_s = heartbeat_period_s
+        self.reply_timeout_s = reply_timeout_s
+        self.on_telemetry = on_telemetry
+        self.on_fault = on_fault
+        self.telemetry: queue.Queue[wp.Telemetry] = queue.Queue(telemetry_queue_len)
+        self.decoder = wp.FrameDecoder()
+        self.faults: list[str] = []
+        self.last_telemetry: wp.Telemetry | None = None
+        self.telemetry_dropped = 0
+        self.hello: dict[str, int] | None = None
+        self._replies: queue.Queue[wp.Message] = queue.Queue()
+        self._write_lock = threading.Lock()
+        self._request_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._heartbeat_on = threading.Event()
+        self._reader = threading.Thread(target=self._read_loop, name="wheelboard-rx", daemon=True)
+        self._beater = threading.Thread(target=self._beat_loop, name="wheelboard-hb", daemon=True)
+        self._reader.start()
+        self._beater.start()
+
+    # ------------------------------------------------------------ life cycle
+    def connect(self) -> dict[str, int]:
+        """Handshake: HELLO, refuse another protocol version, start the heartbeat."""
+        reply = self._request("HELLO", {}, ("HELLO_REPLY",))
+        fields = reply.fields
+        if fields["proto_version"] != wp.PROTO_VERSION:
+            raise FirmwareMismatchError(
+                f"wheel board firmware {fields['fw_major']}.{fields['fw_minor']} speaks protocol "
+                f"v{fields['proto_version']}, this host speaks v{wp.PROTO_VERSION}: flash the "
+                "matching firmware (pio run -e megaatmega2560 -t upload) or update gyrohost"
+            )
+        if fields["n_params"] != len(wp.PARAMS) or fields["n_wheels"] != wp.N_WHEELS:
+            raise FirmwareMismatchError(
+                f"wheel board reports {fields['n_wheels']} wheels and {fields['n_params']} "
+                f"parameters, this host expects {wp.N_WHEELS} and {len(wp.PARAMS)}"
+            )
+        self.hello = fields
+        self._heartbeat_on.set()
+        return fields
+
+    def close(self) -> None:
+        """Stop all wheels (best effort), stop the threads and close the port."""
+        try:
+            if self.hello is not None:
+                self._send("STOP_ALL", {})
+        except OSError:
+            pass
+        self._heartbeat_on.clear()
+        self._stop.set()
+        self._beater.join(1.0)
+        self._reader.join(1.0)
+        close = getattr(self._port, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> WheelBoard:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------ commands
+    def set_speeds(self, omega_rad_s: Sequence[float], confirm: bool = True) -> None:
+        """Command the four wheel speeds, rad/s.
+
+        The board replies only on refusal; with ``confirm`` a GET_STATS round trip after the
+        setpoints proves they were accepted (replies come in order), else a refusal surfaces
+        as DeviceError on a later request.
+        """
+        if len(omega_rad_s) != wp.N_WHEELS:
+            raise ValueError(f"set_speeds: need {wp.N_WHEELS} speeds, got {len(omega_rad_s)}")
+        fields = {}
+        for i, w in enumerate(omega_rad_s):
+            if not math.isfinite(w):
+                raise ValueError(f"set_speeds: wheel {i} speed {w} is not finite")
+            mrad = round(w * 1000.0)
+            if abs(mrad) > 2**31 - 1:
+                raise ValueError(f"set_speeds: wheel {i} speed {w} rad/s out of the int32 range")
+            fields[f"w{i}_mrad_s"] = mrad
+        if not confirm:
+            self._send("SET_SPEEDS", fields)
+            return
+        with self._request_lock:
+            self._drain_replies()
+            self._send("SET_SPEEDS", fields)
+            self._send("GET_STATS", {})
+            self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
+
+    def stop_all(self) -> None:
+        """Ramp all wheels to zero at DECEL_RAD_S2."""
+        self._request("STOP_ALL", {}, ("ACK",))
+
+    def clear_faults(self) -> None:
+        self._request("CLEAR_FAULTS", {}, ("ACK",))
+        self.faults = []
+
+    def get_param(self, name: str) -> int:
+        spec = self._param(name)
+        return self._request("PARAM_GET", {"param_id": spec.id}, ("PARAM_VALUE",)).fields["value"]
+
+    def set_param(self, name: str, value: int) -> int:
+        """Set a parameter (RAM); returns the value the board now holds. See save_params()."""
+        spec = self._param(name)
+        if not spec.min <= int(value) <= spec.max:
+            raise ValueError(
+                f"parameter {name}: {value} outside [{spec.min}, {spec.max}] {spec.unit}"
+            )
+        reply = self._request(
+            "PARAM_SET", {"param_id": spec.id, "value": int(value)}, ("PARAM_VALUE",)
+        )
+        return reply.fields["value"]
+
+    def save_params(self, timeout_s: float = 2.0) -> None:
+        """Write all parameters to EEPROM; returns when the board has written the last byte."""
+        self._request("PARAM_SAVE", {}, ("ACK",), timeout_s=timeout_s)
+
+    def load_defaults(self) -> None:
+        self._request("PARAM_DEFAULTS", {}, ("ACK",))
+
+    def stats(self) -> dict[str, int]:
+        return self._request("GET_STATS", {}, ("STATS",)).fields
+
+    def check_faults(self) -> None:
+        """Raise WheelFaultError if the last telemetry showed latched faults."""
+        if self.faults:
+            raise WheelFaultError(list(self.faults))
+
+    # ------------------------------------------------------------ internals
+    @staticmethod
+    def _param(name: str) -> wp.ParamSpec:
+        spec = wp.PARAM_BY_NAME.get(name)
+        if spec is None:
+            raise ValueError(
+                f"unknown wheel-board parameter {name!r}; known: {sorted(wp.PARAM_BY_NAME)}"
+            )
+        return spec
+
+    def _send(self, name: str, fields: dict[str, int]) -> None:
+        data = wp.encode(name, **fields)
+        with self._write_lock:
+            self._port.write(data)
+
+    def _drain_replies(self) -> None:
+        while True:
+            try:
+                self._replies.get_nowait()
+            except queue.Empty:
+                return
+
+    def _request(
+        self,
+        name: str,
+        fields: dict[str, int],
+        expect: tuple[str, ...],
+        timeout_s: float | None = None,
+    ) -> wp.Message:
+        with self._request_lock:
+            self._drain_replies()
+            self._send(name, fields)
+            return self._await(expect, (name,), timeout_s)
+
+    def _await(
+        self, expect: tuple[str, ...], requests: tuple[str, ...], timeout_s: float | None = None
+    ) -> wp.Message:
+        deadline = time.monotonic() + (timeout_s or self.reply_timeout_s)
+        req_ids = {wp.BY_NAME[r].id for r in requests}
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise WheelBoardTimeout(
+                    f"no {'/'.join(expect)} reply to {'+'.join(requests)} within "
+                    f"{timeout_s or self.reply_timeout_s:.3f} s (is the board connected and "
+                    f"running protocol v{wp.PROTO_VERSION}?)"
+                )
+            try:
+                msg = self._replies.get(timeout=left)
+            except queue.Empty:
+                continue
+            if msg.name == "ERROR" and msg.fields["req_id"] in req_ids:
+                req = wp.BY_ID[msg.fields["req_id"]].name
+                raise DeviceError(req, msg.fields["code"], msg.fields["detail"])
+            if msg.name == "ACK" and msg.fields["req_id"] not in req_ids:
+                continue
+            if msg.name in expect:
+                return msg
+
+    def _read_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self._port.read(256)
+            except (OSError, ValueError, TypeError):
+                if self._stop.is_set():
+                    return
+                time.sleep(0.01)
+                continue
+            if not data:
+                continue
+            for msg in self.decoder.feed(data):
+                self._route(msg)
+
+    def _route(self, msg: wp.Message) -> None:
+        if msg.name != "TELEMETRY":
+            self._replies.put(msg)
+            return
+        tel = wp.Telemetry.from_message(msg)
+        self.last_telemetry = tel
+        if self.telemetry.full():
+            try:
+                self.telemetry.get_nowait()
+                self.telemetry_dropped += 1
+            except queue.Empty:
+                pass
+        self.telemetry.put_nowait(tel)
+        names = tel.fault_names
+        new = [n for n in names if n not in self.faults]
+        self.faults = names
+        if self.on_telemetry is not None:
+            self.on_telemetry(tel)
+        if new and self.on_fault is not None:
+            self.on_fault(new)
+
+    def _beat_loop(self) -> None:
+        while not self._stop.wait(self.heartbeat_period_s):
+            if self._heartbeat_on.is_set():
+                try:
+                    self._send("HEARTBEAT", {})
+                except OSError:
+                    pass
