@@ -473,6 +473,34 @@ static avr_cycle_count_t stats_timer(avr_t* avr, avr_cycle_count_t when, void* p
     return when + (avr_cycle_count_t)(g_stats_period_s * avr->frequency);
 }
 
+/* ---------------------------------------------------------------- PC sampling profile */
+
+/* --profile FILE: the program counter is sampled every 997 cycles (prime, so the samples do not
+   lock to the 16,000-cycle tick) while GPIOR0 = 1; FILE gets "byte_address count" lines, to be
+   mapped to functions with avr-addr2line -f (firmware/sim/profile.sh). */
+#define PROFILE_PERIOD 997
+static uint32_t* g_profile;
+static const char* g_profile_path;
+
+static avr_cycle_count_t profile_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)param;
+    if (g_step_open && avr->pc / 2 < 0x20000) g_profile[avr->pc / 2]++;
+    return when + PROFILE_PERIOD;
+}
+
+static void write_profile(void) {
+    if (!g_profile) return;
+    FILE* f = fopen(g_profile_path, "w");
+    if (!f) {
+        fprintf(stderr, "fil_harness: cannot write %s: %s\n", g_profile_path, strerror(errno));
+        return;
+    }
+    for (uint32_t i = 0; i < 0x20000; i++) {
+        if (g_profile[i]) fprintf(f, "0x%05x %u\n", (unsigned)(i * 2), (unsigned)g_profile[i]);
+    }
+    fclose(f);
+}
+
 /* ---------------------------------------------------------------- stdin commands */
 
 static int parse_fault(const char* s) {
@@ -552,6 +580,7 @@ static void usage(const char* prog) {
             "      --elec-offset DEG  electrical angle at encoder zero (default 0)\n"
             "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
             "      --freq HZ          CPU clock (default 16000000)\n"
+            "      --profile FILE     sample the PC inside the control step, write FILE at exit\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
             "                         firmware uses their counters or interrupts)\n",
             prog, g_par.k_t_nm_per_v, g_par.k_e_vs_rad, g_par.j_kgm2, g_par.b_nms, g_par.vbus_v,
@@ -568,7 +597,8 @@ enum {
     OPT_OFFSET,
     OPT_MODEL,
     OPT_FREQ,
-    OPT_SIMPWM
+    OPT_SIMPWM,
+    OPT_PROFILE
 };
 
 typedef struct {
@@ -617,6 +647,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"model-cycles", required_argument, 0, OPT_MODEL},
         {"freq", required_argument, 0, OPT_FREQ},
         {"sim-pwm-timers", no_argument, 0, OPT_SIMPWM},
+        {"profile", required_argument, 0, OPT_PROFILE},
         {"ke", required_argument, 0, OPT_KE},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
@@ -665,6 +696,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
                 break;
             case OPT_FREQ:
                 o->freq_hz = (uint32_t)parse_double(optarg, "--freq");
+                break;
+            case OPT_PROFILE:
+                g_profile_path = optarg;
                 break;
             case OPT_SIMPWM:
                 g_sim_pwm_timers = 1;
@@ -763,6 +797,11 @@ int main(int argc, char** argv) {
                                  stats_timer, NULL);
     }
 
+    if (g_profile_path) {
+        g_profile = calloc(0x20000, sizeof(uint32_t));
+        avr_cycle_timer_register(g_avr, PROFILE_PERIOD, profile_timer, NULL);
+    }
+
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     signal(SIGUSR1, on_usr1);
@@ -788,6 +827,7 @@ int main(int argc, char** argv) {
     }
     if (state == cpu_Crashed) printf("CRASHED pc=0x%05x\n", (unsigned)g_avr->pc);
     print_stats("FINAL", &g_cyc_total);
+    write_profile();
     /* no uart_pty_stop(): it hangs in pthread_join (simavr 1.6); exit ends its thread */
     if (opt.pty_link) unlink(opt.pty_link);
     fflush(stdout);
