@@ -1,0 +1,255 @@
+"""Wheel-board client against hand-built byte streams and a fake board on os.openpty()."""
+
+import os
+import queue
+import select
+import struct
+import threading
+import time
+import tty
+
+import pytest
+
+from gyrohost import wheelproto as wp
+from gyrohost.drivers import wheelboard as wb
+
+
+def crc_bytewise(data: bytes) -> int:
+    crc = 0xFFFF
+    for b in data:
+        x = ((crc >> 8) ^ b) & 0xFF
+        x ^= x >> 4
+        crc = ((crc << 8) ^ (x << 12) ^ (x << 5) ^ x) & 0xFFFF
+    return crc
+
+
+def cobs_by_hand(raw: bytes) -> bytes:
+    out, code_pos, code = bytearray([0]), 0, 1
+    for b in raw:
+        if b == 0:
+            out[code_pos] = code
+            code_pos, code = len(out), 1
+            out.append(0)
+        else:
+            out.append(b)
+            code += 1
+    out[code_pos] = code
+    return bytes(out)
+
+
+def telemetry_bytes(seq: int, mrad: tuple[int, int, int, int], faults: int = 0) -> bytes:
+    body = bytes([0x82]) + struct.pack(
+        "<IH4i4hBH", 1000 * seq, seq, *mrad, 100, -100, 0, 0, 1, faults
+    )
+    return cobs_by_hand(body + struct.pack("<H", crc_bytewise(body))) + b"\x00"
+
+
+class BytesPort:
+    """A serial-like object replaying a byte stream in small chunks."""
+
+    def __init__(self, data: bytes):
+        self.data, self.written = bytearray(data), bytearray()
+
+    def read(self, n: int) -> bytes:
+        if not self.data:
+            time.sleep(0.005)
+            return b""
+        chunk = bytes(self.data[:7])
+        del self.data[:7]
+        return chunk
+
+    def write(self, data: bytes) -> int:
+        self.written += data
+        return len(data)
+
+
+def test_hand_built_stream_with_garbage_and_corrupt_frames():
+    good = [telemetry_bytes(i, (74870, -74870, 0, i)) for i in range(5)]
+    bad_crc = bytearray(telemetry_bytes(9, (1, 2, 3, 4)))
+    bad_crc[5] ^= 0x01
+    stream = b"\x13\x37garbage\x00" + good[0] + good[1] + bytes(bad_crc) + good[2] + b"\x00\x00"
+    stream += good[3] + b"\xaa" * 80 + b"\x00" + good[4]
+    got = []
+    board = wb.WheelBoard(BytesPort(stream), on_telemetry=got.append)
+    deadline = time.monotonic() + 2
+    while len(got) < 5 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    board.close()
+    assert [t.seq for t in got] == [0, 1, 2, 3, 4]
+    assert got[0].omega_rad_s == pytest.approx((74.87, -74.87, 0.0, 0.0))
+    assert got[0].drive[0] == pytest.approx(100 / 32767)
+    # The leading garbage claims a 19-byte block in 9 bytes: bad COBS.
+    assert board.decoder.dropped == {"bad_cobs": 1, "bad_crc": 1, "oversize": 1}
+    assert board.telemetry.qsize() == 5
+
+
+class FakeBoard(threading.Thread):
+    """Answers like the firmware's dispatcher on the master side of a pseudo-terminal."""
+
+    def __init__(self, proto_version: int = wp.PROTO_VERSION, silent: bool = False):
+        super().__init__(daemon=True)
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        self._slave = slave
+        self.proto_version, self.silent = proto_version, silent
+        self.params = {p.id: p.default for p in wp.PARAMS}
+        self.speeds = [0, 0, 0, 0]
+        self.heartbeats: list[float] = []
+        self.received: list[str] = []
+        self.stop = threading.Event()
+        self.start()
+
+    def send(self, name: str, **fields: int) -> None:
+        os.write(self.master, wp.encode(name, **fields))
+
+    def send_telemetry(self, seq: int, faults: int = 0) -> None:
+        os.write(self.master, telemetry_bytes(seq, (1000, 2000, 3000, 4000), faults))
+
+    def run(self) -> None:
+        dec = wp.FrameDecoder()
+        while not self.stop.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.02)
+            if not ready:
+                continue
+            try:
+                data = os.read(self.master, 256)
+            except OSError:
+                return
+            for msg in dec.feed(data):
+                self.received.append(msg.name)
+                if not self.silent:
+                    self.handle(msg)
+
+    def handle(self, msg: wp.Message) -> None:
+        f = msg.fields
+        if msg.name == "HELLO":
+            self.send(
+                "HELLO_REPLY",
+                proto_version=self.proto_version,
+                fw_major=1,
+                fw_minor=0,
+                n_wheels=4,
+                n_params=len(wp.PARAMS),
+                tick_hz=1000,
+            )
+        elif msg.name == "HEARTBEAT":
+            self.heartbeats.append(time.monotonic())
+        elif msg.name == "SET_SPEEDS":
+            vmax = self.params[wp.PARAM_BY_NAME["SPEED_MAX_MRAD_S"].id]
+            sp = [f[f"w{i}_mrad_s"] for i in range(4)]
+            bad = [i for i, v in enumerate(sp) if abs(v) > vmax]
+            if bad:
+                self.send("ERROR", req_id=msg.id, code=3, detail=bad[0])
+            else:
+                self.speeds = sp
+        elif msg.name in ("STOP_ALL", "CLEAR_FAULTS", "PARAM_SAVE", "PARAM_DEFAULTS"):
+            self.send("ACK", req_id=msg.id)
+        elif msg.name == "PARAM_GET":
+            self.send("PARAM_VALUE", param_id=f["param_id"], value=self.params[f["param_id"]])
+        elif msg.name == "PARAM_SET":
+            if f["param_id"] == wp.PARAM_BY_NAME["MODE"].id and any(self.speeds):
+                self.send("ERROR", req_id=msg.id, code=7, detail=f["param_id"])
+                return
+            self.params[f["param_id"]] = f["value"]
+            self.send("PARAM_VALUE", param_id=f["param_id"], value=f["value"])
+        elif msg.name == "GET_STATS":
+            self.send("STATS", **dict.fromkeys(wp.BY_NAME["STATS"].fields, 0))
+
+    def close(self) -> None:
+        self.stop.set()
+        self.join(1)
+        os.close(self.master)
+        os.close(self._slave)
+
+
+@pytest.fixture
+def fake():
+    board = FakeBoard()
+    yield board
+    board.close()
+
+
+def test_handshake_and_commands(fake):
+    with wb.WheelBoard(fake.path) as board:
+        assert board.hello["fw_major"] == 1
+        board.set_speeds([74.87, -74.87, 0.0, 1.0])
+        assert fake.speeds == [74870, -74870, 0, 1000]
+        assert board.set_param("HEARTBEAT_MS", 120) == 120
+        assert board.get_param("HEARTBEAT_MS") == 120
+        board.save_params()
+        board.stop_all()
+        assert board.stats()["bad_crc"] == 0
+    assert fake.received[-1] == "STOP_ALL"  # close() leaves the wheels ramping down
+
+
+def test_refused_setpoint_raises_named_device_error(fake):
+    with wb.WheelBoard(fake.path) as board:
+        with pytest.raises(wb.DeviceError) as err:
+            board.set_speeds([0.0, 0.0, 500.0, 0.0])
+        assert err.value.name == "SETPOINT_ABOVE_MAX"
+        assert err.value.detail == 2
+        assert "SET_SPEEDS refused" in str(err.value)
+        assert isinstance(err.value, RuntimeError)
+        board.set_speeds([1.0, 0, 0, 0])
+        with pytest.raises(wb.DeviceError, match="BUSY"):
+            board.set_param("MODE", 1)
+
+
+def test_host_side_checks_before_sending(fake):
+    with wb.WheelBoard(fake.path) as board:
+        with pytest.raises(ValueError, match="wheel 1 speed nan"):
+            board.set_speeds([0.0, float("nan"), 0.0, 0.0])
+        with pytest.raises(ValueError, match="need 4 speeds"):
+            board.set_speeds([0.0])
+        with pytest.raises(ValueError, match="unknown wheel-board parameter 'KP'"):
+            board.get_param("KP")
+        with pytest.raises(ValueError, match=r"POLE_PAIRS: 0 outside \[1, 40\]"):
+            board.set_param("POLE_PAIRS", 0)
+
+
+def test_version_mismatch_refused_with_clear_message():
+    fake = FakeBoard(proto_version=wp.PROTO_VERSION + 1)
+    try:
+        board = wb.WheelBoard(fake.path)
+        with pytest.raises(
+            wb.FirmwareMismatchError, match=r"speaks protocol v2, this host speaks v1"
+        ):
+            board.connect()
+        board.close()
+    finally:
+        fake.close()
+
+
+def test_silent_board_times_out():
+    fake = FakeBoard(silent=True)
+    try:
+        board = wb.WheelBoard(fake.path, reply_timeout_s=0.1)
+        with pytest.raises(wb.WheelBoardTimeout, match="no HELLO_REPLY reply to HELLO"):
+            board.connect()
+        board.close()
+    finally:
+        fake.close()
+
+
+def test_heartbeat_thread_runs_at_its_period(fake):
+    with wb.WheelBoard(fake.path, heartbeat_period_s=0.02):
+        time.sleep(0.5)
+    beats = len(fake.heartbeats)
+    assert 10 <= beats <= 30, beats
+
+
+def test_telemetry_queue_and_fault_events(fake):
+    events: queue.Queue = queue.Queue()
+    with wb.WheelBoard(fake.path, on_fault=events.put) as board:
+        for seq in range(10):
+            fake.send_telemetry(seq)
+        fake.send_telemetry(10, faults=0b11)  # heartbeat lost + encoder 0
+        assert events.get(timeout=1) == ["HEARTBEAT_LOST", "ENCODER_M0"]
+        samples = [board.telemetry.get(timeout=1) for _ in range(11)]
+        assert [s.seq for s in samples] == list(range(11))
+        assert samples[0].omega_rad_s == pytest.approx((1.0, 2.0, 3.0, 4.0))
+        with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST: no valid frame"):
+            board.check_faults()
+        board.clear_faults()
+        board.check_faults()
