@@ -167,7 +167,7 @@ def wire():
     """An emulated bus polled by hand and the raw serial port on its pty."""
     emu = ServoEmuConfig(return_delay_us=0)
     device = Mx12Bus([SERVO, ServoConfig(name="right", id=4, pulley_radius_m=0.01)], emu)
-    port = serial.Serial(device.slave_path, timeout=0.05)
+    port = serial.Serial(device.slave_path, timeout=0.02)
     clock = [0.0]
 
     def exchange(raw: bytes) -> list[Packet]:
@@ -176,7 +176,10 @@ def wire():
         time.sleep(0.002)
         clock[0] += 0.001
         device.poll(now_s=clock[0], timeout_s=0.05)
-        return PacketCutter().feed(port.read(port.in_waiting or 1))
+        reply = b""
+        while chunk := port.read(256):  # a pty delivers asynchronously: read until quiet
+            reply += chunk
+        return PacketCutter().feed(reply)
 
     yield device, exchange
     port.close()

@@ -13,11 +13,15 @@ simulated-time runs deterministic.
 import errno
 import os
 import select
+import sys
 import threading
 import time
 import tty
 
 from gyrohost.rig.faults import FaultFilter
+
+SWITCH_INTERVAL_S = 0.0005
+"""GIL switch interval set while an emulator thread runs, s (see :meth:`PtyDevice.start`)."""
 
 
 class PtyLinkError(RuntimeError):
@@ -142,9 +146,17 @@ class PtyDevice:
             self.link.write(self.faults.release(t))
 
     def start(self, period_s: float = 0.0005) -> "PtyDevice":
-        """Run :meth:`poll` in a daemon thread until :meth:`stop`; returns ``self``."""
+        """Run :meth:`poll` in a daemon thread until :meth:`stop`; returns ``self``.
+
+        The thread shares the GIL with the driver, and dynamixel-sdk busy-waits for replies
+        holding it. With the default 5 ms switch interval, the few GIL hand-overs of one reply
+        can approach the SDK's 34 ms timeout on a loaded machine, so this lowers the
+        interpreter's switch interval to at most ``SWITCH_INTERVAL_S`` (process-wide).
+        """
         if self._thread is not None:
             return self
+        if sys.getswitchinterval() > SWITCH_INTERVAL_S:
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
         self._stop.clear()
         self._thread = threading.Thread(
             target=self._run, args=(period_s,), name=type(self).__name__, daemon=True
