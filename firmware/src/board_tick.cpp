@@ -15,7 +15,8 @@ void tick_init() {
     TCCR2B = BOARD_TICK_TCCRB;
 }
 
-// TIMER2_COMPA: 24 cycles including entry and reti (measured in simavr, firmware/bench).
+// TIMER2_COMPA: 29 cycles first instruction to reti + 8 entry = 37 (simavr, make -C firmware
+// cycles).
 ISR(TIMER2_COMPA_vect) {
     g_tick_count = static_cast<uint8_t>(g_tick_count + 1);
 }

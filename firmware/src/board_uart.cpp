@@ -25,7 +25,8 @@ void uart_init() {
 }
 
 // Cost measured in simavr (firmware/bench): see docs/hardware.md, "ISR cycle costs".
-// USART0_RX: 52 cycles including entry and reti, per received byte.
+// USART0_RX: 66 cycles first instruction to reti + 8 entry = 74 per received byte (simavr,
+// make -C firmware cycles).
 ISR(USART0_RX_vect) {
     uint8_t b = UDR0;
     uint8_t next = static_cast<uint8_t>((rx_head + 1) & (BOARD_UART_RX_SIZE - 1));
@@ -37,7 +38,7 @@ ISR(USART0_RX_vect) {
     }
 }
 
-// USART0_UDRE: 50 cycles including entry and reti, per sent byte.
+// USART0_UDRE: 55..60 cycles first instruction to reti + 8 entry = 63..68 per sent byte (simavr).
 ISR(USART0_UDRE_vect) {
     uint8_t t = tx_tail;
     if (t == tx_head) {

@@ -1,0 +1,219 @@
+/*
+ * cycles.c - control-step and ISR cycle counts of the wheel-board firmware in simavr.
+ *
+ * Usage: cycles firmware.elf <TIMER2_COMPA addr> <USART0_RX addr> <USART0_UDRE addr>
+ * (byte addresses of the ISR functions, from avr-nm; `make -C firmware cycles` passes them).
+ *
+ * Drives the firmware like a host would: HELLO, a long heartbeat timeout, closed-loop setpoints
+ * at 715 rpm, then runs 2 s of simulated time. Encoders answer on SPI with a rotating angle
+ * (195 counts per 1 ms, about 715 rpm). Reports the control step (cycles between the writes
+ * GPIOR0 = 1 and GPIOR0 = 0) and each ISR from its first instruction to its reti inclusive
+ * (the interrupt response and vector jump add 8 cycles on the ATmega2560, not included).
+ */
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <simavr/avr_spi.h>
+#include <simavr/avr_uart.h>
+#include <simavr/sim_avr.h>
+#include <simavr/sim_elf.h>
+#include <simavr/sim_io.h>
+#include <simavr/sim_irq.h>
+
+#define ADDR_GPIOR0 0x3E
+
+typedef struct {
+    const char* name;
+    uint32_t addr;
+    uint64_t start, n, sum, min, max;
+    int in;
+} isr_stat_t;
+
+static uint64_t g_mark_start, g_steps, g_sum, g_min = UINT64_MAX, g_max;
+static avr_t* g_avr;
+static avr_irq_t* g_spi_in;
+static uint16_t g_angle, g_word;
+static int g_byte_index;
+static uint64_t* g_profile; /* cycles per flash word inside the control step (PROFILE=file) */
+
+static void gpior0_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v;
+    if (v == 1) {
+        g_mark_start = avr->cycle;
+    } else if (g_mark_start) {
+        uint64_t d = avr->cycle - g_mark_start;
+        g_mark_start = 0;
+        if (g_steps++ < 5) return; /* skip start-up steps */
+        g_sum += d;
+        if (d < g_min) g_min = d;
+        if (d > g_max) g_max = d;
+    }
+}
+
+static uint16_t enc_word(uint16_t angle) {
+    uint16_t w = angle & 0x3FFF;
+    int ones = __builtin_popcount(w);
+    return (ones & 1) ? (uint16_t)(w | 0x8000) : w;
+}
+
+static void spi_out(struct avr_irq_t* irq, uint32_t value, void* param) {
+    (void)irq;
+    (void)value;
+    (void)param;
+    if (g_byte_index == 0) {
+        g_angle = (uint16_t)((g_avr->cycle / 16000u) * 195u); /* 195 counts per ms */
+        g_word = enc_word(g_angle);
+    }
+    uint8_t miso = g_byte_index == 0 ? (uint8_t)(g_word >> 8) : (uint8_t)g_word;
+    g_byte_index ^= 1;
+    avr_raise_irq(g_spi_in, miso);
+}
+
+static uint16_t crc16(const uint8_t* d, int n) {
+    uint16_t c = 0xFFFF;
+    for (int i = 0; i < n; i++) {
+        c ^= (uint16_t)(d[i] << 8);
+        for (int b = 0; b < 8; b++)
+            c = (c & 0x8000) ? (uint16_t)((c << 1) ^ 0x1021) : (uint16_t)(c << 1);
+    }
+    return c;
+}
+
+/* Frame id + payload into wire bytes (COBS + 0); returns the length. */
+static int frame(uint8_t id, const uint8_t* p, int n, uint8_t* out) {
+    uint8_t raw[64];
+    raw[0] = id;
+    memcpy(raw + 1, p, (size_t)n);
+    uint16_t c = crc16(raw, n + 1);
+    raw[n + 1] = (uint8_t)c;
+    raw[n + 2] = (uint8_t)(c >> 8);
+    int len = n + 3, o = 1, code_pos = 0, code = 1;
+    for (int i = 0; i < len; i++) {
+        if (raw[i] == 0) {
+            out[code_pos] = (uint8_t)code;
+            code_pos = o++;
+            code = 1;
+        } else {
+            out[o++] = raw[i];
+            code++;
+        }
+    }
+    out[code_pos] = (uint8_t)code;
+    out[o++] = 0;
+    return o;
+}
+
+static void put_i32(uint8_t* p, int32_t v) {
+    for (int i = 0; i < 4; i++) p[i] = (uint8_t)((uint32_t)v >> (8 * i));
+}
+
+int main(int argc, char** argv) {
+    if (argc != 5) {
+        fprintf(stderr, "usage: %s firmware.elf t2_addr rx_addr udre_addr\n", argv[0]);
+        return 2;
+    }
+    isr_stat_t isr[3] = {
+        {"TIMER2_COMPA", (uint32_t)strtoul(argv[2], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0},
+        {"USART0_RX", (uint32_t)strtoul(argv[3], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0},
+        {"USART0_UDRE", (uint32_t)strtoul(argv[4], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0}};
+    elf_firmware_t fw;
+    memset(&fw, 0, sizeof fw);
+    if (elf_read_firmware(argv[1], &fw) != 0) {
+        fprintf(stderr, "cannot read %s\n", argv[1]);
+        return 1;
+    }
+    avr_t* avr = avr_make_mcu_by_name("atmega2560");
+    g_avr = avr;
+    avr_init(avr);
+    avr->frequency = 16000000;
+    avr_load_firmware(avr, &fw);
+    avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
+    uint32_t flags = 0;
+    avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+    flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
+    avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+    g_spi_in = avr_io_getirq(avr, AVR_IOCTL_SPI_GETIRQ('0'), SPI_IRQ_INPUT);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_SPI_GETIRQ('0'), SPI_IRQ_OUTPUT), spi_out,
+                            NULL);
+    avr_irq_t* uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+
+    uint8_t tx[512];
+    int ntx = 0;
+    uint8_t p[16];
+    ntx += frame(0x01, p, 0, tx + ntx); /* HELLO */
+    p[0] = 9;                           /* HEARTBEAT_MS = 60000 */
+    put_i32(p + 1, 60000);
+    ntx += frame(0x06, p, 5, tx + ntx);
+    for (int i = 0; i < 4; i++) put_i32(p + 4 * i, (i & 1) ? -74870 : 74870);
+    ntx += frame(0x03, p, 16, tx + ntx); /* SET_SPEEDS 715 rpm */
+
+    const char* prof_path = getenv("PROFILE");
+    if (prof_path) g_profile = calloc(128 * 1024, sizeof *g_profile);
+    const uint64_t end = 2 * 16000000ull;
+    int sent = 0;
+    uint64_t next_byte = 16000 * 20;
+    while (avr->cycle < end) {
+        if (sent < ntx && avr->cycle >= next_byte) {
+            avr_raise_irq(uart_in, tx[sent++]);
+            next_byte = avr->cycle + 400; /* a little slower than 500 kbaud */
+        }
+        uint32_t pc = avr->pc;
+        for (int k = 0; k < 3; k++) {
+            if (!isr[k].in && pc == isr[k].addr) {
+                isr[k].in = 1;
+                isr[k].start = avr->cycle;
+            }
+        }
+        uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
+        uint64_t c0 = avr->cycle;
+        int state = avr_run(avr);
+        if (g_profile && g_mark_start) g_profile[pc >> 1] += avr->cycle - c0;
+        if (op == 0x9518) { /* reti */
+            for (int k = 0; k < 3; k++) {
+                if (isr[k].in) {
+                    uint64_t d = avr->cycle - isr[k].start;
+                    isr[k].in = 0;
+                    isr[k].n++;
+                    isr[k].sum += d;
+                    if (d < isr[k].min) isr[k].min = d;
+                    if (d > isr[k].max) isr[k].max = d;
+                }
+            }
+        }
+        if (state == cpu_Done || state == cpu_Crashed) {
+            fprintf(stderr, "simavr stopped (state %d) at cycle %llu\n", state,
+                    (unsigned long long)avr->cycle);
+            return 1;
+        }
+    }
+    if (g_steps <= 5) {
+        fprintf(stderr, "no control step seen (GPIOR0 never toggled)\n");
+        return 1;
+    }
+    uint64_t n = g_steps - 5;
+    printf(
+        "control step (4 wheels, closed loop, 715 rpm): n=%llu min=%llu mean=%.0f max=%llu cycles "
+        "(target <= 2400; %.1f us max at 16 MHz)\n",
+        (unsigned long long)n, (unsigned long long)g_min, (double)g_sum / (double)n,
+        (unsigned long long)g_max, g_max / 16.0);
+    for (int k = 0; k < 3; k++) {
+        if (isr[k].n == 0) {
+            printf("ISR %-12s not entered\n", isr[k].name);
+            continue;
+        }
+        printf("ISR %-12s n=%llu min=%llu max=%llu cycles (first instruction to reti; +8 entry)\n",
+               isr[k].name, (unsigned long long)isr[k].n, (unsigned long long)isr[k].min,
+               (unsigned long long)isr[k].max);
+    }
+    if (g_profile) {
+        FILE* f = fopen(prof_path, "w");
+        for (uint32_t i = 0; i < 128 * 1024; i++) {
+            if (g_profile[i]) fprintf(f, "%x %llu\n", i * 2, (unsigned long long)g_profile[i]);
+        }
+        fclose(f);
+    }
+    return 0;
+}
