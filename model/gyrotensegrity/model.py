@@ -242,8 +242,9 @@ class Model:
         self.omega_pairs_cols = (3 * np.array(cols, dtype=int)[:, None] + ss.ravel()).ravel()
 
     def _which_terms(self, scene):
-        if len(self.wheel_bars):
-            yield "gyroscopic"
+        wheels = [scene.bars[i].wheel for i in self.wheel_bars]
+        if any(w.mode == "speed" or w.spin0 or np.any(w.torque.value) for w in wheels):
+            yield "gyroscopic"  # a wheel that never spins has mass and J_1 but no J_a terms
         if len(self.torque_wheels):
             yield "wheel_torque"
         if self.c:
