@@ -91,6 +91,7 @@ class ServoBusConfig:
         default=1_000_000, metadata=_spec(choices=(57600, 115200, 500000, 1_000_000, 2_000_000))
     )
     read_mode: str = field(default="bulk", metadata=_spec(choices=("bulk", "per_servo")))
+    reply_timeout_s: float = field(default=0.034, metadata=_spec(lo=0.001, hi=1.0))
     servo: tuple[ServoConfig, ...] = ()
 
     def problems(self) -> list[tuple[str, str]]:

@@ -33,7 +33,9 @@ def rig():
 
     def make(read_mode="bulk", emu=EMU, servos=(LEFT, RIGHT), configure=True):
         device = Mx12Bus(servos, emu).start()
-        cfg = ServoBusConfig(port=device.slave_path, read_mode=read_mode, servo=servos)
+        cfg = ServoBusConfig(
+            port=device.slave_path, read_mode=read_mode, reply_timeout_s=0.1, servo=servos
+        )
         bus = StringServoBus(cfg).open()
         made.append((device, bus))
         if configure:

@@ -95,7 +95,8 @@ def scripted():
 
     def make(*replies):
         device = ScriptedServo(replies).start()
-        bus = StringServoBus(ServoBusConfig(port=device.slave_path, servo=(SERVO,))).open()
+        cfg = ServoBusConfig(port=device.slave_path, reply_timeout_s=0.1, servo=(SERVO,))
+        bus = StringServoBus(cfg).open()
         made.append((device, bus))
         return device, bus
 

@@ -15,6 +15,8 @@ SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
   load are sign-magnitude (bit 10 = clockwise = negative here); converted in this module.
 - ``GroupSyncWrite`` is a broadcast without a status reply: goals are confirmed by reading back.
 - pyserial's low-latency ioctl fails on a pty; it is attempted and the failure tolerated.
+- The SDK's fixed 34 ms reply timeout and busy-wait are replaced (``_PortHandler``) by
+  ``reply_timeout_s`` from the configuration and reads that sleep in ``select``.
 """
 
 import math
@@ -193,6 +195,31 @@ class ServoState:
     t_ns: int
 
 
+class _PortHandler(sdk.PortHandler):
+    """dynamixel-sdk port with a configurable reply timeout and reads that wait a little.
+
+    The SDK times a reply out after the transfer time plus ``2 * LATENCY_TIMER + 2`` = 34 ms, and
+    polls the port with a zero read timeout (a busy-wait that holds the GIL). Here the margin is
+    ``reply_timeout_s`` and each poll may wait up to ``READ_SLICE_S`` for bytes, sleeping in
+    ``select`` instead of spinning.
+    """
+
+    READ_SLICE_S = 0.0005
+
+    def __init__(self, port_name: str, reply_timeout_s: float) -> None:
+        super().__init__(port_name)
+        self.reply_timeout_ms = reply_timeout_s * 1000.0
+
+    def setupPort(self, cflag_baud: int) -> bool:
+        ok = super().setupPort(cflag_baud)
+        self.ser.timeout = self.READ_SLICE_S
+        return ok
+
+    def setPacketTimeout(self, packet_length: int) -> None:
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = self.tx_time_per_byte * packet_length + self.reply_timeout_ms
+
+
 def _set_low_latency(port: sdk.PortHandler) -> bool:
     """Ask for the FTDI low-latency mode; a pty (or non-Linux) refuses, which is fine."""
     try:
@@ -218,7 +245,7 @@ class StringServoBus:
         self.servos = {s.name: s for s in config.servo}
         for servo in config.servo:
             _check_config_limits(servo)
-        self.port = sdk.PortHandler(config.port)
+        self.port = _PortHandler(config.port, config.reply_timeout_s)
         self.packets = sdk.PacketHandler(1.0)
         self.low_latency = False
         self._open = False
