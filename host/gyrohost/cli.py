@@ -12,7 +12,7 @@ import sys
 
 from gyrotensegrity import __version__
 
-COMMANDS = ["demo"]
+COMMANDS = ["demo", "simulate", "plot"]
 
 
 class CliError(Exception):
