@@ -18,7 +18,7 @@ def relative_drift(series):
 @pytest.fixture(scope="module")
 def prism_run():
     model = Model(load_scene(SCENES / "prism-gyro.toml"))
-    return simulate(model, duration=10.0, rtol=1e-11, atol=1e-13)
+    return simulate(model, duration=10.0, rtol=1e-12, atol=1e-14)
 
 
 def test_prism_energy_constant_over_10_s(prism_run):
