@@ -54,8 +54,8 @@ int main() {
         t_ms += elapsed;
 
         uint16_t enc[BOARD_WHEELS];
+        BOARD_CYCLE_MARK = 1;  // the measured step includes the encoder reads
         enc_read_all(enc);
-        BOARD_CYCLE_MARK = 1;
         app_control_step(&g_app, enc);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
