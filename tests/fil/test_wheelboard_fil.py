@@ -1,0 +1,232 @@
+"""Firmware in the loop: the real wheel-board ELF in simavr, driven through gyrohost's client.
+
+Each test gets a fresh harness (firmware/build/sim/fil_harness, paced to wall-clock time because
+the client's heartbeats are wall-clock) and a connected :class:`WheelBoard` on its UART pty. The
+harness's motor model is the independent reference: its rotor speeds (STATS lines) are checked
+next to what the firmware reports.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+import serial
+from filharness import Harness, firmware_elf, stats_rpm
+
+from gyrohost import wheelproto as wp
+from gyrohost.drivers.wheelboard import DeviceError, WheelBoard
+
+pytestmark = pytest.mark.fil
+
+RPM = 2 * math.pi / 60
+TARGET_RAD_S = 715 * RPM
+
+
+@pytest.fixture
+def harness():
+    with Harness(firmware_elf()) as h:
+        yield h
+
+
+@pytest.fixture
+def rig(harness):
+    board = WheelBoard(harness.pty)
+    try:
+        board.connect()
+        yield harness, board
+    finally:
+        board.close()
+
+
+def collect(board: WheelBoard, duration_s: float) -> list[wp.Telemetry]:
+    """Telemetry received during the next ``duration_s`` of wall time."""
+    while not board.telemetry.empty():
+        board.telemetry.get_nowait()
+    out = []
+    deadline = time.monotonic() + duration_s
+    while time.monotonic() < deadline:
+        try:
+            out.append(board.telemetry.get(timeout=0.05))
+        except Exception:  # queue.Empty
+            continue
+    return out
+
+
+def telemetry_at(board: WheelBoard, t_s: float) -> wp.Telemetry:
+    """The queued telemetry sample whose device time is closest to simulated time ``t_s``."""
+    samples = []
+    while not board.telemetry.empty():
+        samples.append(board.telemetry.get_nowait())
+    return min(samples, key=lambda s: abs(s.t_us * 1e-6 - t_s))
+
+
+def mean_speeds(samples: list[wp.Telemetry]) -> list[float]:
+    return [sum(s.omega_rad_s[i] for s in samples) / len(samples) for i in range(4)]
+
+
+def keep_alive(board: WheelBoard, duration_s: float) -> None:
+    """Wait while the client's heartbeat runs."""
+    time.sleep(duration_s)
+
+
+def wait_true_rpm(h: Harness, ok, timeout_s: float = 10.0, ping=None) -> list[float]:
+    """Wait until ``ok(rpm_list)`` holds for the harness's true rotor speeds; return them.
+
+    ``ping`` is called every 50 ms meanwhile (to keep a link alive without the client heartbeat).
+    """
+    deadline = time.monotonic() + timeout_s
+    seen = len(h.stats)
+    while True:
+        if len(h.stats) > seen:
+            seen = len(h.stats)
+            rpm = stats_rpm(h.stats[-1])
+            if ok(rpm):
+                return rpm
+        assert time.monotonic() < deadline, f"rotor speeds {h.stats[-1:]} after {timeout_s} s"
+        if ping is not None:
+            ping()
+        time.sleep(0.05)
+
+
+def test_handshake_reports_version_and_geometry(rig):
+    _, board = rig
+    hello = board.hello
+    assert hello["proto_version"] == wp.PROTO_VERSION
+    assert hello["n_wheels"] == 4
+    assert hello["n_params"] == len(wp.PARAMS)
+    assert hello["tick_hz"] == 1000
+    assert board.get_param("POLE_PAIRS") == 7
+
+
+def test_setpoint_reached_and_held(rig):
+    h, board = rig
+    signs = [1, -1, 1, -1]
+    board.set_speeds([s * TARGET_RAD_S for s in signs])
+    wait_true_rpm(h, lambda rpm: all(abs(abs(r) - 715) < 0.05 * 715 for r in rpm))
+    keep_alive(board, 1.0)
+    samples = collect(board, 2.0)
+    truth = [h.latest_stats() for _ in range(2)]
+    assert samples, "no telemetry"
+    for i, reported in enumerate(mean_speeds(samples)):
+        assert reported == pytest.approx(signs[i] * TARGET_RAD_S, rel=0.01), f"wheel {i} reported"
+        true_rpm = sum(stats_rpm(s)[i] for s in truth) / len(truth)
+        assert true_rpm == pytest.approx(signs[i] * 715, rel=0.01), f"wheel {i} true speed"
+    assert not board.faults or board.faults == ["PARAMS_DEFAULTED"], board.faults
+
+
+def test_telemetry_rate_at_least_500_hz(rig):
+    h, board = rig
+    board.set_speeds([TARGET_RAD_S] * 4)
+    samples = collect(board, 2.0)
+    assert len(samples) > 10
+    span_s = (samples[-1].t_us - samples[0].t_us) * 1e-6
+    device_rate_hz = (len(samples) - 1) / span_s
+    seq_gaps = sum((b.seq - a.seq) % 65536 != 1 for a, b in zip(samples, samples[1:], strict=False))
+    assert device_rate_hz >= 500 * 0.99, f"{device_rate_hz:.1f} Hz over {span_s:.3f} s"
+    assert seq_gaps == 0, f"{seq_gaps} gaps in telemetry seq"
+    assert board.telemetry_dropped == 0
+
+
+def test_heartbeat_loss_ramps_down_and_reports(harness):
+    """Heartbeat loss: fault and fail-safe reported, wheels braked along DECEL, outputs off.
+
+    With DECEL_RAD_S2 = 200 the modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive)
+    lags the ramp; the firmware disables a wheel when its ramped setpoint reaches zero, so the
+    wheel coasts from the remaining lag (about 100 rpm). Hence the 20 % bound, not zero.
+    """
+    h = harness
+    # A client whose own heartbeat never fires: only the frames the test sends keep it alive.
+    board = WheelBoard(h.pty, heartbeat_period_s=3600)
+    try:
+        board.connect()
+        board.set_speeds([TARGET_RAD_S] * 4)
+        # any valid frame counts as a heartbeat: GET_STATS between the checks
+        wait_true_rpm(h, lambda rpm: all(r > 700 for r in rpm), ping=board.stats)
+        # from here on nothing is sent on this link
+        time.sleep(1.0)
+        line = h.latest_stats()
+        tel = telemetry_at(board, float(line["t_s"]))
+        truth = stats_rpm(line)
+        pwm = h.command("pwm")
+    finally:
+        board.close()
+    assert "HEARTBEAT_LOST" in tel.fault_names
+    assert "FAILSAFE" in tel.status_names
+    assert "OUTPUTS_ENABLED" not in tel.status_names
+    assert all(f"m{i}=0/" in pwm for i in range(4)), pwm
+    assert all(abs(r) < 0.2 * 715 for r in truth), truth
+    for i in range(4):
+        assert tel.omega_rad_s[i] == pytest.approx(truth[i] * RPM, rel=0.03, abs=0.2)
+
+
+def test_setpoint_above_max_refused(rig):
+    _, board = rig
+    limit_rad_s = board.get_param("SPEED_MAX_MRAD_S") / 1000.0
+    with pytest.raises(DeviceError) as err:
+        board.set_speeds([0.0, 0.0, limit_rad_s + 1.0, 0.0])
+    assert err.value.name == "SETPOINT_ABOVE_MAX"
+    assert err.value.detail == 2
+    samples = collect(board, 0.3)
+    assert all(s.omega_rad_s == (0.0, 0.0, 0.0, 0.0) for s in samples)
+    board.set_speeds([limit_rad_s, 0.0, 0.0, 0.0])  # the limit itself is accepted
+
+
+def test_corrupt_frames_ignored_and_counted(rig):
+    h, board = rig
+    before = board.stats()
+    good = wp.encode("SET_SPEEDS", w0_mrad_s=5000, w1_mrad_s=0, w2_mrad_s=0, w3_mrad_s=0)
+    bad_crc = bytearray(good)
+    bad_crc[3] ^= 0x55
+    bad_length = wp.encode_raw(wp.BY_NAME["SET_SPEEDS"].id, b"\x01\x02\x03")
+    unknown = wp.encode_raw(0x7E, b"")
+    injector = serial.Serial(h.pty, 500000)
+    try:
+        injector.write(b"\x00" + bytes(bad_crc) + b"\x00" + bad_length + unknown + b"\x00")
+        injector.flush()
+    finally:
+        injector.close()
+    time.sleep(0.3)
+    after = board.stats()
+    assert after["bad_crc"] == before["bad_crc"] + 1
+    assert after["unknown_id"] == before["unknown_id"] + 1
+    assert after["bad_length"] == before["bad_length"] + 1
+    samples = collect(board, 0.3)
+    assert samples and all(s.omega_rad_s[0] == 0.0 for s in samples), "a corrupt frame acted"
+    board.set_speeds([5.0, 0.0, 0.0, 0.0])  # the link still works
+
+
+@pytest.mark.parametrize("mode", ["error", "high", "parity"])
+def test_encoder_fault_sets_fault_bit_and_disables_wheel(rig, mode):
+    h, board = rig
+    board.set_speeds([TARGET_RAD_S] * 4)
+    wait_true_rpm(h, lambda rpm: all(r > 300 for r in rpm))
+    assert h.command(f"fault 1 {mode}") == f"OK fault 1 {mode}"
+    keep_alive(board, 0.3)
+    tel = board.last_telemetry
+    assert "ENCODER_M1" in tel.fault_names
+    assert [n for n in tel.fault_names if n.startswith("ENCODER")] == ["ENCODER_M1"]
+    pwm = h.command("pwm")
+    assert "m1=0/" in pwm, f"wheel 1 still enabled: {pwm}"
+    keep_alive(board, 0.5)
+    rpm = stats_rpm(h.latest_stats())
+    assert all(r > 300 for i, r in enumerate(rpm) if i != 1), rpm
+    with pytest.raises(DeviceError) as err:
+        board.set_speeds([TARGET_RAD_S] * 4)
+    assert err.value.name == "FAULT_ACTIVE"
+
+
+def test_encoder_fault_cleared_after_the_line_recovers(rig):
+    """A corrupted SPI line (parity errors) that heals: CLEAR_FAULTS brings the wheel back."""
+    h, board = rig
+    board.set_speeds([TARGET_RAD_S] * 4)
+    assert h.command("fault 2 parity") == "OK fault 2 parity"
+    keep_alive(board, 0.3)
+    assert "ENCODER_M2" in board.last_telemetry.fault_names
+    assert h.command("clear 2") == "OK clear 2"
+    board.clear_faults()
+    board.set_speeds([TARGET_RAD_S] * 4)
+    keep_alive(board, 0.3)
+    assert "ENCODER_M2" not in board.last_telemetry.fault_names
+    assert "m2=1/" in h.command("pwm")
