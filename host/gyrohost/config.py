@@ -75,6 +75,7 @@ class ServoConfig:
     min_length_m: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))
     max_length_m: float = field(default=1.0, metadata=_spec(lo=0.0, hi=10.0))
     max_speed_m_s: float = field(default=0.05, metadata=_spec(lo=1e-4, hi=2.0))
+    string: str = field(default="", metadata=_spec(doc="scene string it winds; '' = none"))
 
     def problems(self) -> list[tuple[str, str]]:
         if self.min_length_m >= self.max_length_m:
@@ -140,11 +141,36 @@ class ServoEmuConfig:
 
 
 @dataclass(frozen=True)
+class WheelEmuConfig:
+    """Simulated wheel board: speed response of the motors, ripple, stream faults."""
+
+    time_constant_s: float = field(default=0.05, metadata=_spec(lo=1e-4, hi=10.0))
+    coast_time_constant_s: float = field(default=5.0, metadata=_spec(lo=1e-3, hi=1000.0))
+    ripple_fraction: float = field(default=0.0, metadata=_spec(lo=0.0, hi=0.5))
+    ripple_per_rev: int = field(default=1, metadata=_spec(lo=1, hi=100))
+    faults: StreamFaultConfig = StreamFaultConfig()
+
+
+@dataclass(frozen=True)
+class TruthConfig:
+    """The rig's truth model: step, IMU attachment and deliberate model mismatch."""
+
+    dt_s: float = field(default=0.002, metadata=_spec(lo=1e-4, hi=0.02))
+    imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
+    imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
+    wheel_inertia_scale: float = field(default=1.0, metadata=_spec(lo=0.1, hi=10.0))
+    servo_lag_s: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))
+    imu_latency_s: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Parameters of the simulated devices (used only for ports set to ``"emulator"``)."""
 
     imu: ImuEmuConfig = ImuEmuConfig()
     servos: ServoEmuConfig = ServoEmuConfig()
+    wheels: WheelEmuConfig = WheelEmuConfig()
+    truth: TruthConfig = TruthConfig()
 
 
 @dataclass(frozen=True)
@@ -278,6 +304,8 @@ __all__ = [
     "ServoEmuConfig",
     "SimConfig",
     "StreamFaultConfig",
+    "TruthConfig",
+    "WheelEmuConfig",
     "WheelboardConfig",
     "load_rig_config",
     "rig_config_from_dict",

@@ -47,6 +47,10 @@ class PtyLink:
         self.overflow_bytes = 0
         self._closed = False
 
+    def fileno(self) -> int:
+        """The master's file descriptor, for ``select`` over several links."""
+        return self._master_fd
+
     def write(self, data: bytes) -> int:
         """Write to the driver's side; return the number of bytes accepted (rest counted lost)."""
         if self._closed or not data:
