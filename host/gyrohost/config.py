@@ -177,7 +177,7 @@ class SimConfig:
 class RigConfig:
     """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
 
-    scene: str = "scenes/dbar.toml"
+    scene: str = "../scenes/dbar-gyro.toml"
     imu: ImuConfig = ImuConfig()
     servos: ServoBusConfig = ServoBusConfig()
     wheelboard: WheelboardConfig = WheelboardConfig()

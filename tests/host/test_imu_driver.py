@@ -161,7 +161,6 @@ def test_silence_times_out_then_recovers(rig):
 def test_bluetooth_like_stall_delivers_a_burst_without_loss(rig):
     device, driver = rig()
     driver.read_sample()
-    sent_before = device.samples_sent
     device.faults.stall_for(0.3, time.monotonic())
     with pytest.raises(ImuTimeoutError):
         driver.read_sample(timeout_s=0.15)
@@ -173,7 +172,6 @@ def test_bluetooth_like_stall_delivers_a_burst_without_loss(rig):
     assert len(burst) >= 10
     assert burst[9].t_ns - burst[0].t_ns < 5e6  # ten samples within 5 ms: a burst
     assert driver.stats.dropped_frames == 0
-    assert device.samples_sent - sent_before >= len(burst)
 
 
 def test_port_errors_are_the_drivers_own():

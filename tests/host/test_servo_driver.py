@@ -26,6 +26,8 @@ RIGHT = replace(LEFT, name="right", id=2, zero_position=500, length_sign=-1)
 STEP_M = 2 * math.pi * 0.01 / 4096
 EMU = ServoEmuConfig(return_delay_us=0)
 
+PTY_REPLY_TIMEOUT_S = 0.2  # generous: the emulator thread shares a loaded CPU
+
 
 @pytest.fixture
 def rig():
@@ -34,7 +36,10 @@ def rig():
     def make(read_mode="bulk", emu=EMU, servos=(LEFT, RIGHT), configure=True):
         device = Mx12Bus(servos, emu).start()
         cfg = ServoBusConfig(
-            port=device.slave_path, read_mode=read_mode, reply_timeout_s=0.1, servo=servos
+            port=device.slave_path,
+            read_mode=read_mode,
+            reply_timeout_s=PTY_REPLY_TIMEOUT_S,
+            servo=servos,
         )
         bus = StringServoBus(cfg).open()
         made.append((device, bus))

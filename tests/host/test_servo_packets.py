@@ -30,6 +30,8 @@ from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
 
 SERVO = ServoConfig(name="left", id=3, pulley_radius_m=0.01, length_at_zero_m=0.3, max_length_m=0.6)
 
+PTY_REPLY_TIMEOUT_S = 0.2  # generous: the emulator thread shares a loaded CPU
+
 
 # --- conversions --------------------------------------------------------------------------------
 
@@ -95,7 +97,9 @@ def scripted():
 
     def make(*replies):
         device = ScriptedServo(replies).start()
-        cfg = ServoBusConfig(port=device.slave_path, reply_timeout_s=0.1, servo=(SERVO,))
+        cfg = ServoBusConfig(
+            port=device.slave_path, reply_timeout_s=PTY_REPLY_TIMEOUT_S, servo=(SERVO,)
+        )
         bus = StringServoBus(cfg).open()
         made.append((device, bus))
         return device, bus
