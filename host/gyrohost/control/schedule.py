@@ -1,0 +1,277 @@
+"""String schedules: piecewise-linear rest lengths of the actuated strings over time.
+
+A :class:`Schedule` holds one time grid ``t`` (k,) s and, for each actuated string (by its
+scene name), the rest lengths (k,) m at those times. Between samples the rest length is linear;
+before the first and after the last sample it is held. Strings of the scene that a schedule
+does not name keep the scene's own schedule.
+
+File format (TOML, or the same keys in JSON; ``docs/schedule.md``)::
+
+    [schedule]
+    name = "paper"
+    t_s = [0.0, 0.1, ...]            # strictly increasing, s
+
+    [rest_length_m]                  # one array per actuated string, same length as t_s, m
+    s13 = [0.431, 0.421, ...]
+    s24 = [0.431, 0.440, ...]
+"""
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ScheduleError
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What the servos and the geometry allow a schedule to command.
+
+    Parameters
+    ----------
+    max_speed_m_s : float, m/s
+        Largest rate of change of any rest length (servo speed times pulley radius).
+    min_length_m, max_length_m : float, m
+        Range of every commanded rest length.
+    min_diagonal_m : float, m
+        Smallest n1-n3 and n2-n4 distance the planner may command: below it the wheels of
+        neighbouring bars touch (default 4 wheel radii of the D-bar, 0.124 m).
+    """
+
+    max_speed_m_s: float = 0.05
+    min_length_m: float = 0.0
+    max_length_m: float = 1.0
+    min_diagonal_m: float = 0.124
+
+    def __post_init__(self):
+        for key in ("max_speed_m_s", "max_length_m", "min_diagonal_m"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ScheduleError(f"limits: {key} must be a positive number, got {value}")
+        if not 0.0 <= self.min_length_m < self.max_length_m:
+            raise ScheduleError(
+                f"limits: need 0 <= min_length_m < max_length_m, got "
+                f"{self.min_length_m} and {self.max_length_m}"
+            )
+
+    @classmethod
+    def from_servos(cls, servos, min_diagonal_m=0.124):
+        """The tightest limits of a set of :class:`gyrohost.config.ServoConfig`."""
+        if not servos:
+            raise ScheduleError("limits: no servos configured")
+        return cls(
+            max_speed_m_s=min(s.max_speed_m_s for s in servos),
+            min_length_m=max(s.min_length_m for s in servos),
+            max_length_m=min(s.max_length_m for s in servos),
+            min_diagonal_m=min_diagonal_m,
+        )
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Piecewise-linear rest lengths of named strings.
+
+    Parameters
+    ----------
+    names : tuple of str, (s,)
+        Scene names of the scheduled strings.
+    t : ndarray, shape (k,), s
+        Strictly increasing times.
+    rest_length : ndarray, shape (k, s), m
+        Rest length of each string (column) at each time (row).
+    name : str
+    """
+
+    names: tuple
+    t: np.ndarray
+    rest_length: np.ndarray
+    name: str = "schedule"
+
+    def __post_init__(self):
+        t = np.asarray(self.t, float)
+        v = np.asarray(self.rest_length, float)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "rest_length", v)
+        object.__setattr__(self, "names", tuple(self.names))
+        where = f"schedule {self.name}"
+        if t.ndim != 1 or t.size == 0:
+            raise ScheduleError(f"{where}: t must be a non-empty 1-D array")
+        if v.shape != (t.size, len(self.names)):
+            raise ScheduleError(
+                f"{where}: rest_length has shape {v.shape}, expected {(t.size, len(self.names))}"
+            )
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise ScheduleError(f"{where}: times and rest lengths must be finite")
+        bad = np.flatnonzero(np.diff(t) <= 0.0)
+        if bad.size:
+            raise ScheduleError(f"{where}: t[{bad[0] + 1}] does not increase")
+        if np.any(v < 0.0):
+            k, s = np.argwhere(v < 0.0)[0]
+            raise ScheduleError(f"{where}: {self.names[s]} is negative at t = {t[k]:g} s")
+
+    @property
+    def t_end(self) -> float:
+        """Time of the last sample, s."""
+        return float(self.t[-1])
+
+    def __call__(self, t: float) -> np.ndarray:
+        """Rest lengths (s,) m at time ``t`` (s)."""
+        return np.array([np.interp(t, self.t, col) for col in self.rest_length.T])
+
+    def max_speeds(self) -> np.ndarray:
+        """Largest |d rest_length / dt| of each string, shape (s,), m/s."""
+        if self.t.size < 2:
+            return np.zeros(len(self.names))
+        rates = np.diff(self.rest_length, axis=0) / np.diff(self.t)[:, None]
+        return np.max(np.abs(rates), axis=0)
+
+    def problems(self, limits: Limits) -> list[str]:
+        """Violations of the servo limits (speed and length range), as messages."""
+        out = []
+        for name, speed in zip(self.names, self.max_speeds(), strict=True):
+            if speed > limits.max_speed_m_s * (1.0 + 1e-9):
+                out.append(f"{name}: speed {speed:.4g} m/s exceeds {limits.max_speed_m_s:g} m/s")
+        lo, hi = self.rest_length.min(axis=0), self.rest_length.max(axis=0)
+        for name, a, b in zip(self.names, lo, hi, strict=True):
+            if a < limits.min_length_m or b > limits.max_length_m:
+                out.append(
+                    f"{name}: rest length {a:.4g}..{b:.4g} m outside "
+                    f"[{limits.min_length_m:g}, {limits.max_length_m:g}] m"
+                )
+        return out
+
+    def bind(self, model):
+        """Column of each scheduled string in the model's input, list of int.
+
+        Raises
+        ------
+        ScheduleError
+            A scheduled string is not in the model's scene.
+        """
+        scene_names = [s.name for s in model.scene.strings]
+        missing = [n for n in self.names if n not in scene_names]
+        if missing:
+            raise ScheduleError(
+                f"schedule {self.name}: string(s) {', '.join(missing)} not in scene "
+                f"{model.scene.name} (it has {', '.join(scene_names)})"
+            )
+        return [scene_names.index(n) for n in self.names]
+
+    def input_at(self, model, t: float) -> np.ndarray:
+        """The model's input ``u`` at ``t`` (s): the scene's input with the scheduled rest
+        lengths replaced; shape (alpha + n_w,)."""
+        u = model.input_at(t)
+        u[self.bind(model)] = self(t)
+        return u
+
+    def splice(self, other: "Schedule", t_s: float) -> "Schedule":
+        """This schedule up to ``t_s`` (s), then ``other`` (same strings) from ``t_s`` on."""
+        if other.names != self.names:
+            raise ScheduleError(f"splice: strings {other.names} differ from {self.names}")
+        head = self.t < t_s
+        tail = other.t > t_s
+        t = np.concatenate([self.t[head], [t_s], other.t[tail]])
+        v = np.vstack([self.rest_length[head], other(t_s), other.rest_length[tail]])
+        return Schedule(self.names, t, v, self.name)
+
+    def to_dict(self) -> dict:
+        """Plain data in the file layout (see the module docstring)."""
+        return {
+            "schedule": {"name": self.name, "t_s": self.t.tolist()},
+            "rest_length_m": {n: self.rest_length[:, i].tolist() for i, n in enumerate(self.names)},
+        }
+
+    def save(self, path) -> Path:
+        """Write ``.toml`` or ``.json`` (by suffix); returns the path."""
+        path = Path(path)
+        if path.suffix == ".json":
+            path.write_text(json.dumps(self.to_dict(), indent=1) + "\n", encoding="utf-8")
+        elif path.suffix == ".toml":
+            path.write_text(self.to_toml(), encoding="utf-8")
+        else:
+            raise ScheduleError(f"{path}: schedule files end in .toml or .json")
+        return path
+
+    def to_toml(self) -> str:
+        """The schedule as TOML text (numbers with 17 significant digits)."""
+
+        def arr(x):
+            return "[" + ", ".join(repr(float(v)) for v in x) + "]"
+
+        lines = ["[schedule]", f"name = {json.dumps(self.name)}", f"t_s = {arr(self.t)}", ""]
+        lines.append("[rest_length_m]")
+        lines += [f"{n} = {arr(self.rest_length[:, i])}" for i, n in enumerate(self.names)]
+        return "\n".join(lines) + "\n"
+
+
+def schedule_from_dict(data: dict, source: str = "<schedule>") -> Schedule:
+    """Validate file data (see the module docstring); errors name ``source`` and the key."""
+
+    def fail(key, what):
+        raise ScheduleError(f"{source}: {key}: {what}")
+
+    if not isinstance(data, dict):
+        fail("<root>", "must be a table")
+    for key in data:
+        if key not in ("schedule", "rest_length_m"):
+            fail(key, "unknown key (allowed: schedule, rest_length_m)")
+    head = data.get("schedule")
+    if not isinstance(head, dict):
+        fail("schedule", "missing table")
+    for key in head:
+        if key not in ("name", "t_s"):
+            fail(f"schedule.{key}", "unknown key (allowed: name, t_s)")
+    name = head.get("name", Path(source).stem)
+    if not isinstance(name, str):
+        fail("schedule.name", "must be a string")
+    t = _numbers(head.get("t_s"), "schedule.t_s", fail)
+    strings = data.get("rest_length_m")
+    if not isinstance(strings, dict) or not strings:
+        fail("rest_length_m", "missing table of rest-length arrays")
+    cols = []
+    for key, values in strings.items():
+        col = _numbers(values, f"rest_length_m.{key}", fail)
+        if col.size != t.size:
+            fail(f"rest_length_m.{key}", f"has {col.size} values, t_s has {t.size}")
+        if np.any(col < 0.0):
+            fail(f"rest_length_m.{key}[{int(np.argmax(col < 0.0))}]", "negative rest length")
+        cols.append(col)
+    bad = np.flatnonzero(np.diff(t) <= 0.0)
+    if bad.size:
+        fail(f"schedule.t_s[{bad[0] + 1}]", "times must increase strictly")
+    return Schedule(tuple(strings), t, np.column_stack(cols), name)
+
+
+def _numbers(value, key, fail) -> np.ndarray:
+    if not isinstance(value, list) or not value:
+        fail(key, "must be a non-empty array of numbers")
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            fail(f"{key}[{i}]", f"must be a finite number, got {v!r}")
+    return np.array(value, float)
+
+
+def load_schedule(path) -> Schedule:
+    """Read a schedule file (``.toml`` or ``.json``).
+
+    Raises
+    ------
+    ScheduleError
+        The file cannot be read or parsed, or a key is missing, unknown or invalid.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScheduleError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ScheduleError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    try:
+        data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ScheduleError(f"{path}: cannot parse: {exc}") from None
+    return schedule_from_dict(data, path.name)
