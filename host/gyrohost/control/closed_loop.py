@@ -1,0 +1,137 @@
+"""Closed loop: receding-horizon re-planning of the tilt maneuver from the state estimate.
+
+Law. Every ``period_s`` the :class:`Replanner` takes the estimate ``(t, x)``, reads the tilt and
+the angular momentum about the tilt axis from it, and re-optimises the rest of the schedule
+(the knots after ``t``) toward the target, with the landing time fixed (a shrinking horizon).
+The new schedule starts from the rest length commanded at ``t`` (the servos see no jump) and
+replaces the old one from ``t`` on.
+
+Why re-planning and not a feedback law on the tilt error: the plant's gain, tilt rate per
+metre of string, changes several-fold with the shape (the locked inertia falls as n1 and n3
+close in) and the command must respect the servo speed and the geometry limits and land with
+the shape back at rest. The planner already handles all of that; re-planning from the measured
+momentum corrects a wrong model (e.g. the wheel inertia) because the current tilt rate is then
+right by construction and the remaining error shrinks with the remaining horizon. A failed
+re-plan keeps the previous schedule, which stays feasible (the knots do not move).
+
+Estimate interface: any callable ``estimate() -> (t_s, x)`` returning the time (s) and a full
+state of the planner's model (layout of ``gyrotensegrity.Model``). The EKF plugs in there;
+:class:`TruthPlusNoise` stands in for it in SIL.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import PlanError
+from .planner import Plan, Planner
+from .schedule import Schedule
+
+
+@dataclass
+class ReplanRecord:
+    """One re-plan: time (s), measured tilt (rad), the new plan's prediction (rad), plan wall
+    time (s), whether it was accepted and the optimiser's message."""
+
+    t_s: float
+    tilt_rad: float
+    predicted_tilt_rad: float
+    plan_time_s: float
+    accepted: bool
+    message: str
+
+
+@dataclass
+class Replanner:
+    """Receding-horizon re-planner for one maneuver.
+
+    Parameters
+    ----------
+    planner : Planner
+    target_tilt_rad : float, rad
+    t0_s, duration_s : float, s
+        Start and length of the maneuver; it lands at ``t0_s + duration_s``.
+    period_s : float, s
+        Re-planning period (0.25 s = 4 Hz).
+    """
+
+    planner: Planner
+    target_tilt_rad: float
+    t0_s: float
+    duration_s: float
+    period_s: float = 0.25
+    schedule: Schedule | None = None
+    records: list = field(default_factory=list)
+
+    def __post_init__(self):
+        if not (self.duration_s > 0.0 and self.period_s > 0.0):
+            raise PlanError("duration_s and period_s must be positive")
+        self.knot_t = self.planner.knot_times(self.t0_s, self.t0_s + self.duration_s)
+        self.t_end_s = float(self.knot_t[-1])
+        self._next_s = -np.inf
+
+    def start(self, t_s, x) -> Plan:
+        """The first plan, from rest (the rest shape is commanded at ``t_s``)."""
+        plan = self.planner.plan_from_state(self.target_tilt_rad, x, t_s, self.knot_t)
+        if not plan.success:
+            raise PlanError(f"no initial plan: {plan.message}")
+        self.schedule = plan.schedule
+        self._log(t_s, x, plan, True)
+        self._next_s = t_s + self.period_s
+        return plan
+
+    def update(self, t_s, x) -> Schedule:
+        """Re-plan if a period has passed (and the maneuver is not over); the schedule to
+        follow from ``t_s`` on."""
+        if self.schedule is None:
+            self.start(t_s, x)
+        elif self._next_s <= t_s < self.t_end_s:
+            self._next_s += self.period_s * max(1.0, np.floor((t_s - self._next_s) / self.period_s))
+            self.replan(t_s, x)
+        return self.schedule
+
+    def replan(self, t_s, x) -> Plan:
+        """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``."""
+        col = self.schedule.names.index(self.planner.names[0])
+        d_now = float(self.schedule(t_s)[col])
+        plan = self.planner.plan_from_state(
+            self.target_tilt_rad, x, t_s, self.knot_t, d_start_m=d_now, warm=self.schedule
+        )
+        if plan.success:
+            self.schedule = self.schedule.splice(plan.schedule, t_s)
+        self._log(t_s, x, plan, plan.success)
+        return plan
+
+    def _log(self, t_s, x, plan, accepted):
+        tilt = self.planner.attitude.tilt(self.planner.model.nodes(x)[0])
+        self.records.append(
+            ReplanRecord(
+                t_s, tilt, plan.predicted_tilt_rad, plan.plan_time_s, accepted, plan.message
+            )
+        )
+
+
+class TruthPlusNoise:
+    """Stand-in estimator for SIL: the truth state plus white Gaussian noise.
+
+    Parameters
+    ----------
+    stepper : gyrotensegrity.Stepper
+        The truth (its ``t`` and ``x`` are read).
+    position_std_m, velocity_std_m_s : float
+        Noise on the node coordinates (m) and their rates (m/s) in ``x``; wheel states are
+        passed through.
+    seed : int
+    """
+
+    def __init__(self, stepper, position_std_m=1e-3, velocity_std_m_s=5e-3, seed=0):
+        self.stepper = stepper
+        self.std = (position_std_m, velocity_std_m_s)
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self):
+        L = self.stepper.model.layout
+        x = self.stepper.x.copy()
+        x[L.q] += self.rng.normal(0.0, self.std[0], x[L.q].size)
+        x[L.q_dot] += self.rng.normal(0.0, self.std[1], x[L.q_dot].size)
+        return self.stepper.t, x
