@@ -1,0 +1,393 @@
+"""Emulated wheel board (ATmega2560, four gimbal-motor speed loops) on a pseudo-terminal.
+
+The device side of the wheel-board protocol (docs/protocol.md), with the codec of
+:mod:`gyrohost.wheelproto`. Like the firmware it runs a 1 kHz control tick, counted from boot on
+the emulator's clock, so simulated-time runs are exact:
+
+- receiver rules: frames longer than 44 bytes, bad COBS, short frames and bad CRCs are dropped and
+  counted; an unknown id or a device-to-host id, or a wrong payload length, gets an ERROR reply;
+  only a frame with a good CRC restarts the heartbeat timer;
+- HELLO, SET_SPEEDS (whole message refused above SPEED_MAX or while a blocking fault is latched),
+  STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
+  after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS, GET_STATS;
+- fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
+  setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick);
+- TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
+  status and fault word.
+
+Motor model (not the firmware's): while a wheel's outputs are enabled its true speed follows the
+ramped setpoint with a first-order lag (``time_constant_s``); with outputs off it coasts down
+(``coast_time_constant_s``). An optional ripple multiplies the true speed by
+``1 + ripple_fraction * sin(ripple_per_rev * angle)``. The reported speed is the true speed
+through the firmware's low-pass (1/2^SPEED_FILTER_SHIFT per tick), or the setpoint in open loop.
+The drive level is the PI's proportional part, clipped to DRIVE_MAX (no electrical model).
+
+Run-time fault: :meth:`WheelBoardEmulator.reset` reboots the board (optionally after ``down_s``
+seconds of silence): parameters reload from the last PARAM_SAVE, the tick counter, ``t_us`` and
+``seq`` restart at 0, faults clear (WATCHDOG_RESET set for a watchdog reset), targets and
+setpoints are 0; the wheels keep spinning and coast down.
+"""
+
+import math
+
+from gyrohost import wheelproto as wp
+from gyrohost.config import WheelEmuConfig
+from gyrohost.rig.faults import FaultFilter
+from gyrohost.rig.pty_link import PtyDevice
+
+FW_MAJOR, FW_MINOR = 1, 0
+SAVE_TICKS = 300
+"""Ticks an EEPROM save takes (82 bytes, about 3.3 ms each)."""
+MAX_CATCH_UP_TICKS = 1000
+"""More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
+
+_P = {p.name: p.id for p in wp.PARAMS}
+_FAULT_BIT = {name: 1 << bit for bit, (name, _) in wp.FAULTS.items()}
+_STATUS_BIT = {name: 1 << bit for bit, (name, _) in wp.STATUS.items()}
+_ERROR_CODE = {name: code for code, (name, _) in wp.ERRORS.items()}
+_BLOCKING = sum(_FAULT_BIT[n] for n in wp.BLOCKING_FAULTS)
+_STATS_FIELDS = wp.BY_NAME["STATS"].fields
+
+
+def ramp_step(value: int, target: int, step: int) -> int:
+    """Move ``value`` toward ``target`` by at most ``step`` (all mrad/s), as ``ramp.cpp``."""
+    step = max(step, 1)
+    if target > value:
+        return min(value + step, target)
+    return max(value - step, target)
+
+
+class WheelBoardEmulator(PtyDevice):
+    """Wheel-board emulator; see the module docstring.
+
+    Parameters
+    ----------
+    emu : WheelEmuConfig, optional
+        Motor response, ripple and stream faults.
+
+    Attributes
+    ----------
+    omega_rad_s : list of float, len 4, rad/s
+        True wheel speeds (what the truth model spins), ripple included.
+    boots : int
+        Number of boots so far (1 after construction).
+    telemetry_sent : int
+        TELEMETRY frames produced since construction (over all boots).
+    """
+
+    def __init__(self, emu: WheelEmuConfig | None = None) -> None:
+        emu = emu if emu is not None else WheelEmuConfig()
+        super().__init__(FaultFilter(emu.faults))
+        self.emu = emu
+        self.saved = {p.id: p.default for p in wp.PARAMS}
+        self.omega_rad_s = [0.0] * wp.N_WHEELS
+        self.angle_rad = [0.0] * wp.N_WHEELS
+        self._base_rad_s = [0.0] * wp.N_WHEELS
+        self.boots = 0
+        self.telemetry_sent = 0
+        self._reset_request: tuple[float, bool] | None = None
+        self._down_until_s: float | None = None
+        self._down_last_s = 0.0
+        self._watchdog = False
+        self._boot_s: float | None = None
+        self._t_s = 0.0
+        self._boot(boot_faults=0)
+
+    # --- boot and run-time faults -------------------------------------------------------------
+    def _boot(self, boot_faults: int) -> None:
+        self.params = dict(self.saved)
+        self.fault_word = boot_faults
+        self.stats = dict.fromkeys(_STATS_FIELDS, 0)
+        self.ticks = 0
+        self.seq = 0
+        self._telem_count = 0
+        self._since_host_ms = 0
+        self._stopping = False
+        self._save_done_tick: int | None = None
+        self.targets = [0] * wp.N_WHEELS
+        self.setpoints = [0] * wp.N_WHEELS
+        self.measured = [0.0] * wp.N_WHEELS
+        self.drive = [0] * wp.N_WHEELS
+        self.enabled = [False] * wp.N_WHEELS
+        self._rx = bytearray()
+        self._rx_overflow = False
+        self.boots += 1
+
+    def reset(self, down_s: float = 0.0, watchdog: bool = False) -> None:
+        """Reboot the board: silent and deaf for ``down_s`` s, then a fresh boot.
+
+        Parameters
+        ----------
+        down_s : float, s
+            Time before the new boot (bootloader, brown-out); 0 reboots at the next tick.
+        watchdog : bool
+            The reset was a watchdog reset: the new boot latches WATCHDOG_RESET.
+        """
+        with self.lock:
+            self._reset_request = (down_s, watchdog)
+
+    def wheel_speeds_rad_s(self) -> list[float]:
+        """True wheel speeds, rad/s (a copy, taken under the lock)."""
+        with self.lock:
+            return list(self.omega_rad_s)
+
+    # --- PtyDevice hooks ----------------------------------------------------------------------
+    def tick(self, now_s: float) -> None:
+        self._t_s = now_s
+        if self._down(now_s):
+            return
+        if self._boot_s is None:
+            self._boot_s = now_s
+        due = int((now_s - self._boot_s) * wp.TICK_HZ + 1e-9)
+        missed = due - self.ticks - MAX_CATCH_UP_TICKS
+        if missed > 0:
+            self.ticks += missed
+            self.stats["tick_overruns"] = min(self.stats["tick_overruns"] + missed, 0xFFFF)
+            self.fault_word |= _FAULT_BIT["TICK_OVERRUN"]
+            self._physics(missed / wp.TICK_HZ)
+        while self.ticks < due:
+            self.ticks += 1
+            self._control_tick()
+
+    def _down(self, now_s: float) -> bool:
+        """Start a requested reset, coast while down, boot when due; True while down."""
+        if self._reset_request is not None:
+            down_s, self._watchdog = self._reset_request
+            self._reset_request = None
+            self._down_until_s = now_s + down_s
+            self._down_last_s = now_s
+            self.enabled = [False] * wp.N_WHEELS
+        if self._down_until_s is None:
+            return False
+        self._physics(max(now_s - self._down_last_s, 0.0))
+        self._down_last_s = now_s
+        if now_s < self._down_until_s:
+            return True
+        self._down_until_s = None
+        self._boot(_FAULT_BIT["WATCHDOG_RESET"] if self._watchdog else 0)
+        self._boot_s = now_s
+        return False
+
+    def handle_rx(self, data: bytes, now_s: float) -> None:
+        self._t_s = now_s
+        if self._down_until_s is not None or self._reset_request is not None:
+            return  # rebooting: bytes are lost
+        for byte in data:
+            if byte:
+                if len(self._rx) < wp.MAX_ENCODED:
+                    self._rx.append(byte)
+                else:
+                    self._rx_overflow = True
+                continue
+            frame, overflow = bytes(self._rx), self._rx_overflow
+            self._rx.clear()
+            self._rx_overflow = False
+            if overflow:
+                self._count("oversize")
+            elif frame:
+                self._receive(frame)
+
+    # --- receiver and dispatcher --------------------------------------------------------------
+    def _count(self, name: str) -> None:
+        self.stats[name] = min(self.stats[name] + 1, 0xFFFF)
+
+    def _receive(self, frame: bytes) -> None:
+        msg = None
+        try:
+            msg = wp.decode_frame(frame)
+            msg_id = msg.id
+        except wp.FrameError as exc:
+            if exc.kind not in ("unknown_id", "bad_length"):
+                self._count(exc.kind)
+                return
+            raw = wp.cobs_decode(frame)  # the CRC was good: id and length are known
+            msg_id, payload_len = raw[0], len(raw) - 3
+        self._since_host_ms = 0  # a frame with a good CRC: the host is alive
+        spec = wp.BY_ID.get(msg_id)
+        if spec is None or spec.direction != "H2D":
+            self._count("unknown_id")
+            self._error(msg_id, "UNKNOWN_MESSAGE", msg_id)
+        elif msg is None:
+            self._count("bad_length")
+            self._error(msg_id, "BAD_LENGTH", payload_len)
+        else:
+            getattr(self, f"_on_{msg.name.lower()}")(msg.fields)
+
+    def _send_msg(self, name: str, **fields: int) -> None:
+        self.send(wp.encode(name, **fields), self._t_s)
+
+    def _error(self, req_id: int, name: str, detail: int) -> None:
+        self._send_msg("ERROR", req_id=req_id, code=_ERROR_CODE[name], detail=detail & 0xFF)
+
+    def _ack(self, name: str) -> None:
+        self._send_msg("ACK", req_id=wp.BY_NAME[name].id)
+
+    def _on_hello(self, _fields: dict) -> None:
+        self._send_msg(
+            "HELLO_REPLY",
+            proto_version=wp.PROTO_VERSION,
+            fw_major=FW_MAJOR,
+            fw_minor=FW_MINOR,
+            n_wheels=wp.N_WHEELS,
+            n_params=len(wp.PARAMS),
+            tick_hz=wp.TICK_HZ,
+        )
+
+    def _on_heartbeat(self, _fields: dict) -> None:
+        pass  # receiving it restarted the timer
+
+    def _on_set_speeds(self, fields: dict) -> None:
+        if self.fault_word & _BLOCKING:
+            self._error(wp.BY_NAME["SET_SPEEDS"].id, "FAULT_ACTIVE", 0)
+            return
+        vmax = self.params[_P["SPEED_MAX_MRAD_S"]]
+        speeds = [fields[f"w{i}_mrad_s"] for i in range(wp.N_WHEELS)]
+        for i, value in enumerate(speeds):
+            if abs(value) > vmax:
+                self._error(wp.BY_NAME["SET_SPEEDS"].id, "SETPOINT_ABOVE_MAX", i)
+                return
+        self.targets = speeds
+        self._stopping = False
+
+    def _on_stop_all(self, _fields: dict) -> None:
+        self.targets = [0] * wp.N_WHEELS
+        self._stopping = True
+        self._ack("STOP_ALL")
+
+    def _on_param_get(self, fields: dict) -> None:
+        pid = fields["param_id"]
+        if pid in wp.PARAM_BY_ID:
+            self._send_msg("PARAM_VALUE", param_id=pid, value=self.params[pid])
+        else:
+            self._error(wp.BY_NAME["PARAM_GET"].id, "UNKNOWN_PARAM", pid)
+
+    def _on_param_set(self, fields: dict) -> None:
+        pid, value = fields["param_id"], fields["value"]
+        req = wp.BY_NAME["PARAM_SET"].id
+        structural = pid in (_P["MODE"], _P["POLE_PAIRS"])
+        if (structural and any(self.enabled)) or self._save_done_tick is not None:
+            self._error(req, "BUSY", pid)
+        elif pid not in wp.PARAM_BY_ID:
+            self._error(req, "UNKNOWN_PARAM", pid)
+        elif not wp.PARAM_BY_ID[pid].min <= value <= wp.PARAM_BY_ID[pid].max:
+            self._error(req, "PARAM_OUT_OF_RANGE", pid)
+        else:
+            self.params[pid] = value
+            if structural:
+                self._reset_wheels()
+            self._send_msg("PARAM_VALUE", param_id=pid, value=value)
+
+    def _on_param_save(self, _fields: dict) -> None:
+        if self._save_done_tick is not None:
+            self._error(wp.BY_NAME["PARAM_SAVE"].id, "BUSY", 0)
+        else:
+            self._save_done_tick = self.ticks + SAVE_TICKS
+
+    def _on_param_defaults(self, _fields: dict) -> None:
+        if any(self.enabled) or self._save_done_tick is not None:
+            self._error(wp.BY_NAME["PARAM_DEFAULTS"].id, "BUSY", 0)
+            return
+        self.params = {p.id: p.default for p in wp.PARAMS}
+        self._reset_wheels()
+        self._ack("PARAM_DEFAULTS")
+
+    def _on_clear_faults(self, _fields: dict) -> None:
+        self.fault_word = 0
+        self._since_host_ms = 0
+        self._ack("CLEAR_FAULTS")
+
+    def _on_get_stats(self, _fields: dict) -> None:
+        self._send_msg("STATS", **self.stats)
+
+    def _reset_wheels(self) -> None:
+        self.targets = [0] * wp.N_WHEELS
+        self.setpoints = [0] * wp.N_WHEELS
+        self.drive = [0] * wp.N_WHEELS
+
+    # --- control tick -------------------------------------------------------------------------
+    def _control_tick(self) -> None:
+        p = self.params
+        self._since_host_ms = min(self._since_host_ms + 1, 0xFFFF)
+        if self._since_host_ms >= p[_P["HEARTBEAT_MS"]]:
+            self.fault_word |= _FAULT_BIT["HEARTBEAT_LOST"]
+        failsafe = bool(self.fault_word & _FAULT_BIT["HEARTBEAT_LOST"])
+        step = p[_P["DECEL_RAD_S2"]] if failsafe or self._stopping else p[_P["ACCEL_RAD_S2"]]
+        for i in range(wp.N_WHEELS):
+            if failsafe:
+                self.targets[i] = 0  # never resumes by itself after a clear
+            self.setpoints[i] = ramp_step(self.setpoints[i], self.targets[i], step)
+            self.enabled[i] = not (self.setpoints[i] == 0 and self.targets[i] == 0)
+        self._physics(1.0 / wp.TICK_HZ)
+        self._measure()
+        if self._save_done_tick is not None and self.ticks >= self._save_done_tick:
+            self._save_done_tick = None
+            self.saved = dict(self.params)
+            self._ack("PARAM_SAVE")
+        self._telemetry()
+
+    def _physics(self, dt_s: float) -> None:
+        emu = self.emu
+        on = math.exp(-dt_s / emu.time_constant_s)
+        off = math.exp(-dt_s / emu.coast_time_constant_s)
+        for i in range(wp.N_WHEELS):
+            base = self._base_rad_s[i]
+            if self.enabled[i]:
+                base = self.setpoints[i] / 1000.0 + (base - self.setpoints[i] / 1000.0) * on
+            else:
+                base *= off
+            self._base_rad_s[i] = base
+            ripple = emu.ripple_fraction * math.sin(emu.ripple_per_rev * self.angle_rad[i])
+            self.omega_rad_s[i] = base * (1.0 + ripple)
+            self.angle_rad[i] = (self.angle_rad[i] + self.omega_rad_s[i] * dt_s) % (2 * math.pi)
+
+    def _measure(self) -> None:
+        p = self.params
+        open_loop = p[_P["MODE"]] == 1
+        gain = 1.0 / (1 << p[_P["SPEED_FILTER_SHIFT"]])
+        drive_max = p[_P["DRIVE_MAX_Q15"]]
+        for i in range(wp.N_WHEELS):
+            if open_loop:
+                self.measured[i] = self.setpoints[i] / 1000.0 if self.enabled[i] else 0.0
+                drive = p[_P["OPEN_LOOP_DRIVE_Q15"]] if self.enabled[i] else 0
+                self.drive[i] = int(math.copysign(drive, self.setpoints[i]))
+                continue
+            self.measured[i] += (self.omega_rad_s[i] - self.measured[i]) * gain
+            error_mrad_s = self.setpoints[i] - self.measured[i] * 1000.0
+            drive = int(p[_P["KP_Q8"]] * error_mrad_s / 256.0) if self.enabled[i] else 0
+            self.drive[i] = max(-drive_max, min(drive, drive_max))
+
+    def status(self) -> int:
+        """The TELEMETRY status byte now."""
+        p = self.params
+        s = _STATUS_BIT["OUTPUTS_ENABLED"] if any(self.enabled) else 0
+        if p[_P["MODE"]] == 1:
+            s |= _STATUS_BIT["OPEN_LOOP"]
+        if self.fault_word & _FAULT_BIT["HEARTBEAT_LOST"]:
+            s |= _STATUS_BIT["FAILSAFE"]
+        if self._save_done_tick is not None:
+            s |= _STATUS_BIT["SAVING"]
+        for i in range(wp.N_WHEELS):
+            if self.enabled[i] and abs(self.drive[i]) >= p[_P["DRIVE_MAX_Q15"]]:
+                s |= _STATUS_BIT[f"SATURATED_M{i}"]
+        return s
+
+    def _telemetry(self) -> None:
+        div = self.params[_P["TELEMETRY_DIV"]]
+        if div == 0:
+            return
+        self._telem_count += 1
+        if self._telem_count < div:
+            return
+        self._telem_count = 0
+        fields = {
+            "t_us": (self.ticks * 1000) & 0xFFFFFFFF,
+            "seq": self.seq,
+            "status": self.status(),
+            "faults": self.fault_word,
+        }
+        for i in range(wp.N_WHEELS):
+            fields[f"w{i}_mrad_s"] = round(self.measured[i] * 1000.0)
+            fields[f"d{i}_q15"] = self.drive[i]
+        self.seq = (self.seq + 1) & 0xFFFF
+        self.telemetry_sent += 1
+        self._send_msg("TELEMETRY", **fields)

@@ -1,0 +1,174 @@
+"""The wheel-board client (drivers.wheelboard) against the wheel-board emulator over a pty."""
+
+import os
+import queue
+import time
+
+import pytest
+
+from gyrohost import wheelproto as wp
+from gyrohost.config import WheelEmuConfig
+from gyrohost.drivers import wheelboard as wb
+from gyrohost.rig.wheel_emu import WheelBoardEmulator
+
+SPIN = 74.87462492  # rad/s, 715 rpm
+PATTERN = [SPIN, -SPIN, -SPIN, SPIN]
+
+
+@pytest.fixture
+def board():
+    """A running emulator and a connected client; yields (emulator, client, fault events)."""
+    device = WheelBoardEmulator(WheelEmuConfig(time_constant_s=0.03)).start()
+    events: queue.Queue = queue.Queue()
+    client = wb.WheelBoard(device.slave_path, on_fault=events.put)
+    client.connect()
+    yield device, client, events
+    client.close()
+    device.close()
+    assert device.loop_error is None
+
+
+def wait_for(predicate, timeout_s=3.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_handshake_setpoints_reached_and_telemetry_rate(board):
+    device, client, _ = board
+    assert client.hello == {
+        "proto_version": wp.PROTO_VERSION,
+        "fw_major": 1,
+        "fw_minor": 0,
+        "n_wheels": 4,
+        "n_params": len(wp.PARAMS),
+        "tick_hz": 1000,
+    }
+    client.set_speeds(PATTERN)
+    # ACCEL_RAD_S2 = 100: 0.75 s of ramp, then the 30 ms lag.
+    assert wait_for(
+        lambda: client.last_telemetry.omega_rad_s == pytest.approx(PATTERN, abs=0.05), 3.0
+    ), client.last_telemetry
+    assert device.wheel_speeds_rad_s() == pytest.approx(PATTERN, abs=0.05)
+    assert client.last_telemetry.status_names == ["OUTPUTS_ENABLED"]
+    while not client.telemetry.empty():
+        client.telemetry.get_nowait()
+    first = client.telemetry.get(timeout=1)
+    time.sleep(0.5)
+    samples = [client.telemetry.get_nowait() for _ in range(client.telemetry.qsize())]
+    span_s = (samples[-1].t_us - first.t_us) * 1e-6
+    assert 0.4 < span_s < 0.7
+    assert len(samples) == pytest.approx(span_s * 500, abs=3)  # TELEMETRY_DIV 2: 500 Hz
+    assert [s.seq for s in samples] == list(range(first.seq + 1, first.seq + 1 + len(samples)))
+    assert client.stats()["bad_crc"] == 0
+
+
+def test_heartbeat_loss_ramps_down_and_latches(board):
+    device, client, events = board
+    client.set_param("HEARTBEAT_MS", 100)
+    client.set_speeds([20.0, -20.0, 0.0, 0.0])
+    assert wait_for(lambda: abs(client.last_telemetry.omega_rad_s[0] - 20.0) < 0.1)
+    client.heartbeat_period_s = 1.0  # the host "hangs": fewer frames than the timeout needs
+    time.sleep(0.06)  # let the beater pick up its new period
+    assert events.get(timeout=2.0) == ["HEARTBEAT_LOST"]
+    assert "FAILSAFE" in client.last_telemetry.status_names
+    # DECEL_RAD_S2 = 200: the setpoints reach 0 in 0.1 s and the drivers switch off; the
+    # wheels, 200 rad/s^2 x 30 ms = 6 rad/s behind the ramp then, coast from there.
+    assert wait_for(lambda: not any(device.enabled), 0.5)
+    assert device.setpoints == [0, 0, 0, 0]
+    assert max(map(abs, client.last_telemetry.omega_rad_s)) < 8.5  # + the 8-tick low-pass
+    with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST"):
+        client.check_faults()
+    with pytest.raises(wb.DeviceError) as err:
+        client.set_speeds([1.0, 0.0, 0.0, 0.0])
+    assert err.value.name == "FAULT_ACTIVE"
+    client.heartbeat_period_s = 0.02
+    client.clear_faults()
+    client.set_speeds([1.0, 0.0, 0.0, 0.0])
+    assert wait_for(lambda: abs(client.last_telemetry.omega_rad_s[0] - 1.0) < 0.01)
+
+
+def test_refused_setpoint_busy_and_parameters(board):
+    device, client, _ = board
+    with pytest.raises(wb.DeviceError) as err:
+        client.set_speeds([0.0, 0.0, 0.0, 200.0])
+    assert (err.value.name, err.value.detail) == ("SETPOINT_ABOVE_MAX", 3)
+    assert device.targets == [0, 0, 0, 0]  # the whole message was refused
+    client.set_speeds([5.0, 0.0, 0.0, 0.0])
+    assert wait_for(lambda: device.enabled[0])
+    with pytest.raises(wb.DeviceError, match="BUSY"):
+        client.set_param("MODE", 1)
+    assert client.set_param("ACCEL_RAD_S2", 400) == 400
+    assert client.get_param("ACCEL_RAD_S2") == 400
+    client.save_params()
+    assert client.set_param("ACCEL_RAD_S2", 50) == 50
+    client.stop_all()
+    assert wait_for(lambda: not any(device.enabled))
+    client.load_defaults()
+    assert client.get_param("ACCEL_RAD_S2") == 100
+    device.reset()  # the saved image (400) comes back at boot
+    assert wait_for(lambda: device.boots == 2)
+    assert client.get_param("ACCEL_RAD_S2") == 400
+
+
+def test_corrupt_frames_both_ways_are_counted(board):
+    device, client, _ = board
+    device.faults.corrupt_next(60)
+    assert wait_for(lambda: sum(client.decoder.dropped.values()) >= 1)
+    seq_before = client.last_telemetry.seq
+    assert wait_for(lambda: client.last_telemetry.seq > seq_before + 10)  # it resynchronised
+    junk = os.open(device.slave_path, os.O_WRONLY | os.O_NOCTTY)
+    try:
+        mangled = bytearray(wp.encode("HEARTBEAT"))
+        mangled[1] ^= 0x40
+        os.write(junk, bytes(mangled) + b"\x01" * 60 + b"\x00")
+    finally:
+        os.close(junk)
+    assert wait_for(lambda: device.stats["oversize"] == 1)
+    stats = client.stats()
+    assert (stats["bad_crc"], stats["oversize"]) == (1, 1)
+
+
+def test_receiver_rules_reply_like_the_firmware():
+    with WheelBoardEmulator() as device:
+        host = os.open(device.slave_path, os.O_RDWR | os.O_NOCTTY)
+        decoder = wp.FrameDecoder()
+        try:
+            device.handle_rx(wp.encode_raw(0x03, b"\x00" * 3), 0.0)  # SET_SPEEDS, 3 bytes
+            device.handle_rx(wp.encode_raw(0x82, b"\x00" * 33), 0.0)  # a device-to-host id
+            device.handle_rx(wp.encode_raw(0x42, b""), 0.0)  # not in the table
+            device.handle_rx(wp.encode("PARAM_GET", param_id=19), 0.0)
+            device.handle_rx(wp.encode("PARAM_SET", param_id=9, value=5), 0.0)  # below 20 ms
+            time.sleep(0.05)
+            replies = decoder.feed(os.read(host, 4096))
+        finally:
+            os.close(host)
+    errors = [(wp.BY_ID[m.fields["req_id"]].name if m.fields["req_id"] in wp.BY_ID else
+               m.fields["req_id"], wp.error_name(m.fields["code"]), m.fields["detail"])
+              for m in replies]  # fmt: skip
+    assert errors == [
+        ("SET_SPEEDS", "BAD_LENGTH", 3),
+        ("TELEMETRY", "UNKNOWN_MESSAGE", 0x82),
+        (0x42, "UNKNOWN_MESSAGE", 0x42),
+        ("PARAM_GET", "UNKNOWN_PARAM", 19),
+        ("PARAM_SET", "PARAM_OUT_OF_RANGE", 9),
+    ]
+    assert device.stats["bad_length"] == 1 and device.stats["unknown_id"] == 2
+
+
+def test_reset_is_seen_as_a_restarted_sequence_and_watchdog_fault(board):
+    device, client, events = board
+    client.set_speeds([30.0, 0.0, 0.0, 0.0])
+    assert wait_for(lambda: client.last_telemetry.omega_rad_s[0] > 29.9)
+    before = client.last_telemetry
+    device.reset(down_s=0.2, watchdog=True)
+    assert events.get(timeout=2.0) == ["WATCHDOG_RESET"]
+    after = client.last_telemetry
+    assert after.seq < before.seq and after.t_us < before.t_us  # the board rebooted
+    assert device.targets == [0, 0, 0, 0]
+    # Outputs off: the wheel coasts (5 s time constant), it does not stop at once.
+    assert 20.0 < device.wheel_speeds_rad_s()[0] < 30.0
+    assert client.hello is not None and client.connect()["proto_version"] == wp.PROTO_VERSION
