@@ -87,7 +87,6 @@ typedef struct {
     uint16_t last_cmd;  /* command latched at the last complete frame */
     int error_flag;     /* sticky error flag as in the chip's error register */
     volatile int fault; /* enc_fault_t, may be changed from the stdin thread */
-    unsigned frames;
 } motor_t;
 
 typedef struct {
@@ -233,7 +232,6 @@ static void chip_select_changed(struct avr_irq_t* irq, uint32_t value, void* par
             /* A command with a wrong parity sets the chip's error flag. */
             if (with_even_parity(m->rx_word) != m->rx_word) m->error_flag = 1;
             m->last_cmd = m->rx_word;
-            m->frames++;
         }
     }
     m->selected = sel;
@@ -269,13 +267,11 @@ static uint8_t slaves_exchange(uint8_t mosi) {
  */
 static avr_spi_t* g_spi;
 static uint8_t g_spi_mosi;
-static unsigned long long g_spi_bytes;
 
 static avr_cycle_count_t spi_byte_done(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)when;
     (void)param;
     g_spi->input_data_register = slaves_exchange(g_spi_mosi);
-    g_spi_bytes++;
     avr_raise_interrupt(avr, &g_spi->spi);
     return 0;
 }
@@ -822,7 +818,7 @@ int main(int argc, char** argv) {
         }
         if (g_stats_request) {
             g_stats_request = 0;
-            print_stats("STATS", &g_cyc_total);
+            print_stats("OK stats", &g_cyc_total); /* whole run so far */
         }
     }
     if (state == cpu_Crashed) printf("CRASHED pc=0x%05x\n", (unsigned)g_avr->pc);
