@@ -21,7 +21,7 @@ def rig():
 
     def make(emu=QUIET, imu=None, truth_source=None):
         device = Bwt61Emulator(emu, imu, truth_source).start()
-        driver = Bwt61Driver(device.slave_path, timeout_s=0.5).open()
+        driver = Bwt61Driver(device.slave_path, timeout_s=2.0).open()  # generous: loaded CPUs
         opened.append((device, driver))
         return device, driver
 

@@ -26,7 +26,8 @@ RIGHT = replace(LEFT, name="right", id=2, zero_position=500, length_sign=-1)
 STEP_M = 2 * math.pi * 0.01 / 4096
 EMU = ServoEmuConfig(return_delay_us=0)
 
-PTY_REPLY_TIMEOUT_S = 0.2  # generous: the emulator thread shares a loaded CPU
+PTY_REPLY_TIMEOUT_S = 1.0  # generous: the emulator thread shares a loaded CPU
+SHORT_TIMEOUT_S = 0.05  # where a timeout is the expected outcome
 
 
 @pytest.fixture
@@ -176,15 +177,18 @@ def test_injected_overload_at_run_time_and_by_configuration(rig):
 def test_a_silent_servo_times_out(rig, read_mode):
     device, bus = rig(read_mode)
     device.set_no_reply(1, True)
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
     with pytest.raises(ServoCommError, match=r"'left' \(ID 1\).*no status packet") as info:
         bus.read_states()
     assert info.value.servo_id == 1
     device.set_no_reply(1, False)
+    bus.reply_timeout_s = PTY_REPLY_TIMEOUT_S
     assert len(bus.read_states()) == 2
 
 
 def test_no_reply_by_configuration(rig):
     device, bus = rig(emu=replace(EMU, no_reply_ids=(2,)), configure=False)
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
     with pytest.raises(ServoCommError, match=r"'right' \(ID 2\).*ping"):
         bus.configure()
 
@@ -192,20 +196,29 @@ def test_no_reply_by_configuration(rig):
 def test_corrupt_reply_is_a_comm_error_then_the_bus_recovers(rig):
     device, bus = rig()
     device.faults.corrupt_next(1)
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
     with pytest.raises(ServoCommError, match="left"):
         bus.read_states()
     time.sleep(0.05)
+    bus.reply_timeout_s = PTY_REPLY_TIMEOUT_S
     assert len(bus.read_states()) == 2
 
 
-def test_stalled_link_times_out(rig):
+def test_stalled_link_times_out_then_the_burst_is_flushed(rig):
     device, bus = rig()
-    device.faults.stall_for(0.2, time.monotonic())
+    device.faults.stall_for(0.3, time.monotonic())
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
     with pytest.raises(ServoCommError, match="no status packet"):
         bus.read_states()
-    time.sleep(0.25)
-    bus.port.clearPort()
-    assert len(bus.read_states()) == 2
+    time.sleep(0.35)
+    bus.reply_timeout_s = PTY_REPLY_TIMEOUT_S
+    assert len(bus.read_states()) == 2  # the SDK clears the late burst before asking again
+
+
+def test_reply_timeout_must_be_positive(rig):
+    _, bus = rig(configure=False)
+    with pytest.raises(ServoLimitError, match="reply timeout -1"):
+        bus.reply_timeout_s = -1.0
 
 
 def test_wrong_model_is_refused(rig):

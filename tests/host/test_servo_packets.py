@@ -30,7 +30,7 @@ from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
 
 SERVO = ServoConfig(name="left", id=3, pulley_radius_m=0.01, length_at_zero_m=0.3, max_length_m=0.6)
 
-PTY_REPLY_TIMEOUT_S = 0.2  # generous: the emulator thread shares a loaded CPU
+PTY_REPLY_TIMEOUT_S = 0.3  # long enough for a loaded CPU, short for the timeout cases
 
 
 # --- conversions --------------------------------------------------------------------------------

@@ -251,6 +251,17 @@ class StringServoBus:
         self._open = False
 
     # --- port ---------------------------------------------------------------------------------
+    @property
+    def reply_timeout_s(self) -> float:
+        """Longest wait for a status packet beyond its transfer time, s."""
+        return self.port.reply_timeout_ms / 1000.0
+
+    @reply_timeout_s.setter
+    def reply_timeout_s(self, value_s: float) -> None:
+        if not (math.isfinite(value_s) and value_s > 0):
+            raise ServoLimitError(f"servo bus: reply timeout {value_s} s must be positive")
+        self.port.reply_timeout_ms = value_s * 1000.0
+
     def open(self) -> "StringServoBus":
         """Open the port at the configured baud rate (idempotent); returns ``self``."""
         if self._open:
