@@ -230,3 +230,20 @@ def test_encoder_fault_cleared_after_the_line_recovers(rig):
     keep_alive(board, 0.3)
     assert "ENCODER_M2" not in board.last_telemetry.fault_names
     assert "m2=1/" in h.command("pwm")
+
+
+def test_open_loop_mode_turns_at_field_speed(rig):
+    """MODE 1 steps the field without encoders: a synchronous rotor must turn at exactly the
+    commanded speed (field speed / pole pairs), which checks commutation and phase increments
+    against the model independently of the speed loop."""
+    h, board = rig
+    board.set_param("MODE", 1)
+    board.set_param("ACCEL_RAD_S2", 20)  # within the open-loop drive's torque
+    commanded_rpm = [200.0, -200.0, 100.0, 0.0]
+    board.set_speeds([r * RPM for r in commanded_rpm])
+    time.sleep(2.0)  # ramp to 200 rpm at 20 rad/s^2: about 1 s
+    window = [h.latest_stats() for _ in range(2)]
+    assert "OPEN_LOOP" in board.last_telemetry.status_names
+    for i, want in enumerate(commanded_rpm):
+        got = sum(stats_rpm(s)[i] for s in window) / len(window)
+        assert got == pytest.approx(want, rel=0.02, abs=1.0), f"wheel {i}"
