@@ -181,9 +181,12 @@ def test_corrupt_frames_ignored_and_counted(rig):
     bad_crc[3] ^= 0x55
     bad_length = wp.encode_raw(wp.BY_NAME["SET_SPEEDS"].id, b"\x01\x02\x03")
     unknown = wp.encode_raw(0x7E, b"")
+    bad_cobs = b"\x05\x01\x00"  # the code byte runs past the delimiter
+    oversize = b"\x01" * (wp.MAX_ENCODED + 10) + b"\x00"
     injector = serial.Serial(h.pty, 500000)
     try:
-        injector.write(b"\x00" + bytes(bad_crc) + b"\x00" + bad_length + unknown + b"\x00")
+        injector.write(b"\x00" + bytes(bad_crc) + b"\x00" + bad_length + unknown)
+        injector.write(bad_cobs + oversize)
         injector.flush()
     finally:
         injector.close()
@@ -192,6 +195,8 @@ def test_corrupt_frames_ignored_and_counted(rig):
     assert after["bad_crc"] == before["bad_crc"] + 1
     assert after["unknown_id"] == before["unknown_id"] + 1
     assert after["bad_length"] == before["bad_length"] + 1
+    assert after["bad_cobs"] == before["bad_cobs"] + 1
+    assert after["oversize"] == before["oversize"] + 1
     samples = collect(board, 0.3)
     assert samples and all(s.omega_rad_s[0] == 0.0 for s in samples), "a corrupt frame acted"
     board.set_speeds([5.0, 0.0, 0.0, 0.0])  # the link still works
