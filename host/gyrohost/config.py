@@ -155,7 +155,7 @@ class WheelEmuConfig:
 class TruthConfig:
     """The rig's truth model: step, IMU attachment and deliberate model mismatch."""
 
-    dt_s: float = field(default=0.002, metadata=_spec(lo=1e-4, hi=0.02))
+    dt_s: float = field(default=0.005, metadata=_spec(lo=1e-4, hi=0.02))
     imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
     wheel_inertia_scale: float = field(default=1.0, metadata=_spec(lo=0.1, hi=10.0))

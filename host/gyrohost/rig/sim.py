@@ -1,0 +1,432 @@
+"""The simulated rig: truth model and the three device emulators, served by one thread.
+
+One loop thread owns everything: it steps the truth (:class:`~gyrohost.rig.truth.Truth`) with
+the emulated servos' string lengths and the emulated wheel board's true speeds, hands the string
+tensions back to the servos, polls the three emulators (input, ticks, output) and applies timed
+faults. The drivers open :attr:`SimulatedRig.paths` exactly as they open hardware.
+
+Clocks:
+
+- ``"real"``: rig time is wall time since :meth:`SimulatedRig.start`; the truth steps when due.
+  A step that starts more than one step period after its due time counts as late.
+- ``"sim"``: rig time stands still until :meth:`SimulatedRig.advance` moves it; the loop then
+  steps and ticks through the interval as fast as it can and returns. In between, the loop still
+  answers the drivers (at the frozen time), so request/reply traffic works. Because the host's
+  wheel-board heartbeat runs on wall time, advance in chunks shorter than HEARTBEAT_MS while the
+  wheel-board client is connected (or raise HEARTBEAT_MS).
+
+Run-time faults: :meth:`SimulatedRig.inject`, or :meth:`SimulatedRig.command` with the text
+form (``"fault imu silence 2"``) used by ``gyrotens rig`` on its standard input; see docs/rig.md.
+"""
+
+import math
+import select
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gyrohost.config import RigConfig
+from gyrohost.rig.imu_emu import Bwt61Emulator
+from gyrohost.rig.servo_emu import Mx12Bus
+from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord
+from gyrohost.rig.wheel_emu import WheelBoardEmulator
+from gyrotensegrity import SceneError, load_scene
+
+DEVICES = ("imu", "wheels", "servos")
+IDLE_WAIT_S = 0.001
+"""Longest wait for driver input between two polls of the emulators, s."""
+
+STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
+DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
+
+
+class RigError(RuntimeError):
+    """The rig failed at run time (its loop raised, or it was used the wrong way)."""
+
+
+class FaultCommandError(ValueError):
+    """A fault request or command line that the rig does not understand."""
+
+
+@dataclass(frozen=True)
+class RigStats:
+    """Counts and timing of a rig run, for the rates report.
+
+    Attributes
+    ----------
+    elapsed_s : float, s
+        Rig time since start (wall time on the real clock).
+    imu_samples, telemetry_frames, servo_packets : int
+        IMU samples sent (3 frames each), wheel-board TELEMETRY frames sent, instruction
+        packets the servo bus received.
+    truth_steps, late_steps : int
+    truth_dt_s, step_wall_s, max_lag_s : float, s
+        Truth step, wall time spent stepping the truth, largest lateness of a step.
+    """
+
+    elapsed_s: float
+    imu_samples: int
+    telemetry_frames: int
+    servo_packets: int
+    truth_steps: int
+    late_steps: int
+    truth_dt_s: float
+    step_wall_s: float
+    max_lag_s: float
+
+    def rate(self, count: int) -> float:
+        """``count`` per second of rig time."""
+        return count / self.elapsed_s if self.elapsed_s > 0 else 0.0
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds the truth advances per wall second of stepping."""
+        sim_s = self.truth_steps * self.truth_dt_s
+        return sim_s / self.step_wall_s if self.step_wall_s > 0 else math.inf
+
+    def rates_line(self) -> str:
+        """One line: measured rates per device."""
+        return (
+            f"rates: imu {self.rate(self.imu_samples):.1f} samples/s "
+            f"({3 * self.rate(self.imu_samples):.1f} frames/s), "
+            f"wheels {self.rate(self.telemetry_frames):.1f} telemetry frames/s, "
+            f"servos {self.rate(self.servo_packets):.1f} packets/s"
+        )
+
+    def truth_line(self) -> str:
+        """One line: truth step timing."""
+        per_step_ms = 1e3 * self.step_wall_s / max(self.truth_steps, 1)
+        return (
+            f"truth: {self.truth_steps} steps of {1e3 * self.truth_dt_s:g} ms, "
+            f"{per_step_ms:.2f} ms wall per step, real-time factor {self.real_time_factor:.1f}, "
+            f"{self.late_steps} late steps (max lag {1e3 * self.max_lag_s:.1f} ms)"
+        )
+
+
+class SimulatedRig:
+    """Truth model plus IMU, wheel-board and servo emulators on pseudo-terminals.
+
+    Parameters
+    ----------
+    config : RigConfig
+        Servos (IDs, calibration, ``string``), IMU rate and mounting, ``sim`` tables.
+    clock : {"real", "sim"}
+        Rig time source (see the module docstring).
+    scene : str or Path, optional
+        Scene file; the configuration's ``scene`` when omitted.
+
+    Examples
+    --------
+    >>> with SimulatedRig(config, clock="sim") as rig:
+    ...     imu = Bwt61Driver(rig.paths["imu"]).open()
+    ...     rig.advance(0.5)
+    ...     N = rig.truth_nodes()
+    """
+
+    def __init__(self, config: RigConfig, clock: str = "real", scene: str | Path | None = None):
+        if clock not in ("real", "sim"):
+            raise ValueError(f"clock must be 'real' or 'sim', got {clock!r}")
+        path = Path(scene) if scene is not None else config.scene_path
+        try:
+            scene_obj = load_scene(path)
+        except (SceneError, OSError) as exc:
+            raise RigSetupError(f"rig scene {path}: {exc}") from exc
+        self.config = config
+        self.clock = clock
+        self.truth = Truth(scene_obj, config.sim.truth, config.servos.servo)
+        self.imu = Bwt61Emulator(config.sim.imu, config.imu, truth_source=self.truth.imu_truth)
+        self.wheels = WheelBoardEmulator(config.sim.wheels)
+        self.servos = Mx12Bus(config.servos.servo, config.sim.servos)
+        self.devices = {"imu": self.imu, "wheels": self.wheels, "servos": self.servos}
+        self.loop_error: BaseException | None = None
+        self._lock = threading.RLock()
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._timers: list[tuple[float, object]] = []
+        self._t0_wall = 0.0
+        self._sim_target_s = 0.0
+        self._idle_at_s = -1.0
+        self._dev_t_s = 0.0
+        self._steps = self._late = 0
+        self._step_wall_s = self._max_lag_s = 0.0
+
+    # --- life cycle ---------------------------------------------------------------------------
+    @property
+    def paths(self) -> dict[str, str]:
+        """Device name (``imu``, ``wheels``, ``servos``) -> pty path to open as the port."""
+        return {name: dev.slave_path for name, dev in self.devices.items()}
+
+    def start(self) -> "SimulatedRig":
+        """Start the loop thread (idempotent); returns ``self``."""
+        if self._thread is None:
+            self._t0_wall = time.monotonic()
+            self._thread = threading.Thread(target=self._run, name="rig", daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the loop and close the three pseudo-terminals (idempotent)."""
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        for dev in self.devices.values():
+            dev.close()
+
+    def __enter__(self) -> "SimulatedRig":
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def check(self) -> None:
+        """Raise :class:`RigError` if the loop thread has failed."""
+        if self.loop_error is not None:
+            raise RigError(f"the rig loop stopped: {self.loop_error!r}") from self.loop_error
+
+    # --- time ---------------------------------------------------------------------------------
+    @property
+    def t_s(self) -> float:
+        """Rig (device) time, s."""
+        return self._dev_t_s
+
+    def advance(self, dt_s: float, timeout_s: float = 600.0) -> None:
+        """Move simulated time on by ``dt_s`` s and return when the rig has caught up.
+
+        Raises
+        ------
+        RigError
+            Not a ``"sim"`` clock, the rig is not started, or its loop failed.
+        """
+        if self.clock != "sim":
+            raise RigError("advance() needs clock='sim'; a real-clock rig follows wall time")
+        if self._thread is None:
+            raise RigError("advance(): start the rig first (use it as a context manager)")
+        if not dt_s >= 0:
+            raise ValueError(f"advance(): dt_s must be >= 0, got {dt_s}")
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            self._sim_target_s += dt_s
+            target = self._sim_target_s
+            self._cond.notify_all()
+            while self._idle_at_s < target and self.loop_error is None:
+                if not self._cond.wait(timeout=max(deadline - time.monotonic(), 0.0)):
+                    raise RigError(f"advance(): rig time did not reach {target:.3f} s in time")
+        self.check()
+
+    def _target_s(self) -> float:
+        if self.clock == "real":
+            return time.monotonic() - self._t0_wall
+        return self._sim_target_s
+
+    # --- the loop -----------------------------------------------------------------------------
+    def _run(self) -> None:
+        links = [dev.link for dev in self.devices.values()]
+        try:
+            while not self._stop.is_set():
+                target = self._target_s()
+                due = self.truth.t_s + self.truth.dt_s
+                if due <= target + 1e-9:
+                    self._step(target - due)
+                    self._poll(self.truth.t_s)
+                    continue
+                self._poll(target)
+                if self.clock == "sim":
+                    with self._cond:
+                        self._idle_at_s = target
+                        self._cond.notify_all()
+                wait = min(due - target, IDLE_WAIT_S) if self.clock == "real" else IDLE_WAIT_S
+                select.select(links, [], [], wait)
+        except BaseException as exc:  # reported by check()/advance(); the thread must not vanish
+            self.loop_error = exc
+            with self._cond:
+                self._cond.notify_all()
+
+    def _step(self, lateness_s: float) -> None:
+        start = time.perf_counter()
+        with self._lock:
+            lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
+            self.truth.step(lengths, self.wheels.wheel_speeds_rad_s())
+            for sid, tension in self.truth.servo_tensions_N().items():
+                self.servos.set_tension(sid, tension)
+        self._step_wall_s += time.perf_counter() - start
+        self._steps += 1
+        if self.clock == "real":
+            self._max_lag_s = max(self._max_lag_s, lateness_s)
+            self._late += lateness_s > self.truth.dt_s
+
+    def _poll(self, t_s: float) -> None:
+        self._dev_t_s = t_s = max(t_s, self._dev_t_s)
+        with self._lock:
+            due = [action for when, action in self._timers if when <= t_s]
+            self._timers = [(w, a) for w, a in self._timers if w > t_s]
+            for action in due:
+                action()
+            for dev in self.devices.values():
+                dev.poll(now_s=t_s, timeout_s=0.0)
+
+    # --- truth read-outs ----------------------------------------------------------------------
+    def truth_nodes(self) -> np.ndarray:
+        """True scene node positions now, shape (3, n), m."""
+        with self._lock:
+            return self.truth.nodes()
+
+    def truth_attitude(self) -> np.ndarray:
+        """True attitude of the IMU frame now (its axes in the world frame), shape (3, 3)."""
+        with self._lock:
+            return self.truth.attitude()
+
+    def truth_wheel_speeds(self) -> np.ndarray:
+        """True wheel spins now, shape (n_w,), rad/s (scene wheel order)."""
+        with self._lock:
+            return self.truth.wheel_input_rad_s.copy()
+
+    def truth_rest_lengths(self) -> np.ndarray:
+        """True string rest lengths now, shape (alpha,), m."""
+        with self._lock:
+            return self.truth.rest_length_m.copy()
+
+    def start_recording(self) -> None:
+        """Record the truth at every following step (see :meth:`recording`)."""
+        with self._lock:
+            self.truth.start_recording()
+
+    def recording(self) -> TruthRecord:
+        """Truth recorded since :meth:`start_recording` (a snapshot)."""
+        with self._lock:
+            return self.truth.recording()
+
+    def stats(self) -> RigStats:
+        """Counts and timing so far."""
+        elapsed = time.monotonic() - self._t0_wall if self.clock == "real" else self._dev_t_s
+        return RigStats(
+            elapsed_s=elapsed,
+            imu_samples=self.imu.samples_sent,
+            telemetry_frames=self.wheels.telemetry_sent,
+            servo_packets=self.servos.packets_seen,
+            truth_steps=self._steps,
+            late_steps=self._late,
+            truth_dt_s=self.truth.dt_s,
+            step_wall_s=self._step_wall_s,
+            max_lag_s=self._max_lag_s,
+        )
+
+    # --- faults -------------------------------------------------------------------------------
+    def inject(
+        self,
+        device: str,
+        fault: str,
+        count: int = 1,
+        duration_s: float | None = None,
+        servo_id: int | None = None,
+    ) -> None:
+        """Inject a fault now.
+
+        Parameters
+        ----------
+        device : {"imu", "wheels", "servos"}
+        fault : str
+            Any device: ``corrupt`` / ``drop`` (the next ``count`` bytes it sends), ``silence``
+            (nothing sent, for ``duration_s`` or until ``clear``), ``stall`` (bytes held for
+            ``duration_s``, then one burst), ``clear`` (end a silence, overload or timeout).
+            ``wheels``: ``reset`` / ``watchdog`` (reboot after ``duration_s`` down, default 0).
+            ``servos``: ``overload`` / ``timeout`` of ``servo_id`` (for ``duration_s`` or until
+            ``clear``).
+        count : int
+        duration_s : float, optional, s
+        servo_id : int, optional
+
+        Raises
+        ------
+        FaultCommandError
+            Unknown device or fault, or a missing argument.
+        """
+        if device not in self.devices:
+            raise FaultCommandError(f"unknown device {device!r} (one of {', '.join(DEVICES)})")
+        known = STREAM_FAULTS + DEVICE_FAULTS.get(device, ())
+        if fault not in known:
+            raise FaultCommandError(f"unknown {device} fault {fault!r} (one of {', '.join(known)})")
+        with self._lock:
+            self._apply(device, fault, count, duration_s, servo_id)
+
+    def _apply(self, device, fault, count, duration_s, servo_id) -> None:
+        dev, now = self.devices[device], self._dev_t_s
+        if fault == "corrupt":
+            dev.faults.corrupt_next(count)
+        elif fault == "drop":
+            dev.faults.drop_next(count)
+        elif fault == "stall":
+            dev.faults.stall_for(_required(duration_s, fault), now)
+        elif fault == "silence":
+            dev.faults.set_silent(True)
+            self._later(duration_s, lambda: dev.faults.set_silent(False))
+        elif fault in ("reset", "watchdog"):
+            self.wheels.reset(down_s=duration_s or 0.0, watchdog=fault == "watchdog")
+        elif fault in ("overload", "timeout"):
+            if servo_id not in self.servos.servos:
+                raise FaultCommandError(
+                    f"servos {fault}: servo ID {servo_id} is not on the bus "
+                    f"(IDs {sorted(self.servos.servos)})"
+                )
+            setter = self.servos.set_overload if fault == "overload" else self.servos.set_no_reply
+            setter(servo_id, True)
+            self._later(duration_s, lambda: setter(servo_id, False))
+        else:  # clear
+            dev.faults.set_silent(False)
+            if device == "servos":
+                for sid in self.servos.servos:
+                    self.servos.set_overload(sid, False)
+                    self.servos.set_no_reply(sid, False)
+
+    def _later(self, duration_s: float | None, action) -> None:
+        if duration_s is not None:
+            self._timers.append((self._dev_t_s + duration_s, action))
+
+    def command(self, line: str) -> str:
+        """Run one text command; returns a one-line answer.
+
+        ``fault DEVICE FAULT [ARG...]`` (``fault imu silence 2``, ``fault wheels corrupt 40``,
+        ``fault servos overload 1 0.5``, ``fault wheels reset``) or ``stats``.
+
+        Raises
+        ------
+        FaultCommandError
+            The line is not a command the rig knows.
+        """
+        words = line.split()
+        if words == ["stats"]:
+            stats = self.stats()
+            return f"{stats.rates_line()}; {stats.truth_line()}"
+        if len(words) < 3 or words[0] != "fault":
+            raise FaultCommandError(
+                f"unknown command {line.strip()!r}: try 'fault imu silence 2' or 'stats'"
+            )
+        device, fault, args = words[1], words[2], words[3:]
+        try:
+            numbers = [float(a) for a in args]
+        except ValueError:
+            raise FaultCommandError(f"{line.strip()!r}: arguments must be numbers") from None
+        kwargs: dict = {}
+        if fault in ("corrupt", "drop"):
+            kwargs["count"] = int(numbers[0]) if numbers else 1
+        elif fault in ("overload", "timeout"):
+            if not numbers:
+                raise FaultCommandError(f"{line.strip()!r}: give the servo ID")
+            kwargs["servo_id"] = int(numbers[0])
+            kwargs["duration_s"] = numbers[1] if len(numbers) > 1 else None
+        elif numbers:
+            kwargs["duration_s"] = numbers[0]
+        self.inject(device, fault, **kwargs)
+        return f"injected: {device} {fault} {' '.join(args)}".rstrip()
+
+
+def _required(duration_s: float | None, fault: str) -> float:
+    if duration_s is None:
+        raise FaultCommandError(f"fault {fault!r} needs a duration, s")
+    return duration_s

@@ -1,0 +1,283 @@
+"""The truth of the simulated rig: the dynamics model of the scene, stepped with device inputs.
+
+The scene is turned into the rig's plant (:func:`rig_scene`): every wheel becomes
+speed-controlled (its spin is an input, starting at rest) because the wheel board, not the
+scene, sets the spins; ``wheel_inertia_scale`` makes the truth's wheels heavier or lighter than
+the scene the estimator uses (model mismatch).
+
+Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
+
+- **String rest lengths.** A servo with ``string = "<name>"`` in the configuration winds that scene
+  string: its present string length (the servo calibration, ``L = length_at_zero_m + length_sign *
+  (p - zero_position) * 2 pi r / 4096``, :func:`gyrohost.drivers.servos.steps_to_length`) *is* the
+  string's rest length, through a first-order lag ``servo_lag_s`` (string and pulley compliance;
+  0 = none). Strings no servo winds keep their scene rest length at t = 0.
+- **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
+  about +b of its bar); board wheels beyond the scene's wheels spin nothing.
+
+The IMU frame (body axes of :class:`~gyrohost.rig.imu_emu.ImuTruth`) is attached to the structure
+by three scene nodes ``imu_frame_nodes = [a, b, c]``: x along a -> b, z along x cross (c - a) (the
+normal of the plane of a, b, c), y = z cross x; its origin, where the specific force is taken, is
+the midpoint of a and b. For the D-bar (``["n1", "n3", "n2"]``) that is the centre of the rhombus,
+x along n1 -> n3, z normal to the plane of the D-bar, so the frame starts aligned with the world.
+The IMU's own mounting rotation (``imu.mounting_rpy_rad``) applies on top, in the emulator.
+Gravity felt by the IMU is ``imu_gravity_m_s2`` (world frame), independent of the scene's
+gravity: the D-bar scenes leave gravity out because the supports cancel it, the sensor still
+feels it. Sensor latency: :meth:`Truth.imu_truth` returns the truth ``imu_latency_s`` ago.
+"""
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.rig.imu_emu import ImuTruth
+from gyrotensegrity import Model, Scene, Stepper
+from gyrotensegrity.dynamics import evaluate, string_force_densities
+from gyrotensegrity.schedule import constant
+
+FD_STEP_S = 1e-6
+"""Time step of the finite difference that turns frame velocity into angular rate, s."""
+
+
+class RigSetupError(ValueError):
+    """The rig configuration does not fit the scene (unknown string or node, bad geometry)."""
+
+
+def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
+    """The plant of the rig: ``scene`` with speed-controlled wheels, at rest, inertia scaled.
+
+    Parameters
+    ----------
+    scene : Scene
+    wheel_inertia_scale : float
+        Factor on the wheels' spin inertia J3 (the radius is scaled by its square root, so J3
+        scales exactly and J1 nearly; masses are unchanged).
+    """
+    radius_scale = math.sqrt(wheel_inertia_scale)
+    bars = []
+    for bar in scene.bars:
+        wheel = bar.wheel
+        if wheel is not None:
+            wheel = replace(
+                wheel,
+                radius=wheel.radius * radius_scale,
+                mode="speed",
+                spin0=0.0,
+                speed=constant(0.0),
+                torque=None,
+            )
+        bars.append(replace(bar, wheel=wheel))
+    return replace(scene, bars=bars)
+
+
+@dataclass(frozen=True)
+class TruthRecord:
+    """The truth at every step of a recording (``k`` steps).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (k,), s
+    N : ndarray, shape (k, 3, n), m
+        Scene node positions (primary nodes, scene node order).
+    R_wb : ndarray, shape (k, 3, 3)
+        Attitude of the IMU frame: its axes in the world frame.
+    omega_w_rad_s : ndarray, shape (k, n_w), rad/s
+        Wheel spins (scene wheel order).
+    rest_length_m : ndarray, shape (k, alpha), m
+        String rest lengths.
+    node_names : list of str
+    """
+
+    t_s: np.ndarray
+    N: np.ndarray
+    R_wb: np.ndarray
+    omega_w_rad_s: np.ndarray
+    rest_length_m: np.ndarray
+    node_names: list
+
+    def save(self, path) -> None:
+        """Write the arrays to a ``.npz`` file."""
+        np.savez(
+            path,
+            t_s=self.t_s,
+            N=self.N,
+            R_wb=self.R_wb,
+            omega_w_rad_s=self.omega_w_rad_s,
+            rest_length_m=self.rest_length_m,
+            node_names=np.array(self.node_names),
+        )
+
+
+class Truth:
+    """The rig's truth model; see the module docstring.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene as the estimator knows it (the truth derives its plant from it).
+    config : TruthConfig
+        Step, IMU frame, gravity felt by the IMU, mismatch options.
+    servos : sequence of ServoConfig
+        Servos whose ``string`` names a scene string drive that string's rest length.
+    """
+
+    def __init__(
+        self, scene: Scene, config: TruthConfig, servos: Sequence[ServoConfig] = ()
+    ) -> None:
+        self.config = config
+        self.model = Model(rig_scene(scene, config.wheel_inertia_scale))
+        self.stepper = Stepper(self.model, max_dt=config.dt_s)
+        self.dt_s = config.dt_s
+        names = [s.name for s in scene.strings]
+        self.servo_strings: dict[int, int] = {}
+        for servo in servos:
+            if not servo.string:
+                continue
+            if servo.string not in names:
+                raise RigSetupError(
+                    f"servo '{servo.name}' (ID {servo.id}): string '{servo.string}' is not in "
+                    f"scene {scene.name} (strings: {', '.join(names)})"
+                )
+            self.servo_strings[servo.id] = names.index(servo.string)
+        st = self.model.structure
+        self.scene_nodes = [st.primary[name] for name in scene.node_names]
+        self.node_names = list(scene.node_names)
+        self._frame = self._frame_nodes(scene, config.imu_frame_nodes)
+        self.gravity_m_s2 = np.array(config.imu_gravity_m_s2, dtype=float)
+        self.rest_length_m = np.array([s.rest_length(0.0) for s in scene.strings])
+        self.wheel_input_rad_s = np.zeros(len(self.model.wheel_bars))
+        self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        self._check_frame()
+        depth = int(math.ceil(config.imu_latency_s / self.dt_s)) + 2
+        self._history: deque = deque([(0.0, self.stepper.x.copy(), self.u)], maxlen=depth)
+        self._record: list | None = None
+
+    def _frame_nodes(self, scene: Scene, names: Sequence[str]) -> list[int]:
+        unknown = [n for n in names if n not in scene.node_names]
+        if unknown:
+            raise RigSetupError(
+                f"sim.truth.imu_frame_nodes: node(s) {unknown} not in scene {scene.name} "
+                f"(nodes: {', '.join(scene.node_names)})"
+            )
+        return [self.model.structure.primary[n] for n in names]
+
+    def _check_frame(self) -> None:
+        a, b, c = (self.nodes()[:, i] for i in self._frame)
+        x = b - a
+        if np.linalg.norm(np.cross(x, c - a)) < 1e-9 * max(np.dot(x, x), 1e-12):
+            raise RigSetupError(
+                "sim.truth.imu_frame_nodes: the three nodes are on one line, they define no plane"
+            )
+
+    # --- stepping -----------------------------------------------------------------------------
+    @property
+    def t_s(self) -> float:
+        """Truth time, s."""
+        return self.stepper.t
+
+    def step(self, string_lengths_m: Mapping[int, float], wheel_speeds_rad_s: Sequence[float]):
+        """Advance by one step ``dt_s`` with the devices' present outputs.
+
+        Parameters
+        ----------
+        string_lengths_m : mapping servo ID -> float, m
+            Present string lengths of the servos (those without a string are ignored).
+        wheel_speeds_rad_s : sequence of float, rad/s
+            True wheel-board speeds, board wheel order.
+        """
+        lag = self.config.servo_lag_s
+        gain = 1.0 if lag <= 0 else 1.0 - math.exp(-self.dt_s / lag)
+        for servo_id, index in self.servo_strings.items():
+            target = string_lengths_m[servo_id]
+            self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
+        n_w = len(self.wheel_input_rad_s)
+        self.wheel_input_rad_s[:] = 0.0
+        speeds = np.asarray(wheel_speeds_rad_s, dtype=float)[:n_w]
+        self.wheel_input_rad_s[: len(speeds)] = speeds
+        self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        x = self.stepper.step(self.dt_s, self.u)
+        self._history.append((self.stepper.t, x.copy(), self.u))
+        if self._record is not None:
+            self._record.append(
+                (
+                    self.stepper.t,
+                    self.nodes(),
+                    self.attitude(),
+                    self.wheel_input_rad_s.copy(),
+                    self.rest_length_m.copy(),
+                )
+            )
+
+    # --- read-outs ----------------------------------------------------------------------------
+    def nodes(self, x: np.ndarray | None = None) -> np.ndarray:
+        """Scene node positions, shape (3, n_scene), m (state ``x``, default the present)."""
+        N, _ = self.model.nodes(self.stepper.x if x is None else x)
+        return N[:, self.scene_nodes]
+
+    def attitude(self, N: np.ndarray | None = None) -> np.ndarray:
+        """IMU frame axes in the world frame, shape (3, 3), of model nodes ``N`` (3, n)."""
+        if N is None:
+            N, _ = self.model.nodes(self.stepper.x)
+        a, b, c = (N[:, i] for i in self._frame)
+        x = (b - a) / np.linalg.norm(b - a)
+        z = np.cross(x, c - a)
+        z /= np.linalg.norm(z)
+        return np.column_stack((x, np.cross(z, x), z))
+
+    def tensions_N(self) -> np.ndarray:
+        """String tensions now, shape (alpha,), N."""
+        st = self.model.structure
+        N, N_dot = self.model.nodes(self.stepper.x)
+        S = N[:, st.string_end] - N[:, st.string_start]
+        S_dot = N_dot[:, st.string_end] - N_dot[:, st.string_start]
+        gamma = string_force_densities(self.model, S, S_dot, self.rest_length_m)
+        return gamma * np.linalg.norm(S, axis=0)
+
+    def servo_tensions_N(self) -> dict[int, float]:
+        """Tension of the string each servo winds, servo ID -> N."""
+        tensions = self.tensions_N()
+        return {sid: float(tensions[i]) for sid, i in self.servo_strings.items()}
+
+    def imu_truth(self, t_s: float) -> ImuTruth:
+        """What the IMU frame does at ``t_s - imu_latency_s`` (latest truth step not after it)."""
+        when = t_s - self.config.imu_latency_s
+        t, x, u = self._history[0]
+        for entry in self._history:
+            if entry[0] > when + 1e-12:
+                break
+            t, x, u = entry
+        ev = evaluate(t, x, u, self.model)
+        R = self.attitude(ev.N)
+        R_ahead = self.attitude(ev.N + FD_STEP_S * ev.N_dot)
+        W = R.T @ (R_ahead - R) / FD_STEP_S  # R^T R_dot: skew-symmetric up to O(h)
+        omega = 0.5 * np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]])
+        a, b = self._frame[0], self._frame[1]
+        accel = 0.5 * (ev.N_ddot[:, a] + ev.N_ddot[:, b])
+        return ImuTruth(omega, R.T @ (accel - self.gravity_m_s2), R)
+
+    # --- recording ----------------------------------------------------------------------------
+    def start_recording(self) -> None:
+        """Record every following step (see :meth:`recording`)."""
+        self._record = []
+
+    def recording(self) -> TruthRecord:
+        """The steps recorded since :meth:`start_recording` (a snapshot; recording goes on)."""
+        rows = list(self._record or [])
+        n_w, alpha = len(self.wheel_input_rad_s), len(self.rest_length_m)
+        n = len(self.scene_nodes)
+
+        def stack(i, shape):
+            return np.array([r[i] for r in rows]) if rows else np.zeros((0, *shape))
+
+        return TruthRecord(
+            t_s=stack(0, ()),
+            N=stack(1, (3, n)),
+            R_wb=stack(2, (3, 3)),
+            omega_w_rad_s=stack(3, (n_w,)),
+            rest_length_m=stack(4, (alpha,)),
+            node_names=self.node_names,
+        )
