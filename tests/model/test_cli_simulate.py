@@ -12,7 +12,8 @@ SCENES = Path(__file__).resolve().parents[2] / "scenes"
 def test_simulate_then_plot(tmp_path):
     out = tmp_path / "run.npz"
     scene = str(SCENES / "double-pendulum.toml")
-    assert main(["simulate", scene, "-o", str(out), "--duration", "0.2", "--integrator", "rk4"]) == 0
+    args = ["simulate", scene, "-o", str(out), "--duration", "0.2", "--integrator", "rk4"]
+    assert main(args) == 0
     with np.load(out) as z:
         assert z["N"].shape == (21, 3, 4) and list(z["node_names"]) == ["n0", "n1", "n1", "n2"]
         assert z["C_b"].shape == (2, 4) and z["rest_length"].shape == (21, 0)

@@ -39,7 +39,7 @@ def pumping(t, x, u, params):
 @pytest.mark.parametrize("scene", ["prism-gyro", "prism-string-mass"])
 def test_momentum_constant_while_rest_lengths_change(scene):
     model = Model(load_scene(SCENES / f"{scene}.toml"))
-    run = simulate(model, duration=2.0, rtol=1e-11, atol=1e-13, control=pumping)
+    run = simulate(model, duration=1.0, rtol=1e-11, atol=1e-13, control=pumping)
     assert np.ptp(run["rest_length"][:, 0]) > 0.01
     assert relative_drift(run["angular_momentum"]) <= 1e-10
 
@@ -47,7 +47,7 @@ def test_momentum_constant_while_rest_lengths_change(scene):
 def test_string_mass_energy_constant():
     model = Model(load_scene(SCENES / "prism-string-mass.toml"))
     assert "point_masses" in model.terms
-    run = simulate(model, duration=3.0, rtol=1e-12, atol=1e-14)
+    run = simulate(model, duration=1.5, rtol=1e-12, atol=1e-14)
     assert relative_drift(run["energy"]) <= 1e-9
 
 
