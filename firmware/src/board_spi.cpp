@@ -5,7 +5,7 @@
 
 // AS5048A timing: CSn high >= 350 ns between frames, CSn low to first clock >= 350 ns.
 // Six NOPs are 375 ns at 16 MHz.
-static inline void spi_wait_350ns() {
+static inline __attribute__((always_inline)) void spi_wait_350ns() {
     __asm__ __volatile__("nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop" ::);
 }
 
@@ -17,27 +17,29 @@ void spi_init() {
     SPSR = 0;
 }
 
-static uint8_t spi_xfer(uint8_t out) {
+static inline __attribute__((always_inline)) uint8_t spi_xfer(uint8_t out) {
     SPDR = out;
     while (!(SPSR & _BV(SPIF))) {
     }
     return SPDR;
 }
 
-static uint16_t enc_frame(uint8_t cs_bit) {
+// One 16-bit frame; the 8 SCK periods of each byte (32 cycles at clk/4) are the bulk of it.
+static inline __attribute__((always_inline)) uint16_t enc_frame(uint8_t cs_bit) {
     BOARD_CS_PORT &= static_cast<uint8_t>(~cs_bit);
     spi_wait_350ns();
-    uint16_t hi = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE >> 8));
-    uint16_t lo = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE & 0xFF));
+    uint8_t hi = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE >> 8));
+    uint8_t lo = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE & 0xFF));
     BOARD_CS_PORT |= cs_bit;
     spi_wait_350ns();
-    return static_cast<uint16_t>((hi << 8) | lo);
+    return static_cast<uint16_t>((static_cast<uint16_t>(hi) << 8) | lo);
 }
 
 void enc_read_all(uint16_t words[4]) {
+    uint8_t cs_bit = static_cast<uint8_t>(1u << BOARD_CS_SHIFT);
     for (uint8_t i = 0; i < BOARD_WHEELS; i++) {
-        uint8_t cs_bit = static_cast<uint8_t>(1u << (BOARD_CS_SHIFT + i));
         (void)enc_frame(cs_bit);       // command: read angle; reply belongs to the last command
         words[i] = enc_frame(cs_bit);  // reply: the angle latched by the command above
+        cs_bit = static_cast<uint8_t>(cs_bit << 1);
     }
 }

@@ -6,6 +6,7 @@
 
 #include <stdint.h>
 
+#include "cmt.h"
 #include "flt.h"
 #include "pi.h"
 #include "prm.h"
@@ -41,8 +42,25 @@ struct app_wheel {
     int16_t drive_q15;      // signed drive level
 };
 
+// Parameters in the form the control step uses them, derived from prm.v once per change
+// (app_init, PARAM_SET, PARAM_DEFAULTS) so that the 1 kHz step converts nothing.
+struct app_ctl {
+    pi_gains gains;
+    cmt_lead lead;
+    int32_t accel;  // ramp step per tick, mrad/s
+    int32_t decel;
+    uint16_t enc_offset[APP_WHEELS];
+    uint16_t heartbeat_ms;
+    int16_t open_loop_drive;
+    uint8_t closed;  // 1 closed loop on the encoders, 0 open loop
+    uint8_t pole_pairs;
+    uint8_t speed_shift;
+    uint8_t enc_fault_limit;
+};
+
 struct app_state {
     app_wheel w[APP_WHEELS];
+    app_ctl ctl;
     prm_store prm;
     flt_state flt;
     proto_rx rx;

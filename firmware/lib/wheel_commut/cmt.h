@@ -22,8 +22,10 @@
 
 extern const int16_t cmt_sine_q15[CMT_TABLE_SIZE] PORT_PROGMEM;
 
-// sin of a 16-bit angle, Q15.
-int16_t cmt_sin(uint16_t angle16);
+// sin of a 16-bit angle, Q15 (table index = high byte of the angle).
+inline int16_t cmt_sin(uint16_t angle16) {
+    return PORT_READ_I16(&cmt_sine_q15[static_cast<uint8_t>(angle16 >> 8)]);
+}
 
 // Electrical angle from a 14-bit mechanical angle: mech * 4 * pole_pairs - offset, modulo 65536.
 uint16_t cmt_elec_angle(uint16_t mech14, uint8_t pole_pairs, uint16_t offset16);
@@ -38,5 +40,20 @@ void cmt_phases(uint16_t angle16, int16_t amp_q15, uint16_t duty[3]);
 // (0.49 electrical turns per tick; 3000 rpm at 7 pole pairs is 2.2e6). |speed| <= 2^31/40.
 #define CMT_MAX_ELEC_MRAD_S 3100000L
 int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs);
+
+// Commutation lead: electrical angle advance (65536 = one turn) = speed * pole_pairs * lead time,
+// lead time = lead_q8 / 256 ticks. Set up once per parameter change (cmt_lead_init), evaluated
+// per tick with one 16 x 16 -> 32 multiply (cmt_lead_angle):
+//   lead = (|speed| >> 8) * k >> 8, k = round(pole_pairs * lead_q8 * 2^24 / (2*pi*1e6)) <= 54685,
+// |speed| >> 8 clamped to the aliasing limit CMT_MAX_ELEC_MRAD_S / pole_pairs as cmt_phase_inc.
+// Error against the exact value: below k/256 + |speed|/2^17 + 2 angle units (speed truncated to
+// 256 mrad/s, k rounded); 12 units (0.07 degrees electrical) up to 1500 rpm at 7 pole pairs and
+// the default lead of 128/256 tick.
+struct cmt_lead {
+    uint16_t k;
+    uint16_t s8_max;  // clamp of |speed| >> 8
+};
+void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
+uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_mrad_s);
 
 #endif  // CMT_H

@@ -16,8 +16,8 @@
 #define PI_ERR_CLAMP 65535L
 
 struct pi_gains {
-    int16_t kp_q8;    // >= 0
-    int16_t ki_q8;    // >= 0
+    int16_t kp_q8;    // 0..32767 (negative gains are not supported)
+    int16_t ki_q8;    // 0..32767
     int16_t out_max;  // 0..32767
     int16_t slew;     // max output change per tick, 1..32767
 };

@@ -1,10 +1,18 @@
 // port_progmem.h - the one portability shim of the portable firmware logic.
 // On AVR, constant tables live in flash (PROGMEM) and are read with pgm_read_word; on the host
 // they are plain const arrays. No other file in firmware/lib/ may include an AVR header.
+// Also the widening multiplies of the control step (see port_mul_u16 below).
 #ifndef PORT_PROGMEM_H
 #define PORT_PROGMEM_H
 
 #include <stdint.h>
+
+// Small helpers of the control step: inlined even at -Os (a call costs more than their body).
+#if defined(__GNUC__)
+#define PORT_INLINE inline __attribute__((always_inline))
+#else
+#define PORT_INLINE inline
+#endif
 
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
@@ -14,5 +22,72 @@
 #define PORT_PROGMEM
 #define PORT_READ_I16(addr) (*(addr))
 #endif
+
+// Widening 16 x 16 -> 32 multiplies. avr-gcc 5.4 widens such products to 16 x 32 library calls
+// and spills registers around them, so on AVR they are inline MUL/MULS/MULSU sequences (Atmel
+// AVR201; 17 cycles, no call); on the host, plain C (what the native tests exercise). The AVR
+// sequences are checked against the C expressions in simavr by `make -C firmware port-check`.
+// Every result fits: a * b <= 2^32 - 2^17 + 1 unsigned, |a * b| <= 2^30 signed.
+PORT_INLINE uint32_t port_mul_u16(uint16_t a, uint16_t b) {
+#if defined(__AVR__)
+    uint32_t r;
+    uint8_t z;
+    __asm__(
+        "clr %[z]\n\t"
+        "mul %B[a], %B[b]\n\t"
+        "movw %C[r], r0\n\t"
+        "mul %A[a], %A[b]\n\t"
+        "movw %A[r], r0\n\t"
+        "mul %A[a], %B[b]\n\t"
+        "add %B[r], r0\n\t"
+        "adc %C[r], r1\n\t"
+        "adc %D[r], %[z]\n\t"
+        "mul %B[a], %A[b]\n\t"
+        "add %B[r], r0\n\t"
+        "adc %C[r], r1\n\t"
+        "adc %D[r], %[z]\n\t"
+        "clr __zero_reg__"
+        : [r] "=&r"(r), [z] "=&r"(z)
+        : [a] "r"(a), [b] "r"(b));
+    return r;
+#else
+    return static_cast<uint32_t>(a) * static_cast<uint32_t>(b);
+#endif
+}
+
+PORT_INLINE int32_t port_mul_s16(int16_t a, int16_t b) {
+#if defined(__AVR__)
+    int32_t r;
+    uint8_t z;
+    __asm__(
+        "clr %[z]\n\t"
+        "muls %B[a], %B[b]\n\t"
+        "movw %C[r], r0\n\t"
+        "mul %A[a], %A[b]\n\t"
+        "movw %A[r], r0\n\t"
+        "mulsu %B[a], %A[b]\n\t"
+        "sbc %D[r], %[z]\n\t"
+        "add %B[r], r0\n\t"
+        "adc %C[r], r1\n\t"
+        "adc %D[r], %[z]\n\t"
+        "mulsu %B[b], %A[a]\n\t"
+        "sbc %D[r], %[z]\n\t"
+        "add %B[r], r0\n\t"
+        "adc %C[r], r1\n\t"
+        "adc %D[r], %[z]\n\t"
+        "clr __zero_reg__"
+        : [r] "=&r"(r), [z] "=&r"(z)
+        : [a] "a"(a), [b] "a"(b));  // MULS/MULSU take r16..r23 only
+    return r;
+#else
+    return static_cast<int32_t>(a) * static_cast<int32_t>(b);
+#endif
+}
+
+// High word of the signed product, (a * b) >> 16 rounded towards minus infinity (on AVR the
+// shift by 16 is a register move).
+PORT_INLINE int16_t port_mulhi_s16(int16_t a, int16_t b) {
+    return static_cast<int16_t>(port_mul_s16(a, b) >> 16);
+}
 
 #endif  // PORT_PROGMEM_H

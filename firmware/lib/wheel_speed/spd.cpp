@@ -1,5 +1,7 @@
 #include "spd.h"
 
+#include "port_progmem.h"
+
 void spd_init(spd_state* s) {
     s->acc = 0;
     s->speed_mrad_s = 0;
@@ -15,9 +17,32 @@ int16_t spd_wrap_delta(uint16_t a, uint16_t b) {
 }
 
 int32_t spd_counts_to_mrad_s(int16_t counts_per_tick) {
-    const int32_t k_q8 = 98175;  // 383.496 mrad/s per count per 1 ms tick, times 256
-    if (counts_per_tick >= 0) return (static_cast<int32_t>(counts_per_tick) * k_q8) >> 8;
-    return -((static_cast<int32_t>(-counts_per_tick) * k_q8) >> 8);
+    // 383.496 mrad/s per count per 1 ms tick, times 256: 98175 = 65536 + 32639, so the product
+    // is one 16 x 16 -> 32 multiply plus the magnitude moved up 16 bits; |c| * 98175 < 2^32 for
+    // every int16 (the magnitude of -32768 is 32768 as uint16).
+    uint16_t mag = static_cast<uint16_t>(counts_per_tick);
+    if (counts_per_tick < 0) mag = static_cast<uint16_t>(0u - mag);
+    uint32_t p = (static_cast<uint32_t>(mag) << 16) + port_mul_u16(mag, 32639u);
+    int32_t v = static_cast<int32_t>(p >> 8);
+    return counts_per_tick < 0 ? -v : v;
+}
+
+int32_t spd_div_ticks(int32_t x, uint8_t ticks) {
+    if (ticks < 2) return x;
+    uint32_t n = x < 0 ? 0u - static_cast<uint32_t>(x) : static_cast<uint32_t>(x);
+    uint32_t q;
+    if (ticks == 2) {
+        q = n >> 1;
+    } else {
+        // Exact n / 3 for every uint32 (Hacker's Delight, divu3): shifts and adds, no divide.
+        q = (n >> 2) + (n >> 4);
+        q += q >> 4;
+        q += q >> 8;
+        q += q >> 16;
+        uint32_t r = n - q * 3u;  // 0..5
+        q += (11u * r) >> 5;
+    }
+    return x < 0 ? -static_cast<int32_t>(q) : static_cast<int32_t>(q);
 }
 
 int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift) {
@@ -34,7 +59,7 @@ int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift) {
     int32_t raw = spd_counts_to_mrad_s(delta);
     if (s->missed) {
         // The delta spans missed + 1 ticks (rare: only after bad encoder words).
-        raw /= static_cast<int32_t>(s->missed) + 1;
+        raw = spd_div_ticks(raw, static_cast<uint8_t>(s->missed + 1));
         s->missed = 0;
     }
     s->acc += raw - (s->acc >> shift);

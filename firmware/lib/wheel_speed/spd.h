@@ -31,6 +31,10 @@ int16_t spd_wrap_delta(uint16_t a, uint16_t b);
 // Counts per tick to mrad/s (symmetric rounding towards zero).
 int32_t spd_counts_to_mrad_s(int16_t counts_per_tick);
 
+// x / ticks rounded towards zero for ticks 1..3 (the span of one delta after missed samples),
+// without a division. |x| < 2^31.
+int32_t spd_div_ticks(int32_t x, uint8_t ticks);
+
 // Feed one good angle; returns the filtered speed in mrad/s. shift is clamped to SPD_MAX_SHIFT.
 int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift);
 

@@ -85,3 +85,39 @@ TEST(Cmt, PhaseIncrementClampsAtAliasingLimit) {
     EXPECT_EQ(cmt_phase_inc(-400000, 40), -top);
     EXPECT_GT(top, 0);
 }
+
+// Exact lead angle (one-turn units, not wrapped) with the aliasing clamp of cmt_phase_inc.
+static double exact_lead(double speed, int pp, int lead_q8) {
+    double es = speed * pp;
+    if (es > CMT_MAX_ELEC_MRAD_S) es = CMT_MAX_ELEC_MRAD_S;
+    if (es < -CMT_MAX_ELEC_MRAD_S) es = -CMT_MAX_ELEC_MRAD_S;
+    return es * 65536.0 / (2 * M_PI * 1e6) * lead_q8 / 256.0;
+}
+
+TEST(Cmt, LeadAngleMatchesExactOverSpeedsAndExtremes) {
+    for (int pp : {1, 7, 14, 40}) {
+        for (int lead_q8 : {0, 1, 128, 256, 512}) {
+            cmt_lead l;
+            cmt_lead_init(&l, static_cast<uint8_t>(pp), static_cast<uint16_t>(lead_q8));
+            double k_exact = pp * lead_q8 * 16777216.0 / (2 * M_PI * 1e6);
+            ASSERT_NEAR(l.k, k_exact, 0.6) << pp << " " << lead_q8;
+            for (int32_t v : {0, 1, -1, 255, 256, -256, 74870, -74870, 157080, 400000, -400000,
+                              3141592, -3141592, 8388607, -8388608, INT32_MAX, INT32_MIN + 1}) {
+                double want = exact_lead(v, pp, lead_q8);
+                double tol = l.k / 256.0 + fabs(want) * 0.5 / (l.k > 0 ? l.k : 1) + 2.0;
+                double got = cmt_lead_angle(&l, v);
+                double err = remainder(got - want, 65536.0);  // the angle is taken modulo a turn
+                ASSERT_LE(fabs(err), tol) << "pp " << pp << " lead " << lead_q8 << " v " << v;
+            }
+        }
+    }
+}
+
+TEST(Cmt, LeadAngleDefaultsWithinTwelveUnits) {
+    cmt_lead l;
+    cmt_lead_init(&l, 7, 128);
+    for (int32_t v = -157080; v <= 157080; v += 997) {  // up to the default SPEED_MAX
+        double err = remainder(cmt_lead_angle(&l, v) - exact_lead(v, 7, 128), 65536.0);
+        ASSERT_LE(fabs(err), 12.0) << v;
+    }
+}

@@ -60,6 +60,34 @@ TEST(Spd, CountsToSpeedAgainstExactValue) {
     EXPECT_EQ(spd_counts_to_mrad_s(-8191), -spd_counts_to_mrad_s(8191));
 }
 
+TEST(Spd, CountsToSpeedAtInt16Extremes) {
+    const double k = 98175.0 / 256.0;  // the documented conversion, truncated towards zero
+    for (int c : {-32768, -32767, -8193, 8192, 32767}) {
+        double want = c < 0 ? -floor(-c * k) : floor(c * k);
+        EXPECT_EQ(spd_counts_to_mrad_s(static_cast<int16_t>(c)), static_cast<int32_t>(want)) << c;
+    }
+    for (int c = -32768; c <= 32767; c += 61) {
+        int64_t exact = (static_cast<int64_t>(c < 0 ? -c : c) * 98175) >> 8;
+        ASSERT_EQ(spd_counts_to_mrad_s(static_cast<int16_t>(c)), c < 0 ? -exact : exact) << c;
+    }
+}
+
+TEST(Spd, DivTicksMatchesDivisionAtExtremes) {
+    const int32_t xs[] = {0,           1,         -1,         2,           -2,         3,
+                          -3,          5,         -5,         3141592,     -3141592,   0x7FFFFFFF,
+                          -0x7FFFFFFF, INT32_MIN, 0x55555555, -0x55555555, 0x7FFFFFFE, 1431655766};
+    for (int32_t x : xs) {
+        for (uint8_t d = 1; d <= 3; d++) {
+            int64_t want = static_cast<int64_t>(x) / d;  // C division: towards zero
+            ASSERT_EQ(spd_div_ticks(x, d), want) << x << " / " << int(d);
+        }
+    }
+    for (int64_t x = -4000000; x <= 4000000; x += 7) {
+        ASSERT_EQ(spd_div_ticks(static_cast<int32_t>(x), 3), x / 3) << x;
+        ASSERT_EQ(spd_div_ticks(static_cast<int32_t>(x), 2), x / 2) << x;
+    }
+}
+
 static int32_t run_constant_speed(uint16_t start, int step, int ticks, uint8_t shift) {
     spd_state s;
     spd_init(&s);
