@@ -1,0 +1,114 @@
+"""Rig configuration loader: shipped files, every kind of error, documentation coverage."""
+
+import typing
+from dataclasses import fields, is_dataclass
+from pathlib import Path
+
+import pytest
+
+from gyrohost.config import (
+    EMULATED_PORT,
+    ConfigError,
+    ImuConfig,
+    ImuEmuConfig,
+    RigConfig,
+    ServoBusConfig,
+    ServoConfig,
+    ServoEmuConfig,
+    StreamFaultConfig,
+    WheelboardConfig,
+    load_rig_config,
+    rig_config_from_dict,
+)
+from gyrohost.drivers.servos import StringServoBus
+
+ROOT = Path(__file__).resolve().parents[2]
+SERVO = {"name": "s13", "id": 1, "pulley_radius_m": 0.01, "length_at_zero_m": 0.3}
+
+
+def test_simulated_rig_file():
+    cfg = load_rig_config(ROOT / "configs/sim-rig.toml")
+    assert cfg.imu.port == cfg.servos.port == cfg.wheelboard.port == EMULATED_PORT
+    assert [s.name for s in cfg.servos.servo] == ["s13", "s24"]
+    assert cfg.wheelboard.baud == 500000
+    assert cfg.scene_path == ROOT / "scenes/dbar-gyro.toml" and cfg.scene_path.exists()
+    StringServoBus(cfg.servos)  # limits map into the multi-turn range
+
+
+def test_lab_rig_template():
+    cfg = load_rig_config(ROOT / "configs/lab-rig.toml")
+    assert cfg.servos.port.startswith("/dev/ttyUSB") and cfg.imu.port.startswith("/dev/ttyUSB")
+    assert cfg.sim == RigConfig().sim  # untouched defaults
+    StringServoBus(cfg.servos)
+
+
+def test_empty_file_gives_the_defaults(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_text("")
+    cfg = load_rig_config(path)
+    assert cfg.imu == ImuConfig() and cfg.servos == ServoBusConfig()
+    assert cfg.source == str(path)
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"imu": {"bogus": 1}}, "unknown key 'imu.bogus'"),
+        ({"sim": {"servos": {"faults": {"stall": 1}}}}, "unknown key 'sim.servos.faults.stall'"),
+        ({"source": "x"}, "unknown key 'source'"),  # set by the loader only
+        ({"imu": {"baud": 4800}}, "key 'imu.baud' is 4800, must be one of"),
+        ({"imu": {"timeout_s": "fast"}}, "key 'imu.timeout_s' must be a number, got str"),
+        ({"imu": {"rate_hz": 100.0}}, "key 'imu.rate_hz' must be an integer"),
+        ({"imu": {"rate_hz": True}}, "key 'imu.rate_hz' must be an integer"),
+        ({"imu": {"mounting_rpy_rad": [0, 0]}}, "must have 3 elements, got 2"),
+        ({"imu": {"mounting_rpy_rad": [0, 0, 4]}}, r"mounting_rpy_rad' is 4.0, above the max"),
+        ({"imu": {"timeout_s": float("nan")}}, "must be finite"),
+        ({"imu": 3}, "key 'imu' must be a table"),
+        ({"servos": {"servo": [{**SERVO, "id": 300}]}}, r"'servos.servo\[0\].id' is 300, above"),
+        ({"servos": {"servo": [{"name": "a", "id": 1}]}}, r"missing required key 'servos.servo"),
+        ({"servos": {"servo": [SERVO, SERVO]}}, "duplicate servo IDs"),
+        (
+            {"servos": {"servo": [{**SERVO, "min_length_m": 0.5, "max_length_m": 0.4}]}},
+            r"servos.servo\[0\].min_length_m': must be smaller",
+        ),
+        (
+            {"sim": {"imu": {"faults": {"stall_period_s": 1.0, "stall_duration_s": 1.0}}}},
+            "sim.imu.faults.stall_duration_s': must be shorter",
+        ),
+        ({"sim": {"servos": {"overload_ids": [1, 999]}}}, "overload_ids' is 999, above"),
+    ],
+)
+def test_errors_name_the_file_and_key(data, message):
+    with pytest.raises(ConfigError, match=message) as info:
+        rig_config_from_dict(data, "my-rig.toml")
+    assert str(info.value).startswith("my-rig.toml: ")
+
+
+def test_unreadable_and_invalid_files(tmp_path):
+    with pytest.raises(ConfigError, match="missing.toml: cannot read"):
+        load_rig_config(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[imu\nport = 1")
+    with pytest.raises(ConfigError, match="bad.toml: not valid TOML"):
+        load_rig_config(bad)
+
+
+def _keys(cls) -> list[str]:
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in fields(cls):
+        hint = hints[f.name]
+        args = typing.get_args(hint)
+        if not (is_dataclass(hint) or (args and is_dataclass(args[0]))):
+            out.append(f.name)
+    return out
+
+
+@pytest.mark.parametrize(
+    "cls",
+    [ImuConfig, ServoBusConfig, ServoConfig, WheelboardConfig, ImuEmuConfig, ServoEmuConfig,
+     StreamFaultConfig],
+)  # fmt: skip
+def test_every_key_is_documented(cls):
+    doc = (ROOT / "docs/rig-config.md").read_text()
+    assert [k for k in _keys(cls) if f"`{k}`" not in doc] == []
