@@ -153,8 +153,9 @@ class Truth:
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
         self._check_frame()
         depth = int(math.ceil(config.imu_latency_s / self.dt_s)) + 2
-        self._history: deque = deque([(0.0, self.stepper.x.copy(), self.u)], maxlen=depth)
+        self._history: deque = deque(maxlen=depth)
         self._record: list | None = None
+        self.set_state(self.stepper.x)
 
     def _frame_nodes(self, scene: Scene, names: Sequence[str]) -> list[int]:
         unknown = [n for n in names if n not in scene.node_names]
@@ -166,7 +167,8 @@ class Truth:
         return [self.model.structure.primary[n] for n in names]
 
     def _check_frame(self) -> None:
-        a, b, c = (self.nodes()[:, i] for i in self._frame)
+        N, _ = self.model.nodes(self.stepper.x)
+        a, b, c = (N[:, i] for i in self._frame)
         x = b - a
         if np.linalg.norm(np.cross(x, c - a)) < 1e-9 * max(np.dot(x, x), 1e-12):
             raise RigSetupError(
@@ -174,6 +176,12 @@ class Truth:
             )
 
     # --- stepping -----------------------------------------------------------------------------
+    def set_state(self, x: np.ndarray) -> None:
+        """Replace the present state (layout of ``self.model``); the IMU history restarts."""
+        self.stepper.x = np.array(x, dtype=float)
+        self._history.clear()
+        self._history.append((self.stepper.t, self.stepper.x.copy(), self.u))
+
     @property
     def t_s(self) -> float:
         """Truth time, s."""

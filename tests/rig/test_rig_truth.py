@@ -1,0 +1,94 @@
+"""The rig's truth model: inputs from the devices, IMU frame kinematics against closed forms."""
+
+import math
+
+import numpy as np
+import pytest
+
+from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.rig.imu_emu import rotation_zyx
+from gyrohost.rig.truth import RigSetupError, Truth, rig_scene
+from gyrotensegrity import Model, load_scene
+
+SCENE = load_scene("scenes/dbar-gyro.toml")
+LEFT = ServoConfig(name="left", id=1, pulley_radius_m=0.01, string="s13")
+G = 9.80665
+
+
+def test_rig_scene_has_speed_wheels_at_rest_and_scaled_inertia():
+    plant = Model(rig_scene(SCENE, wheel_inertia_scale=1.2))
+    nominal = Model(SCENE)
+    assert plant.wheel_modes == ["speed"] * 4
+    assert np.all(plant.spin0 == 0.0)
+    np.testing.assert_allclose(plant.J3, 1.2 * nominal.J3, rtol=1e-12)
+    np.testing.assert_allclose(plant.m_t, nominal.m_t)  # masses unchanged
+
+
+def test_rest_length_follows_the_servo_with_the_configured_lag():
+    lag = 0.05
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005, servo_lag_s=lag), [LEFT])
+    start = truth.rest_length_m.copy()
+    for _ in range(10):  # 50 ms = one time constant
+        truth.step({1: start[0] - 0.01}, [0.0] * 4)
+    moved = start[0] - truth.rest_length_m[0]
+    assert moved == pytest.approx(0.01 * (1 - math.exp(-1.0)), rel=1e-9)
+    assert truth.rest_length_m[1] == start[1]  # no servo winds s24: it keeps its rest length
+
+
+def test_wheel_spins_follow_the_board_in_scene_order():
+    truth = Truth(SCENE, TruthConfig(), [])
+    truth.step({}, [1.0, -2.0, 3.0, -4.0])
+    np.testing.assert_array_equal(truth.wheel_input_rad_s, [1.0, -2.0, 3.0, -4.0])
+    assert truth.model.wheel_speeds(truth.stepper.x, truth.u).tolist() == [1.0, -2.0, 3.0, -4.0]
+
+
+def rigidly_rotating(truth, omega_world):
+    """Give the structure the velocity field of a rigid rotation about the origin."""
+    N, _ = truth.model.nodes(truth.stepper.x)
+    N_dot = np.cross(omega_world[:, None], N, axis=0)
+    truth.set_state(truth.model.state(N, N_dot, omega=np.zeros(4)))
+
+
+def test_imu_frame_of_a_rigid_rotation_matches_the_closed_form():
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005), [])
+    omega = np.array([0.3, -0.2, 0.5])
+    rigidly_rotating(truth, omega)
+    sample = truth.imu_truth(0.0)
+    np.testing.assert_allclose(sample.R_wb, np.eye(3), atol=1e-12)  # D-bar frame = world
+    np.testing.assert_allclose(sample.omega_rad_s, omega, atol=1e-6)
+    # The origin (centre of the rhombus) does not accelerate: the IMU feels gravity only.
+    np.testing.assert_allclose(sample.specific_force_m_s2, [0.0, 0.0, G], atol=1e-6)
+
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005), [])
+    rigidly_rotating(truth, np.array([0.0, 0.0, 0.5]))  # about a principal axis: steady
+    for _ in range(200):
+        truth.step({}, [0.0] * 4)
+    sample = truth.imu_truth(truth.t_s)
+    np.testing.assert_allclose(sample.R_wb, rotation_zyx(0.0, 0.0, 0.5), atol=1e-6)
+    np.testing.assert_allclose(sample.omega_rad_s, [0.0, 0.0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(sample.specific_force_m_s2, [0.0, 0.0, G], atol=1e-5)
+
+
+def test_imu_latency_returns_the_older_truth_and_recording():
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005, imu_latency_s=0.05), [])
+    rigidly_rotating(truth, np.array([0.0, 0.0, 1.0]))
+    truth.start_recording()
+    for _ in range(40):
+        truth.step({}, [0.0] * 4)
+    record = truth.recording()
+    assert record.N.shape == (40, 3, 4) and record.R_wb.shape == (40, 3, 3)
+    assert record.t_s[-1] == pytest.approx(0.2)
+    delayed = truth.imu_truth(truth.t_s)
+    k = int(np.argmin(np.abs(record.t_s - (truth.t_s - 0.05))))
+    np.testing.assert_allclose(delayed.R_wb, record.R_wb[k], atol=1e-12)
+    assert not np.allclose(delayed.R_wb, record.R_wb[-1], atol=1e-3)
+
+
+def test_setup_errors_name_the_key():
+    with pytest.raises(RigSetupError, match="string 's99' is not in scene dbar-gyro"):
+        Truth(SCENE, TruthConfig(), [ServoConfig(name="x", id=3, pulley_radius_m=0.01,
+                                                 string="s99")])  # fmt: skip
+    with pytest.raises(RigSetupError, match=r"imu_frame_nodes: node\(s\) \['n9'\]"):
+        Truth(SCENE, TruthConfig(imu_frame_nodes=("n1", "n9", "n2")), [])
+    with pytest.raises(RigSetupError, match="on one line"):
+        Truth(SCENE, TruthConfig(imu_frame_nodes=("n1", "n3", "n1")), [])
