@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import pytest
 
-from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig, ServoEmuConfig
 from gyrohost.drivers.servos import (
     Addr,
     ServoCommError,
@@ -240,3 +240,15 @@ def test_unopenable_port_is_a_servo_error():
     bus = StringServoBus(ServoBusConfig(port="/nonexistent/ttyUSB9", servo=(LEFT,)))
     with pytest.raises(ServoError, match="cannot open /nonexistent/ttyUSB9"):
         bus.open()
+
+
+def test_emulator_refuses_fault_ids_that_are_not_on_the_bus():
+    with pytest.raises(ConfigError, match=r"sim.servos.no_reply_ids: IDs \[7\] are not on the bus"):
+        Mx12Bus((LEFT, RIGHT), replace(EMU, no_reply_ids=(7,)))
+
+
+def test_emulator_shuts_down_cleanly():
+    device = Mx12Bus((LEFT,), EMU).start()
+    device.close()
+    device.close()  # idempotent
+    assert device.link.write(b"x") == 0 and device.link.read(0.01) == b""

@@ -24,7 +24,7 @@ import math
 import time
 from dataclasses import dataclass
 
-from gyrohost.config import MX_POSITION_LIMIT, ServoConfig, ServoEmuConfig
+from gyrohost.config import MX_POSITION_LIMIT, ConfigError, ServoConfig, ServoEmuConfig
 from gyrohost.drivers.servos import (
     LOAD_UNIT,
     MODEL_MX12W,
@@ -297,10 +297,18 @@ class Mx12Bus(PtyDevice):
         emu = emu if emu is not None else ServoEmuConfig()
         super().__init__(FaultFilter(emu.faults))
         self.servos = {s.id: EmulatedMx12(s.id, emu, s) for s in servos}
+        for key, ids in (("overload_ids", emu.overload_ids), ("no_reply_ids", emu.no_reply_ids)):
+            unknown = sorted(set(ids) - set(self.servos))
+            if unknown:
+                self.close()
+                have = sorted(self.servos)
+                raise ConfigError(
+                    f"sim.servos.{key}: IDs {unknown} are not on the bus (have {have})"
+                )
         for servo_id in emu.overload_ids:
-            self._servo(servo_id).forced_overload = True
+            self.servos[servo_id].forced_overload = True
         for servo_id in emu.no_reply_ids:
-            self._servo(servo_id).no_reply = True
+            self.servos[servo_id].no_reply = True
         self.packets_seen = 0
         self.bad_checksums = 0
         self.cutter = PacketCutter()
