@@ -1,0 +1,129 @@
+"""Estimator configuration: noise, gates, time-outs, process model; every default here.
+
+The keys (one flat table, ``[estimator]`` in a TOML file or a dict) are documented in
+``docs/estimator.md``. Unknown keys, wrong types and out-of-range values raise
+:class:`EstimatorConfigError` naming the key.
+"""
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+from .errors import EstimatorConfigError
+
+_DEG = math.pi / 180.0
+
+
+def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:
+    return {"lo": lo, "hi": hi, "doc": doc}
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """All settings of the EKF. Units are in the names; see docs/estimator.md."""
+
+    # measurement noise (standard deviations, white), per component
+    imu_rate_std_rad_s: float = field(default=1.0e-3, metadata=_pos("gyro noise"))
+    imu_accel_std_m_s2: float = field(default=0.03, metadata=_pos("accelerometer noise"))
+    imu_angle_std_rad: float = field(default=0.06 * _DEG, metadata=_pos("Euler angle noise"))
+    wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
+    servo_length_std_m: float = field(default=2.0e-3, metadata=_pos("string length noise"))
+    # process noise (white, spectral densities)
+    accel_psd_m2_s3: float = field(default=1.0e-3, metadata=_pos("node acceleration noise"))
+    wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
+    gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_pos("gyro bias walk"))
+    # initial uncertainty
+    init_position_std_m: float = field(default=2.0e-3, metadata=_pos("initial node position"))
+    init_velocity_std_m_s: float = field(default=5.0e-3, metadata=_pos("initial node velocity"))
+    init_wheel_std_rad_s: float = field(default=2.0, metadata=_pos("initial wheel speed"))
+    init_gyro_bias_std_rad_s: float = field(default=0.5 * _DEG, metadata=_pos("initial bias"))
+    # gates: NIS thresholds as chi-square probabilities; time-outs
+    gate_probability: float = field(default=0.9999, metadata=_pos("NIS gate", 0.5, 1.0))
+    imu_timeout_s: float = field(default=0.1, metadata=_pos("IMU time-out", 1e-3))
+    wheels_timeout_s: float = field(default=0.2, metadata=_pos("wheel time-out", 1e-3))
+    servos_timeout_s: float = field(default=0.5, metadata=_pos("servo time-out", 1e-3))
+    max_lag_s: float = field(default=0.05, metadata=_pos("oldest sample fused", 0.0))
+    # process model
+    process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
+    process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})
+    rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
+    # IMU attachment (as the rig's truth, gyrohost.rig.truth): body frame from three scene
+    # nodes, sensor axes turned by mounting_rpy, gravity the sensor feels (world frame)
+    imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
+    imu_mounting_rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
+
+
+def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
+    """Build an :class:`EstimatorConfig` from a flat table; ``source`` names it in errors."""
+    known = {f.name: f for f in fields(EstimatorConfig)}
+    values = {}
+    for key, value in data.items():
+        if key not in known:
+            raise EstimatorConfigError(
+                f"{source}: unknown estimator key '{key}' (known: {', '.join(sorted(known))})"
+            )
+        values[key] = _check(known[key], value, f"{source}: estimator key '{key}'")
+    return replace(EstimatorConfig(), **values)
+
+
+def load_config(path: str | Path) -> EstimatorConfig:
+    """Read the ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise EstimatorConfigError(f"{path}: cannot read estimator configuration: {exc}") from exc
+    return config_from_dict(data.get("estimator", data), str(path))
+
+
+def _check(f, value, where: str):
+    default = f.default
+    if isinstance(default, tuple):
+        if (
+            not isinstance(value, list | tuple)
+            or len(value) != len(default)
+            and f.name != ("imu_position_nodes")
+        ):
+            raise EstimatorConfigError(f"{where} must be an array like {list(default)}")
+        kind = type(default[0])
+        if not all(isinstance(v, kind) or kind is float and isinstance(v, int) for v in value):
+            raise EstimatorConfigError(f"{where} must hold {kind.__name__} values")
+        return tuple(kind(v) for v in value)
+    if isinstance(default, str):
+        if value not in f.metadata["choices"]:
+            raise EstimatorConfigError(f"{where} is {value!r}, one of {f.metadata['choices']}")
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise EstimatorConfigError(f"{where} must be a finite number, got {value!r}")
+    lo, hi = f.metadata["lo"], f.metadata["hi"]
+    if not lo <= value <= hi:
+        raise EstimatorConfigError(f"{where} is {value}, must be in [{lo}, {hi}]")
+    return float(value)
+
+
+def noise_from_rig(rig) -> dict:
+    """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``).
+
+    White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
+    format (one count / sqrt(12)). Returns a dict for :func:`config_from_dict`.
+    """
+    from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
+
+    root = math.sqrt(rig.imu.rate_hz / 2.0)
+    emu = rig.sim.imu
+
+    def std(white, count):
+        return math.hypot(white, count / math.sqrt(12.0))
+
+    return {
+        "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
+        "imu_accel_std_m_s2": std(emu.accel_noise_density_m_s2_rthz * root, ACCEL_SCALE_M_S2),
+        "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
+        "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
+        "imu_timeout_s": rig.imu.timeout_s,
+        "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),
+        "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
+        "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
+    }

@@ -1,0 +1,250 @@
+"""The extended Kalman filter of a gyroscopic tensegrity structure (filterpy underneath).
+
+State: see :mod:`.layout`; process model: :mod:`.process_model`; measurements: one
+``fuse_*`` module per source; manifold: :mod:`.manifold`; status word: :class:`Status`.
+
+Typical use (the run loop and ``gyrotens replay``)::
+
+    ekf = TensegrityEKF(model, config, log=writer)
+    ekf.set_input(rest_lengths)           # commanded rest lengths, held until the next command
+    ekf.fuse_imu(t, omega, accel, euler)  # predicts to t, then fuses rate, accel, angle
+    ekf.fuse_wheels(t, omega_w)
+    ekf.fuse_servos(t, lengths, strings)
+    ekf.advance(t)                        # prediction only (between samples, during outages)
+"""
+
+from enum import IntFlag
+
+import numpy as np
+from filterpy.kalman import ExtendedKalmanFilter
+
+from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
+from .errors import EstimatorError
+from .fast_dynamics import check_model
+from .imu_model import ImuGeometry, euler_zyx
+from .layout import layout_of
+from .manifold import Manifold
+from .process_model import ProcessModel
+from .timeouts import SourceMonitor
+
+SOURCES = (
+    fuse_imu_rate.SOURCE,
+    fuse_imu_accel.SOURCE,
+    fuse_imu_angle.SOURCE,
+    fuse_wheels.SOURCE,
+    fuse_servos.SOURCE,
+)
+
+
+class Status(IntFlag):
+    """Fault bits of the filter (PX4 style): time-outs, last sample rejected, modes."""
+
+    IMU_RATE_TIMEOUT = 1 << 0
+    IMU_ACCEL_TIMEOUT = 1 << 1
+    IMU_ANGLE_TIMEOUT = 1 << 2
+    WHEELS_TIMEOUT = 1 << 3
+    SERVOS_TIMEOUT = 1 << 4
+    IMU_RATE_REJECTED = 1 << 5
+    IMU_ACCEL_REJECTED = 1 << 6
+    IMU_ANGLE_REJECTED = 1 << 7
+    WHEELS_REJECTED = 1 << 8
+    SERVOS_REJECTED = 1 << 9
+    PREDICTION_ONLY = 1 << 10  # every source timed out: the estimate is the model's alone
+    STALE_SAMPLE = 1 << 11  # the last sample was older than max_lag_s and was dropped
+
+    @classmethod
+    def timeout_bit(cls, source: str) -> "Status":
+        return cls[f"{source.upper()}_TIMEOUT"]
+
+    @classmethod
+    def rejected_bit(cls, source: str) -> "Status":
+        return cls[f"{source.upper()}_REJECTED"]
+
+
+class _Filter(ExtendedKalmanFilter):
+    """filterpy's EKF with the nonlinear state prediction supplied by the caller."""
+
+    def predict_x(self, u=0):
+        self.x = self.x_next
+
+
+class TensegrityEKF:
+    """EKF whose process model is the gyroscopic tensegrity dynamics of a scene.
+
+    Parameters
+    ----------
+    model : gyrotensegrity.Model
+    config : EstimatorConfig
+    x0 : ndarray, shape (n,), optional
+        Initial estimate (default: the scene's initial state, zero bias); projected onto the
+        constraints.
+    P0 : ndarray, shape (n, n), optional
+        Initial covariance (default: diagonal from the ``init_*_std`` keys).
+    t0_s : float, s
+    log : callable(Innovation), optional
+        Receives every fusion attempt (accepted or rejected).
+    """
+
+    def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None):
+        check_model(model)
+        self.model, self.config = model, config
+        self.layout = L = layout_of(model)
+        self.process = ProcessModel(model, config)
+        self.imu = ImuGeometry(model, config)
+        self.manifold = Manifold(model)
+        self.position_columns = np.arange(L.q.start, L.q.stop)
+        self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
+        self.dynamic_columns = np.arange(L.n_dynamic)
+        self.t = float(t0_s)
+        self.t_start = self.t
+        self.u = model.input_at(self.t)
+        self.log = log
+        self.monitors = {s: SourceMonitor(s, self._timeout(s)) for s in SOURCES}
+        self.stale_last = False
+        self.kf = _Filter(L.size, 1)
+        if x0 is None:
+            x_model = model.initial_state()
+            x0 = np.concatenate(
+                [x_model[model.layout.q], x_model[model.layout.q_dot],
+                 model.wheel_speeds(x_model, self.u), np.zeros(3)]
+            )  # fmt: skip
+        P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
+        x, P = self.manifold.condition(np.asarray(x0, float), P0)
+        self.kf.x, self.kf.P = x.reshape(-1, 1), P
+
+    def _timeout(self, source):
+        c = self.config
+        if source.startswith("imu"):
+            return c.imu_timeout_s
+        return c.wheels_timeout_s if source == "wheels" else c.servos_timeout_s
+
+    def initial_covariance(self):
+        """Diagonal initial covariance from the ``init_*_std`` keys, shape (n, n)."""
+        L, c = self.layout, self.config
+        std = np.empty(L.size)
+        std[L.q] = c.init_position_std_m
+        std[L.q_dot] = c.init_velocity_std_m_s
+        std[L.omega] = c.init_wheel_std_rad_s
+        std[L.bias] = c.init_gyro_bias_std_rad_s
+        return np.diag(std**2)
+
+    # -- state access ---------------------------------------------------------------------------
+    @property
+    def x(self):
+        """Current estimate, shape (n,) (a view of filterpy's column)."""
+        return self.kf.x[:, 0]
+
+    @property
+    def P(self):
+        """Current covariance, shape (n, n)."""
+        return self.kf.P
+
+    def batch_nodes(self, X):
+        """Node positions and velocities (K, 3, n) of a batch of filter states (K, n)."""
+        L, K = self.layout, X.shape[0]
+        q = X[:, L.q].reshape(K, 3, L.m)
+        q_dot = X[:, L.q_dot].reshape(K, 3, L.m)
+        return self.process.dyn.nodes(q, q_dot)
+
+    def attitude(self):
+        """Sensor axes in the world (3, 3) and Z-Y-X angles (3,) rad of the estimate."""
+        N, N_dot = self.batch_nodes(self.x[None, :])
+        R, _ = self.imu.frame(N, N_dot)
+        return R[0], euler_zyx(R)[0]
+
+    @property
+    def status(self) -> Status:
+        """The status word: time-out and rejection bits of every source and the mode bits."""
+        word = Status(0)
+        for s, mon in self.monitors.items():
+            if mon.timed_out:
+                word |= Status.timeout_bit(s)
+            if mon.last_rejected:
+                word |= Status.rejected_bit(s)
+        if all(mon.timed_out for mon in self.monitors.values()):
+            word |= Status.PREDICTION_ONLY
+        if self.stale_last:
+            word |= Status.STALE_SAMPLE
+        return word
+
+    # -- time update ----------------------------------------------------------------------------
+    def set_input(self, rest_length_m):
+        """Commanded rest lengths (alpha,) m, held until the next command."""
+        self.u = self.u.copy()
+        self.u[: self.model.alpha] = rest_length_m
+
+    def advance(self, t_s: float) -> None:
+        """Predict to ``t_s`` in steps of at most ``process_dt_s``; check the time-outs."""
+        dt_max = self.config.process_dt_s
+        while t_s - self.t > 1e-12:
+            dt = min(dt_max, t_s - self.t)
+            self.predict(dt)
+        for mon in self.monitors.values():
+            mon.check(self.t, self.t_start)
+
+    def predict(self, dt: float) -> None:
+        """One prediction step of ``dt`` s with the held input."""
+        x_next, F = self.process.step(self.x, self.u, dt)
+        self.kf.x_next = x_next.reshape(-1, 1)
+        self.kf.F = F
+        self.kf.Q = self.process.noise(dt)
+        self.kf.predict()
+        self.t += dt
+        self._check_finite("prediction")
+
+    def _check_finite(self, what: str) -> None:
+        bad = np.flatnonzero(~np.isfinite(self.x) | ~np.all(np.isfinite(self.P), axis=0))
+        if bad.size:
+            name = self.layout.labels()[bad[0]]
+            raise EstimatorError(
+                f"t = {self.t:.6g} s: {what} made state entry {name} non-finite", self.t, name
+            )
+
+    # -- measurement update ---------------------------------------------------------------------
+    def constrain(self) -> None:
+        """Condition estimate and covariance on the bar-length constraints (after an update)."""
+        x, P = self.manifold.condition(self.x, self.P)
+        self.kf.x, self.kf.P = x.reshape(-1, 1), P
+        self._check_finite("update")
+
+    def emit(self, result) -> None:
+        if self.log is not None:
+            self.log(result)
+
+    def _arrive(self, t_s: float, source: str) -> bool:
+        """Bring the filter to a sample's time; False if the sample is too old to fuse."""
+        if t_s >= self.t:
+            self.advance(t_s)
+            self.stale_last = False
+            return True
+        self.stale_last = self.t - t_s > self.config.max_lag_s
+        if self.stale_last:
+            self.monitors[source].stale += 1
+        return not self.stale_last
+
+    def fuse_imu(self, t_s, omega_rad_s, accel_m_s2, euler_rad):
+        """Predict to ``t_s`` and fuse one IMU sample: rate, specific force, angles.
+
+        Returns
+        -------
+        list of Innovation (empty when the sample was stale)
+        """
+        if not self._arrive(t_s, fuse_imu_rate.SOURCE):
+            return []
+        return [
+            fuse_imu_rate.fuse_rate(self, omega_rad_s),
+            fuse_imu_accel.fuse_accel(self, accel_m_s2),
+            fuse_imu_angle.fuse_angle(self, euler_rad),
+        ]
+
+    def fuse_wheels(self, t_s, omega_rad_s):
+        """Predict to ``t_s`` and fuse the wheel speeds (n_w,) rad/s."""
+        if not self._arrive(t_s, fuse_wheels.SOURCE):
+            return []
+        return [fuse_wheels.fuse_wheels(self, omega_rad_s)]
+
+    def fuse_servos(self, t_s, lengths_m, strings):
+        """Predict to ``t_s`` and fuse string lengths (k,) m of model strings ``strings``."""
+        if not self._arrive(t_s, fuse_servos.SOURCE):
+            return []
+        return [fuse_servos.fuse_servos(self, lengths_m, strings)]

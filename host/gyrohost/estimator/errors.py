@@ -1,0 +1,14 @@
+"""Exception types of the estimator."""
+
+
+class EstimatorConfigError(ValueError):
+    """An estimator configuration value or scene the estimator cannot use; names the key."""
+
+
+class EstimatorError(RuntimeError):
+    """The filter cannot go on (non-finite state or covariance); names the time and member."""
+
+    def __init__(self, message: str, t_s: float, member: str):
+        super().__init__(message)
+        self.t_s = t_s
+        self.member = member

@@ -1,0 +1,23 @@
+"""Wheel speeds from the wheel board: ``z = omega_w`` (rad/s, one per wheel, about ``+b``)."""
+
+import numpy as np
+
+from .fusion import Innovation, fuse
+
+SOURCE = "wheels"
+UNIT = "rad_s"
+
+
+def predict(ekf, x):
+    """Predicted wheel speeds (n_w,) rad/s and the (linear) Jacobian (n_w, n)."""
+    L = ekf.layout
+    H = np.zeros((L.n_wheels, L.size))
+    H[:, L.omega] = np.eye(L.n_wheels)
+    return x[L.omega].copy(), H
+
+
+def fuse_wheels(ekf, omega_rad_s) -> Innovation:
+    """Fuse one telemetry sample of all wheel speeds (n_w,) rad/s."""
+    hx, H = predict(ekf, ekf.x)
+    R = np.eye(len(hx)) * ekf.config.wheel_speed_std_rad_s**2
+    return fuse(ekf, SOURCE, np.asarray(omega_rad_s, float), hx, H, R)

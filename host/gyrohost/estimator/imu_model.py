@@ -1,0 +1,127 @@
+"""Where the IMU sits on the structure and what it measures (batched, complex-step-safe).
+
+The attachment is the rig's (``gyrohost.rig.truth``): three scene nodes ``imu_frame_nodes =
+[a, b, c]`` give the body frame, ``x`` along a -> b, ``z`` along ``x cross (c - a)``, ``y = z cross
+x``; the IMU point is the midpoint of a and b. The sensor axes are the body axes turned by
+``imu_mounting_rpy_rad`` (Z-Y-X). Measurements:
+
+- angular rate of the sensor axes, in sensor axes (rad/s), plus the gyro bias state;
+- specific force ``R^T (a - g)`` in sensor axes (m/s^2), ``g = imu_gravity_m_s2`` (world frame;
+  the sensor feels gravity even where the scene leaves it out because supports cancel it);
+- Z-Y-X Euler angles (roll, pitch, yaw) of the sensor axes in the world frame (rad).
+"""
+
+import numpy as np
+
+from .complex_step import atan2
+from .errors import EstimatorConfigError
+
+
+def rotation_zyx(roll, pitch, yaw):
+    """``Rz(yaw) Ry(pitch) Rx(roll)``, shape (3, 3)."""
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))  # fmt: skip
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _cross(a, b):
+    """Cross product along axis 1 of (K, 3) arrays (complex-safe, no conjugation)."""
+    return np.stack(
+        [
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ],
+        axis=1,
+    )
+
+
+def _dot(a, b):
+    return np.sum(a * b, axis=1, keepdims=True)
+
+
+class ImuGeometry:
+    """The IMU's frame and point as functions of node positions.
+
+    Parameters
+    ----------
+    model : gyrotensegrity.Model
+    config : EstimatorConfig
+    """
+
+    def __init__(self, model, config):
+        primary = model.structure.primary
+
+        def index(key, names):
+            for name in names:
+                if name not in primary:
+                    raise EstimatorConfigError(
+                        f"estimator key '{key}': node {name!r} is not in scene "
+                        f"{model.scene.name!r} (nodes: {', '.join(primary)})"
+                    )
+            return np.array([primary[n] for n in names])
+
+        self.a, self.b, self.c = index("imu_frame_nodes", config.imu_frame_nodes)
+        self.R_bs = rotation_zyx(*config.imu_mounting_rpy_rad)  # sensor axes in body axes
+        self.gravity = np.asarray(config.imu_gravity_m_s2, float)
+
+    def frame(self, N, N_dot):
+        """Sensor axes in the world and the sensor's angular rate.
+
+        Parameters
+        ----------
+        N, N_dot : ndarray, shape (K, 3, n), m and m/s
+
+        Returns
+        -------
+        R_ws : ndarray, shape (K, 3, 3)
+            Columns: sensor x, y, z axes in world coordinates.
+        omega_s : ndarray, shape (K, 3), rad/s
+            Angular rate in sensor axes.
+        """
+        d1 = N[:, :, self.b] - N[:, :, self.a]
+        d2 = N[:, :, self.c] - N[:, :, self.a]
+        d1_dot = N_dot[:, :, self.b] - N_dot[:, :, self.a]
+        d2_dot = N_dot[:, :, self.c] - N_dot[:, :, self.a]
+        len1 = np.sqrt(_dot(d1, d1))
+        ex = d1 / len1
+        ex_dot = (d1_dot - ex * _dot(ex, d1_dot)) / len1
+        c = _cross(d1, d2)
+        c_dot = _cross(d1_dot, d2) + _cross(d1, d2_dot)
+        len_c = np.sqrt(_dot(c, c))
+        ez = c / len_c
+        ez_dot = (c_dot - ez * _dot(ez, c_dot)) / len_c
+        ey = _cross(ez, ex)
+        ey_dot = _cross(ez_dot, ex) + _cross(ez, ex_dot)
+        omega_b = np.concatenate([_dot(ez, ey_dot), _dot(ex, ez_dot), _dot(ey, ex_dot)], axis=1)
+        R_wb = np.stack([ex, ey, ez], axis=2)
+        return R_wb @ self.R_bs, omega_b @ self.R_bs
+
+    def specific_force(self, R_ws, N_ddot):
+        """Specific force at the IMU point in sensor axes, (K, 3), m/s^2."""
+        a = 0.5 * (N_ddot[:, :, self.a] + N_ddot[:, :, self.b]) - self.gravity
+        return np.einsum("kji,kj->ki", R_ws, a)
+
+
+def euler_zyx(R):
+    """Roll, pitch, yaw (Z-Y-X) of a batch of rotations (K, 3, 3), shape (K, 3), rad."""
+    roll = atan2(R[:, 2, 1], R[:, 2, 2])
+    pitch = -np.arcsin(R[:, 2, 0])
+    yaw = atan2(R[:, 1, 0], R[:, 0, 0])
+    return np.stack([roll, pitch, yaw], axis=1)
+
+
+def wrap_angle(a):
+    """Angles wrapped into [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def tilt(R):
+    """Angle between the sensor z axis and the world z axis, rad; R shape (..., 3, 3)."""
+    return np.arccos(np.clip(R[..., 2, 2], -1.0, 1.0))

@@ -1,0 +1,132 @@
+"""Discrete process model of the filter: the tensegrity dynamics, stepped, with its Jacobian.
+
+Two variants (``process_method``):
+
+``lean`` (default)
+    One linearisation per filter step: ``f(x)`` and ``A = df/dx`` at the start of the step
+    (complex step through :class:`~.fast_dynamics.BatchDynamics`, one batched call), then the
+    exponential-Euler step ``x+ = x + dt phi1(A dt) f(x)`` and ``F = exp(A dt)``, both from one
+    matrix exponential of ``[[A, f], [0, 0]] dt`` (Pade with scaling and squaring: ``A`` is far
+    from normal, ``|A dt|`` ~ 30 while its eigenvalues stay below 1, so a Taylor series fails).
+    Exact for linear dynamics, second order for nonlinear.
+``rk4``
+    Classic RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator),
+    differentiated exactly by pushing the complex-step batch through every stage.
+
+The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held); the gyro
+bias is constant. Process noise is white: node accelerations (``accel_psd_m2_s3``), wheel spin
+accelerations and the bias random walk; :meth:`ProcessModel.noise` gives its discrete covariance.
+"""
+
+import numpy as np
+from scipy.linalg import expm
+
+from . import complex_step
+from .fast_dynamics import BatchDynamics
+from .layout import layout_of
+
+
+class ProcessModel:
+    """The filter's discrete process model.
+
+    Parameters
+    ----------
+    model : gyrotensegrity.Model
+    config : EstimatorConfig
+    """
+
+    def __init__(self, model, config):
+        self.model = model
+        self.config = config
+        self.dyn = BatchDynamics(model)
+        self.layout = layout_of(model)
+        self.columns = np.arange(self.layout.n_dynamic)
+
+    def derivative(self, X, u):
+        """dx/dt of the dynamic part of a batch of filter states.
+
+        Parameters
+        ----------
+        X : ndarray, shape (K, n_dynamic), real or complex
+        u : ndarray, shape (alpha + n_w,)
+
+        Returns
+        -------
+        ndarray, shape (K, n_dynamic)
+        """
+        L, m, K = self.layout, self.layout.m, X.shape[0]
+        q = X[:, L.q].reshape(K, 3, m)
+        q_dot = X[:, L.q_dot].reshape(K, 3, m)
+        eta2_ddot, _ = self.dyn.accelerations(q, q_dot, X[:, L.omega], u)
+        w_dot = np.broadcast_to(self.dyn.wheel_acceleration(u), (K, L.n_wheels))
+        return np.concatenate([X[:, L.q_dot], eta2_ddot.reshape(K, 3 * m), w_dot], axis=1)
+
+    def linearise(self, x, u):
+        """``f(x)`` (n_dynamic,) and ``A = df/dx`` (n_dynamic, n_dynamic) by the complex step."""
+        X = complex_step.perturbed(x[: self.layout.n_dynamic], self.columns)
+        return complex_step.split(self.derivative(X, u))
+
+    def step(self, x, u, dt):
+        """Advance the filter state by ``dt`` seconds under input ``u``.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+        u : ndarray, shape (alpha + n_w,)
+        dt : float, s
+
+        Returns
+        -------
+        x_next : ndarray, shape (n,)
+        F : ndarray, shape (n, n)
+            Jacobian of ``x_next`` with respect to ``x``.
+        """
+        nd = self.layout.n_dynamic
+        if self.config.process_method == "rk4":
+            xd, Fd = self._rk4(x[:nd], u, dt)
+        else:
+            xd, Fd = self._lean(x[:nd], u, dt)
+        F = np.eye(x.size)
+        F[:nd, :nd] = Fd
+        return np.concatenate([xd, x[nd:]]), F
+
+    def _lean(self, xd, u, dt):
+        f, A = self.linearise(xd, u)
+        n = xd.size
+        aug = np.zeros((n + 1, n + 1))
+        aug[:n, :n] = A * dt
+        aug[:n, n] = f * dt
+        E = expm(aug)  # [[exp(A dt), dt phi1(A dt) f], [0, 1]]
+        return xd + E[:n, n], E[:n, :n]
+
+    def _rk4(self, xd, u, dt):
+        n = max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
+        h = dt / n
+        X = complex_step.perturbed(xd, self.columns)
+        for _ in range(n):
+            k1 = self.derivative(X, u)
+            k2 = self.derivative(X + 0.5 * h * k1, u)
+            k3 = self.derivative(X + 0.5 * h * k2, u)
+            k4 = self.derivative(X + h * k3, u)
+            X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        return complex_step.split(X)
+
+    def noise(self, dt):
+        """Discrete process noise covariance over ``dt`` s, shape (n, n).
+
+        White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
+        (integrated exactly into positions and velocities), random walks of the wheel speeds and
+        the gyro bias.
+        """
+        L, c = self.layout, self.config
+        Q = np.zeros((L.size, L.size))
+        i, j = np.arange(L.q.start, L.q.stop), np.arange(L.q_dot.start, L.q_dot.stop)
+        qa = c.accel_psd_m2_s3
+        Q[i, i] = qa * dt**3 / 3.0
+        Q[i, j] = Q[j, i] = qa * dt**2 / 2.0
+        Q[j, j] = qa * dt
+        w = np.arange(L.omega.start, L.omega.stop)
+        Q[w, w] = c.wheel_accel_psd_rad2_s3 * dt
+        b = np.arange(L.bias.start, L.bias.stop)
+        Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
+        return Q
