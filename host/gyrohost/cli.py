@@ -12,7 +12,7 @@ import sys
 
 from gyrotensegrity import __version__
 
-COMMANDS = ["demo", "simulate", "plot"]
+COMMANDS = ["demo", "simulate", "plot", "rig"]
 
 
 class CliError(Exception):

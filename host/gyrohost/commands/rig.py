@@ -1,0 +1,103 @@
+"""``gyrotens rig``: serve the simulated rig's three devices on pseudo-terminals in real time.
+
+Prints the device paths (one ``name: path`` line each), serves until Ctrl-C or ``--duration``,
+then prints the measured rates per device and the truth step timing. While it runs, lines typed
+on standard input are rig commands: ``fault imu silence 2``, ``fault wheels reset``,
+``fault servos overload 1 0.5``, ``stats`` (docs/rig.md).
+"""
+
+import select
+import sys
+import time
+from pathlib import Path
+
+DEFAULT_CONFIG = Path("configs/sim-rig.toml")
+STDIN_POLL_S = 0.2
+
+
+def register(sub) -> None:
+    p = sub.add_parser("rig", help="serve the simulated rig (IMU, wheel board, servos) on ptys")
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=DEFAULT_CONFIG,
+        help=f"rig configuration (TOML, docs/rig-config.md; default {DEFAULT_CONFIG})",
+    )
+    p.add_argument("--scene", type=Path, help="scene file (default: the configuration's)")
+    p.add_argument("--duration", type=float, help="serve this long, s (default: until Ctrl-C)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from gyrohost.cli import CliError
+    from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.rig.sim import SimulatedRig
+    from gyrohost.rig.truth import RigSetupError
+
+    if args.duration is not None and not args.duration > 0:
+        raise CliError(f"--duration must be positive, got {args.duration}")
+    try:
+        config = load_rig_config(args.config)
+        rig = SimulatedRig(config, clock="real", scene=args.scene)
+    except (ConfigError, RigSetupError) as exc:
+        raise CliError(str(exc)) from None
+    with rig:
+        _print_header(rig)
+        try:
+            _serve(rig, args.duration)
+        except KeyboardInterrupt:
+            print("stopped by Ctrl-C", flush=True)
+        stats = rig.stats()
+    print(stats.rates_line())
+    print(stats.truth_line(), flush=True)
+    if rig.loop_error is not None:
+        raise CliError(f"the rig loop failed: {rig.loop_error!r}")
+    return 0
+
+
+def _print_header(rig) -> None:
+    model = rig.truth.model
+    print(
+        f"rig: scene {model.scene.name} ({model.describe()}), truth step "
+        f"{1e3 * rig.truth.dt_s:g} ms, real time",
+    )
+    for name, path in rig.paths.items():
+        print(f"{name}: {path}")
+    print("type 'fault DEVICE FAULT [ARGS]' or 'stats'; Ctrl-C stops", flush=True)
+
+
+def _serve(rig, duration_s: float | None) -> None:
+    end = None if duration_s is None else time.monotonic() + duration_s
+    stdin = sys.stdin if _readable(sys.stdin) else None
+    while end is None or time.monotonic() < end:
+        if rig.loop_error is not None:
+            return
+        wait = STDIN_POLL_S if end is None else max(min(STDIN_POLL_S, end - time.monotonic()), 0)
+        if stdin is None:
+            time.sleep(wait)
+            continue
+        ready, _, _ = select.select([stdin], [], [], wait)
+        if not ready:
+            continue
+        line = stdin.readline()
+        if not line:  # end of input: keep serving
+            stdin = None
+        elif line.strip():
+            print(_answer(rig, line), flush=True)
+
+
+def _answer(rig, line: str) -> str:
+    from gyrohost.rig.sim import FaultCommandError
+
+    try:
+        return rig.command(line)
+    except FaultCommandError as exc:
+        return f"error: {exc}"
+
+
+def _readable(stream) -> bool:
+    try:
+        stream.fileno()
+    except (AttributeError, OSError, ValueError):
+        return False
+    return not stream.closed
