@@ -275,7 +275,7 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
         }
         if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
         int32_t target = w->target_mrad_s;
-        w->sp_mrad_s = ramp_step(w->sp_mrad_s, target, step);
+        if (w->sp_mrad_s != target) w->sp_mrad_s = ramp_step(w->sp_mrad_s, target, step);
         if (disabled || (w->sp_mrad_s == 0 && target == 0)) {
             if (!closed) w->speed_mrad_s = 0;
             app_wheel_off(a, i);

@@ -1,13 +1,5 @@
 #include "cmt.h"
 
-uint16_t cmt_elec_angle(uint16_t mech14, uint8_t pole_pairs, uint16_t offset16) {
-    // Work modulo 2^16 throughout: (4*mech mod 2^16) * pp mod 2^16 == 4*mech*pp mod 2^16.
-    uint16_t m4 = static_cast<uint16_t>((mech14 & 0x3FFFu) << 2);
-    // 16-bit multiply on AVR (cheap); on the host the int product (< 2^24) is truncated the same.
-    uint16_t e = static_cast<uint16_t>(m4 * static_cast<uint16_t>(pole_pairs));
-    return static_cast<uint16_t>(e - offset16);
-}
-
 void cmt_phases(uint16_t angle16, int16_t amp_q15, uint16_t duty[3]) {
     if (amp_q15 < 0) amp_q15 = 0;
     // Only 16 x 16 -> 32 multiplies whose high word is taken (no shift loops at -Os): k2 = 2 * k.
@@ -48,14 +40,4 @@ void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8) {
     l->k = static_cast<uint16_t>(k > 0xFFFFu ? 0xFFFFu : k);
     uint32_t smax = (static_cast<uint32_t>(CMT_MAX_ELEC_MRAD_S) / pole_pairs) >> 8;
     l->s8_max = static_cast<uint16_t>(smax);
-}
-
-uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_mrad_s) {
-    bool neg = speed_mrad_s < 0;
-    uint32_t mag =
-        neg ? 0u - static_cast<uint32_t>(speed_mrad_s) : static_cast<uint32_t>(speed_mrad_s);
-    uint32_t s8 = mag >> 8;
-    uint16_t s = s8 > l->s8_max ? l->s8_max : static_cast<uint16_t>(s8);
-    uint16_t lead = static_cast<uint16_t>(port_mul_u16(s, l->k) >> 8);  // modulo one turn
-    return neg ? static_cast<uint16_t>(0u - lead) : lead;
 }

@@ -28,7 +28,13 @@ inline int16_t cmt_sin(uint16_t angle16) {
 }
 
 // Electrical angle from a 14-bit mechanical angle: mech * 4 * pole_pairs - offset, modulo 65536.
-uint16_t cmt_elec_angle(uint16_t mech14, uint8_t pole_pairs, uint16_t offset16);
+PORT_INLINE uint16_t cmt_elec_angle(uint16_t mech14, uint8_t pole_pairs, uint16_t offset16) {
+    // Work modulo 2^16 throughout: (4*mech mod 2^16) * pp mod 2^16 == 4*mech*pp mod 2^16.
+    uint16_t m4 = static_cast<uint16_t>((mech14 & 0x3FFFu) << 2);
+    // 16-bit multiply on AVR (cheap); on the host the int product (< 2^24) is truncated the same.
+    uint16_t e = static_cast<uint16_t>(m4 * static_cast<uint16_t>(pole_pairs));
+    return static_cast<uint16_t>(e - offset16);
+}
 
 // Three PWM compare values (0..CMT_PWM_TOP) for a voltage vector at angle16 with amplitude
 // amp_q15 (0..32767, larger values are clamped).
@@ -54,6 +60,14 @@ struct cmt_lead {
     uint16_t s8_max;  // clamp of |speed| >> 8
 };
 void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
-uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_mrad_s);
+PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_mrad_s) {
+    bool neg = speed_mrad_s < 0;
+    uint32_t mag =
+        neg ? 0u - static_cast<uint32_t>(speed_mrad_s) : static_cast<uint32_t>(speed_mrad_s);
+    uint32_t s8 = mag >> 8;
+    uint16_t s = s8 > l->s8_max ? l->s8_max : static_cast<uint16_t>(s8);
+    uint16_t lead = static_cast<uint16_t>(port_mul_u16(s, l->k) >> 8);  // modulo one turn
+    return neg ? static_cast<uint16_t>(0u - lead) : lead;
+}
 
 #endif  // CMT_H

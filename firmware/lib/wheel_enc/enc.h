@@ -11,6 +11,8 @@
 
 #include <stdint.h>
 
+#include "port_progmem.h"
+
 #define ENC_COUNTS 16384u
 #define ENC_MASK 0x3FFFu
 #define ENC_CMD_READ_ANGLE 0xFFFFu
@@ -22,10 +24,22 @@ enum enc_status : uint8_t {
 };
 
 // Even parity of a 16-bit word: true if the number of set bits is even.
-bool enc_even_parity(uint16_t word);
+PORT_INLINE bool enc_even_parity(uint16_t word) {
+    uint8_t x = static_cast<uint8_t>(word ^ (word >> 8));
+    x ^= static_cast<uint8_t>(x >> 4);
+    x ^= static_cast<uint8_t>(x >> 2);
+    x ^= static_cast<uint8_t>(x >> 1);
+    return (x & 1u) == 0;
+}
 
-// Decode one reply word; on ENC_OK stores the 14-bit angle in *angle.
-enc_status enc_parse(uint16_t word, uint16_t* angle);
+// Decode one reply word; on ENC_OK stores the 14-bit angle in *angle. Inline: it runs for every
+// wheel in every control step.
+PORT_INLINE enc_status enc_parse(uint16_t word, uint16_t* angle) {
+    if (!enc_even_parity(word)) return ENC_PARITY;
+    if (word & 0x4000u) return ENC_ERROR;
+    *angle = static_cast<uint16_t>(word & ENC_MASK);
+    return ENC_OK;
+}
 
 // Build a valid reply word for an angle (used by tests and simulations).
 uint16_t enc_make_reply(uint16_t angle, bool error_flag);

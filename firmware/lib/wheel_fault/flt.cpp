@@ -2,6 +2,9 @@
 
 #include "proto.h"
 
+static_assert(PROTO_FAULT_ENCODER_M3 == (PROTO_FAULT_ENCODER_M0 << 3),
+              "encoder fault bits of wheels 0..3 must be adjacent (flt_encoder_sample)");
+
 static uint16_t flt_encoder_bit(uint8_t w) {
     return static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 << w);
 }
@@ -26,16 +29,6 @@ bool flt_heartbeat_tick(flt_state* f, uint16_t timeout_ms) {
     if (f->since_host_ms < 0xFFFFu) f->since_host_ms++;
     if (f->since_host_ms >= timeout_ms) flt_set(f, PROTO_FAULT_HEARTBEAT_LOST);
     return (f->faults & PROTO_FAULT_HEARTBEAT_LOST) != 0;
-}
-
-bool flt_encoder_sample(flt_state* f, uint8_t w, bool good, uint8_t limit) {
-    if (good) {
-        f->enc_bad[w] = 0;
-    } else if (f->enc_bad[w] < 0xFFu) {
-        f->enc_bad[w]++;
-    }
-    if (f->enc_bad[w] >= limit) flt_set(f, flt_encoder_bit(w));
-    return flt_wheel_disabled(f, w);
 }
 
 bool flt_wheel_disabled(const flt_state* f, uint8_t w) {

@@ -10,6 +10,9 @@
 
 #include <stdint.h>
 
+#include "port_progmem.h"
+#include "proto.h"
+
 #define FLT_WHEELS 4
 
 struct flt_state {
@@ -26,9 +29,6 @@ void flt_host_alive(flt_state* f);
 // One control tick of heartbeat supervision; returns true while HEARTBEAT_LOST is latched.
 bool flt_heartbeat_tick(flt_state* f, uint16_t timeout_ms);
 
-// Record an encoder word of wheel w; returns true if that wheel's encoder fault is latched.
-bool flt_encoder_sample(flt_state* f, uint8_t w, bool good, uint8_t limit);
-
 bool flt_wheel_disabled(const flt_state* f, uint8_t w);
 
 // Faults that make the device refuse setpoints.
@@ -36,6 +36,21 @@ bool flt_blocks_setpoints(const flt_state* f);
 
 inline void flt_set(flt_state* f, uint16_t bits) {
     f->faults = static_cast<uint16_t>(f->faults | bits);
+}
+
+// Record an encoder word of wheel w; returns true if that wheel's encoder fault is latched.
+// Inline: it runs for every wheel in every control step.
+PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t w, bool good, uint8_t limit) {
+    uint8_t bad = f->enc_bad[w];
+    if (good) {
+        bad = 0;
+    } else if (bad < 0xFFu) {
+        bad++;
+    }
+    f->enc_bad[w] = bad;
+    uint16_t bit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 << w);
+    if (bad >= limit) flt_set(f, bit);
+    return (f->faults & bit) != 0;
 }
 
 #endif  // FLT_H
