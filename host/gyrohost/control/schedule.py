@@ -169,13 +169,25 @@ class Schedule:
         return u
 
     def splice(self, other: "Schedule", t_s: float) -> "Schedule":
-        """This schedule up to ``t_s`` (s), then ``other`` (same strings) from ``t_s`` on."""
+        """This schedule up to ``t_s`` (s), then ``other`` (same strings) from ``t_s`` on.
+
+        Raises
+        ------
+        ScheduleError
+            The strings differ, or the rest lengths would jump at ``t_s`` by more than
+            0.1 mm (a re-planned follower string starts on the exact rhombus geometry, the old
+            schedule between its samples on a chord of it: tens of micrometres apart).
+        """
         if other.names != self.names:
             raise ScheduleError(f"splice: strings {other.names} differ from {self.names}")
+        here = self(t_s)
+        jump = np.max(np.abs(other(t_s) - here))
+        if jump > 1e-4:
+            raise ScheduleError(f"splice at {t_s:g} s: rest lengths jump by {jump:.3g} m")
         head = self.t < t_s
         tail = other.t > t_s
         t = np.concatenate([self.t[head], [t_s], other.t[tail]])
-        v = np.vstack([self.rest_length[head], other(t_s), other.rest_length[tail]])
+        v = np.vstack([self.rest_length[head], here, other.rest_length[tail]])
         return Schedule(self.names, t, v, self.name)
 
     def to_dict(self) -> dict:

@@ -1,0 +1,106 @@
+"""Schedule files, limits and the paper preset."""
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrohost.control import Limits, Schedule, ScheduleError, load_schedule, preset
+from gyrohost.control.schedule import schedule_from_dict
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+def simple():
+    return Schedule(("s13", "s24"), [0.0, 1.0, 2.0], [[0.4, 0.4], [0.35, 0.45], [0.4, 0.4]], "x")
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_round_trip(tmp_path, suffix):
+    s = simple()
+    back = load_schedule(s.save(tmp_path / f"a{suffix}"))
+    assert back.names == s.names and back.name == "x"
+    np.testing.assert_array_equal(back.t, s.t)
+    np.testing.assert_array_equal(back.rest_length, s.rest_length)
+
+
+def test_evaluation_is_linear_and_held():
+    s = simple()
+    np.testing.assert_allclose(s(0.5), [0.375, 0.425])
+    np.testing.assert_allclose(s(-1.0), [0.4, 0.4])
+    np.testing.assert_allclose(s(9.0), [0.4, 0.4])
+    np.testing.assert_allclose(s.max_speeds(), [0.05, 0.05])
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d["schedule"].update(t_s=[0.0, 2.0, 1.0]), r"a\.toml: schedule\.t_s\[2\]"),
+        (lambda d: d["rest_length_m"].update(s13=[0.4, 0.3]), r"rest_length_m\.s13: has 2"),
+        (lambda d: d["rest_length_m"].update(s13=[0.4, -0.3, 0.4]), r"s13\[1\]: negative"),
+        (lambda d: d["rest_length_m"].update(s13=[0.4, "x", 0.4]), r"s13\[1\]: must be"),
+        (lambda d: d.update(extra=1), r"extra: unknown key"),
+        (lambda d: d.pop("schedule"), r"schedule: missing"),
+    ],
+)
+def test_errors_name_file_and_key(tmp_path, edit, message):
+    data = simple().to_dict()
+    edit(data)
+    with pytest.raises(ScheduleError, match=message):
+        schedule_from_dict(data, "a.toml")
+
+
+def test_unreadable_and_unparsable_files(tmp_path):
+    with pytest.raises(ScheduleError, match="cannot read"):
+        load_schedule(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.json"
+    bad.write_text("{", encoding="utf-8")
+    with pytest.raises(ScheduleError, match="bad.json: cannot parse"):
+        load_schedule(bad)
+
+
+def test_limits_problems_and_validation():
+    s = simple()
+    assert s.problems(Limits(max_speed_m_s=0.05)) == []
+    assert "s13: speed" in s.problems(Limits(max_speed_m_s=0.04))[0]
+    assert "outside" in s.problems(Limits(max_length_m=0.42))[0]
+    with pytest.raises(ScheduleError, match="max_speed_m_s"):
+        Limits(max_speed_m_s=0.0)
+    with pytest.raises(ScheduleError, match="min_length_m < max_length_m"):
+        Limits(min_length_m=0.5, max_length_m=0.4)
+
+
+def test_splice_keeps_the_command_continuous():
+    a = simple()
+    b = Schedule(a.names, [0.5, 3.0], [a(0.5), [0.3, 0.5]], "b")
+    c = a.splice(b, 0.5)
+    for t in (0.0, 0.25, 0.5):
+        np.testing.assert_allclose(c(t), a(t))
+    for t in (0.5, 1.0, 2.0, 4.0):
+        np.testing.assert_allclose(c(t), b(t))
+    jump = Schedule(a.names, [0.0, 3.0], [[0.3, 0.5], [0.3, 0.5]], "b")
+    with pytest.raises(ScheduleError, match="jump"):
+        a.splice(jump, 0.5)
+
+
+def test_bind_rejects_unknown_strings(dbar):
+    s = Schedule(("s99",), [0.0], [[0.4]])
+    with pytest.raises(ScheduleError, match="s99 not in scene dbar-gyro"):
+        s.input_at(dbar, 0.0)
+
+
+def test_paper_preset_is_the_scene_maneuver(dbar):
+    """Against the scene file's own rest-length tables (written independently)."""
+    s = preset("paper", dbar)
+    data = tomllib.loads((SCENES / "dbar-gyro.toml").read_text())
+    for i, string in enumerate(data["strings"]):
+        table = string["rest_length"]
+        got = [s.input_at(dbar, t)[i] for t in table["t"]]
+        np.testing.assert_allclose(got, table["value"], atol=1e-9)
+    # 1/3 in 3 s is faster than the default servo limit of 0.05 m/s
+    assert any("s13: speed" in p for p in s.problems(Limits()))
+    with pytest.raises(ScheduleError, match="unknown preset"):
+        preset("nope", dbar)
+    json.dumps(s.to_dict())
