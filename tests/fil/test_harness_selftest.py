@@ -154,3 +154,17 @@ def test_runs_fixed_simulated_time():
     assert float(h.final["t_s"]) == pytest.approx(2.0, abs=0.01)
     # the first ~40 ms go to selftest.c's sine-table set-up before the tick starts
     assert 1900 < int(h.final["steps"]) <= 2000
+
+
+def test_fault_from_start_and_pty_link(tmp_path):
+    link = tmp_path / "wheelboard"
+    with Harness(SELFTEST_ELF, ["--rate", "4", "--enc-fault", "0:high", "--pty-link", str(link)]):
+        assert link.is_symlink()
+        port = serial.Serial(str(link), 500000, timeout=0.2)
+        try:
+            frames = angle_frames(read_lines(port, 0.5))
+        finally:
+            port.close()
+    assert frames
+    assert all(words[0] == 0xFFFF for _, words in frames)
+    assert not link.exists(), "the link outlives the harness"
