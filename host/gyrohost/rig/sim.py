@@ -8,7 +8,9 @@ faults. The drivers open :attr:`SimulatedRig.paths` exactly as they open hardwar
 Clocks:
 
 - ``"real"``: rig time is wall time since :meth:`SimulatedRig.start`; the truth steps when due.
-  A step that starts more than one step period after its due time counts as late.
+  A step that starts more than one step period after its due time counts as late. The devices
+  always run on wall time, so their rates hold on a loaded CPU; the truth then lags (the IMU
+  reports the latest truth step) and the lag is reported (:class:`RigStats`).
 - ``"sim"``: rig time stands still until :meth:`SimulatedRig.advance` moves it; the loop then
   steps and ticks through the interval as fast as it can and returns. In between, the loop still
   answers the drivers (at the frozen time), so request/reply traffic works. Because the host's
@@ -234,7 +236,8 @@ class SimulatedRig:
                 due = self.truth.t_s + self.truth.dt_s
                 if due <= target + 1e-9:
                     self._step(target - due)
-                    self._poll(self.truth.t_s)
+                    # Devices keep wall time even while a loaded CPU makes the truth lag.
+                    self._poll(self._target_s() if self.clock == "real" else self.truth.t_s)
                     continue
                 self._poll(target)
                 if self.clock == "sim":

@@ -1,0 +1,79 @@
+"""``gyrotens rig`` in a subprocess with the three drivers on its paths: rates and stdin faults."""
+
+import re
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from rig_host import exercise
+
+from gyrohost.cli import main
+
+DURATION_S = 6.0
+
+
+def read_paths(proc) -> dict[str, str]:
+    paths = {}
+    deadline = time.monotonic() + 30.0
+    while len(paths) < 3 and time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        match = re.match(r"(imu|wheels|servos): (/dev/\S+)$", line.strip())
+        if match:
+            paths[match[1]] = match[2]
+    return paths
+
+
+def test_gyrotens_rig_serves_all_three_devices_at_their_rates():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gyrohost", "rig", "--duration", str(DURATION_S)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        paths = read_paths(proc)
+        assert set(paths) == {"imu", "wheels", "servos"}, proc.stderr.read()
+        host = {}
+        worker = threading.Thread(
+            target=lambda: host.update(exercise(paths, "configs/sim-rig.toml", DURATION_S - 2.5))
+        )
+        worker.start()
+        time.sleep(1.5)  # the host has its ports open by now
+        proc.stdin.write("fault imu corrupt 3\nfault nothing\n")
+        proc.stdin.flush()
+        worker.join(timeout=30)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "injected: imu corrupt 3" in out and "error: unknown command 'fault nothing'" in out
+    rates = re.search(
+        r"rates: imu ([\d.]+) samples/s \(([\d.]+) frames/s\), wheels ([\d.]+) telemetry "
+        r"frames/s, servos ([\d.]+) packets/s",
+        out,
+    )
+    assert rates, out
+    imu, frames, telemetry, servo = map(float, rates.groups())
+    # The IMU emulator skips samples rather than send a backlog when the loop was held up for
+    # more than a period (a loaded CPU); the wheel board catches up its 1 kHz ticks.
+    assert 80 <= imu <= 102 and frames == pytest.approx(3 * imu, rel=0.01)
+    assert telemetry == pytest.approx(500, rel=0.05)
+    assert servo > 10  # the stand-in host reads at up to 50 Hz for most of the run
+    assert re.search(r"truth: \d+ steps of 5 ms, .* real-time factor [\d.]+, \d+ late steps", out)
+    # What the host received matches what the rig says it served.
+    assert host["telemetry_s"] == pytest.approx(500, rel=0.15)
+    assert 75 <= host["imu_samples_s"] <= 105
+    assert host["imu_bad_frames"] >= 1  # the corruption typed on stdin arrived
+
+
+def test_gyrotens_rig_user_errors(tmp_path, capsys):
+    assert main(["rig", "--config", str(tmp_path / "none.toml")]) == 2
+    assert "cannot read" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text('scene = "missing.toml"\n')
+    assert main(["rig", "--config", str(bad)]) == 2
+    assert "missing.toml" in capsys.readouterr().err
+    assert main(["rig", "--duration", "-1"]) == 2
