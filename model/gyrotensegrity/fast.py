@@ -1,0 +1,370 @@
+"""Fast right-hand side: the same dynamics as :func:`gyrotensegrity.dynamics.evaluate`,
+with every constant factor precomputed and all constraint forces from one small solve.
+
+Formulation (equal to Eqs. 53-68 of the reference path, to round-off). In coordinates ``z``
+(3, m') with ``N = N_fix + z U^T`` (reduced order: ``U = U2``, ``z = eta2``; full order:
+``U = I``, ``z = N``), bars are ``B = B_fix + z E^T`` with ``E = C_b U`` and strings
+``S = S_fix + z E_s^T`` with ``E_s = C_s U``. With ``M = U^T M_s U`` the accelerations are::
+
+    z_ddot = (f0 + (B mu^) E + Omega P_u^T) M^-1,      f0 = W U - S gamma^ E_s + G E
+
+where ``G`` (3, beta) are the gyroscopic columns ``J_a omega_w b x b_dot / l`` (Eq. 34),
+``mu`` (beta,) the bar force densities (the reference's ``lambda``, Eqs. 58/62 with Omega) and
+``Omega`` (3, c) the joint multipliers of the full-order variant (``P_u = U^T P``; zero in
+reduced order, where ``P^T U2 = 0``). ``mu`` and ``Omega`` follow from the constraints
+``b_i . b_i_ddot = -|b_i_dot|^2`` and ``z_ddot P_u = 0``: a symmetric system of size
+``beta + 3 c_u`` whose bar block is ``Y .* (B^T B)`` with the constant ``Y = E M^-1 E^T``.
+For class-1 structures ``Y`` is diagonal and ``mu`` is explicit (cost linear in size); for
+structures with joints the system is dense (small structures) or sparse (large ones, solved
+as the sparse saddle-point system with ``M``).
+
+The reference path (``dynamics.py``) stays the readable implementation the tests compare
+against (tests/model/test_fast.py).
+"""
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .errors import SimulationError
+from .model import Model
+
+try:  # the optional compiled kernel (setup.py); the numpy path below is the fallback
+    from . import _fastkernel
+except ImportError:  # pragma: no cover - depends on the build
+    _fastkernel = None
+
+DENSE_LIMIT = 400  # above this many coordinates (m') joints use the sparse saddle-point solve
+
+
+def _dense(a):
+    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+
+class FastDynamics:
+    """Precomputed fast evaluation of a compiled model.
+
+    Parameters
+    ----------
+    model : Model
+    coordinates : {"reduced", "full"}
+        ``"reduced"``: the model's state (``eta2``, Eq. 68), a drop-in for
+        :func:`gyrotensegrity.rhs`. ``"full"``: all node coordinates ``N`` in the state and the
+        joints held by multipliers (Eqs. 60-62), so joint errors can drift; state
+        ``[vec(N) 3n | vec(N_dot) 3n | theta_w | omega_w of torque wheels]``, row by row.
+
+    Notes
+    -----
+    Shapes: coordinates ``z`` are ``(..., 3, m')`` (any leading batch shape), where ``m'`` is
+    ``model.m`` (reduced) or ``model.n`` (full).
+    """
+
+    def __init__(self, model: Model, coordinates: str = "reduced", kernel: bool = True):
+        if coordinates not in ("reduced", "full"):
+            raise ValueError(f"coordinates must be 'reduced' or 'full', got {coordinates!r}")
+        st = model.structure
+        self.model, self.coordinates = model, coordinates
+        self.beta, self.alpha = model.beta, model.alpha
+        if coordinates == "reduced":
+            U = model.U2
+            N_fix = np.asarray(model.N_fixed_T).T
+            P_u = np.zeros((model.m, 0))
+        else:
+            U = sp.identity(model.n, format="csr")
+            N_fix = np.zeros((3, model.n))
+            P_u = _dense(st.P)
+        self.size = U.shape[1]  # m'
+        self._U = U
+        self.U_T = _dense(U).T if self.size <= DENSE_LIMIT else None
+        self.N_fix = N_fix
+        E = sp.csr_matrix(st.C_b @ U)
+        E_s = sp.csr_matrix(st.C_s @ U)
+        # (bars | strings) images of z, with the constant offsets of the positions
+        self.EE_T = sp.vstack([E, E_s]).T.tocsr()
+        self.off = np.hstack([N_fix @ st.C_b.T.toarray(), N_fix @ st.C_s.T.toarray()])
+        # reduced forces: (G + B mu^ | S gamma^) @ [E; -E_s]
+        self.E_force = sp.vstack([E, -E_s]).tocsr()
+        self.E = E
+        self.WU = np.asarray(U.T @ np.asarray(model.W).T).T  # (3, m')
+        self.k_s, self.c_s = model.k_s, model.c_s
+        self._wheels(model)
+        self._mass(model, U, E, P_u)
+        self.state_size = 6 * self.size + model.layout.n_wheels + model.layout.n_torque
+        self.kernel = None
+        if self.size <= DENSE_LIMIT:
+            self.EE_T, self.E_force, self.E = (_dense(a) for a in (self.EE_T, self.E_force, E))
+            if kernel and _fastkernel is not None:
+                self._kernel_constants()
+
+    # -- constants --------------------------------------------------------------------------
+    def _wheels(self, model):
+        nw, L = len(model.wheel_bars), model.layout
+        gyro = "gyroscopic" in model.terms
+        coef = model.J_a[model.wheel_bars] / model.l[model.wheel_bars] if gyro else np.zeros(nw)
+        self.wheel_to_bar = np.zeros((nw, self.beta))  # omega_w @ this = gyro factor per bar
+        self.wheel_to_bar[np.arange(nw), model.wheel_bars] = coef
+        self.torque_select = np.zeros((L.n_torque, nw))
+        self.torque_select[np.arange(L.n_torque), model.torque_wheels] = 1.0
+        self.speed_mask = np.zeros(nw)
+        self.speed_mask[model.speed_wheels] = 1.0
+        self.torque_gain = np.zeros((nw, L.n_torque))  # u_wheel @ this = spin acceleration
+        tq = model.torque_wheels
+        self.torque_gain[tq, np.arange(L.n_torque)] = 1.0 / model.J3[model.wheel_bars[tq]]
+
+    def _mass(self, model, U, E, P_u):
+        M = sp.csc_matrix(U.T @ model.M_s @ U)
+        self.c_u = P_u.shape[1]
+        if self.size <= DENSE_LIMIT:
+            M_inv = np.linalg.inv(M.toarray())
+            M_inv = 0.5 * (M_inv + M_inv.T)
+            E_d = E.toarray()
+            self.E_Minv = E_d @ M_inv  # (beta, m')
+            self.Minv_ET = self.E_Minv.T
+            self.Minv = M_inv
+            Y = self.E_Minv @ E_d.T
+            self.P_u, self.Pu_Minv = P_u, P_u.T @ M_inv  # (m', c_u), (c_u, m')
+            self.X = self.Pu_Minv @ E_d.T  # (c_u, beta)
+            self.A3 = np.kron(np.eye(3), self.Pu_Minv @ P_u)  # joint block, (3 c_u, 3 c_u)
+            off = Y - np.diag(np.diag(Y))
+            self.diagonal = self.c_u == 0 and not np.any(np.abs(off) > 1e-14 * np.abs(Y).max())
+            self.Y, self.Y_diag = Y, np.diag(Y).copy()
+            self.sparse = None
+        else:
+            if self.c_u:
+                raise ValueError(
+                    "full coordinates with joints are supported up to "
+                    f"{DENSE_LIMIT} coordinates; this model has {self.size}"
+                )
+            self.sparse = _SparseConstraints(M, E)
+            self.diagonal = self.sparse.diagonal
+            self.Y_diag = self.sparse.Y_diag
+
+    def _kernel_constants(self):
+        """Pack the dense constants for the compiled kernel (order of ``layout`` in C)."""
+        parts = [self.EE_T, self.off, self.k_s, self.c_s, self.wheel_to_bar]
+        parts += [self.torque_select, self.speed_mask, self.torque_gain, self.WU, self.E_force]
+        parts += [self.Minv, self.Minv_ET, self.E_Minv, self.Y, self.P_u, self.Pu_Minv]
+        parts += [self.X, self.A3]
+        self._consts = np.concatenate([np.asarray(p, float).ravel() for p in parts])
+        nw, ntq = len(self.speed_mask), self.torque_select.shape[0]
+        self._dims = np.array(
+            [self.size, self.beta, self.alpha, nw, ntq, self.c_u, int(self.diagonal)], np.int64
+        )
+        k, nb = self.beta + self.alpha, self.beta + 3 * self.c_u
+        self._work = np.empty(9 * k + 6 * self.size + 3 * self.beta + nw + nb + nb * nb)
+        self.kernel = _fastkernel
+
+    # -- evaluation -------------------------------------------------------------------------
+    def accelerations(self, q, q_dot, omega_w, u):
+        """Accelerations of a (batch of) state(s).
+
+        Parameters
+        ----------
+        q, q_dot : ndarray, shape (..., 3, m'), m and m/s (real or complex)
+        omega_w : ndarray, shape (..., n_w), rad/s
+        u : ndarray, shape (alpha + n_w,): rest lengths (m), then wheel inputs
+
+        Returns
+        -------
+        z_ddot : ndarray, shape (..., 3, m'), m/s^2
+        N_ddot : ndarray, shape (..., 3, n), m/s^2
+        """
+        z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
+        return z_ddot, self.node_values(z_ddot)
+
+    def node_values(self, z):
+        """``z U^T`` (no offset): node velocities or accelerations (..., 3, n)."""
+        if self.U_T is not None:
+            return z @ self.U_T
+        return np.moveaxis(self._U @ np.moveaxis(z, -1, 0).reshape(self.size, -1), 0, -1)
+
+    def _accelerations(self, q, q_dot, omega_w, rest):
+        beta = self.beta
+        Y6 = np.concatenate([q, q_dot], axis=-2) @ self.EE_T  # (..., 6, beta + alpha)
+        Y6[..., :3, :] += self.off
+        pos, vel = Y6[..., :3, :], Y6[..., 3:, :]
+        B, B_dot = pos[..., :beta], vel[..., :beta]
+        S = pos[..., beta:]
+        sums = np.sum(pos * Y6.reshape(Y6.shape[:-2] + (2, 3, -1)), axis=-2)
+        b2 = sums[..., 0, :beta]
+        s = np.sqrt(sums[..., 0, beta:])
+        tension = self.k_s * (s - rest) + self.c_s * (sums[..., 1, beta:] / s)
+        taut = (s.real > rest) & (tension.real > 0.0)
+        gamma = np.where(taut, tension / s, 0.0)
+        G = _cross(B, B_dot) * (omega_w @ self.wheel_to_bar)[..., None, :]
+        cols = np.concatenate([G, S * gamma[..., None, :]], axis=-1)
+        f0 = self.WU + cols @ self.E_force  # (..., 3, m')
+        bd2 = np.sum(B_dot * B_dot, axis=-2)
+        if self.sparse is not None:
+            return self.sparse.solve(f0, B, b2, bd2)
+        a0 = f0 @ self.Minv
+        r = -bd2 - np.sum(B * (f0 @ self.Minv_ET), axis=-2)
+        if self.diagonal:
+            return a0 + (B * (r / (self.Y_diag * b2))[..., None, :]) @ self.E_Minv
+        Z = self.Y * (np.swapaxes(B, -1, -2) @ B)
+        if not self.c_u:
+            mu = np.linalg.solve(Z, r[..., None])[..., 0]
+            return a0 + (B * mu[..., None, :]) @ self.E_Minv
+        return self._with_joints(a0, B, Z, r)
+
+    def _with_joints(self, a0, B, Z, r):
+        """Bars and joints together (full coordinates): the symmetric (beta + 3c) system."""
+        beta, c = self.beta, self.c_u
+        lead = B.shape[:-2]
+        Zbo = (np.swapaxes(B, -1, -2)[..., :, :, None] * self.X.T[:, None, :]).reshape(
+            lead + (beta, 3 * c)
+        )
+        top = np.concatenate([Z, Zbo], axis=-1)
+        bottom = np.concatenate(
+            [np.swapaxes(Zbo, -1, -2), np.broadcast_to(self.A3, lead + self.A3.shape)], axis=-1
+        )
+        K = np.concatenate([top, bottom], axis=-2)
+        rhs = np.concatenate([r, -(a0 @ self.P_u).reshape(lead + (3 * c,))], axis=-1)
+        sol = np.linalg.solve(K, rhs[..., None])[..., 0]
+        mu, Omega = sol[..., :beta], sol[..., beta:].reshape(lead + (3, c))
+        return a0 + (B * mu[..., None, :]) @ self.E_Minv + Omega @ self.Pu_Minv
+
+    # -- state-vector interface ------------------------------------------------------------
+    def split(self, x, u):
+        """Coordinates, their rates and the wheel spins of a state (single state).
+
+        Returns
+        -------
+        q, q_dot : ndarray, shape (3, m'); omega_w : ndarray, shape (n_w,), rad/s
+        """
+        k = 3 * self.size
+        q = x[:k].reshape(3, self.size)
+        q_dot = x[k : 2 * k].reshape(3, self.size)
+        nw = len(self.speed_mask)
+        omega_w = x[2 * k + nw :] @ self.torque_select + self.speed_mask * u[self.alpha :]
+        return q, q_dot, omega_w
+
+    def rhs(self, t, x, u):
+        """dx/dt, shape (state_size,), of the state ``x`` (layout of ``coordinates``).
+
+        Raises
+        ------
+        SimulationError
+            When the constraint system is singular (compiled kernel), naming the bar.
+        """
+        if self.kernel is not None:
+            out = np.empty(self.state_size)
+            status = self.kernel.rhs(
+                self._consts,
+                self._dims,
+                np.ascontiguousarray(x, float),
+                np.ascontiguousarray(u, float),
+                out,
+                self._work,
+            )
+            if status:
+                self._singular(t, status - 1)
+            return out
+        return self.rhs_numpy(t, x, u)
+
+    def _singular(self, t, pivot):
+        m = self.model
+        if pivot < self.beta:
+            member = m.scene.bars[pivot].name
+            why = "bar directions nearly dependent (collinear bars) or zero length"
+        else:
+            member = m.structure.constraint_names[(pivot - self.beta) % self.c_u]
+            why = "joint constraints dependent"
+        raise SimulationError(
+            f"t = {t:.6g} s: constraint system singular at {member} ({why})", t, member
+        )
+
+    def rhs_numpy(self, t, x, u):
+        """dx/dt by the numpy path (the compiled kernel's reference and fallback)."""
+        q, q_dot, omega_w = self.split(x, u)
+        z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
+        k = 3 * self.size
+        spin = u[self.alpha :] @ self.torque_gain
+        return np.concatenate([x[k : 2 * k], z_ddot.ravel(), omega_w, spin])
+
+    def nodes(self, x):
+        """Node positions and velocities (3, n), m and m/s, of a state."""
+        k = 3 * self.size
+        q = x[:k].reshape(3, self.size)
+        return self.N_fix + self.node_values(q), self.node_values(x[k : 2 * k].reshape(3, -1))
+
+    def from_reduced(self, x):
+        """The state in this object's coordinates of a reduced-order model state ``x``."""
+        if self.coordinates == "reduced":
+            return np.asarray(x, float).copy()
+        m = self.model
+        N, N_dot = m.nodes(x)
+        return np.concatenate([N.ravel(), N_dot.ravel(), x[m.layout.theta], x[m.layout.omega]])
+
+
+def fast_rhs(t, x, u, params: FastDynamics):
+    """dx/dt with the common callback signature ``f(t, x, u, params)``; ``params`` is a
+    :class:`FastDynamics` (drop-in for ``rhs(t, x, u, model)``)."""
+    return params.rhs(t, x, u)
+
+
+def _cross(a, b):
+    """Column-wise cross product of (..., 3, k) arrays (complex-step safe, no np.cross)."""
+    return np.stack(
+        [
+            a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :],
+            a[..., 2, :] * b[..., 0, :] - a[..., 0, :] * b[..., 2, :],
+            a[..., 0, :] * b[..., 1, :] - a[..., 1, :] * b[..., 0, :],
+        ],
+        axis=-2,
+    )
+
+
+class _SparseConstraints:
+    """Large reduced-order structures: M (m', m') sparse, factorized once.
+
+    Class-1 (``E M^-1 E^T`` diagonal, e.g. no joints): ``mu`` is explicit. With joints: the
+    saddle-point system ``[[kron(I3, M), G^T], [G, 0]]`` with the bar rows
+    ``G[i, (r, k)] = b_ir E_ik`` is assembled on a fixed pattern and solved by sparse LU.
+    """
+
+    def __init__(self, M, E):
+        self.lu = spla.splu(sp.csc_matrix(M))
+        self.E = sp.csr_matrix(E)
+        m, beta = M.shape[0], E.shape[0]
+        E_T = self.E.T.toarray() if m * beta <= 4e6 else None
+        MinvET = self.lu.solve(E_T) if E_T is not None else None
+        Y_diag = np.asarray(self.E.multiply(MinvET.T).sum(axis=1)).ravel()
+        # class-1: E M^-1 E^T diagonal when no two bars share a coordinate
+        shared = (abs(self.E) @ abs(self.E).T).tocoo()
+        self.diagonal = bool(np.all(shared.row == shared.col))
+        self.Y_diag = Y_diag
+        self.E_T_csr = self.E.T.tocsr()
+        self.m, self.beta = m, beta
+        Ec = self.E.tocoo()
+        r = np.arange(3)
+        self.g_rows = np.repeat(Ec.row, 3)
+        self.g_cols = (r[None, :] * m + Ec.col[:, None]).ravel()  # coordinate (r, k) -> r m + k
+        self.g_e = np.repeat(Ec.data, 3)
+        self.g_r = np.tile(r, len(Ec.data))
+        Mc = sp.kron(sp.identity(3), M).tocoo()
+        self.m_rows, self.m_cols, self.m_vals = Mc.row, Mc.col, Mc.data
+
+    def _m_solve(self, f):
+        """f M^-1 for f (..., 3, m)."""
+        flat = f.reshape(-1, self.m).T
+        return self.lu.solve(np.ascontiguousarray(flat)).T.reshape(f.shape)
+
+    def solve(self, f0, B, b2, bd2):
+        if B.ndim != 2:
+            return np.stack(
+                [self.solve(f0[k], B[k], b2[k], bd2[k]) for k in np.ndindex(B.shape[:-2])]
+            ).reshape(f0.shape)
+        a0 = self._m_solve(f0)
+        r = -bd2 - np.sum(B * np.asarray(self.E @ a0.T).T, axis=0)
+        if self.diagonal:
+            return a0 + self._m_solve(np.asarray(self.E_T_csr @ (B * (r / (self.Y_diag * b2))).T).T)
+        n3 = 3 * self.m
+        g = B[self.g_r, self.g_rows] * self.g_e
+        rows = np.concatenate([self.m_rows, n3 + self.g_rows, self.g_cols])
+        cols = np.concatenate([self.m_cols, self.g_cols, n3 + self.g_rows])
+        vals = np.concatenate([self.m_vals, g, g])
+        K = sp.csc_matrix((vals, (rows, cols)), shape=(n3 + self.beta, n3 + self.beta))
+        rhs = np.concatenate([f0.ravel(), -bd2])
+        sol = spla.spsolve(K, rhs)
+        return sol[:n3].reshape(3, self.m)
