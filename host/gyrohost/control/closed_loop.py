@@ -124,7 +124,7 @@ class TruthPlusNoise:
     seed : int
     """
 
-    def __init__(self, stepper, position_std_m=1e-3, velocity_std_m_s=5e-3, seed=0):
+    def __init__(self, stepper, position_std_m=1e-3, velocity_std_m_s=2e-3, seed=0):
         self.stepper = stepper
         self.std = (position_std_m, velocity_std_m_s)
         self.rng = np.random.default_rng(seed)

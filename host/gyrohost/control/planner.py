@@ -139,13 +139,10 @@ class Planner:
         short = max(lim.min_diagonal_m, lim.min_length_m)
         lo = max(short, np.sqrt(max(l2 - lim.max_length_m**2, 0.0)))
         hi = min(lim.max_length_m, np.sqrt(max(l2 - short**2, 0.0)))
-        if not lo < hi < 2.0 * self.dbar.l:
+        # the range is symmetric about the square (d and its follower swap), so when it is
+        # not empty it contains the rest shape
+        if not lo < hi:
             raise PlanError(f"limits leave no n1-n3 length to command ({lo:.4g}..{hi:.4g} m)")
-        if not lo <= self.dbar.d_rest <= hi:
-            raise PlanError(
-                f"the rest shape (n1-n3 {self.dbar.d_rest:.4g} m) is outside the limits "
-                f"{lo:.4g}..{hi:.4g} m"
-            )
         return lo, hi
 
     def knot_times(self, t0_s, t_end_s):

@@ -72,11 +72,14 @@ def run_sil(
     settle_s: float = 0.5,
     step_s: float = 0.01,
     max_dt_s: float = 2.5e-3,
-    estimate=None,
+    make_estimate=None,
     seed: int = 0,
 ) -> SilResult:
     """Run one maneuver on ``truth``: plan once and play (open loop) or re-plan every
-    ``period_s`` from ``estimate()`` (closed loop; default :class:`TruthPlusNoise`).
+    ``period_s`` from an estimate (closed loop).
+
+    ``make_estimate(stepper) -> estimate`` builds the estimator on the truth stepper (the EKF
+    plugs in here); ``estimate() -> (t_s, x)``. Default: :class:`TruthPlusNoise` with ``seed``.
 
     Both start from the same first plan, made at rest from the initial state (known: the
     structure is at rest before the maneuver)."""
@@ -84,7 +87,7 @@ def run_sil(
         raise PlanError("truth and planner models have different state layouts")
     start = time.perf_counter()
     stepper = Stepper(truth, max_dt=max_dt_s)
-    estimate = estimate or TruthPlusNoise(stepper, seed=seed)
+    estimate = (make_estimate or (lambda s: TruthPlusNoise(s, seed=seed)))(stepper)
     loop = Replanner(planner, target_tilt_rad, 0.0, duration_s, period_s)
     loop.start(0.0, stepper.x)  # planned at rest, before the maneuver: the state is known
     n = int(round((duration_s + settle_s) / step_s))
