@@ -21,7 +21,9 @@ from filterpy.kalman import ExtendedKalmanFilter
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .errors import EstimatorError
 from .fast_dynamics import check_model
+from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
+from .imu_prediction import predict_imu
 from .layout import layout_of
 from .manifold import Manifold
 from .process_model import ProcessModel
@@ -101,6 +103,7 @@ class TensegrityEKF:
         self.log = log
         self.monitors = {s: SourceMonitor(s, self._timeout(s)) for s in SOURCES}
         self.stale_last = False
+        self._A = None  # linearisation of the dynamics at the current prior, if made
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x_model = model.initial_state()
@@ -184,7 +187,8 @@ class TensegrityEKF:
 
     def predict(self, dt: float) -> None:
         """One prediction step of ``dt`` s with the held input."""
-        x_next, F = self.process.step(self.x, self.u, dt)
+        x_next, F = self.process.step(self.x, self.u, dt, self._A)
+        self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
         self.kf.Q = self.process.noise(dt)
@@ -225,17 +229,23 @@ class TensegrityEKF:
     def fuse_imu(self, t_s, omega_rad_s, accel_m_s2, euler_rad):
         """Predict to ``t_s`` and fuse one IMU sample: rate, specific force, angles.
 
+        The three are linearised once (:func:`.imu_prediction.predict_imu`), gated each on its
+        own NIS and the accepted ones fused in one update.
+
         Returns
         -------
         list of Innovation (empty when the sample was stale)
         """
         if not self._arrive(t_s, fuse_imu_rate.SOURCE):
             return []
-        return [
-            fuse_imu_rate.fuse_rate(self, omega_rad_s),
-            fuse_imu_accel.fuse_accel(self, accel_m_s2),
-            fuse_imu_angle.fuse_angle(self, euler_rad),
-        ]
+        pred = predict_imu(self, self.x, self.u)
+        self._A = pred.A  # the lean process model's next linearisation
+        return fuse(
+            self,
+            fuse_imu_rate.measurement(self, pred, omega_rad_s),
+            fuse_imu_accel.measurement(self, pred, accel_m_s2),
+            fuse_imu_angle.measurement(self, pred, euler_rad),
+        )
 
     def fuse_wheels(self, t_s, omega_rad_s):
         """Predict to ``t_s`` and fuse the wheel speeds (n_w,) rad/s."""

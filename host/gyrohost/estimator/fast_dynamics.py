@@ -48,6 +48,7 @@ class BatchDynamics:
         self.speed_wheels = model.speed_wheels
         self.gyro_coef = model.J_a[self.wheel_bars] / model.l[self.wheel_bars]
         self.gyroscopic = "gyroscopic" in model.terms
+        self.all_bars_wheeled = np.array_equal(self.wheel_bars, np.arange(self.beta))
         self.M_red_inv = np.linalg.inv(model.M_red.toarray())  # (m, m), symmetric
         self.U2 = model.U2.toarray()  # (n, m)
         if self.c:
@@ -93,12 +94,12 @@ class BatchDynamics:
         N, N_dot = self.nodes(q, q_dot)
         B = N[:, :, self.bar_end] - N[:, :, self.bar_start]
         B_dot = N_dot[:, :, self.bar_end] - N_dot[:, :, self.bar_start]
-        b2 = np.sum(B * B, axis=1)  # (K, beta)
+        b2 = (B * B).sum(axis=1)  # (K, beta)
         F = self.W - self._string_forces(N, N_dot, u[: self.alpha]) @ self.C_s
         if self.gyroscopic:
             F = F + self._gyroscopic(B, B_dot, omega_w) @ self.C_b
         FC = F[:, :, self.bar_end] - F[:, :, self.bar_start]
-        lam = -(self.J_t * np.sum(B_dot * B_dot, axis=1) + 0.5 * np.sum(B * FC, axis=1)) / b2
+        lam = -(self.J_t * (B_dot * B_dot).sum(axis=1) + 0.5 * (B * FC).sum(axis=1)) / b2
         F_total = F + (B * lam[:, None, :]) @ self.C_b
         if self.c:
             F_total = F_total + self._multiplier_forces(B, b2, F_total)
@@ -109,8 +110,8 @@ class BatchDynamics:
         """S gamma^ (K, 3, alpha): tension-only strings with damping while taut."""
         S = N[:, :, self.string_end] - N[:, :, self.string_start]
         S_dot = N_dot[:, :, self.string_end] - N_dot[:, :, self.string_start]
-        s = np.sqrt(np.sum(S * S, axis=1))
-        s_dot = np.sum(S * S_dot, axis=1) / s
+        s = np.sqrt((S * S).sum(axis=1))
+        s_dot = (S * S_dot).sum(axis=1) / s
         tension = self.k_s * (s - rest) + self.c_s * s_dot
         taut = (s.real > rest) & (tension.real > 0.0)
         return S * np.where(taut, tension / s, 0.0)[:, None, :]
@@ -118,7 +119,7 @@ class BatchDynamics:
     def _gyroscopic(self, B, B_dot, omega_w):
         """Wheel term of W_T (Eq. 59): J_a omega_w b x b_dot / l per wheel bar, (K, 3, beta)."""
         i = self.wheel_bars
-        b, d = B[:, :, i], B_dot[:, :, i]
+        b, d = (B, B_dot) if self.all_bars_wheeled else (B[:, :, i], B_dot[:, :, i])
         cross = np.stack(
             [
                 b[:, 1] * d[:, 2] - b[:, 2] * d[:, 1],
@@ -127,9 +128,12 @@ class BatchDynamics:
             ],
             axis=1,
         )
-        G = np.zeros_like(B)
-        G[:, :, i] = cross * (self.gyro_coef * omega_w)[:, None, :]
-        return G
+        G = cross * (self.gyro_coef * omega_w)[:, None, :]
+        if self.all_bars_wheeled:
+            return G
+        out = np.zeros_like(B)
+        out[:, :, i] = G
+        return out
 
     def _multiplier_forces(self, B, b2, F_total):
         """Bar forces added by the multipliers Omega (Eqs. 62, 67), batched, shape (K, 3, n)."""
@@ -142,7 +146,7 @@ class BatchDynamics:
         rhs_vec = np.swapaxes(rhs, 1, 2).reshape(K, 3 * c, 1)  # unknown index 3 j + r
         Omega = np.swapaxes(np.linalg.solve(Kmat, rhs_vec).reshape(K, c, 3), 1, 2)
         OH = Omega @ self.H.T  # (K, 3, beta)
-        lam_Omega = -0.5 * np.sum(B * OH, axis=1) / b2
+        lam_Omega = -0.5 * (B * OH).sum(axis=1) / b2
         # Omega P^T itself is left out: it has no component in the reduced space (P^T U2 = 0)
         return (B * lam_Omega[:, None, :]) @ self.C_b
 

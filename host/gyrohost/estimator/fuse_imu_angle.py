@@ -1,34 +1,48 @@
-"""IMU angles: ``z = euler_zyx(R_ws(eta2))`` (roll, pitch, yaw in rad); innovations wrapped."""
+"""IMU angles: ``z = euler_zyx(R_ws(eta2))`` (roll, pitch, yaw in rad); innovations wrapped.
+
+The Jacobian of the Z-Y-X angles follows from the Jacobian of ``R_ws`` by the chain rule
+(roll = atan2(R21, R22), pitch = -asin(R20), yaw = atan2(R10, R00)).
+"""
 
 import numpy as np
 
-from . import complex_step
-from .fusion import Innovation, fuse
-from .imu_model import euler_zyx, wrap_angle
+from .fusion import Measurement
+from .imu_model import wrap_angle
+from .imu_prediction import ImuPrediction, full_jacobian
 
 SOURCE = "imu_angle"
 LABELS = ("roll", "pitch", "yaw")
-UNIT = "rad"
 
 
-def predict(ekf, x):
-    """Predicted Z-Y-X angles (3,) rad and their Jacobian (3, n)."""
-    L = ekf.layout
-    cols = ekf.position_columns
-    N, N_dot = ekf.batch_nodes(complex_step.perturbed(x, cols))
-    R_ws, _ = ekf.imu.frame(N, N_dot)
-    value, J = complex_step.split(euler_zyx(R_ws))
-    H = np.zeros((3, L.size))
-    H[:, cols] = J
-    return value, H
+def angles_and_jacobian(R, dR):
+    """Z-Y-X angles (3,) rad of ``R`` (3, 3) and their Jacobian from dR (9, k), shape (3, k)."""
+
+    def d(i, j):
+        return dR[3 * i + j]
+
+    def atan2_grad(y, x, dy, dx):
+        return (x * dy - y * dx) / (x * x + y * y)
+
+    angles = np.array(
+        [np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(R[2, 0]), np.arctan2(R[1, 0], R[0, 0])]
+    )
+    J = np.stack(
+        [
+            atan2_grad(R[2, 1], R[2, 2], d(2, 1), d(2, 2)),
+            -d(2, 0) / np.sqrt(1.0 - R[2, 0] ** 2),
+            atan2_grad(R[1, 0], R[0, 0], d(1, 0), d(0, 0)),
+        ]
+    )
+    return angles, J
 
 
 def angle_residual(z, hx):
     return wrap_angle(z - hx)
 
 
-def fuse_angle(ekf, euler_rad) -> Innovation:
-    """Fuse one Z-Y-X angle sample (3,) rad taken at the filter's current time."""
-    hx, H = predict(ekf, ekf.x)
+def measurement(ekf, pred: ImuPrediction, euler_rad) -> Measurement:
+    """The angle sample (3,) rad with its prediction and Jacobian (3, n)."""
+    hx, J = angles_and_jacobian(pred.R_ws, pred.dR_ws)
     R = np.eye(3) * ekf.config.imu_angle_std_rad**2
-    return fuse(ekf, SOURCE, np.asarray(euler_rad, float), hx, H, R, angle_residual)
+    z = np.asarray(euler_rad, float)
+    return Measurement(SOURCE, z, hx, full_jacobian(ekf, J), R, angle_residual)

@@ -2,29 +2,18 @@
 
 import numpy as np
 
-from . import complex_step
-from .fusion import Innovation, fuse
+from .fusion import Measurement
+from .imu_prediction import ImuPrediction, full_jacobian
 
 SOURCE = "imu_rate"
 LABELS = ("x", "y", "z")
-UNIT = "rad_s"
 
 
-def predict(ekf, x):
-    """Predicted rate (3,) rad/s and its Jacobian (3, n)."""
+def measurement(ekf, pred: ImuPrediction, omega_rad_s) -> Measurement:
+    """The rate sample (3,) rad/s with its prediction and Jacobian (3, n)."""
     L = ekf.layout
-    cols = ekf.motion_columns
-    N, N_dot = ekf.batch_nodes(complex_step.perturbed(x, cols))
-    _, omega = ekf.imu.frame(N, N_dot)
-    value, J = complex_step.split(omega)
-    H = np.zeros((3, L.size))
-    H[:, cols] = J
+    H = full_jacobian(ekf, pred.d_omega)
     H[:, L.bias] = np.eye(3)
-    return value + x[L.bias], H
-
-
-def fuse_rate(ekf, omega_rad_s) -> Innovation:
-    """Fuse one angular-rate sample (3,) rad/s taken at the filter's current time."""
-    hx, H = predict(ekf, ekf.x)
     R = np.eye(3) * ekf.config.imu_rate_std_rad_s**2
-    return fuse(ekf, SOURCE, np.asarray(omega_rad_s, float), hx, H, R)
+    hx = pred.omega + ekf.x[L.bias]
+    return Measurement(SOURCE, np.asarray(omega_rad_s, float), hx, H, R)

@@ -8,7 +8,7 @@ takes it as the distance between the string's nodes. The difference is the elast
 import numpy as np
 
 from . import complex_step
-from .fusion import Innovation, fuse
+from .fusion import Innovation, Measurement, fuse
 
 SOURCE = "servos"
 UNIT = "m"
@@ -31,4 +31,4 @@ def fuse_servos(ekf, lengths_m, strings) -> Innovation:
     strings = np.asarray(strings, dtype=int)
     hx, H = predict(ekf, ekf.x, strings)
     R = np.eye(len(hx)) * ekf.config.servo_length_std_m**2
-    return fuse(ekf, SOURCE, np.asarray(lengths_m, float), hx, H, R)
+    return fuse(ekf, Measurement(SOURCE, np.asarray(lengths_m, float), hx, H, R))[0]

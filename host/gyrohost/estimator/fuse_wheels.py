@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .fusion import Innovation, fuse
+from .fusion import Innovation, Measurement, fuse
 
 SOURCE = "wheels"
 UNIT = "rad_s"
@@ -20,4 +20,4 @@ def fuse_wheels(ekf, omega_rad_s) -> Innovation:
     """Fuse one telemetry sample of all wheel speeds (n_w,) rad/s."""
     hx, H = predict(ekf, ekf.x)
     R = np.eye(len(hx)) * ekf.config.wheel_speed_std_rad_s**2
-    return fuse(ekf, SOURCE, np.asarray(omega_rad_s, float), hx, H, R)
+    return fuse(ekf, Measurement(SOURCE, np.asarray(omega_rad_s, float), hx, H, R))[0]

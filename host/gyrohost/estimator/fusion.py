@@ -1,11 +1,12 @@
 """The fusion step every measurement source shares: innovation, variance, NIS, gate, update.
 
 Each source module (``fuse_*.py``) computes its predicted measurement ``h(x)`` and Jacobian
-``H`` and calls :func:`fuse`. The innovation ``y = z - h(x)`` (wrapped for angles), its
+``H`` as a :class:`Measurement` and calls :func:`fuse`. The innovation ``y = z - h(x)``
+(wrapped for angles), its
 covariance ``S = H P H^T + R`` and the normalised innovation squared ``NIS = y^T S^-1 y`` are
 computed first; the test ratio ``NIS / gate`` (gate = chi-square quantile of ``gate_probability``
 with ``dim z`` degrees of freedom) decides: ``<= 1`` the sample is fused with filterpy's
-``ExtendedKalmanFilter.update`` (Joseph form) and the estimate is conditioned on the constraint
+``ExtendedKalmanFilter.update`` (Joseph form) and the estimate is put back on the constraint
 manifold; ``> 1`` it is rejected and counted. Either way an :class:`Innovation` is returned
 and passed to the filter's log callback.
 """
@@ -56,37 +57,63 @@ def gate(probability: float, dof: int) -> float:
     return _GATES[key]
 
 
-def fuse(ekf, source: str, z, hx, H, R, residual=np.subtract) -> Innovation:
-    """Gate and fuse one measurement into ``ekf`` (a :class:`~.ekf.TensegrityEKF`).
+@dataclass(frozen=True)
+class Measurement:
+    """One source's sample with its prediction at the current estimate.
 
-    Parameters
-    ----------
-    ekf : TensegrityEKF
-    source : str
-        Name of the source (its monitor counts rejections).
-    z, hx : ndarray, shape (k,)
-        Measurement and its prediction at the current estimate.
-    H : ndarray, shape (k, n)
-    R : ndarray, shape (k, k)
-    residual : callable(z, hx) -> y, optional
+    z, hx : (k,) measurement and prediction; H : (k, n); R : (k, k);
+    residual : callable(z, hx) -> y (``np.subtract``, or wrapping for angles).
+    """
+
+    source: str
+    z: np.ndarray
+    hx: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    residual: object = np.subtract
+
+
+def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
+    """Gate each measurement on its own NIS, then fuse the accepted ones in one update.
+
+    All measurements were linearised at the same estimate (one IMU sample: rate, specific force
+    and angles); fusing them together is the same as fusing them one after the other without
+    relinearising. The estimate is then put back on the constraint manifold.
+
+    Returns
+    -------
+    list of Innovation, one per measurement, in order
     """
     kf = ekf.kf
-    y = residual(z, hx)
-    S = H @ kf.P @ H.T + R
-    nis = float(y @ np.linalg.solve(S, y))
-    ratio = nis / gate(ekf.config.gate_probability, len(z))
-    accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
-    monitor = ekf.monitors[source]
-    if accepted:
-        kf.update(
-            z.reshape(-1, 1),
-            lambda _x: H,
-            lambda _x: hx.reshape(-1, 1),
-            R=R,
-            residual=lambda a, b: residual(a.ravel(), b.ravel()).reshape(-1, 1),
+    results, keep = [], []
+    for meas in measurements:
+        y = meas.residual(meas.z, meas.hx)
+        S = meas.H @ kf.P @ meas.H.T + meas.R
+        nis = float(y @ np.linalg.solve(S, y))
+        ratio = nis / gate(ekf.config.gate_probability, len(y))
+        accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
+        monitor = ekf.monitors[meas.source]
+        monitor.record(ekf.t, accepted)
+        results.append(
+            Innovation(
+                meas.source, ekf.t, y, np.diag(S).copy(), nis, ratio, accepted, monitor.rejected
+            )  # fmt: skip
         )
+        if accepted:
+            keep.append((y, meas))
+    if keep:
+        y = np.concatenate([k[0] for k in keep])
+        H = np.vstack([k[1].H for k in keep])
+        R = np.zeros((len(y), len(y)))
+        i = 0
+        for _, meas in keep:
+            k = len(meas.z)
+            R[i : i + k, i : i + k] = meas.R
+            i += k
+        # filterpy forms y = z - Hx(x); passing the innovation as z and 0 as Hx keeps the
+        # wrapped angle residuals computed above
+        kf.update(y.reshape(-1, 1), lambda _x: H, lambda _x: np.zeros((len(y), 1)), R=R)
         ekf.constrain()
-    monitor.record(ekf.t, accepted)
-    result = Innovation(source, ekf.t, y, np.diag(S).copy(), nis, ratio, accepted, monitor.rejected)
-    ekf.emit(result)
-    return result
+    for r in results:
+        ekf.emit(r)
+    return results

@@ -43,7 +43,7 @@ def _cross(a, b):
 
 
 def _dot(a, b):
-    return np.sum(a * b, axis=1, keepdims=True)
+    return (a * b).sum(axis=1, keepdims=True)
 
 
 class ImuGeometry:

@@ -49,11 +49,15 @@ class Manifold:
         L = self.layout
         B, B_dot = self.bars(x)
         G = np.zeros((2 * self.beta, L.size))
-        dB = np.einsum("ri,ij->irj", B, self.E).reshape(self.beta, 3 * L.m)
+        dB = self._d(B)
         G[: self.beta, L.q] = 2.0 * dB
-        G[self.beta :, L.q] = np.einsum("ri,ij->irj", B_dot, self.E).reshape(self.beta, -1)
+        G[self.beta :, L.q] = self._d(B_dot)
         G[self.beta :, L.q_dot] = dB
         return G
+
+    def _d(self, B):
+        """d(b_i . v)/d eta2 for fixed v = B[:, i]: rows (beta, 3 m)."""
+        return (B.T[:, :, None] * self.E[:, None, :]).reshape(self.beta, -1)
 
     def project_state(self, x, rtol=1e-15, iterations=8):
         """Minimum-norm projection of positions, then velocities, onto the constraints."""
@@ -61,14 +65,16 @@ class Manifold:
         x = x.copy()
         q = x[L.q]
         for _ in range(iterations):
-            g = self.residual(x)[: self.beta]
+            B, _ = self.bars(x)
+            g = np.sum(B * B, axis=0) - self.l2
             if np.max(np.abs(g) / self.l2) <= rtol:
                 break
-            Gp = self.jacobian(x)[: self.beta, L.q]
+            Gp = 2.0 * self._d(B)
             q = q - Gp.T @ np.linalg.solve(Gp @ Gp.T, g)
             x[L.q] = q
-        G = self.jacobian(x)[self.beta :, L.q_dot]
-        x[L.q_dot] = x[L.q_dot] - G.T @ np.linalg.solve(G @ G.T, self.residual(x)[self.beta :])
+        B, B_dot = self.bars(x)
+        G = self._d(B)
+        x[L.q_dot] = x[L.q_dot] - G.T @ np.linalg.solve(G @ G.T, np.sum(B * B_dot, axis=0))
         return x
 
     def condition(self, x, P):

@@ -1,0 +1,51 @@
+"""One linearisation of everything an IMU sample measures, shared by the three IMU fusions.
+
+A single batched complex-step evaluation of the dynamics over all dynamic states at the prior
+gives the sensor axes, the angular rate, the specific force, and ``A = df/dx`` (kept for the
+next prediction of the lean process model).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import complex_step
+
+
+@dataclass(frozen=True)
+class ImuPrediction:
+    """Values and Jacobians (columns: the dynamic states) at one estimate.
+
+    R_ws (3, 3) and its Jacobian (9, n_dynamic); omega (3,) rad/s and (3, n_dynamic);
+    specific_force (3,) m/s^2 and (3, n_dynamic); A (n_dynamic, n_dynamic).
+    """
+
+    R_ws: np.ndarray
+    dR_ws: np.ndarray
+    omega: np.ndarray
+    d_omega: np.ndarray
+    specific_force: np.ndarray
+    d_specific_force: np.ndarray
+    A: np.ndarray
+
+
+def predict_imu(ekf, x, u) -> ImuPrediction:
+    """Linearise the IMU measurements (and the dynamics) at filter state ``x`` under ``u``."""
+    cols = ekf.dynamic_columns
+    X = complex_step.perturbed(x[: len(cols)], cols)
+    dx, N_ddot = ekf.process.derivative(X, u, with_node_accelerations=True)
+    N, N_dot = ekf.batch_nodes(X)
+    R_ws, omega = ekf.imu.frame(N, N_dot)
+    f = ekf.imu.specific_force(R_ws, N_ddot)
+    K = X.shape[0]
+    R, dR = complex_step.split(R_ws.reshape(K, 9))
+    w, dw = complex_step.split(omega)
+    fv, df = complex_step.split(f)
+    return ImuPrediction(R.reshape(3, 3), dR, w, dw, fv, df, complex_step.split(dx)[1])
+
+
+def full_jacobian(ekf, J):
+    """A Jacobian over the dynamic states, padded with zero bias columns: (k, n)."""
+    H = np.zeros((J.shape[0], ekf.layout.size))
+    H[:, ekf.dynamic_columns] = J
+    return H
