@@ -259,7 +259,8 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     const bool failsafe = flt_heartbeat_tick(&a->flt, c->heartbeat_ms);
     const int32_t step = (failsafe || a->stopping) ? c->decel : c->accel;
     uint8_t enable = 0;
-    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+    uint8_t bit = 1;  // 1 << i without a shift loop
+    for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
         app_wheel* w = &a->w[i];
         bool disabled = false;
         if (closed) {
@@ -267,11 +268,11 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
             bool good = enc_parse(enc_words[i], &angle) == ENC_OK;
             disabled = flt_encoder_sample(&a->flt, i, good, c->enc_fault_limit);
             if (good) {
-                spd_update(&w->spd, angle, c->speed_shift);
+                w->speed_mrad_s = spd_update(&w->spd, angle, c->speed_shift);
             } else {
                 spd_skip(&w->spd);
+                w->speed_mrad_s = w->spd.speed_mrad_s;
             }
-            w->speed_mrad_s = w->spd.speed_mrad_s;
         }
         if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
         int32_t target = w->target_mrad_s;
@@ -305,7 +306,7 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
             w->speed_mrad_s = w->sp_mrad_s;
         }
         cmt_phases(angle16, amp, a->pwm[i]);
-        enable = static_cast<uint8_t>(enable | (1u << i));
+        enable = static_cast<uint8_t>(enable | bit);
     }
     a->enable_mask = enable;
 }
