@@ -497,6 +497,51 @@ static void write_profile(void) {
     fclose(f);
 }
 
+/* ---------------------------------------------------------------- ISR costs */
+
+/* --isr-stats: avr_run() executes one instruction, so the main loop sees the PC land on a vector
+   (byte address 4 * n, n >= 1) when simavr services an interrupt. The cost of one ISR is counted
+   from there until the stack pointer is back above the pushed 3-byte return address (after
+   RETI): vector JMP, prologue, body, epilogue and RETI; not the 5-cycle response itself. */
+#define N_VECTORS 57
+#define ADDR_SPL 0x5D
+static int g_isr_stats;
+static cyc_stats_t g_isr[N_VECTORS];
+static int g_isr_vec;
+static uint16_t g_isr_sp;
+static avr_cycle_count_t g_isr_start;
+
+static uint16_t stack_pointer(void) {
+    return read16(ADDR_SPL);
+}
+
+static void isr_track(void) {
+    uint32_t pc = g_avr->pc;
+    if (g_isr_vec) {
+        if (stack_pointer() == g_isr_sp) {
+            uint64_t c = g_avr->cycle - g_isr_start;
+            cyc_add(&g_isr[g_isr_vec], c);
+            g_isr_vec = 0;
+        }
+        return;
+    }
+    if (pc != 0 && pc < 4 * N_VECTORS && pc % 4 == 0) {
+        g_isr_vec = (int)(pc / 4);
+        g_isr_sp = (uint16_t)(stack_pointer() + 3);
+        g_isr_start = g_avr->cycle;
+    }
+}
+
+static void print_isr_stats(void) {
+    for (int v = 1; v < N_VECTORS; v++) {
+        const cyc_stats_t* s = &g_isr[v];
+        if (!s->n) continue;
+        printf("ISR vector=%d n=%llu cyc_min=%llu cyc_mean=%.1f cyc_max=%llu\n", v,
+               (unsigned long long)s->n, (unsigned long long)s->min, (double)s->sum / (double)s->n,
+               (unsigned long long)s->max);
+    }
+}
+
 /* ---------------------------------------------------------------- stdin commands */
 
 static int parse_fault(const char* s) {
@@ -576,6 +621,7 @@ static void usage(const char* prog) {
             "      --elec-offset DEG  electrical angle at encoder zero (default 0)\n"
             "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
             "      --freq HZ          CPU clock (default 16000000)\n"
+            "      --isr-stats        cycles per interrupt vector, printed as ISR lines at exit\n"
             "      --profile FILE     sample the PC inside the control step, write FILE at exit\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
             "                         firmware uses their counters or interrupts)\n",
@@ -594,7 +640,8 @@ enum {
     OPT_MODEL,
     OPT_FREQ,
     OPT_SIMPWM,
-    OPT_PROFILE
+    OPT_PROFILE,
+    OPT_ISR
 };
 
 typedef struct {
@@ -644,6 +691,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"freq", required_argument, 0, OPT_FREQ},
         {"sim-pwm-timers", no_argument, 0, OPT_SIMPWM},
         {"profile", required_argument, 0, OPT_PROFILE},
+        {"isr-stats", no_argument, 0, OPT_ISR},
         {"ke", required_argument, 0, OPT_KE},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
@@ -692,6 +740,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
                 break;
             case OPT_FREQ:
                 o->freq_hz = (uint32_t)parse_double(optarg, "--freq");
+                break;
+            case OPT_ISR:
+                g_isr_stats = 1;
                 break;
             case OPT_PROFILE:
                 g_profile_path = optarg;
@@ -812,6 +863,7 @@ int main(int argc, char** argv) {
     while (!g_stop && g_avr->cycle < end_cycle) {
         state = avr_run(g_avr);
         if (state == cpu_Done || state == cpu_Crashed) break;
+        if (g_isr_stats) isr_track();
         if (g_pwm_request) {
             g_pwm_request = 0;
             print_pwm();
@@ -823,6 +875,7 @@ int main(int argc, char** argv) {
     }
     if (state == cpu_Crashed) printf("CRASHED pc=0x%05x\n", (unsigned)g_avr->pc);
     print_stats("FINAL", &g_cyc_total);
+    if (g_isr_stats) print_isr_stats();
     write_profile();
     /* no uart_pty_stop(): it hangs in pthread_join (simavr 1.6); exit ends its thread */
     if (opt.pty_link) unlink(opt.pty_link);

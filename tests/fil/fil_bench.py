@@ -17,18 +17,20 @@ import math
 import sys
 import time
 
-from filharness import Harness, firmware_elf, stats_rpm
+from filharness import Harness, firmware_elf, parse_kv, stats_rpm
 
 from gyrohost.drivers.wheelboard import WheelBoard
 
 TARGET_RPM = 715.0
 TARGET_RAD_S = TARGET_RPM * 2 * math.pi / 60
 TICK_CYCLES = 16000
+VECTOR_NAMES = {12: "WDT", 13: "TIMER2_COMPA", 24: "SPI_STC", 25: "USART0_RX", 26: "USART0_UDRE"}
+VECTOR_NAMES[27] = "USART0_TX"
 
 
 def bench_cycles(seconds: float) -> None:
     elf = firmware_elf()
-    with Harness(elf) as h:
+    with Harness(elf, ["--isr-stats"]) as h:
         board = WheelBoard(h.pty)
         try:
             board.connect()
@@ -57,6 +59,14 @@ def bench_cycles(seconds: float) -> None:
         f"firmware   tick_overruns {fw['tick_overruns']}  step_max_us {fw['step_max_us']}  "
         f"tx_dropped {fw['tx_dropped']}"
     )
+    for line in h.log:  # whole run: start, ramp, 715 rpm, stop
+        if line.startswith("ISR "):
+            isr = parse_kv(line)
+            name = VECTOR_NAMES.get(int(isr["vector"]), "")
+            print(
+                f"ISR {isr['vector']:>2} {name:13s} n {isr['n']:>7}  cycles min {isr['cyc_min']}"
+                f"  mean {isr['cyc_mean']}  max {isr['cyc_max']}"
+            )
 
 
 def step_figures(t_s: list[float], w: list[float], target: float) -> dict[str, float]:
