@@ -61,3 +61,16 @@ def test_replanner_period_and_continuity(dbar, planner):
     squeeze = [np.mean([s(ti)[0] for ti in t]) for s in (first, loop.schedule)]
     assert squeeze[1] < squeeze[0]  # the re-plan squeezes harder to catch up
     assert loop.records[1].predicted_tilt_rad == pytest.approx(TARGET, abs=1e-3)
+
+
+def test_ekf_adapter_maps_the_filter_state(dbar):
+    from types import SimpleNamespace
+
+    from gyrohost.control.closed_loop import ekf_estimate
+
+    x = dbar.initial_state()
+    L = dbar.layout
+    xf = np.concatenate([x[: L.q_dot.stop], dbar.spin0, [0.01, 0.02, 0.03]])  # + gyro bias
+    t, back = ekf_estimate(SimpleNamespace(model=dbar, x=xf, t=1.5))()
+    assert t == 1.5
+    np.testing.assert_array_equal(back, x)

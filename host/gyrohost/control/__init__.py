@@ -14,7 +14,7 @@ See ``docs/schedule.md``. ``python -m gyrohost.control`` prints the SIL figures.
 """
 
 from .attitude import Attitude
-from .closed_loop import Replanner, ReplanRecord, TruthPlusNoise
+from .closed_loop import Replanner, ReplanRecord, TruthPlusNoise, ekf_estimate
 from .errors import PlanError, ScheduleError
 from .planner import Plan, Planner, Weights, plan
 from .presets import PRESETS, preset
@@ -35,6 +35,7 @@ __all__ = [
     "ScheduleError",
     "TruthPlusNoise",
     "Weights",
+    "ekf_estimate",
     "load_schedule",
     "plan",
     "preset",

@@ -16,7 +16,8 @@ re-plan keeps the previous schedule, which stays feasible (the knots do not move
 
 Estimate interface: any callable ``estimate() -> (t_s, x)`` returning the time (s) and a full
 state of the planner's model (layout of ``gyrotensegrity.Model``). The EKF plugs in there;
-:class:`TruthPlusNoise` stands in for it in SIL.
+:class:`TruthPlusNoise` stands in for it in SIL; :func:`ekf_estimate` adapts the EKF of
+``gyrohost.estimator`` (its state ``[eta2 | eta2_dot | omega_w | gyro bias]``).
 """
 
 from dataclasses import dataclass, field
@@ -135,3 +136,23 @@ class TruthPlusNoise:
         x[L.q] += self.rng.normal(0.0, self.std[0], x[L.q].size)
         x[L.q_dot] += self.rng.normal(0.0, self.std[1], x[L.q_dot].size)
         return self.stepper.t, x
+
+
+def ekf_estimate(ekf):
+    """An ``estimate() -> (t_s, x)`` reading a ``gyrohost.estimator`` EKF.
+
+    The filter state is ``[vec(eta2) (3 m) | vec(eta2_dot) (3 m) | omega_w (n_w) | b_g (3)]``;
+    the model state gets the same coordinates, zero wheel angles (nothing here depends on
+    them) and the spins of the torque-driven wheels.
+    """
+    model = ekf.model
+    L = model.layout
+    n_w = len(model.wheel_bars)
+
+    def estimate():
+        xf = np.asarray(ekf.x, float)
+        omega_w = xf[L.q_dot.stop : L.q_dot.stop + n_w]
+        x = np.concatenate([xf[: L.q_dot.stop], np.zeros(n_w), omega_w[model.torque_wheels]])
+        return float(ekf.t), x
+
+    return estimate
