@@ -5,12 +5,13 @@
  * (byte addresses of the ISR functions, from avr-nm; `make -C firmware cycles` passes them).
  *
  * Drives the firmware like a host would: HELLO, a long heartbeat timeout, closed-loop setpoints
- * at 715 rpm, then runs 2 s of simulated time. Encoders answer on SPI with a rotating angle
- * (195 counts per 1 ms, about 715 rpm). Reports the control step (cycles between the writes
- * GPIOR0 = 1 and GPIOR0 = 0: encoder reads, estimator, PI, commutation of all four wheels), the
- * main-loop rate (control steps per simulated second) and each ISR from its first instruction to
- * its reti inclusive (the interrupt response and vector jump add 8 cycles on the ATmega2560, not
- * included).
+ * at 715 rpm (+ - + - for wheels 0..3), then runs 2 s of simulated time. Encoders answer on SPI
+ * with an angle rotating at 195 counts per 1 ms (about 715 rpm) in the direction of their wheel's
+ * setpoint (the selected encoder is the one whose chip select, PA4..PA7, is low). Reports the
+ * control step (cycles between the writes GPIOR0 = 1 and GPIOR0 = 0: encoder reads, estimator, PI,
+ * commutation of all four wheels), the main-loop rate (control steps per simulated second) and each
+ * ISR from its first instruction to its reti inclusive (the interrupt response and vector jump add
+ * 8 cycles on the ATmega2560, not included).
  *
  * SPI timing: simavr 1.6 completes every SPDR write after a fixed 100 us (1,600 cycles) whatever
  * the SPI clock. The bench takes over the SPDR write like firmware/sim/fil_harness.c does: the
@@ -39,6 +40,7 @@ typedef struct {
 } isr_stat_t;
 
 #define ADDR_SPDR 0x4E
+#define ADDR_PORTA 0x22
 #define TICK_CYCLES 16000u
 
 static uint64_t g_mark_start, g_steps, g_sum, g_min = UINT64_MAX, g_max;
@@ -75,7 +77,10 @@ static uint16_t enc_word(uint16_t angle) {
 /* The encoder's reply byte to the byte the firmware just sent. */
 static uint8_t encoder_byte(void) {
     if (g_byte_index == 0) {
+        uint8_t cs = g_avr->data[ADDR_PORTA] >> 4; /* active low, bit i = encoder i */
+        int odd = !(cs & 0x1) ? 0 : !(cs & 0x2) ? 1 : !(cs & 0x4) ? 0 : 1;
         g_angle = (uint16_t)((g_avr->cycle / TICK_CYCLES) * 195u); /* 195 counts per ms */
+        if (odd) g_angle = (uint16_t)(0u - g_angle); /* wheels 1 and 3 turn backwards */
         g_word = enc_word(g_angle);
     }
     uint8_t miso = g_byte_index == 0 ? (uint8_t)(g_word >> 8) : (uint8_t)g_word;
