@@ -1,0 +1,194 @@
+"""The simulated rig in a child process, for runs in real time.
+
+In one interpreter the rig's truth model, its emulators, the drivers and the estimator share
+one GIL and fall behind real time together; in a child process the rig has an interpreter of
+its own and the host side sees only its pseudo-terminals, as it would see hardware. The child
+also samples the truth every ``period_s`` and sends it up a pipe, stamped with
+``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
+answers fault injections and statistics requests.
+"""
+
+import multiprocessing
+import signal
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+READY_TIMEOUT_S = 60.0
+"""Longest wait for the child to import, build the rig and report its ptys, s."""
+
+
+class RigProcessError(RuntimeError):
+    """The child process failed to start or its rig failed."""
+
+
+@dataclass(frozen=True)
+class TruthSample:
+    """The truth at one instant.
+
+    Attributes
+    ----------
+    t_ns : int
+        ``time.monotonic_ns`` when sampled, ns.
+    rig_t_s : float
+        Rig time, s.
+    N : ndarray, shape (3, n), m
+        Scene node positions.
+    omega_w_rad_s : ndarray, shape (n_w,), rad/s
+        True wheel spins (scene wheel order).
+    rest_length_m : ndarray, shape (alpha,), m
+        True string rest lengths (scene order).
+    """
+
+    t_ns: int
+    rig_t_s: float
+    N: np.ndarray
+    omega_w_rad_s: np.ndarray
+    rest_length_m: np.ndarray
+
+
+class RigProcess:
+    """A :class:`~gyrohost.rig.sim.SimulatedRig` (real clock) served by a child process.
+
+    Parameters
+    ----------
+    config : RigConfig
+    period_s : float, s
+        Truth sampling period.
+
+    Attributes
+    ----------
+    paths : dict
+        Device name -> pty path.
+    node_names, string_names : list of str
+    n_wheels : int
+    """
+
+    def __init__(self, config, period_s: float = 0.01):
+        ctx = multiprocessing.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        self._proc = ctx.Process(
+            target=_serve, args=(child, config, period_s), name="gyrotens-rig", daemon=True
+        )
+        self._proc.start()
+        child.close()
+        self._pending: list[TruthSample] = []
+        reply = self._reply("ready", READY_TIMEOUT_S)
+        self.paths = reply["paths"]
+        self.node_names = reply["node_names"]
+        self.string_names = reply["string_names"]
+        self.n_wheels = reply["n_wheels"]
+
+    def truth(self) -> list[TruthSample]:
+        """Truth samples received since the last call (never waits)."""
+        while self._conn.poll():
+            self._take(self._conn.recv())
+        out, self._pending = self._pending, []
+        return out
+
+    def inject(self, device: str, fault: str, **kwargs) -> None:
+        """Inject a fault now (arguments of ``SimulatedRig.inject``)."""
+        self._conn.send(("inject", (device, fault), kwargs))
+        self._reply("injected")
+
+    def stats_lines(self) -> list[str]:
+        """The rig's rates and truth timing lines."""
+        self._conn.send(("stats", (), {}))
+        return self._reply("stats")["lines"]
+
+    def close(self) -> None:
+        """Stop the child (idempotent)."""
+        if self._proc.is_alive():
+            try:
+                self._conn.send(("close", (), {}))
+            except (BrokenPipeError, OSError):
+                pass
+            self._proc.join(5.0)
+            if self._proc.is_alive():
+                self._proc.terminate()
+                self._proc.join(1.0)
+        self._conn.close()
+
+    def __enter__(self) -> "RigProcess":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _take(self, msg) -> dict | None:
+        kind, body = msg
+        if kind == "truth":
+            self._pending.append(TruthSample(*body))
+            return None
+        if kind == "error":
+            raise RigProcessError(f"simulated rig: {body}")
+        return {"kind": kind, **body}
+
+    def _reply(self, kind: str, timeout_s: float = 5.0) -> dict:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._proc.is_alive() and not self._conn.poll():
+                raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
+            if self._conn.poll(min(left, 0.1)):
+                reply = self._take(self._conn.recv())
+                if reply is not None and reply["kind"] == kind:
+                    return reply
+
+
+def _serve(conn, config, period_s: float) -> None:
+    """Child process: build and start the rig, stream the truth, answer requests."""
+    from gyrohost.rig.sim import FaultCommandError, SimulatedRig
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it still needs the rig
+    try:
+        rig = SimulatedRig(config, clock="real").start()
+    except Exception as exc:  # reported to the parent, which raises it
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    truth = rig.truth
+    conn.send(
+        (
+            "ready",
+            {
+                "paths": rig.paths,
+                "node_names": list(truth.node_names),
+                "string_names": [s.name for s in truth.model.scene.strings],
+                "n_wheels": len(truth.wheel_input_rad_s),
+            },
+        )
+    )
+    next_s = time.monotonic()
+    try:
+        while True:
+            if rig.loop_error is not None:
+                conn.send(("error", f"the rig loop stopped: {rig.loop_error!r}"))
+                return
+            if conn.poll(max(next_s - time.monotonic(), 0.0)):
+                kind, args, kwargs = conn.recv()
+                if kind == "close":
+                    return
+                if kind == "inject":
+                    try:
+                        rig.inject(*args, **kwargs)
+                        conn.send(("injected", {}))
+                    except FaultCommandError as exc:
+                        conn.send(("error", str(exc)))
+                elif kind == "stats":
+                    s = rig.stats()
+                    conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
+                continue
+            next_s += period_s
+            sample = (
+                time.monotonic_ns(),
+                rig.t_s,
+                rig.truth_nodes(),
+                rig.truth_wheel_speeds(),
+                rig.truth_rest_lengths(),
+            )
+            conn.send(("truth", sample))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        return
+    finally:
+        rig.close()

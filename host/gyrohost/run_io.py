@@ -1,0 +1,208 @@
+"""Device I/O of the run loop in background threads, so the fixed-rate loop never waits on a port.
+
+Each device gets one reader that turns what arrives into :class:`Sample` objects (host arrival
+time plus the parsed values) on one shared queue; a reader that fails puts a :class:`DeviceFault`
+there instead and stops, so the loop learns about it at its next tick.
+
+- :class:`ImuReader`: polls the BWT61CL driver; silence longer than ``silence_s`` is a fault.
+- :class:`WheelTelemetry`: the wheel-board client already reads in its own thread; this stamps
+  every TELEMETRY on arrival, notices a board reboot (device time running backwards), latched
+  faults and silence.
+- :class:`ServoWorker`: owns the Dynamixel bus while the loop runs (the SDK is not thread-safe):
+  sends the newest length goals, reads the states back at ``rate_hz``.
+"""
+
+import queue
+import threading
+import time
+from dataclasses import dataclass
+
+from gyrohost.drivers.imu import ImuError
+from gyrohost.drivers.servos import ServoCommError, ServoError, ServoLimitError
+
+POLL_IDLE_S = 0.002
+"""Sleep of the IMU reader when nothing has arrived, s (at most this much extra latency)."""
+
+
+class DeviceFault(RuntimeError):
+    """A device failed during a run; ``device`` names it (``imu``, ``wheels``, ``servos``)."""
+
+    def __init__(self, device: str, message: str):
+        super().__init__(f"{device}: {message}")
+        self.device = device
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One device sample as it arrived.
+
+    Attributes
+    ----------
+    device : str
+        ``imu``, ``wheels`` or ``servos``.
+    t_ns : int
+        Host arrival time (``time.monotonic_ns``), ns.
+    value : object
+        The driver's sample: ``ImuSample``, ``wheelproto.Telemetry`` or a list of ``ServoState``.
+    """
+
+    device: str
+    t_ns: int
+    value: object
+
+
+class _Reader:
+    """A daemon thread that calls ``self._cycle()`` until stopped; errors become faults."""
+
+    name = "device"
+
+    def __init__(self, out: queue.Queue):
+        self.out = out
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"run-{self.name}", daemon=True)
+
+    def start(self):
+        self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                self._cycle()
+        except DeviceFault as exc:
+            self.out.put(exc)
+        except (ImuError, ServoError, ServoLimitError, OSError) as exc:
+            self.out.put(DeviceFault(self.name, f"{type(exc).__name__}: {exc}"))
+
+    def _cycle(self) -> None:  # pragma: no cover - every reader overrides it
+        raise NotImplementedError
+
+
+class ImuReader(_Reader):
+    """Reads IMU samples; no sample for ``silence_s`` s is a :class:`DeviceFault`."""
+
+    name = "imu"
+
+    def __init__(self, driver, out: queue.Queue, silence_s: float):
+        super().__init__(out)
+        self.driver = driver
+        self.silence_s = silence_s
+        self._last_ns = time.monotonic_ns()
+
+    def _cycle(self) -> None:
+        samples = self.driver.poll()
+        for s in samples:
+            self.out.put(Sample("imu", s.t_ns, s))
+        now = time.monotonic_ns()
+        if samples:
+            self._last_ns = now
+            return
+        if now - self._last_ns > self.silence_s * 1e9:
+            stats = self.driver.stats
+            raise DeviceFault(
+                "imu",
+                f"no sample for {self.silence_s:g} s (frames {stats.frames}, corrupt "
+                f"{stats.corrupt_frames}, dropped {stats.dropped_frames})",
+            )
+        time.sleep(POLL_IDLE_S)
+
+
+class WheelTelemetry(_Reader):
+    """Stamps wheel-board telemetry on arrival and watches the board.
+
+    Install :meth:`on_telemetry` as the client's ``on_telemetry`` callback. Faults: telemetry
+    silent for ``silence_s`` s, the device clock ``t_us`` running backwards (a reboot), and
+    latched fault bits (names from the protocol table).
+    """
+
+    name = "wheels"
+
+    def __init__(self, out: queue.Queue, silence_s: float):
+        super().__init__(out)
+        self.silence_s = silence_s
+        self.latest = None
+        self._last_ns = time.monotonic_ns()
+        self._last_t_us: int | None = None
+        self._fault: DeviceFault | None = None
+
+    def on_telemetry(self, tel) -> None:
+        """Client callback (its reader thread): queue the sample, check for reboot and faults."""
+        now = time.monotonic_ns()
+        self._last_ns = now
+        if self._last_t_us is not None and 0 < self._last_t_us - tel.t_us < 2**31:
+            self._fault = self._fault or DeviceFault(
+                "wheels",
+                f"board rebooted (device clock went from {self._last_t_us} us to {tel.t_us} us)",
+            )
+        self._last_t_us = tel.t_us
+        if tel.faults:
+            self._fault = self._fault or DeviceFault(
+                "wheels", f"faults latched: {', '.join(tel.fault_names)}"
+            )
+        self.latest = tel
+        self.out.put(Sample("wheels", now, tel))
+
+    def _cycle(self) -> None:
+        if self._fault is not None:
+            raise self._fault
+        if time.monotonic_ns() - self._last_ns > self.silence_s * 1e9:
+            raise DeviceFault("wheels", f"no telemetry for {self.silence_s:g} s")
+        self._stop.wait(0.01)
+
+
+class ServoWorker(_Reader):
+    """Owns the servo bus during the run: newest goals out, states in, at ``rate_hz``.
+
+    A missing or corrupt status packet is retried at the next cycle; ``max_comm_errors`` in a
+    row make a fault. A fault bit in a status packet (overload, ...) is a fault at once.
+
+    Parameters
+    ----------
+    bus : StringServoBus
+    out : queue.Queue
+    rate_hz : float, Hz
+        Read-back rate (each cycle: the pending goals, if any, then one read of all servos).
+    max_comm_errors : int
+    """
+
+    name = "servos"
+
+    def __init__(self, bus, out: queue.Queue, rate_hz: float, max_comm_errors: int = 5):
+        super().__init__(out)
+        self.bus = bus
+        self.period_s = 1.0 / rate_hz
+        self.max_comm_errors = max_comm_errors
+        self.comm_errors = 0
+        self.comm_errors_total = 0
+        self._goal_lock = threading.Lock()
+        self._goals: dict[str, float] | None = None
+
+    def command(self, lengths_m: dict[str, float]) -> None:
+        """Queue string length goals (name -> m); only the newest is sent."""
+        with self._goal_lock:
+            self._goals = dict(lengths_m)
+
+    def _cycle(self) -> None:
+        start = time.monotonic()
+        with self._goal_lock:
+            goals, self._goals = self._goals, None
+        try:
+            if goals:
+                self.bus.command_lengths(goals)
+            states = self.bus.read_states()
+        except ServoCommError:
+            self.comm_errors += 1
+            self.comm_errors_total += 1
+            if self.comm_errors >= self.max_comm_errors:
+                raise
+            with self._goal_lock:
+                self._goals = self._goals or goals  # resend them next cycle
+        else:
+            self.comm_errors = 0
+            self.out.put(Sample("servos", time.monotonic_ns(), states))
+        self._stop.wait(max(self.period_s - (time.monotonic() - start), 0.0))
