@@ -25,6 +25,8 @@ against (tests/model/test_fast.py).
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg import solve_banded
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .errors import SimulationError
 from .model import Model
@@ -39,6 +41,22 @@ DENSE_LIMIT = 400  # above this many coordinates (m') joints use the sparse sadd
 
 def _dense(a):
     return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+
+class _Right:
+    """``X @ A`` for X of shape (..., k) and a constant A (k, l), dense or sparse."""
+
+    def __init__(self, A, dense: bool):
+        self.dense = dense
+        self.A = _dense(A) if dense else None
+        self.A_T = None if dense else sp.csr_matrix(A.T)
+        self.l = A.shape[1]
+
+    def __call__(self, X):
+        if self.dense:
+            return X @ self.A
+        flat = X.reshape(-1, X.shape[-1])
+        return np.asarray(self.A_T @ flat.T).T.reshape(X.shape[:-1] + (self.l,))
 
 
 class FastDynamics:
@@ -74,79 +92,96 @@ class FastDynamics:
             N_fix = np.zeros((3, model.n))
             P_u = _dense(st.P)
         self.size = U.shape[1]  # m'
-        self._U = U
-        self.U_T = _dense(U).T if self.size <= DENSE_LIMIT else None
+        dense = self.size <= DENSE_LIMIT
+        self.U_T = _Right(U.T, dense)
         self.N_fix = N_fix
         E = sp.csr_matrix(st.C_b @ U)
         E_s = sp.csr_matrix(st.C_s @ U)
         # (bars | strings) images of z, with the constant offsets of the positions
-        self.EE_T = sp.vstack([E, E_s]).T.tocsr()
+        self.EE_T = _Right(sp.vstack([E, E_s]).T, dense)
         self.off = np.hstack([N_fix @ st.C_b.T.toarray(), N_fix @ st.C_s.T.toarray()])
         # reduced forces: (G + B mu^ | S gamma^) @ [E; -E_s]
-        self.E_force = sp.vstack([E, -E_s]).tocsr()
-        self.E = E
+        self.E_force = _Right(sp.vstack([E, -E_s]), dense)
         self.WU = np.asarray(U.T @ np.asarray(model.W).T).T  # (3, m')
         self.k_s, self.c_s = model.k_s, model.c_s
         self._wheels(model)
-        self._mass(model, U, E, P_u)
         self.state_size = 6 * self.size + model.layout.n_wheels + model.layout.n_torque
         self.kernel = None
-        if self.size <= DENSE_LIMIT:
-            self.EE_T, self.E_force, self.E = (_dense(a) for a in (self.EE_T, self.E_force, E))
+        if dense:
+            self._dense_mass(model, U, E, P_u)
             if kernel and _fastkernel is not None:
                 self._kernel_constants()
+        else:
+            self._sparse_mass(model, U, E, P_u)
 
     # -- constants --------------------------------------------------------------------------
     def _wheels(self, model):
-        nw, L = len(model.wheel_bars), model.layout
         gyro = "gyroscopic" in model.terms
-        coef = model.J_a[model.wheel_bars] / model.l[model.wheel_bars] if gyro else np.zeros(nw)
-        self.wheel_to_bar = np.zeros((nw, self.beta))  # omega_w @ this = gyro factor per bar
-        self.wheel_to_bar[np.arange(nw), model.wheel_bars] = coef
-        self.torque_select = np.zeros((L.n_torque, nw))
-        self.torque_select[np.arange(L.n_torque), model.torque_wheels] = 1.0
-        self.speed_mask = np.zeros(nw)
+        wb, tq = model.wheel_bars, model.torque_wheels
+        self.wheel_bars, self.torque_wheels, self.n_wheels = wb, tq, len(wb)
+        self.gyro_coef = model.J_a[wb] / model.l[wb] if gyro else np.zeros(len(wb))
+        self.speed_mask = np.zeros(len(wb))
         self.speed_mask[model.speed_wheels] = 1.0
-        self.torque_gain = np.zeros((nw, L.n_torque))  # u_wheel @ this = spin acceleration
-        tq = model.torque_wheels
-        self.torque_gain[tq, np.arange(L.n_torque)] = 1.0 / model.J3[model.wheel_bars[tq]]
+        self.inv_J3 = 1.0 / model.J3[wb[tq]]  # spin acceleration per unit torque, 1/(kg m^2)
 
-    def _mass(self, model, U, E, P_u):
-        M = sp.csc_matrix(U.T @ model.M_s @ U)
+    def _wheel_matrices(self):
+        """Dense wheel maps for the compiled kernel: spins -> gyro factor per bar,
+        torque-wheel states -> spins, wheel inputs -> spin accelerations."""
+        nw, ntq, tq = self.n_wheels, len(self.torque_wheels), self.torque_wheels
+        to_bar = np.zeros((nw, self.beta))
+        to_bar[np.arange(nw), self.wheel_bars] = self.gyro_coef
+        select = np.zeros((ntq, nw))
+        select[np.arange(ntq), tq] = 1.0
+        gain = np.zeros((nw, ntq))
+        gain[tq, np.arange(ntq)] = self.inv_J3
+        return [to_bar, select, self.speed_mask, gain]
+
+    def _dense_mass(self, model, U, E, P_u):
+        """Dense constants: M^-1, E M^-1, Y = E M^-1 E^T and the joint blocks."""
+        M_inv = np.linalg.inv((U.T @ model.M_s @ U).toarray())
+        M_inv = 0.5 * (M_inv + M_inv.T)
+        E_d = E.toarray()
+        E_Minv = E_d @ M_inv  # (beta, m')
+        Y = E_Minv @ E_d.T
         self.c_u = P_u.shape[1]
-        if self.size <= DENSE_LIMIT:
-            M_inv = np.linalg.inv(M.toarray())
-            M_inv = 0.5 * (M_inv + M_inv.T)
-            E_d = E.toarray()
-            self.E_Minv = E_d @ M_inv  # (beta, m')
-            self.Minv_ET = self.E_Minv.T
-            self.Minv = M_inv
-            Y = self.E_Minv @ E_d.T
-            self.P_u, self.Pu_Minv = P_u, P_u.T @ M_inv  # (m', c_u), (c_u, m')
-            self.X = self.Pu_Minv @ E_d.T  # (c_u, beta)
-            self.A3 = np.kron(np.eye(3), self.Pu_Minv @ P_u)  # joint block, (3 c_u, 3 c_u)
-            off = Y - np.diag(np.diag(Y))
-            self.diagonal = self.c_u == 0 and not np.any(np.abs(off) > 1e-14 * np.abs(Y).max())
-            self.Y, self.Y_diag = Y, np.diag(Y).copy()
+        self.Minv, self.Minv_ET, self.E_Minv = (_Right(a, True) for a in (M_inv, E_Minv.T, E_Minv))
+        self.P_u, self.Pu_Minv = P_u, P_u.T @ M_inv  # (m', c_u), (c_u, m')
+        self.X = self.Pu_Minv @ E_d.T  # (c_u, beta)
+        self.A3 = np.kron(np.eye(3), self.Pu_Minv @ P_u)  # joint block, (3 c_u, 3 c_u)
+        off = Y - np.diag(np.diag(Y))
+        self.diagonal = self.c_u == 0 and not np.any(np.abs(off) > 1e-14 * np.abs(Y).max())
+        self.Y, self.Y_diag = Y, np.diag(Y).copy()
+        self.sparse = None
+
+    def _sparse_mass(self, model, U, E, P_u):
+        """Large structures. Without constraints ``M^-1 = U^T M_s^-1 U`` is sparse (Eq. 47)
+        and ``Y`` diagonal: everything stays sparse and linear in size. With joints:
+        the saddle-point system (:class:`_SparseConstraints`)."""
+        self.c_u = P_u.shape[1]
+        if self.c_u:
+            raise ValueError(
+                f"full coordinates with joints are supported up to {DENSE_LIMIT} "
+                f"coordinates; this model has {self.size}"
+            )
+        self.diagonal = model.c == 0
+        if self.diagonal:
+            M_inv = sp.csr_matrix(U.T @ model.M_s_inv @ U)
+            E_Minv = sp.csr_matrix(E @ M_inv)
+            self.Y_diag = np.asarray(E_Minv.multiply(E).sum(axis=1)).ravel()
+            self.Minv = _Right(M_inv, False)
+            self.Minv_ET, self.E_Minv = _Right(E_Minv.T, False), _Right(E_Minv, False)
             self.sparse = None
         else:
-            if self.c_u:
-                raise ValueError(
-                    "full coordinates with joints are supported up to "
-                    f"{DENSE_LIMIT} coordinates; this model has {self.size}"
-                )
-            self.sparse = _SparseConstraints(M, E)
-            self.diagonal = self.sparse.diagonal
-            self.Y_diag = self.sparse.Y_diag
+            self.sparse = _SparseConstraints(sp.csc_matrix(U.T @ model.M_s @ U), E)
 
     def _kernel_constants(self):
         """Pack the dense constants for the compiled kernel (order of ``layout`` in C)."""
-        parts = [self.EE_T, self.off, self.k_s, self.c_s, self.wheel_to_bar]
-        parts += [self.torque_select, self.speed_mask, self.torque_gain, self.WU, self.E_force]
-        parts += [self.Minv, self.Minv_ET, self.E_Minv, self.Y, self.P_u, self.Pu_Minv]
+        parts = [self.EE_T.A, self.off, self.k_s, self.c_s, *self._wheel_matrices()]
+        parts += [self.WU, self.E_force.A]
+        parts += [self.Minv.A, self.Minv_ET.A, self.E_Minv.A, self.Y, self.P_u, self.Pu_Minv]
         parts += [self.X, self.A3]
         self._consts = np.concatenate([np.asarray(p, float).ravel() for p in parts])
-        nw, ntq = len(self.speed_mask), self.torque_select.shape[0]
+        nw, ntq = self.n_wheels, len(self.torque_wheels)
         self._dims = np.array(
             [self.size, self.beta, self.alpha, nw, ntq, self.c_u, int(self.diagonal)], np.int64
         )
@@ -174,37 +209,37 @@ class FastDynamics:
 
     def node_values(self, z):
         """``z U^T`` (no offset): node velocities or accelerations (..., 3, n)."""
-        if self.U_T is not None:
-            return z @ self.U_T
-        return np.moveaxis(self._U @ np.moveaxis(z, -1, 0).reshape(self.size, -1), 0, -1)
+        return self.U_T(z)
 
     def _accelerations(self, q, q_dot, omega_w, rest):
         beta = self.beta
-        Y6 = np.concatenate([q, q_dot], axis=-2) @ self.EE_T  # (..., 6, beta + alpha)
+        Y6 = self.EE_T(np.concatenate([q, q_dot], axis=-2))  # (..., 6, beta + alpha)
         Y6[..., :3, :] += self.off
         pos, vel = Y6[..., :3, :], Y6[..., 3:, :]
         B, B_dot = pos[..., :beta], vel[..., :beta]
         S = pos[..., beta:]
-        sums = np.sum(pos * Y6.reshape(Y6.shape[:-2] + (2, 3, -1)), axis=-2)
+        sums = _colsum(pos * Y6.reshape(Y6.shape[:-2] + (2, 3, -1)))
         b2 = sums[..., 0, :beta]
         s = np.sqrt(sums[..., 0, beta:])
         tension = self.k_s * (s - rest) + self.c_s * (sums[..., 1, beta:] / s)
         taut = (s.real > rest) & (tension.real > 0.0)
         gamma = np.where(taut, tension / s, 0.0)
-        G = _cross(B, B_dot) * (omega_w @ self.wheel_to_bar)[..., None, :]
+        factor = np.zeros(omega_w.shape[:-1] + (beta,), dtype=omega_w.dtype)
+        factor[..., self.wheel_bars] = self.gyro_coef * omega_w  # J_a omega_w / l per bar
+        G = _cross(B, B_dot) * factor[..., None, :]
         cols = np.concatenate([G, S * gamma[..., None, :]], axis=-1)
-        f0 = self.WU + cols @ self.E_force  # (..., 3, m')
-        bd2 = np.sum(B_dot * B_dot, axis=-2)
+        f0 = self.WU + self.E_force(cols)  # (..., 3, m')
+        bd2 = _colsum(B_dot * B_dot)
         if self.sparse is not None:
             return self.sparse.solve(f0, B, b2, bd2)
-        a0 = f0 @ self.Minv
-        r = -bd2 - np.sum(B * (f0 @ self.Minv_ET), axis=-2)
+        a0 = self.Minv(f0)
+        r = -bd2 - _colsum(B * self.Minv_ET(f0))
         if self.diagonal:
-            return a0 + (B * (r / (self.Y_diag * b2))[..., None, :]) @ self.E_Minv
+            return a0 + self.E_Minv(B * (r / (self.Y_diag * b2))[..., None, :])
         Z = self.Y * (np.swapaxes(B, -1, -2) @ B)
         if not self.c_u:
             mu = np.linalg.solve(Z, r[..., None])[..., 0]
-            return a0 + (B * mu[..., None, :]) @ self.E_Minv
+            return a0 + self.E_Minv(B * mu[..., None, :])
         return self._with_joints(a0, B, Z, r)
 
     def _with_joints(self, a0, B, Z, r):
@@ -222,7 +257,7 @@ class FastDynamics:
         rhs = np.concatenate([r, -(a0 @ self.P_u).reshape(lead + (3 * c,))], axis=-1)
         sol = np.linalg.solve(K, rhs[..., None])[..., 0]
         mu, Omega = sol[..., :beta], sol[..., beta:].reshape(lead + (3, c))
-        return a0 + (B * mu[..., None, :]) @ self.E_Minv + Omega @ self.Pu_Minv
+        return a0 + self.E_Minv(B * mu[..., None, :]) + Omega @ self.Pu_Minv
 
     # -- state-vector interface ------------------------------------------------------------
     def split(self, x, u):
@@ -235,8 +270,8 @@ class FastDynamics:
         k = 3 * self.size
         q = x[:k].reshape(3, self.size)
         q_dot = x[k : 2 * k].reshape(3, self.size)
-        nw = len(self.speed_mask)
-        omega_w = x[2 * k + nw :] @ self.torque_select + self.speed_mask * u[self.alpha :]
+        omega_w = self.speed_mask * u[self.alpha :]
+        omega_w[self.torque_wheels] = x[2 * k + self.n_wheels :]
         return q, q_dot, omega_w
 
     def rhs(self, t, x, u):
@@ -279,7 +314,7 @@ class FastDynamics:
         q, q_dot, omega_w = self.split(x, u)
         z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
         k = 3 * self.size
-        spin = u[self.alpha :] @ self.torque_gain
+        spin = u[self.alpha + self.torque_wheels] * self.inv_J3
         return np.concatenate([x[k : 2 * k], z_ddot.ravel(), omega_w, spin])
 
     def nodes(self, x):
@@ -303,6 +338,11 @@ def fast_rhs(t, x, u, params: FastDynamics):
     return params.rhs(t, x, u)
 
 
+def _colsum(X):
+    """Sum over the 3 rows of (..., 3, k): cheaper than a reduction over a strided axis."""
+    return X[..., 0, :] + X[..., 1, :] + X[..., 2, :]
+
+
 def _cross(a, b):
     """Column-wise cross product of (..., 3, k) arrays (complex-step safe, no np.cross)."""
     return np.stack(
@@ -316,55 +356,59 @@ def _cross(a, b):
 
 
 class _SparseConstraints:
-    """Large reduced-order structures: M (m', m') sparse, factorized once.
+    """Large reduced-order structures with joints: ``E M^-1 E^T`` is dense, so the bar
+    multipliers come from the sparse saddle-point system ``[[kron(I3, M), G^T], [G, 0]]``
+    with the bar rows ``G[i, (r, k)] = b_ir E_ik``. Its pattern is fixed: a reverse
+    Cuthill-McKee order computed once makes it banded for chain-like structures (bandwidth 8
+    for prism chains), solved by banded LU in linear time; wider bands use sparse LU.
+    Single states; batches are looped."""
 
-    Class-1 (``E M^-1 E^T`` diagonal, e.g. no joints): ``mu`` is explicit. With joints: the
-    saddle-point system ``[[kron(I3, M), G^T], [G, 0]]`` with the bar rows
-    ``G[i, (r, k)] = b_ir E_ik`` is assembled on a fixed pattern and solved by sparse LU.
-    """
+    BAND_LIMIT = 64
 
     def __init__(self, M, E):
-        self.lu = spla.splu(sp.csc_matrix(M))
-        self.E = sp.csr_matrix(E)
+        Ec = sp.csr_matrix(E).tocoo()
         m, beta = M.shape[0], E.shape[0]
-        E_T = self.E.T.toarray() if m * beta <= 4e6 else None
-        MinvET = self.lu.solve(E_T) if E_T is not None else None
-        Y_diag = np.asarray(self.E.multiply(MinvET.T).sum(axis=1)).ravel()
-        # class-1: E M^-1 E^T diagonal when no two bars share a coordinate
-        shared = (abs(self.E) @ abs(self.E).T).tocoo()
-        self.diagonal = bool(np.all(shared.row == shared.col))
-        self.Y_diag = Y_diag
-        self.E_T_csr = self.E.T.tocsr()
-        self.m, self.beta = m, beta
-        Ec = self.E.tocoo()
-        r = np.arange(3)
+        n3, r = 3 * m, np.arange(3)
+        self.m, self.size = m, n3 + beta
         self.g_rows = np.repeat(Ec.row, 3)
         self.g_cols = (r[None, :] * m + Ec.col[:, None]).ravel()  # coordinate (r, k) -> r m + k
         self.g_e = np.repeat(Ec.data, 3)
         self.g_r = np.tile(r, len(Ec.data))
         Mc = sp.kron(sp.identity(3), M).tocoo()
         self.m_rows, self.m_cols, self.m_vals = Mc.row, Mc.col, Mc.data
-
-    def _m_solve(self, f):
-        """f M^-1 for f (..., 3, m)."""
-        flat = f.reshape(-1, self.m).T
-        return self.lu.solve(np.ascontiguousarray(flat)).T.reshape(f.shape)
+        rows = np.concatenate([Mc.row, n3 + self.g_rows, self.g_cols])
+        cols = np.concatenate([Mc.col, self.g_cols, n3 + self.g_rows])
+        pattern = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(self.size,) * 2)
+        self.perm = reverse_cuthill_mckee(pattern, symmetric_mode=True)
+        where = np.empty(self.size, dtype=int)
+        where[self.perm] = np.arange(self.size)
+        i, j = where[rows], where[cols]
+        self.band = int(np.abs(i - j).max())
+        if self.band <= self.BAND_LIMIT:
+            w = self.band
+            self.ab_const = np.zeros((2 * w + 1, self.size))
+            nm = len(Mc.row)
+            np.add.at(self.ab_const, (w + i[:nm] - j[:nm], j[:nm]), Mc.data)
+            self.g_pos = (w + i[nm:] - j[nm:], j[nm:])
 
     def solve(self, f0, B, b2, bd2):
+        """Accelerations (..., 3, m) from the reduced forces f0 without bar forces."""
         if B.ndim != 2:
-            return np.stack(
-                [self.solve(f0[k], B[k], b2[k], bd2[k]) for k in np.ndindex(B.shape[:-2])]
-            ).reshape(f0.shape)
-        a0 = self._m_solve(f0)
-        r = -bd2 - np.sum(B * np.asarray(self.E @ a0.T).T, axis=0)
-        if self.diagonal:
-            return a0 + self._m_solve(np.asarray(self.E_T_csr @ (B * (r / (self.Y_diag * b2))).T).T)
+            flat = [self.solve(f0[k], B[k], b2[k], bd2[k]) for k in np.ndindex(B.shape[:-2])]
+            return np.reshape(flat, f0.shape)
         n3 = 3 * self.m
         g = B[self.g_r, self.g_rows] * self.g_e
-        rows = np.concatenate([self.m_rows, n3 + self.g_rows, self.g_cols])
-        cols = np.concatenate([self.m_cols, self.g_cols, n3 + self.g_rows])
-        vals = np.concatenate([self.m_vals, g, g])
-        K = sp.csc_matrix((vals, (rows, cols)), shape=(n3 + self.beta, n3 + self.beta))
         rhs = np.concatenate([f0.ravel(), -bd2])
-        sol = spla.spsolve(K, rhs)
+        if self.band <= self.BAND_LIMIT:
+            ab = self.ab_const.copy()
+            ab[self.g_pos] = np.concatenate([g, g])
+            w = self.band
+            sol = np.empty(self.size)
+            sol[self.perm] = solve_banded((w, w), ab, rhs[self.perm], check_finite=False)
+        else:
+            rows = np.concatenate([self.m_rows, n3 + self.g_rows, self.g_cols])
+            cols = np.concatenate([self.m_cols, self.g_cols, n3 + self.g_rows])
+            vals = np.concatenate([self.m_vals, g, g])
+            K = sp.csc_matrix((vals, (rows, cols)), shape=(self.size, self.size))
+            sol = spla.spsolve(K, rhs)
         return sol[:n3].reshape(3, self.m)
