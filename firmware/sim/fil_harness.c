@@ -777,7 +777,6 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     uart_pty_init(avr, &g_pty);
     uart_pty_connect(&g_pty, '0');
-    printf("PTY %s\n", g_pty.pty.slavename);
     if (pty_link) {
         unlink(pty_link);
         if (symlink(g_pty.pty.slavename, pty_link) != 0) {
@@ -785,6 +784,7 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
             exit(1);
         }
     }
+    printf("PTY %s\n", g_pty.pty.slavename); /* after the link: the line means "ready" */
 
     g_spi = (avr_spi_t*)avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param;
     if (!g_spi || g_spi->r_spdr != ADDR_SPDR) {
