@@ -1,16 +1,18 @@
 """``gyrotens plot FILE -o DIR``: figures of a recorded file, dispatched on the file's type.
 
-Run files of the dynamics model (.npz with ``N`` and ``node_names``) are supported now; rig
-logs will get their own entry in ``PLOTTERS``.
+Run files of the dynamics model (.npz with ``N`` and ``node_names``) and run logs of the rig (a
+folder with ``meta.json``, written by ``gyrotens run``; figures in ``gyrohost.plots_log``).
 """
 
 from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("plot", help="write PNG figures (and a GIF) of a run file")
-    p.add_argument("file", type=Path, help="run file (.npz) written by 'gyrotens simulate'")
-    p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    p = sub.add_parser("plot", help="write PNG figures of a run file or a run log")
+    p.add_argument(
+        "file", type=Path, help="run file (.npz) of 'gyrotens simulate' or log folder of 'run'"
+    )
+    p.add_argument("-o", "--out", type=Path, help="output folder (default: LOG/plots for a log)")
     p.add_argument("--no-animation", action="store_true", help="skip the GIF animation")
     p.set_defaults(func=run)
 
@@ -31,21 +33,41 @@ def _plot_run(args):
     return plots.plot_run(load_run(args.file), args.out, animation=not args.no_animation)
 
 
-PLOTTERS = [(_is_run_file, _plot_run)]
+def _is_log(path: Path) -> bool:
+    return path.is_dir() and (path / "meta.json").is_file()
+
+
+def _plot_log(args):
+    from gyrohost.plots_log import plot_log
+
+    return plot_log(args.file, args.out or args.file / "plots")
+
+
+PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
 
 
 def run(args) -> int:
     from gyrohost.cli import CliError
+    from gyrohost.runlog import LogError
 
-    if not args.file.is_file():
-        raise CliError(f"{args.file}: no such file")
+    if not args.file.exists():
+        raise CliError(f"{args.file}: no such file or folder")
     for accepts, plot in PLOTTERS:
         try:
             ok = accepts(args.file)
         except (OSError, ValueError) as exc:
             raise CliError(f"{args.file}: cannot read: {exc}") from None
         if ok:
-            for path in plot(args):
+            if args.out is None and not args.file.is_dir():
+                raise CliError("give the output folder with -o")
+            try:
+                paths = plot(args)
+            except LogError as exc:
+                raise CliError(str(exc)) from None
+            for path in paths:
                 print(path)
             return 0
-    raise CliError(f"{args.file}: not a file type 'plot' knows (run files: .npz from simulate)")
+    raise CliError(
+        f"{args.file}: not a file type 'plot' knows (run files: .npz from simulate; "
+        "log folders with meta.json from run)"
+    )
