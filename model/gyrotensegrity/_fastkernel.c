@@ -41,13 +41,16 @@ static void layout(const double *c, const int64_t *d, Consts *k)
     k->A3 = c;
 }
 
-/* In-place Cholesky solve of the SPD system A s = b (A n x n, row-major). */
+/* In-place Cholesky solve of the SPD system A s = b (A n x n, row-major). A pivot that
+ * falls below PIVOT_RTOL times its diagonal entry (or is not finite) means the constraints
+ * are dependent to working precision: the index of that row + 1 is returned. */
+#define PIVOT_RTOL 1e-12
 static int64_t cholesky_solve(double *A, double *b, int64_t n)
 {
     for (int64_t j = 0; j < n; j++) {
-        double d = A[j * n + j];
+        double d = A[j * n + j], diag = d;
         for (int64_t k = 0; k < j; k++) d -= A[j * n + k] * A[j * n + k];
-        if (!(d > 0.0)) return j + 1;
+        if (!(d > PIVOT_RTOL * diag) || !isfinite(d)) return j + 1;
         d = sqrt(d);
         A[j * n + j] = d;
         for (int64_t i = j + 1; i < n; i++) {

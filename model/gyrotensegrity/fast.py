@@ -218,7 +218,7 @@ class FastDynamics:
         pos, vel = Y6[..., :3, :], Y6[..., 3:, :]
         B, B_dot = pos[..., :beta], vel[..., :beta]
         S = pos[..., beta:]
-        sums = _colsum(pos * Y6.reshape(Y6.shape[:-2] + (2, 3, -1)))
+        sums = _colsum(pos[..., None, :, :] * Y6.reshape(Y6.shape[:-2] + (2, 3, -1)))
         b2 = sums[..., 0, :beta]
         s = np.sqrt(sums[..., 0, beta:])
         tension = self.k_s * (s - rest) + self.c_s * (sums[..., 1, beta:] / s)
