@@ -1,30 +1,18 @@
 #include "spd.h"
 
-#include "port_progmem.h"
-
 void spd_init(spd_state* s) {
     s->acc = 0;
     s->speed_mrad_s = 0;
     s->last_angle = 0;
     s->primed = 0;
     s->missed = 0;
+    s->shift = 0;
 }
 
 int16_t spd_wrap_delta(uint16_t a, uint16_t b) {
     // Shift the 14-bit difference into the top of a 16-bit word, then back with sign extension.
     uint16_t d = static_cast<uint16_t>(static_cast<uint16_t>(b - a) << 2);
     return static_cast<int16_t>(static_cast<int16_t>(d) / 4);
-}
-
-int32_t spd_counts_to_mrad_s(int16_t counts_per_tick) {
-    // 383.496 mrad/s per count per 1 ms tick, times 256: 98175 = 65536 + 32639, so the product
-    // is one 16 x 16 -> 32 multiply plus the magnitude moved up 16 bits; |c| * 98175 < 2^32 for
-    // every int16 (the magnitude of -32768 is 32768 as uint16).
-    uint16_t mag = static_cast<uint16_t>(counts_per_tick);
-    if (counts_per_tick < 0) mag = static_cast<uint16_t>(0u - mag);
-    uint32_t p = (static_cast<uint32_t>(mag) << 16) + port_mul_u16(mag, 32639u);
-    int32_t v = static_cast<int32_t>(p >> 8);
-    return counts_per_tick < 0 ? -v : v;
 }
 
 int32_t spd_div_ticks(int32_t x, uint8_t ticks) {
@@ -62,7 +50,10 @@ int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift) {
         raw = spd_div_ticks(raw, static_cast<uint8_t>(s->missed + 1));
         s->missed = 0;
     }
-    s->acc += raw - (s->acc >> shift);
+    // acc >> shift is the last output unless the shift changed: one variable shift per update.
+    int32_t y = (shift == s->shift) ? s->speed_mrad_s : (s->acc >> shift);
+    s->shift = shift;
+    s->acc += raw - y;
     s->speed_mrad_s = s->acc >> shift;
     return s->speed_mrad_s;
 }

@@ -12,6 +12,8 @@
 
 #include <stdint.h>
 
+#include "port_progmem.h"
+
 #define SPD_TICK_HZ 1000
 #define SPD_MAX_SHIFT 8
 
@@ -21,6 +23,7 @@ struct spd_state {
     uint16_t last_angle;   // last good 14-bit angle
     uint8_t primed;        // 0 until the first good angle
     uint8_t missed;        // ticks since the last good angle, minus one
+    uint8_t shift;         // filter shift of the last update: speed_mrad_s == acc >> shift
 };
 
 void spd_init(spd_state* s);
@@ -29,7 +32,16 @@ void spd_init(spd_state* s);
 int16_t spd_wrap_delta(uint16_t a, uint16_t b);
 
 // Counts per tick to mrad/s (symmetric rounding towards zero).
-int32_t spd_counts_to_mrad_s(int16_t counts_per_tick);
+PORT_INLINE int32_t spd_counts_to_mrad_s(int16_t counts_per_tick) {
+    // 383.496 mrad/s per count per 1 ms tick, times 256: 98175 = 65536 + 32639, so the product
+    // is one 16 x 16 -> 32 multiply plus the magnitude moved up 16 bits; |c| * 98175 < 2^32 for
+    // every int16 (the magnitude of -32768 is 32768 as uint16).
+    uint16_t mag = static_cast<uint16_t>(counts_per_tick);
+    if (counts_per_tick < 0) mag = static_cast<uint16_t>(0u - mag);
+    uint32_t p = (static_cast<uint32_t>(mag) << 16) + port_mul_u16(mag, 32639u);
+    int32_t v = static_cast<int32_t>(p >> 8);
+    return counts_per_tick < 0 ? -v : v;
+}
 
 // x / ticks rounded towards zero for ticks 1..3 (the span of one delta after missed samples),
 // without a division. |x| < 2^31.
