@@ -10,7 +10,8 @@ Clocks:
 - ``"real"``: rig time is wall time since :meth:`SimulatedRig.start`; the truth steps when due.
   A step that starts more than one step period after its due time counts as late. The devices
   always run on wall time, so their rates hold on a loaded CPU; the truth then lags (the IMU
-  reports the latest truth step) and the lag is reported (:class:`RigStats`).
+  reports the latest truth step), by at most ``MAX_LAG_S``: beyond that it slips, i.e. runs
+  slower than wall time. Lateness and slip are reported (:class:`RigStats`).
 - ``"sim"``: rig time stands still until :meth:`SimulatedRig.advance` moves it; the loop then
   steps and ticks through the interval as fast as it can and returns. In between, the loop still
   answers the drivers (at the frozen time), so request/reply traffic works. Because the host's
@@ -40,6 +41,8 @@ from gyrotensegrity import SceneError, load_scene
 DEVICES = ("imu", "wheels", "servos")
 IDLE_WAIT_S = 0.001
 """Longest wait for driver input between two polls of the emulators, s."""
+MAX_LAG_S = 0.25
+"""Real clock: the truth lags wall time by at most this much; beyond, it slips (runs slower)."""
 
 STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
 DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
@@ -65,8 +68,11 @@ class RigStats:
         IMU samples sent (3 frames each), wheel-board TELEMETRY frames sent, instruction
         packets the servo bus received.
     truth_steps, late_steps : int
-    truth_dt_s, step_wall_s, max_lag_s : float, s
-        Truth step, wall time spent stepping the truth, largest lateness of a step.
+    truth_dt_s, step_wall_s, max_lag_s, slipped_s : float, s
+        Truth step, wall time spent stepping the truth, largest lateness of a step, and how far
+        the truth fell behind wall time in total beyond ``MAX_LAG_S`` (real clock).
+    cpu_s : float, s
+        CPU time of this process since start (all threads).
     """
 
     elapsed_s: float
@@ -78,6 +84,8 @@ class RigStats:
     truth_dt_s: float
     step_wall_s: float
     max_lag_s: float
+    slipped_s: float
+    cpu_s: float
 
     def rate(self, count: int) -> float:
         """``count`` per second of rig time."""
@@ -104,7 +112,8 @@ class RigStats:
         return (
             f"truth: {self.truth_steps} steps of {1e3 * self.truth_dt_s:g} ms, "
             f"{per_step_ms:.2f} ms wall per step, real-time factor {self.real_time_factor:.1f}, "
-            f"{self.late_steps} late steps (max lag {1e3 * self.max_lag_s:.1f} ms)"
+            f"{self.late_steps} late steps (max lag {1e3 * self.max_lag_s:.1f} ms), "
+            f"slipped {self.slipped_s:.2f} s; process CPU {100 * self.rate(self.cpu_s):.0f} %"
         )
 
 
@@ -154,7 +163,8 @@ class SimulatedRig:
         self._idle_at_s = -1.0
         self._dev_t_s = 0.0
         self._steps = self._late = 0
-        self._step_wall_s = self._max_lag_s = 0.0
+        self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
+        self._cpu0_s = 0.0
 
     # --- life cycle ---------------------------------------------------------------------------
     @property
@@ -166,6 +176,7 @@ class SimulatedRig:
         """Start the loop thread (idempotent); returns ``self``."""
         if self._thread is None:
             self._t0_wall = time.monotonic()
+            self._cpu0_s = time.process_time()
             self._thread = threading.Thread(target=self._run, name="rig", daemon=True)
             self._thread.start()
         return self
@@ -227,22 +238,32 @@ class SimulatedRig:
             return time.monotonic() - self._t0_wall
         return self._sim_target_s
 
+    def _truth_target_s(self, now_s: float) -> float:
+        """Time the truth should reach at rig time ``now_s``: less the slip (real clock)."""
+        target = now_s - self._slip_s
+        behind = target - self.truth.t_s - self.truth.dt_s
+        if self.clock == "real" and behind > MAX_LAG_S:
+            self._slip_s += behind - MAX_LAG_S
+            target -= behind - MAX_LAG_S
+        return target
+
     # --- the loop -----------------------------------------------------------------------------
     def _run(self) -> None:
         links = [dev.link for dev in self.devices.values()]
         try:
             while not self._stop.is_set():
-                target = self._target_s()
+                now = self._target_s()
+                target = self._truth_target_s(now)
                 due = self.truth.t_s + self.truth.dt_s
                 if due <= target + 1e-9:
                     self._step(target - due)
                     # Devices keep wall time even while a loaded CPU makes the truth lag.
                     self._poll(self._target_s() if self.clock == "real" else self.truth.t_s)
                     continue
-                self._poll(target)
+                self._poll(now)
                 if self.clock == "sim":
                     with self._cond:
-                        self._idle_at_s = target
+                        self._idle_at_s = now
                         self._cond.notify_all()
                 wait = min(due - target, IDLE_WAIT_S) if self.clock == "real" else IDLE_WAIT_S
                 select.select(links, [], [], wait)
@@ -318,6 +339,8 @@ class SimulatedRig:
             truth_dt_s=self.truth.dt_s,
             step_wall_s=self._step_wall_s,
             max_lag_s=self._max_lag_s,
+            slipped_s=self._slip_s,
+            cpu_s=time.process_time() - self._cpu0_s,
         )
 
     # --- faults -------------------------------------------------------------------------------
