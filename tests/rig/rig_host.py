@@ -55,6 +55,7 @@ def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict
         "imu_bad_frames": imu.stats.corrupt_frames + imu.stats.dropped_frames,
         "telemetry_dropped": sum(wheels.decoder.dropped.values()),
         "last_speeds_rad_s": telemetry[-1].omega_rad_s if telemetry else None,
+        "wheel_faults_at_end": wheels.faults,
     }
 
 
