@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrohost.control import Replanner
+from gyrohost.control import DBarReduced, Replanner
+from gyrohost.control.adapt import WheelGainFit
 from gyrohost.control.sil import run_sil, scene_with_wheel_inertia
 from gyrotensegrity import Model
 
@@ -38,7 +39,7 @@ def test_plan_matches_the_full_model(dbar, planner):
 
 def test_closed_loop_lands_nearer_than_open_loop(truth, planner):
     open_ = run_sil(truth, planner, TARGET, DURATION, closed_loop=False)
-    closed = run_sil(truth, planner, TARGET, DURATION, closed_loop=True, seed=3)
+    closed = run_sil(truth, planner, TARGET, DURATION, closed_loop=True, seed=3, adapt=False)
     print(f"open loop error {open_.error_rad:+.4f} rad, closed loop {closed.error_rad:+.4f} rad")
     assert abs(open_.error_rad) > 0.03  # the 20 % inertia error shows in open loop
     assert abs(closed.error_rad) < 0.25 * abs(open_.error_rad)
@@ -49,8 +50,29 @@ def test_closed_loop_lands_nearer_than_open_loop(truth, planner):
         assert abs(r.final_rate_rad_s) < 1e-3
 
 
+def test_gain_fit_learns_the_wheel_inertia(truth, planner):
+    r = run_sil(truth, planner, TARGET, DURATION, closed_loop=True, seed=4, adapt=True)
+    print(f"closed loop with gain fit: error {r.error_rad:+.4f} rad, gain {r.plans[-1].kappa:.3f}")
+    assert r.plans[-1].kappa == pytest.approx(1.2, abs=0.04)
+    assert abs(r.error_rad) < 0.006  # open loop: 0.06
+
+
+def test_gain_fit_on_exact_samples(dbar):
+    """Samples made with the reduced model's own law at a known gain and momentum."""
+    red = DBarReduced(dbar)
+    omega = dbar.spin0
+    kappa, H = 1.3, 1.3 * float(red.wheel_momentum(red.d_rest, omega))
+    fit = WheelGainFit(red, momentum0=H / 1.3, omega_w=omega, rate_std_rad_s=1e-3)
+    for d in np.linspace(red.d_rest, 0.3, 50):
+        fit.add(d, float(red.tilt_rates(np.array([d]), H, kappa * omega)[0]))
+    H_fit, kappa_fit, std = fit.estimate()
+    assert kappa_fit == pytest.approx(kappa, abs=1e-3)
+    assert H_fit == pytest.approx(H, rel=1e-3)
+    assert std < 0.01
+
+
 def test_replanner_period_and_continuity(dbar, planner):
-    loop = Replanner(planner, TARGET, 0.0, DURATION, period_s=0.5)
+    loop = Replanner(planner, TARGET, 0.0, DURATION, period_s=0.5, adapt=False)
     x = dbar.initial_state()
     first = loop.update(0.0, x)
     for k in range(1, 80):

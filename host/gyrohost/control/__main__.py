@@ -74,16 +74,18 @@ def main(argv=None) -> int:
             f"plan vs dop853 sim     {at_land:+.5f} rad at landing, {settled:+.5f} rad 0.5 s "
             f"later: gap {at_land - first.predicted_tilt_rad:+.2e} rad"
         )
-    for closed in (False, True):
-        r = run_sil(truth, planner, a.target, a.duration, closed, a.period, seed=a.seed)
+    runs = (("open loop          ", False, False), ("closed loop        ", True, False),
+            ("closed loop + gain ", True, True))  # fmt: skip
+    for name, closed, adapt in runs:
+        r = run_sil(truth, planner, a.target, a.duration, closed, a.period, seed=a.seed,
+                    adapt=adapt)  # fmt: skip
         pt = np.array([p.plan_time_s for p in r.plans])
-        name = "closed loop" if closed else "open loop  "
         print(
-            f"{name} J3 x {a.inertia_factor:g}  final tilt {r.final_tilt_rad:+.5f} rad, "
+            f"{name} J3 x {a.inertia_factor:g}: final tilt {r.final_tilt_rad:+.5f} rad, "
             f"error {r.error_rad:+.5f} rad, rate {r.final_rate_rad_s:+.1e} rad/s; "
             f"{len(pt)} plans, plan time mean {1e3 * pt.mean():.1f} ms max "
             f"{1e3 * pt.max():.1f} ms; {sum(not p.accepted for p in r.plans)} rejected; "
-            f"sim wall {r.wall_time_s:.1f} s"
+            f"gain {r.plans[-1].kappa:.3f}; sim wall {r.wall_time_s:.1f} s"
         )
     return 0
 

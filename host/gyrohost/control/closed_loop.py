@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .adapt import WheelGainFit
 from .errors import PlanError
 from .planner import Plan, Planner
 from .schedule import Schedule
@@ -32,7 +33,8 @@ from .schedule import Schedule
 @dataclass
 class ReplanRecord:
     """One re-plan: time (s), measured tilt (rad), the new plan's prediction (rad), plan wall
-    time (s), whether it was accepted and the optimiser's message."""
+    time (s), whether it was accepted, the optimiser's message and the wheel-momentum gain
+    the plan used (1 without adaptation)."""
 
     t_s: float
     tilt_rad: float
@@ -40,6 +42,7 @@ class ReplanRecord:
     plan_time_s: float
     accepted: bool
     message: str
+    kappa: float = 1.0
 
 
 @dataclass
@@ -54,6 +57,10 @@ class Replanner:
         Start and length of the maneuver; it lands at ``t0_s + duration_s``.
     period_s : float, s
         Re-planning period (0.25 s = 4 Hz).
+    adapt : bool
+        Fit the wheel-momentum gain and the momentum from every estimate
+        (:class:`.adapt.WheelGainFit`) and plan with them; otherwise plan with the momentum of
+        the latest estimate and the nominal wheels.
     """
 
     planner: Planner
@@ -61,6 +68,7 @@ class Replanner:
     t0_s: float
     duration_s: float
     period_s: float = 0.25
+    adapt: bool = True
     schedule: Schedule | None = None
     records: list = field(default_factory=list)
 
@@ -70,6 +78,7 @@ class Replanner:
         self.knot_t = self.planner.knot_times(self.t0_s, self.t0_s + self.duration_s)
         self.t_end_s = float(self.knot_t[-1])
         self._next_s = -np.inf
+        self.fit = None
 
     def start(self, t_s, x) -> Plan:
         """The first plan, from rest (the rest shape is commanded at ``t_s``)."""
@@ -77,6 +86,9 @@ class Replanner:
         if not plan.success:
             raise PlanError(f"no initial plan: {plan.message}")
         self.schedule = plan.schedule
+        if self.adapt:
+            _, momentum, omega_w = self.planner.state_terms(x, t_s)
+            self.fit = WheelGainFit(self.planner.dbar, momentum, omega_w)
         self._log(t_s, x, plan, True)
         self._next_s = t_s + self.period_s
         return plan
@@ -86,7 +98,12 @@ class Replanner:
         follow from ``t_s`` on."""
         if self.schedule is None:
             self.start(t_s, x)
-        elif self._next_s <= t_s < self.t_end_s:
+            return self.schedule
+        if self.fit is not None:
+            N, N_dot = self.planner.model.nodes(x)
+            att = self.planner.attitude
+            self.fit.add(att.n13(N), att.tilt_rate(N, N_dot))
+        if self._next_s <= t_s < self.t_end_s:
             self._next_s += self.period_s * max(1.0, np.floor((t_s - self._next_s) / self.period_s))
             self.replan(t_s, x)
         return self.schedule
@@ -95,19 +112,30 @@ class Replanner:
         """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``."""
         col = self.schedule.names.index(self.planner.names[0])
         d_now = float(self.schedule(t_s)[col])
-        plan = self.planner.plan_from_state(
-            self.target_tilt_rad, x, t_s, self.knot_t, d_start_m=d_now, warm=self.schedule
+        tilt, momentum, omega_w = self.planner.state_terms(x, t_s)
+        kappa = 1.0
+        if self.fit is not None:
+            momentum, kappa, _ = self.fit.estimate()
+        plan = self.planner.plan(
+            self.target_tilt_rad,
+            self.knot_t,
+            t_s,
+            tilt,
+            momentum,
+            kappa * omega_w,
+            d_now,
+            warm=self.schedule,
         )
         if plan.success:
             self.schedule = self.schedule.splice(plan.schedule, t_s)
-        self._log(t_s, x, plan, plan.success)
+        self._log(t_s, x, plan, plan.success, kappa)
         return plan
 
-    def _log(self, t_s, x, plan, accepted):
+    def _log(self, t_s, x, plan, accepted, kappa=1.0):
         tilt = self.planner.attitude.tilt(self.planner.model.nodes(x)[0])
         self.records.append(
             ReplanRecord(
-                t_s, tilt, plan.predicted_tilt_rad, plan.plan_time_s, accepted, plan.message
+                t_s, tilt, plan.predicted_tilt_rad, plan.plan_time_s, accepted, plan.message, kappa
             )
         )
 

@@ -74,9 +74,11 @@ def run_sil(
     max_dt_s: float = 2.5e-3,
     make_estimate=None,
     seed: int = 0,
+    adapt: bool = True,
 ) -> SilResult:
     """Run one maneuver on ``truth``: plan once and play (open loop) or re-plan every
-    ``period_s`` from an estimate (closed loop).
+    ``period_s`` from an estimate (closed loop; ``adapt`` also fits the wheel-momentum gain,
+    see :class:`.closed_loop.Replanner`).
 
     ``make_estimate(stepper) -> estimate`` builds the estimator on the truth stepper (the EKF
     plugs in here); ``estimate() -> (t_s, x)``. Default: :class:`TruthPlusNoise` with ``seed``.
@@ -88,7 +90,7 @@ def run_sil(
     start = time.perf_counter()
     stepper = Stepper(truth, max_dt=max_dt_s)
     estimate = (make_estimate or (lambda s: TruthPlusNoise(s, seed=seed)))(stepper)
-    loop = Replanner(planner, target_tilt_rad, 0.0, duration_s, period_s)
+    loop = Replanner(planner, target_tilt_rad, 0.0, duration_s, period_s, adapt=adapt)
     loop.start(0.0, stepper.x)  # planned at rest, before the maneuver: the state is known
     n = int(round((duration_s + settle_s) / step_s))
     t, tilt = [0.0], [planner.attitude.tilt(truth.nodes(stepper.x)[0])]
