@@ -104,3 +104,12 @@ def test_paper_preset_is_the_scene_maneuver(dbar):
     with pytest.raises(ScheduleError, match="unknown preset"):
         preset("nope", dbar)
     json.dumps(s.to_dict())
+
+
+def test_shipped_schedules(dbar):
+    root = SCENES.parent / "schedules"
+    paper = load_schedule(root / "paper.toml")
+    np.testing.assert_allclose(paper.rest_length, preset("paper", dbar).rest_length, atol=1e-12)
+    tilt = load_schedule(root / "tilt-0.3rad-4s.toml")
+    assert tilt.problems(Limits(max_speed_m_s=0.05)) == []
+    tilt.input_at(dbar, 1.0)  # its strings are the scene's
