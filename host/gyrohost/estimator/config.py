@@ -28,7 +28,7 @@ class EstimatorConfig:
     imu_accel_std_m_s2: float = field(default=0.03, metadata=_pos("accelerometer noise"))
     imu_angle_std_rad: float = field(default=0.06 * _DEG, metadata=_pos("Euler angle noise"))
     wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
-    servo_length_std_m: float = field(default=2.0e-3, metadata=_pos("string length noise"))
+    servo_length_std_m: float = field(default=1.0e-3, metadata=_pos("string length noise"))
     # process noise (white, spectral densities)
     accel_psd_m2_s3: float = field(default=1.0e-3, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))

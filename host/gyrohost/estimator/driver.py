@@ -35,8 +35,9 @@ def run(ekf, data, on_step=None):
 
     Parameters
     ----------
-    on_step : callable(ekf), optional
-        Called after every sample and every bridging prediction step.
+    on_step : callable(ekf, stream), optional
+        Called after every sample (``stream`` its stream name) and every bridging prediction
+        step (``stream`` = ``"predict"``).
     """
     model = ekf.model
     strings = [s.name for s in model.scene.strings]
@@ -51,7 +52,7 @@ def run(ekf, data, on_step=None):
         while t - ekf.t > dt:
             ekf.advance(ekf.t + dt)
             if on_step:
-                on_step(ekf)
+                on_step(ekf, "predict")
         row = data[name][i]
         if name == cols.COMMAND:
             ekf.set_input([row[c] for c in rest_cols])
@@ -68,4 +69,4 @@ def run(ekf, data, on_step=None):
         elif servo_cols:
             ekf.fuse_servos(t, [row[c] for c in servo_cols], servo_idx)
         if on_step:
-            on_step(ekf)
+            on_step(ekf, name)

@@ -73,8 +73,11 @@ def _structured(columns, data):
     return out
 
 
-def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5):
+def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_noise_m=2e-4):
     """IMU and wheel samples at every truth sample, servo reads every ``servo_every`` samples.
+
+    The servos read the true rest lengths plus white noise ``servo_noise_m`` (m); the filter's
+    ``servo_length_std_m`` also covers the elastic stretch it does not model.
 
     Returns
     -------
@@ -92,7 +95,7 @@ def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5):
     omega_w = truth.x[:, 6 * model.m : 6 * model.m + n_w]
     wheels = omega_w + rng.normal(0, c.wheel_speed_std_rad_s, omega_w.shape)
     idx = np.arange(0, k, servo_every)
-    lengths = truth.rest_length[idx] + rng.normal(0, c.servo_length_std_m, (len(idx), model.alpha))
+    lengths = truth.rest_length[idx] + rng.normal(0, servo_noise_m, (len(idx), model.alpha))
     names = [s.name for s in model.scene.strings]
     t = truth.t_s[:, None]
     return {
