@@ -84,19 +84,21 @@ class RunSettings:
     steady_tolerance_rad_s: float = 1.5
     steady_hold_s: float = 0.3
     lead_in_s: float = 0.5
-    settle_s: float = 1.0
+    settle_s: float = 0.5
     stop_threshold_rad_s: float = 3.0
     """Wheels count as stopped below this speed, or once the board has switched them off."""
     rampdown_timeout_s: float = 5.0
     imu_silence_s: float = 0.5
     wheel_silence_s: float = 0.5
-    max_tilt_rad: float = 1.0
+    max_tilt_rad: float = math.inf
+    """Largest |tilt| of the estimate, rad; off by default: the simulated D-bar floats free and
+    keeps turning after the maneuver (set it on a rig whose supports bound the tilt)."""
     wheel_speed_margin_rad_s: float = 15.0
     max_servo_load: float = 0.95
 
     def __post_init__(self):
         for name, value in asdict(self).items():
-            if not (math.isfinite(value) and value > 0):
+            if not value > 0:  # NaN fails too
                 raise ValueError(f"run settings: {name} must be a positive number, got {value}")
 
 
@@ -257,11 +259,11 @@ class RunLoop:
         self._enter("schedule")
         self._t_sched0 = self._now()
         self._ticks(self.schedule.t_end)
+        self.final["tilt_end_estimate_rad"] = self.latest_tilt
+        if self.truth is not None:
+            self.final["tilt_end_truth_rad"] = self.truth.latest_tilt
         self._enter("settle")
         self._ticks(self.settings.settle_s)
-        self.final["final_tilt_estimate_rad"] = self.latest_tilt
-        if self.truth is not None:
-            self.final["final_tilt_truth_rad"] = self.truth.latest_tilt
 
     def _enter(self, phase: str) -> None:
         self.phase = phase
