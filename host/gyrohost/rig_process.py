@@ -61,6 +61,9 @@ class RigProcess:
     ----------
     paths : dict
         Device name -> pty path.
+    t0_ns : int
+        ``time.monotonic_ns`` at rig time zero, ns (rig time runs with the wall clock while the
+        rig keeps up; under load it slips behind).
     node_names, string_names : list of str
     n_wheels : int
     """
@@ -76,6 +79,7 @@ class RigProcess:
         self._pending: list[TruthSample] = []
         reply = self._reply("ready", READY_TIMEOUT_S)
         self.paths = reply["paths"]
+        self.t0_ns = reply["t0_ns"]
         self.node_names = reply["node_names"]
         self.string_names = reply["string_names"]
         self.n_wheels = reply["n_wheels"]
@@ -143,7 +147,9 @@ def _serve(conn, config, period_s: float) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it still needs the rig
     try:
-        rig = SimulatedRig(config, clock="real").start()
+        rig = SimulatedRig(config, clock="real")
+        t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)
+        rig.start()
     except Exception as exc:  # reported to the parent, which raises it
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
         return
@@ -153,6 +159,7 @@ def _serve(conn, config, period_s: float) -> None:
             "ready",
             {
                 "paths": rig.paths,
+                "t0_ns": t0_ns,
                 "node_names": list(truth.node_names),
                 "string_names": [s.name for s in truth.model.scene.strings],
                 "n_wheels": len(truth.wheel_input_rad_s),

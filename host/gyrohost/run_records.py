@@ -123,6 +123,11 @@ class InnovationWriter:
 class TruthProbe:
     """Writes the simulated rig's truth samples into the ``truth`` stream as they arrive.
 
+    A sample's ``t_s`` is its rig time on the host clock (rig time zero is known in
+    ``time.monotonic_ns``), so the truth lines up with the device samples the rig made at that
+    rig time even when the rig slips behind the wall clock under load; ``wall_t_s`` is when it
+    was sampled.
+
     Parameters
     ----------
     rig : RigProcess
@@ -143,12 +148,13 @@ class TruthProbe:
             [
                 "t_s",
                 "rig_t_s",
+                "wall_t_s",
                 *node_columns_of(rig.node_names),
                 "tilt_rad",
                 *(f"omega_{i}_rad_s" for i in range(rig.n_wheels)),
                 *(cols.rest_column(s) for s in rig.string_names),
             ],
-            description="the simulated rig's truth (rig_t_s: rig time, s)",
+            description="the simulated rig's truth at its rig time on the host clock (t_s)",
         )
 
     def write(self) -> None:
@@ -157,8 +163,9 @@ class TruthProbe:
             self.latest_tilt = self.tilt.tilt(s.N)
             self.latest_wheels = s.omega_w_rad_s
             self.stream.write(
-                (s.t_ns - self.t0_ns) * 1e-9,
+                (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s,
                 s.rig_t_s,
+                (s.t_ns - self.t0_ns) * 1e-9,
                 *s.N.T.ravel(),
                 self.latest_tilt,
                 *s.omega_w_rad_s,
