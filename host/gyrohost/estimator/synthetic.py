@@ -106,3 +106,14 @@ def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_no
             cols.command_columns(names, n_w), np.hstack([t, truth.rest_length, omega_w])
         ),
     }
+
+
+def write_log(folder, data, scene_path, meta=None):
+    """Write synthetic streams ``data`` as a run log (what the run loop would record)."""
+    from gyrohost.runlog import RunLog
+
+    with RunLog(folder, {"scene": str(scene_path), **(meta or {})}) as log:
+        for name, rows in data.items():
+            stream = log.stream(name, rows.dtype.names)
+            for row in rows:
+                stream.write(*row.tolist())

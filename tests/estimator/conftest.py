@@ -1,0 +1,40 @@
+"""Shared fixtures: the D-bar model and one synthetic run of the paper's manoeuvre."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from gyrohost.estimator import EstimatorConfig
+from gyrohost.estimator.layout import from_model_state
+from gyrohost.estimator.synthetic import sensor_streams, simulate_truth
+from gyrotensegrity import Model, Stepper, load_scene
+
+SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"
+
+
+@pytest.fixture(scope="session")
+def model():
+    return Model(load_scene(SCENE))
+
+
+@pytest.fixture(scope="session")
+def config():
+    return replace(EstimatorConfig(), accel_psd_m2_s3=1e-4)
+
+
+@pytest.fixture(scope="session")
+def synthetic(model, config):
+    """1 s of truth (disturbed) and its sensor streams, seed 11."""
+    truth = simulate_truth(model, config, 1.0, seed=11)
+    return truth, sensor_streams(model, config, truth, seed=11)
+
+
+@pytest.fixture(scope="session")
+def moving_state(model):
+    """A filter state 0.8 s into the manoeuvre (nodes moving, strings taut or slack), its
+    model state and input."""
+    stepper = Stepper(model)
+    stepper.step(0.8)
+    u = model.input_at(stepper.t)
+    return from_model_state(model, stepper.x, u, [0.01, -0.02, 0.005]), stepper.x.copy(), u
