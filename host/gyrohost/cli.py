@@ -12,7 +12,7 @@ import sys
 
 from gyrotensegrity import __version__
 
-COMMANDS = ["demo", "simulate", "plot", "rig"]
+COMMANDS = ["demo", "simulate", "plot", "rig", "replay"]
 
 
 class CliError(Exception):
