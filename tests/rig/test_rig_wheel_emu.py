@@ -4,6 +4,7 @@ import os
 import queue
 import time
 
+import numpy as np
 import pytest
 
 from gyrohost import wheelproto as wp
@@ -172,3 +173,22 @@ def test_reset_is_seen_as_a_restarted_sequence_and_watchdog_fault(board):
     # Outputs off: the wheel coasts (5 s time constant), it does not stop at once.
     assert 20.0 < device.wheel_speeds_rad_s()[0] < 30.0
     assert client.hello is not None and client.connect()["proto_version"] == wp.PROTO_VERSION
+
+
+def test_ripple_and_lag_on_the_emulator_clock():
+    """Driven tick by tick on its own clock (no thread): ramp, lag, then a 5 % ripple."""
+    with WheelBoardEmulator(WheelEmuConfig(time_constant_s=0.02, ripple_fraction=0.05)) as dev:
+        dev.tick(0.0)  # the board boots when first polled
+        dev.handle_rx(wp.encode("PARAM_SET", param_id=9, value=60000), 0.0)  # 60 s heartbeat
+        speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
+        dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": 20000})), 0.0)
+        trace = []
+        for k in range(1, 1501):
+            dev.tick(k * 1e-3)
+            trace.append(dev.wheel_speeds_rad_s()[0])
+    assert dev.ticks == 1500 and dev.telemetry_sent == 750
+    # 0.1 s of ramp at 100 rad/s^2: setpoint 10 rad/s, the 20 ms lag 100 x 0.02 = 2 rad/s behind
+    assert trace[99] == pytest.approx(8.0, abs=0.5)  # (+-5 % ripple)
+    steady = np.array(trace[500:])  # ramp done at 0.2 s, lag settled well before 0.5 s
+    assert steady.max() == pytest.approx(21.0, abs=0.05)
+    assert steady.min() == pytest.approx(19.0, abs=0.05)
