@@ -1,5 +1,7 @@
 """Simulated rig: pseudo-terminal device emulators and fault injection.
 
 Submodules: ``pty_link`` (pty pair and the emulator's I/O loop), ``faults`` (byte-stream fault
-filter), ``imu_emu`` (WitMotion BWT61CL), ``servo_emu`` (Dynamixel MX-12W bus).
+filter), ``imu_emu`` (WitMotion BWT61CL), ``servo_emu`` (Dynamixel MX-12W bus), ``wheel_emu``
+(wheel board, protocol v1), ``truth`` (the dynamics model as the truth), ``sim``
+(:class:`~gyrohost.rig.sim.SimulatedRig`: truth and the three emulators; docs/rig.md).
 """
