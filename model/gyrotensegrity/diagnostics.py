@@ -70,3 +70,34 @@ def linear_momentum(model, N_dot):
     st = model.structure
     R_dot = 0.5 * (N_dot[:, st.bar_end] + N_dot[:, st.bar_start])
     return R_dot @ model.m_t + N_dot @ model.m_node
+
+
+def highest_frequency(model):
+    """An upper estimate of the fastest motion of the model, for step-size checks.
+
+    Strings: ``sqrt(k (c_a + c_b))`` with ``c`` the node compliances ``diag(M_s^-1)`` (1/kg)
+    of the string's end nodes; wheels: the nutation rate ``J_3 |omega_w| / (J_t l^2)`` of a
+    free bar at the largest spin the scene states.
+
+    Returns
+    -------
+    omega : float, rad/s
+    member : str
+        The string or bar that sets it ("" when the model has neither).
+    """
+    st = model.structure
+    best, member = 0.0, ""
+    if model.alpha:
+        compliance = model.M_s_inv.diagonal()
+        c = compliance[st.string_start] + compliance[st.string_end]
+        w = np.sqrt(model.k_s * c)
+        i = int(np.argmax(w))
+        best, member = float(w[i]), model.scene.strings[i].name
+    for k, i in enumerate(model.wheel_bars):
+        spin = abs(model.spin0[k])
+        if model.wheel_modes[k] == "speed":
+            spin = max(spin, float(np.max(np.abs(model.wheel_schedules[k].value))))
+        w = model.J3[i] * spin / (model.J_t[i] * model.l[i] ** 2)
+        if w > best:
+            best, member = float(w), model.scene.bars[i].name
+    return best, member

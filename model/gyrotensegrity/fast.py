@@ -22,6 +22,8 @@ The reference path (``dynamics.py``) stays the readable implementation the tests
 against (tests/model/test_fast.py).
 """
 
+import bisect
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -206,6 +208,12 @@ class FastDynamics:
         """
         z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
         return z_ddot, self.node_values(z_ddot)
+
+    def wheel_acceleration(self, u, dtype=float):
+        """Spin acceleration of every wheel (n_w,), rad/s^2: torque / J_3 for torque wheels."""
+        out = np.zeros(self.n_wheels, dtype=dtype)
+        out[self.torque_wheels] = u[self.alpha + self.torque_wheels] * self.inv_J3
+        return out
 
     def node_values(self, z):
         """``z U^T`` (no offset): node velocities or accelerations (..., 3, n)."""
@@ -412,3 +420,30 @@ class _SparseConstraints:
             K = sp.csc_matrix((vals, (rows, cols)), shape=(self.size, self.size))
             sol = spla.spsolve(K, rhs)
         return sol[:n3].reshape(3, self.m)
+
+
+class InputTable:
+    """The scene's scheduled input ``u(t)`` (as ``Model.input_at``) from one table lookup.
+
+    Every schedule is piecewise linear between its own points, hence linear between the
+    points of all schedules together: the values at the union of the times are tabulated
+    once, so an evaluation is one ``searchsorted`` and one interpolation of the whole vector.
+
+    Parameters
+    ----------
+    model : Model
+    """
+
+    def __init__(self, model: Model):
+        schedules = model.rest_schedules + model.wheel_schedules
+        self.t = np.unique(np.concatenate([s.t for s in schedules] + [np.zeros(1)]))
+        self.table = np.array([[s(t) for s in schedules] for t in self.t])  # (k, inputs)
+        self.slope = np.diff(self.table, axis=0) / np.diff(self.t)[:, None]
+        self.times = self.t.tolist()
+
+    def __call__(self, t: float) -> np.ndarray:
+        """u (alpha + n_w,) at time t, s."""
+        j = bisect.bisect_right(self.times, t) - 1
+        if j < 0 or j >= len(self.slope):
+            return self.table[0 if j < 0 else -1].copy()
+        return self.table[j] + (t - self.times[j]) * self.slope[j]

@@ -15,15 +15,67 @@ import scipy
 from . import __version__, diagnostics
 from .dynamics import rhs
 from .errors import SimulationError
-from .integrators import FIXED_STEP, adaptive_solver, check_name, fixed_step
+from .integrators import ADAPTIVE, FIXED_STEP, adaptive_solver, check_name, fixed_step
 from .model import Model
 from .runfile import Run
 
+RK4_STABLE = 2.5  # |omega dt| below the RK4 stability limit on the imaginary axis (2.83)
+MAX_STEPS = 2_000_000  # explicit adaptive runs that would need more steps are refused
 
-def _input_function(model: Model, control):
+
+def dynamics_of(model: Model, fast: bool):
+    """The right-hand side ``f(t, x, u)`` of the reference path or of the fast path."""
+    if fast:
+        from .fast import FastDynamics
+
+        return FastDynamics(model).rhs
+    return lambda t, x, u: rhs(t, x, u, model)
+
+
+def check_step(model: Model, integrator: str, dt: float, duration: float) -> None:
+    """Refuse an explicit integrator that cannot resolve the model's fastest motion.
+
+    Raises
+    ------
+    SimulationError
+        At t = 0, naming the string or wheel bar that makes the model stiff and suggesting
+        the implicit integrators.
+    """
+    omega, member = diagnostics.highest_frequency(model)
+    if integrator in FIXED_STEP and omega * dt > RK4_STABLE:
+        need = f"dt <= {RK4_STABLE / omega:.3g} s"
+    elif integrator in ("dop853", "rk45") and omega * duration / 3.0 > MAX_STEPS:
+        need = f"about {omega * duration / 3.0:.3g} steps"
+    else:
+        return
+    raise SimulationError(
+        f"t = 0 s: stiff: {member} oscillates at up to {omega:.3g} rad/s; {integrator} needs "
+        f"{need}; use an implicit integrator (radau or bdf)"
+        + (" or a smaller dt" if integrator in FIXED_STEP else ""),
+        0.0,
+        member,
+    )
+
+
+def nonfinite_member(model: Model, x) -> str | None:
+    """Name of the first node (or "wheels") whose state entry is not finite, else None."""
+    if np.all(np.isfinite(x)):
+        return None
+    N, N_dot = model.nodes(x)  # sparse U2: a bad coordinate spoils only its own nodes
+    bad = np.flatnonzero(~np.all(np.isfinite(N) & np.isfinite(N_dot), axis=0))
+    return model.structure.node_names[bad[0]] if bad.size else "wheels"
+
+
+def _input_function(model: Model, control, fast=False):
+    if fast:
+        from .fast import InputTable
+
+        input_at = InputTable(model)
+    else:
+        input_at = model.input_at
     if control is None:
-        return lambda t, x: model.input_at(t)
-    return lambda t, x: np.asarray(control(t, x, model.input_at(t), model), float)
+        return lambda t, x: input_at(t)
+    return lambda t, x: np.asarray(control(t, x, input_at(t), model), float)
 
 
 class _Recorder:
@@ -127,6 +179,7 @@ def simulate(
     control=None,
     x0=None,
     progress=None,
+    fast=False,
 ) -> Run:
     """Simulate ``model`` from its initial state and record samples every ``sample_dt``.
 
@@ -147,11 +200,16 @@ def simulate(
     x0 : ndarray, optional
         Initial state (default ``model.initial_state()``).
     progress : callable ``progress(t, duration)``, optional
+    fast : bool
+        Evaluate the dynamics by :mod:`gyrotensegrity.fast` (same equations, to round-off)
+        instead of the reference :func:`~gyrotensegrity.rhs`.
 
     Raises
     ------
     SimulationError
-        With the time and member at fault; ``exc.partial`` holds the run up to then.
+        With the time and member at fault; ``exc.partial`` holds the run up to then. Also
+        before the start when an explicit integrator cannot resolve the stiffest string or
+        wheel (:func:`check_step`).
     """
     s = model.scene.simulation
     duration = model.scene.duration if duration is None else float(duration)
@@ -159,7 +217,7 @@ def simulate(
     dt, rtol, atol = dt or s.dt, rtol or s.rtol, atol or s.atol
     sample_dt = sample_dt or s.sample_dt
     tol = constraint_tolerance or s.constraint_tolerance
-    u_of = _input_function(model, control)
+    u_of = _input_function(model, control, fast)
     x = model.initial_state() if x0 is None else np.asarray(x0, float)
     n_samples = int(np.floor(duration / sample_dt + 1e-9))
     samples = np.arange(n_samples + 1) * sample_dt
@@ -180,11 +238,15 @@ def simulate(
         },
     }
 
+    dyn = dynamics_of(model, fast)
+    meta["fast"] = bool(fast)
+
     def f(t, x):
-        return rhs(t, x, u_of(t, x), model)
+        return dyn(t, x, u_of(t, x))
 
     start = time.perf_counter()
     try:
+        check_step(model, integrator, dt if integrator in FIXED_STEP else 0.0, duration)
         rec.add(0.0, x, u_of(0.0, x))
         if integrator in FIXED_STEP:
             steps = max(1, int(np.ceil(sample_dt / dt - 1e-9)))
@@ -210,11 +272,7 @@ def simulate(
                     )
                 message = solver.step()
                 if solver.status == "failed":
-                    raise SimulationError(
-                        f"t = {solver.t:.6g} s: integrator {integrator} failed: {message}",
-                        solver.t,
-                        "integrator",
-                    )
+                    _adaptive_failure(model, f, solver, integrator, message)
                 dense = solver.dense_output()
                 while k < len(samples) and samples[k] <= solver.t:
                     xs = dense(samples[k])
@@ -232,6 +290,31 @@ def simulate(
     return rec.run(meta)
 
 
+def _adaptive_failure(model, f, solver, integrator, message):
+    """Raise the clearest error for a failed adaptive step: a non-finite state or derivative
+    names its node; a collapsed step size on an explicit method suggests stiffness."""
+    t, x = solver.t, solver.y
+    member = nonfinite_member(model, x)
+    try:
+        dx = f(t, x)
+    except SimulationError:
+        raise
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise SimulationError(f"t = {t:.6g} s: dynamics failed: {exc}", t, "dynamics") from None
+    member = member or nonfinite_member(model, dx)
+    if member:
+        raise SimulationError(
+            f"t = {t:.6g} s: {member}: state or its rate is not finite", t, member
+        )
+    hint = "; the model is stiff here: use radau or bdf" if integrator not in IMPLICIT else ""
+    raise SimulationError(
+        f"t = {t:.6g} s: integrator {integrator} failed: {message}{hint}", t, "integrator"
+    )
+
+
+IMPLICIT = tuple(name for name in ADAPTIVE if name in ("radau", "bdf"))
+
+
 class Stepper:
     """Step the model with inputs given at each step (the simulated rig's truth model).
 
@@ -246,6 +329,8 @@ class Stepper:
     max_dt : float, s
     project : bool
         Project onto the bar-length constraints after every substep (``rk4-projected``).
+    fast : bool
+        Use the fast path (:mod:`gyrotensegrity.fast`) for the dynamics.
 
     Examples
     --------
@@ -254,8 +339,10 @@ class Stepper:
     >>> x = stepper.step(0.01, u)
     """
 
-    def __init__(self, model: Model, x0=None, t0=0.0, max_dt=1e-3, project=False):
+    def __init__(self, model: Model, x0=None, t0=0.0, max_dt=1e-3, project=False, fast=False):
         self.model = model
+        check_step(model, "rk4", max_dt, 0.0)
+        self.dynamics = dynamics_of(model, fast)
         self.x = model.initial_state() if x0 is None else np.asarray(x0, float).copy()
         self.t = float(t0)
         self.max_dt = float(max_dt)
@@ -275,13 +362,16 @@ class Stepper:
         h = dt / n
 
         def f(t, x):
-            return rhs(t, x, u, self.model)
+            return self.dynamics(t, x, u)
 
         for j in range(n):
             self.x = fixed_step(self.method, self.model, f, self.t + j * h, self.x, h)
         self.t += dt
-        if not np.all(np.isfinite(self.x)):
-            raise SimulationError(f"t = {self.t:.6g} s: state is not finite", self.t, "state")
+        member = nonfinite_member(self.model, self.x)
+        if member:
+            raise SimulationError(
+                f"t = {self.t:.6g} s: state is not finite at {member}", self.t, member
+            )
         return self.x
 
     def nodes(self):
