@@ -113,3 +113,16 @@ def test_shipped_schedules(dbar):
     tilt = load_schedule(root / "tilt-0.3rad-4s.toml")
     assert tilt.problems(Limits(max_speed_m_s=0.05)) == []
     tilt.input_at(dbar, 1.0)  # its strings are the scene's
+
+
+def test_limits_from_servo_config():
+    from gyrohost.config import ServoConfig
+
+    servos = (
+        ServoConfig("s13", 1, 0.01, max_speed_m_s=0.05, min_length_m=0.1, max_length_m=0.7),
+        ServoConfig("s24", 2, 0.01, max_speed_m_s=0.04, min_length_m=0.05, max_length_m=0.8),
+    )
+    lim = Limits.from_servos(servos)
+    assert (lim.max_speed_m_s, lim.min_length_m, lim.max_length_m) == (0.04, 0.1, 0.7)
+    with pytest.raises(ScheduleError, match="no servos"):
+        Limits.from_servos(())
