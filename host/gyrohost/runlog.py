@@ -185,10 +185,13 @@ def read_stream(folder: Path | str, name: str) -> np.ndarray:
         rows.pop()  # the file ends with a newline: complete
     elif rows:
         rows.pop()  # no final newline: the last row was being written when the run stopped
-    dtype = [(c, "U64" if c in text else "f8") for c in header]
+    split = [line.split(",") for line in rows]
+    width = {
+        c: max((len(f[j]) for f in split if len(f) > j), default=1) for j, c in enumerate(header)
+    }
+    dtype = [(c, f"U{max(width[c], 1)}" if c in text else "f8") for c in header]
     out = np.empty(len(rows), dtype=dtype)
-    for i, line in enumerate(rows):
-        fields = line.split(",")
+    for i, (line, fields) in enumerate(zip(rows, split, strict=True)):
         if len(fields) != len(header):
             raise LogError(
                 f"{path}: row {i + 2} has {len(fields)} fields, header has {len(header)}"
