@@ -115,7 +115,8 @@ class ImuReader(_Reader):
 class WheelTelemetry(_Reader):
     """Stamps wheel-board telemetry on arrival and watches the board.
 
-    Install :meth:`on_telemetry` as the client's ``on_telemetry`` callback. Faults: telemetry
+    Install :meth:`on_telemetry` as the client's ``on_telemetry`` callback. Faults (watched once
+    :meth:`arm` is called, i.e. after faults latched before the run were cleared): telemetry
     silent for ``silence_s`` s, the device clock ``t_us`` running backwards (a reboot), and
     latched fault bits (names from the protocol table).
     """
@@ -129,18 +130,26 @@ class WheelTelemetry(_Reader):
         self._last_ns = time.monotonic_ns()
         self._last_t_us: int | None = None
         self._fault: DeviceFault | None = None
+        self._armed = False
+
+    def arm(self) -> None:
+        """Start watching for faults (telemetry from now on)."""
+        self._fault = None
+        self._last_ns = time.monotonic_ns()
+        self._armed = True
 
     def on_telemetry(self, tel) -> None:
         """Client callback (its reader thread): queue the sample, check for reboot and faults."""
         now = time.monotonic_ns()
         self._last_ns = now
-        if self._last_t_us is not None and 0 < self._last_t_us - tel.t_us < 2**31:
+        rebooted = self._last_t_us is not None and 0 < self._last_t_us - tel.t_us < 2**31
+        if self._armed and rebooted:
             self._fault = self._fault or DeviceFault(
                 "wheels",
                 f"board rebooted (device clock went from {self._last_t_us} us to {tel.t_us} us)",
             )
         self._last_t_us = tel.t_us
-        if tel.faults:
+        if self._armed and tel.faults:
             self._fault = self._fault or DeviceFault(
                 "wheels", f"faults latched: {', '.join(tel.fault_names)}"
             )

@@ -3,7 +3,8 @@
 ::
 
     check      schedule against every servo's limits, strings against the servos  (nothing moves)
-    connect    IMU sample, wheel-board handshake (protocol version), servo pings (MX-12W)
+    connect    IMU sample, wheel-board handshake (protocol version; faults latched before the
+               run cleared and logged), servo pings (MX-12W)
     hold       servos: multi-turn mode, torque on, hold the present position
     spinup     wheels to the scene's spins; wait for steady speed (time-out)
     lead_in    estimator started from the steady state, schedule at its first sample
@@ -257,7 +258,7 @@ class RunLoop:
         self._start_estimator()
         self._ticks(self.settings.lead_in_s)
         self._enter("schedule")
-        self._t_sched0 = self._now()
+        self.t_schedule_s = self._now()
         self._ticks(self.schedule.t_end)
         self.final["tilt_end_estimate_rad"] = self.latest_tilt
         if self.truth is not None:
@@ -277,6 +278,11 @@ class RunLoop:
         self.wheel_reader = WheelTelemetry(self.queue, s.wheel_silence_s)
         self.wheels = WheelBoard(cfg.wheelboard.port, on_telemetry=self.wheel_reader.on_telemetry)
         hello = self.wheels.connect()
+        before = self.wheels.faults
+        self.wheels.clear_faults()  # e.g. HEARTBEAT_LOST latched while no host was connected
+        if before:
+            self.event("cleared", f"wheel-board faults latched before the run: {before}")
+        self.wheel_reader.arm()
         self.wheels.set_param("TELEMETRY_DIV", s.telemetry_div)
         self.wheels.set_param("HEARTBEAT_MS", s.heartbeat_ms)
         speed_max = self.wheels.get_param("SPEED_MAX_MRAD_S") / 1000.0
@@ -356,8 +362,8 @@ class RunLoop:
     def _tick(self, strict: bool = True) -> None:
         """Wait for the next tick of the grid, then drain, fuse, command, check and log.
 
-        ``strict`` False (in the safe state): device faults are logged, not raised, and nothing
-        new is commanded.
+        ``strict`` False (in the safe state): device faults are logged, not raised, no limit is
+        checked and no hook called.
         """
         period = self.timer.period_s
         due = self._next_due_s
@@ -368,8 +374,7 @@ class RunLoop:
         self.timer.record(start, due)
         self._next_due_s = due + period * max(1, math.ceil((start - due) / period))
         n = self._drain(strict)
-        if strict:
-            self._command(start)
+        self._command(start)
         if self.ekf is not None:
             self.ekf.advance(max(start, self.ekf.t))
             _, self.latest_tilt = self.estimates.write(start)
@@ -388,7 +393,7 @@ class RunLoop:
             return 1.0
         if self.phase != "schedule":
             return 0.0
-        return min((t_s - self._t_sched0) / max(self.schedule.t_end, 1e-9), 1.0)
+        return min((t_s - self.t_schedule_s) / max(self.schedule.t_end, 1e-9), 1.0)
 
     def _drain(self, strict: bool) -> int:
         items = []
@@ -435,7 +440,7 @@ class RunLoop:
 
     def _command(self, t_s: float) -> None:
         if self.phase in ("schedule", "settle", "lead_in"):
-            t_rel = t_s - self._t_sched0 if self.phase != "lead_in" else 0.0
+            t_rel = t_s - self.t_schedule_s if self.phase != "lead_in" else 0.0
             rest = self.rest0.copy()
             rest[self.schedule.bind(self.model)] = self.schedule(t_rel)
             self.rest_cmd = rest

@@ -1,0 +1,138 @@
+"""The run loop against the simulated rig (its own process, real time): a complete run logs every
+stream; Ctrl-C, device faults and limit breaches end in the safe state with a readable log."""
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrohost.config import load_rig_config
+from gyrohost.control.schedule import Schedule
+from gyrohost.runlog import read_meta, read_stream
+from gyrohost.runloop import RunSettings, ScheduleRefused, run_simulated
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = load_rig_config(ROOT / "configs" / "sim-rig.toml")
+L0 = 0.43105229381822  # both D-bar strings at rest, m
+SPIN = 74.87462492  # rad/s
+SHORT = RunSettings(lead_in_s=0.2, settle_s=0.2)
+INPUT_STREAMS = ("imu", "wheels", "servos", "command")
+OUTPUT_STREAMS = ("estimate", "nodes", "innov_imu_rate", "innov_wheels", "innov_servos")
+RUN_STREAMS = ("truth", "loop", "events")
+
+
+def short_schedule(end_m: float = L0 - 0.05, duration_s: float = 1.0) -> Schedule:
+    """s13 shortened linearly (0.05 m/s by default), s24 held."""
+    t = np.array([0.0, duration_s])
+    return Schedule(("s13", "s24"), t, [[L0, L0], [end_m, L0]], "short")
+
+
+def run(tmp_path, schedule=None, settings=SHORT, on_tick=None):
+    folder = tmp_path / "log"
+    result = run_simulated(
+        CONFIG, schedule or short_schedule(), folder, settings=settings, on_tick=on_tick
+    )
+    return result, folder
+
+
+def events(folder) -> list[tuple[str, str]]:
+    e = read_stream(folder, "events")
+    return list(zip(e["kind"], e["message"], strict=True))
+
+
+def assert_safe_state(folder, result):
+    """Wheels commanded to zero and slowing (truth), servos holding, the outcome logged."""
+    safe = result.summary["safe_state"]
+    assert safe["wheels_stopped"] and safe["servos_holding"], safe
+    cmd = read_stream(folder, "command")
+    assert [cmd[f"omega_cmd_{i}_rad_s"][-1] for i in range(4)] == [0.0] * 4
+    truth = read_stream(folder, "truth")
+    last = max(abs(truth[f"omega_{i}_rad_s"][-1]) for i in range(4))
+    peak = max(np.max(np.abs(truth[f"omega_{i}_rad_s"])) for i in range(4))
+    assert peak > 0.9 * SPIN and last < 0.3 * SPIN  # spun up, ramped down (the rest coasts)
+    kinds = [k for k, _ in events(folder)]
+    assert kinds.count("safe_state") == 2  # the reason, then what was reached
+
+
+def test_a_run_completes_and_logs_every_stream(tmp_path):
+    result, folder = run(tmp_path)
+    assert result.completed and result.exit_status == 0, result.reason
+    meta = read_meta(folder)
+    for name in INPUT_STREAMS + OUTPUT_STREAMS + RUN_STREAMS:
+        assert name in meta["streams"], name
+        # one line with numpy, as docs/run.md promises
+        rows = np.genfromtxt(folder / f"{name}.csv", delimiter=",", names=True, dtype=None)
+        assert rows.size > 3, name
+    phases = [m for k, m in events(folder) if k == "phase"]
+    assert phases == ["connect", "hold", "spinup", "lead_in", "schedule", "settle"]
+    cmd = read_stream(folder, "command")
+    assert cmd["s13_rest_m"].min() == pytest.approx(L0 - 0.05, abs=1e-9)
+    truth = read_stream(folder, "truth")
+    assert truth["s13_rest_m"][-1] == pytest.approx(L0 - 0.05, abs=2e-3)  # servo followed
+    assert_safe_state(folder, result)
+    loop = result.summary["loop"]
+    assert loop["ticks"] > 200 and 0.009 < loop["period_mean_s"] < 0.02
+    est = read_stream(folder, "estimate")
+    assert np.all(np.isfinite(est["tilt_rad"]))
+    assert (
+        abs(result.summary["tilt_end_estimate_rad"] - result.summary["tilt_end_truth_rad"]) < 0.05
+    )
+
+
+def test_ctrl_c_mid_schedule_ends_in_the_safe_state(tmp_path):
+    def interrupt(loop, phase, t_s):
+        if phase == "schedule" and t_s - loop.t_schedule_s > 0.3:
+            raise KeyboardInterrupt
+
+    result, folder = run(tmp_path, on_tick=interrupt)
+    assert result.exit_status == 130 and "Ctrl-C" in result.reason
+    assert_safe_state(folder, result)
+    assert read_meta(folder)["summary"]["reason"] == result.reason
+    for name in read_meta(folder)["streams"]:
+        read_stream(folder, name)  # every stream reads back whole
+
+
+@pytest.mark.parametrize(
+    ("fault", "expected"),
+    [
+        (("wheels", "reset"), "wheels: board rebooted"),
+        (("servos", "overload"), "overload"),
+    ],
+)
+def test_an_injected_device_fault_ends_in_the_safe_state_and_is_named(tmp_path, fault, expected):
+    def inject(loop, phase, t_s):
+        if phase == "schedule" and not hasattr(loop, "injected"):
+            loop.injected = True
+            kwargs = {"servo_id": 1} if fault[0] == "servos" else {}
+            loop.rig.inject(*fault, **kwargs)
+
+    result, folder = run(tmp_path, on_tick=inject)
+    assert result.exit_status == 1 and expected in result.reason, result.reason
+    assert any(k == "end" and expected in m for k, m in events(folder))
+    safe = result.summary["safe_state"]
+    assert safe["servos_holding"]
+    if fault[0] == "servos":
+        assert_safe_state(folder, result)
+        assert "overload" in " ".join(safe["servo_faults"]["s13"]).lower()
+
+
+def test_a_limit_breach_during_the_run_ends_in_the_safe_state(tmp_path):
+    schedule = short_schedule(L0 - 0.1, 1.0)  # tilts the spinning D-bar by several degrees
+    result, folder = run(tmp_path, schedule, replace(SHORT, max_tilt_rad=math.radians(1.0)))
+    assert result.exit_status == 1 and "LimitBreach: estimated tilt" in result.reason
+    assert_safe_state(folder, result)
+
+
+def test_a_schedule_beyond_the_servo_limits_is_refused_before_anything_moves(tmp_path):
+    too_short = short_schedule(0.05)  # below s13's min_length_m = 0.12
+    with pytest.raises(ScheduleRefused, match=r"s13: rest length 0\.05..0\.431 m outside"):
+        run(tmp_path, too_short)
+    too_fast = short_schedule(L0 - 0.1, 0.2)  # 0.5 m/s against max_speed_m_s = 0.15
+    with pytest.raises(ScheduleRefused, match=r"s13: speed 0\.5 m/s exceeds 0\.15 m/s"):
+        run(tmp_path, too_fast)
+    unknown = Schedule(("s99",), [0.0, 1.0], [[L0], [L0]], "unknown")
+    with pytest.raises(ScheduleRefused, match="s99: no servo winds this string"):
+        run(tmp_path, unknown)
+    assert not (tmp_path / "log").exists()  # no log: nothing was opened
