@@ -49,7 +49,7 @@ def run(ekf, data, on_step=None):
     wheel_cols = cols.wheel_speed_columns(n_w)
     dt = ekf.config.process_dt_s
     for t, name, i in events(data):
-        while t - ekf.t > dt:
+        while t - ekf.t > dt * (1.0 + 1e-9):
             ekf.advance(ekf.t + dt)
             if on_step:
                 on_step(ekf, "predict")

@@ -187,7 +187,8 @@ class TensegrityEKF:
 
     def predict(self, dt: float) -> None:
         """One prediction step of ``dt`` s with the held input."""
-        x_next, F = self.process.step(self.x, self.u, dt, self._A)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
+            x_next, F = self.process.step(self.x, self.u, dt, self._A)
         self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
@@ -195,6 +196,9 @@ class TensegrityEKF:
         self.kf.predict()
         self.t += dt
         self._check_finite("prediction")
+        # the state back onto the constraints (RK4 drifts ~1e-9 m per step); P keeps the
+        # process noise in all directions until the next update projects it
+        self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
 
     def _check_finite(self, what: str) -> None:
         bad = np.flatnonzero(~np.isfinite(self.x) | ~np.all(np.isfinite(self.P), axis=0))

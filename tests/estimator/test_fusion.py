@@ -1,0 +1,132 @@
+"""Gating, time-outs, status bits and the manifold after updates."""
+
+import numpy as np
+import pytest
+
+from gyrohost.estimator import (
+    EstimatorConfigError,
+    EstimatorError,
+    Status,
+    TensegrityEKF,
+    config_from_dict,
+)
+from gyrohost.estimator.imu_model import euler_zyx
+from gyrohost.estimator.layout import to_model_state
+from gyrotensegrity.projection import project
+
+
+def imu_sample(ekf):
+    """A noise-free IMU sample consistent with the present estimate (at rest, level)."""
+    R, _ = ekf.attitude()
+    return np.zeros(3), np.array([0.0, 0.0, 9.80665]), euler_zyx(R[None])[0]
+
+
+def test_gate_rejects_an_outlier_and_counts_it(model, config):
+    seen = []
+    ekf = TensegrityEKF(model, config, log=seen.append)
+    rate, accel, angle = imu_sample(ekf)
+    ekf.fuse_imu(0.01, rate, accel, angle)
+    assert not ekf.status & Status.IMU_ANGLE_REJECTED
+    outlier = angle + np.radians([0.0, 20.0, 0.0])
+    results = ekf.fuse_imu(0.02, rate, accel, outlier)
+    by_source = {r.source: r for r in results}
+    bad = by_source["imu_angle"]
+    assert not bad.accepted and bad.test_ratio > 1.0 and bad.rejected_count == 1
+    assert by_source["imu_rate"].accepted and by_source["imu_accel"].accepted
+    assert ekf.monitors["imu_angle"].rejected == 1
+    assert ekf.status & Status.IMU_ANGLE_REJECTED
+    _, est = ekf.attitude()
+    assert abs(est[1] - angle[1]) < np.radians(0.5)  # the outlier did not pull the estimate
+    assert seen[-1] is bad  # logged, innovation, variance and ratio included
+    assert bad.innovation.shape == (3,) and np.all(bad.variance > 0.0)
+    ekf.fuse_imu(0.03, rate, accel, angle)
+    assert not ekf.status & Status.IMU_ANGLE_REJECTED
+    assert ekf.monitors["imu_angle"].rejected == 1
+
+
+def test_time_out_predicts_only_raises_flags_and_recovers(model, config):
+    ekf = TensegrityEKF(model, config)
+    rate, accel, angle = imu_sample(ekf)
+    omega_w = ekf.x[ekf.layout.omega].copy()
+    for k in range(1, 11):
+        ekf.fuse_imu(0.01 * k, rate, accel, angle)
+        ekf.fuse_wheels(0.01 * k, omega_w)
+        ekf.fuse_servos(0.01 * k, [0.43105229381822, 0.43105229381132], [0, 1])
+    assert ekf.status == Status(0)
+    accepted = {s: m.accepted for s, m in ekf.monitors.items()}
+    P_before = np.trace(ekf.P)
+    ekf.advance(0.35)  # IMU and wheels silent for 0.25 s, servos not yet timed out
+    assert ekf.status & Status.IMU_RATE_TIMEOUT and ekf.status & Status.WHEELS_TIMEOUT
+    assert not ekf.status & Status.SERVOS_TIMEOUT
+    assert not ekf.status & Status.PREDICTION_ONLY
+    ekf.advance(0.7)
+    assert ekf.status & Status.PREDICTION_ONLY and ekf.status & Status.SERVOS_TIMEOUT
+    assert {s: m.accepted for s, m in ekf.monitors.items()} == accepted  # nothing fused
+    assert np.trace(ekf.P) > P_before  # uncertainty grows on prediction alone
+    ekf.fuse_imu(0.71, rate, accel, angle)
+    assert not ekf.status & (Status.PREDICTION_ONLY | Status.IMU_ANGLE_TIMEOUT)
+    assert ekf.status & Status.WHEELS_TIMEOUT  # still silent
+    ekf.fuse_wheels(0.72, omega_w)
+    assert not ekf.status & Status.WHEELS_TIMEOUT
+    assert ekf.monitors["imu_rate"].timeouts == 1
+
+
+def test_stale_sample_is_dropped_and_flagged(model, config):
+    ekf = TensegrityEKF(model, config)
+    rate, accel, angle = imu_sample(ekf)
+    ekf.fuse_imu(0.2, rate, accel, angle)
+    assert ekf.fuse_wheels(0.1, ekf.x[ekf.layout.omega]) == []
+    assert ekf.status & Status.STALE_SAMPLE and ekf.monitors["wheels"].stale == 1
+
+
+def test_estimate_on_manifold_after_every_update(model, config, synthetic):
+    truth, data = synthetic
+    ekf = TensegrityEKF(model, config)
+    m = ekf.manifold
+    checks = []
+
+    def check(e, stream):
+        B, B_dot = m.bars(e.x)
+        length_err = np.abs(np.linalg.norm(B, axis=0) - model.l)
+        rate_err = np.abs(np.sum(B * B_dot, axis=0))
+        cov_err = np.abs(m.jacobian(e.x) @ e.P).max() / np.abs(e.P).max()
+        if stream == "predict" or e.monitors.get(stream, e.monitors["imu_rate"]).last_rejected:
+            cov_err = 0.0  # P is projected by updates; a prediction adds noise everywhere
+        checks.append((length_err.max(), rate_err.max(), cov_err))
+
+    from gyrohost.estimator import driver
+
+    driver.run(ekf, {k: v[:40] for k, v in data.items()}, check)
+    worst = np.max(checks, axis=0)
+    assert len(checks) > 80
+    assert worst[0] < 1e-12 and worst[1] < 1e-12 and worst[2] < 1e-9
+    # the estimator's dense projection is the model's projection
+    xm = to_model_state(model, ekf.x + 1e-3)
+    ref = project(model, xm)
+    mine = to_model_state(model, m.project_state(ekf.x + 1e-3))
+    assert np.max(np.abs(ref - mine)) < 1e-12
+
+
+def test_non_finite_measurement_is_rejected_not_propagated(model, config):
+    ekf = TensegrityEKF(model, config)
+    rate, accel, angle = imu_sample(ekf)
+    results = ekf.fuse_imu(0.01, rate + np.nan, accel, angle)
+    assert not results[0].accepted and np.all(np.isfinite(ekf.x))
+
+
+def test_non_finite_state_raises_with_member(model, config):
+    ekf = TensegrityEKF(model, config)
+    ekf.kf.x[3 * model.m, 0] = np.inf
+    with pytest.raises(EstimatorError, match=r"t = 0.01 s: prediction made state entry") as exc:
+        ekf.advance(0.01)
+    assert exc.value.member in ekf.layout.labels() and exc.value.t_s == pytest.approx(0.01)
+
+
+def test_config_errors_name_the_key():
+    with pytest.raises(EstimatorConfigError, match="imu_rate_std_rad_s"):
+        config_from_dict({"imu_rate_std_rad_s": -1.0})
+    with pytest.raises(EstimatorConfigError, match="unknown estimator key 'gate'"):
+        config_from_dict({"gate": 3})
+    with pytest.raises(EstimatorConfigError, match="process_method"):
+        config_from_dict({"process_method": "euler"})
+    assert config_from_dict({"imu_frame_nodes": ["n1", "n3", "n4"]}).imu_frame_nodes[2] == "n4"
