@@ -13,12 +13,18 @@ import time
 from pathlib import Path
 
 RUNS = (("gyro", "dbar-gyro.toml", "wheels at 715 rpm"), ("nospin", "dbar-nospin.toml", "no spin"))
-CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml"
+DEFAULT_CONFIG = Path("configs/sim-rig.toml")
 
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the paper's D-bar experiment and write logs and plots")
     p.add_argument("-o", "--out", type=Path, default=Path("out/demo"), help="output folder")
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=DEFAULT_CONFIG,
+        help=f"simulated rig configuration (default {DEFAULT_CONFIG}); scenes from its folder",
+    )
     p.add_argument(
         "--duration",
         type=float,
@@ -31,14 +37,17 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.commands.run import Progress
-    from gyrohost.config import load_rig_config
+    from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.presets import paper
     from gyrohost.plots_log import plot_compare, plot_log
     from gyrohost.runloop import ScheduleRefused, run_simulated
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()
-    config = load_rig_config(CONFIG)
+    try:
+        config = load_rig_config(args.config)
+    except ConfigError as exc:
+        raise CliError(str(exc)) from None
     args.out.mkdir(parents=True, exist_ok=True)
     results = {}
     for key, scene_file, label in RUNS:

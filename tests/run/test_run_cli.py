@@ -1,0 +1,88 @@
+"""``gyrotens run`` and ``gyrotens demo`` as a user runs them: Ctrl-C to the whole process group
+(the CLI and its simulated rig), refusals with clear messages, the demo's outputs."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gyrohost.cli import main
+from gyrohost.control.schedule import Schedule
+from gyrohost.runlog import read_meta, read_stream
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = ROOT / "configs" / "sim-rig.toml"
+L0 = 0.43105229381822
+
+
+def schedule_file(tmp_path, end_m, duration_s) -> Path:
+    s = Schedule(("s13", "s24"), [0.0, duration_s], [[L0, L0], [end_m, L0]], "cli-test")
+    return s.save(tmp_path / "schedule.toml")
+
+
+def wait_for(path: Path, text: str, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if path.exists() and text in path.read_text():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{path}: no {text!r} within {timeout_s} s")
+
+
+def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
+    log = tmp_path / "log"
+    cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
+    cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+    )
+    try:
+        wait_for(log / "events.csv", "phase,schedule", 60.0)
+        time.sleep(0.3)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: the CLI and its rig process
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err.decode()
+    assert b"stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert f"log: {log}".encode() in out
+    summary = read_meta(log)["summary"]
+    assert summary["safe_state"]["wheels_stopped"] and summary["safe_state"]["servos_holding"]
+    truth = read_stream(log, "truth")
+    assert np.max(np.abs(truth["omega_0_rad_s"])) > 70.0
+    assert abs(truth["omega_0_rad_s"][-1]) < 25.0  # ramped down: the rig kept running for it
+
+
+def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim(tmp_path, capsys):
+    bad = schedule_file(tmp_path, 0.05, 5.0)
+    argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(bad), "-o", "x"]
+    assert main(argv) == 2
+    assert "s13: rest length 0.05..0.4311 m outside [0.12, 0.45] m" in capsys.readouterr().err
+    assert main(["run", "--config", str(CONFIG), "-o", str(tmp_path / "y")]) == 2
+    assert "are 'emulator': add --sim" in capsys.readouterr().err
+    assert main(["run", "--config", str(CONFIG), "--schedule", "nope", "--sim"]) == 2
+    assert "nope" in capsys.readouterr().err
+    assert not (tmp_path / "y").exists()
+
+
+def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "-o", str(out), "--duration", "2.0", "--config", str(CONFIG)]) == 0
+    printed = capsys.readouterr().out
+    assert f"outputs in {out}/" in printed
+    for run in ("gyro", "nospin"):
+        assert read_meta(out / run)["summary"]["completed"]
+        pngs = sorted(p.name for p in (out / run / "plots").glob("*.png"))
+        assert pngs == sorted(
+            ["fig7-nodes.png", "fig8-node-z.png", "attitude.png", "wheels.png",
+             "innovations.png", "loop-jitter.png"]
+        )  # fmt: skip
+    assert (out / "fig7-spin-vs-nospin.png").stat().st_size > 10_000
+    summary = (out / "summary.md").read_text()
+    assert "| wheels at 715 rpm |" in summary and "| no spin |" in summary
+    assert "loop at 100 Hz" in summary
