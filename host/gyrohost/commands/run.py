@@ -38,9 +38,9 @@ def load_schedule_arg(text: str, scene_path: Path):
 class Progress:
     """One status line on a terminal: phase, time, schedule played; silent otherwise."""
 
-    def __init__(self, label: str = "", stream=sys.stderr):
-        self.label, self.stream = label, stream
-        self.enabled = stream.isatty()
+    def __init__(self, label: str = "", stream=None):
+        self.label, self.stream = label, stream or sys.stderr
+        self.enabled = self.stream.isatty()
         self._last = 0.0
 
     def __call__(self, phase: str, t_s: float, fraction: float) -> None:
