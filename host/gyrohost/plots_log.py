@@ -93,14 +93,15 @@ def plot_node_z(data: RunData, path) -> Path:
 
 
 def plot_attitude(data: RunData, path) -> Path:
-    """Tilt of the D-bar plane (estimate, truth) and the IMU's own roll and pitch."""
+    """Tilt of the D-bar plane (estimate, truth) and the IMU's roll and pitch (measured, EKF)."""
     est, truth, imu = data.get("estimate"), data.get("truth"), data.get("imu")
+    nodes = data.get("nodes")
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 5.5))
-    if est is not None:
-        axes[0].plot(est["t_s"], np.degrees(est["tilt_rad"]), label="estimate")
+    if nodes is not None:
+        axes[0].plot(nodes["t_s"], np.degrees(nodes["tilt_rad"]), label="estimate")
     if truth is not None:
         axes[0].plot(truth["t_s"], np.degrees(truth["tilt_rad"]), "k--", lw=0.9, label="truth")
-    axes[0].set_ylabel("tilt (deg)")
+    axes[0].set_ylabel("plane tilt about n2-n4 (deg)")
     axes[0].legend(fontsize="small")
     if imu is not None:
         for col in ("roll_rad", "pitch_rad"):

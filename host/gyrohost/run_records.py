@@ -12,6 +12,7 @@ import numpy as np
 
 from gyrohost.control.attitude import Attitude, node_columns, plane_frame, tilt_angle
 from gyrohost.estimator import streams as cols
+from gyrohost.estimator.imu_model import tilt as sensor_tilt
 
 PLANE_NODES = ("n1", "n2", "n3", "n4")
 INNOVATION_COMPONENTS = {
@@ -49,6 +50,11 @@ class TiltMeter:
 class EstimateWriter:
     """Rows of the ``estimate`` and ``nodes`` streams from a :class:`TensegrityEKF`.
 
+    ``estimate`` is the estimator's own row (as ``gyrotens replay`` writes it; its ``tilt_rad``
+    is the angle of the sensor z axis from the vertical, unsigned). ``nodes`` holds the scene
+    node positions and the signed tilt of the D-bar plane about the n2-n4 axis
+    (:class:`TiltMeter`, as in the ``truth`` stream).
+
     Parameters
     ----------
     log : RunLog
@@ -68,21 +74,21 @@ class EstimateWriter:
         )
         self.nodes = log.stream(
             "nodes",
-            ["t_s", *node_columns_of(self.names)],
-            description="scene node positions of the estimate, m",
+            ["t_s", *node_columns_of(self.names), "tilt_rad"],
+            description="scene node positions of the estimate, m; plane tilt, rad",
         )
 
     def write(self, t_s: float) -> tuple[np.ndarray, float]:
-        """Write one row of each stream at host time ``t_s``; returns (N (3, n), tilt rad)."""
+        """Write one row of each stream at host time ``t_s``; returns (N (3, n), plane tilt rad)."""
         ekf = self.ekf
         x = ekf.x
         N_all, _ = ekf.batch_nodes(x[None, :])
         N = N_all[0][:, self.scene_cols]
-        _, euler = ekf.attitude()
+        R, euler = ekf.attitude()
         tilt = self.tilt.tilt(N)
         std = np.sqrt(np.clip(np.diag(ekf.P), 0.0, None))
-        self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, tilt)
-        self.nodes.write(t_s, *N.T.ravel())
+        self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, sensor_tilt(R))
+        self.nodes.write(t_s, *N.T.ravel(), tilt)
         return N, tilt
 
 

@@ -347,6 +347,7 @@ class RunLoop:
         innovations = InnovationWriter(self.log, self.servo_strings)
         t0 = self._now()
         self.ekf = TensegrityEKF(model, est_cfg, x0=x0, t0_s=t0, log=innovations)
+        self.log.update_meta(estimator=asdict(est_cfg))  # what gyrotens replay reads
         self.ekf.set_input(self.rest_cmd)
         self.estimates = EstimateWriter(self.log, self.ekf, self.tilt)
 
