@@ -134,6 +134,7 @@ static volatile int g_pwm_request;
 static double g_stats_period_s = 1.0;
 static double g_rate = 1.0; /* simulated seconds per wall second; 0 = free-running */
 static double g_wall_t0;
+static double g_uart_wait_s; /* wall time the simulation waited for uart_pty (see below) */
 
 static double now_s(void) {
     struct timespec ts;
@@ -413,14 +414,14 @@ static void print_stats(const char* tag, const cyc_stats_t* s) {
     printf(
         "%s t_s=%.3f wall_s=%.3f rt=%.3f steps=%llu cyc_min=%llu cyc_mean=%.1f cyc_max=%llu "
         "load_pct=%.2f overruns=%llu rpm=%.2f,%.2f,%.2f,%.2f vq=%.2f,%.2f,%.2f,%.2f "
-        "vd=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s\n",
+        "vd=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s uart_wait_s=%.3f\n",
         tag, t, wall, wall > 0 ? t / wall : 0.0, (unsigned long long)s->n,
         (unsigned long long)s->min, mean, (unsigned long long)s->max,
         100.0 * (double)s->max / (double)g_tick_cycles, (unsigned long long)s->overruns,
         rpm(&g_mot[0]), rpm(&g_mot[1]), rpm(&g_mot[2]), rpm(&g_mot[3]), g_mot[0].v_q, g_mot[1].v_q,
         g_mot[2].v_q, g_mot[3].v_q, g_mot[0].v_d, g_mot[1].v_d, g_mot[2].v_d, g_mot[3].v_d,
         k_fault_names[g_mot[0].fault], k_fault_names[g_mot[1].fault], k_fault_names[g_mot[2].fault],
-        k_fault_names[g_mot[3].fault]);
+        k_fault_names[g_mot[3].fault], g_uart_wait_s);
     fflush(stdout);
 }
 
@@ -450,8 +451,30 @@ static avr_cycle_count_t model_timer(avr_t* avr, avr_cycle_count_t when, void* p
     return when + g_par.model_cycles;
 }
 
+/*
+ * uart_pty (simavr 1.6) moves firmware output through a 512-byte FIFO to the pty from its own
+ * thread and silently drops bytes when that FIFO is full: a busy host (two cores, a test runner,
+ * builds) lost telemetry bytes that way. Back-pressure instead: while the FIFO is more than half
+ * full the simulation waits for the pty thread, as a UART would wait for a slow reader's USB
+ * bridge. Checked every simulated millisecond (18 bytes of telemetry at 500 kbaud and 500 Hz).
+ */
+static unsigned uart_out_fill(void) {
+    return (unsigned)(g_pty.pty.in.write - g_pty.pty.in.read) & (uart_pty_fifo_fifo_size - 1);
+}
+
+static void uart_backpressure(void) {
+    if (uart_out_fill() < uart_pty_fifo_fifo_size / 2) return;
+    double t0 = now_s();
+    struct timespec ts = {0, 200000};
+    while (uart_out_fill() > uart_pty_fifo_fifo_size / 8 && now_s() - t0 < 2.0) {
+        nanosleep(&ts, NULL);
+    }
+    g_uart_wait_s += now_s() - t0;
+}
+
 static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)param;
+    uart_backpressure();
     if (g_rate > 0) {
         double ahead = sim_time_s() / g_rate - (now_s() - g_wall_t0);
         if (ahead > 0.0005) {

@@ -22,6 +22,9 @@ pytestmark = pytest.mark.fil
 
 RPM = 2 * math.pi / 60
 TARGET_RAD_S = 715 * RPM
+# Wall-clock reply limit of the client: generous, since a loaded 2-core host can slow the
+# simulation below real time (the firmware's own timeouts run on simulated time).
+REPLY_TIMEOUT_S = 3.0
 
 
 @pytest.fixture
@@ -32,7 +35,7 @@ def harness():
 
 @pytest.fixture
 def rig(harness):
-    board = WheelBoard(harness.pty)
+    board = WheelBoard(harness.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
         yield harness, board
@@ -90,6 +93,15 @@ def wait_true_rpm(h: Harness, ok, timeout_s: float = 10.0, ping=None) -> list[fl
         time.sleep(0.05)
 
 
+def wait_sim_time(h: Harness, t_s: float, timeout_s: float = 30.0) -> dict[str, str]:
+    """Wait for the first STATS line at or after simulated time ``t_s``; return it."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        line = h.latest_stats(timeout_s=max(0.1, deadline - time.monotonic()))
+        if float(line["t_s"]) >= t_s - 1e-9:
+            return line
+
+
 def test_handshake_reports_version_and_geometry(rig):
     _, board = rig
     hello = board.hello
@@ -138,15 +150,14 @@ def test_heartbeat_loss_ramps_down_and_reports(harness):
     """
     h = harness
     # A client whose own heartbeat never fires: only the frames the test sends keep it alive.
-    board = WheelBoard(h.pty, heartbeat_period_s=3600)
+    board = WheelBoard(h.pty, heartbeat_period_s=3600, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
         board.set_speeds([TARGET_RAD_S] * 4)
         # any valid frame counts as a heartbeat: GET_STATS between the checks
         wait_true_rpm(h, lambda rpm: all(r > 700 for r in rpm), ping=board.stats)
         # from here on nothing is sent on this link
-        time.sleep(1.0)
-        line = h.latest_stats()
+        line = wait_sim_time(h, board.last_telemetry.t_us * 1e-6 + 1.0)
         tel = telemetry_at(board, float(line["t_s"]))
         truth = stats_rpm(line)
         pwm = h.command("pwm")
@@ -246,8 +257,9 @@ def test_open_loop_mode_turns_at_field_speed(rig):
     board.set_param("ACCEL_RAD_S2", 20)  # within the open-loop drive's torque
     commanded_rpm = [200.0, -200.0, 100.0, 0.0]
     board.set_speeds([r * RPM for r in commanded_rpm])
-    time.sleep(2.0)  # ramp to 200 rpm at 20 rad/s^2: about 1 s
-    window = [h.latest_stats() for _ in range(2)]
+    start_s = board.last_telemetry.t_us * 1e-6
+    window = [wait_sim_time(h, start_s + 2.0)]  # ramp to 200 rpm at 20 rad/s^2: about 1 s
+    window.append(h.latest_stats())
     assert "OPEN_LOOP" in board.last_telemetry.status_names
     for i, want in enumerate(commanded_rpm):
         got = sum(stats_rpm(s)[i] for s in window) / len(window)
