@@ -1,16 +1,21 @@
 """Shared fixtures: the D-bar model and one synthetic run of the paper's manoeuvre."""
 
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from gyrohost.estimator import EstimatorConfig
 from gyrohost.estimator.layout import from_model_state
+from gyrohost.estimator.montecarlo import TRUTH_PSD_M2_S3
 from gyrohost.estimator.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, Stepper, load_scene
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"
+
+
+@pytest.fixture(scope="session")
+def scene_path():
+    return SCENE
 
 
 @pytest.fixture(scope="session")
@@ -20,13 +25,13 @@ def model():
 
 @pytest.fixture(scope="session")
 def config():
-    return replace(EstimatorConfig(), accel_psd_m2_s3=1e-4)
+    return EstimatorConfig()
 
 
 @pytest.fixture(scope="session")
 def synthetic(model, config):
-    """1 s of truth (disturbed) and its sensor streams, seed 11."""
-    truth = simulate_truth(model, config, 1.0, seed=11)
+    """1 s of truth (disturbed as in the Monte Carlo) and its sensor streams, seed 11."""
+    truth = simulate_truth(model, config, 1.0, seed=11, accel_psd_m2_s3=TRUTH_PSD_M2_S3)
     return truth, sensor_streams(model, config, truth, seed=11)
 
 

@@ -30,7 +30,7 @@ class EstimatorConfig:
     wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
     servo_length_std_m: float = field(default=1.0e-3, metadata=_pos("string length noise"))
     # process noise (white, spectral densities)
-    accel_psd_m2_s3: float = field(default=1.0e-3, metadata=_pos("node acceleration noise"))
+    accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_pos("gyro bias walk"))
     # initial uncertainty

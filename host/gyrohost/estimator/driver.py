@@ -55,7 +55,7 @@ def run(ekf, data, on_step=None):
                 on_step(ekf, "predict")
         row = data[name][i]
         if name == cols.COMMAND:
-            ekf.set_input([row[c] for c in rest_cols])
+            ekf.set_input([row[c] for c in rest_cols], t)
             continue
         if name == cols.IMU:
             ekf.fuse_imu(

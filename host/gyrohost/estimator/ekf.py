@@ -6,7 +6,7 @@ State: see :mod:`.layout`; process model: :mod:`.process_model`; measurements: o
 Typical use (the run loop and ``gyrotens replay``)::
 
     ekf = TensegrityEKF(model, config, log=writer)
-    ekf.set_input(rest_lengths)           # commanded rest lengths, held until the next command
+    ekf.set_input(rest_lengths, t)        # commanded rest lengths from t on, held
     ekf.fuse_imu(t, omega, accel, euler)  # predicts to t, then fuses rate, accel, angle
     ekf.fuse_wheels(t, omega_w)
     ekf.fuse_servos(t, lengths, strings)
@@ -171,8 +171,11 @@ class TensegrityEKF:
         return word
 
     # -- time update ----------------------------------------------------------------------------
-    def set_input(self, rest_length_m):
-        """Commanded rest lengths (alpha,) m, held until the next command."""
+    def set_input(self, rest_length_m, t_s=None):
+        """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now), held until the next
+        command; the filter first predicts to ``t_s`` with the previous command."""
+        if t_s is not None and t_s > self.t:
+            self.advance(t_s)
         self.u = self.u.copy()
         self.u[: self.model.alpha] = rest_length_m
 

@@ -37,21 +37,27 @@ class TruthRun:
     rest_length: np.ndarray
 
 
-def simulate_truth(model, config, duration_s, seed, dt_s=0.01, substep_s=1e-3, disturb=True):
-    """Run the truth for ``duration_s`` seconds; ``seed`` draws the bias and disturbances."""
+def simulate_truth(
+    model, config, duration_s, seed, dt_s=0.01, substep_s=1e-3, accel_psd_m2_s3=None
+):
+    """Run the truth for ``duration_s`` seconds; ``seed`` draws the bias and disturbances.
+
+    ``accel_psd_m2_s3`` is the density of the disturbance (default: the filter's own,
+    ``config.accel_psd_m2_s3``; 0 for none).
+    """
+    psd = config.accel_psd_m2_s3 if accel_psd_m2_s3 is None else accel_psd_m2_s3
     rng = np.random.default_rng(seed)
     geo = ImuGeometry(model, config)
     bias = rng.normal(0.0, config.init_gyro_bias_std_rad_s, 3)
     stepper = Stepper(model, max_dt=substep_s)
     L = model.layout
-    chol = np.linalg.cholesky(
-        config.accel_psd_m2_s3 * np.array([[dt_s**3 / 3, dt_s**2 / 2], [dt_s**2 / 2, dt_s]])
-    )
+    chol = np.linalg.cholesky(np.array([[dt_s**3 / 3, dt_s**2 / 2], [dt_s**2 / 2, dt_s]]))
+    chol *= np.sqrt(psd)
     rows = []
     for k in range(int(round(duration_s / dt_s)) + 1):
         if k:
             stepper.step(dt_s)
-            if disturb:
+            if psd > 0.0:
                 w = chol @ rng.standard_normal((2, 3 * model.m))
                 stepper.x[L.q] += w[0]
                 stepper.x[L.q_dot] += w[1]
