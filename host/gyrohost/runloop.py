@@ -96,6 +96,8 @@ class RunSettings:
     keeps turning after the maneuver (set it on a rig whose supports bound the tilt)."""
     wheel_speed_margin_rad_s: float = 15.0
     max_servo_load: float = 0.95
+    max_fused_per_tick: int = 4
+    """Samples of one device fused per tick at most (the newest); older ones are only logged."""
 
     def __post_init__(self):
         for name, value in asdict(self).items():
@@ -210,6 +212,7 @@ class RunLoop:
         self.readers: list = []
         self.wheel_reader = self.servo_worker = None
         self.latest_servos: list = []
+        self.skipped: dict[str, int] = {}
         self.ekf = None
         self.estimates = None
         self.truth = None
@@ -371,7 +374,7 @@ class RunLoop:
         wait = due - self._now()
         if wait > 0:
             time.sleep(wait)
-        start = self._now()
+        start, cpu0 = self._now(), time.thread_time()
         self.timer.record(start, due)
         self._next_due_s = due + period * max(1, math.ceil((start - due) / period))
         n = self._drain(strict)
@@ -383,7 +386,8 @@ class RunLoop:
             self.truth.write()
         if strict:
             self._check_limits()
-        self.loop_stream.write(start, start - due, self._now() - start, n, self.phase)
+        cpu = time.thread_time() - cpu0
+        self.loop_stream.write(start, start - due, self._now() - start, cpu, n, self.phase)
         if self.progress is not None:
             self.progress(self.phase, start, self._played(start))
         if strict and self.on_tick is not None:
@@ -406,17 +410,27 @@ class RunLoop:
         faults = [i for i in items if isinstance(i, BaseException)]
         samples = sorted((i for i in items if isinstance(i, Sample)), key=lambda s: s.t_ns)
         for sample in samples:
-            self._take(sample)
+            self._take(sample, self._fusable(sample, samples))
         for fault in faults:
             if strict:
                 raise fault
             self.event("fault", str(fault))
         return len(samples)
 
-    def _take(self, sample: Sample) -> None:
+    def _fusable(self, sample: Sample, samples: list) -> bool:
+        """Fuse only a device's newest ``max_fused_per_tick`` samples of a tick (all are logged):
+        a loop that fell behind catches up instead of spiralling."""
+        if self.ekf is None or (sample.t_ns - self._t0_ns) * 1e-9 < self.ekf.t_start:
+            return False
+        newer = sum(1 for s in samples if s.device == sample.device and s.t_ns > sample.t_ns)
+        if newer < self.settings.max_fused_per_tick:
+            return True
+        self.skipped[sample.device] = self.skipped.get(sample.device, 0) + 1
+        return False
+
+    def _take(self, sample: Sample, fuse: bool) -> None:
         t = (sample.t_ns - self._t0_ns) * 1e-9
         v = sample.value
-        fuse = self.ekf is not None and t >= self.ekf.t_start
         if sample.device == "imu":
             self.imu_stream.write(
                 t, *v.omega_rad_s, *v.accel_m_s2, *v.euler_rad, v.temperature_degC
@@ -562,9 +576,9 @@ class RunLoop:
         )
         self.loop_stream = log.stream(
             "loop",
-            ["t_s", "late_s", "work_s", "samples", "phase"],
+            ["t_s", "late_s", "work_s", "cpu_s", "samples", "phase"],
             ("phase",),
-            "one row per host tick: lateness against the fixed grid, s; time spent, s",
+            "one row per host tick: lateness against the grid, wall and CPU time spent (s)",
         )
         self.imu_stream = log.stream(
             cols.IMU, [*cols.imu_columns(), "temperature_degC"], (), "IMU samples at arrival"
@@ -612,6 +626,7 @@ class RunLoop:
             "safe_state": safe,
             "loop": timing,
             "rows": {name: s.rows for name, s in self.log.streams.items()},
+            "not_fused": self.skipped,
             "duration_s": self._now(),
         }
         out.update(self.final)
