@@ -12,7 +12,7 @@ import sys
 
 from gyrotensegrity import __version__
 
-COMMANDS = ["demo", "simulate", "plot", "rig", "replay"]
+COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
 
 
 class CliError(Exception):

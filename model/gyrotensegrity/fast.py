@@ -38,7 +38,8 @@ try:  # the optional compiled kernel (setup.py); the numpy path below is the fal
 except ImportError:  # pragma: no cover - depends on the build
     _fastkernel = None
 
-DENSE_LIMIT = 400  # above this many coordinates (m') joints use the sparse saddle-point solve
+DENSE_LIMIT = 100  # coordinates m' up to which the dense path (and the compiled kernel) is used
+FULL_LIMIT = 400  # full coordinates with joints: dense only, up to this many coordinates
 
 
 def _dense(a):
@@ -72,6 +73,11 @@ class FastDynamics:
         :func:`gyrotensegrity.rhs`. ``"full"``: all node coordinates ``N`` in the state and the
         joints held by multipliers (Eqs. 60-62), so joint errors can drift; state
         ``[vec(N) 3n | vec(N_dot) 3n | theta_w | omega_w of torque wheels]``, row by row.
+    kernel : bool
+        Use the compiled kernel when it is built and the structure is small (dense path).
+    dense_limit : int, optional
+        Largest ``m'`` for the dense path (default :data:`DENSE_LIMIT`); above it the sparse
+        path (class 1: explicit bar forces; with joints: banded saddle-point solve).
 
     Notes
     -----
@@ -79,7 +85,9 @@ class FastDynamics:
     ``model.m`` (reduced) or ``model.n`` (full).
     """
 
-    def __init__(self, model: Model, coordinates: str = "reduced", kernel: bool = True):
+    def __init__(
+        self, model: Model, coordinates: str = "reduced", kernel: bool = True, dense_limit=None
+    ):
         if coordinates not in ("reduced", "full"):
             raise ValueError(f"coordinates must be 'reduced' or 'full', got {coordinates!r}")
         st = model.structure
@@ -94,7 +102,10 @@ class FastDynamics:
             N_fix = np.zeros((3, model.n))
             P_u = _dense(st.P)
         self.size = U.shape[1]  # m'
-        dense = self.size <= DENSE_LIMIT
+        limit = DENSE_LIMIT if dense_limit is None else dense_limit
+        if coordinates == "full" and model.c:
+            limit = FULL_LIMIT
+        dense = self.size <= limit
         self.U_T = _Right(U.T, dense)
         self.N_fix = N_fix
         E = sp.csr_matrix(st.C_b @ U)
@@ -162,7 +173,7 @@ class FastDynamics:
         self.c_u = P_u.shape[1]
         if self.c_u:
             raise ValueError(
-                f"full coordinates with joints are supported up to {DENSE_LIMIT} "
+                f"full coordinates with joints are supported up to {FULL_LIMIT} "
                 f"coordinates; this model has {self.size}"
             )
         self.diagonal = model.c == 0

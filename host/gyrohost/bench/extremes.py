@@ -1,0 +1,183 @@
+"""Stability at the extremes: every integrator on scenes pushed to the edges of the range.
+
+Each cell runs :func:`gyrotensegrity.simulate` (the user's path, fast dynamics) and reports
+``holds`` with its constraint error and drift, ``fails`` with the library's error message
+(stiffness detected, non-finite state with time and member, singular geometry), or
+``budget`` when the wall-time budget ran out first (slow, not broken).
+"""
+
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from gyrotensegrity import Model, SimulationError, scene_from_dict
+
+SCENES = Path(__file__).resolve().parents[3] / "scenes"
+SETTINGS = {
+    "rk4": {"dt": 1e-3},
+    "rk4-projected": {"dt": 1e-3},
+    "dop853": {"rtol": 1e-9, "atol": 1e-12},
+    "rk45": {"rtol": 1e-7, "atol": 1e-10},
+    "radau": {"rtol": 1e-6, "atol": 1e-9},
+    "bdf": {"rtol": 1e-6, "atol": 1e-9},
+}
+
+
+def scene_data(name: str) -> dict:
+    with open(SCENES / f"{name}.toml", "rb") as fh:
+        return tomllib.load(fh)
+
+
+def with_spin(spin: float) -> dict:
+    """The D-bar maneuver with every wheel at +-spin rad/s (the scene's pattern)."""
+    data = scene_data("dbar-gyro")
+    for bar in data["bars"]:
+        bar["wheel"]["spin"] = float(np.sign(bar["wheel"]["spin"]) * spin)
+    return data
+
+
+def prism(stiffness=None, mass_ratio=None, scale=1.0, prestress=None) -> dict:
+    """The free-floating gyroscopic prism, changed: string stiffness (N/m), wheel/bar mass
+    ratio, all lengths scaled by ``scale`` (wheels too), or rest lengths at ``prestress``
+    times the scene's."""
+    data = scene_data("prism-gyro")
+    data["nodes"] = {k: [scale * c for c in v] for k, v in data["nodes"].items()}
+    data["velocities"] = {k: [scale * c for c in v] for k, v in data["velocities"].items()}
+    for bar in data["bars"]:
+        w = bar["wheel"]
+        w["radius"], w["thickness"] = scale * w["radius"], scale * w["thickness"]
+        if mass_ratio is not None:
+            w["mass"] = mass_ratio * bar["mass"]
+    for s in data["strings"]:
+        s["rest_length"] *= scale * (1.0 if prestress is None else prestress)
+        if stiffness is not None:
+            s["stiffness"] = stiffness
+    return data
+
+
+def near_flat_dbar(height_ratio: float) -> dict:
+    """The D-bar rhombus squashed so that n2, n4 sit at +-height_ratio of the half-diagonal:
+    the four bars are almost collinear."""
+    data = with_spin(74.87462492)
+    half = 0.3048  # bar length; n1, n3 at +-half*cos, n2, n4 at +-half*sin
+    angle = np.arcsin(height_ratio)
+    data["nodes"] = {
+        "n1": [-half * np.cos(angle), 0.0, 0.0],
+        "n2": [0.0, half * np.sin(angle), 0.0],
+        "n3": [half * np.cos(angle), 0.0, 0.0],
+        "n4": [0.0, -half * np.sin(angle), 0.0],
+    }
+    for s in data["strings"]:
+        a, b = (np.array(data["nodes"][n]) for n in s["nodes"])
+        s["rest_length"] = float(np.linalg.norm(a - b))
+    return data
+
+
+def zero_length_crossing() -> dict:
+    """A free bar whose start node flies through a fixed anchor; the string between them
+    (rest length 0) passes through zero length at t = 0.5 s."""
+    return {
+        "scene": {"name": "zero-length-crossing", "duration": 1.0},
+        "nodes": {"o": [0.0, 0.0, 0.0], "a": [-0.5, 0.0, 0.0], "b": [-0.5, 0.0, 0.3]},
+        "velocities": {"a": [1.0, 0.0, 0.0], "b": [1.0, 0.0, 0.0]},
+        "constraints": {"fixed": ["o"]},
+        "bars": [{"name": "bar", "nodes": ["a", "b"], "mass": 0.1}],
+        "strings": [{"name": "s", "nodes": ["a", "o"], "stiffness": 1.0, "rest_length": 0.0}],
+    }
+
+
+def cells(quick: bool):
+    """(group, label, scene dict, duration s) of the sweep."""
+    short = 0.1 if quick else 0.5
+    yield "wheel speed", "0 rad/s", with_spin(0.0), short
+    yield "wheel speed", "3,000 rad/s", with_spin(3000.0), short
+    yield "string stiffness", "1 N/m", prism(stiffness=1.0), short
+    yield "string stiffness", "1e7 N/m", prism(stiffness=1e7), short
+    yield "mass ratio wheel/bar", "1e-4", prism(mass_ratio=1e-4), short
+    yield "mass ratio wheel/bar", "1e4", prism(mass_ratio=1e4), short
+    yield "bar length", "1 mm", prism(scale=1e-3 / 0.3), short
+    yield "bar length", "100 m", prism(scale=100.0 / 0.3), short
+    yield "near-singular", "bars 1e-4 rad from collinear", near_flat_dbar(1e-4), short
+    yield "near-singular", "strings 1e-6 from slack", prism(prestress=1.0 - 1e-6), short
+    yield "near-singular", "string through zero length", zero_length_crossing(), 1.0
+    yield (
+        "long horizon",
+        "prism 10 s" if quick else "prism 1,000 s",
+        prism(),
+        (10.0 if quick else 1000.0),
+    )
+
+
+class _Budget(Exception):
+    pass
+
+
+def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> dict:
+    """One cell: ``status`` holds / fails / budget, with figures or the error message."""
+    from gyrotensegrity import simulate
+
+    model = Model(scene_from_dict(data, source=data.get("scene", {}).get("name", "cell")))
+    start = time.perf_counter()
+
+    def progress(t, total):
+        if time.perf_counter() - start > budget_s:
+            raise _Budget(f"{t:.3g} of {total:g} s in {budget_s:g} s")
+
+    sample = min(0.01 * max(duration, 1.0), duration / 10)
+    try:
+        run = simulate(
+            model,
+            duration=duration,
+            integrator=integrator,
+            sample_dt=sample,
+            constraint_tolerance=1e-3 * max(model.l.max(), 1e-3),
+            progress=progress,
+            fast=True,
+            **SETTINGS[integrator],
+        )
+    except SimulationError as exc:
+        return {"status": "fails", "message": str(exc), "wall_s": time.perf_counter() - start}
+    except _Budget as exc:
+        return {"status": "budget", "message": str(exc), "wall_s": time.perf_counter() - start}
+    bar = float(np.max(np.abs(run["bar_length_error"]) / model.l))
+    joint = float(np.max(run["joint_error"], initial=0.0))
+    H = run["angular_momentum"]
+    scale = max(float(np.max(np.linalg.norm(H, axis=1))), 1e-300)
+    finite = all(np.all(np.isfinite(run[k])) for k in ("N", "N_dot", "energy"))
+    return {
+        "status": "holds" if finite else "NaN",
+        "bar_length_error": bar,
+        "joint_error_m": joint,
+        "momentum_drift": float(np.max(np.linalg.norm(H - H[0], axis=1)) / scale),
+        "wall_s": time.perf_counter() - start,
+    }
+
+
+def sweep(quick: bool, log=print) -> list:
+    rows = []
+    budget = 3.0 if quick else 60.0
+    for group, label, data, duration in cells(quick):
+        for integrator in SETTINGS:
+            if quick and integrator in ("rk45", "bdf"):
+                continue
+            cell = run_cell(data, duration, integrator, budget)
+            rows.append(
+                {
+                    "group": group,
+                    "cell": label,
+                    "integrator": integrator,
+                    "duration_s": duration,
+                    **cell,
+                }
+            )
+            log(
+                f"  {group:22s} {label:30s} {integrator:13s} {cell['status']:6s} "
+                + (
+                    cell.get("message", "")[:70]
+                    if cell["status"] != "holds"
+                    else f"bar {cell['bar_length_error']:.1e}"
+                )
+            )
+    return rows

@@ -1,0 +1,128 @@
+"""Micro-timings: right-hand side and step cost against structure size, the EKF budget.
+
+Every figure is the minimum over several repeats of the mean over a loop (the machine is
+shared; the minimum is the least disturbed measurement).
+"""
+
+import time
+
+import numpy as np
+
+from gyrotensegrity import Model, rhs
+from gyrotensegrity.fast import FastDynamics
+from gyrotensegrity.generators import prism_chain
+from gyrotensegrity.integrators import RK4
+
+SIZES_FULL = (1, 3, 10, 34, 67, 100, 200, 334)  # prisms: 3 to 1,002 bars
+SIZES_QUICK = (1, 10, 40, 80)
+
+
+def best_time(fn, repeats=5, target_s=0.05):
+    """Minimum over ``repeats`` of the mean time of ``fn()`` in a loop of ~target_s, s."""
+    fn()
+    t0 = time.perf_counter()
+    fn()
+    once = max(time.perf_counter() - t0, 1e-7)
+    loops = max(1, int(target_s / once))
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(loops):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / loops)
+    return best
+
+
+def rhs_costs(model: Model, x, u, repeats=5, target_s=0.05, reference=True):
+    """Costs (s) of one evaluation: reference, fast numpy path, compiled kernel (if built)."""
+    out = {}
+    if reference:
+        out["reference"] = best_time(lambda: rhs(0.0, x, u, model), repeats, target_s)
+    numpy_path = FastDynamics(model, kernel=False)
+    out["fast_numpy"] = best_time(lambda: numpy_path.rhs(0.0, x, u), repeats, target_s)
+    fast = FastDynamics(model)
+    if fast.kernel is not None:
+        out["fast_kernel"] = best_time(lambda: fast.rhs(0.0, x, u), repeats, target_s)
+    out["fast"] = out.get("fast_kernel", out["fast_numpy"])
+
+    def step():
+        RK4.step(lambda t, y: fast.rhs(t, y, u), 0.0, x, 1e-4)
+
+    out["rk4_step"] = best_time(step, repeats, target_s)
+    return out
+
+
+def scaling(quick: bool, log=print) -> list:
+    """rhs and RK4 step cost of prism chains (class 1 and class 2) against the bar count."""
+    rows = []
+    for joined in (False, True):
+        for prisms in SIZES_QUICK if quick else SIZES_FULL:
+            model = Model(prism_chain(prisms, joined=joined))
+            x, u = model.initial_state(), model.input_at(0.0)
+            cost = rhs_costs(
+                model, x, u, repeats=3 if quick else 5, target_s=0.01 if quick else 0.05
+            )
+            rows.append({"bars": model.beta, "joined": joined, "coordinates": 3 * model.m, **cost})
+            log(
+                f"  {model.beta:5d} bars {'class-2' if joined else 'class-1'}: "
+                f"rhs {cost['fast'] * 1e6:9.1f} us (reference {cost['reference'] * 1e6:9.1f} us)"
+                f", RK4 step {cost['rk4_step'] * 1e6:9.1f} us"
+            )
+    return rows
+
+
+def fit_exponent(rows, key, joined, min_bars=100):
+    """Slope of log(cost) against log(bars) over the sizes with at least ``min_bars`` bars."""
+    pts = [(r["bars"], r[key]) for r in rows if r["joined"] == joined and r["bars"] >= min_bars]
+    if len(pts) < 2:
+        return None
+    b, c = np.log(np.array(pts)).T
+    return float(np.polyfit(b, c, 1)[0])
+
+
+def ekf_budget(model: Model, repeats=5, target_s=0.05, dt=0.01):
+    """What the EKF needs per IMU sample (``dt`` s): one RK4 process step over dt (4 batched
+    derivative calls, as the estimator's lean model), and the Jacobian ``A = df/dx`` by one
+    batched complex-step call over all dynamic states; for the estimator's current
+    ``BatchDynamics`` and for :class:`FastDynamics` (same interface)."""
+    from gyrohost.estimator.fast_dynamics import BatchDynamics
+
+    L, m = model.layout, model.m
+    x = model.initial_state()
+    u = model.input_at(0.0)
+    nd = 6 * m + L.n_torque  # the estimator's dynamic part: q, q_dot, omega of torque wheels
+    dyns = {"BatchDynamics (estimator)": BatchDynamics(model), "FastDynamics": FastDynamics(model)}
+    omega0 = model.wheel_speeds(x, u)[None, :]
+    q0 = x[L.q].reshape(1, 3, m)
+    qd0 = x[L.q_dot].reshape(1, 3, m)
+    out = {}
+    for name, dyn in dyns.items():
+
+        def step(dyn=dyn):
+            q, qd = q0, qd0
+            for _ in range(4):
+                a, _ = dyn.accelerations(q, qd, omega0, u)
+                q, qd = q + 0.5 * dt * qd, qd + 0.5 * dt * a
+
+        Q = np.tile(q0.astype(complex), (nd, 1, 1))
+        QD = np.tile(qd0.astype(complex), (nd, 1, 1))
+        idx = np.arange(3 * m)
+        Q.reshape(nd, -1)[idx, idx] += 1e-30j
+        QD.reshape(nd, -1)[3 * m + idx, idx] += 1e-30j
+        W = np.tile(omega0.astype(complex), (nd, 1))
+        tq = np.arange(L.n_torque)
+        W[6 * m + tq, model.torque_wheels] += 1e-30j
+
+        def jac(dyn=dyn, Q=Q, QD=QD, W=W):
+            dyn.accelerations(Q, QD, W, u)
+
+        out[name] = {
+            "process_step_s": best_time(step, repeats, target_s),
+            "jacobian_s": best_time(jac, repeats, target_s),
+            "states": nd,
+        }
+    fast = FastDynamics(model)
+    out["FastDynamics"]["kernel_rk4_step_s"] = best_time(
+        lambda: RK4.step(lambda t, y: fast.rhs(t, y, u), 0.0, x, dt), repeats, target_s
+    )
+    return out
