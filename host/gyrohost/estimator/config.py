@@ -107,19 +107,22 @@ def noise_from_rig(rig) -> dict:
     """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``).
 
     White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
-    format (one count / sqrt(12)). Returns a dict for :func:`config_from_dict`.
+    format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
+    it away with ``FF AA 67`` where possible) is folded into its noise. Returns a dict for
+    :func:`config_from_dict`.
     """
     from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
 
     root = math.sqrt(rig.imu.rate_hz / 2.0)
     emu = rig.sim.imu
 
-    def std(white, count):
-        return math.hypot(white, count / math.sqrt(12.0))
+    def std(white, count, bias=0.0):
+        return math.sqrt(white**2 + count**2 / 12.0 + bias**2)
 
+    accel_white = emu.accel_noise_density_m_s2_rthz * root
     return {
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
-        "imu_accel_std_m_s2": std(emu.accel_noise_density_m_s2_rthz * root, ACCEL_SCALE_M_S2),
+        "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         "imu_timeout_s": rig.imu.timeout_s,
