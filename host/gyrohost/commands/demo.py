@@ -93,22 +93,22 @@ def summarise(folder: Path, label: str) -> dict:
     from gyrohost.run_records import jitter_line
     from gyrohost.runlog import read_meta, read_stream
 
-    meta = read_meta(folder)
-    summary = meta["summary"]
+    summary = read_meta(folder)["summary"]
     events = read_stream(folder, "events")
+    t_land = float(events["t_s"][events["message"] == "settle"][0])  # the schedule's end
     t_end = float(events["t_s"][events["kind"] == "safe_state"][0])
     out = {
         "label": label,
         "reason": summary["reason"],
-        "tilt_end_estimate_deg": float(np.degrees(summary["tilt_end_estimate_rad"])),
-        "tilt_end_truth_deg": float(np.degrees(summary["tilt_end_truth_rad"])),
+        "t_schedule_end_s": t_land,
         "loop": jitter_line(summary["loop"]),
         "rig": summary.get("rig", []),
     }
-    for name in ("nodes", "truth"):
+    for name, key in (("nodes", "estimate"), ("truth", "truth")):
         s = read_stream(folder, name)
+        out[f"tilt_end_{key}_deg"] = float(np.degrees(np.interp(t_land, s["t_s"], s["tilt_rad"])))
         s = s[s["t_s"] <= t_end]
-        out[f"peak_z_cm_{name}"] = {
+        out[f"peak_z_cm_{key}"] = {
             n: float(100 * np.max(np.abs(s[f"{n}_z_m"]))) for n in ("n1", "n3")
         }
     duration = summary["duration_s"]
@@ -134,7 +134,7 @@ def write_summary(out: Path, results: dict, wall_s: float) -> None:
         "|---|---|---|---|---|",
     ]
     for r in results.values():
-        pe, pt = r["peak_z_cm_nodes"], r["peak_z_cm_truth"]
+        pe, pt = r["peak_z_cm_estimate"], r["peak_z_cm_truth"]
         lines.append(
             f"| {r['label']} | {r['tilt_end_estimate_deg']:+.2f} | "
             f"{r['tilt_end_truth_deg']:+.2f} | {pe['n1']:.2f} / {pe['n3']:.2f} | "
