@@ -336,6 +336,42 @@ class FastDynamics:
         spin = u[self.alpha + self.torque_wheels] * self.inv_J3
         return np.concatenate([x[k : 2 * k], z_ddot.ravel(), omega_w, spin])
 
+    def project(self, x, rtol=1e-15, iterations=6):
+        """``projection.project`` (min-norm Gauss-Newton onto the bar lengths, then the
+        velocities onto b.b_dot = 0) with dense constants; reduced coordinates only.
+
+        Parameters
+        ----------
+        x : ndarray, shape (state_size,)
+
+        Returns
+        -------
+        ndarray, shape (state_size,): the projected state
+        """
+        if self.coordinates != "reduced" or not self.EE_T.dense or self.beta == 0:
+            from .projection import project
+
+            return project(self.model, x)
+        x = x.copy()
+        k, beta = 3 * self.size, self.beta
+        E = self.EE_T.A[:, :beta].T  # (beta, m')
+        EEt = E @ E.T
+        off, l2 = self.off[:, :beta], self.model.l**2
+        q = x[:k].reshape(3, self.size)
+        for _ in range(iterations):
+            B = off + q @ E.T
+            g = _colsum(B * B) - l2
+            if np.max(np.abs(g) / l2) <= rtol:
+                break
+            mu = np.linalg.solve(4.0 * EEt * (B.T @ B), g)
+            q = q - 2.0 * (B * mu) @ E
+        x[:k] = q.ravel()
+        B = off + q @ E.T
+        q_dot = x[k : 2 * k].reshape(3, self.size)
+        nu = np.linalg.solve(EEt * (B.T @ B), _colsum(B * (q_dot @ E.T)))
+        x[k : 2 * k] = (q_dot - (B * nu) @ E).ravel()
+        return x
+
     def nodes(self, x):
         """Node positions and velocities (3, n), m and m/s, of a state."""
         k = 3 * self.size

@@ -61,10 +61,13 @@ def check_name(name: str) -> str:
     return name
 
 
-def fixed_step(name: str, model, f, t, x, dt):
-    """One fixed step of the named method, with the projection for ``rk4-projected``."""
+def fixed_step(name: str, model, f, t, x, dt, projector=None):
+    """One fixed step of the named method, with the projection for ``rk4-projected``
+    (``projector(x)``, default :func:`.projection.project` of ``model``)."""
     x = RK4.step(f, t, x, dt)
-    return project(model, x) if name == "rk4-projected" else x
+    if name != "rk4-projected":
+        return x
+    return projector(x) if projector is not None else project(model, x)
 
 
 def adaptive_solver(name: str, f, t0, x0, t_bound, rtol, atol, max_step=np.inf):

@@ -24,12 +24,14 @@ MAX_STEPS = 2_000_000  # explicit adaptive runs that would need more steps are r
 
 
 def dynamics_of(model: Model, fast: bool):
-    """The right-hand side ``f(t, x, u)`` of the reference path or of the fast path."""
+    """The right-hand side ``f(t, x, u)`` and the projector (None: the reference one) of the
+    reference path or of the fast path."""
     if fast:
         from .fast import FastDynamics
 
-        return FastDynamics(model).rhs
-    return lambda t, x, u: rhs(t, x, u, model)
+        fd = FastDynamics(model)
+        return fd.rhs, fd.project
+    return (lambda t, x, u: rhs(t, x, u, model)), None
 
 
 def check_step(model: Model, integrator: str, dt: float, duration: float) -> None:
@@ -238,7 +240,7 @@ def simulate(
         },
     }
 
-    dyn = dynamics_of(model, fast)
+    dyn, projector = dynamics_of(model, fast)
     meta["fast"] = bool(fast)
 
     def f(t, x):
@@ -254,7 +256,7 @@ def simulate(
             for k in range(1, len(samples)):
                 t = samples[k - 1]
                 for j in range(steps):
-                    x = fixed_step(integrator, model, f, t + j * h, x, h)
+                    x = fixed_step(integrator, model, f, t + j * h, x, h, projector)
                 rec.add(samples[k], x, u_of(samples[k], x))
                 if progress:
                     progress(samples[k], duration)
@@ -342,7 +344,7 @@ class Stepper:
     def __init__(self, model: Model, x0=None, t0=0.0, max_dt=1e-3, project=False, fast=False):
         self.model = model
         check_step(model, "rk4", max_dt, 0.0)
-        self.dynamics = dynamics_of(model, fast)
+        self.dynamics, self.projector = dynamics_of(model, fast)
         self.x = model.initial_state() if x0 is None else np.asarray(x0, float).copy()
         self.t = float(t0)
         self.max_dt = float(max_dt)
@@ -365,7 +367,9 @@ class Stepper:
             return self.dynamics(t, x, u)
 
         for j in range(n):
-            self.x = fixed_step(self.method, self.model, f, self.t + j * h, self.x, h)
+            self.x = fixed_step(
+                self.method, self.model, f, self.t + j * h, self.x, h, self.projector
+            )
         self.t += dt
         member = nonfinite_member(self.model, self.x)
         if member:

@@ -39,9 +39,9 @@ def with_spin(spin: float) -> dict:
 
 
 def prism(stiffness=None, mass_ratio=None, scale=1.0, prestress=None) -> dict:
-    """The free-floating gyroscopic prism, changed: string stiffness (N/m), wheel/bar mass
-    ratio, all lengths scaled by ``scale`` (wheels too), or rest lengths at ``prestress``
-    times the scene's."""
+    """The free-floating gyroscopic prism, changed: string stiffness (N/m, rest lengths moved
+    so that the initial tensions stay the scene's), wheel/bar mass ratio, all lengths scaled
+    by ``scale`` (wheels too), or rest lengths at ``prestress`` times the initial lengths."""
     data = scene_data("prism-gyro")
     data["nodes"] = {k: [scale * c for c in v] for k, v in data["nodes"].items()}
     data["velocities"] = {k: [scale * c for c in v] for k, v in data["velocities"].items()}
@@ -51,9 +51,14 @@ def prism(stiffness=None, mass_ratio=None, scale=1.0, prestress=None) -> dict:
         if mass_ratio is not None:
             w["mass"] = mass_ratio * bar["mass"]
     for s in data["strings"]:
-        s["rest_length"] *= scale * (1.0 if prestress is None else prestress)
+        a, b = (np.array(data["nodes"][n]) for n in s["nodes"])
+        length = float(np.linalg.norm(a - b))
+        s["rest_length"] *= scale
+        if prestress is not None:
+            s["rest_length"] = prestress * length
         if stiffness is not None:
-            s["stiffness"] = stiffness
+            stretch = (length - s["rest_length"]) * s["stiffness"] / stiffness
+            s["rest_length"], s["stiffness"] = length - stretch, stiffness
     return data
 
 

@@ -12,7 +12,6 @@ import numpy as np
 from gyrotensegrity import Model, diagnostics
 from gyrotensegrity.fast import FastDynamics, InputTable
 from gyrotensegrity.integrators import ADAPTIVE, RK4, adaptive_solver
-from gyrotensegrity.projection import project
 
 
 @dataclass
@@ -130,7 +129,7 @@ def _fixed(variant, method, dt, f, samples, states, start, budget_s):
         for j in range(steps):
             x = RK4.step(f, t0 + j * h, x, h)
             if projected:
-                x = project(variant.model, x)
+                x = variant.fast.project(x)
         _check(x, start, budget_s, samples[k])
         states.append(x)
 
