@@ -148,7 +148,6 @@ class TruthProbe:
     def __init__(self, rig, log, tilt: TiltMeter, t0_ns: int):
         self.rig, self.tilt, self.t0_ns = rig, tilt, t0_ns
         self.latest_tilt = float("nan")
-        self.latest_wheels = None
         self.stream = log.stream(
             "truth",
             [
@@ -167,7 +166,6 @@ class TruthProbe:
         """Write every truth sample received since the last call."""
         for s in self.rig.truth():
             self.latest_tilt = self.tilt.tilt(s.N)
-            self.latest_wheels = s.omega_w_rad_s
             self.stream.write(
                 (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s,
                 s.rig_t_s,

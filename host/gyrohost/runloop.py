@@ -56,8 +56,6 @@ from gyrohost.run_records import (
 from gyrohost.runlog import RunLog
 from gyrotensegrity import Model, __version__, load_scene
 
-PHASES = ("check", "connect", "hold", "spinup", "lead_in", "schedule", "settle", "rampdown")
-
 
 class RunError(RuntimeError):
     """The run could not go on (time-out, estimator fault); the message says why."""
@@ -497,7 +495,7 @@ class RunLoop:
         Ctrl-C is ignored meanwhile (when running in the main thread): the routine is bounded
         by ``rampdown_timeout_s`` plus the servo reply time-outs.
         """
-        with _sigint_deferred(self):
+        with _SigintDeferred(self):
             self.phase = "rampdown"
             self.event("safe_state", f"reason: {reason}")
             self.ekf = None  # the estimate ends with the run; the safe state needs none
@@ -627,6 +625,7 @@ class RunLoop:
             "loop": timing,
             "rows": {name: s.rows for name, s in self.log.streams.items()},
             "not_fused": self.skipped,
+            "servo_comm_retries": getattr(self.servo_worker, "comm_errors_total", 0),
             "duration_s": self._now(),
         }
         out.update(self.final)
@@ -648,7 +647,7 @@ def _describe_safe(out: dict) -> str:
     return f"{w}; servos {'holding' if out['servos_holding'] else 'NOT holding'}"
 
 
-class _sigint_deferred:
+class _SigintDeferred:
     """Context: Ctrl-C prints a note instead of interrupting (main thread only)."""
 
     def __init__(self, loop: RunLoop):
