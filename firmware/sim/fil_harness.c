@@ -10,6 +10,8 @@
  *     three duties around 50 %), torque = k_t |V| sin(angle(V) - p theta), J dw/dt = torque - b w.
  *   - The control step is timed in CPU cycles between the firmware's writes GPIOR0 = 1 and
  *     GPIOR0 = 0; min/mean/max are printed periodically ("STATS ...") and at exit ("FINAL ...").
+ *   - With --speed-period, a compact "SPEED t_us w0 w1 w2 w3 frames" line gives the model's true
+ *     rotor speeds (rad/s) for a consumer such as the simulated rig's truth model.
  *
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
  * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "quit".
@@ -134,7 +136,9 @@ static volatile int g_pwm_request;
 static double g_stats_period_s = 1.0;
 static double g_rate = 1.0; /* simulated seconds per wall second; 0 = free-running */
 static double g_wall_t0;
-static double g_uart_wait_s; /* wall time the simulation waited for uart_pty (see below) */
+static double g_uart_wait_s;        /* wall time the simulation waited for uart_pty (see below) */
+static double g_speed_period_s;     /* simulated seconds between SPEED lines; 0 = none */
+static unsigned long long g_frames; /* 0x00 bytes (COBS frame delimiters) the UART sent */
 
 static double now_s(void) {
     struct timespec ts;
@@ -438,6 +442,20 @@ static void print_pwm(void) {
     fflush(stdout);
 }
 
+/* "SPEED t_us w0 w1 w2 w3 frames": simulated time, the motor model's true rotor speeds in
+   rad/s and the frames the firmware has sent so far (counted at their 0x00 delimiters) */
+static void print_speed(void) {
+    printf("SPEED %llu %.4f %.4f %.4f %.4f %llu\n",
+           (unsigned long long)(g_avr->cycle * 1000000ULL / g_avr->frequency), g_mot[0].omega_rad_s,
+           g_mot[1].omega_rad_s, g_mot[2].omega_rad_s, g_mot[3].omega_rad_s, g_frames);
+}
+
+static void uart_byte_out(struct avr_irq_t* irq, uint32_t value, void* param) {
+    (void)irq;
+    (void)param;
+    if ((value & 0xFF) == 0) g_frames++;
+}
+
 /* ---------------------------------------------------------------- periodic work */
 
 static avr_cycle_count_t model_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
@@ -483,6 +501,12 @@ static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* pa
         }
     }
     return when + avr->frequency / 1000; /* every simulated millisecond */
+}
+
+static avr_cycle_count_t speed_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)param;
+    print_speed();
+    return when + (avr_cycle_count_t)(g_speed_period_s * avr->frequency);
 }
 
 static avr_cycle_count_t stats_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
@@ -633,6 +657,7 @@ static void usage(const char* prog) {
             "  -r, --rate X           pace to X simulated seconds per wall second (default 1)\n"
             "  -l, --pty-link PATH    symlink PATH to the UART0 pseudo-terminal\n"
             "  -s, --stats-period S   simulated seconds between STATS lines (default 1, 0 = off)\n"
+            "      --speed-period S   simulated seconds between SPEED lines (default 0 = off)\n"
             "  -e, --enc-fault M:MODE encoder M (0..3) fault from start: "
             "error|high|low|parity\n"
             "      --kt NM_PER_V      torque per volt of applied vector (default %g)\n"
@@ -664,7 +689,8 @@ enum {
     OPT_FREQ,
     OPT_SIMPWM,
     OPT_PROFILE,
-    OPT_ISR
+    OPT_ISR,
+    OPT_SPEED
 };
 
 typedef struct {
@@ -716,6 +742,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"profile", required_argument, 0, OPT_PROFILE},
         {"isr-stats", no_argument, 0, OPT_ISR},
         {"ke", required_argument, 0, OPT_KE},
+        {"speed-period", required_argument, 0, OPT_SPEED},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -776,6 +803,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
             case OPT_KE:
                 g_par.k_e_vs_rad = parse_double(optarg, "--ke");
                 break;
+            case OPT_SPEED:
+                g_speed_period_s = parse_double(optarg, "--speed-period");
+                break;
             default:
                 usage(argv[0]);
                 exit(c == 'h' ? 0 : 2);
@@ -790,6 +820,10 @@ static void parse_options(int argc, char** argv, options_t* o) {
         fprintf(stderr, "fil_harness: --inertia, --model-cycles, --pole-pairs must be > 0\n");
         exit(2);
     }
+    if (g_speed_period_s < 0 || g_stats_period_s < 0) {
+        fprintf(stderr, "fil_harness: --speed-period, --stats-period must be >= 0\n");
+        exit(2);
+    }
 }
 
 static void connect_peripherals(avr_t* avr, const char* pty_link) {
@@ -800,6 +834,8 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     uart_pty_init(avr, &g_pty);
     uart_pty_connect(&g_pty, '0');
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
+                            uart_byte_out, NULL);
     if (pty_link) {
         unlink(pty_link);
         if (symlink(g_pty.pty.slavename, pty_link) != 0) {
@@ -865,6 +901,10 @@ int main(int argc, char** argv) {
     if (g_stats_period_s > 0) {
         avr_cycle_timer_register(g_avr, (avr_cycle_count_t)(g_stats_period_s * opt.freq_hz),
                                  stats_timer, NULL);
+    }
+    if (g_speed_period_s > 0) {
+        avr_cycle_timer_register(g_avr, (avr_cycle_count_t)(g_speed_period_s * opt.freq_hz),
+                                 speed_timer, NULL);
     }
 
     if (g_profile_path) {
