@@ -86,3 +86,5 @@ def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):
     summary = (out / "summary.md").read_text()
     assert "| wheels at 715 rpm |" in summary and "| no spin |" in summary
     assert "loop at 100 Hz" in summary
+    assert main(["plot", str(out / "nospin"), "-o", str(tmp_path / "again")]) == 0
+    assert len(list((tmp_path / "again").glob("*.png"))) == 6
