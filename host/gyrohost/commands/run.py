@@ -92,6 +92,7 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.errors import ScheduleError
     from gyrohost.rig.truth import RigSetupError
+    from gyrohost.rig_process import RigProcessError
     from gyrohost.runloop import RunLoop, ScheduleRefused, run_simulated
     from gyrotensegrity import SceneError
 
@@ -113,7 +114,7 @@ def run(args) -> int:
         else:
             loop = RunLoop(_wired(config, args), schedule, out, progress=progress, meta=meta)
             result = loop.run()
-    except (ScheduleRefused, ScheduleError, RigSetupError) as exc:
+    except (ScheduleRefused, ScheduleError, RigSetupError, SceneError, RigProcessError) as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
