@@ -28,15 +28,17 @@ class EstimatorConfig:
     imu_accel_std_m_s2: float = field(default=0.03, metadata=_pos("accelerometer noise"))
     imu_angle_std_rad: float = field(default=0.06 * _DEG, metadata=_pos("Euler angle noise"))
     wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
-    servo_length_std_m: float = field(default=1.0e-3, metadata=_pos("string length noise"))
+    servo_length_std_m: float = field(default=2.0e-4, metadata=_pos("servo length noise"))
     # process noise (white, spectral densities)
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
+    rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
     gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_pos("gyro bias walk"))
     # initial uncertainty
     init_position_std_m: float = field(default=2.0e-3, metadata=_pos("initial node position"))
     init_velocity_std_m_s: float = field(default=5.0e-3, metadata=_pos("initial node velocity"))
     init_wheel_std_rad_s: float = field(default=2.0, metadata=_pos("initial wheel speed"))
+    init_rest_std_m: float = field(default=1.0e-3, metadata=_pos("initial rest length"))
     init_gyro_bias_std_rad_s: float = field(default=0.5 * _DEG, metadata=_pos("initial bias"))
     # gates: NIS thresholds as chi-square probabilities; time-outs
     gate_probability: float = field(default=0.9999, metadata=_pos("NIS gate", 0.5, 1.0))
@@ -48,6 +50,7 @@ class EstimatorConfig:
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
+    servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
     # IMU attachment (as the rig's truth, gyrohost.rig.truth): body frame from three scene
     # nodes, sensor axes turned by mounting_rpy, gravity the sensor feels (world frame)
     imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")

@@ -24,7 +24,7 @@ from .fast_dynamics import check_model
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
-from .layout import layout_of
+from .layout import from_model_state, layout_of
 from .manifold import Manifold
 from .process_model import ProcessModel
 from .timeouts import SourceMonitor
@@ -106,11 +106,7 @@ class TensegrityEKF:
         self._A = None  # linearisation of the dynamics at the current prior, if made
         self.kf = _Filter(L.size, 1)
         if x0 is None:
-            x_model = model.initial_state()
-            x0 = np.concatenate(
-                [x_model[model.layout.q], x_model[model.layout.q_dot],
-                 model.wheel_speeds(x_model, self.u), np.zeros(3)]
-            )  # fmt: skip
+            x0 = from_model_state(model, model.initial_state(), self.u)
         P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
         x, P = self.manifold.condition(np.asarray(x0, float), P0)
         self.kf.x, self.kf.P = x.reshape(-1, 1), P
@@ -128,6 +124,7 @@ class TensegrityEKF:
         std[L.q] = c.init_position_std_m
         std[L.q_dot] = c.init_velocity_std_m_s
         std[L.omega] = c.init_wheel_std_rad_s
+        std[L.rest] = c.init_rest_std_m
         std[L.bias] = c.init_gyro_bias_std_rad_s
         return np.diag(std**2)
 

@@ -76,15 +76,15 @@ class BatchDynamics:
         """Node positions and velocities (K, 3, n) of reduced coordinates (K, 3, m)."""
         return self.N_fixed + q @ self.U2T, q_dot @ self.U2T
 
-    def accelerations(self, q, q_dot, omega_w, u):
+    def accelerations(self, q, q_dot, omega_w, rest):
         """Reduced accelerations and node accelerations of a batch of states.
 
         Parameters
         ----------
         q, q_dot : ndarray, shape (K, 3, m), m and m/s (real or complex)
         omega_w : ndarray, shape (K, n_w), rad/s
-        u : ndarray, shape (alpha + n_w,)
-            Rest lengths (m), then wheel inputs (rad/s or N m), as for the model.
+        rest : ndarray, shape (K, alpha) or (alpha,), m
+            String rest lengths.
 
         Returns
         -------
@@ -95,7 +95,7 @@ class BatchDynamics:
         B = N[:, :, self.bar_end] - N[:, :, self.bar_start]
         B_dot = N_dot[:, :, self.bar_end] - N_dot[:, :, self.bar_start]
         b2 = (B * B).sum(axis=1)  # (K, beta)
-        F = self.W - self._string_forces(N, N_dot, u[: self.alpha]) @ self.C_s
+        F = self.W - self._string_forces(N, N_dot, rest) @ self.C_s
         if self.gyroscopic:
             F = F + self._gyroscopic(B, B_dot, omega_w) @ self.C_b
         FC = F[:, :, self.bar_end] - F[:, :, self.bar_start]

@@ -1,11 +1,13 @@
 """The filter's state vector and its relation to the model's state.
 
-Filter state ``x`` (flat, float64, size ``6 m + n_w + 3``)::
+Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3``)::
 
-    x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s) | b_g (3, rad/s) ]
+    x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
+          | rest (alpha, m) | b_g (3, rad/s) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
-:mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``b_g`` the gyro
+:mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
+string rest lengths the servos have actually reached (they lag the command), ``b_g`` the gyro
 bias in sensor axes. Wheel angles are left out (nothing observes them, nothing depends on them).
 """
 
@@ -20,15 +22,16 @@ class FilterLayout:
 
     m: int
     n_wheels: int
+    n_strings: int
 
     @property
     def size(self) -> int:
-        return 6 * self.m + self.n_wheels + 3
+        return self.n_dynamic + 3
 
     @property
     def n_dynamic(self) -> int:
         """Entries the dynamics act on (all but the gyro bias)."""
-        return 6 * self.m + self.n_wheels
+        return 6 * self.m + self.n_wheels + self.n_strings
 
     @property
     def q(self) -> slice:
@@ -43,6 +46,10 @@ class FilterLayout:
         return slice(6 * self.m, 6 * self.m + self.n_wheels)
 
     @property
+    def rest(self) -> slice:
+        return slice(6 * self.m + self.n_wheels, self.n_dynamic)
+
+    @property
     def bias(self) -> slice:
         return slice(self.n_dynamic, self.size)
 
@@ -51,23 +58,31 @@ class FilterLayout:
         names = [f"q_{a}{j}_m" for a in "xyz" for j in range(self.m)]
         names += [f"qdot_{a}{j}_m_s" for a in "xyz" for j in range(self.m)]
         names += [f"omega_w{k}_rad_s" for k in range(self.n_wheels)]
+        names += [f"rest{k}_m" for k in range(self.n_strings)]
         return names + [f"gyro_bias_{a}_rad_s" for a in "xyz"]
 
 
 def layout_of(model) -> FilterLayout:
-    return FilterLayout(model.m, len(model.wheel_bars))
+    return FilterLayout(model.m, len(model.wheel_bars), model.alpha)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):
-    """Filter state of a model state ``x_model`` under input ``u`` (wheel speeds from either)."""
+    """Filter state of a model state ``x_model`` under input ``u`` (wheel speeds from either,
+    rest lengths from ``u``)."""
     L = model.layout
     return np.concatenate(
-        [x_model[L.q], x_model[L.q_dot], model.wheel_speeds(x_model, u), np.asarray(gyro_bias)]
+        [
+            x_model[L.q],
+            x_model[L.q_dot],
+            model.wheel_speeds(x_model, u),
+            np.asarray(u, float)[: model.alpha],
+            np.asarray(gyro_bias, float),
+        ]
     )
 
 
 def to_model_state(model, x):
-    """Model state of a filter state (wheel angles 0)."""
+    """Model state of a filter state (wheel angles 0; the rest lengths belong to the input)."""
     F = layout_of(model)
     nw = F.n_wheels
     return np.concatenate([x[F.q], x[F.q_dot], np.zeros(nw), x[F.omega][model.torque_wheels]])

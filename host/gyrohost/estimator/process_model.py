@@ -18,9 +18,11 @@ Two variants (``process_method``):
 An exponential-Euler step (``x + dt phi1(A dt) f``) was tried for the lean model and dropped: at
 10 ms its error was 6 mm/s per step, against 0.3 mm/s for one RK4 step.
 
-The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held); the gyro
-bias is constant. Process noise is white: node accelerations (``accel_psd_m2_s3``), wheel spin
-accelerations and the bias random walk; :meth:`ProcessModel.noise` gives its discrete covariance.
+The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held); the rest
+lengths follow the commanded ones through a first-order lag ``servo_lag_s`` (the servos'
+response); the gyro bias is constant. Process noise is white: node accelerations
+(``accel_psd_m2_s3``), random walks of wheel speeds, rest lengths and bias;
+:meth:`ProcessModel.noise` gives its discrete covariance.
 """
 
 import numpy as np
@@ -53,6 +55,8 @@ class ProcessModel:
         ----------
         X : ndarray, shape (K, n_dynamic), real or complex
         u : ndarray, shape (alpha + n_w,)
+            Commanded rest lengths (m), then wheel inputs; the rest-length states follow the
+            command with the servo lag ``servo_lag_s``.
 
         Returns
         -------
@@ -61,9 +65,11 @@ class ProcessModel:
         L, m, K = self.layout, self.layout.m, X.shape[0]
         q = X[:, L.q].reshape(K, 3, m)
         q_dot = X[:, L.q_dot].reshape(K, 3, m)
-        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], u)
+        rest = X[:, L.rest]
+        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], rest)
         w_dot = np.tile(self.dyn.wheel_acceleration(u), (K, 1))
-        dx = np.concatenate([X[:, L.q_dot], eta2_ddot.reshape(K, 3 * m), w_dot], axis=1)
+        rest_dot = (u[: L.n_strings] - rest) / self.config.servo_lag_s
+        dx = np.concatenate([X[:, L.q_dot], eta2_ddot.reshape(K, 3 * m), w_dot, rest_dot], axis=1)
         return (dx, N_ddot) if with_node_accelerations else dx
 
     def linearise(self, x, u):
@@ -140,6 +146,8 @@ class ProcessModel:
         Q[j, j] = qa * dt
         w = np.arange(L.omega.start, L.omega.stop)
         Q[w, w] = c.wheel_accel_psd_rad2_s3 * dt
+        r = np.arange(L.rest.start, L.rest.stop)
+        Q[r, r] = c.rest_psd_m2_s * dt
         b = np.arange(L.bias.start, L.bias.stop)
         Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
         return Q

@@ -6,6 +6,9 @@ Input: a log folder (``gyrohost.runlog``) with the streams of :mod:`.streams` (`
 estimator configuration from ``estimator`` in ``meta.json`` (a table of :mod:`.config` keys)
 unless given.
 
+The filter starts where the run's estimator started (first ``estimate`` row), with the wheel
+speeds of the last telemetry and the last command before it (as the run loop does).
+
 Output: a new log folder with the streams ``estimate`` and ``innov_<source>`` (columns in
 :mod:`.streams`) and a ``meta.json`` whose creation time is the input's, so that two replays of
 one log are identical byte for byte.
@@ -24,6 +27,7 @@ from .config import EstimatorConfig, config_from_dict
 from .ekf import SOURCES, TensegrityEKF
 from .errors import EstimatorConfigError
 from .imu_model import tilt
+from .layout import from_model_state, layout_of
 
 _LABELS = {
     "imu_rate": ("x", "y", "z"),
@@ -94,6 +98,45 @@ def read_inputs(log: Path) -> dict:
     return {n: read_stream(log, n) for n in names if n in meta["streams"]}
 
 
+def prepare(log, scene=None, config: EstimatorConfig | None = None):
+    """Model, configuration, input streams and initial filter of a log folder.
+
+    The filter starts where the run's estimator started (the first row of the log's
+    ``estimate`` stream; else the first sample) from the scene's initial state, the last command
+    and the last wheel speeds before that time; earlier samples are left out.
+
+    Returns
+    -------
+    ekf : TensegrityEKF
+    data : dict of structured arrays (samples from the start on)
+    """
+    log = Path(log)
+    meta = read_meta(log)
+    scene_path = Path(scene) if scene is not None else _scene_path(log, meta)
+    if config is None:
+        config = config_from_dict(meta.get("estimator", {}), f"{log}/meta.json")
+    model = Model(load_scene(scene_path))
+    data = read_inputs(log)
+    if streams.IMU not in data or not len(data[streams.IMU]):
+        raise LogError(f"{log}: no imu samples to replay")
+    if streams.ESTIMATE in meta["streams"] and len(est := read_stream(log, streams.ESTIMATE)):
+        t0 = float(est["t_s"][0])
+    else:
+        t0 = min(float(d["t_s"][0]) for d in data.values() if len(d))
+    x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
+    before = {k: d[d["t_s"] <= t0] for k, d in data.items()}
+    if len(before.get(streams.WHEELS, ())):
+        last = before[streams.WHEELS][-1]
+        n_w = layout_of(model).n_wheels
+        x0[layout_of(model).omega] = [last[c] for c in streams.wheel_speed_columns(n_w)]
+    ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0)
+    if len(before.get(streams.COMMAND, ())):
+        last = before[streams.COMMAND][-1]
+        ekf.set_input([last[streams.rest_column(s.name)] for s in model.scene.strings])
+    return ekf, {k: d[d["t_s"] > t0] if k != streams.IMU else d[d["t_s"] >= t0]
+                 for k, d in data.items()}  # fmt: skip
+
+
 def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
     """Run the estimator over log folder ``log``; write log folder ``out``.
 
@@ -104,19 +147,11 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
     """
     log, out = Path(log), Path(out)
     meta = read_meta(log)
-    scene_path = Path(scene) if scene is not None else _scene_path(log, meta)
-    if config is None:
-        config = config_from_dict(meta.get("estimator", {}), f"{log}/meta.json")
-    model = Model(load_scene(scene_path))
-    data = read_inputs(log)
-    if streams.IMU not in data:
-        raise LogError(f"{log}: no imu stream to replay")
-    t0 = min(float(d["t_s"][0]) for d in data.values() if len(d))
-    ekf = TensegrityEKF(model, config, t0_s=t0)
+    ekf, data = prepare(log, scene, config)
     out_meta = {
         "replay_of": str(log),
-        "scene": str(scene_path),
-        "estimator": asdict(config),
+        "scene": str(ekf.model.scene.name),
+        "estimator": asdict(ekf.config),
         "source_created_unix_s": meta.get("created_unix_s"),
     }
     with RunLog(out, out_meta) as run:

@@ -25,8 +25,9 @@ from .layout import from_model_state
 class TruthRun:
     """Truth sampled every ``dt_s``.
 
-    t_s (k,) s; x (k, n) filter states (true gyro bias included); R_ws (k, 3, 3) sensor axes;
-    omega_s (k, 3) rad/s; specific_force (k, 3) m/s^2; rest_length (k, alpha) m.
+    t_s (k,) s; x (k, n) filter states (true rest lengths and gyro bias included); R_ws
+    (k, 3, 3) sensor axes; omega_s (k, 3) rad/s; specific_force (k, 3) m/s^2; rest_length
+    (k, alpha) m, what the servos reached; command (k, alpha) m, the commanded rest lengths.
     """
 
     t_s: np.ndarray
@@ -35,6 +36,7 @@ class TruthRun:
     omega_s: np.ndarray
     specific_force: np.ndarray
     rest_length: np.ndarray
+    command: np.ndarray
 
 
 def simulate_truth(
@@ -42,8 +44,10 @@ def simulate_truth(
 ):
     """Run the truth for ``duration_s`` seconds; ``seed`` draws the bias and disturbances.
 
-    ``accel_psd_m2_s3`` is the density of the disturbance (default: the filter's own,
-    ``config.accel_psd_m2_s3``; 0 for none).
+    The scene's rest-length schedule is the command; the servos follow it with the first-order
+    lag ``config.servo_lag_s`` (as the rig's truth with ``servo_lag_s``), the model runs on what
+    they reach. ``accel_psd_m2_s3`` is the density of the disturbance (default: the filter's
+    own, ``config.accel_psd_m2_s3``; 0 for none).
     """
     psd = config.accel_psd_m2_s3 if accel_psd_m2_s3 is None else accel_psd_m2_s3
     rng = np.random.default_rng(seed)
@@ -53,23 +57,34 @@ def simulate_truth(
     L = model.layout
     chol = np.linalg.cholesky(np.array([[dt_s**3 / 3, dt_s**2 / 2], [dt_s**2 / 2, dt_s]]))
     chol *= np.sqrt(psd)
+    n_sub = max(1, int(np.ceil(dt_s / substep_s - 1e-9)))
+    h = dt_s / n_sub
+    decay, decay_mid = np.exp(-h / config.servo_lag_s), np.exp(-0.5 * h / config.servo_lag_s)
+    u = model.input_at(0.0)
+    rest = u[: model.alpha].copy()
+    command = u
     rows = []
     for k in range(int(round(duration_s / dt_s)) + 1):
         if k:
-            stepper.step(dt_s)
+            for _ in range(n_sub):  # servo lag integrated exactly, the model sees mid-substep
+                cmd = command[: model.alpha]
+                u[: model.alpha] = cmd + (rest - cmd) * decay_mid
+                stepper.step(h, u)
+                rest = cmd + (rest - cmd) * decay
             if psd > 0.0:
                 w = chol @ rng.standard_normal((2, 3 * model.m))
                 stepper.x[L.q] += w[0]
                 stepper.x[L.q_dot] += w[1]
                 stepper.x = project(model, stepper.x)
-        u = model.input_at(stepper.t)
+        command = model.input_at(stepper.t)  # held until the next sample
+        u[: model.alpha] = rest
         ev = evaluate(stepper.t, stepper.x, u, model)
         R, omega = geo.frame(ev.N[None], ev.N_dot[None])
         f = geo.specific_force(R, ev.N_ddot[None])
         x = from_model_state(model, stepper.x, u, bias)
-        rows.append((stepper.t, x, R[0], omega[0], f[0], u[: model.alpha]))
-    t, x, R, om, f, rest = (np.array(v) for v in zip(*rows, strict=True))
-    return TruthRun(t, x, R, om, f, rest)
+        rows.append((stepper.t, x, R[0], omega[0], f[0], rest.copy(), command[: model.alpha]))
+    t, x, R, om, f, rest, cmd = (np.array(v) for v in zip(*rows, strict=True))
+    return TruthRun(t, x, R, om, f, rest, cmd)
 
 
 def _structured(columns, data):
@@ -82,8 +97,7 @@ def _structured(columns, data):
 def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_noise_m=2e-4):
     """IMU and wheel samples at every truth sample, servo reads every ``servo_every`` samples.
 
-    The servos read the true rest lengths plus white noise ``servo_noise_m`` (m); the filter's
-    ``servo_length_std_m`` also covers the elastic stretch it does not model.
+    The servos read the rest lengths they reached plus white noise ``servo_noise_m`` (m).
 
     Returns
     -------
@@ -98,7 +112,7 @@ def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_no
     rate = truth.omega_s + truth.x[:, L_bias] + rng.normal(0, c.imu_rate_std_rad_s, (k, 3))
     accel = truth.specific_force + rng.normal(0, c.imu_accel_std_m_s2, (k, 3))
     angle = wrap_angle(euler_zyx(truth.R_ws) + rng.normal(0, c.imu_angle_std_rad, (k, 3)))
-    omega_w = truth.x[:, 6 * model.m : 6 * model.m + n_w]
+    omega_w = truth.x[:, 6 * model.m : 6 * model.m + n_w]  # the wheels are not commanded here
     wheels = omega_w + rng.normal(0, c.wheel_speed_std_rad_s, omega_w.shape)
     idx = np.arange(0, k, servo_every)
     lengths = truth.rest_length[idx] + rng.normal(0, servo_noise_m, (len(idx), model.alpha))
@@ -109,7 +123,7 @@ def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_no
         cols.WHEELS: _structured(cols.wheels_columns(n_w), np.hstack([t, wheels])),
         cols.SERVOS: _structured(cols.servos_columns(names), np.hstack([t[idx], lengths])),
         cols.COMMAND: _structured(
-            cols.command_columns(names, n_w), np.hstack([t, truth.rest_length, omega_w])
+            cols.command_columns(names, n_w), np.hstack([t, truth.command, omega_w])
         ),
     }
 
