@@ -687,14 +687,17 @@ def run_simulated(config, schedule: Schedule, log_folder, scene=None, **kwargs) 
     if scene is not None:
         config = replace(config, scene=str(Path(scene).resolve()))
     check_schedule(schedule, config.servos.servo)
-    with RigProcess(
-        config, period_s=1.0 / (kwargs.get("settings") or RunSettings()).rate_hz
-    ) as rig:
-        paths = rig.paths
-        wired = replace(
-            config,
-            imu=replace(config.imu, port=paths["imu"]),
-            wheelboard=replace(config.wheelboard, port=paths["wheels"]),
-            servos=replace(config.servos, port=paths["servos"]),
-        )
-        return RunLoop(wired, schedule, log_folder, rig=rig, **kwargs).run()
+    rate_hz = (kwargs.get("settings") or RunSettings()).rate_hz
+    with RigProcess(config, period_s=1.0 / rate_hz) as rig:
+        return RunLoop(with_ports(config, rig.paths), schedule, log_folder, rig=rig, **kwargs).run()
+
+
+def with_ports(config, ports: dict):
+    """``config`` with device ports replaced: ``ports`` maps ``imu``, ``wheels``, ``servos`` to a
+    path (a missing or ``None`` entry keeps the configured port)."""
+    return replace(
+        config,
+        imu=replace(config.imu, port=ports.get("imu") or config.imu.port),
+        wheelboard=replace(config.wheelboard, port=ports.get("wheels") or config.wheelboard.port),
+        servos=replace(config.servos, port=ports.get("servos") or config.servos.port),
+    )

@@ -57,17 +57,10 @@ class Progress:
 
 
 def _wired(config, args):
-    from dataclasses import replace
-
     from gyrohost.cli import CliError
+    from gyrohost.runloop import with_ports
 
-    ports = {"imu": args.imu, "wheels": args.wheels, "servos": args.servos}
-    config = replace(
-        config,
-        imu=replace(config.imu, port=ports["imu"] or config.imu.port),
-        wheelboard=replace(config.wheelboard, port=ports["wheels"] or config.wheelboard.port),
-        servos=replace(config.servos, port=ports["servos"] or config.servos.port),
-    )
+    config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
     emulated = [
         name
         for name, port in (
