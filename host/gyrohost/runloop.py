@@ -512,8 +512,8 @@ class RunLoop:
         return out
 
     def _stop_wheels(self) -> dict:
-        if self.wheels is None:
-            return {}
+        if self.wheels is None or self.wheels.hello is None:
+            return {}  # never connected: the board's own fail-safe holds its wheels
         s = self.settings
         try:
             self.wheels.stop_all()
@@ -547,7 +547,7 @@ class RunLoop:
         return {"servos_holding": True, "servo_lengths_m": held, "servo_faults": faults}
 
     def _close_devices(self) -> None:
-        for dev in (self.wheels, self.servos, self.imu):
+        for dev in (self.wheels, self.servos, self.imu):  # pyserial errors are OSErrors
             if dev is not None:
                 try:
                     dev.close()

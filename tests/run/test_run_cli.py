@@ -70,6 +70,18 @@ def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim
     assert not (tmp_path / "y").exists()
 
 
+def test_run_without_the_devices_ends_with_a_log_naming_the_missing_port(tmp_path, capsys):
+    log = tmp_path / "log"
+    argv = ["run", "--config", str(ROOT / "configs" / "lab-rig.toml"), "-o", str(log)]
+    argv += ["--imu", str(tmp_path / "no-imu")]
+    assert main(argv) == 1
+    assert f"ImuError: IMU: cannot open {tmp_path / 'no-imu'}" in capsys.readouterr().err
+    summary = read_meta(log)["summary"]
+    assert (
+        summary["reason"].startswith("ImuError") and summary["safe_state"]["wheels_stopped"] is None
+    )
+
+
 def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out), "--duration", "2.0", "--config", str(CONFIG)]) == 0
