@@ -44,6 +44,7 @@ from gyrohost.estimator import streams as cols
 from gyrohost.estimator.config import noise_from_rig
 from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.layout import from_model_state, layout_of
+from gyrohost.rig_process import RigProcess, RigProcessError
 from gyrohost.run_io import ImuReader, Sample, ServoWorker, WheelTelemetry
 from gyrohost.run_records import (
     EstimateWriter,
@@ -381,7 +382,7 @@ class RunLoop:
             self.ekf.advance(max(start, self.ekf.t))
             _, self.latest_tilt = self.estimates.write(start)
         if self.truth is not None:
-            self.truth.write()
+            self._write_truth(strict)
         if strict:
             self._check_limits()
         cpu = time.thread_time() - cpu0
@@ -390,6 +391,15 @@ class RunLoop:
             self.progress(self.phase, start, self._played(start))
         if strict and self.on_tick is not None:
             self.on_tick(self, self.phase, start)
+
+    def _write_truth(self, strict: bool) -> None:
+        try:
+            self.truth.write()
+        except RigProcessError as exc:
+            if strict:
+                raise
+            self.event("fault", str(exc))
+            self.truth = None
 
     def _played(self, t_s: float) -> float:
         if self.phase in ("settle", "rampdown"):
@@ -630,7 +640,10 @@ class RunLoop:
         }
         out.update(self.final)
         if self.rig is not None:
-            out["rig"] = self.rig.stats_lines()
+            try:
+                out["rig"] = self.rig.stats_lines()
+            except RigProcessError as exc:
+                out["rig"] = [str(exc)]
         self.event("timing", jitter_line(timing))
         return out
 
@@ -682,8 +695,6 @@ def run_simulated(config, schedule: Schedule, log_folder, scene=None, **kwargs) 
     **kwargs
         Passed on to :class:`RunLoop` (``settings``, ``on_tick``, ``progress``, ``meta``).
     """
-    from gyrohost.rig_process import RigProcess
-
     if scene is not None:
         config = replace(config, scene=str(Path(scene).resolve()))
     check_schedule(schedule, config.servos.servo)
