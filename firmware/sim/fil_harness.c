@@ -136,9 +136,11 @@ static volatile int g_pwm_request;
 static double g_stats_period_s = 1.0;
 static double g_rate = 1.0; /* simulated seconds per wall second; 0 = free-running */
 static double g_wall_t0;
-static double g_uart_wait_s;        /* wall time the simulation waited for uart_pty (see below) */
-static double g_speed_period_s;     /* simulated seconds between SPEED lines; 0 = none */
-static unsigned long long g_frames; /* 0x00 bytes (COBS frame delimiters) the UART sent */
+static double g_uart_wait_s;    /* wall time the simulation waited for uart_pty (see below) */
+static double g_speed_period_s; /* simulated seconds between SPEED lines; 0 = none */
+static double g_uart_wait_max_s = 2.0; /* longest back-pressure wait for the pty reader */
+static int g_uart_no_reader;           /* a wait timed out: drop output until the FIFO drains */
+static unsigned long long g_frames;    /* 0x00 bytes (COBS frame delimiters) the UART sent */
 
 static double now_s(void) {
     struct timespec ts;
@@ -480,13 +482,19 @@ static unsigned uart_out_fill(void) {
     return (unsigned)(g_pty.pty.in.write - g_pty.pty.in.read) & (uart_pty_fifo_fifo_size - 1);
 }
 
+/* A wait that reaches --uart-wait-max means nobody reads the pty (the simulated rig serves it
+   before a host opens it): the firmware's output is then lost, as on a UART nobody listens to,
+   until a reader empties the FIFO again. */
 static void uart_backpressure(void) {
-    if (uart_out_fill() < uart_pty_fifo_fifo_size / 2) return;
+    unsigned fill = uart_out_fill();
+    if (g_uart_no_reader && fill <= uart_pty_fifo_fifo_size / 8) g_uart_no_reader = 0;
+    if (fill < uart_pty_fifo_fifo_size / 2 || g_uart_no_reader) return;
     double t0 = now_s();
     struct timespec ts = {0, 200000};
-    while (uart_out_fill() > uart_pty_fifo_fifo_size / 8 && now_s() - t0 < 2.0) {
+    while (uart_out_fill() > uart_pty_fifo_fifo_size / 8 && now_s() - t0 < g_uart_wait_max_s) {
         nanosleep(&ts, NULL);
     }
+    g_uart_no_reader = uart_out_fill() > uart_pty_fifo_fifo_size / 8;
     g_uart_wait_s += now_s() - t0;
 }
 
@@ -658,6 +666,8 @@ static void usage(const char* prog) {
             "  -l, --pty-link PATH    symlink PATH to the UART0 pseudo-terminal\n"
             "  -s, --stats-period S   simulated seconds between STATS lines (default 1, 0 = off)\n"
             "      --speed-period S   simulated seconds between SPEED lines (default 0 = off)\n"
+            "      --uart-wait-max S  longest wall wait for the pty reader when the UART FIFO is\n"
+            "                         full; then output is lost until it drains (default 2)\n"
             "  -e, --enc-fault M:MODE encoder M (0..3) fault from start: "
             "error|high|low|parity\n"
             "      --kt NM_PER_V      torque per volt of applied vector (default %g)\n"
@@ -690,7 +700,8 @@ enum {
     OPT_SIMPWM,
     OPT_PROFILE,
     OPT_ISR,
-    OPT_SPEED
+    OPT_SPEED,
+    OPT_UART_WAIT
 };
 
 typedef struct {
@@ -743,6 +754,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"isr-stats", no_argument, 0, OPT_ISR},
         {"ke", required_argument, 0, OPT_KE},
         {"speed-period", required_argument, 0, OPT_SPEED},
+        {"uart-wait-max", required_argument, 0, OPT_UART_WAIT},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -806,6 +818,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
             case OPT_SPEED:
                 g_speed_period_s = parse_double(optarg, "--speed-period");
                 break;
+            case OPT_UART_WAIT:
+                g_uart_wait_max_s = parse_double(optarg, "--uart-wait-max");
+                break;
             default:
                 usage(argv[0]);
                 exit(c == 'h' ? 0 : 2);
@@ -820,8 +835,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
         fprintf(stderr, "fil_harness: --inertia, --model-cycles, --pole-pairs must be > 0\n");
         exit(2);
     }
-    if (g_speed_period_s < 0 || g_stats_period_s < 0) {
-        fprintf(stderr, "fil_harness: --speed-period, --stats-period must be >= 0\n");
+    if (g_speed_period_s < 0 || g_stats_period_s < 0 || g_uart_wait_max_s < 0) {
+        fprintf(stderr,
+                "fil_harness: --speed-period, --stats-period, --uart-wait-max must be >= 0\n");
         exit(2);
     }
 }

@@ -140,15 +140,35 @@ class ServoEmuConfig:
     faults: StreamFaultConfig = StreamFaultConfig()
 
 
+WHEEL_KINDS = ("emulator", "simavr")
+"""Simulated wheel boards: the Python emulator, or the real firmware ELF in the simavr harness."""
+
+
 @dataclass(frozen=True)
 class WheelEmuConfig:
-    """Simulated wheel board: speed response of the motors, ripple, stream faults."""
+    """Simulated wheel board: which one, speed response of the motors, ripple, stream faults.
+
+    ``kind = "simavr"`` runs the real firmware in the FIL harness (docs/fil.md); the emulator's
+    motor and fault keys then do not apply, ``spin_sign`` does for both kinds.
+    """
 
     time_constant_s: float = field(default=0.05, metadata=_spec(lo=1e-4, hi=10.0))
     coast_time_constant_s: float = field(default=5.0, metadata=_spec(lo=1e-3, hi=1000.0))
     ripple_fraction: float = field(default=0.0, metadata=_spec(lo=0.0, hi=0.5))
     ripple_per_rev: int = field(default=1, metadata=_spec(lo=1, hi=100))
     faults: StreamFaultConfig = StreamFaultConfig()
+    kind: str = field(default="emulator", metadata=_spec(choices=WHEEL_KINDS))
+    spin_sign: tuple[int, int, int, int] = field(
+        default=(1, 1, 1, 1), metadata=_spec(choices=(-1, 1), doc="board wheel i -> scene spin")
+    )
+    simavr_elf: str = field(default="", metadata=_spec(doc="'' = firmware/build/avr/*.elf"))
+    simavr_harness: str = field(default="", metadata=_spec(doc="'' = firmware/build/sim/..."))
+    simavr_options: tuple[str, ...] = ()
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.kind == "simavr" and self.faults != StreamFaultConfig():
+            return [("faults", "stream faults need kind = 'emulator' (simavr's pty is direct)")]
+        return []
 
 
 @dataclass(frozen=True)
@@ -185,10 +205,14 @@ class RigConfig:
     source: str = field(default="<defaults>", metadata={"internal": True})
 
     @property
+    def base_dir(self) -> Path:
+        """Folder that relative paths in the file start from: the file's own, else the cwd."""
+        return Path(self.source).parent if self.source.endswith(".toml") else Path.cwd()
+
+    @property
     def scene_path(self) -> Path:
         """Scene file, resolved relative to the configuration file's folder."""
-        base = Path(self.source).parent if self.source.endswith(".toml") else Path.cwd()
-        return (base / self.scene).resolve()
+        return (self.base_dir / self.scene).resolve()
 
 
 def load_rig_config(path: str | Path) -> RigConfig:
@@ -305,6 +329,7 @@ __all__ = [
     "SimConfig",
     "StreamFaultConfig",
     "TruthConfig",
+    "WHEEL_KINDS",
     "WheelEmuConfig",
     "WheelboardConfig",
     "load_rig_config",

@@ -25,6 +25,12 @@ def register(sub) -> None:
     )
     p.add_argument("--scene", type=Path, help="scene file (default: the configuration's)")
     p.add_argument("--duration", type=float, help="serve this long, s (default: until Ctrl-C)")
+    p.add_argument(
+        "--wheels",
+        choices=("emulator", "simavr"),
+        help="wheel board: the Python emulator or the real firmware in the simavr harness "
+        "(default: the configuration's [sim.wheels] kind)",
+    )
     p.set_defaults(func=run)
 
 
@@ -38,7 +44,7 @@ def run(args) -> int:
         raise CliError(f"--duration must be positive, got {args.duration}")
     try:
         config = load_rig_config(args.config)
-        rig = SimulatedRig(config, clock="real", scene=args.scene)
+        rig = SimulatedRig(config, clock="real", scene=args.scene, wheels=args.wheels)
     except (ConfigError, RigSetupError) as exc:
         raise CliError(str(exc)) from None
     with rig:
@@ -50,6 +56,8 @@ def run(args) -> int:
         stats = rig.stats()
     print(stats.rates_line())
     print(stats.truth_line(), flush=True)
+    if rig.wheels_kind == "simavr":  # after close: the harness's FINAL line
+        print(rig.wheels.summary_line(), flush=True)
     if rig.loop_error is not None:
         raise CliError(f"the rig loop failed: {rig.loop_error!r}")
     return 0
@@ -59,7 +67,7 @@ def _print_header(rig) -> None:
     model = rig.truth.model
     print(
         f"rig: scene {model.scene.name} ({model.describe()}), truth step "
-        f"{1e3 * rig.truth.dt_s:g} ms, real time",
+        f"{1e3 * rig.truth.dt_s:g} ms, real time, wheel board: {rig.wheels_kind}",
     )
     for name, path in rig.paths.items():
         print(f"{name}: {path}")

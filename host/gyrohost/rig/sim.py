@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.config import RigConfig
+from gyrohost.config import WHEEL_KINDS, RigConfig
+from gyrohost.rig import simavr
 from gyrohost.rig.imu_emu import Bwt61Emulator
 from gyrohost.rig.servo_emu import Mx12Bus
 from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord
@@ -128,6 +129,10 @@ class SimulatedRig:
         Rig time source (see the module docstring).
     scene : str or Path, optional
         Scene file; the configuration's ``scene`` when omitted.
+    wheels : {"emulator", "simavr"}, optional
+        Wheel board: the Python emulator, or the real firmware in the simavr harness (its own
+        pty, paced to wall time; :mod:`gyrohost.rig.simavr`). The configuration's
+        ``[sim.wheels] kind`` when omitted.
 
     Examples
     --------
@@ -137,9 +142,18 @@ class SimulatedRig:
     ...     N = rig.truth_nodes()
     """
 
-    def __init__(self, config: RigConfig, clock: str = "real", scene: str | Path | None = None):
+    def __init__(
+        self,
+        config: RigConfig,
+        clock: str = "real",
+        scene: str | Path | None = None,
+        wheels: str | None = None,
+    ):
         if clock not in ("real", "sim"):
             raise ValueError(f"clock must be 'real' or 'sim', got {clock!r}")
+        self.wheels_kind = wheels or config.sim.wheels.kind
+        if self.wheels_kind not in WHEEL_KINDS:
+            raise ValueError(f"wheels must be one of {WHEEL_KINDS}, got {wheels!r}")
         path = Path(scene) if scene is not None else config.scene_path
         try:
             scene_obj = load_scene(path)
@@ -149,8 +163,9 @@ class SimulatedRig:
         self.clock = clock
         self.truth = Truth(scene_obj, config.sim.truth, config.servos.servo)
         self.imu = Bwt61Emulator(config.sim.imu, config.imu, truth_source=self.truth.imu_truth)
-        self.wheels = WheelBoardEmulator(config.sim.wheels)
         self.servos = Mx12Bus(config.servos.servo, config.sim.servos)
+        self.wheels = self._wheel_board(config)
+        self._spin_sign = np.asarray(config.sim.wheels.spin_sign, dtype=float)
         self.devices = {"imu": self.imu, "wheels": self.wheels, "servos": self.servos}
         self.loop_error: BaseException | None = None
         self._lock = threading.RLock()
@@ -165,6 +180,21 @@ class SimulatedRig:
         self._steps = self._late = 0
         self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
         self._cpu0_s = 0.0
+
+    def _wheel_board(self, config: RigConfig):
+        emu = config.sim.wheels
+        if self.wheels_kind == "emulator":
+            return WheelBoardEmulator(emu)
+        try:
+            return simavr.simavr_wheel_board(
+                emu.simavr_elf, emu.simavr_harness, emu.simavr_options, config.base_dir
+            )
+        except simavr.HarnessError as exc:
+            self.imu.close()
+            self.servos.close()
+            raise RigSetupError(
+                f"wheels = simavr: {exc} (or set [sim.wheels] simavr_elf / simavr_harness)"
+            ) from exc
 
     # --- life cycle ---------------------------------------------------------------------------
     @property
@@ -249,7 +279,7 @@ class SimulatedRig:
 
     # --- the loop -----------------------------------------------------------------------------
     def _run(self) -> None:
-        links = [dev.link for dev in self.devices.values()]
+        links = [dev.link for dev in self.devices.values() if dev.link is not None]
         try:
             while not self._stop.is_set():
                 now = self._target_s()
@@ -276,7 +306,8 @@ class SimulatedRig:
         start = time.perf_counter()
         with self._lock:
             lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
-            self.truth.step(lengths, self.wheels.wheel_speeds_rad_s())
+            speeds = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
+            self.truth.step(lengths, speeds)
             for sid, tension in self.truth.servo_tensions_N().items():
                 self.servos.set_tension(sid, tension)
         self._step_wall_s += time.perf_counter() - start
@@ -375,6 +406,11 @@ class SimulatedRig:
         """
         if device not in self.devices:
             raise FaultCommandError(f"unknown device {device!r} (one of {', '.join(DEVICES)})")
+        if device == "wheels" and self.wheels_kind == "simavr":
+            raise FaultCommandError(
+                "wheel-board faults need the emulator: with simavr wheels the host opens the "
+                "harness's pty directly (its encoder faults: see docs/fil.md)"
+            )
         known = STREAM_FAULTS + DEVICE_FAULTS.get(device, ())
         if fault not in known:
             raise FaultCommandError(f"unknown {device} fault {fault!r} (one of {', '.join(known)})")

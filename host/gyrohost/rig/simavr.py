@@ -34,6 +34,8 @@ BUILD_HINT = "build it with `make -C firmware check`"
 
 SPEED_PERIOD_S = 0.01
 """Simulated seconds between the harness's SPEED lines in the rig (100 Hz)."""
+UART_WAIT_MAX_S = 0.2
+"""Rig: longest wait of the harness for a pty reader; then, with no host, output is dropped."""
 
 
 class HarnessError(RuntimeError):
@@ -262,7 +264,11 @@ class SimavrWheelBoard:
     """No pty of this process to select on: the harness owns the wheel board's pty."""
 
     def __init__(self, elf: Path, harness: Path, options: tuple[str, ...] = ()) -> None:
-        args = ["--speed-period", f"{SPEED_PERIOD_S:g}", *options]
+        args = [
+            *("--speed-period", f"{SPEED_PERIOD_S:g}"),
+            *("--uart-wait-max", f"{UART_WAIT_MAX_S:g}"),
+            *options,
+        ]
         self.harness = Harness(elf, args, harness=harness)
         self._frames0: int | None = None
 
