@@ -1,0 +1,127 @@
+"""The simulated rig with the real wheel-board firmware (simavr harness) as its wheel board.
+
+Needs the firmware ELF and the harness (``make -C firmware check``): without them these tests
+fail with the path and the make command, they never skip. The rig runs on the real clock because
+the harness is paced to wall time (so are the host's heartbeats).
+"""
+
+import math
+import re
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrohost import wheelproto as wp
+from gyrohost.config import load_rig_config
+from gyrohost.drivers.wheelboard import WheelBoard
+from gyrohost.rig import simavr
+from gyrohost.rig.sim import FaultCommandError, SimulatedRig
+from gyrohost.rig.truth import RigSetupError
+
+pytestmark = pytest.mark.fil
+
+ROOT = Path(__file__).resolve().parents[2]
+RPM = 2 * math.pi / 60
+PATTERN_RAD_S = np.array([715.0, -715.0, -715.0, 715.0]) * RPM  # the paper's board pattern
+SPIN_SIGN = (1, -1, 1, 1)  # wheel 1 mounted the other way round
+REPLY_TIMEOUT_S = 3.0  # a loaded 2-core host can slow the harness's replies (wall clock)
+
+
+def simavr_config(**wheels):
+    base = load_rig_config(ROOT / "configs" / "sim-rig.toml")
+    table = replace(base.sim.wheels, kind="simavr", **wheels)
+    return replace(base, sim=replace(base.sim, wheels=table))
+
+
+@pytest.fixture(scope="module")
+def binaries():
+    """Fail (not skip) with the path and the make command when a binary is missing."""
+    simavr.require_file(simavr.HARNESS, "FIL harness")
+    return simavr.firmware_elf()
+
+
+def wait_settled(values, target, rel: float, hold_s: float, timeout_s: float) -> float:
+    """Wait until ``values()`` stays within ``rel`` of ``target`` for ``hold_s``; return when."""
+    t0 = time.monotonic()
+    inside_since = None
+    while True:
+        now = time.monotonic()
+        if within(values(), target, rel):
+            inside_since = now if inside_since is None else inside_since
+            if now - inside_since >= hold_s:
+                return inside_since - t0
+        else:
+            inside_since = None
+        assert now - t0 < timeout_s, f"{values()} not settled at {target} +-{rel} in {timeout_s} s"
+        time.sleep(0.05)
+
+
+def within(measured, expected, rel: float) -> bool:
+    return bool(np.all(np.abs(np.asarray(measured) - expected) <= rel * np.abs(expected)))
+
+
+def test_truth_spins_follow_the_real_firmware_at_715_rpm(binaries):
+    truth_target = PATTERN_RAD_S * np.array(SPIN_SIGN)
+    with SimulatedRig(simavr_config(spin_sign=SPIN_SIGN), clock="real") as rig:
+        assert rig.paths["wheels"] == rig.wheels.harness.pty  # the host talks to simavr directly
+        with WheelBoard(rig.paths["wheels"], reply_timeout_s=REPLY_TIMEOUT_S) as board:
+            hello = board.hello
+            assert hello["n_wheels"] == 4
+            board.set_speeds(PATTERN_RAD_S)
+            # ramp 0.75 s, then settling to +-1 % in about 1.7 s (docs/fil.md)
+            settle_s = wait_settled(rig.truth_wheel_speeds, truth_target, 0.01, 0.5, 12.0)
+            t1, frames1 = time.monotonic(), rig.stats().telemetry_frames
+            for _ in range(10):  # and stay there, next to the harness's and the firmware's own
+                time.sleep(0.1)
+                rig.check()
+                truth = rig.truth_wheel_speeds()
+                harness = np.asarray(rig.wheels.wheel_speeds_rad_s())
+                reported = np.asarray(board.last_telemetry.omega_rad_s)
+                assert within(truth, truth_target, 0.01), truth
+                assert within(truth, harness * SPIN_SIGN, 0.01), (truth, harness)
+                assert within(reported, PATTERN_RAD_S, 0.01), reported
+            rate = (rig.stats().telemetry_frames - frames1) / (time.monotonic() - t1)
+            with pytest.raises(FaultCommandError, match="need the emulator"):
+                rig.command("fault wheels corrupt 3")
+        stats = rig.stats()
+    print(f"settled in {settle_s:.2f} s; {stats.rates_line()}; {stats.truth_line()}")
+    assert rate == pytest.approx(500, rel=0.1)  # the firmware's TELEMETRY_DIV = 2 at 1 kHz
+    assert not rig.wheels.harness.running()  # closing the rig stopped the harness
+
+
+def test_missing_binary_names_path_and_make_command(binaries, tmp_path):
+    config = simavr_config(simavr_harness=str(tmp_path / "no_harness"))
+    with pytest.raises(RigSetupError, match=r"no_harness.*make -C firmware check"):
+        SimulatedRig(config)
+
+
+def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries):
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gyrohost", "rig", "--wheels", "simavr", "--duration", "4"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        path = None
+        for line in proc.stdout:
+            match = re.match(r"wheels: (/dev/\S+)$", line.strip())
+            if match:
+                path = match[1]
+                break
+        assert path, proc.stderr.read()
+        with WheelBoard(path, reply_timeout_s=REPLY_TIMEOUT_S) as board:
+            assert board.hello["proto_version"] == wp.PROTO_VERSION
+            assert board.get_param("HEARTBEAT_MS") > 0
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert re.search(r"wheels \(simavr\): firmware time [\d.]+ s .* 0 overruns", out), out
