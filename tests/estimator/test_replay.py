@@ -52,3 +52,12 @@ def test_replay_errors_are_clear(log, tmp_path, capsys):
     bad.write_text("[estimator]\nimu_rate_std_rad_s = -1\n")
     assert main(["replay", str(log), "-o", str(tmp_path / "y"), "--config", str(bad)]) == 2
     assert "imu_rate_std_rad_s" in capsys.readouterr().err
+
+
+def test_regular_times_spread_bursts_and_cap_the_delay():
+    from gyrohost.estimator.driver import regular_times
+
+    arrival = np.array([0.0, 0.010, 0.035, 0.035, 0.035, 0.050, 0.2])
+    t = regular_times(arrival, 0.01, 0.03)
+    assert np.allclose(t, [0.0, 0.010, 0.020, 0.030, 0.035, 0.045, 0.17])
+    assert np.all(t <= arrival) and np.all(arrival - t <= 0.03 + 1e-12)

@@ -46,6 +46,9 @@ class EstimatorConfig:
     wheels_timeout_s: float = field(default=0.2, metadata=_pos("wheel time-out", 1e-3))
     servos_timeout_s: float = field(default=0.5, metadata=_pos("servo time-out", 1e-3))
     max_lag_s: float = field(default=0.05, metadata=_pos("oldest sample fused", 0.0))
+    # IMU sample times from arrival stamps (replay): period (0 = keep stamps), largest delay
+    imu_period_s: float = field(default=0.01, metadata=_pos("IMU output period", 0.0, 1.0))
+    imu_max_delay_s: float = field(default=0.03, metadata=_pos("IMU arrival delay", 0.0, 1.0))
     # process model
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})
@@ -129,6 +132,7 @@ def noise_from_rig(rig) -> dict:
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         "imu_timeout_s": rig.imu.timeout_s,
+        "imu_period_s": 1.0 / rig.imu.rate_hz,
         "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),

@@ -1,9 +1,11 @@
 """Feeding recorded streams to the filter in time order (shared by replay and the tests).
 
-Samples of all streams are merged by time; at equal times commands come first, then the IMU,
-the wheels and the servos (a fixed order, so a replay is deterministic). Before each sample the
-filter predicts to its time; a gap longer than ``process_dt_s`` is bridged in prediction steps,
-each reported like a sample (this is where time-outs are raised).
+IMU samples get regular times reconstructed from their arrival stamps (:func:`regular_times`,
+``imu_period_s``; 0 keeps the stamps). Samples of all streams are then merged by time; at equal
+times commands come first, then the IMU, the wheels and the servos (a fixed order, so a replay
+is deterministic). Before each sample the filter predicts to its time; a gap longer than
+``process_dt_s`` is bridged in prediction steps, each reported like a sample (this is where
+time-outs are raised).
 """
 
 import numpy as np
@@ -17,6 +19,28 @@ def _servo_map(model, names):
     strings = [s.name for s in model.scene.strings]
     found = [(c, strings.index(s)) for s in strings if (c := cols.servo_length_column(s)) in names]
     return [c for c, _ in found], np.array([i for _, i in found], dtype=int)
+
+
+def regular_times(arrival_s, period_s, max_delay_s):
+    """Sample times of a device that samples every ``period_s``, from its arrival stamps.
+
+    Reads in bursts stamp several samples alike; a sample cannot have been taken later than its
+    arrival, nor earlier than ``max_delay_s`` before it, nor sooner than ``period_s`` after the
+    previous one (as reconstructed). Causal: each time depends on earlier arrivals only.
+
+    Parameters
+    ----------
+    arrival_s : ndarray, shape (k,), s
+    period_s, max_delay_s : float, s
+
+    Returns
+    -------
+    ndarray, shape (k,), s
+    """
+    out = np.array(arrival_s, dtype=float)
+    for k in range(1, len(out)):
+        out[k] = max(out[k] - max_delay_s, min(out[k], out[k - 1] + period_s))
+    return out
 
 
 def events(data):
@@ -48,6 +72,13 @@ def run(ekf, data, on_step=None):
     n_w = len(model.wheel_bars)
     wheel_cols = cols.wheel_speed_columns(n_w)
     dt = ekf.config.process_dt_s
+    if ekf.config.imu_period_s > 0.0 and cols.IMU in data:
+        data = dict(data)
+        data[cols.IMU] = data[cols.IMU].copy()
+        c = ekf.config
+        data[cols.IMU]["t_s"] = regular_times(
+            data[cols.IMU]["t_s"], c.imu_period_s, c.imu_max_delay_s
+        )
     for t, name, i in events(data):
         while t - ekf.t > dt * (1.0 + 1e-9):
             ekf.advance(ekf.t + dt)

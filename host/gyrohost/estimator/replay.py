@@ -6,8 +6,8 @@ Input: a log folder (``gyrohost.runlog``) with the streams of :mod:`.streams` (`
 estimator configuration from ``estimator`` in ``meta.json`` (a table of :mod:`.config` keys)
 unless given.
 
-The filter starts where the run's estimator started (first ``estimate`` row), with the wheel
-speeds of the last telemetry and the last command before it (as the run loop does).
+The filter covers the span the run's estimator covered (its ``estimate`` rows) and starts with
+the wheel speeds, servo lengths and command last logged before it (as the run loop does).
 
 Output: a new log folder with the streams ``estimate`` and ``innov_<source>`` (columns in
 :mod:`.streams`) and a ``meta.json`` whose creation time is the input's, so that two replays of
@@ -101,9 +101,9 @@ def read_inputs(log: Path) -> dict:
 def prepare(log, scene=None, config: EstimatorConfig | None = None):
     """Model, configuration, input streams and initial filter of a log folder.
 
-    The filter starts where the run's estimator started (the first row of the log's
-    ``estimate`` stream; else the first sample) from the scene's initial state, the last command
-    and the last wheel speeds before that time; earlier samples are left out.
+    The filter runs over the span of the run's estimator (the log's ``estimate`` stream; else
+    all samples). It starts from the scene's initial state with the last
+    wheel speeds, servo lengths and command before that time; earlier samples are left out.
 
     Returns
     -------
@@ -119,8 +119,9 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None):
     data = read_inputs(log)
     if streams.IMU not in data or not len(data[streams.IMU]):
         raise LogError(f"{log}: no imu samples to replay")
+    t1 = np.inf
     if streams.ESTIMATE in meta["streams"] and len(est := read_stream(log, streams.ESTIMATE)):
-        t0 = float(est["t_s"][0])
+        t0, t1 = float(est["t_s"][0]), float(est["t_s"][-1])
     else:
         t0 = min(float(d["t_s"][0]) for d in data.values() if len(d))
     x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
@@ -129,12 +130,19 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None):
         last = before[streams.WHEELS][-1]
         n_w = layout_of(model).n_wheels
         x0[layout_of(model).omega] = [last[c] for c in streams.wheel_speed_columns(n_w)]
+    if len(before.get(streams.SERVOS, ())):
+        last = before[streams.SERVOS][-1]
+        for i, string in enumerate(model.scene.strings):
+            column = streams.servo_length_column(string.name)
+            if column in last.dtype.names:
+                x0[layout_of(model).rest.start + i] = last[column]
     ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0)
     if len(before.get(streams.COMMAND, ())):
         last = before[streams.COMMAND][-1]
         ekf.set_input([last[streams.rest_column(s.name)] for s in model.scene.strings])
-    return ekf, {k: d[d["t_s"] > t0] if k != streams.IMU else d[d["t_s"] >= t0]
-                 for k, d in data.items()}  # fmt: skip
+    after = {k: d[(d["t_s"] >= t0 if k == streams.IMU else d["t_s"] > t0) & (d["t_s"] <= t1)]
+             for k, d in data.items()}  # fmt: skip
+    return ekf, after
 
 
 def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
