@@ -32,7 +32,9 @@ class TruthSample:
     t_ns : int
         ``time.monotonic_ns`` when sampled, ns.
     rig_t_s : float
-        Rig time, s.
+        Rig (device) time, s.
+    truth_t_s : float
+        Time of the truth's latest step, s: behind ``rig_t_s`` when the truth lags or slips.
     N : ndarray, shape (3, n), m
         Scene node positions.
     omega_w_rad_s : ndarray, shape (n_w,), rad/s
@@ -43,6 +45,7 @@ class TruthSample:
 
     t_ns: int
     rig_t_s: float
+    truth_t_s: float
     N: np.ndarray
     omega_w_rad_s: np.ndarray
     rest_length_m: np.ndarray
@@ -190,6 +193,7 @@ def _serve(conn, config, period_s: float) -> None:
             sample = (
                 time.monotonic_ns(),
                 rig.t_s,
+                truth.t_s,
                 rig.truth_nodes(),
                 rig.truth_wheel_speeds(),
                 rig.truth_rest_lengths(),

@@ -153,6 +153,7 @@ class TruthProbe:
             [
                 "t_s",
                 "rig_t_s",
+                "truth_t_s",
                 "wall_t_s",
                 *node_columns_of(rig.node_names),
                 "tilt_rad",
@@ -169,6 +170,7 @@ class TruthProbe:
             self.stream.write(
                 (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s,
                 s.rig_t_s,
+                s.truth_t_s,
                 (s.t_ns - self.t0_ns) * 1e-9,
                 *s.N.T.ravel(),
                 self.latest_tilt,
