@@ -343,9 +343,12 @@ class RunLoop:
     def _start_estimator(self) -> None:
         est_cfg = config_from_dict(noise_from_rig(self.config))
         model = self.model
+        # as gyrotens replay starts: the scene's state, the last wheel speeds and string lengths
         x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
-        n_w = len(model.wheel_bars)
-        x0[layout_of(model).omega] = np.array(self.wheel_reader.latest.omega_rad_s)[:n_w]
+        layout = layout_of(model)
+        x0[layout.omega] = np.array(self.wheel_reader.latest.omega_rad_s)[: layout.n_wheels]
+        for string, state in zip(self.servo_strings, self.latest_servos, strict=False):
+            x0[layout.rest.start + self.strings.index(string)] = state.length_m  # none yet: scene
         innovations = InnovationWriter(self.log, self.servo_strings)
         t0 = self._now()
         self.ekf = TensegrityEKF(model, est_cfg, x0=x0, t0_s=t0, log=innovations)
