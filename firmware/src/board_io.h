@@ -11,8 +11,8 @@ void pwm_init();
 void pwm_apply(const uint16_t duty[][3], uint8_t enable_mask);
 
 void spi_init();
-// Read the angle words of all four encoders (two transactions each, see enc.h).
-void enc_read_all(uint16_t words[4]);
+// Read one encoder (chip-select bit cs_bit of BOARD_CS_PORT) into words[0].
+void enc_read_one(uint16_t words[1], uint8_t cs_bit);
 
 void uart_init();
 bool uart_tx_frame(const uint8_t* data, uint8_t len);  // whole frame or nothing, never blocks

@@ -1,4 +1,5 @@
-// board_spi.cpp - AS5048A encoders on the hardware SPI master, polled (about 40 us for all four).
+// board_spi.cpp - AS5048A encoders on the hardware SPI master, polled (about 40 us for all four;
+// the control step reads encoders 1..3 overlapped with its arithmetic, board_enc_io.h).
 #include "board.h"
 #include "board_io.h"
 #include "enc.h"
@@ -35,11 +36,7 @@ static inline __attribute__((always_inline)) uint16_t enc_frame(uint8_t cs_bit) 
     return static_cast<uint16_t>((static_cast<uint16_t>(hi) << 8) | lo);
 }
 
-void enc_read_all(uint16_t words[4]) {
-    uint8_t cs_bit = static_cast<uint8_t>(1u << BOARD_CS_SHIFT);
-    for (uint8_t i = 0; i < BOARD_WHEELS; i++) {
-        (void)enc_frame(cs_bit);       // command: read angle; reply belongs to the last command
-        words[i] = enc_frame(cs_bit);  // reply: the angle latched by the command above
-        cs_bit = static_cast<uint8_t>(cs_bit << 1);
-    }
+void enc_read_one(uint16_t words[1], uint8_t cs_bit) {
+    (void)enc_frame(cs_bit);
+    words[0] = enc_frame(cs_bit);
 }

@@ -3,7 +3,9 @@
 #include <avr/wdt.h>
 
 #include "app.h"
+#include "app_step.h"
 #include "board.h"
+#include "board_enc_io.h"
 #include "board_io.h"
 
 // Maximum received bytes handled per loop pass, so that a burst cannot delay the tick much.
@@ -53,14 +55,13 @@ int main() {
         last_tick = now;
         t_ms += elapsed;
 
-        uint16_t enc[BOARD_WHEELS];
+        board_enc_io io;
         // Measured step (make -C firmware cycles, 4 wheels closed loop at 715 rpm, encoder reads
         // included): 3333 / 7112 / 7641 cycles min / mean / max = 44 % / 48 % of the 16,000-cycle
         // tick, 1000 steps/s (before: 11876 mean, 12274 max); target 2400 not met yet, see
         // docs/hardware.md.
         BOARD_CYCLE_MARK = 1;
-        enc_read_all(enc);
-        app_control_step(&g_app, enc);
+        app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));

@@ -1,6 +1,7 @@
 #include "app.h"
 
-#include "enc.h"
+#include "app_step.h"
+
 #include "ramp.h"
 
 static uint16_t sat_inc(uint16_t x) {
@@ -32,9 +33,9 @@ static void app_send_param(app_state* a, uint8_t id) {
 static void app_reset_wheel(app_wheel* w) {
     spd_init(&w->spd);
     pi_reset(&w->pi);
+    w->sp_q8 = 0;
     w->target_mrad_s = 0;
     w->sp_mrad_s = 0;
-    w->speed_mrad_s = 0;
     w->ol_phase = 0;
     w->drive_q15 = 0;
 }
@@ -46,6 +47,7 @@ static void app_load_ctl(app_state* a) {
     c->gains.ki_q8 = static_cast<int16_t>(v[PRM_KI_Q8]);
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
+    c->gains = pi_gains_sanitize(c->gains);
     c->pole_pairs = static_cast<uint8_t>(v[PRM_POLE_PAIRS]);
     cmt_lead_init(&c->lead, c->pole_pairs, static_cast<uint16_t>(v[PRM_LEAD_Q8]));
     c->accel = v[PRM_ACCEL_RAD_S2];
@@ -56,7 +58,7 @@ static void app_load_ctl(app_state* a) {
     c->heartbeat_ms = static_cast<uint16_t>(v[PRM_HEARTBEAT_MS]);
     c->open_loop_drive = static_cast<int16_t>(v[PRM_OPEN_LOOP_DRIVE_Q15]);
     c->closed = v[PRM_MODE] == 0 ? 1 : 0;
-    c->speed_shift = static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]);
+    c->spd_k = spd_gain(static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
     c->enc_fault_limit = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
 }
 
@@ -244,72 +246,42 @@ void app_poll(app_state* a) {
 
 // ---------------------------------------------------------------- control step
 
-static void app_wheel_off(app_state* a, uint8_t i) {
-    app_wheel* w = &a->w[i];
+void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     pi_reset(&w->pi);
     w->drive_q15 = 0;
-    for (uint8_t k = 0; k < 3; k++) a->pwm[i][k] = 0;
+    for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
-// Measured in simavr (make -C firmware cycles, 4 wheels closed loop at 715 rpm): with the four
-// encoder reads (795 cycles) 7112 mean, 7641 max cycles; per wheel about PI 490, commutation 210,
-// estimator 200, the rest of this loop 480 (docs/hardware.md, "Control-step cycles").
+void app_ramp(app_wheel* w, int32_t step) {
+    w->sp_mrad_s = ramp_step(w->sp_mrad_s, w->target_mrad_s, step);
+    w->sp_q8 = spd_mrad_s_to_q8(w->sp_mrad_s);
+}
+
+void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]) {
+    w->ol_phase += static_cast<uint32_t>(cmt_phase_inc(w->sp_mrad_s, c->pole_pairs));
+    int16_t amp = c->open_loop_drive;
+    w->drive_q15 = w->sp_mrad_s >= 0 ? amp : static_cast<int16_t>(-amp);
+    cmt_phases(static_cast<uint16_t>(w->ol_phase >> 16), amp, pwm);
+}
+
+namespace {
+// Encoder words given up front (native tests, fuzzing): no transfers to overlap.
+struct app_words_io {
+    const uint16_t* words;
+    uint16_t first() { return words[0]; }
+    void next(uint8_t) {}
+    uint16_t word(uint8_t i) { return words[i]; }
+};
+}  // namespace
+
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
-    const app_ctl* c = &a->ctl;
-    const bool closed = c->closed;
-    const bool failsafe = flt_heartbeat_tick(&a->flt, c->heartbeat_ms);
-    const int32_t step = (failsafe || a->stopping) ? c->decel : c->accel;
-    uint8_t enable = 0;
-    uint8_t bit = 1;  // 1 << i without a shift loop
-    for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
-        app_wheel* w = &a->w[i];
-        bool disabled = false;
-        if (closed) {
-            uint16_t angle;
-            bool good = enc_parse(enc_words[i], &angle) == ENC_OK;
-            disabled = flt_encoder_sample(&a->flt, i, good, c->enc_fault_limit);
-            if (good) {
-                w->speed_mrad_s = spd_update(&w->spd, angle, c->speed_shift);
-            } else {
-                spd_skip(&w->spd);
-                w->speed_mrad_s = w->spd.speed_mrad_s;
-            }
-        }
-        if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
-        int32_t target = w->target_mrad_s;
-        if (w->sp_mrad_s != target) w->sp_mrad_s = ramp_step(w->sp_mrad_s, target, step);
-        if (disabled || (w->sp_mrad_s == 0 && target == 0)) {
-            if (!closed) w->speed_mrad_s = 0;
-            app_wheel_off(a, i);
-            continue;
-        }
-        uint16_t angle16;
-        int16_t amp;
-        if (closed) {
-            w->drive_q15 = pi_step(&w->pi, &c->gains, w->sp_mrad_s, w->speed_mrad_s);
-            // Advance the angle by speed * lead to cover the sensor-to-PWM delay and half a tick.
-            angle16 = static_cast<uint16_t>(
-                cmt_elec_angle(w->spd.last_angle, c->pole_pairs, c->enc_offset[i]) +
-                cmt_lead_angle(&c->lead, w->speed_mrad_s));
-            // Torque-producing vector: 90 degrees electrical ahead of (or behind) the rotor.
-            if (w->drive_q15 >= 0) {
-                angle16 = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
-                amp = w->drive_q15;
-            } else {
-                angle16 = static_cast<uint16_t>(angle16 - CMT_ANGLE_90);
-                amp = static_cast<int16_t>(-w->drive_q15);
-            }
-        } else {
-            w->ol_phase += static_cast<uint32_t>(cmt_phase_inc(w->sp_mrad_s, c->pole_pairs));
-            angle16 = static_cast<uint16_t>(w->ol_phase >> 16);
-            amp = c->open_loop_drive;
-            w->drive_q15 = w->sp_mrad_s >= 0 ? amp : static_cast<int16_t>(-amp);
-            w->speed_mrad_s = w->sp_mrad_s;
-        }
-        cmt_phases(angle16, amp, a->pwm[i]);
-        enable = static_cast<uint8_t>(enable | bit);
-    }
-    a->enable_mask = enable;
+    app_words_io io = {enc_words};
+    app_control_step_io(a, io);
+}
+
+int32_t app_speed_mrad_s(const app_state* a, uint8_t i) {
+    if (!a->ctl.closed) return a->w[i].sp_mrad_s;
+    return spd_q8_to_mrad_s(spd_q8(&a->w[i].spd));
 }
 
 uint8_t app_status(const app_state* a) {
@@ -335,7 +307,7 @@ void app_telemetry(app_state* a, uint32_t t_us) {
     proto_put_u32(&p[0], t_us);
     proto_put_u16(&p[4], a->seq++);
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
-        proto_put_i32(&p[6 + 4 * i], a->w[i].speed_mrad_s);
+        proto_put_i32(&p[6 + 4 * i], app_speed_mrad_s(a, i));
         proto_put_u16(&p[22 + 2 * i], static_cast<uint16_t>(a->w[i].drive_q15));
     }
     p[30] = app_status(a);

@@ -32,12 +32,14 @@ struct app_counters {
     uint16_t step_max_us;
 };
 
+// Speeds inside the control step are q8 (encoder counts per tick * 256, spd.h); mrad/s only at
+// the protocol boundary (setpoints, ramp, telemetry).
 struct app_wheel {
     spd_state spd;
     pi_state pi;
+    int32_t sp_q8;          // sp_mrad_s in q8, fed to the controller
     int32_t target_mrad_s;  // accepted setpoint
-    int32_t sp_mrad_s;      // ramped setpoint fed to the controller
-    int32_t speed_mrad_s;   // measured (closed loop) or commanded (open loop) speed
+    int32_t sp_mrad_s;      // ramped setpoint
     uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
     int16_t drive_q15;      // signed drive level
 };
@@ -54,7 +56,7 @@ struct app_ctl {
     int16_t open_loop_drive;
     uint8_t closed;  // 1 closed loop on the encoders, 0 open loop
     uint8_t pole_pairs;
-    uint8_t speed_shift;
+    uint8_t spd_k;  // speed filter gain, spd_gain(SPEED_FILTER_SHIFT)
     uint8_t enc_fault_limit;
 };
 
@@ -94,5 +96,9 @@ void app_note_rx_overflow(app_state* a);
 void app_note_step_time(app_state* a, uint16_t us);
 
 uint8_t app_status(const app_state* a);
+
+// Speed of wheel i in mrad/s as telemetry reports it: measured (closed loop) or commanded (open
+// loop).
+int32_t app_speed_mrad_s(const app_state* a, uint8_t i);
 
 #endif  // APP_H

@@ -37,8 +37,28 @@ PORT_INLINE uint16_t cmt_elec_angle(uint16_t mech14, uint8_t pole_pairs, uint16_
 }
 
 // Three PWM compare values (0..CMT_PWM_TOP) for a voltage vector at angle16 with amplitude
-// amp_q15 (0..32767, larger values are clamped).
-void cmt_phases(uint16_t angle16, int16_t amp_q15, uint16_t duty[3]);
+// amp_q15 (0..32767, negative values give 0). Inline: the control step runs it for every wheel.
+PORT_INLINE void cmt_phases(uint16_t angle16, int16_t amp_q15, uint16_t duty[3]) {
+    if (amp_q15 < 0) amp_q15 = 0;
+    // Only 16 x 16 -> 32 multiplies whose high word is taken (no shift loops at -Os): k2 = 2 * k.
+    int16_t k2 = port_mulhi_s16(amp_q15, 1838);  // 0..918
+    // Phase voltages cos(a), cos(a - 120), cos(a + 120): the space vector (Clarke transform)
+    // then points at angle a. cos(x) = sin(x + 90 degrees).
+    uint16_t c = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
+    int16_t v0 = port_mulhi_s16(k2, cmt_sin(c));
+    int16_t v1 = port_mulhi_s16(k2, cmt_sin(static_cast<uint16_t>(c - CMT_ANGLE_120)));
+    int16_t v2 = port_mulhi_s16(k2, cmt_sin(static_cast<uint16_t>(c + CMT_ANGLE_120)));
+    int16_t hi = v0, lo = v0;
+    if (v1 > hi) hi = v1;
+    if (v1 < lo) lo = v1;
+    if (v2 > hi) hi = v2;
+    if (v2 < lo) lo = v2;
+    // Centre on the mid supply minus the zero sequence (hi + lo) / 2 (|hi + lo| < 2^11).
+    int16_t mid = static_cast<int16_t>(CMT_PWM_MID - (hi + lo) / 2);
+    duty[0] = static_cast<uint16_t>(mid + v0);
+    duty[1] = static_cast<uint16_t>(mid + v1);
+    duty[2] = static_cast<uint16_t>(mid + v2);
+}
 
 // Per-tick increment of a 32-bit phase accumulator (2^32 = one electrical turn) for a mechanical
 // speed in mrad/s: es * 2^32 / (2*pi*1e6) with es = speed * pole_pairs (electrical mrad/s),
@@ -48,26 +68,32 @@ void cmt_phases(uint16_t angle16, int16_t amp_q15, uint16_t duty[3]);
 int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs);
 
 // Commutation lead: electrical angle advance (65536 = one turn) = speed * pole_pairs * lead time,
-// lead time = lead_q8 / 256 ticks. Set up once per parameter change (cmt_lead_init), evaluated
-// per tick with one 16 x 16 -> 32 multiply (cmt_lead_angle):
-//   lead = (|speed| >> 8) * k >> 8, k = round(pole_pairs * lead_q8 * 2^24 / (2*pi*1e6)) <= 54685,
-// |speed| >> 8 clamped to the aliasing limit CMT_MAX_ELEC_MRAD_S / pole_pairs as cmt_phase_inc.
-// Error against the exact value: below k/256 + |speed|/2^17 + 2 angle units (speed truncated to
-// 256 mrad/s, k rounded); 12 units (0.07 degrees electrical) up to 1500 rpm at 7 pole pairs and
-// the default lead of 128/256 tick.
+// lead time = lead_q8 / 256 ticks, for a speed in q8 (encoder counts per tick * 256, see spd.h).
+// One mechanical count is 4 * pole_pairs angle units, so
+//   lead = speed_q8 * pole_pairs * lead_q8 / 2^14 = (speed_q8 >> 6) * k >> 8,  k = pole_pairs *
+// lead_q8 <= 40 * 512 = 20480, with speed_q8 >> 6 (a quarter count per tick, |.| <= 2^15)
+// clamped to the aliasing limit CMT_MAX_ELEC_MRAD_S / pole_pairs as cmt_phase_inc. One signed
+// 16 x 16 -> 32 multiply per tick (cmt_lead_angle), k and the clamp set up once per parameter
+// change (cmt_lead_init). Error against the exact value: below k/256 + 1 angle units (speed
+// truncated to a quarter count, product floored); 4.5 units (0.025 degrees electrical) at 7 pole
+// pairs and the default lead of 128/256 tick.
 struct cmt_lead {
-    uint16_t k;
-    uint16_t s8_max;  // clamp of |speed| >> 8
+    int16_t k;
+    int16_t s_max;  // clamp of |speed_q8 >> 6|
 };
 void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
-PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_mrad_s) {
-    bool neg = speed_mrad_s < 0;
-    uint32_t mag =
-        neg ? 0u - static_cast<uint32_t>(speed_mrad_s) : static_cast<uint32_t>(speed_mrad_s);
-    uint32_t s8 = mag >> 8;
-    uint16_t s = s8 > l->s8_max ? l->s8_max : static_cast<uint16_t>(s8);
-    uint16_t lead = static_cast<uint16_t>(port_mul_u16(s, l->k) >> 8);  // modulo one turn
-    return neg ? static_cast<uint16_t>(0u - lead) : lead;
+PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
+    // |speed_q8| <= 2^21, so speed_q8 >> 6 fits int16; formed from bytes 1..2 shifted up by two
+    // and the top two bits of byte 0 (no 6-step shift loop of a 32-bit value at -Os).
+    int16_t s =
+        static_cast<int16_t>(static_cast<uint16_t>(static_cast<uint16_t>(speed_q8 >> 8) << 2) |
+                             static_cast<uint8_t>(static_cast<uint8_t>(speed_q8) >> 6));
+    if (s > l->s_max) {
+        s = l->s_max;
+    } else if (s < -l->s_max) {
+        s = static_cast<int16_t>(-l->s_max);
+    }
+    return static_cast<uint16_t>(static_cast<uint32_t>(port_mul_s16(s, l->k)) >> 8);
 }
 
 #endif  // CMT_H

@@ -53,4 +53,18 @@ PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t w, bool good, uint8_t 
     return (f->faults & bit) != 0;
 }
 
+// The same with the wheel's counter and fault bit given (the control step walks them).
+PORT_INLINE bool flt_encoder_sample_at(flt_state* f, uint8_t* bad_count, uint16_t bit, bool good,
+                                       uint8_t limit) {
+    uint8_t bad = *bad_count;
+    if (good) {
+        bad = 0;
+    } else if (bad < 0xFFu) {
+        bad++;
+    }
+    *bad_count = bad;
+    if (bad >= limit) flt_set(f, bit);
+    return (f->faults & bit) != 0;
+}
+
 #endif  // FLT_H

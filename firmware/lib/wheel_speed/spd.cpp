@@ -2,17 +2,14 @@
 
 void spd_init(spd_state* s) {
     s->acc = 0;
-    s->speed_mrad_s = 0;
     s->last_angle = 0;
     s->primed = 0;
     s->missed = 0;
-    s->shift = 0;
 }
 
-int16_t spd_wrap_delta(uint16_t a, uint16_t b) {
-    // Shift the 14-bit difference into the top of a 16-bit word, then back with sign extension.
-    uint16_t d = static_cast<uint16_t>(static_cast<uint16_t>(b - a) << 2);
-    return static_cast<int16_t>(static_cast<int16_t>(d) / 4);
+uint8_t spd_gain(uint8_t shift) {
+    if (shift > SPD_MAX_SHIFT) shift = SPD_MAX_SHIFT;
+    return shift == 0 ? 0 : static_cast<uint8_t>(1u << (8 - shift));
 }
 
 int32_t spd_div_ticks(int32_t x, uint8_t ticks) {
@@ -33,29 +30,12 @@ int32_t spd_div_ticks(int32_t x, uint8_t ticks) {
     return x < 0 ? -static_cast<int32_t>(q) : static_cast<int32_t>(q);
 }
 
-int32_t spd_update(spd_state* s, uint16_t angle14, uint8_t shift) {
-    if (shift > SPD_MAX_SHIFT) shift = SPD_MAX_SHIFT;
-    angle14 = static_cast<uint16_t>(angle14 & 0x3FFFu);
-    if (!s->primed) {
-        s->primed = 1;
-        s->missed = 0;
-        s->last_angle = angle14;
-        return s->speed_mrad_s;
-    }
-    int16_t delta = spd_wrap_delta(s->last_angle, angle14);
-    s->last_angle = angle14;
-    int32_t raw = spd_counts_to_mrad_s(delta);
-    if (s->missed) {
-        // The delta spans missed + 1 ticks (rare: only after bad encoder words).
-        raw = spd_div_ticks(raw, static_cast<uint8_t>(s->missed + 1));
-        s->missed = 0;
-    }
-    // acc >> shift is the last output unless the shift changed: one variable shift per update.
-    int32_t y = (shift == s->shift) ? s->speed_mrad_s : (s->acc >> shift);
-    s->shift = shift;
-    s->acc += raw - y;
-    s->speed_mrad_s = s->acc >> shift;
-    return s->speed_mrad_s;
+int32_t spd_gap_q8(spd_state* s, int16_t delta) {
+    // The delta spans missed + 1 ticks (rare: only after bad encoder words).
+    int32_t x = spd_div_ticks(static_cast<int32_t>(delta) * SPD_Q8_PER_COUNT,
+                              static_cast<uint8_t>(s->missed + 1));
+    s->missed = 0;
+    return x;
 }
 
 void spd_skip(spd_state* s) {
@@ -66,4 +46,24 @@ void spd_skip(spd_state* s) {
         s->primed = 0;
         s->missed = 0;
     }
+}
+
+int32_t spd_q8_to_mrad_s(int32_t q8) {
+    // |q8| = h * 2^16 + l: |q8| * 98175 / 2^16 = h * 98175 + l + (l * 32639) / 2^16, exact in
+    // 32 bits for |q8| <= 2^22 (h <= 64).
+    uint32_t n = q8 < 0 ? 0u - static_cast<uint32_t>(q8) : static_cast<uint32_t>(q8);
+    uint16_t h = static_cast<uint16_t>(n >> 16);
+    uint16_t l = static_cast<uint16_t>(n);
+    uint32_t m =
+        port_mul_u16(h, 32639u) + (static_cast<uint32_t>(h) << 16) + l + port_mulhi_u16(l, 32639u);
+    return q8 < 0 ? -static_cast<int32_t>(m) : static_cast<int32_t>(m);
+}
+
+int32_t spd_mrad_s_to_q8(int32_t mrad_s) {
+    // 256 / 383.4952 = 0.667544 ~ 43748 / 65536; |mrad/s| = h * 2^16 + l as above.
+    uint32_t n = mrad_s < 0 ? 0u - static_cast<uint32_t>(mrad_s) : static_cast<uint32_t>(mrad_s);
+    uint16_t h = static_cast<uint16_t>(n >> 16);
+    uint16_t l = static_cast<uint16_t>(n);
+    uint32_t m = port_mul_u16(h, 43748u) + port_mulhi_u16(l, 43748u);
+    return mrad_s < 0 ? -static_cast<int32_t>(m) : static_cast<int32_t>(m);
 }

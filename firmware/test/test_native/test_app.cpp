@@ -331,7 +331,7 @@ TEST_F(AppTest, OpenLoopAdvancesPhaseAtCommandedSpeed) {
     double frac = turns - floor(turns);
     double got = static_cast<uint32_t>(app.w[0].ol_phase - p0) / 4294967296.0;
     EXPECT_NEAR(got, frac, 1e-3);
-    EXPECT_EQ(app.w[0].speed_mrad_s, 74870);
+    EXPECT_EQ(app_speed_mrad_s(&app, 0), 74870);
     EXPECT_EQ(app.w[0].drive_q15, app.prm.v[PRM_OPEN_LOOP_DRIVE_Q15]);
     EXPECT_EQ(app.w[3].drive_q15, -app.prm.v[PRM_OPEN_LOOP_DRIVE_Q15]);
     EXPECT_NE(app_status(&app) & PROTO_STATUS_OPEN_LOOP, 0);
@@ -355,7 +355,7 @@ TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
     }
     for (int i = 0; i < 3; i++) {
         EXPECT_NEAR(mean[i], sp[i] / 1000.0, 0.005 * fabs(sp[i] / 1000.0)) << "wheel " << i;
-        EXPECT_NEAR(app.w[i].speed_mrad_s, sp[i], 1500) << "wheel " << i;
+        EXPECT_NEAR(app_speed_mrad_s(&app, static_cast<uint8_t>(i)), sp[i], 1500) << "wheel " << i;
     }
     EXPECT_NEAR(m[3].omega, 0.0, 1e-9);
     EXPECT_EQ(app.flt.faults, 0);

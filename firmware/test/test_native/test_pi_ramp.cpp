@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <climits>
+#include <cstdlib>
 
 #include "pi.h"
 #include "ramp.h"
@@ -116,4 +117,122 @@ TEST(Ramp, TimeToReachMatchesRate) {
         ticks++;
     }
     EXPECT_EQ(ticks, 749);
+}
+
+// ---- the PI against its previous implementation (int32 throughout, commit 31465ce), copied here
+// verbatim as the reference: the step on the error's sign and 16-bit magnitude, mirrored for a
+// negative error and with 24-bit intermediates, must give the same output, integrator and
+// saturation flag for every state, gain and error, including a shrinking out_max.
+namespace {
+struct RefPi {
+    int32_t integ = 0;
+    int16_t out = 0;
+    uint8_t saturated = 0;
+};
+
+int32_t clamp32(int32_t x, int32_t lo, int32_t hi) {
+    if (x < lo) return lo;
+    if (x > hi) return hi;
+    return x;
+}
+
+int16_t ref_pi_step(RefPi* s, const pi_gains* g, int32_t setpoint, int32_t measured) {
+    int32_t e32 = setpoint - measured;
+    const bool neg = e32 < 0;
+    uint16_t mag;
+    if (e32 > PI_ERR_CLAMP || e32 < -PI_ERR_CLAMP) {
+        mag = static_cast<uint16_t>(PI_ERR_CLAMP);
+    } else {
+        mag = static_cast<uint16_t>(neg ? -e32 : e32);
+    }
+    uint32_t p = static_cast<uint32_t>(g->kp_q8) * mag;
+    int32_t p8 = neg ? -static_cast<int32_t>((p + 255u) >> 8) : static_cast<int32_t>(p >> 8);
+    const int16_t out_max = g->out_max < 0 ? 0 : g->out_max;
+    const int16_t slew = g->slew < 1 ? 1 : g->slew;
+    const int16_t out = s->out;
+    int16_t lo =
+        out >= slew - out_max ? static_cast<int16_t>(out - slew) : static_cast<int16_t>(-out_max);
+    int16_t hi = out <= out_max - slew ? static_cast<int16_t>(out + slew) : out_max;
+    if (lo > hi) lo = hi;
+    const int32_t ilim = static_cast<int32_t>(out_max) << 8;
+    uint32_t di = static_cast<uint32_t>(g->ki_q8) * mag;
+    const uint32_t di_max = static_cast<uint32_t>(ilim) << 1;
+    if (di > di_max) di = di_max;
+    int32_t integ = neg ? s->integ - static_cast<int32_t>(di) : s->integ + static_cast<int32_t>(di);
+    integ = clamp32(integ, -ilim, ilim);
+    int32_t u = p8 + (integ >> 8);
+    if (!neg && mag != 0 && u > hi) {
+        int32_t cap = clamp32(hi - p8, -out_max, out_max) * 256;
+        integ = cap > s->integ ? cap : s->integ;
+        if (integ > ilim) integ = ilim;
+        u = p8 + (integ >> 8);
+    } else if (neg && u < lo) {
+        int32_t cap = clamp32(lo - p8, -out_max, out_max) * 256;
+        integ = cap < s->integ ? cap : s->integ;
+        if (integ < -ilim) integ = -ilim;
+        u = p8 + (integ >> 8);
+    }
+    s->integ = integ;
+    int16_t y;
+    if (u > hi) {
+        y = hi;
+    } else if (u < lo) {
+        y = lo;
+    } else {
+        y = static_cast<int16_t>(u);
+    }
+    s->saturated = (y != u) ? 1 : 0;
+    s->out = y;
+    return y;
+}
+
+uint32_t lcg(uint32_t* x) {
+    *x = *x * 1664525u + 1013904223u;
+    return *x >> 8;
+}
+}  // namespace
+
+TEST(Pi, MatchesReferenceOverRandomSequencesAndExtremes) {
+    const int16_t gains[] = {0, 1, 2, 80, 255, 256, 1000, 32767};
+    const int16_t limits[] = {0, 1, 100, 10000, 16384, 32767};
+    const int32_t errors[] = {0,     1,      -1,     255,     -256,    65535,     -65535,
+                              65536, -65536, 300000, -300000, 1 << 29, -(1 << 29)};
+    uint32_t rnd = 12345;
+    long steps = 0;
+    for (int run = 0; run < 3000; run++) {
+        pi_gains g = {gains[lcg(&rnd) % 8], gains[lcg(&rnd) % 8], limits[lcg(&rnd) % 6],
+                      static_cast<int16_t>(1 + lcg(&rnd) % 32767)};
+        if (run % 3 == 0) g.slew = limits[lcg(&rnd) % 6] == 0 ? 1 : limits[lcg(&rnd) % 6];
+        pi_state s;
+        pi_reset(&s);
+        RefPi r;
+        for (int k = 0; k < 60; k++) {
+            int32_t e = (lcg(&rnd) % 4 == 0) ? errors[lcg(&rnd) % 13]
+                                             : static_cast<int32_t>(lcg(&rnd) % 140001) - 70000;
+            if (k == 30) g.out_max = limits[lcg(&rnd) % 6];  // limits change while running
+            if (k == 45) g.ki_q8 = gains[lcg(&rnd) % 8];
+            int16_t want = ref_pi_step(&r, &g, e, 0);
+            int16_t got = pi_step(&s, &g, e, 0);
+            ASSERT_EQ(got, want) << "run " << run << " step " << k << " e " << e;
+            ASSERT_EQ(s.integ, r.integ) << "run " << run << " step " << k;
+            ASSERT_EQ(s.saturated, r.saturated) << "run " << run << " step " << k;
+            ASSERT_LE(std::abs(static_cast<long>(s.integ)), 32767L * 256);  // 24 bits
+            steps++;
+        }
+    }
+    EXPECT_EQ(steps, 180000);
+}
+
+TEST(Pi, MagnitudeStepEqualsSignedStep) {
+    // pi_step_mag on (sign, magnitude) is what the control step calls; pi_step wraps it.
+    pi_gains g = pi_gains_sanitize({300, 7, 20000, 500});
+    pi_state a, b;
+    pi_reset(&a);
+    pi_reset(&b);
+    for (int32_t e : {0, 5, -5, 65535, -65535, 1200, -30000, 0, 17}) {
+        bool neg = e < 0;
+        EXPECT_EQ(pi_step_mag(&a, &g, neg, static_cast<uint16_t>(neg ? -e : e)),
+                  pi_step(&b, &g, e, 0));
+        EXPECT_EQ(a.integ, b.integ);
+    }
 }

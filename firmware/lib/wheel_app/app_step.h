@@ -1,0 +1,112 @@
+// app_step.h - the 1 kHz control step of four wheels, written for the AVR: one loop over the
+// wheels walking pointers (no index arithmetic), the hot path (encoder word, estimator, PI, lead,
+// commutation) inline, the rare paths (ramp, open loop, wheel off) out of line. Speeds are q8
+// (spd.h) inside the step; mrad/s only at the protocol boundary.
+//
+// The step is a template over the encoder reads (Io) so that the board layer can overlap the SPI
+// transfers of encoder i+1 with the arithmetic of wheel i without the portable logic touching a
+// register:
+//   uint16_t first()        the reply word of encoder 0 (the board reads it at once);
+//   void next(uint8_t k)    stage k (0..APP_IO_STAGES-1) of reading the next encoder, called at
+//                           fixed points of the wheel's arithmetic, at least ~40 cycles apart;
+//   uint16_t word(uint8_t i) the reply word of encoder i >= 1 (after all stages of wheel i - 1).
+// app_control_step (app.h) runs it on words given up front.
+#ifndef APP_STEP_H
+#define APP_STEP_H
+
+#include "app.h"
+#include "cmt.h"
+#include "enc.h"
+#include "flt.h"
+#include "pi.h"
+#include "spd.h"
+
+#define APP_IO_STAGES 5
+
+// Rare paths of the step (app.cpp).
+void app_wheel_off(app_wheel* w, uint16_t pwm[3]);
+void app_ramp(app_wheel* w, int32_t step);
+void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
+
+// PI error from q8 to mrad/s as sign and magnitude clamped to PI_ERR_CLAMP: 43748 q8 is
+// 65535.4 mrad/s; n * 98175 / 65536 = n + (n * 32639 >> 16), one 16 x 16 multiply.
+#define APP_ERR_CLAMP_Q8 43748L
+PORT_INLINE uint16_t app_err_mrad_s(int32_t e_q8, bool* neg) {
+    *neg = e_q8 < 0;
+    uint32_t n = *neg ? 0u - static_cast<uint32_t>(e_q8) : static_cast<uint32_t>(e_q8);
+    if (n > static_cast<uint32_t>(APP_ERR_CLAMP_Q8)) return static_cast<uint16_t>(PI_ERR_CLAMP);
+    uint16_t m = static_cast<uint16_t>(n);
+    return static_cast<uint16_t>(m + port_mulhi_u16(m, 32639u));
+}
+
+template <class Io>
+void app_control_step_io(app_state* a, Io& io) {
+    // Few values live across the loop (a, io, i, bit, enable, two flags): everything else is
+    // re-derived from i, so the arithmetic of a wheel keeps its temporaries in registers.
+    const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
+    const bool down = failsafe || a->stopping;  // ramp with DECEL
+    uint8_t enable = 0;
+    uint16_t word = io.first();
+    uint8_t bit = 1;
+    for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
+        if (i != 0) word = io.word(i);
+        app_wheel* w = &a->w[i];
+        const app_ctl* c = &a->ctl;
+        const bool closed = c->closed;
+        bool disabled = false;
+        if (closed) {
+            const bool good = enc_even_parity(word) && !(word & 0x4000u);
+            const uint16_t fbit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 * bit);
+            disabled =
+                flt_encoder_sample_at(&a->flt, &a->flt.enc_bad[i], fbit, good, c->enc_fault_limit);
+            if (good) {
+                spd_update(&w->spd, word, c->spd_k);
+            } else {
+                spd_skip(&w->spd);
+            }
+        }
+        io.next(0);
+        if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
+        if (w->sp_mrad_s != w->target_mrad_s) app_ramp(w, down ? c->decel : c->accel);
+        uint16_t* pwm = a->pwm[i];
+        if (disabled || (w->sp_mrad_s == 0 && w->target_mrad_s == 0) || !closed) {
+            if (!disabled && !closed && (w->sp_mrad_s != 0 || w->target_mrad_s != 0)) {
+                app_wheel_open(c, w, pwm);
+                enable |= bit;
+            } else {
+                app_wheel_off(w, pwm);
+            }
+            io.next(1);
+            io.next(2);
+            io.next(3);
+        } else {
+            const int32_t speed_q8 = spd_q8(&w->spd);
+            bool neg;
+            const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
+            io.next(1);
+            const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
+            w->drive_q15 = drive;
+            io.next(2);
+            // Advance the angle by speed * lead to cover the sensor-to-PWM delay and half a tick.
+            uint16_t angle16 = static_cast<uint16_t>(
+                cmt_elec_angle(w->spd.last_angle, c->pole_pairs, c->enc_offset[i]) +
+                cmt_lead_angle(&c->lead, speed_q8));
+            // Torque-producing vector: 90 degrees electrical ahead of (or behind) the rotor.
+            int16_t amp;
+            if (drive >= 0) {
+                angle16 = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
+                amp = drive;
+            } else {
+                angle16 = static_cast<uint16_t>(angle16 - CMT_ANGLE_90);
+                amp = static_cast<int16_t>(-drive);
+            }
+            io.next(3);
+            cmt_phases(angle16, amp, pwm);
+            enable |= bit;
+        }
+        io.next(4);
+    }
+    a->enable_mask = enable;
+}
+
+#endif  // APP_STEP_H
