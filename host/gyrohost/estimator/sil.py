@@ -1,0 +1,239 @@
+"""Software-in-the-loop Monte Carlo on the simulated rig's models.
+
+``python -m gyrohost.estimator.sil [--runs 20] [--config configs/sim-rig.toml]``
+
+In process, on a simulated clock (deterministic timing): the rig's truth model
+(:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
+and finite-difference rate, gravity felt by the IMU) stepped at its ``dt_s`` under the scene's
+rest-length schedule; the servos follow the command with a first-order lag (``SERVO_LAG_S``)
+and report quantised positions through their calibration; the IMU samples go through the rig's
+BWT61CL emulator (noise densities, biases, int16 quantisation of the wire format; seed = run
+number) and are parsed back by the IMU driver's parser; the wheel board reports the true
+speeds. Scored at every IMU sample against the truth state: NEES (full state, on the constraint
+manifold), NIS per source, tilt error.
+
+``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
+(``run_simulated``: ptys, drivers, arrival time stamps) and scores the replayed log against its
+``truth`` stream (positions, wheel speeds, rest lengths only: the stream has no velocities). On a
+loaded machine the real-time rig's truth lags by up to 0.2 s and its truth stream with it.
+"""
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import null_space
+
+from gyrohost.runlog import read_stream
+
+from . import driver, streams
+from .consistency import tilt_error
+from .montecarlo import RunResult, summarise
+from .replay import prepare
+
+SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
+RIG_MODEL_KEYS = {"accel_psd_m2_s3": 1e-6}  # the rig's truth has no random forces
+DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml"
+
+
+def record_run(config, seed, folder, duration_s=3.0):
+    """One run of the paper's schedule on the simulated rig with IMU seed ``seed``."""
+    from gyrohost.control.presets import paper
+    from gyrohost.runloop import run_simulated
+    from gyrotensegrity import Model, load_scene
+
+    cfg = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
+    schedule = paper(Model(load_scene(cfg.scene_path)), duration_s=duration_s)
+    result = run_simulated(cfg, schedule, folder)
+    if result.exit_status:
+        raise RuntimeError(f"{folder}: the run stopped: {result.reason}")
+    return folder
+
+
+def _truth_at(truth, t, columns):
+    return np.array([np.interp(t, truth["t_s"], truth[c]) for c in columns])
+
+
+def score_log(folder) -> RunResult:
+    """Replay a simulated-rig log and score it against its ``truth`` stream."""
+    ekf, data = prepare(folder)
+    model, L, st = ekf.model, ekf.layout, ekf.model.structure
+    truth = read_stream(folder, "truth")
+    node_cols = [f"{name}_{a}_m" for name in st.node_names for a in "xyz"]
+    wheel_cols = [f"omega_{i}_rad_s" for i in range(L.n_wheels)]
+    rest_cols = [streams.rest_column(s.name) for s in model.scene.strings]
+    U2T = ekf.process.dyn.U2T
+    nis: dict = {}
+    ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
+    rows = []
+
+    def score(e, stream):
+        if stream != streams.IMU:
+            return
+        N = _truth_at(truth, e.t, node_cols).reshape(st.n, 3).T  # virtual nodes repeat
+        q = np.linalg.lstsq(U2T.T, N.T, rcond=None)[0].T.ravel()  # N = N_fixed + q U2^T
+        x_true = e.x.copy()
+        x_true[L.q] = q
+        x_true[L.omega] = _truth_at(truth, e.t, wheel_cols)
+        x_true[L.rest] = _truth_at(truth, e.t, rest_cols)
+        G = e.manifold.jacobian(e.x)[: model.beta, L.q]
+        Tq = null_space(G)
+        idx = np.r_[L.q.start : L.q.stop, L.omega.start : L.rest.stop]
+        T = np.zeros((len(idx), Tq.shape[1] + L.n_wheels + L.n_strings))
+        T[: Tq.shape[0], : Tq.shape[1]] = Tq
+        T[Tq.shape[0] :, Tq.shape[1] :] = np.eye(L.n_wheels + L.n_strings)
+        err = T.T @ (x_true - e.x)[idx]
+        P = T.T @ e.P[np.ix_(idx, idx)] @ T
+        R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
+        R_est, _ = e.attitude()
+        pos = np.sqrt(np.mean((e.x[L.q] - q) ** 2))
+        rows.append(
+            (e.t, err @ np.linalg.solve(P, err), T.shape[1], tilt_error(R_est, R_true[0]), pos)
+        )
+
+    driver.run(ekf, data, score)
+    t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
+    nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
+    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, 0.0)
+
+
+def rig_model_run(config, seed, duration_s=3.0):
+    """One in-process run on the rig's truth model and sensor emulators (see module docstring).
+
+    Returns
+    -------
+    data : dict of structured arrays (streams of :mod:`.streams`)
+    truth_x : ndarray, shape (k, n), true filter states at the IMU samples
+    truth_R : ndarray, shape (k, 3, 3), true sensor axes at the IMU samples
+    """
+    from gyrohost.drivers.imu import Bwt61Parser
+    from gyrohost.drivers.servos import length_to_steps, steps_to_length
+    from gyrohost.rig.imu_emu import Bwt61Emulator
+    from gyrohost.rig.truth import Truth
+    from gyrotensegrity import Model, load_scene
+
+    from .layout import from_model_state
+
+    scene = load_scene(config.scene_path)
+    model = Model(scene)
+    truth = Truth(scene, replace(config.sim.truth, servo_lag_s=0.0), config.servos.servo)
+    emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu)
+    parser = Bwt61Parser()
+    servos = [s for s in config.servos.servo if s.string]
+    strings = [s.name for s in scene.strings]
+    servo_strings = [strings.index(s.string) for s in servos]
+    spins = model.spin0  # the wheel board holds the scene's spins
+    position = {s.id: s.length_at_zero_m for s in servos}
+    truth.wheel_input_rad_s[:] = spins  # spun up before the run starts
+    truth.u = truth.model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
+    dt = truth.dt_s
+    imu_every = int(round(0.01 / dt))
+    gain = 1.0 - np.exp(-dt / SERVO_LAG_S)
+    rows = {streams.IMU: [], streams.WHEELS: [], streams.SERVOS: [], streams.COMMAND: []}
+    truth_x, truth_R = [], []
+    for k in range(int(round(duration_s / dt)) + 1):
+        t = k * dt
+        if k % imu_every == 0:  # the host sends a command every tick (10 ms), held in between
+            command = model.input_at(t)[: model.alpha]
+        for s, i in zip(servos, servo_strings, strict=True):
+            position[s.id] += gain * (command[i] - position[s.id])
+        reported = {
+            s.id: steps_to_length(s, round(length_to_steps(s, position[s.id]))) for s in servos
+        }
+        if k % imu_every == 0:
+            imu = truth.imu_truth(t)
+            (sample,) = parser.feed(emu.encode_sample(imu), int(round(t * 1e9)))
+            rows[streams.IMU].append(
+                [t, *sample.omega_rad_s, *sample.accel_m_s2, *sample.euler_rad]
+            )
+            rows[streams.WHEELS].append([t, *spins])
+            rows[streams.COMMAND].append([t, *command, *spins])
+            if k % (4 * imu_every) == 0:
+                rows[streams.SERVOS].append([t, *(reported[s.id] for s in servos)])
+            # the truth's plant has speed-driven wheels: its state has no spins, its input has
+            truth_x.append(
+                from_model_state(truth.model, truth.stepper.x, truth.u, emu.gyro_bias_rad_s)
+            )
+            truth_R.append(imu.R_wb)
+        truth.step(reported, spins)
+    columns = {
+        streams.IMU: streams.imu_columns(),
+        streams.WHEELS: streams.wheels_columns(len(spins)),
+        streams.SERVOS: streams.servos_columns([s.string for s in servos]),
+        streams.COMMAND: streams.command_columns(strings, len(spins)),
+    }
+    data = {}
+    for name, values in rows.items():
+        arr = np.array(values)
+        data[name] = np.empty(len(arr), dtype=[(c, "f8") for c in columns[name]])
+        for j, c in enumerate(columns[name]):
+            data[name][c] = arr[:, j]
+    return model, data, np.array(truth_x), np.array(truth_R)
+
+
+def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResult:
+    """Filter one :func:`rig_model_run` and score it against its truth; ``overrides``: estimator
+    keys on top of :func:`.config.noise_from_rig`."""
+    from .config import config_from_dict, noise_from_rig
+    from .consistency import nees
+    from .ekf import TensegrityEKF
+
+    model, data, truth_x, truth_R = rig_model_run(config, seed, duration_s)
+    est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
+    ekf = TensegrityEKF(model, est_cfg, x0=np.r_[truth_x[0][:-3], np.zeros(3)])
+    L = ekf.layout
+    nis: dict = {}
+    ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
+    rows = []
+
+    def score(e, stream):
+        if stream != streams.IMU:
+            return
+        k = int(round(e.t / 0.01))
+        value, dof = nees(e, truth_x[k])
+        R, _ = e.attitude()
+        pos = np.sqrt(np.mean((e.x[L.q] - truth_x[k, L.q]) ** 2))
+        rows.append((e.t, value, dof, tilt_error(R, truth_R[k]), pos))
+
+    driver.run(ekf, data, score)
+    t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
+    nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
+    return RunResult(t, v, int(dof[0]), tilt, pos, nis_out, 0.0)
+
+
+def main(argv=None) -> int:
+    from gyrohost.config import load_rig_config
+
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.estimator.sil")
+    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG)
+    parser.add_argument("--duration", type=float, default=3.0, help="s (in-process runs)")
+    parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
+    parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
+    parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
+    args = parser.parse_args(argv)
+    config = load_rig_config(args.config)
+    if not args.realtime:
+        runs = range(1, args.runs + 1)
+        results = [score_rig_model_run(config, s, args.duration, RIG_MODEL_KEYS) for s in runs]
+        print(f"--- SIL (rig truth model and sensor emulators, simulated clock): {args.runs} runs")
+        summarise(results, "[sil] ")
+        return 0
+    results = []
+    for seed in range(1, args.runs + 1):
+        folder = args.out / f"run{seed:02d}"
+        if not args.score_only:
+            if (folder / "meta.json").exists():
+                raise SystemExit(f"{folder} exists; remove it or use --score-only")
+            record_run(config, seed, folder)
+        results.append(score_log(folder))
+        print(f"run {seed}: {len(results[-1].t_s)} IMU samples scored", file=sys.stderr)
+    print(f"--- SIL: {len(results)} runs of the paper's schedule on the simulated rig")
+    summarise(results, "[sil] ")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
