@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from gyrohost import wheelproto as wp
-from gyrohost.config import load_rig_config
+from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.rig import simavr
 from gyrohost.rig.sim import FaultCommandError, SimulatedRig
@@ -125,3 +125,10 @@ def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries):
         proc.kill()
     assert proc.returncode == 0, err
     assert re.search(r"wheels \(simavr\): firmware time [\d.]+ s .* 0 overruns", out), out
+
+
+def test_simavr_wheels_refuse_stream_faults_in_the_configuration():
+    with pytest.raises(ConfigError, match=r"f\.toml: key 'sim\.wheels\.faults': .*emulator"):
+        rig_config_from_dict(
+            {"sim": {"wheels": {"kind": "simavr", "faults": {"drop_byte_prob": 0.01}}}}, "f.toml"
+        )
