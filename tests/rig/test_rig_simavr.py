@@ -132,3 +132,15 @@ def test_simavr_wheels_refuse_stream_faults_in_the_configuration():
         rig_config_from_dict(
             {"sim": {"wheels": {"kind": "simavr", "faults": {"drop_byte_prob": 0.01}}}}, "f.toml"
         )
+
+
+def test_non_finite_harness_speed_is_reported_not_passed_to_the_truth():
+    class Stub:  # the latest SPEED line of a harness whose motor 2 model blew up
+        speed = simavr.parse_speed("SPEED 1500 1.0 2.0 nan 4.0 3")
+
+    board = object.__new__(simavr.SimavrWheelBoard)
+    board.harness = Stub()
+    with pytest.raises(simavr.HarnessError, match=r"motor 2 speed is nan at firmware time 0\.0015"):
+        board.wheel_speeds_rad_s()
+    with pytest.raises(simavr.HarnessError, match="malformed SPEED line"):
+        simavr.parse_speed("SPEED 1500 1.0 2.0")

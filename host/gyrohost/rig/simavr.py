@@ -16,6 +16,7 @@ from the SPEED lines.
 
 from __future__ import annotations
 
+import math
 import queue
 import signal
 import subprocess
@@ -278,9 +279,23 @@ class SimavrWheelBoard:
         return self.harness.pty
 
     def wheel_speeds_rad_s(self) -> list[float]:
-        """True motor speeds of the latest SPEED line, rad/s (zeros before the first)."""
+        """True motor speeds of the latest SPEED line, rad/s (zeros before the first).
+
+        Raises
+        ------
+        HarnessError
+            The harness's motor model reported a non-finite speed (motor and time named).
+        """
         sample = self.harness.speed
-        return list(sample.omega_rad_s) if sample is not None else [0.0] * 4
+        if sample is None:
+            return [0.0] * 4
+        bad = [i for i, w in enumerate(sample.omega_rad_s) if not math.isfinite(w)]
+        if bad:
+            raise HarnessError(
+                f"simavr motor {bad[0]} speed is {sample.omega_rad_s[bad[0]]} at firmware time "
+                f"{sample.t_us * 1e-6:.6f} s"
+            )
+        return list(sample.omega_rad_s)
 
     @property
     def telemetry_sent(self) -> int:
