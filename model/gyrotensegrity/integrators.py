@@ -38,13 +38,32 @@ class ExplicitRungeKutta:
     b: np.ndarray
     c: np.ndarray
 
+    def __post_init__(self):
+        # nonzero coefficients as Python floats: the stages skip exact zeros (adding 0 * k
+        # changes nothing) and avoid numpy-scalar overhead per product
+        stages = [
+            [(j, float(self.a[i, j])) for j in range(i) if self.a[i, j]] for i in range(len(self.b))
+        ]
+        object.__setattr__(self, "_stages", stages)
+        object.__setattr__(self, "_weights", [(i, float(w)) for i, w in enumerate(self.b) if w])
+        object.__setattr__(self, "_nodes", [float(c) for c in self.c])
+
     def step(self, f, t, x, dt):
         """One step of ``dx/dt = f(t, x)`` from (t, x) over dt; returns the new state."""
         k = []
-        for i in range(len(self.b)):
-            xi = x + dt * sum(self.a[i, j] * k[j] for j in range(i)) if i else x
-            k.append(f(t + self.c[i] * dt, xi))
-        return x + dt * sum(bi * ki for bi, ki in zip(self.b, k, strict=True))
+        for i, terms in enumerate(self._stages):
+            xi = x + dt * _combine(terms, k) if i else x
+            k.append(f(t + self._nodes[i] * dt, xi))
+        return x + dt * _combine(self._weights, k)
+
+
+def _combine(terms, k):
+    """sum of a_j k_j over the (j, a_j) pairs, in order."""
+    (j, a), *rest = terms
+    total = a * k[j]
+    for j, a in rest:
+        total += a * k[j]
+    return total
 
 
 RK4 = ExplicitRungeKutta(

@@ -136,7 +136,7 @@ def _headline(data):
         f"| D-bar rhs, fast numpy path | {d['fast_numpy'] * 1e6:.1f} us | (fallback) |",
         f"| D-bar rhs, reference path | {d['reference'] * 1e6:.1f} us | |",
     ]
-    sc = [r for r in data.get("scaling", []) if r["bars"] >= 1000]
+    sc = [r for r in data.get("scaling", []) if 1000 <= r["bars"] < 1100]
     for r in sc:
         tag = "class-2 (joints)" if r["joined"] else "class-1"
         out.append(f"| {r['bars']} bars rhs, {tag} | {r['fast'] * 1e3:.3f} ms | <= 2 ms |")

@@ -13,7 +13,7 @@ from gyrotensegrity.fast import FastDynamics
 from gyrotensegrity.generators import prism_chain
 from gyrotensegrity.integrators import RK4
 
-SIZES_FULL = (1, 3, 10, 34, 67, 100, 200, 334)  # prisms: 3 to 1,002 bars
+SIZES_FULL = (1, 3, 10, 34, 67, 100, 200, 334, 1000)  # prisms: 3 to 3,000 bars
 SIZES_QUICK = (1, 10, 40, 80)
 
 
