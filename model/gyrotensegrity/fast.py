@@ -203,21 +203,23 @@ class FastDynamics:
         self.kernel = _fastkernel
 
     # -- evaluation -------------------------------------------------------------------------
-    def accelerations(self, q, q_dot, omega_w, u):
-        """Accelerations of a (batch of) state(s).
+    def accelerations(self, q, q_dot, omega_w, rest):
+        """Accelerations of a (batch of) state(s); the interface of the estimator's
+        ``BatchDynamics`` (complex-step safe: slack tests use real parts).
 
         Parameters
         ----------
         q, q_dot : ndarray, shape (..., 3, m'), m and m/s (real or complex)
         omega_w : ndarray, shape (..., n_w), rad/s
-        u : ndarray, shape (alpha + n_w,): rest lengths (m), then wheel inputs
+        rest : ndarray, shape (..., alpha) or (alpha,), m
+            String rest lengths (real or complex).
 
         Returns
         -------
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
-        z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
+        z_ddot = self._accelerations(q, q_dot, omega_w, rest)
         return z_ddot, self.node_values(z_ddot)
 
     def wheel_acceleration(self, u, dtype=float):
@@ -241,7 +243,7 @@ class FastDynamics:
         b2 = sums[..., 0, :beta]
         s = np.sqrt(sums[..., 0, beta:])
         tension = self.k_s * (s - rest) + self.c_s * (sums[..., 1, beta:] / s)
-        taut = (s.real > rest) & (tension.real > 0.0)
+        taut = (s.real > np.real(rest)) & (tension.real > 0.0)
         gamma = np.where(taut, tension / s, 0.0)
         factor = np.zeros(omega_w.shape[:-1] + (beta,), dtype=omega_w.dtype)
         factor[..., self.wheel_bars] = self.gyro_coef * omega_w  # J_a omega_w / l per bar

@@ -83,38 +83,39 @@ def fit_exponent(rows, key, joined, min_bars=100):
 def ekf_budget(model: Model, repeats=5, target_s=0.05, dt=0.01):
     """What the EKF needs per IMU sample (``dt`` s): one RK4 process step over dt (4 batched
     derivative calls, as the estimator's lean model), and the Jacobian ``A = df/dx`` by one
-    batched complex-step call over all dynamic states; for the estimator's current
-    ``BatchDynamics`` and for :class:`FastDynamics` (same interface)."""
+    batched complex-step call over all dynamic states (positions, velocities, torque-wheel
+    spins, rest lengths); for the estimator's ``BatchDynamics`` and for :class:`FastDynamics`
+    (same ``accelerations(q, q_dot, omega_w, rest)`` interface)."""
     from gyrohost.estimator.fast_dynamics import BatchDynamics
 
-    L, m = model.layout, model.m
-    x = model.initial_state()
-    u = model.input_at(0.0)
-    nd = 6 * m + L.n_torque  # the estimator's dynamic part: q, q_dot, omega of torque wheels
-    dyns = {"BatchDynamics (estimator)": BatchDynamics(model), "FastDynamics": FastDynamics(model)}
+    L, m, alpha = model.layout, model.m, model.alpha
+    x, u = model.initial_state(), model.input_at(0.0)
+    nd = 6 * m + L.n_torque + alpha
     omega0 = model.wheel_speeds(x, u)[None, :]
-    q0 = x[L.q].reshape(1, 3, m)
-    qd0 = x[L.q_dot].reshape(1, 3, m)
+    q0, qd0 = x[L.q].reshape(1, 3, m), x[L.q_dot].reshape(1, 3, m)
+    rest0 = u[None, :alpha]
+    # one complex perturbation per dynamic state, batched
+    Q, QD = np.tile(q0 + 0j, (nd, 1, 1)), np.tile(qd0 + 0j, (nd, 1, 1))
+    W, R = np.tile(omega0 + 0j, (nd, 1)), np.tile(rest0 + 0j, (nd, 1))
+    idx, h = np.arange(3 * m), 1e-30j
+    Q.reshape(nd, -1)[idx, idx] += h
+    QD.reshape(nd, -1)[3 * m + idx, idx] += h
+    W[6 * m + np.arange(L.n_torque), model.torque_wheels] += h
+    R[6 * m + L.n_torque + np.arange(alpha), np.arange(alpha)] += h
     out = {}
-    for name, dyn in dyns.items():
+    for name, dyn in (
+        ("BatchDynamics (estimator)", BatchDynamics(model)),
+        ("FastDynamics", FastDynamics(model)),
+    ):
 
         def step(dyn=dyn):
             q, qd = q0, qd0
             for _ in range(4):
-                a, _ = dyn.accelerations(q, qd, omega0, u)
+                a, _ = dyn.accelerations(q, qd, omega0, rest0)
                 q, qd = q + 0.5 * dt * qd, qd + 0.5 * dt * a
 
-        Q = np.tile(q0.astype(complex), (nd, 1, 1))
-        QD = np.tile(qd0.astype(complex), (nd, 1, 1))
-        idx = np.arange(3 * m)
-        Q.reshape(nd, -1)[idx, idx] += 1e-30j
-        QD.reshape(nd, -1)[3 * m + idx, idx] += 1e-30j
-        W = np.tile(omega0.astype(complex), (nd, 1))
-        tq = np.arange(L.n_torque)
-        W[6 * m + tq, model.torque_wheels] += 1e-30j
-
-        def jac(dyn=dyn, Q=Q, QD=QD, W=W):
-            dyn.accelerations(Q, QD, W, u)
+        def jac(dyn=dyn):
+            dyn.accelerations(Q, QD, W, R)
 
         out[name] = {
             "process_step_s": best_time(step, repeats, target_s),
