@@ -9,9 +9,15 @@
  * with an angle rotating at 195 counts per 1 ms (about 715 rpm) in the direction of their wheel's
  * setpoint (the selected encoder is the one whose chip select, PA4..PA7, is low). Reports the
  * control step (cycles between the writes GPIOR0 = 1 and GPIOR0 = 0: encoder reads, estimator, PI,
- * commutation of all four wheels), the main-loop rate (control steps per simulated second) and each
- * ISR from its first instruction to its reti inclusive (the interrupt response and vector jump add
- * 8 cycles on the ATmega2560, not included).
+ * commutation of all four wheels), the same without the ISRs that preempted it, the main-loop rate
+ * (control steps per simulated second), each ISR from its first instruction to its reti inclusive
+ * (the interrupt response and vector jump add 8 cycles on the ATmega2560, not included), the bytes
+ * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, telemetry
+ * frame), the ISR load per tick and the CPU load per tick (that work plus the ISRs outside it).
+ *
+ * UART timing: simavr 1.6 sends a byte every 704 cycles (44 us) at UBRR0 = 3 with U2X, where the
+ * ATmega2560 takes 20 us (500 kbaud): the 500 Hz telemetry keeps simavr's UART 83 % busy, so its
+ * TX interrupt lands in most steps here, more often than on the board.
  *
  * SPI timing: simavr 1.6 completes every SPDR write after a fixed 100 us (1,600 cycles) whatever
  * the SPI clock. The bench takes over the SPDR write like firmware/sim/fil_harness.c does: the
@@ -31,12 +37,13 @@
 #include <simavr/sim_irq.h>
 
 #define ADDR_GPIOR0 0x3E
+#define ADDR_GPIOR1 0x4A
 
 typedef struct {
     const char* name;
     uint32_t addr;
     uint64_t start, n, sum, min, max;
-    int in;
+    int in, in_step, outside;
 } isr_stat_t;
 
 #define ADDR_SPDR 0x4E
@@ -45,6 +52,12 @@ typedef struct {
 
 static uint64_t g_mark_start, g_steps, g_sum, g_min = UINT64_MAX, g_max;
 static uint64_t g_first_mark, g_last_mark;
+/* GPIOR1 windows: the main loop's work on a tick (step, PWM, telemetry frame) */
+static uint64_t g_tick_start, g_tick_n, g_tick_sum, g_tick_max, g_tick_min = UINT64_MAX;
+/* ISR cycles (+8 entry each) while measuring: in total, inside the step, outside the tick work */
+static uint64_t g_isr_all, g_isr_in_step, g_isr_outside;
+/* The step without the ISRs that preempted it */
+static uint64_t g_isr_this_step, g_pure_sum, g_pure_max, g_pure_min = UINT64_MAX;
 static avr_t* g_avr;
 static avr_spi_t* g_spi;
 static uint16_t g_angle, g_word;
@@ -56,16 +69,46 @@ static void gpior0_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param)
     avr->data[addr] = v;
     if (v == 1) {
         g_mark_start = avr->cycle;
+        g_isr_this_step = 0;
     } else if (g_mark_start) {
         uint64_t d = avr->cycle - g_mark_start;
         g_mark_start = 0;
         if (g_steps++ < 5) return; /* skip start-up steps */
+        uint64_t pure = d - g_isr_this_step;
+        g_pure_sum += pure;
+        if (pure < g_pure_min) g_pure_min = pure;
+        if (pure > g_pure_max) g_pure_max = pure;
         if (!g_first_mark) g_first_mark = avr->cycle;
         g_last_mark = avr->cycle;
         g_sum += d;
         if (d < g_min) g_min = d;
         if (d > g_max) g_max = d;
     }
+}
+
+static void gpior1_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v;
+    if (v == 1) {
+        g_tick_start = avr->cycle;
+    } else if (g_tick_start) {
+        uint64_t d = avr->cycle - g_tick_start;
+        g_tick_start = 0;
+        if (!g_first_mark) return; /* start-up */
+        g_tick_n++;
+        g_tick_sum += d;
+        if (d < g_tick_min) g_tick_min = d;
+        if (d > g_tick_max) g_tick_max = d;
+    }
+}
+
+/* Bytes and frames (zero delimiters) the firmware sent on UART0. */
+static uint64_t g_tx_bytes, g_tx_frames;
+static void uart_out(struct avr_irq_t* irq, uint32_t value, void* param) {
+    (void)irq;
+    (void)param;
+    g_tx_bytes++;
+    if ((value & 0xFF) == 0) g_tx_frames++;
 }
 
 static uint16_t enc_word(uint16_t angle) {
@@ -157,9 +200,9 @@ int main(int argc, char** argv) {
         return 2;
     }
     isr_stat_t isr[3] = {
-        {"TIMER2_COMPA", (uint32_t)strtoul(argv[2], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0},
-        {"USART0_RX", (uint32_t)strtoul(argv[3], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0},
-        {"USART0_UDRE", (uint32_t)strtoul(argv[4], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0}};
+        {"TIMER2_COMPA", (uint32_t)strtoul(argv[2], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0, 0, 0},
+        {"USART0_RX", (uint32_t)strtoul(argv[3], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0, 0, 0},
+        {"USART0_UDRE", (uint32_t)strtoul(argv[4], 0, 0), 0, 0, 0, UINT64_MAX, 0, 0, 0, 0}};
     elf_firmware_t fw;
     memset(&fw, 0, sizeof fw);
     if (elf_read_firmware(argv[1], &fw) != 0) {
@@ -172,6 +215,7 @@ int main(int argc, char** argv) {
     avr->frequency = 16000000;
     avr_load_firmware(avr, &fw);
     avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
+    avr_register_io_write(avr, ADDR_GPIOR1, gpior1_write, NULL);
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
@@ -184,6 +228,8 @@ int main(int argc, char** argv) {
     avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.c = spdr_write; /* replace simavr's 100 us transfer */
     avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param = NULL;
     avr_irq_t* uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
+                            uart_out, NULL);
 
     uint8_t tx[512];
     int ntx = 0;
@@ -210,6 +256,8 @@ int main(int argc, char** argv) {
             if (!isr[k].in && pc == isr[k].addr) {
                 isr[k].in = 1;
                 isr[k].start = avr->cycle;
+                isr[k].in_step = g_mark_start != 0;
+                isr[k].outside = avr->data[ADDR_GPIOR1] == 0;
             }
         }
         uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
@@ -225,6 +273,12 @@ int main(int argc, char** argv) {
                     isr[k].sum += d;
                     if (d < isr[k].min) isr[k].min = d;
                     if (d > isr[k].max) isr[k].max = d;
+                    if (isr[k].in_step) g_isr_this_step += d + 8;
+                    if (g_first_mark) {
+                        g_isr_all += d + 8;
+                        if (isr[k].in_step) g_isr_in_step += d + 8;
+                        if (isr[k].outside) g_isr_outside += d + 8;
+                    }
                 }
             }
         }
@@ -246,6 +300,9 @@ int main(int argc, char** argv) {
         "%.1f %% of the %u-cycle tick)\n",
         (unsigned long long)n, (unsigned long long)g_min, mean, (unsigned long long)g_max,
         g_max / 16.0, 100.0 * mean / TICK_CYCLES, 100.0 * (double)g_max / TICK_CYCLES, TICK_CYCLES);
+    printf("control step without the ISRs that preempted it: min=%llu mean=%.0f max=%llu cycles\n",
+           (unsigned long long)g_pure_min, (double)g_pure_sum / (double)n,
+           (unsigned long long)g_pure_max);
     if (n > 1) {
         printf("main loop: %.0f control steps per second (tick 1000 Hz)\n",
                (double)(n - 1) * 16e6 / (double)(g_last_mark - g_first_mark));
@@ -258,6 +315,26 @@ int main(int argc, char** argv) {
         printf("ISR %-12s n=%llu min=%llu max=%llu cycles (first instruction to reti; +8 entry)\n",
                isr[k].name, (unsigned long long)isr[k].n, (unsigned long long)isr[k].min,
                (unsigned long long)isr[k].max);
+    }
+    printf("UART TX: %llu bytes, %llu frames in %.1f s (telemetry at 500 Hz: about 1000)\n",
+           (unsigned long long)g_tx_bytes, (unsigned long long)g_tx_frames, end / 16e6);
+    if (g_tick_n > 0) {
+        double ticks = (double)(g_last_mark - g_first_mark) / TICK_CYCLES;
+        double work = (double)g_tick_sum / (double)g_tick_n;
+        printf(
+            "tick work (GPIOR1: step, PWM, telemetry frame; ISRs inside included): n=%llu "
+            "min=%llu mean=%.0f max=%llu cycles\n",
+            (unsigned long long)g_tick_n, (unsigned long long)g_tick_min, work,
+            (unsigned long long)g_tick_max);
+        printf(
+            "ISR load (+8 entry each): %.0f cycles per tick (%.1f %%), inside the step %.1f per "
+            "step, outside the tick work %.0f per tick\n",
+            g_isr_all / ticks, 100.0 * g_isr_all / ticks / TICK_CYCLES,
+            (double)g_isr_in_step / (double)n, g_isr_outside / ticks);
+        printf(
+            "CPU load per tick (tick work + ISRs outside it): mean %.0f cycles = %.1f %% of the "
+            "tick\n",
+            work + g_isr_outside / ticks, 100.0 * (work + g_isr_outside / ticks) / TICK_CYCLES);
     }
     if (g_profile) {
         FILE* f = fopen(prof_path, "w");

@@ -54,7 +54,9 @@
 #define BOARD_UART_RX_SIZE 128  // power of two
 #define BOARD_UART_TX_SIZE 256  // power of two (8-bit indices)
 
-// ---- Cycle measurement: GPIOR0 = 1 just before the control step of all wheels, 0 right after.
+// ---- Cycle measurement: GPIOR0 = 1 just before the control step of all wheels, 0 right after;
+// GPIOR1 = 1 while the main loop works on a tick (step, PWM, telemetry frame), 0 after it.
 #define BOARD_CYCLE_MARK GPIOR0
+#define BOARD_TICK_MARK GPIOR1
 
 #endif  // BOARD_H

@@ -52,19 +52,24 @@ int main() {
         uint8_t elapsed = static_cast<uint8_t>(now - last_tick);
         if (elapsed == 0) continue;
         if (elapsed > 1) app_note_overrun(&g_app, static_cast<uint8_t>(elapsed - 1));
+        BOARD_TICK_MARK = 1;
         last_tick = now;
         t_ms += elapsed;
 
         board_enc_io io;
-        // Measured step (make -C firmware cycles, 4 wheels closed loop at 715 rpm, encoder reads
-        // included): 3333 / 7112 / 7641 cycles min / mean / max = 44 % / 48 % of the 16,000-cycle
-        // tick, 1000 steps/s (before: 11876 mean, 12274 max); target 2400 not met yet, see
-        // docs/hardware.md.
+        // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
+        // included, 1,993 steps): 2794 / 5599 / 6475 cycles min / mean / max = 35 % / 40 % of the
+        // 16,000-cycle tick, of which UART TX ISRs preempting the step 532 mean (without them
+        // 2514 / 5067 / 5863); before 3333 / 7111 / 7643 (6439 mean without ISRs). 1000 steps/s.
+        // ISRs 1363 cycles per tick (8.5 %); CPU per tick (this loop pass from BOARD_TICK_MARK = 1
+        // to 0 plus ISRs outside it) 58.6 % (before 65.0 %). Target 2400 not met: see
+        // docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         app_telemetry(&g_app, t_ms * 1000u);
+        BOARD_TICK_MARK = 0;
     }
 }

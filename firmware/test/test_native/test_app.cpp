@@ -9,6 +9,7 @@
 #include "cobs.h"
 #include "crc16.h"
 #include "enc.h"
+#include "app_step.h"
 #include "test_support.h"
 
 namespace {
@@ -359,6 +360,77 @@ TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
     }
     EXPECT_NEAR(m[3].omega, 0.0, 1e-9);
     EXPECT_EQ(app.flt.faults, 0);
+}
+
+}  // namespace
+
+namespace {
+
+// The PI error in mrad/s from q8 at the clamp and the int32 extremes the step can form.
+TEST(AppStep, ErrorConversionAtExtremes) {
+    bool neg = true;
+    EXPECT_EQ(app_err_mrad_s(0, &neg), 0);
+    EXPECT_FALSE(neg);
+    EXPECT_EQ(app_err_mrad_s(1, &neg), 1);  // 1.498 mrad/s
+    EXPECT_EQ(app_err_mrad_s(-1, &neg), 1);
+    EXPECT_TRUE(neg);
+    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8, &neg), 65535);  // 65535.9: the clamp itself
+    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8 + 1, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_mrad_s(-APP_ERR_CLAMP_Q8 - 1, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_mrad_s(INT32_MAX, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_mrad_s(INT32_MIN + 1, &neg), PI_ERR_CLAMP);
+    EXPECT_TRUE(neg);
+    for (int32_t e = -APP_ERR_CLAMP_Q8; e <= APP_ERR_CLAMP_Q8; e += 7) {
+        ASSERT_EQ(app_err_mrad_s(e, &neg), (static_cast<int64_t>(e < 0 ? -e : e) * 98175) >> 16);
+        ASSERT_EQ(neg, e < 0);
+    }
+}
+
+// Records the calls the board's encoder reader gets: stages 0..4 of the next encoder, in order,
+// once per wheel whatever path the wheel takes (closed, open loop, off).
+struct RecordingIo {
+    std::vector<int> calls;
+    uint16_t words[4];
+    uint16_t first() {
+        calls.push_back(100);
+        return words[0];
+    }
+    void next(uint8_t k) { calls.push_back(k); }
+    uint16_t word(uint8_t i) {
+        calls.push_back(200 + i);
+        return words[i];
+    }
+};
+
+std::vector<int> expected_calls() {
+    std::vector<int> want = {100};
+    for (int i = 0; i < 4; i++) {
+        if (i) want.push_back(200 + i);
+        for (int k = 0; k < APP_IO_STAGES; k++) want.push_back(k);
+    }
+    return want;
+}
+
+TEST_F(AppTest, EncoderStagesInOrderOnEveryPath) {
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, -5000, 0}));  // wheels 1 and 3 stay off
+    RecordingIo io;
+    for (int i = 0; i < 4; i++) io.words[i] = enc_make_reply(static_cast<uint16_t>(100 * i), false);
+    io.words[2] = enc_make_reply(7, true);  // a bad word on wheel 2
+    app_control_step_io(&app, io);
+    EXPECT_EQ(io.calls, expected_calls());
+    EXPECT_EQ(app.enable_mask, 0x5);
+}
+
+TEST_F(AppTest, EncoderStagesInOrderInOpenLoop) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, 0, 0}));
+    RecordingIo io = {};
+    app_control_step_io(&app, io);
+    EXPECT_EQ(io.calls, expected_calls());
+    EXPECT_EQ(app.enable_mask, 0x1);
+    EXPECT_EQ(app_speed_mrad_s(&app, 0), 100);  // ramping at ACCEL 100 rad/s^2
 }
 
 }  // namespace
