@@ -51,14 +51,26 @@ class BatchDynamics:
         self.all_bars_wheeled = np.array_equal(self.wheel_bars, np.arange(self.beta))
         self.M_red_inv = np.linalg.inv(model.M_red.toarray())  # (m, m), symmetric
         self.U2 = model.U2.toarray()  # (n, m)
+        # products with the constant matrices, so that no (3, n) node matrix is ever formed
+        self.E_all = self.U2T @ np.hstack([self.C_b.T, self.C_s.T])  # (m, beta + alpha)
+        self.Y0 = self.N_fixed @ np.hstack([self.C_b.T, self.C_s.T])  # (3, beta + alpha)
+        self.W_Cb, self.Cs_Cb, self.Cb_Cb = (
+            self.W @ self.C_b.T, self.C_s @ self.C_b.T, self.C_b @ self.C_b.T
+        )  # fmt: skip
+        self.W_U2, self.Cs_U2, self.Cb_U2 = (
+            self.W @ self.U2, self.C_s @ self.U2, self.C_b @ self.U2
+        )  # fmt: skip
         if self.c:
             self._multiplier_constants(model)
 
     def _multiplier_constants(self, model):
         """Dense form of the multiplier system (see ``Model._multiplier_system``)."""
         c = self.c
-        self.M_s_inv = model.M_s_inv.toarray()
-        self.P = model.structure.P.toarray()  # (n, c)
+        M_s_inv = model.M_s_inv.toarray()
+        P = model.structure.P.toarray()  # (n, c)
+        self.W_MP, self.Cs_MP, self.Cb_MP = (
+            self.W @ M_s_inv @ P, self.C_s @ M_s_inv @ P, self.C_b @ M_s_inv @ P
+        )  # fmt: skip
         self.H = model.H.toarray()  # (beta, c) = C_b P
         rows, cols, vals = model.omega_const
         K0 = np.zeros((3 * c, 3 * c))
@@ -91,25 +103,27 @@ class BatchDynamics:
         eta2_ddot : ndarray, shape (K, 3, m), m/s^2
         N_ddot : ndarray, shape (K, 3, n), m/s^2
         """
-        N, N_dot = self.nodes(q, q_dot)
-        B = N[:, :, self.bar_end] - N[:, :, self.bar_start]
-        B_dot = N_dot[:, :, self.bar_end] - N_dot[:, :, self.bar_start]
+        beta = self.beta
+        Y = q @ self.E_all + self.Y0  # bars and strings (K, 3, beta + alpha), never N itself
+        Y_dot = q_dot @ self.E_all
+        B, S = Y[:, :, :beta], Y[:, :, beta:]
+        B_dot, S_dot = Y_dot[:, :, :beta], Y_dot[:, :, beta:]
         b2 = (B * B).sum(axis=1)  # (K, beta)
-        F = self.W - self._string_forces(N, N_dot, rest) @ self.C_s
-        if self.gyroscopic:
-            F = F + self._gyroscopic(B, B_dot, omega_w) @ self.C_b
-        FC = F[:, :, self.bar_end] - F[:, :, self.bar_start]
+        # forces as columns: F = W - X_s C_s + X_b C_b (strings X_s, bars X_b), used only
+        # through products with constant matrices
+        X_s = self._string_forces(S, S_dot, rest)
+        X_b = self._gyroscopic(B, B_dot, omega_w) if self.gyroscopic else np.zeros_like(B)
+        FC = self.W_Cb - X_s @ self.Cs_Cb + X_b @ self.Cb_Cb  # F C_b^T
         lam = -(self.J_t * (B_dot * B_dot).sum(axis=1) + 0.5 * (B * FC).sum(axis=1)) / b2
-        F_total = F + (B * lam[:, None, :]) @ self.C_b
+        X_b = X_b + B * lam[:, None, :]
         if self.c:
-            F_total = F_total + self._multiplier_forces(B, b2, F_total)
-        eta2_ddot = F_total @ self.U2 @ self.M_red_inv
+            X_b = X_b + self._multiplier_forces(B, b2, X_s, X_b)
+        f_red = self.W_U2 - X_s @ self.Cs_U2 + X_b @ self.Cb_U2  # (W_T - N K_s) U2
+        eta2_ddot = f_red @ self.M_red_inv
         return eta2_ddot, eta2_ddot @ self.U2T
 
-    def _string_forces(self, N, N_dot, rest):
+    def _string_forces(self, S, S_dot, rest):
         """S gamma^ (K, 3, alpha): tension-only strings with damping while taut."""
-        S = N[:, :, self.string_end] - N[:, :, self.string_start]
-        S_dot = N_dot[:, :, self.string_end] - N_dot[:, :, self.string_start]
         s = np.sqrt((S * S).sum(axis=1))
         s_dot = (S * S_dot).sum(axis=1) / s
         tension = self.k_s * (s - rest) + self.c_s * s_dot
@@ -135,10 +149,13 @@ class BatchDynamics:
         out[:, :, i] = G
         return out
 
-    def _multiplier_forces(self, B, b2, F_total):
-        """Bar forces added by the multipliers Omega (Eqs. 62, 67), batched, shape (K, 3, n)."""
+    def _multiplier_forces(self, B, b2, X_s, X_b):
+        """Bar-force columns added by the multipliers Omega (Eqs. 62, 67), shape (K, 3, beta).
+
+        ``X_s, X_b`` are the string and bar force columns so far (F = W - X_s C_s + X_b C_b).
+        """
         K, c = B.shape[0], self.c
-        rhs = -(F_total @ self.M_s_inv @ self.P)  # (K, 3, c)
+        rhs = -(self.W_MP - X_s @ self.Cs_MP + X_b @ self.Cb_MP)  # -N_ddot_0 P, (K, 3, c)
         bb = (B[:, :, None, :] * (B / b2[:, None, :])[:, None, :, :]).reshape(K, 9, self.beta)
         # sum_i kron(coef_i, b_i b_i^T / |b_i|^2): (K, 9, c c) -> (K, c, 3, c, 3)
         pairs = (bb @ self.coef_flat).reshape(K, 3, 3, c, c).transpose(0, 3, 1, 4, 2)
@@ -148,7 +165,7 @@ class BatchDynamics:
         OH = Omega @ self.H.T  # (K, 3, beta)
         lam_Omega = -0.5 * (B * OH).sum(axis=1) / b2
         # Omega P^T itself is left out: it has no component in the reduced space (P^T U2 = 0)
-        return (B * lam_Omega[:, None, :]) @ self.C_b
+        return B * lam_Omega[:, None, :]
 
     def wheel_acceleration(self, u, dtype=float):
         """Spin acceleration of every wheel (n_w,), rad/s^2: torque / J_3 for torque wheels."""

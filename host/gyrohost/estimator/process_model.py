@@ -47,6 +47,7 @@ class ProcessModel:
         self.dyn = BatchDynamics(model)
         self.layout = layout_of(model)
         self.columns = np.arange(self.layout.n_dynamic)
+        self._noise: dict[float, np.ndarray] = {}
 
     def derivative(self, X, u, with_node_accelerations=False):
         """dx/dt of the dynamic part of a batch of filter states (and N_ddot (K, 3, n) if asked).
@@ -67,9 +68,11 @@ class ProcessModel:
         q_dot = X[:, L.q_dot].reshape(K, 3, m)
         rest = X[:, L.rest]
         eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], rest)
-        w_dot = np.tile(self.dyn.wheel_acceleration(u), (K, 1))
-        rest_dot = (u[: L.n_strings] - rest) / self.config.servo_lag_s
-        dx = np.concatenate([X[:, L.q_dot], eta2_ddot.reshape(K, 3 * m), w_dot, rest_dot], axis=1)
+        dx = np.empty_like(X)
+        dx[:, L.q] = X[:, L.q_dot]
+        dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
+        dx[:, L.omega] = self.dyn.wheel_acceleration(u)
+        dx[:, L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
         return (dx, N_ddot) if with_node_accelerations else dx
 
     def linearise(self, x, u):
@@ -137,6 +140,8 @@ class ProcessModel:
         (integrated exactly into positions and velocities), random walks of the wheel speeds and
         the gyro bias.
         """
+        if dt in self._noise:
+            return self._noise[dt]
         L, c = self.layout, self.config
         Q = np.zeros((L.size, L.size))
         i, j = np.arange(L.q.start, L.q.stop), np.arange(L.q_dot.start, L.q_dot.stop)
@@ -150,4 +155,6 @@ class ProcessModel:
         Q[r, r] = c.rest_psd_m2_s * dt
         b = np.arange(L.bias.start, L.bias.stop)
         Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
+        if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
+            self._noise[dt] = Q
         return Q
