@@ -40,6 +40,7 @@ def moving_state(model):
     """A filter state 0.8 s into the manoeuvre (nodes moving, strings taut or slack), its
     model state and input."""
     stepper = Stepper(model)
-    stepper.step(0.8)
+    for _ in range(80):
+        stepper.step(0.01)  # the scene's rest-length schedule, held over each 10 ms
     u = model.input_at(stepper.t)
     return from_model_state(model, stepper.x, u, [0.01, -0.02, 0.005]), stepper.x.copy(), u

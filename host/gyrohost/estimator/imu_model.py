@@ -30,16 +30,12 @@ def rotation_zyx(roll, pitch, yaw):
     )
 
 
+_NEXT, _PREV = [1, 2, 0], [2, 0, 1]
+
+
 def _cross(a, b):
     """Cross product along axis 1 of (K, 3) arrays (complex-safe, no conjugation)."""
-    return np.stack(
-        [
-            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-        ],
-        axis=1,
-    )
+    return a[:, _NEXT] * b[:, _PREV] - a[:, _PREV] * b[:, _NEXT]
 
 
 def _dot(a, b):
@@ -98,8 +94,9 @@ class ImuGeometry:
         ez = c / len_c
         ez_dot = (c_dot - ez * _dot(ez, c_dot)) / len_c
         ey = _cross(ez, ex)
-        ey_dot = _cross(ez_dot, ex) + _cross(ez, ex_dot)
-        omega_b = np.concatenate([_dot(ez, ey_dot), _dot(ex, ez_dot), _dot(ey, ex_dot)], axis=1)
+        # omega_b = vee(R^T R_dot) = (ez . ey_dot, ex . ez_dot, ey . ex_dot);
+        # ez . ey_dot = -ey . ez_dot since ey . ez = 0
+        omega_b = np.concatenate([-_dot(ey, ez_dot), _dot(ex, ez_dot), _dot(ey, ex_dot)], axis=1)
         R_wb = np.stack([ex, ey, ez], axis=2)
         return R_wb @ self.R_bs, omega_b @ self.R_bs
 
