@@ -171,7 +171,8 @@ def sweep(quick: bool, log=print) -> list:
         for integrator in SETTINGS:
             if quick and integrator in ("rk45", "bdf"):
                 continue
-            cell = run_cell(data, duration, integrator, budget)
+            long = group == "long horizon" and not quick
+            cell = run_cell(data, duration, integrator, 150.0 if long else budget)
             rows.append(
                 {
                     "group": group,
