@@ -317,6 +317,8 @@ void app_telemetry(app_state* a, uint32_t t_us) {
 
 void app_note_overrun(app_state* a, uint8_t missed_ticks) {
     for (uint8_t i = 0; i < missed_ticks; i++) a->cnt.tick_overruns = sat_inc(a->cnt.tick_overruns);
+    // The next encoder sample spans missed_ticks + 1 ticks: the estimator divides by that.
+    for (uint8_t i = 0; i < APP_WHEELS; i++) spd_missed_ticks(&a->w[i].spd, missed_ticks);
     flt_set(&a->flt, PROTO_FAULT_TICK_OVERRUN);
 }
 

@@ -90,7 +90,8 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 // Send telemetry if this tick is due (TELEMETRY_DIV); t_us: time stamp of the step.
 void app_telemetry(app_state* a, uint32_t t_us);
 
-// Board events.
+// Board events. app_note_overrun: missed_ticks control ticks passed without a step (the tick
+// ISR counts them); call it before the step that follows them.
 void app_note_overrun(app_state* a, uint8_t missed_ticks);
 void app_note_rx_overflow(app_state* a);
 void app_note_step_time(app_state* a, uint16_t us);

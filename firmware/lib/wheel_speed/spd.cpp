@@ -38,14 +38,18 @@ int32_t spd_gap_q8(spd_state* s, int16_t delta) {
     return x;
 }
 
-void spd_skip(spd_state* s) {
-    // A gap of more than a quarter turn per tick count is ambiguous anyway: re-prime after 3 ticks.
-    if (s->missed < 2) {
-        s->missed++;
+void spd_missed_ticks(spd_state* s, uint8_t n) {
+    // spd_div_ticks divides by 1..3 ticks: a longer gap re-primes (the estimate is held).
+    if (static_cast<uint16_t>(s->missed) + n <= 2u) {
+        s->missed = static_cast<uint8_t>(s->missed + n);
     } else {
         s->primed = 0;
         s->missed = 0;
     }
+}
+
+void spd_skip(spd_state* s) {
+    spd_missed_ticks(s, 1);
 }
 
 int32_t spd_q8_to_mrad_s(int32_t q8) {

@@ -76,6 +76,11 @@ PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
 // The sample of this tick was bad: hold the estimate, the next good sample spans the gap.
 void spd_skip(spd_state* s);
 
+// n control ticks passed without a step (main-loop overrun): the next good sample spans them too,
+// so its delta is divided by the true number of elapsed ticks. A span of more than 3 ticks
+// re-primes (estimate held for one sample), as after 3 bad samples.
+void spd_missed_ticks(spd_state* s, uint8_t n);
+
 // Protocol boundary. q8 -> mrad/s: * 383.496 / 256 (98175 / 65536, relative error 3e-6), rounded
 // towards zero; |q8| <= 2^22. mrad/s -> q8: * 43748 / 65536 (relative error 4e-6: 1.6 mrad/s at
 // the 400 rad/s limit), rounded towards zero; |mrad/s| <= 2^22.

@@ -225,3 +225,30 @@ TEST(Spd, LongGapReprimes) {
     update(&s, 9100, 0);
     EXPECT_EQ(spd_q8(&s), 100 * 256);
 }
+
+TEST(Spd, MissedTicksSpanTheGap) {
+    spd_state s;
+    spd_init(&s);
+    update(&s, 0, 0);
+    update(&s, 200, 0);
+    spd_missed_ticks(&s, 1);  // the main loop missed one tick: 400 counts over 2 ticks
+    update(&s, 600, 0);
+    EXPECT_EQ(spd_q8(&s), 200 * 256);
+    spd_missed_ticks(&s, 1);  // a missed tick and a bad word: 3 ticks
+    spd_skip(&s);
+    update(&s, 600 - 900, 0);
+    EXPECT_EQ(spd_q8(&s), -300 * 256);
+    spd_missed_ticks(&s, 2);
+    update(&s, 600 - 900 + 30, 0);
+    EXPECT_EQ(spd_q8(&s), 10 * 256);
+    int32_t before = spd_q8(&s);
+    spd_missed_ticks(&s, 3);  // 4 ticks: re-prime, the estimate is held
+    update(&s, 5000, 0);
+    EXPECT_EQ(spd_q8(&s), before);
+    update(&s, 5010, 0);
+    EXPECT_EQ(spd_q8(&s), 10 * 256);
+    spd_skip(&s);
+    spd_missed_ticks(&s, 255);  // the largest count the main loop can pass
+    update(&s, 0, 0);
+    EXPECT_EQ(spd_q8(&s), 10 * 256);
+}
