@@ -112,7 +112,7 @@ class FastDynamics:
         E_s = sp.csr_matrix(st.C_s @ U)
         # (bars | strings) images of z, with the constant offsets of the positions
         self.EE_T = _Right(sp.vstack([E, E_s]).T, dense)
-        self.off = np.hstack([N_fix @ st.C_b.T.toarray(), N_fix @ st.C_s.T.toarray()])
+        self.off = np.hstack([np.asarray(C @ N_fix.T).T for C in (st.C_b, st.C_s)])
         # reduced forces: (G + B mu^ | S gamma^) @ [E; -E_s]
         self.E_force = _Right(sp.vstack([E, -E_s]), dense)
         self.WU = np.asarray(U.T @ np.asarray(model.W).T).T  # (3, m')
