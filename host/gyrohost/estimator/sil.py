@@ -34,7 +34,8 @@ from .montecarlo import RunResult, summarise
 from .replay import prepare
 
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-RIG_MODEL_KEYS = {"accel_psd_m2_s3": 1e-6}  # the rig's truth has no random forces
+# the rig's truth has no random forces; the servos here are exactly the first-order lag
+RIG_MODEL_KEYS = {"accel_psd_m2_s3": 1e-6, "servo_length_std_m": 2e-4}
 DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml"
 
 
