@@ -38,6 +38,7 @@ static void app_reset_wheel(app_wheel* w) {
     w->sp_mrad_s = 0;
     w->ol_phase = 0;
     w->drive_q15 = 0;
+    w->stop_ticks = 0;
 }
 
 static void app_load_ctl(app_state* a) {
@@ -249,12 +250,22 @@ void app_poll(app_state* a) {
 void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     pi_reset(&w->pi);
     w->drive_q15 = 0;
+    w->stop_ticks = 0;
     for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
 void app_ramp(app_wheel* w, int32_t step) {
     w->sp_mrad_s = ramp_step(w->sp_mrad_s, w->target_mrad_s, step);
     w->sp_q8 = spd_mrad_s_to_q8(w->sp_mrad_s);
+    if (w->target_mrad_s != 0) w->stop_ticks = 0;  // a new setpoint ends a stop
+}
+
+bool app_brake_on(app_wheel* w, bool was_enabled) {
+    if (!was_enabled || w->stop_ticks >= APP_STOP_TICKS) return false;
+    const int32_t s = spd_q8(&w->spd);
+    if (s < APP_STOP_Q8 && s > -APP_STOP_Q8) return false;
+    w->stop_ticks++;
+    return true;
 }
 
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]) {

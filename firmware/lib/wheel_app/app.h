@@ -16,6 +16,14 @@
 #define APP_WHEELS 4
 #define APP_TICK_HZ 1000
 
+// Stopping in closed loop: when a running wheel's ramped setpoint and target reach 0 (STOP_ALL,
+// fail-safe, SET_SPEEDS 0), the loop keeps driving (braking towards 0) until the measured speed
+// is below APP_STOP_Q8 (334 q8 = 0.50 rad/s = 4.8 rpm) or APP_STOP_TICKS ticks (500 ms) have
+// passed, and only then disables the wheel's driver. The time-out bounds a wheel that cannot be
+// stopped (a load, a frozen encoder); a wheel already off stays off however it turns.
+#define APP_STOP_Q8 334L
+#define APP_STOP_TICKS 500u
+
 // Enqueue one whole frame for transmission; false if it does not fit (the frame is dropped).
 typedef bool (*app_tx_fn)(const uint8_t* data, uint8_t len);
 
@@ -42,6 +50,7 @@ struct app_wheel {
     int32_t sp_mrad_s;      // ramped setpoint
     uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
     int16_t drive_q15;      // signed drive level
+    uint16_t stop_ticks;    // ticks braking at setpoint 0 (APP_STOP_TICKS)
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change

@@ -27,6 +27,9 @@
 void app_wheel_off(app_wheel* w, uint16_t pwm[3]);
 void app_ramp(app_wheel* w, int32_t step);
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
+// Setpoint and target at 0 in closed loop: true while the wheel (enabled in the last tick) still
+// turns at APP_STOP_Q8 or more and APP_STOP_TICKS have not passed; the loop then brakes on.
+bool app_brake_on(app_wheel* w, bool was_enabled);
 
 // PI error from q8 to mrad/s as sign and magnitude clamped to PI_ERR_CLAMP: 43748 q8 is
 // 65535.4 mrad/s; n * 98175 / 65536 = n + (n * 32639 >> 16), one 16 x 16 multiply.
@@ -69,7 +72,8 @@ void app_control_step_io(app_state* a, Io& io) {
         if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
         if (w->sp_mrad_s != w->target_mrad_s) app_ramp(w, down ? c->decel : c->accel);
         uint16_t* pwm = a->pwm[i];
-        if (disabled || (w->sp_mrad_s == 0 && w->target_mrad_s == 0) || !closed) {
+        const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
+        if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {
             if (!disabled && !closed && (w->sp_mrad_s != 0 || w->target_mrad_s != 0)) {
                 app_wheel_open(c, w, pwm);
                 enable |= bit;

@@ -409,6 +409,78 @@ TEST_F(AppTest, MissedTicksKeepSpeedEstimateAndLoopRight) {
     EXPECT_EQ(app.flt.faults, PROTO_FAULT_TICK_OVERRUN);
 }
 
+// Fail-safe in closed loop at the default DECEL (200 rad/s^2, faster than this motor brakes):
+// the motor lags the ramp, so the loop brakes on after the setpoint reached 0 and disables the
+// outputs only once the measured speed is below APP_STOP_Q8. Before, the outputs went off when
+// the setpoint reached 0 and the wheels coasted from the lag.
+TEST_F(AppTest, FailSafeBrakesUntilTheWheelHasStopped) {
+    set_param(PRM_DRIVE_MAX_Q15, 32767);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    Motor m[4];
+    const int32_t sp[4] = {74870, -74870, 20000, 0};
+    send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
+    int t_failsafe = -1, t_sp0[4] = {-1, -1, -1, -1}, t_off[4] = {-1, -1, -1, -1};
+    double omega_off[4] = {0, 0, 0, 0};
+    for (int t = 0; t < 8000; t++) {
+        if (t < 4000 && t % 50 == 0) send(PROTO_ID_HEARTBEAT);  // then the host goes silent
+        uint16_t words[4];
+        for (int i = 0; i < 4; i++) words[i] = m[i].word();
+        const uint8_t was = app.enable_mask;
+        app_control_step(&app, words);
+        if (t_failsafe < 0 && (app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST)) t_failsafe = t;
+        for (int i = 0; i < 4; i++) {
+            if (t_failsafe >= 0 && t_sp0[i] < 0 && app.w[i].sp_mrad_s == 0) t_sp0[i] = t;
+            if (((was & ~app.enable_mask) >> i) & 1) {
+                t_off[i] = t;
+                omega_off[i] = m[i].omega;
+            }
+            m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
+        }
+    }
+    ASSERT_GT(t_failsafe, 4000);
+    const double stop_rad_s = APP_STOP_Q8 * 1.4980e-3;  // q8 -> rad/s
+    for (int i = 0; i < 3; i++) {
+        ASSERT_GE(t_off[i], 0) << "wheel " << i;
+        EXPECT_GT(t_off[i], t_sp0[i]) << "wheel " << i;  // braked on after the ramp ended
+        EXPECT_LT(t_off[i] - t_sp0[i], static_cast<int>(APP_STOP_TICKS)) << "wheel " << i;
+        // Off when stopped: below the threshold plus the filter's lag of a few ticks of braking.
+        EXPECT_LT(fabs(omega_off[i]), 2 * stop_rad_s) << "wheel " << i;
+        EXPECT_LT(fabs(m[i].omega), 2 * stop_rad_s) << "wheel " << i;
+    }
+    EXPECT_EQ(t_off[3], -1);  // never enabled
+    EXPECT_EQ(app.enable_mask, 0);
+}
+
+// A wheel whose measured speed does not fall (here an encoder turning on its own at 50 rad/s):
+// the outputs go off APP_STOP_TICKS after the setpoint reached 0, and stay off.
+TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_ACCEL_RAD_S2, 10000);
+    set_param(PRM_DECEL_RAD_S2, 10000);
+    send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
+    uint32_t angle = 0;
+    const uint32_t counts_per_tick = 130;  // 49.9 rad/s
+    auto tick = [&]() {
+        angle += counts_per_tick;
+        uint16_t words[4] = {enc_make_reply(static_cast<uint16_t>(angle & 0x3FFF), false),
+                             enc_make_reply(0, false), enc_make_reply(0, false),
+                             enc_make_reply(0, false)};
+        app_control_step(&app, words);
+    };
+    for (int t = 0; t < 300; t++) tick();
+    EXPECT_EQ(app.enable_mask, 0x1);
+    send(PROTO_ID_STOP_ALL);
+    int ticks = 0;
+    while (app.enable_mask && ticks < 2000) {
+        tick();
+        ticks++;
+    }
+    EXPECT_EQ(ticks, 5 + static_cast<int>(APP_STOP_TICKS));  // 5 ticks of ramp, then the time-out
+    for (int t = 0; t < 100; t++) tick();
+    EXPECT_EQ(app.enable_mask, 0);
+    EXPECT_EQ(app.w[0].drive_q15, 0);
+}
+
 }  // namespace
 
 namespace {
