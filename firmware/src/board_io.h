@@ -13,6 +13,8 @@ void pwm_apply(const uint16_t duty[][3], uint8_t enable_mask);
 void spi_init();
 // Read one encoder (chip-select bit cs_bit of BOARD_CS_PORT) into words[0].
 void enc_read_one(uint16_t words[1], uint8_t cs_bit);
+// Send ENC_CMD_CLEAR_ERROR to every encoder whose bit (0..3 = M0..M3) is set in mask.
+void enc_clear_errors(uint8_t mask);
 
 void uart_init();
 bool uart_tx_frame(const uint8_t* data, uint8_t len);  // whole frame or nothing, never blocks

@@ -26,17 +26,23 @@ static inline __attribute__((always_inline)) uint8_t spi_xfer(uint8_t out) {
 }
 
 // One 16-bit frame; the 8 SCK periods of each byte (32 cycles at clk/4) are the bulk of it.
-static inline __attribute__((always_inline)) uint16_t enc_frame(uint8_t cs_bit) {
+static inline __attribute__((always_inline)) uint16_t enc_frame(uint8_t cs_bit, uint16_t cmd) {
     BOARD_CS_PORT &= static_cast<uint8_t>(~cs_bit);
     spi_wait_350ns();
-    uint8_t hi = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE >> 8));
-    uint8_t lo = spi_xfer(static_cast<uint8_t>(ENC_CMD_READ_ANGLE & 0xFF));
+    uint8_t hi = spi_xfer(static_cast<uint8_t>(cmd >> 8));
+    uint8_t lo = spi_xfer(static_cast<uint8_t>(cmd & 0xFF));
     BOARD_CS_PORT |= cs_bit;
     spi_wait_350ns();
     return static_cast<uint16_t>((static_cast<uint16_t>(hi) << 8) | lo);
 }
 
 void enc_read_one(uint16_t words[1], uint8_t cs_bit) {
-    (void)enc_frame(cs_bit);
-    words[0] = enc_frame(cs_bit);
+    (void)enc_frame(cs_bit, ENC_CMD_READ_ANGLE);
+    words[0] = enc_frame(cs_bit, ENC_CMD_READ_ANGLE);
+}
+
+void enc_clear_errors(uint8_t mask) {
+    for (uint8_t cs = static_cast<uint8_t>(1u << BOARD_CS_SHIFT); mask; cs <<= 1, mask >>= 1) {
+        if (mask & 1u) (void)enc_frame(cs, ENC_CMD_CLEAR_ERROR);
+    }
 }

@@ -68,6 +68,7 @@ int main() {
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
+        if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TICK_MARK = 0;

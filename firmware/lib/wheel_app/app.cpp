@@ -76,6 +76,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->telem_count = 0;
     a->stopping = 0;
     a->enable_mask = 0;
+    a->enc_clear = 0;
     if (!prm_init(&a->prm, ee)) boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
     app_load_ctl(a);
     flt_set(&a->flt, boot_faults);

@@ -49,6 +49,7 @@ void app_control_step_io(app_state* a, Io& io) {
     const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
     const bool down = failsafe || a->stopping;  // ramp with DECEL
     uint8_t enable = 0;
+    a->enc_clear = 0;
     uint16_t word = io.first();
     uint8_t bit = 1;
     for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
@@ -66,6 +67,7 @@ void app_control_step_io(app_state* a, Io& io) {
                 spd_update(&w->spd, word, c->spd_k);
             } else {
                 spd_skip(&w->spd);
+                a->enc_clear |= bit;  // clear the sensor's error flag after the step
             }
         }
         io.next(0);

@@ -6,6 +6,9 @@
 //   carries the angle latched at the end of transaction 1. The angle is therefore fresh (a few
 //   microseconds old), not one tick old.
 // Reply word: bit 15 even parity over bits 14..0, bit 14 error flag, bits 13..0 angle.
+// After a bad reply (error flag or parity) the application asks the board to send
+// ENC_CMD_CLEAR_ERROR to that encoder after the step (app_state.enc_clear), so a transient error
+// costs one sample; ENC_FAULT_LIMIT consecutive bad replies latch the encoder fault.
 #ifndef ENC_H
 #define ENC_H
 
@@ -16,6 +19,10 @@
 #define ENC_COUNTS 16384u
 #define ENC_MASK 0x3FFFu
 #define ENC_CMD_READ_ANGLE 0xFFFFu
+// Read of the CLEAR ERROR FLAG register (address 0x0001, read bit 14, even parity bit 15 = 0):
+// the reply in the next frame is the error register, and reading it clears the sensor's error flag
+// (which otherwise stays set in every reply).
+#define ENC_CMD_CLEAR_ERROR 0x4001u
 
 enum enc_status : uint8_t {
     ENC_OK = 0,

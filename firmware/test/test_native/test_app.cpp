@@ -304,10 +304,95 @@ TEST_F(AppTest, EncoderFaultLatchesDisablesWheelAndBlocksSetpoints) {
     words[1] = static_cast<uint16_t>(enc_make_reply(5, false) ^ 1);  // parity error
     app_control_step(&app, words);
     EXPECT_NE(app.flt.faults & PROTO_FAULT_ENCODER_M1, 0);
+    EXPECT_EQ(app.enc_clear, 0x2);  // CLEAR ERROR FLAG after a bad word, parity ones too
     EXPECT_EQ(app.enable_mask & 0x2, 0);
     EXPECT_NE(app.enable_mask & 0x1, 0);
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+}
+
+// An AS5048A's error flag as on the chip: once set it stays in every reply until a CLEAR ERROR
+// FLAG command is read (the board sends it after a step whose enc_clear bit is set).
+struct LatchingSensor {
+    bool flag = false;
+    bool cause = false;  // the condition that sets the flag (present while true)
+    uint16_t word(uint16_t angle) {
+        if (cause) flag = true;
+        return enc_make_reply(angle, flag);
+    }
+    void after_step(bool clear_sent) {
+        if (clear_sent) flag = false;  // reading the error register clears it
+    }
+};
+
+TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    EXPECT_EQ(app.prm.v[PRM_ENC_FAULT_LIMIT], 5);
+    send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, 0, 0}));
+    LatchingSensor chip;
+    uint16_t angle = 0;
+    auto tick = [&](int n) {
+        for (int k = 0; k < n; k++) {
+            angle = static_cast<uint16_t>((angle + 3) & 0x3FFF);
+            uint16_t words[4] = {enc_make_reply(0, false), chip.word(angle),
+                                 enc_make_reply(0, false), enc_make_reply(0, false)};
+            app_control_step(&app, words);
+            chip.after_step((app.enc_clear >> 1) & 1);
+        }
+    };
+    tick(10);
+    EXPECT_EQ(app.enc_clear, 0);
+    for (int glitch = 0; glitch < 50; glitch++) {  // 50 single glitches, each one clears
+        chip.flag = true;
+        tick(1);
+        EXPECT_EQ(app.enc_clear, 0x2);
+        tick(1);
+        EXPECT_FALSE(chip.flag);
+        EXPECT_EQ(app.flt.enc_bad[1], 0);
+        tick(3);
+    }
+    chip.cause = true;  // a flag that lasts ENC_FAULT_LIMIT - 1 replies still recovers
+    tick(4);
+    chip.cause = false;
+    tick(2);
+    EXPECT_EQ(app.flt.faults, 0);
+    EXPECT_EQ(app.enable_mask, 0x1);
+    EXPECT_EQ(app.enc_clear, 0);
+}
+
+TEST_F(AppTest, PersistentErrorFlagFaultsAfterTheLimitThenRecoversAfterClear) {
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_ENC_FAULT_LIMIT, 4);
+    send(PROTO_ID_SET_SPEEDS, i32s({0, 5000, 0, 0}));
+    LatchingSensor chip;
+    auto tick = [&]() {
+        uint16_t words[4] = {enc_make_reply(0, false), chip.word(100), enc_make_reply(0, false),
+                             enc_make_reply(0, false)};
+        app_control_step(&app, words);
+        chip.after_step((app.enc_clear >> 1) & 1);
+    };
+    tick();
+    EXPECT_EQ(app.enable_mask, 0x2);
+    chip.cause = true;
+    for (int k = 0; k < 3; k++) {
+        tick();
+        EXPECT_EQ(app.flt.faults & PROTO_FAULT_ENCODER_M1, 0) << k;
+        EXPECT_EQ(app.enc_clear, 0x2);
+    }
+    tick();  // the 4th consecutive bad reply
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_ENCODER_M1, 0);
+    EXPECT_EQ(app.enable_mask, 0);
+    EXPECT_EQ(app.enc_clear, 0x2);  // still clearing while faulted
+    chip.cause = false;             // the cause goes away: the next clear empties the flag
+    tick();
+    tick();
+    EXPECT_FALSE(chip.flag);
+    EXPECT_EQ(app.enc_clear, 0);
+    send(PROTO_ID_CLEAR_FAULTS);
+    send(PROTO_ID_SET_SPEEDS, i32s({0, 5000, 0, 0}));
+    tick();
+    EXPECT_EQ(app.flt.faults, 0);
+    EXPECT_EQ(app.enable_mask, 0x2);
 }
 
 TEST_F(AppTest, OverrunAndRxOverflowSetFaults) {

@@ -32,6 +32,13 @@ TEST(Enc, ErrorFlagAndBadParityRejected) {
     EXPECT_EQ(out, 1234);  // untouched on error
 }
 
+TEST(Enc, ClearErrorCommandIsAReadOfRegister1WithEvenParity) {
+    EXPECT_EQ(ENC_CMD_CLEAR_ERROR & 0x3FFFu, 0x0001u);  // address of CLEAR ERROR FLAG
+    EXPECT_NE(ENC_CMD_CLEAR_ERROR & 0x4000u, 0u);       // read
+    EXPECT_TRUE(enc_even_parity(ENC_CMD_CLEAR_ERROR));  // bit 15 makes the parity even
+    EXPECT_TRUE(enc_even_parity(ENC_CMD_READ_ANGLE));
+}
+
 TEST(Spd, WrapDeltaAcrossZeroAndExtremes) {
     EXPECT_EQ(spd_wrap_delta(16383, 0), 1);
     EXPECT_EQ(spd_wrap_delta(0, 16383), -1);
