@@ -58,17 +58,19 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 2794 / 5599 / 6475 cycles min / mean / max = 35 % / 40 % of the
-        // 16,000-cycle tick, of which UART TX ISRs preempting the step 532 mean (without them
-        // 2514 / 5067 / 5863); before 3333 / 7111 / 7643 (6439 mean without ISRs). 1000 steps/s.
-        // ISRs 1363 cycles per tick (8.5 %); CPU per tick (this loop pass from BOARD_TICK_MARK = 1
-        // to 0 plus ISRs outside it) 58.6 % (before 65.0 %). Target 2400 not met: see
-        // docs/hardware.md, "Control-step cycles".
+        // included, 1,993 steps): 2724 / 5067 / 5289 cycles min / mean / max = 32 % / 33 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 2499 / 4576 / 4750); with the
+        // ramp and heartbeat still inside (and the stop/clear-error fixes) 2988 / 5706 / 6684
+        // (5177 mean without ISRs); before those fixes 2794 / 5599 / 6475 (5067). 1000 steps/s.
+        // CPU per tick (this loop pass from BOARD_TICK_MARK = 1 to 0 plus ISRs outside it)
+        // 59.8 % (59.1 % with the ramp inside). Target 2400 not met: see docs/hardware.md,
+        // "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
+        app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TICK_MARK = 0;

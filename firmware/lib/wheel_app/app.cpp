@@ -255,10 +255,18 @@ void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
-void app_ramp(app_wheel* w, int32_t step) {
-    w->sp_mrad_s = ramp_step(w->sp_mrad_s, w->target_mrad_s, step);
-    w->sp_q8 = spd_mrad_s_to_q8(w->sp_mrad_s);
-    if (w->target_mrad_s != 0) w->stop_ticks = 0;  // a new setpoint ends a stop
+void app_setpoints_tick(app_state* a) {
+    const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
+    const int32_t step = (failsafe || a->stopping) ? a->ctl.decel : a->ctl.accel;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        app_wheel* w = &a->w[i];
+        // Never resume by itself after a clear.
+        if (failsafe || flt_wheel_disabled(&a->flt, i)) w->target_mrad_s = 0;
+        if (w->sp_mrad_s == w->target_mrad_s) continue;
+        w->sp_mrad_s = ramp_step(w->sp_mrad_s, w->target_mrad_s, step);
+        w->sp_q8 = spd_mrad_s_to_q8(w->sp_mrad_s);
+        if (w->target_mrad_s != 0) w->stop_ticks = 0;  // a new setpoint ends a stop
+    }
 }
 
 bool app_brake_on(app_wheel* w, bool was_enabled) {
@@ -289,6 +297,7 @@ struct app_words_io {
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     app_words_io io = {enc_words};
     app_control_step_io(a, io);
+    app_setpoints_tick(a);
 }
 
 int32_t app_speed_mrad_s(const app_state* a, uint8_t i) {

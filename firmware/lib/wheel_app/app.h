@@ -98,7 +98,12 @@ void app_rx_byte(app_state* a, uint8_t byte);
 void app_poll(app_state* a);
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
+// Runs the step (app_step.h) and then app_setpoints_tick, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
+
+// Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
+// supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
+void app_setpoints_tick(app_state* a);
 
 // Send telemetry if this tick is due (TELEMETRY_DIV); t_us: time stamp of the step.
 void app_telemetry(app_state* a, uint32_t t_us);

@@ -10,7 +10,9 @@
 //   void next(uint8_t k)    stage k (0..APP_IO_STAGES-1) of reading the next encoder, called at
 //                           fixed points of the wheel's arithmetic, at least ~40 cycles apart;
 //   uint16_t word(uint8_t i) the reply word of encoder i >= 1 (after all stages of wheel i - 1).
-// app_control_step (app.h) runs it on words given up front.
+// app_control_step (app.h) runs it on words given up front, then app_setpoints_tick.
+// The setpoints (heartbeat supervision, fail-safe, ramp) are not part of the step: the board runs
+// app_setpoints_tick after it, so the step of tick k works on the setpoints ramped in tick k - 1.
 #ifndef APP_STEP_H
 #define APP_STEP_H
 
@@ -25,7 +27,6 @@
 
 // Rare paths of the step (app.cpp).
 void app_wheel_off(app_wheel* w, uint16_t pwm[3]);
-void app_ramp(app_wheel* w, int32_t step);
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
 // Setpoint and target at 0 in closed loop: true while the wheel (enabled in the last tick) still
 // turns at APP_STOP_Q8 or more and APP_STOP_TICKS have not passed; the loop then brakes on.
@@ -46,8 +47,6 @@ template <class Io>
 void app_control_step_io(app_state* a, Io& io) {
     // Few values live across the loop (a, io, i, bit, enable, two flags): everything else is
     // re-derived from i, so the arithmetic of a wheel keeps its temporaries in registers.
-    const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
-    const bool down = failsafe || a->stopping;  // ramp with DECEL
     uint8_t enable = 0;
     a->enc_clear = 0;
     uint16_t word = io.first();
@@ -71,8 +70,6 @@ void app_control_step_io(app_state* a, Io& io) {
             }
         }
         io.next(0);
-        if (failsafe || disabled) w->target_mrad_s = 0;  // never resume by itself after a clear
-        if (w->sp_mrad_s != w->target_mrad_s) app_ramp(w, down ? c->decel : c->accel);
         uint16_t* pwm = a->pwm[i];
         const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
         if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {

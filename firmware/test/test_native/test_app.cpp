@@ -148,7 +148,9 @@ TEST_F(AppTest, HeartbeatLossAtConfiguredTimeThenRampToZero) {
         step();
         ticks++;
     }
-    EXPECT_EQ(ticks, 167);  // ceil(50000 / 300)
+    // ceil(50000 / 300) = 167 ramp steps; the step of the next tick switches the outputs off (the
+    // ramp runs after the step, app_setpoints_tick).
+    EXPECT_EQ(ticks, 168);
     for (int i = 0; i < 4; i++) EXPECT_EQ(app.w[i].sp_mrad_s, 0);
     // Setpoints refused until the fault is cleared.
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
@@ -182,6 +184,9 @@ TEST_F(AppTest, StopAllRampsWithDecelAndAcks) {
     step(1);
     EXPECT_EQ(app.w[3].sp_mrad_s, 9500);
     step(19);
+    EXPECT_EQ(app.w[3].sp_mrad_s, 0);
+    EXPECT_EQ(app.enable_mask, 0xF);  // the step works on the setpoints of the tick before
+    step(1);
     EXPECT_EQ(app.enable_mask, 0);
 }
 
@@ -560,7 +565,8 @@ TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
         tick();
         ticks++;
     }
-    EXPECT_EQ(ticks, 5 + static_cast<int>(APP_STOP_TICKS));  // 5 ticks of ramp, then the time-out
+    // 5 ticks of ramp (the step sees the last one a tick later), then the time-out.
+    EXPECT_EQ(ticks, 1 + 5 + static_cast<int>(APP_STOP_TICKS));
     for (int t = 0; t < 100; t++) tick();
     EXPECT_EQ(app.enable_mask, 0);
     EXPECT_EQ(app.w[0].drive_q15, 0);
@@ -634,6 +640,8 @@ TEST_F(AppTest, EncoderStagesInOrderInOpenLoop) {
     app_control_step_io(&app, io);
     EXPECT_EQ(io.calls, expected_calls());
     EXPECT_EQ(app.enable_mask, 0x1);
+    EXPECT_EQ(app_speed_mrad_s(&app, 0), 0);  // the ramp is not part of the step
+    app_setpoints_tick(&app);
     EXPECT_EQ(app_speed_mrad_s(&app, 0), 100);  // ramping at ACCEL 100 rad/s^2
 }
 
