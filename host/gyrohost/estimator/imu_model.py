@@ -13,22 +13,10 @@ x``; the IMU point is the midpoint of a and b. The sensor axes are the body axes
 
 import numpy as np
 
+from gyrohost.rig.imu_emu import rotation_zyx  # the emulator's, so both turn alike
+
 from .complex_step import atan2
 from .errors import EstimatorConfigError
-
-
-def rotation_zyx(roll, pitch, yaw):
-    """``Rz(yaw) Ry(pitch) Rx(roll)``, shape (3, 3)."""
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))  # fmt: skip
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
 
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]
 

@@ -44,33 +44,54 @@ class RunResult:
     cpu_s: float
 
 
-def one_run(model, config, seed, duration_s, truth_psd_m2_s3=TRUTH_PSD_M2_S3):
-    """Simulate, filter and score one run."""
-    truth = simulate_truth(model, config, duration_s, seed, accel_psd_m2_s3=truth_psd_m2_s3)
-    data = sensor_streams(model, config, truth, seed)
-    ekf = TensegrityEKF(model, config)
-    rng = np.random.default_rng(seed + 7_000_001)
-    x0 = sample_initial(ekf, truth.x[0], rng)
-    ekf = TensegrityEKF(model, config, x0=x0)
+def score_run(ekf, data, truth_at, nees_of=nees) -> RunResult:
+    """Run ``ekf`` over the streams ``data`` and score every IMU sample.
+
+    Parameters
+    ----------
+    truth_at : callable(ekf) -> (x_true (n,), R_true (3, 3))
+        The true filter state and sensor axes at the filter's time.
+    nees_of : callable(ekf, x_true) -> (value, dof)
+    """
     nis: dict = {}
     ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
     rows = []
-    L = ekf.layout
+    q = ekf.layout.q
 
     def score(e, stream):
-        k = int(round(e.t / 0.01))
-        if stream == streams.IMU and abs(truth.t_s[k] - e.t) < 1e-9:
-            value, dof = nees(e, truth.x[k])
+        if stream == streams.IMU:
+            x_true, R_true = truth_at(e)
+            value, dof = nees_of(e, x_true)
             R, _ = e.attitude()
-            pos = np.sqrt(np.mean((e.x[L.q] - truth.x[k, L.q]) ** 2))
-            rows.append((e.t, value, dof, tilt_error(R, truth.R_ws[k]), pos))
+            pos = np.sqrt(np.mean((e.x[q] - x_true[q]) ** 2))
+            rows.append((e.t, value, dof, tilt_error(R, R_true), pos))
 
     c0 = time.process_time()
     driver.run(ekf, data, score)
     cpu = time.process_time() - c0
     t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
     nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
-    return RunResult(t, v, int(dof[0]), tilt, pos, nis_out, cpu)
+    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, cpu)
+
+
+def sampled_truth(x, R, dt_s=0.01):
+    """``truth_at`` for truth sampled every ``dt_s`` from t = 0: states (k, n), axes (k, 3, 3)."""
+
+    def truth_at(ekf):
+        k = int(round(ekf.t / dt_s))
+        return x[k], R[k]
+
+    return truth_at
+
+
+def one_run(model, config, seed, duration_s, truth_psd_m2_s3=TRUTH_PSD_M2_S3):
+    """Simulate, filter and score one run."""
+    truth = simulate_truth(model, config, duration_s, seed, accel_psd_m2_s3=truth_psd_m2_s3)
+    data = sensor_streams(model, config, truth, seed)
+    ekf = TensegrityEKF(model, config)
+    rng = np.random.default_rng(seed + 7_000_001)
+    ekf = TensegrityEKF(model, config, x0=sample_initial(ekf, truth.x[0], rng))
+    return score_run(ekf, data, sampled_truth(truth.x, truth.R_ws))
 
 
 def summarise(results, label="", burn_in_s=0.2):

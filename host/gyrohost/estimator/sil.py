@@ -28,9 +28,8 @@ from scipy.linalg import null_space
 
 from gyrohost.runlog import read_stream
 
-from . import driver, streams
-from .consistency import tilt_error
-from .montecarlo import RunResult, summarise
+from . import streams
+from .montecarlo import RunResult, sampled_truth, score_run, summarise
 from .replay import prepare
 
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
@@ -58,7 +57,9 @@ def _truth_at(truth, t, columns):
 
 
 def score_log(folder) -> RunResult:
-    """Replay a simulated-rig log and score it against its ``truth`` stream."""
+    """Replay a simulated-rig log and score it against its ``truth`` stream (positions, wheel
+    speeds and rest lengths: NEES over those, the positions in the tangent space of the bar
+    lengths; the velocity entries of ``x_true`` are the estimate's own)."""
     ekf, data = prepare(folder)
     model, L, st = ekf.model, ekf.layout, ekf.model.structure
     truth = read_stream(folder, "truth")
@@ -66,38 +67,27 @@ def score_log(folder) -> RunResult:
     wheel_cols = [f"omega_{i}_rad_s" for i in range(L.n_wheels)]
     rest_cols = [streams.rest_column(s.name) for s in model.scene.strings]
     U2T = ekf.process.dyn.U2T
-    nis: dict = {}
-    ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
-    rows = []
 
-    def score(e, stream):
-        if stream != streams.IMU:
-            return
+    def truth_at(e):
         N = _truth_at(truth, e.t, node_cols).reshape(st.n, 3).T  # virtual nodes repeat
-        q = np.linalg.lstsq(U2T.T, N.T, rcond=None)[0].T.ravel()  # N = N_fixed + q U2^T
         x_true = e.x.copy()
-        x_true[L.q] = q
+        x_true[L.q] = np.linalg.lstsq(U2T.T, N.T, rcond=None)[0].T.ravel()  # N = N_fix + q U2^T
         x_true[L.omega] = _truth_at(truth, e.t, wheel_cols)
         x_true[L.rest] = _truth_at(truth, e.t, rest_cols)
-        G = e.manifold.jacobian(e.x)[: model.beta, L.q]
-        Tq = null_space(G)
+        R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
+        return x_true, R_true[0]
+
+    def partial_nees(e, x_true):
+        Tq = null_space(e.manifold.jacobian(e.x)[: model.beta, L.q])
         idx = np.r_[L.q.start : L.q.stop, L.omega.start : L.rest.stop]
         T = np.zeros((len(idx), Tq.shape[1] + L.n_wheels + L.n_strings))
         T[: Tq.shape[0], : Tq.shape[1]] = Tq
         T[Tq.shape[0] :, Tq.shape[1] :] = np.eye(L.n_wheels + L.n_strings)
         err = T.T @ (x_true - e.x)[idx]
         P = T.T @ e.P[np.ix_(idx, idx)] @ T
-        R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
-        R_est, _ = e.attitude()
-        pos = np.sqrt(np.mean((e.x[L.q] - q) ** 2))
-        rows.append(
-            (e.t, err @ np.linalg.solve(P, err), T.shape[1], tilt_error(R_est, R_true[0]), pos)
-        )
+        return float(err @ np.linalg.solve(P, err)), T.shape[1]
 
-    driver.run(ekf, data, score)
-    t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
-    nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
-    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, 0.0)
+    return score_run(ekf, data, truth_at, partial_nees)
 
 
 def rig_model_run(config, seed, duration_s=3.0):
@@ -178,30 +168,12 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     """Filter one :func:`rig_model_run` and score it against its truth; ``overrides``: estimator
     keys on top of :func:`.config.noise_from_rig`."""
     from .config import config_from_dict, noise_from_rig
-    from .consistency import nees
     from .ekf import TensegrityEKF
 
     model, data, truth_x, truth_R = rig_model_run(config, seed, duration_s)
     est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
     ekf = TensegrityEKF(model, est_cfg, x0=np.r_[truth_x[0][:-3], np.zeros(3)])
-    L = ekf.layout
-    nis: dict = {}
-    ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
-    rows = []
-
-    def score(e, stream):
-        if stream != streams.IMU:
-            return
-        k = int(round(e.t / 0.01))
-        value, dof = nees(e, truth_x[k])
-        R, _ = e.attitude()
-        pos = np.sqrt(np.mean((e.x[L.q] - truth_x[k, L.q]) ** 2))
-        rows.append((e.t, value, dof, tilt_error(R, truth_R[k]), pos))
-
-    driver.run(ekf, data, score)
-    t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
-    nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
-    return RunResult(t, v, int(dof[0]), tilt, pos, nis_out, 0.0)
+    return score_run(ekf, data, sampled_truth(truth_x, truth_R))
 
 
 def main(argv=None) -> int:
