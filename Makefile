@@ -31,7 +31,8 @@ $(STAMP): pyproject.toml
 lint:
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	find firmware \( -name '*.cpp' -o -name '*.h' -o -name '*.c' \) -print0 | \
+	find firmware -path firmware/build -prune -o \
+	    \( -name '*.cpp' -o -name '*.h' -o -name '*.c' \) -print0 | \
 	    xargs -0 -r clang-format --dry-run -Werror
 
 firmware:

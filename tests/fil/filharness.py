@@ -1,9 +1,9 @@
 """The FIL suite's view of the simavr harness helper, :mod:`gyrohost.rig.simavr`.
 
 Everything (locating the binaries with a clear error, starting the harness, parsing its ``PTY``,
-``STATS`` and ``FINAL`` lines, stdin commands, shutdown) lives in the package, which the simulated
-rig also uses for ``--wheels simavr``. Only :data:`AVR_BUILD` is looked up here at call time, so a
-test can point :func:`firmware_elf` elsewhere. Nothing here builds anything:
+``STATS`` and ``FINAL`` lines, stdin commands, shutdown) lives in the package, which the
+simulated rig also uses for ``--wheel-board simavr``. Only :data:`AVR_BUILD` is looked up here at
+call time, so a test can point :func:`firmware_elf` elsewhere. Nothing here builds anything:
 ``make -C firmware check`` does.
 """
 

@@ -102,7 +102,7 @@ def test_missing_binary_names_path_and_make_command(binaries, tmp_path):
 
 def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries):
     proc = subprocess.Popen(
-        [sys.executable, "-m", "gyrohost", "rig", "--wheels", "simavr", "--duration", "4"],
+        [sys.executable, "-m", "gyrohost", "rig", "--wheel-board", "simavr", "--duration", "4"],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

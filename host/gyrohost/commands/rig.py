@@ -26,7 +26,7 @@ def register(sub) -> None:
     p.add_argument("--scene", type=Path, help="scene file (default: the configuration's)")
     p.add_argument("--duration", type=float, help="serve this long, s (default: until Ctrl-C)")
     p.add_argument(
-        "--wheels",
+        "--wheel-board",
         choices=("emulator", "simavr"),
         help="wheel board: the Python emulator or the real firmware in the simavr harness "
         "(default: the configuration's [sim.wheels] kind)",
@@ -44,7 +44,7 @@ def run(args) -> int:
         raise CliError(f"--duration must be positive, got {args.duration}")
     try:
         config = load_rig_config(args.config)
-        rig = SimulatedRig(config, clock="real", scene=args.scene, wheels=args.wheels)
+        rig = SimulatedRig(config, clock="real", scene=args.scene, wheels=args.wheel_board)
     except (ConfigError, RigSetupError) as exc:
         raise CliError(str(exc)) from None
     with rig:
