@@ -219,8 +219,31 @@ class FastDynamics:
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
-        z_ddot = self._accelerations(q, q_dot, omega_w, rest)
+        if self.kernel is not None and not any(
+            np.iscomplexobj(a) for a in (q, q_dot, omega_w, rest)
+        ):
+            z_ddot = self._kernel_accelerations(q, q_dot, omega_w, rest)
+        else:
+            z_ddot = self._accelerations(q, q_dot, omega_w, rest)
         return z_ddot, self.node_values(z_ddot)
+
+    def _kernel_accelerations(self, q, q_dot, omega_w, rest):
+        """Real states through the compiled kernel, one call per state of the batch."""
+        lead = q.shape[:-2]
+        count, k, nw = int(np.prod(lead)), 3 * self.size, self.n_wheels
+        q, q_dot = q.reshape(count, k), q_dot.reshape(count, k)
+        omega_w = np.broadcast_to(omega_w, lead + (nw,)).reshape(count, nw)
+        rest = np.broadcast_to(rest, lead + (self.alpha,)).reshape(count, self.alpha)
+        out = np.empty((count, k))
+        dx = np.empty(self.state_size)
+        for i in range(len(q)):
+            x = np.concatenate([q[i], q_dot[i], np.zeros(nw), omega_w[i, self.torque_wheels]])
+            u = np.concatenate([rest[i], omega_w[i]])  # speed wheels read their spin from u
+            status = self.kernel.rhs(self._consts, self._dims, x, u, dx, self._work)
+            if status:
+                self._singular(float("nan"), status - 1)
+            out[i] = dx[k : 2 * k]
+        return out.reshape(lead + (3, self.size))
 
     def wheel_acceleration(self, u, dtype=float):
         """Spin acceleration of every wheel (n_w,), rad/s^2: torque / J_3 for torque wheels."""

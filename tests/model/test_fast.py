@@ -74,11 +74,12 @@ def test_batched_and_complex_step(model):
     q = np.stack([x[L.q].reshape(3, -1) for x in xs])
     q_dot = np.stack([x[L.q_dot].reshape(3, -1) for x in xs])
     omega = np.stack([model.wheel_speeds(x, u) for x in xs])
-    eta2_ddot, N_ddot = fast.accelerations(q, q_dot, omega, u[: model.alpha])
-    for k, x in enumerate(xs):
-        ev = evaluate(0.0, x, u, model)
-        assert_close(ev.eta2_ddot, eta2_ddot[k])
-        assert_close(ev.N_ddot, N_ddot[k])
+    for dyn in (fast, FastDynamics(model, kernel=False)):  # kernel loop and numpy batch
+        eta2_ddot, N_ddot = dyn.accelerations(q, q_dot, omega, u[: model.alpha])
+        for k, x in enumerate(xs):
+            ev = evaluate(0.0, x, u, model)
+            assert_close(ev.eta2_ddot, eta2_ddot[k])
+            assert_close(ev.N_ddot, N_ddot[k])
     h, d = 1e-30, np.random.default_rng(5).normal(size=q.shape[1:])
     rest = u[: model.alpha]
     a_c, _ = fast.accelerations(q[0] + 1j * h * d, q_dot[0], omega[0], rest + 0j)
