@@ -58,13 +58,12 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 2724 / 5067 / 5289 cycles min / mean / max = 32 % / 33 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 2499 / 4576 / 4750); with the
-        // ramp and heartbeat still inside (and the stop/clear-error fixes) 2988 / 5706 / 6684
-        // (5177 mean without ISRs); before those fixes 2794 / 5599 / 6475 (5067). 1000 steps/s.
-        // CPU per tick (this loop pass from BOARD_TICK_MARK = 1 to 0 plus ISRs outside it)
-        // 59.8 % (59.1 % with the ramp inside). Target 2400 not met: see docs/hardware.md,
-        // "Control-step cycles".
+        // included, 1,993 steps): 2590 / 4741 / 4934 cycles min / mean / max = 30 % / 31 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4296 / 4458), with the
+        // commutation (cmt_drive_avr) and the estimator's common case (spd_update_fast_avr) in
+        // assembly; before them 2724 / 5067 / 5289 (2499 / 4576 / 4750). 1000 steps/s. CPU per
+        // tick (this loop pass from BOARD_TICK_MARK = 1 to 0 plus ISRs outside it) 58.0 % (59.8 %
+        // before). Target 2400 not met: see docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

@@ -53,6 +53,7 @@ void app_control_step_io(app_state* a, Io& io) {
     uint8_t bit = 1;
     for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
         if (i != 0) word = io.word(i);
+        io.next(0);
         app_wheel* w = &a->w[i];
         const app_ctl* c = &a->ctl;
         const bool closed = c->closed;
@@ -69,7 +70,7 @@ void app_control_step_io(app_state* a, Io& io) {
                 a->enc_clear |= bit;  // clear the sensor's error flag after the step
             }
         }
-        io.next(0);
+        io.next(1);
         uint16_t* pwm = a->pwm[i];
         const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
         if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {
@@ -79,32 +80,19 @@ void app_control_step_io(app_state* a, Io& io) {
             } else {
                 app_wheel_off(w, pwm);
             }
-            io.next(1);
             io.next(2);
             io.next(3);
         } else {
             const int32_t speed_q8 = spd_q8(&w->spd);
             bool neg;
             const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
-            io.next(1);
+            io.next(2);
             const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
             w->drive_q15 = drive;
-            io.next(2);
-            // Advance the angle by speed * lead to cover the sensor-to-PWM delay and half a tick.
-            uint16_t angle16 = static_cast<uint16_t>(
-                cmt_elec_angle(w->spd.last_angle, c->pole_pairs, c->enc_offset[i]) +
-                cmt_lead_angle(&c->lead, speed_q8));
-            // Torque-producing vector: 90 degrees electrical ahead of (or behind) the rotor.
-            int16_t amp;
-            if (drive >= 0) {
-                angle16 = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
-                amp = drive;
-            } else {
-                angle16 = static_cast<uint16_t>(angle16 - CMT_ANGLE_90);
-                amp = static_cast<int16_t>(-drive);
-            }
             io.next(3);
-            cmt_phases(angle16, amp, pwm);
+            // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),
+            // the torque-producing vector 90 degrees ahead of (or behind) the rotor.
+            cmt_drive(w->spd.last_angle, speed_q8, drive, c->enc_offset[i], &c->lead, pwm);
             enable |= bit;
         }
         io.next(4);

@@ -79,7 +79,8 @@ int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs);
 // pairs and the default lead of 128/256 tick.
 struct cmt_lead {
     int16_t k;
-    int16_t s_max;  // clamp of |speed_q8 >> 6|
+    int16_t s_max;       // clamp of |speed_q8 >> 6|
+    uint8_t pole_pairs;  // 1..40, as cmt_elec_angle takes it (cmt_drive)
 };
 void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
 PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
@@ -94,6 +95,43 @@ PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
         s = static_cast<int16_t>(-l->s_max);
     }
     return static_cast<uint16_t>(static_cast<uint32_t>(port_mul_s16(s, l->k)) >> 8);
+}
+
+// The commutation of one closed-loop wheel in the control step: electrical angle of the 14-bit
+// mechanical angle (cmt_elec_angle with l->pole_pairs and offset16), advanced by the lead
+// (cmt_lead_angle), then 90 degrees electrical ahead of the rotor for drive >= 0 (amplitude drive)
+// or behind it for drive < 0 (amplitude -drive), and the three duties of cmt_phases.
+// cmt_drive_c is the reference in C (what the native tests run); on AVR cmt_drive is
+// cmt_drive_avr (cmt_avr.cpp, assembly with the 16 x 16 multiplies reduced to the bytes used,
+// compared with cmt_drive_c on the chip by `make -C firmware port-check`).
+PORT_INLINE void cmt_drive_c(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
+                             const cmt_lead* l, uint16_t duty[3]) {
+    uint16_t angle16 = static_cast<uint16_t>(cmt_elec_angle(mech14, l->pole_pairs, offset16) +
+                                             cmt_lead_angle(l, speed_q8));
+    int16_t amp;
+    if (drive >= 0) {
+        angle16 = static_cast<uint16_t>(angle16 + CMT_ANGLE_90);
+        amp = drive;
+    } else {
+        angle16 = static_cast<uint16_t>(angle16 - CMT_ANGLE_90);
+        // In 16 bits (int on AVR): -32768 stays negative, and cmt_phases takes it as 0.
+        amp = static_cast<int16_t>(0u - static_cast<uint16_t>(drive));
+    }
+    cmt_phases(angle16, amp, duty);
+}
+
+#if defined(__AVR__)
+extern "C" void cmt_drive_avr(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
+                              const cmt_lead* l, uint16_t duty[3]);
+#endif
+
+PORT_INLINE void cmt_drive(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
+                           const cmt_lead* l, uint16_t duty[3]) {
+#if defined(__AVR__)
+    cmt_drive_avr(mech14, speed_q8, drive, offset16, l, duty);
+#else
+    cmt_drive_c(mech14, speed_q8, drive, offset16, l, duty);
+#endif
 }
 
 #endif  // CMT_H

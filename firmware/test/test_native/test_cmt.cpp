@@ -126,3 +126,34 @@ TEST(Cmt, LeadAngleDefaultsWithinFiveUnits) {
         ASSERT_LE(fabs(err), 4.5) << v;
     }
 }
+
+// The step's commutation: the vector 90 degrees electrical ahead of the rotor (lead included) for
+// a positive drive, behind it for a negative one, with |drive| as amplitude; -32768 is no drive.
+TEST(Cmt, DrivePutsVectorAheadOrBehindTheRotor) {
+    cmt_lead l;
+    cmt_lead_init(&l, 7, 128);
+    for (int32_t speed_q8 : {0L, 49979L, -49979L, 2097151L, -2097152L}) {
+        for (uint16_t mech : {0u, 1u, 5000u, 0x3FFFu, 0xFFFFu}) {
+            const uint16_t rotor =
+                static_cast<uint16_t>(cmt_elec_angle(mech, 7, 1234) + cmt_lead_angle(&l, speed_q8));
+            for (int16_t drive : {0, 1, 20000, 32767, -1, -20000, -32767}) {
+                uint16_t d[3], want[3];
+                cmt_drive_c(mech, speed_q8, drive, 1234, &l, d);
+                const bool pos = drive >= 0;
+                cmt_phases(static_cast<uint16_t>(pos ? rotor + 0x4000u : rotor - 0x4000u),
+                           static_cast<int16_t>(pos ? drive : -drive), want);
+                for (int k = 0; k < 3; k++) ASSERT_EQ(d[k], want[k]) << speed_q8 << " " << drive;
+                if (drive != 20000) continue;
+                double mag, a;
+                vector_of(d, &mag, &a);
+                const double err = remainder(a - 2 * M_PI * (rotor + 16384.0) / 65536.0, 2 * M_PI);
+                ASSERT_LT(fabs(err), 0.03);
+            }
+        }
+    }
+    uint16_t d[3];
+    cmt_drive_c(100, 0, -32768, 0, &l, d);
+    EXPECT_EQ(d[0], 400);
+    EXPECT_EQ(d[1], 400);
+    EXPECT_EQ(d[2], 400);
+}
