@@ -18,6 +18,8 @@ from enum import IntFlag
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
+from gyrotensegrity import SimulationError
+
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .errors import EstimatorError
 from .fast_dynamics import check_model
@@ -188,7 +190,13 @@ class TensegrityEKF:
     def predict(self, dt: float) -> None:
         """One prediction step of ``dt`` s with the held input."""
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
-            x_next, F = self.process.step(self.x, self.u, dt, self._A)
+            try:
+                x_next, F = self.process.step(self.x, self.u, dt, self._A)
+            except SimulationError as exc:  # the model's fast path refuses a singular state
+                t = self.t + dt
+                raise EstimatorError(
+                    f"t = {t:.6g} s: prediction failed: {exc}", t, getattr(exc, "member", "")
+                ) from None
         self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
