@@ -246,6 +246,19 @@ def simulate(
     def f(t, x):
         return dyn(t, x, u_of(t, x))
 
+    def f_checked(t, x):
+        # scipy's adaptive solvers loop forever on a NaN error estimate: stop at the source
+        dx = f(t, x)
+        if not np.isfinite(dx).all():
+            member = nonfinite_member(model, x) or nonfinite_member(model, dx) or "wheels"
+            raise SimulationError(
+                f"t = {t:.6g} s: {member}: rate not finite (singular constraints or a "
+                "diverging state)",
+                t,
+                member,
+            )
+        return dx
+
     start = time.perf_counter()
     try:
         check_step(model, integrator, dt if integrator in FIXED_STEP else 0.0, duration)
@@ -261,7 +274,7 @@ def simulate(
                 if progress:
                     progress(samples[k], duration)
         else:
-            solver = adaptive_solver(integrator, f, 0.0, x, samples[-1], rtol, atol)
+            solver = adaptive_solver(integrator, f_checked, 0.0, x, samples[-1], rtol, atol)
             k = 1
             while k < len(samples):
                 if solver.status != "running":
