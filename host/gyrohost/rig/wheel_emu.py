@@ -18,8 +18,13 @@ the emulator's clock, so simulated-time runs are exact:
 Motor model (not the firmware's): while a wheel's outputs are enabled its true speed follows the
 ramped setpoint with a first-order lag (``time_constant_s``); with outputs off it coasts down
 (``coast_time_constant_s``). An optional ripple multiplies the true speed by
-``1 + ripple_fraction * sin(ripple_per_rev * angle)``. The reported speed is the true speed
-through the firmware's low-pass (1/2^SPEED_FILTER_SHIFT per tick), or the setpoint in open loop.
+``1 + ripple_fraction * sin(ripple_per_rev * angle)``. The reported speed is measured as the
+firmware measures it (``spd.h``): each tick the wheel angle is read as a 14-bit encoder count, the
+count difference to the last tick (wrapped at 14 bits) is the raw speed, and the firmware's
+low-pass (1/2^SPEED_FILTER_SHIFT per tick) filters it; the first tick after a boot or a skipped
+stretch of ticks only primes the encoder (estimate held). So the telemetry carries the real
+quantisation noise (one count per tick is 0.38 rad/s raw; about 0.014 rad/s RMS after the
+low-pass at SPEED_FILTER_SHIFT 3). In open loop the reported speed is the setpoint.
 The drive level is the PI's proportional part, clipped to DRIVE_MAX (no electrical model).
 
 Run-time fault: :meth:`WheelBoardEmulator.reset` reboots the board (optionally after ``down_s``
@@ -38,6 +43,9 @@ from gyrohost.rig.pty_link import PtyDevice
 FW_MAJOR, FW_MINOR = 1, 0
 SAVE_TICKS = 300
 """Ticks an EEPROM save takes (82 bytes, about 3.3 ms each)."""
+ENCODER_COUNTS = 1 << 14
+"""Counts per turn of the AS5048A (14 bits)."""
+RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
 
@@ -107,6 +115,7 @@ class WheelBoardEmulator(PtyDevice):
         self.targets = [0] * wp.N_WHEELS
         self.setpoints = [0] * wp.N_WHEELS
         self.measured = [0.0] * wp.N_WHEELS
+        self._last_count: list[int | None] = [None] * wp.N_WHEELS  # None: encoder not primed
         self.drive = [0] * wp.N_WHEELS
         self.enabled = [False] * wp.N_WHEELS
         self._rx = bytearray()
@@ -145,6 +154,7 @@ class WheelBoardEmulator(PtyDevice):
             self.stats["tick_overruns"] = min(self.stats["tick_overruns"] + missed, 0xFFFF)
             self.fault_word |= _FAULT_BIT["TICK_OVERRUN"]
             self._physics(missed / wp.TICK_HZ)
+            self._last_count = [None] * wp.N_WHEELS  # a long gap re-primes, as spd.h
         while self.ticks < due:
             self.ticks += 1
             self._control_tick()
@@ -346,15 +356,27 @@ class WheelBoardEmulator(PtyDevice):
         gain = 1.0 / (1 << p[_P["SPEED_FILTER_SHIFT"]])
         drive_max = p[_P["DRIVE_MAX_Q15"]]
         for i in range(wp.N_WHEELS):
+            raw_rad_s = self._encoder_speed(i)
             if open_loop:
                 self.measured[i] = self.setpoints[i] / 1000.0 if self.enabled[i] else 0.0
                 drive = p[_P["OPEN_LOOP_DRIVE_Q15"]] if self.enabled[i] else 0
                 self.drive[i] = int(math.copysign(drive, self.setpoints[i]))
                 continue
-            self.measured[i] += (self.omega_rad_s[i] - self.measured[i]) * gain
+            if raw_rad_s is not None:
+                self.measured[i] += (raw_rad_s - self.measured[i]) * gain
             error_mrad_s = self.setpoints[i] - self.measured[i] * 1000.0
             drive = int(p[_P["KP_Q8"]] * error_mrad_s / 256.0) if self.enabled[i] else 0
             self.drive[i] = max(-drive_max, min(drive, drive_max))
+
+    def _encoder_speed(self, i: int) -> float | None:
+        """Read wheel ``i``'s encoder: the count difference to the last tick as a speed, rad/s
+        (None on the priming read)."""
+        count = int(self.angle_rad[i] / RAD_PER_COUNT) % ENCODER_COUNTS
+        last, self._last_count[i] = self._last_count[i], count
+        if last is None:
+            return None
+        delta = (count - last + ENCODER_COUNTS // 2) % ENCODER_COUNTS - ENCODER_COUNTS // 2
+        return delta * RAD_PER_COUNT * wp.TICK_HZ
 
     def status(self) -> int:
         """The TELEMETRY status byte now."""
@@ -386,7 +408,7 @@ class WheelBoardEmulator(PtyDevice):
             "faults": self.fault_word,
         }
         for i in range(wp.N_WHEELS):
-            fields[f"w{i}_mrad_s"] = round(self.measured[i] * 1000.0)
+            fields[f"w{i}_mrad_s"] = int(self.measured[i] * 1000.0)  # toward zero, as spd.h
             fields[f"d{i}_q15"] = self.drive[i]
         self.seq = (self.seq + 1) & 0xFFFF
         self.telemetry_sent += 1
