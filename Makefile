@@ -22,7 +22,7 @@ $(DEBS): tools/ensure-debs.sh
 	tools/ensure-debs.sh
 	@mkdir -p build && touch $@
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py model/gyrotensegrity/_fastkernel.c
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[dev,bench]'

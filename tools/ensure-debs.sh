@@ -3,7 +3,7 @@
 # Uses sudo when not root. Fast (one dpkg-query) when everything is present.
 set -euo pipefail
 packages=(gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libgtest-dev cmake
-          g++ make clang libclang-rt-14-dev clang-format python3-venv)
+          g++ make clang libclang-rt-14-dev clang-format python3-venv python3-dev)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
