@@ -8,9 +8,13 @@ and finite-difference rate, gravity felt by the IMU) stepped at its ``dt_s`` und
 rest-length schedule; the servos follow the command with a first-order lag (``SERVO_LAG_S``)
 and report quantised positions through their calibration; the IMU samples go through the rig's
 BWT61CL emulator (noise densities, biases, int16 quantisation of the wire format; seed = run
-number) and are parsed back by the IMU driver's parser; the wheel board reports the true
-speeds. Scored at every IMU sample against the truth state: NEES (full state, on the constraint
-manifold), NIS per source, tilt error.
+number) and are parsed back by the IMU driver's parser; the wheels are spun by the rig's
+wheel-board emulator (spun up to the scene's spins before t = 0, wheel angles drawn from the
+seed), whose TELEMETRY frames are read off its pty and decoded with the protocol's decoder: the
+speeds carry the encoder's quantisation noise through the firmware's low-pass. The filter takes
+the latest frame at every IMU sample (decimated from 500 Hz to its 100 Hz: the low-pass's 8 ms
+would correlate frames 2 ms apart). Scored at every IMU sample against the truth state: NEES
+(full state, on the constraint manifold), NIS per source, tilt error.
 
 ``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
 (``run_simulated``: ptys, drivers, arrival time stamps) and scores the replayed log against its
@@ -19,6 +23,7 @@ loaded machine the real-time rig's truth lags by up to 0.2 s and its truth strea
 """
 
 import argparse
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -32,9 +37,18 @@ from . import streams
 from .montecarlo import RunResult, sampled_truth, score_run, summarise
 from .replay import prepare
 
+WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-# the rig's truth has no random forces; the servos here are exactly the first-order lag
-RIG_MODEL_KEYS = {"accel_psd_m2_s3": 1e-6, "servo_length_std_m": 2e-4}
+# Keys for the in-process SIL (on top of noise_from_rig). The rig's truth has no random forces;
+# the servos here are exactly the first-order lag. The wheel telemetry noise is the emulator's
+# measured encoder quantisation through the firmware's low-pass (0.0146 rad/s RMS, docs/rig.md);
+# the board holds the true speeds constant, so they walk only slowly in the filter.
+RIG_MODEL_KEYS = {
+    "accel_psd_m2_s3": 1e-6,
+    "servo_length_std_m": 2e-4,
+    "wheel_speed_std_rad_s": 0.0146,
+    "wheel_accel_psd_rad2_s3": 1e-4,
+}
 DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml"
 
 
@@ -99,25 +113,50 @@ def rig_model_run(config, seed, duration_s=3.0):
     truth_x : ndarray, shape (k, n), true filter states at the IMU samples
     truth_R : ndarray, shape (k, 3, 3), true sensor axes at the IMU samples
     """
-    from gyrohost.drivers.imu import Bwt61Parser
-    from gyrohost.drivers.servos import length_to_steps, steps_to_length
     from gyrohost.rig.imu_emu import Bwt61Emulator
     from gyrohost.rig.truth import Truth
     from gyrotensegrity import Model, load_scene
-
-    from .layout import from_model_state
 
     scene = load_scene(config.scene_path)
     model = Model(scene)
     truth = Truth(scene, replace(config.sim.truth, servo_lag_s=0.0), config.servos.servo)
     emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu)
-    parser = Bwt61Parser()
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in scene.strings]
+    board = _WheelBoard(config, model.spin0, np.random.default_rng(seed + 5_000_003))
+    try:
+        rows, truth_x, truth_R = _rig_model_rows(model, truth, emu, board, servos, duration_s)
+    finally:
+        board.close()
+    n_w = len(model.spin0)
+    columns = {
+        streams.IMU: streams.imu_columns(),
+        streams.WHEELS: streams.wheels_columns(n_w),
+        streams.SERVOS: streams.servos_columns([s.string for s in servos]),
+        streams.COMMAND: streams.command_columns(strings, n_w),
+    }
+    data = {}
+    for name, values in rows.items():
+        arr = np.array(values)
+        data[name] = np.empty(len(arr), dtype=[(c, "f8") for c in columns[name]])
+        for j, c in enumerate(columns[name]):
+            data[name][c] = arr[:, j]
+    return model, data, np.array(truth_x), np.array(truth_R)
+
+
+def _rig_model_rows(model, truth, emu, board, servos, duration_s):
+    """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
+    from gyrohost.drivers.imu import Bwt61Parser
+    from gyrohost.drivers.servos import length_to_steps, steps_to_length
+
+    from .layout import from_model_state
+
+    parser = Bwt61Parser()
+    strings = [s.name for s in model.scene.strings]
     servo_strings = [strings.index(s.string) for s in servos]
-    spins = model.spin0  # the wheel board holds the scene's spins
     position = {s.id: s.length_at_zero_m for s in servos}
-    truth.wheel_input_rad_s[:] = spins  # spun up before the run starts
+    spins = model.spin0  # what the host commands
+    truth.wheel_input_rad_s[:] = board.true_speeds()  # spun up before t = 0
     truth.u = truth.model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
     dt = truth.dt_s
     imu_every = int(round(0.01 / dt))
@@ -126,6 +165,7 @@ def rig_model_run(config, seed, duration_s=3.0):
     truth_x, truth_R = [], []
     for k in range(int(round(duration_s / dt)) + 1):
         t = k * dt
+        wheels = board.advance(t)
         if k % imu_every == 0:  # the host sends a command every tick (10 ms), held in between
             command = model.input_at(t)[: model.alpha]
         for s, i in zip(servos, servo_strings, strict=True):
@@ -139,7 +179,7 @@ def rig_model_run(config, seed, duration_s=3.0):
             rows[streams.IMU].append(
                 [t, *sample.omega_rad_s, *sample.accel_m_s2, *sample.euler_rad]
             )
-            rows[streams.WHEELS].append([t, *spins])
+            rows[streams.WHEELS].append([t, *wheels])  # the latest frame
             rows[streams.COMMAND].append([t, *command, *spins])
             if k % (4 * imu_every) == 0:
                 rows[streams.SERVOS].append([t, *(reported[s.id] for s in servos)])
@@ -148,20 +188,58 @@ def rig_model_run(config, seed, duration_s=3.0):
                 from_model_state(truth.model, truth.stepper.x, truth.u, emu.gyro_bias_rad_s)
             )
             truth_R.append(imu.R_wb)
-        truth.step(reported, spins)
-    columns = {
-        streams.IMU: streams.imu_columns(),
-        streams.WHEELS: streams.wheels_columns(len(spins)),
-        streams.SERVOS: streams.servos_columns([s.string for s in servos]),
-        streams.COMMAND: streams.command_columns(strings, len(spins)),
-    }
-    data = {}
-    for name, values in rows.items():
-        arr = np.array(values)
-        data[name] = np.empty(len(arr), dtype=[(c, "f8") for c in columns[name]])
-        for j, c in enumerate(columns[name]):
-            data[name][c] = arr[:, j]
-    return model, data, np.array(truth_x), np.array(truth_R)
+        truth.step(reported, board.true_speeds())
+    return rows, truth_x, truth_R
+
+
+class _WheelBoard:
+    """The rig's wheel-board emulator on the simulated clock, spun up to ``spins`` (scene
+    order) by ``t = 0``, its telemetry read off the pty and decoded."""
+
+    def __init__(self, config, spins, rng):
+        from gyrohost import wheelproto as wp
+        from gyrohost.rig.wheel_emu import WheelBoardEmulator
+
+        self.wp = wp
+        self.sign = np.array(config.sim.wheels.spin_sign[: len(spins)], float)
+        self.dev = WheelBoardEmulator(config.sim.wheels)
+        self.dev.angle_rad = list(rng.uniform(0.0, 2.0 * np.pi, wp.N_WHEELS))
+        self.fd = os.open(self.dev.slave_path, os.O_RDONLY | os.O_NONBLOCK)
+        self.decoder = wp.FrameDecoder()
+        t0 = -WHEEL_SPIN_UP_S
+        self.dev.tick(t0)
+        board = np.zeros(wp.N_WHEELS)
+        board[: len(spins)] = self.sign * spins
+        targets = {f"w{i}_mrad_s": int(round(1e3 * w)) for i, w in enumerate(board)}
+        for msg in (
+            wp.encode("PARAM_SET", param_id=wp.PARAM_BY_NAME["HEARTBEAT_MS"].id, value=60000),
+            wp.encode("SET_SPEEDS", **targets),
+        ):
+            self.dev.handle_rx(msg, t0)
+        self.latest = np.zeros(len(spins))
+        for k in range(1, int(WHEEL_SPIN_UP_S * 100) + 1):
+            self.advance(t0 + 0.01 * k)  # in 10 ms chunks: the pty holds a few kB
+
+    def advance(self, t_s):
+        """Tick the board to ``t_s``; return the latest reported speeds (scene order), rad/s."""
+        self.dev.tick(t_s)
+        try:
+            data = os.read(self.fd, 65536)
+        except BlockingIOError:
+            data = b""
+        for msg in self.decoder.feed(data):
+            if msg.name == "TELEMETRY":
+                w = [msg.fields[f"w{i}_mrad_s"] * 1e-3 for i in range(len(self.latest))]
+                self.latest = self.sign * np.array(w)
+        return self.latest
+
+    def true_speeds(self):
+        """The wheels' true speeds (scene order), rad/s."""
+        return self.sign * np.array(self.dev.wheel_speeds_rad_s()[: len(self.latest)])
+
+    def close(self):
+        os.close(self.fd)
+        self.dev.close()
 
 
 def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResult:
