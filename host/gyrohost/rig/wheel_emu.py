@@ -11,7 +11,8 @@ the emulator's clock, so simulated-time runs are exact:
   STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
   after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS, GET_STATS;
 - fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
-  setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick);
+  setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
+  ramped to rest brakes on until it has nearly stopped (``STOP_RAD_S``, ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
   status and fault word.
 
@@ -48,6 +49,10 @@ ENCODER_COUNTS = 1 << 14
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
+STOP_RAD_S = 0.5
+"""A wheel ramped to rest brakes in closed loop while its measured speed is this or more
+(the firmware's ``APP_STOP_Q8``), for at most ``STOP_TICKS`` ticks (``APP_STOP_TICKS``)."""
+STOP_TICKS = 500
 
 _P = {p.name: p.id for p in wp.PARAMS}
 _FAULT_BIT = {name: 1 << bit for bit, (name, _) in wp.FAULTS.items()}
@@ -118,6 +123,7 @@ class WheelBoardEmulator(PtyDevice):
         self._last_count: list[int | None] = [None] * wp.N_WHEELS  # None: encoder not primed
         self.drive = [0] * wp.N_WHEELS
         self.enabled = [False] * wp.N_WHEELS
+        self._stop_ticks = [0] * wp.N_WHEELS
         self._rx = bytearray()
         self._rx_overflow = False
         self.boots += 1
@@ -326,7 +332,7 @@ class WheelBoardEmulator(PtyDevice):
             if failsafe:
                 self.targets[i] = 0  # never resumes by itself after a clear
             self.setpoints[i] = ramp_step(self.setpoints[i], self.targets[i], step)
-            self.enabled[i] = not (self.setpoints[i] == 0 and self.targets[i] == 0)
+            self.enabled[i] = self._drives(i)
         self._physics(1.0 / wp.TICK_HZ)
         self._measure()
         if self._save_done_tick is not None and self.ticks >= self._save_done_tick:
@@ -334,6 +340,17 @@ class WheelBoardEmulator(PtyDevice):
             self.saved = dict(self.params)
             self._ack("PARAM_SAVE")
         self._telemetry()
+
+    def _drives(self, i: int) -> bool:
+        """Whether wheel ``i`` is driven this tick: as the firmware, a wheel ramped to rest keeps
+        braking until it has (nearly) stopped, and a wheel that is off stays off."""
+        if self.setpoints[i] != 0 or self.targets[i] != 0:
+            self._stop_ticks[i] = 0
+            return True
+        if not self.enabled[i] or self._stop_ticks[i] >= STOP_TICKS:
+            return False
+        self._stop_ticks[i] += 1
+        return abs(self.measured[i]) >= STOP_RAD_S
 
     def _physics(self, dt_s: float) -> None:
         emu = self.emu
