@@ -232,3 +232,51 @@ def jitter_line(stats: dict) -> str:
         f"max {ms('period_max_s'):.3f} ms; late max {ms('late_max_s'):.3f} ms, "
         f"{stats['overruns']} overruns"
     )
+
+
+class ReplanWriter:
+    """Rows of the ``replan`` stream: every plan of a :class:`gyrohost.control.Maneuver`, the
+    first included, written once (``write`` takes the maneuver's whole record list).
+
+    Parameters
+    ----------
+    log : RunLog
+    t_schedule_s : callable() -> float
+        Host time at schedule time zero, s (known once the schedule phase starts).
+    """
+
+    def __init__(self, log, t_schedule_s):
+        self.t_schedule_s = t_schedule_s
+        self.done = 0
+        self.stream = log.stream(
+            "replan",
+            [
+                "t_s",
+                "schedule_t_s",
+                "tilt_rad",
+                "predicted_tilt_rad",
+                "plan_time_s",
+                "accepted",
+                "kappa",
+                "message",
+            ],
+            ("message",),
+            "plans of the maneuver: start (host and schedule time, s), estimated tilt there, "
+            "the plan's landing tilt (rad), optimiser wall time (s), accepted, wheel gain",
+        )
+
+    def write(self, records) -> None:
+        """Write the records not written yet."""
+        for r in records[self.done :]:
+            message = " ".join(str(r.message).replace(",", ";").split())
+            self.stream.write(
+                self.t_schedule_s() + r.t_s,
+                r.t_s,
+                r.tilt_rad,
+                r.predicted_tilt_rad,
+                r.plan_time_s,
+                int(r.accepted),
+                r.kappa,
+                message,
+            )
+        self.done = len(records)

@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost import wheelproto as wp
+from gyrohost.control.closed_loop import ekf_estimate
+from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Limits, Schedule
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.servos import StringServoBus
@@ -50,6 +52,7 @@ from gyrohost.run_records import (
     EstimateWriter,
     InnovationWriter,
     LoopTimer,
+    ReplanWriter,
     TiltMeter,
     TruthProbe,
     jitter_line,
@@ -161,7 +164,11 @@ class RunLoop:
     ----------
     config : RigConfig
         Device ports (real devices or ptys), servos, IMU; ``scene_path`` gives the model.
-    schedule : Schedule
+    schedule : Schedule or Maneuver
+        A fixed schedule, or a planned tilt maneuver (:class:`gyrohost.control.maneuver.
+        Maneuver`, planned on the same scene): its first plan is played; closed loop, every
+        tick of the schedule phase hands it the EKF's estimate and plays what it returns.
+        Every plan goes to the ``replan`` stream.
     log_folder : path
         New log folder (must not hold a log).
     settings : RunSettings, optional
@@ -179,7 +186,7 @@ class RunLoop:
     def __init__(
         self,
         config,
-        schedule: Schedule,
+        schedule: Schedule | Maneuver,
         log_folder,
         settings: RunSettings | None = None,
         rig=None,
@@ -188,7 +195,8 @@ class RunLoop:
         meta: dict | None = None,
     ):
         self.config = config
-        self.schedule = schedule
+        self.maneuver = schedule if isinstance(schedule, Maneuver) else None
+        self.schedule = schedule.schedule if self.maneuver else schedule
         self.settings = settings or RunSettings()
         self.rig = rig
         self.on_tick = on_tick
@@ -219,6 +227,8 @@ class RunLoop:
         self.final: dict = {}
         self.omega_cmd = np.zeros(wp.N_WHEELS)
         self.rest_cmd = self.rest0.copy()
+        self.t_schedule_s = math.nan
+        self.estimate = self.replans = None
         self._t0_ns = 0
         self._next_due_s = 0.0
 
@@ -243,6 +253,9 @@ class RunLoop:
             except Exception as exc:  # every fault ends in the safe state, then is reported
                 reason, status = f"{type(exc).__name__}: {exc}", 1
             self.event("end", reason)
+            if self.maneuver is not None:
+                self.maneuver.join()
+                self.replans.write(self.maneuver.records)
             safe = self.safe_state(reason)
             summary = self._summary(reason, safe)
             log.update_meta(summary=summary)
@@ -267,6 +280,9 @@ class RunLoop:
             self.final["tilt_end_truth_rad"] = self.truth.latest_tilt
         self._enter("settle")
         self._ticks(self.settings.settle_s)
+        self.final["tilt_settled_estimate_rad"] = self.latest_tilt
+        if self.truth is not None:
+            self.final["tilt_settled_truth_rad"] = self.truth.latest_tilt
 
     def _enter(self, phase: str) -> None:
         self.phase = phase
@@ -355,6 +371,7 @@ class RunLoop:
         self.log.update_meta(estimator=asdict(est_cfg))  # what gyrotens replay reads
         self.ekf.set_input(self.rest_cmd)
         self.estimates = EstimateWriter(self.log, self.ekf, self.tilt)
+        self.estimate = ekf_estimate(self.ekf)
 
     # --- one tick -----------------------------------------------------------------------------
     def _now(self) -> float:
@@ -384,6 +401,8 @@ class RunLoop:
         if self.ekf is not None:
             self.ekf.advance(max(start, self.ekf.t))
             _, self.latest_tilt = self.estimates.write(start)
+            if strict and self.phase == "schedule" and self.maneuver is not None:
+                self._follow_estimate()
         if self.truth is not None:
             self._write_truth(strict)
         if strict:
@@ -394,6 +413,12 @@ class RunLoop:
             self.progress(self.phase, start, self._played(start))
         if strict and self.on_tick is not None:
             self.on_tick(self, self.phase, start)
+
+    def _follow_estimate(self) -> None:
+        """Closed loop: the estimate to the maneuver, its schedule from the next tick on."""
+        t_s, x = self.estimate()
+        self.schedule = self.maneuver.update(t_s - self.t_schedule_s, x)
+        self.replans.write(self.maneuver.records)
 
     def _write_truth(self, strict: bool) -> None:
         try:
@@ -574,6 +599,7 @@ class RunLoop:
             "rig_config": asdict(self.config),
             "scene": str(self.config.scene_path),
             "schedule": self.schedule.to_dict(),
+            **({"target": self.maneuver.target.to_dict()} if self.maneuver else {}),
             "settings": asdict(self.settings),
             "time": "t_s: host time since the start of the run (time.monotonic), s",
             **self._extra_meta,
@@ -623,6 +649,9 @@ class RunLoop:
         )
         if self.rig is not None:
             self.truth = TruthProbe(self.rig, log, self.tilt, self._t0_ns)
+        if self.maneuver is not None:
+            self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
+            self.replans.write(self.maneuver.records)  # the first plan, made before the run
 
     def event(self, kind: str, message: str) -> None:
         """Append one row to the ``events`` stream (commas become semicolons)."""
@@ -642,6 +671,12 @@ class RunLoop:
             "duration_s": self._now(),
         }
         out.update(self.final)
+        if self.maneuver is not None:
+            out["maneuver"] = self.maneuver.summary()
+            target = self.maneuver.target.tilt_rad
+            for key in ("tilt_end", "tilt_settled"):
+                if f"{key}_truth_rad" in out:
+                    out[f"{key}_truth_error_rad"] = out[f"{key}_truth_rad"] - target
         if self.rig is not None:
             try:
                 out["rig"] = self.rig.stats_lines()
@@ -684,14 +719,16 @@ class _SigintDeferred:
         return False
 
 
-def run_simulated(config, schedule: Schedule, log_folder, scene=None, **kwargs) -> RunResult:
+def run_simulated(
+    config, schedule: Schedule | Maneuver, log_folder, scene=None, **kwargs
+) -> RunResult:
     """Start the simulated rig in a child process (real-time clock) and run on its ptys.
 
     Parameters
     ----------
     config : RigConfig
         Ports are replaced by the rig's pseudo-terminals; ``sim`` tables configure the rig.
-    schedule : Schedule
+    schedule : Schedule or Maneuver
     log_folder : path
     scene : path, optional
         Scene of the rig and of the estimator (default: the configuration's).
@@ -700,7 +737,7 @@ def run_simulated(config, schedule: Schedule, log_folder, scene=None, **kwargs) 
     """
     if scene is not None:
         config = replace(config, scene=str(Path(scene).resolve()))
-    check_schedule(schedule, config.servos.servo)
+    check_schedule(getattr(schedule, "schedule", schedule), config.servos.servo)
     rate_hz = (kwargs.get("settings") or RunSettings()).rate_hz
     with RigProcess(config, period_s=1.0 / rate_hz) as rig:
         return RunLoop(with_ports(config, rig.paths), schedule, log_folder, rig=rig, **kwargs).run()

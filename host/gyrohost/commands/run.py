@@ -1,5 +1,6 @@
-"""``gyrotens run --config RIG.toml [--schedule FILE|PRESET] [-o LOGDIR] [--sim]``: one run of a
-schedule on the rig, from connection to the safe state, logged (docs/run.md)."""
+"""``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
+[--closed-loop]] [-o LOGDIR] [--sim]``: one run of a schedule or a planned tilt maneuver on the
+rig, from connection to the safe state, logged (docs/run.md, docs/schedule.md)."""
 
 import sys
 import time
@@ -13,8 +14,25 @@ def register(sub) -> None:
     p.add_argument("--config", type=Path, required=True, help="rig configuration (TOML)")
     p.add_argument(
         "--schedule",
-        default="paper",
         help="schedule file (.toml/.json, docs/schedule.md) or preset name (default: paper)",
+    )
+    p.add_argument(
+        "--target-tilt",
+        type=float,
+        metavar="RAD",
+        help="plan a maneuver landing the D-bar plane at this tilt (instead of --schedule)",
+    )
+    p.add_argument(
+        "--duration", type=float, default=4.0, metavar="S", help="landing time of --target-tilt"
+    )
+    p.add_argument(
+        "--closed-loop",
+        action="store_true",
+        help="re-plan the maneuver from the EKF's estimate every --replan-period",
+    )
+    p.add_argument("--replan-period", type=float, default=0.25, metavar="S", help="(0.25 s)")
+    p.add_argument(
+        "--replan-thread", action="store_true", help="re-plan in a worker thread, off the loop"
     )
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
@@ -22,6 +40,36 @@ def register(sub) -> None:
     for dev in ("imu", "wheels", "servos"):
         p.add_argument(f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration)")
     p.set_defaults(func=run)
+
+
+def planned_maneuver(config, args):
+    """The :class:`Maneuver` of ``--target-tilt`` on the configuration's scene and servos."""
+    from gyrohost.control.maneuver import Maneuver, Target
+    from gyrohost.control.schedule import Limits
+    from gyrotensegrity import Model, load_scene
+
+    target = Target(
+        args.target_tilt,
+        args.duration,
+        closed_loop=args.closed_loop,
+        period_s=args.replan_period,
+        threaded=args.replan_thread,
+    )
+    limits = Limits.per_string(config.servos.servo)
+    return Maneuver(Model(load_scene(config.scene_path)), limits, target)
+
+
+def _what_to_run(config, args):
+    """A Schedule (``--schedule``, default the paper preset) or a Maneuver (``--target-tilt``)."""
+    from gyrohost.cli import CliError
+
+    if args.target_tilt is None:
+        if args.closed_loop or args.replan_thread:
+            raise CliError("--closed-loop and --replan-thread need --target-tilt")
+        return load_schedule_arg(args.schedule or "paper", config.scene_path)
+    if args.schedule is not None:
+        raise CliError("give --schedule or --target-tilt, not both")
+    return planned_maneuver(config, args)
 
 
 def load_schedule_arg(text: str, scene_path: Path):
@@ -83,7 +131,7 @@ def run(args) -> int:
 
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
-    from gyrohost.control.errors import ScheduleError
+    from gyrohost.control.errors import PlanError, ScheduleError
     from gyrohost.rig.truth import RigSetupError
     from gyrohost.rig_process import RigProcessError
     from gyrohost.runloop import RunLoop, ScheduleRefused, run_simulated
@@ -93,10 +141,11 @@ def run(args) -> int:
         config = load_rig_config(args.config)
         if args.scene is not None:
             config = replace(config, scene=str(args.scene.resolve()))
-        schedule = load_schedule_arg(args.schedule, config.scene_path)
-    except (ConfigError, ScheduleError, SceneError, OSError) as exc:
+        schedule = _what_to_run(config, args)
+    except (ConfigError, ScheduleError, PlanError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
-    out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{schedule.name}"
+    name = _run_name(schedule)
+    out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{name}"
     if (out / "meta.json").exists():
         raise CliError(f"{out}: already holds a log; choose another -o")
     progress = Progress()
@@ -114,6 +163,13 @@ def run(args) -> int:
     return report(result)
 
 
+def _run_name(schedule) -> str:
+    target = getattr(schedule, "target", None)
+    if target is None:
+        return schedule.name
+    return f"tilt{target.tilt_rad:+g}-{'closed' if target.closed_loop else 'open'}"
+
+
 def report(result) -> int:
     """Print how a run ended and where its log is; returns its exit status."""
     from gyrohost.run_records import jitter_line
@@ -126,8 +182,28 @@ def report(result) -> int:
         if "tilt_end_truth_rad" in s:
             line += f", truth {s['tilt_end_truth_rad']:+.4f} rad"
         print(line)
+    if "maneuver" in s:
+        print(maneuver_line(s))
     if result.exit_status:
         print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
     else:
         print("run completed; rig in the safe state (wheels stopped, servos holding)")
     return result.exit_status
+
+
+def maneuver_line(summary: dict) -> str:
+    """Target, error of the truth (simulated rig) after settling, re-plans and plan times."""
+    m = summary["maneuver"]
+    t = m["target"]
+    loop = "closed loop" if t["closed_loop"] else "open loop"
+    line = f"target {t['tilt_rad']:+.4f} rad at {t['duration_s']:g} s, {loop}"
+    if "tilt_settled_truth_error_rad" in summary:
+        line += f": truth error after settling {summary['tilt_settled_truth_error_rad']:+.4f} rad"
+    line += f"; first plan {1e3 * m['first_plan']['plan_time_s']:.1f} ms"
+    if m["replans"]:
+        line += (
+            f"; {m['replans']} re-plans ({m['replans_accepted']} accepted), "
+            f"{1e3 * m['replan_time_mean_s']:.1f} ms mean, "
+            f"{1e3 * m['replan_time_max_s']:.1f} ms max"
+        )
+    return line

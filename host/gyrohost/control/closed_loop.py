@@ -99,23 +99,36 @@ class Replanner:
         if self.schedule is None:
             self.start(t_s, x)
             return self.schedule
+        if self.observe(t_s, x):
+            self.replan(t_s, x)
+        return self.schedule
+
+    def observe(self, t_s, x) -> bool:
+        """Take one estimate into the gain fit; True if a re-plan is due at ``t_s`` (the
+        period is then counted as used)."""
         if self.fit is not None:
             N, N_dot = self.planner.model.nodes(x)
             att = self.planner.attitude
             self.fit.add(att.n13(N), att.tilt_rate(N, N_dot))
         if self._next_s <= t_s < self.t_end_s:
             self._next_s += self.period_s * max(1.0, np.floor((t_s - self._next_s) / self.period_s))
-            self.replan(t_s, x)
-        return self.schedule
+            return True
+        return False
 
-    def replan(self, t_s, x) -> Plan:
-        """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``."""
+    def fitted(self):
+        """``(momentum, kappa)`` of the gain fit, or None without adaptation."""
+        return None if self.fit is None else self.fit.estimate()[:2]
+
+    def replan(self, t_s, x, fitted=None) -> Plan:
+        """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``; ``fitted``
+        (momentum, kappa) defaults to the gain fit's current values (:meth:`fitted`)."""
         col = self.schedule.names.index(self.planner.names[0])
         d_now = float(self.schedule(t_s)[col])
         tilt, momentum, omega_w = self.planner.state_terms(x, t_s)
         kappa = 1.0
-        if self.fit is not None:
-            momentum, kappa, _ = self.fit.estimate()
+        fitted = self.fitted() if fitted is None else fitted
+        if fitted is not None:
+            momentum, kappa = fitted
         plan = self.planner.plan(
             self.target_tilt_rad,
             self.knot_t,

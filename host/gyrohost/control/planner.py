@@ -136,13 +136,19 @@ class Planner:
         """Allowed n1-n3 rest lengths (m): both diagonals >= min_diagonal_m, both rest
         lengths within the servo range."""
         lim, l2 = self.limits, 4.0 * self.dbar.l**2
-        short = max(lim.min_diagonal_m, lim.min_length_m)
-        lo = max(short, np.sqrt(max(l2 - lim.max_length_m**2, 0.0)))
-        hi = min(lim.max_length_m, np.sqrt(max(l2 - short**2, 0.0)))
-        # the range is symmetric about the square (d and its follower swap), so when it is
-        # not empty it contains the rest shape
+        lo13, hi13 = lim.range_of(self.names[0])
+        lo24, hi24 = lim.range_of(self.names[1])
+        short13, short24 = max(lim.min_diagonal_m, lo13), max(lim.min_diagonal_m, lo24)
+        # the follower's rest length is sqrt(l2 - d^2): its range bounds d the other way
+        lo = max(short13, np.sqrt(max(l2 - hi24**2, 0.0)))
+        hi = min(hi13, np.sqrt(max(l2 - short24**2, 0.0)))
         if not lo < hi:
             raise PlanError(f"limits leave no n1-n3 length to command ({lo:.4g}..{hi:.4g} m)")
+        if not lo <= self.dbar.d_rest <= hi:  # a maneuver starts and lands at rest
+            raise PlanError(
+                f"limits leave the n1-n3 length {lo:.4g}..{hi:.4g} m, without the rest "
+                f"shape {self.dbar.d_rest:.4g} m"
+            )
         return lo, hi
 
     def knot_times(self, t0_s, t_end_s):

@@ -40,12 +40,16 @@ class Limits:
     min_diagonal_m : float, m
         Smallest n1-n3 and n2-n4 distance the planner may command: below it the wheels of
         neighbouring bars touch (default 4 wheel radii of the D-bar, 0.124 m).
+    string_ranges_m : tuple of (str, float, float)
+        ``(string, min_length_m, max_length_m)`` of strings with a range of their own (each
+        servo's); it replaces the common range for that string.
     """
 
     max_speed_m_s: float = 0.05
     min_length_m: float = 0.0
     max_length_m: float = 1.0
     min_diagonal_m: float = 0.124
+    string_ranges_m: tuple = ()
 
     def __post_init__(self):
         for key in ("max_speed_m_s", "max_length_m", "min_diagonal_m"):
@@ -69,6 +73,28 @@ class Limits:
             max_length_m=min(s.max_length_m for s in servos),
             min_diagonal_m=min_diagonal_m,
         )
+
+    @classmethod
+    def per_string(cls, servos, min_diagonal_m=0.124):
+        """Each servo's length range for the string it winds; the slowest servo's speed."""
+        if not servos:
+            raise ScheduleError("limits: no servos configured")
+        return cls(
+            max_speed_m_s=min(s.max_speed_m_s for s in servos),
+            min_length_m=min(s.min_length_m for s in servos),
+            max_length_m=max(s.max_length_m for s in servos),
+            min_diagonal_m=min_diagonal_m,
+            string_ranges_m=tuple(
+                (s.string or s.name, s.min_length_m, s.max_length_m) for s in servos
+            ),
+        )
+
+    def range_of(self, name: str) -> tuple[float, float]:
+        """``(min_length_m, max_length_m)`` of string ``name``, m."""
+        for string, lo, hi in self.string_ranges_m:
+            if string == name:
+                return lo, hi
+        return self.min_length_m, self.max_length_m
 
 
 @dataclass(frozen=True)
@@ -137,11 +163,9 @@ class Schedule:
                 out.append(f"{name}: speed {speed:.4g} m/s exceeds {limits.max_speed_m_s:g} m/s")
         lo, hi = self.rest_length.min(axis=0), self.rest_length.max(axis=0)
         for name, a, b in zip(self.names, lo, hi, strict=True):
-            if a < limits.min_length_m or b > limits.max_length_m:
-                out.append(
-                    f"{name}: rest length {a:.4g}..{b:.4g} m outside "
-                    f"[{limits.min_length_m:g}, {limits.max_length_m:g}] m"
-                )
+            low, high = limits.range_of(name)
+            if a < low - 1e-12 or b > high + 1e-12:  # a plan clipped to a bound ends on it
+                out.append(f"{name}: rest length {a:.4g}..{b:.4g} m outside [{low:g}, {high:g}] m")
         return out
 
     def bind(self, model):
