@@ -100,3 +100,14 @@ def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):
     assert "loop at 100 Hz" in summary
     assert main(["plot", str(out / "nospin"), "-o", str(tmp_path / "again")]) == 0
     assert len(list((tmp_path / "again").glob("*.png"))) == 6
+
+
+def test_run_target_tilt_options_are_checked_before_anything_moves(tmp_path, capsys):
+    base = ["run", "--config", str(CONFIG), "--sim", "-o", str(tmp_path / "z")]
+    assert main([*base, "--schedule", "paper", "--target-tilt", "-0.3"]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert main([*base, "--closed-loop"]) == 2
+    assert "need --target-tilt" in capsys.readouterr().err
+    assert main([*base, "--target-tilt", "-0.3", "--duration", "0"]) == 2
+    assert "must be positive" in capsys.readouterr().err
+    assert not (tmp_path / "z").exists()

@@ -1,0 +1,67 @@
+"""The maneuver as the run loop plays it: per-servo length ranges, open and closed loop, and the
+re-planning worker thread (same plans as on the loop thread, taken at a later tick)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrohost.config import load_rig_config
+from gyrohost.control import Limits, PlanError, Planner
+from gyrohost.control.maneuver import Maneuver, Target
+
+SERVOS = load_rig_config(
+    Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
+).servos.servo
+
+
+def test_each_servo_keeps_its_own_range(dbar):
+    per = Limits.per_string(SERVOS)
+    assert per.range_of("s13") == (0.12, 0.45) and per.range_of("s24") == (0.40, 0.62)
+    # sim-rig: the tightest common range [0.40, 0.45] leaves 0.411..0.45 m of n1-n3 length
+    tight = Planner(dbar, Limits.from_servos(SERVOS))
+    assert tight.d_hi - tight.d_lo < 0.04
+    m = Maneuver(dbar, per, Target(-0.3, 4.0))
+    assert m.first.success and m.first.predicted_tilt_rad == pytest.approx(-0.3, abs=1e-3)
+    assert not m.schedule.problems(per)
+    lo, hi = m.schedule.rest_length.min(axis=0), m.schedule.rest_length.max(axis=0)
+    assert lo[0] < 0.40 and hi[1] > 0.45  # uses the room each servo has
+    with pytest.raises(PlanError, match="rest shape"):  # s24's range without the square
+        Planner(dbar, Limits(string_ranges_m=(("s24", 0.44, 0.62),)))
+
+
+def drive(maneuver, dbar, steps=120, dt=0.01, join=False):
+    """Feed the initial state as the estimate at the loop rate; the schedules played."""
+    x = dbar.initial_state()
+    played = []
+    for k in range(steps):
+        played.append(maneuver.update(k * dt, x))
+        if join:
+            maneuver.join()
+    maneuver.join()
+    return played
+
+
+def test_open_loop_plays_the_first_plan_and_closed_loop_replans_at_its_period(dbar):
+    limits = Limits.per_string(SERVOS)
+    open_ = Maneuver(dbar, limits, Target(-0.3, 4.0))
+    assert all(s is open_.first.schedule for s in drive(open_, dbar))
+    closed = Maneuver(dbar, limits, Target(-0.3, 4.0, closed_loop=True, adapt=False))
+    drive(closed, dbar)
+    t = [r.t_s for r in closed.records]
+    assert t[0] == 0.0 and np.allclose(np.diff(t[1:]), 0.25) and len(t) == 5  # 0.25..1.0 s
+    assert closed.summary()["replans"] == 4 and closed.taken == 4
+
+
+def test_the_worker_thread_makes_the_same_plans_and_hands_them_over_later(dbar):
+    limits = Limits.per_string(SERVOS)
+    inline = Maneuver(dbar, limits, Target(-0.3, 4.0, closed_loop=True))
+    threaded = Maneuver(dbar, limits, Target(-0.3, 4.0, closed_loop=True, threaded=True))
+    drive(inline, dbar)
+    played = drive(threaded, dbar, join=True)  # joined: each plan is ready at the next tick
+    a, b = inline.records, threaded.records
+    assert [r.t_s for r in a] == [r.t_s for r in b]
+    assert [r.predicted_tilt_rad for r in a] == pytest.approx([r.predicted_tilt_rad for r in b])
+    switches = [k for k in range(1, len(played)) if played[k] is not played[k - 1]]
+    assert switches == [26, 51, 76, 101]  # re-planned at ticks 25, 50, ...; taken one tick later
+    assert threaded.taken == 4
