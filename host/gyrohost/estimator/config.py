@@ -33,6 +33,9 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
+    # white noise of the rest lengths as the string forces see them (the servo's motion within a
+    # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
+    rest_jitter_psd_m2_s: float = field(default=0.0, metadata=_pos("rest length jitter"))
     gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_pos("gyro bias walk"))
     # initial uncertainty
     init_position_std_m: float = field(default=2.0e-3, metadata=_pos("initial node position"))

@@ -141,13 +141,25 @@ class ProcessModel:
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return complex_step.split(X)
 
-    def noise(self, dt):
+    def noise(self, dt, F=None):
         """Discrete process noise covariance over ``dt`` s, shape (n, n).
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
-        (integrated exactly into positions and velocities), random walks of the wheel speeds and
-        the gyro bias.
+        (integrated exactly into positions and velocities), random walks of the wheel speeds,
+        rest lengths and the gyro bias; with the step's Jacobian ``F`` (n, n), also white noise
+        of density ``rest_jitter_psd_m2_s`` on the rest lengths the string forces see, mapped
+        into the node motion by ``F[motion, rest]`` (zero through a slack string).
         """
+        Q = self._white_noise(dt)
+        if F is None or self.config.rest_jitter_psd_m2_s == 0.0:
+            return Q
+        L = self.layout
+        G = F[: L.q_dot.stop, L.rest]  # ~ (dt^2/2, dt) d(acceleration)/d(rest)
+        Q = Q.copy()
+        Q[: L.q_dot.stop, : L.q_dot.stop] += (self.config.rest_jitter_psd_m2_s / dt) * (G @ G.T)
+        return Q
+
+    def _white_noise(self, dt):
         if dt in self._noise:
             return self._noise[dt]
         L, c = self.layout, self.config

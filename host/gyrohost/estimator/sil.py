@@ -34,18 +34,27 @@ from scipy.linalg import null_space
 from gyrohost.runlog import read_stream
 
 from . import streams
+from .consistency import sample_initial
 from .montecarlo import RunResult, sampled_truth, score_run, summarise
 from .replay import prepare
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-# Keys for the in-process SIL (on top of noise_from_rig). The rig's truth has no random forces;
-# the servos here are exactly the first-order lag. The wheel telemetry noise is the emulator's
-# measured encoder quantisation through the firmware's low-pass (0.0146 rad/s RMS, docs/rig.md);
-# the board holds the true speeds constant, so they walk only slowly in the filter.
+# Keys for the in-process SIL (on top of noise_from_rig). The rig's truth has no random forces
+# (node accelerations only for the lean step's error). The servos here are exactly the filter's
+# first-order lag: their length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) =
+# 4.4 um) and the rest lengths barely walk. What the model gets wrong is where a string turns
+# taut or slack within a step (the truth holds each rest length over its 5 ms step, the filter's
+# rest state moves continuously; the kink makes that difference an impulse): white noise on the
+# rest lengths as the string forces see them, 2e-10 m^2 s (0.14 mm RMS per 10 ms step), which
+# reaches the nodes only through taut strings. The wheel telemetry noise is the emulator's
+# measured encoder quantisation through the firmware's low-pass (0.0146 rad/s RMS,
+# docs/rig.md); the board holds the true speeds constant, so they walk only slowly.
 RIG_MODEL_KEYS = {
     "accel_psd_m2_s3": 1e-6,
-    "servo_length_std_m": 2e-4,
+    "servo_length_std_m": 4.4e-6,
+    "rest_psd_m2_s": 1e-10,
+    "rest_jitter_psd_m2_s": 2e-10,
     "wheel_speed_std_rad_s": 0.0146,
     "wheel_accel_psd_rad2_s3": 1e-4,
 }
@@ -168,9 +177,7 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
         wheels = board.advance(t)
         if k % imu_every == 0:  # the host sends a command every tick (10 ms), held in between
             command = model.input_at(t)[: model.alpha]
-        for s, i in zip(servos, servo_strings, strict=True):
-            position[s.id] += gain * (command[i] - position[s.id])
-        reported = {
+        reported = {  # the servo's position now, quantised to its steps
             s.id: steps_to_length(s, round(length_to_steps(s, position[s.id]))) for s in servos
         }
         if k % imu_every == 0:
@@ -183,12 +190,21 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
             rows[streams.COMMAND].append([t, *command, *spins])
             if k % (4 * imu_every) == 0:
                 rows[streams.SERVOS].append([t, *(reported[s.id] for s in servos)])
-            # the truth's plant has speed-driven wheels: its state has no spins, its input has
-            truth_x.append(
-                from_model_state(truth.model, truth.stepper.x, truth.u, emu.gyro_bias_rad_s)
-            )
+            # the truth's plant has speed-driven wheels: its state has no spins, its input has;
+            # the true rest lengths are the servos' (continuous, unquantised) positions now
+            rest = truth.rest_length_m.copy()
+            rest[servo_strings] = [position[s.id] for s in servos]
+            u = truth.model.pack_input(rest, board.true_speeds())
+            truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
             truth_R.append(imu.R_wb)
-        truth.step(reported, board.true_speeds())
+        held = {}
+        for s, i in zip(servos, servo_strings, strict=True):
+            start = position[s.id]
+            position[s.id] += gain * (command[i] - start)
+            # the truth holds a rest length over its step: the lag's mean over the step (its end
+            # value would lead the servo by half a step, its start value trail it)
+            held[s.id] = command[i] + (start - command[i]) * gain * SERVO_LAG_S / dt
+        truth.step(held, board.true_speeds())
     return rows, truth_x, truth_R
 
 
@@ -250,7 +266,11 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
 
     model, data, truth_x, truth_R = rig_model_run(config, seed, duration_s)
     est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
-    ekf = TensegrityEKF(model, est_cfg, x0=np.r_[truth_x[0][:-3], np.zeros(3)])
+    # the initial estimate is drawn around the truth with the filter's initial covariance (an
+    # error-free start scores the unobservable centre of mass at zero error for the whole run)
+    ekf = TensegrityEKF(model, est_cfg)
+    rng = np.random.default_rng(seed + 7_000_001)
+    ekf = TensegrityEKF(model, est_cfg, x0=sample_initial(ekf, truth_x[0], rng))
     return score_run(ekf, data, sampled_truth(truth_x, truth_R))
 
 
