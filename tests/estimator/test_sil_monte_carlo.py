@@ -48,3 +48,21 @@ def test_tilt_error_is_small(results):
     tilt_deg = np.degrees(np.concatenate([r.tilt_rad for r in results]))
     assert np.sqrt(np.mean(tilt_deg**2)) < 0.05
     assert tilt_deg.max() < 0.3
+
+
+def test_rest_jitter_reaches_the_nodes_only_through_the_rest_columns_of_f(model):
+    from dataclasses import replace
+
+    from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.layout import layout_of
+    from gyrohost.estimator.process_model import ProcessModel
+
+    pm = ProcessModel(model, replace(EstimatorConfig(), rest_jitter_psd_m2_s=2e-10))
+    L, dt = layout_of(model), 0.01
+    F = np.eye(L.size)
+    assert np.array_equal(pm.noise(dt, F), pm.noise(dt))  # slack strings: nothing added
+    F[L.q_dot, L.rest] = np.arange(1.0, 1.0 + 3 * L.m * L.n_strings).reshape(3 * L.m, L.n_strings)
+    added = pm.noise(dt, F) - pm.noise(dt)
+    G = F[: L.q_dot.stop, L.rest]
+    assert np.allclose(added[: L.q_dot.stop, : L.q_dot.stop], 2e-10 / dt * G @ G.T)
+    assert not added[L.q_dot.stop :].any() and not added[:, L.q_dot.stop :].any()
