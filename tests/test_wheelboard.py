@@ -9,18 +9,10 @@ import time
 import tty
 
 import pytest
+from protocol_reference import crc_bytewise
 
 from gyrohost import wheelproto as wp
 from gyrohost.drivers import wheelboard as wb
-
-
-def crc_bytewise(data: bytes) -> int:
-    crc = 0xFFFF
-    for b in data:
-        x = ((crc >> 8) ^ b) & 0xFF
-        x ^= x >> 4
-        crc = ((crc << 8) ^ (x << 12) ^ (x << 5) ^ x) & 0xFFFF
-    return crc
 
 
 def cobs_by_hand(raw: bytes) -> bytes:

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from protocol_reference import crc_bytewise
 
 from gyrohost import wheelproto as wp
 
@@ -57,16 +58,6 @@ def test_versions_and_sizes_match_firmware():
     assert int(re.search(r"#define PROTO_VERSION (\d+)", ver).group(1)) == wp.PROTO_VERSION
     proto_h = (FW / "wheel_proto" / "proto.h").read_text()
     assert int(re.search(r"#define PROTO_MAX_PAYLOAD (\d+)", proto_h).group(1)) == wp.MAX_PAYLOAD
-
-
-def crc_bytewise(data: bytes) -> int:
-    """The firmware's table-free byte-wise CRC form: an independent reference."""
-    crc = 0xFFFF
-    for b in data:
-        x = ((crc >> 8) ^ b) & 0xFF
-        x ^= x >> 4
-        crc = ((crc << 8) ^ (x << 12) ^ (x << 5) ^ x) & 0xFFFF
-    return crc
 
 
 def test_crc_check_value_and_reference():
