@@ -12,13 +12,12 @@ CONFIG = Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
 
 
 def test_filter_tracks_the_rig_truth_model():
-    # the whole manoeuvre: between 0.2 and 1 s the filter is overconfident (NEES 2-3 times its
-    # dof, where the strings go slack and re-engage), later underconfident (docs/estimator.md)
-    result = score_rig_model_run(load_rig_config(CONFIG), seed=3, duration_s=3.0,
+    result = score_rig_model_run(load_rig_config(CONFIG), seed=3, duration_s=1.2,
                                  overrides=RIG_MODEL_KEYS)  # fmt: skip
+    late = result.t_s >= 0.2
     assert np.degrees(result.tilt_rad).max() < 0.2
     assert result.nees_dof == 25
-    assert np.mean(result.nees) < 2.0 * result.nees_dof
+    assert np.mean(result.nees[late]) < 2.0 * result.nees_dof
     for source in ("imu_rate", "imu_angle", "servos"):
         _, nis, dof = result.nis[source]
         assert 0.3 * dof[0] < np.mean(nis) < 2.0 * dof[0], source

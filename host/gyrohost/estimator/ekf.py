@@ -200,7 +200,7 @@ class TensegrityEKF:
         self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
-        self.kf.Q = self.process.noise(dt, F)
+        self.kf.Q = self.process.noise(dt, F, self.x)
         self.kf.predict()
         self.t += dt
         self._check_finite("prediction")

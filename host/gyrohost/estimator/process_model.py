@@ -26,6 +26,7 @@ response); the gyro bias is constant. Process noise is white: node accelerations
 """
 
 import numpy as np
+from scipy.special import ndtr
 
 from . import complex_step
 from .fast_dynamics import BatchDynamics
@@ -141,23 +142,84 @@ class ProcessModel:
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return complex_step.split(X)
 
-    def noise(self, dt, F=None):
+    def noise(self, dt, F=None, x=None):
         """Discrete process noise covariance over ``dt`` s, shape (n, n).
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
         (integrated exactly into positions and velocities), random walks of the wheel speeds,
-        rest lengths and the gyro bias; with the step's Jacobian ``F`` (n, n), also white noise
-        of density ``rest_jitter_psd_m2_s`` on the rest lengths the string forces see, mapped
-        into the node motion by ``F[motion, rest]`` (zero through a slack string).
+        rest lengths and the gyro bias; with the step's Jacobian ``F`` (n, n) and the state
+        ``x`` (n,) it linearises about, also white noise of density ``rest_jitter_psd_m2_s`` on
+        the rest lengths the string forces see, through the kink of each string
+        (:meth:`jitter_noise`).
         """
         Q = self._white_noise(dt)
-        if F is None or self.config.rest_jitter_psd_m2_s == 0.0:
+        if F is None or x is None or self.config.rest_jitter_psd_m2_s == 0.0:
             return Q
-        L = self.layout
-        G = F[: L.q_dot.stop, L.rest]  # ~ (dt^2/2, dt) d(acceleration)/d(rest)
+        n = self.layout.q_dot.stop
         Q = Q.copy()
-        Q[: L.q_dot.stop, : L.q_dot.stop] += (self.config.rest_jitter_psd_m2_s / dt) * (G @ G.T)
+        Q[:n, :n] += self.jitter_noise(dt, F, x)
         return Q
+
+    def jitter_noise(self, dt, F, x):
+        """Node-motion covariance (6 m, 6 m) of a rest-length jitter through tension-only strings.
+
+        The string forces see rest lengths ``rest + d``, ``d`` white with density ``q`` =
+        ``rest_jitter_psd_m2_s`` (per step ``d ~ N(0, s^2)``, ``s^2 = q / dt``). String i is taut
+        while ``d < mu_i``, ``mu_i = min(stretch, stretch + c/k d(length)/dt)`` (tension margin
+        as a length): the jitter's force error against the filter's prediction (which takes
+        ``d = 0``) is ``k (max(mu - d, 0) - max(mu, 0))``, whose mean square is ``k^2 s^2
+        w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2 at the kink, 1 well taut). It acts
+        along the string as if taut: ``Q = (q / dt) sum_i w_i G_i G_i^T`` with ``G_i`` the
+        step's response to the taut string's ``d acceleration / d rest_i`` (:meth:`taut_columns`).
+        A slack string at the linearisation point thus still gets the noise of its re-engaging.
+        """
+        q = self.config.rest_jitter_psd_m2_s
+        G, margin = self.taut_columns(dt, F, x)
+        w = kink_weight(margin / np.sqrt(q / dt))
+        return (q / dt) * (G * w) @ G.T
+
+    def taut_columns(self, dt, F, x):
+        """Response of the node motion over a step to every rest length, each string as if taut.
+
+        Returns
+        -------
+        G : ndarray, shape (6 m, alpha)
+            ``dt/2 (b_i + F b_i)`` (trapezoid rule for the integral of the step's transition
+            over the step), ``b_i`` = (0, d eta2_ddot / d rest_i) of string i held taut, m/m
+            and (m/s)/m.
+        margin : ndarray, shape (alpha,), m
+            Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
+        """
+        L, dyn = self.layout, self.dyn
+        m, alpha = L.m, L.n_strings
+        s, s_dot = self.string_lengths(x)
+        rest = x[L.rest]
+        margin = np.minimum(s - rest, s - rest + dyn.c_s / dyn.k_s * s_dot)
+        # the string force is affine in its rest length while taut (slope -k along the string)
+        # and the accelerations are affine in the string forces: any taut point gives the
+        # column; 1 mm of margin keeps every string taut whatever its state
+        X = np.tile(x[: L.n_dynamic].astype(complex), (alpha, 1))
+        X[:, L.rest] = rest - np.maximum(-margin, 0.0) - 1e-3
+        X[np.arange(alpha), L.rest.start + np.arange(alpha)] += 1j * complex_step.STEP
+        a, _ = self.fast.accelerations(
+            X[:, L.q].reshape(alpha, 3, m),
+            X[:, L.q_dot].reshape(alpha, 3, m),
+            X[:, L.omega],
+            X[:, L.rest],
+        )
+        a = a.reshape(alpha, 3 * m).imag.T / complex_step.STEP  # (3 m, alpha)
+        n = L.q_dot.stop
+        G = F[:n, L.q_dot] @ a
+        G[L.q_dot] += a
+        return 0.5 * dt * G, margin
+
+    def string_lengths(self, x):
+        """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""
+        L, dyn = self.layout, self.dyn
+        Y = x[L.q].reshape(3, L.m) @ dyn.E_all[:, dyn.beta :] + dyn.Y0[:, dyn.beta :]
+        Y_dot = x[L.q_dot].reshape(3, L.m) @ dyn.E_all[:, dyn.beta :]
+        s = np.sqrt((Y * Y).sum(axis=0))
+        return s, (Y * Y_dot).sum(axis=0) / s
 
     def _white_noise(self, dt):
         if dt in self._noise:
@@ -178,3 +240,19 @@ class ProcessModel:
         if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
             self._noise[dt] = Q
         return Q
+
+
+def kink_weight(a):
+    """Mean square of ``max(a - Z, 0) - max(a, 0)``, Z standard normal (shape of ``a``).
+
+    The error of a tension-only string's force, in units of the jitter's variance, when its
+    rest length jitters by ``Z`` standard deviations and ``a`` is its tension margin in the
+    same units: 0 deep slack (``a << 0``), 1/2 at the kink, 1 well taut (the jitter's full
+    variance); continuous and increasing.
+    """
+    a = np.asarray(a, dtype=float)
+    Phi = ndtr(a)
+    phi = np.exp(-0.5 * a * a) / np.sqrt(2.0 * np.pi)
+    slack = (a * a + 1.0) * Phi + a * phi
+    taut = Phi - a * phi + a * a * (1.0 - Phi)
+    return np.where(a <= 0.0, slack, taut)

@@ -40,18 +40,21 @@ from .replay import prepare
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-# Keys for the in-process SIL (on top of noise_from_rig). The rig's truth has no random forces
-# (node accelerations only for the lean step's error). The servos here are exactly the filter's
-# first-order lag: their length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) =
-# 4.4 um) and the rest lengths barely walk. What the model gets wrong is where a string turns
-# taut or slack within a step (the truth holds each rest length over its 5 ms step, the filter's
-# rest state moves continuously; the kink makes that difference an impulse): white noise on the
-# rest lengths as the string forces see them, 2e-10 m^2 s (0.14 mm RMS per 10 ms step), which
-# reaches the nodes only through taut strings. The wheel telemetry noise is the emulator's
-# measured encoder quantisation through the firmware's low-pass (0.0146 rad/s RMS,
-# docs/rig.md); the board holds the true speeds constant, so they walk only slowly.
+# Keys for the in-process SIL (on top of noise_from_rig). The rig's truth has no random forces:
+# one filter step from the true state reproduces the truth to round-off except where a string
+# crosses its slack/taut kink within the step (the truth holds each rest length over its 5 ms
+# step while the filter's rest state moves continuously: a sawtooth of +-0.25 mm at 0.1 m/s,
+# which the kink rectifies into a force impulse). That is white noise on the rest lengths as
+# the string forces see them, 2e-10 m^2 s (0.14 mm RMS per 10 ms step, the sawtooth's), mapped
+# through every string as if taut and weighted by the mean square of its kink error
+# (process_model.kink_weight); what is left for white node accelerations is small (3e-8). The
+# servos here are exactly the filter's first-order lag: their length noise is the step
+# quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um) and the rest lengths barely walk. The
+# wheel telemetry noise is the emulator's measured encoder quantisation through the firmware's
+# low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds the true speeds constant, so they
+# walk only slowly.
 RIG_MODEL_KEYS = {
-    "accel_psd_m2_s3": 1e-6,
+    "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "rest_psd_m2_s": 1e-10,
     "rest_jitter_psd_m2_s": 2e-10,
