@@ -2,8 +2,10 @@
 
 ``python -m gyrohost.estimator.benchmark`` prints the median and the 90th percentile over a run
 of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference model), for
-the lean and the rk4 process models, next to one evaluation of the reference right-hand side
-(:func:`gyrotensegrity.rhs`) as the baseline measured in the same run.
+the lean and the rk4 process models, with the rest-length jitter through the strings' kinks
+(``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it out), next to one
+evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as the baseline
+measured in the same run.
 """
 
 import argparse
@@ -68,12 +70,20 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m gyrohost.estimator.benchmark")
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE)
     parser.add_argument("--cycles", type=int, default=200)
+    parser.add_argument(
+        "--rest-jitter-psd",
+        type=float,
+        default=2e-10,
+        help="rest_jitter_psd_m2_s, m^2 s (default: the SIL's; 0 leaves the kink noise out)",
+    )
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     base = rhs_time(model)
     print(f"{args.scene.name}: reference rhs evaluation {base * 1e6:.0f} us (baseline)")
     for method in ("lean", "rk4"):
-        cfg = replace(EstimatorConfig(), process_method=method)
+        cfg = replace(
+            EstimatorConfig(), process_method=method, rest_jitter_psd_m2_s=args.rest_jitter_psd
+        )
         n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
         wall, cpu, accepted = cycle_times(model, cfg, n)
         print(
