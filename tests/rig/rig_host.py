@@ -1,4 +1,4 @@
-"""A stand-in host for rig runs until ``gyrotens run`` exists: the three real drivers on the
+"""A stand-in host for rig runs (lighter than ``gyrotens run``): the three real drivers on the
 rig's device paths, reading everything and commanding a little, counting what arrives.
 
 Used by tests/rig/test_rig_cli.py; also runnable by hand next to ``gyrotens rig``::
