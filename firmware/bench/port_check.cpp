@@ -68,7 +68,7 @@ static uint16_t rnd16() {
 // The same PI step in assembly and in C from the same state: output, integrator and flag.
 static void check_pi(pi_state* sa, pi_state* sc, const pi_gains* g, bool neg, uint16_t mag) {
     g_n++;
-    int16_t ya = pi_step_mag_avr(sa, g, neg, mag);
+    int16_t ya = pi_step_mag(sa, g, neg, mag);  // the call the control step makes
     int16_t yc = pi_step_mag_c(sc, g, neg, mag);
     if (ya != yc || static_cast<int32_t>(sa->integ) != static_cast<int32_t>(sc->integ) ||
         sa->out != sc->out || sa->saturated != sc->saturated) {

@@ -58,12 +58,10 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 2590 / 4741 / 4934 cycles min / mean / max = 30 % / 31 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4296 / 4458), with the
-        // commutation (cmt_drive_avr) and the estimator's common case (spd_update_fast_avr) in
-        // assembly; before them 2724 / 5067 / 5289 (2499 / 4576 / 4750). 1000 steps/s. CPU per
-        // tick (this loop pass from BOARD_TICK_MARK = 1 to 0 plus ISRs outside it) 58.0 % (59.8 %
-        // before). Target 2400 not met: see docs/hardware.md, "Control-step cycles".
+        // included, 1,993 steps): 2590 / 4602 / 4804 cycles min / mean / max = 29 % / 30 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4160 / 4333), with the
+        // PI called without the saves of r12..r17; before that 2590 / 4741 / 4934 (2376 / 4296 /
+        // 4458). 1000 steps/s. Target 2400 not met: see docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

@@ -45,7 +45,7 @@ int16_t pi_step(pi_state* s, const pi_gains* g, int32_t setpoint, int32_t measur
 // (mrad/s, <= PI_ERR_CLAMP; 0 with neg false for no error), with sanitised gains. A negative error
 // is mirrored onto a positive one (I, lo and hi negated and swapped; I / 256 then rounds up
 // instead of down), so one path computes both. pi_step_mag_c is the reference in C (32-bit
-// intermediates); on AVR pi_step_mag is pi_step_mag_avr (pi_avr.cpp, hand-written assembly,
+// intermediates); on AVR pi_step_mag calls pi_step_mag_avr (pi_avr.cpp, hand-written assembly,
 // compared with pi_step_mag_c on the chip by `make -C firmware port-check`).
 PORT_INLINE int16_t pi_step_mag_c(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
     // Proportional term, floor(kp * e / 256) for either sign, its magnitude clamped to 65535
@@ -118,12 +118,25 @@ PORT_INLINE int16_t pi_step_mag_c(pi_state* s, const pi_gains* g, bool neg, uint
 }
 
 #if defined(__AVR__)
-extern "C" int16_t pi_step_mag_avr(pi_state* s, const pi_gains* g, bool neg, uint16_t mag);
+// Not an avr-gcc ABI function: it takes the arguments in the ABI's registers (r24:r25 s,
+// r22:r23 g, r20 neg, r18:r19 mag) and returns y in r24:r25, but clobbers the call-saved r12..r17
+// as well (saving them cost 24 cycles per call; the control step's caller has them saved in its
+// own prologue anyway). Only called through pi_step_mag below, which tells the compiler.
+extern "C" void pi_step_mag_avr();
 #endif
 
 PORT_INLINE int16_t pi_step_mag(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
 #if defined(__AVR__)
-    return pi_step_mag_avr(s, g, neg, mag);
+    register uint16_t r_s __asm__("r24") = static_cast<uint16_t>(reinterpret_cast<uintptr_t>(s));
+    register uint16_t r_g __asm__("r22") = static_cast<uint16_t>(reinterpret_cast<uintptr_t>(g));
+    register uint8_t r_neg __asm__("r20") = neg;
+    register uint16_t r_mag __asm__("r18") = mag;
+    __asm__ __volatile__("call pi_step_mag_avr"
+                         : "+r"(r_s), "+r"(r_g), "+r"(r_neg), "+r"(r_mag)
+                         :
+                         : "r0", "r12", "r13", "r14", "r15", "r16", "r17", "r21", "r26", "r27",
+                           "r30", "r31", "memory");
+    return static_cast<int16_t>(r_s);
 #else
     return pi_step_mag_c(s, g, neg, mag);
 #endif

@@ -1,7 +1,8 @@
 // pi_avr.cpp - pi_step_mag for the AVR in assembly (the same steps as pi_step_mag_c in pi.h, whose
 // comments explain them). avr-gcc 5.4 keeps the 24- and 32-bit intermediates of the C version in
-// memory and spent about 455 cycles per wheel on it inside the step; this takes about 260 per call
-// including the register saves (mean of `make -C firmware cycles`, PROFILE).
+// memory and spent about 455 cycles per wheel on it inside the step; this took about 260 per call
+// with the saves of r12..r17, r28, r29, about 225 since it only saves r28:r29 (the caller,
+// pi_step_mag in pi.h, declares r12..r17 clobbered: mean of `make -C firmware cycles`, PROFILE).
 // `make -C firmware port-check` compares it with pi_step_mag_c on the simulated ATmega2560 over
 // the gain, limit and error extremes and random sequences (the native tests run the C version).
 // Register use: X = s, Z = g until the gains are read, T = neg, r16 = 0, r17 = (mag != 0),
@@ -18,15 +19,8 @@ static_assert(offsetof(pi_gains, kp_q8) == 0 && offsetof(pi_gains, ki_q8) == 2 &
                   offsetof(pi_gains, out_max) == 4 && offsetof(pi_gains, slew) == 6,
               "pi_gains layout used by pi_step_mag_avr");
 
-extern "C" __attribute__((naked, used)) int16_t pi_step_mag_avr(pi_state*, const pi_gains*, bool,
-                                                                uint16_t) {
+extern "C" __attribute__((naked, used)) void pi_step_mag_avr() {
     __asm__ __volatile__(
-        "push r12\n\t"
-        "push r13\n\t"
-        "push r14\n\t"
-        "push r15\n\t"
-        "push r16\n\t"
-        "push r17\n\t"
         "push r28\n\t"
         "push r29\n\t"
         "movw r28, r18\n\t"  // mag
@@ -315,12 +309,6 @@ extern "C" __attribute__((naked, used)) int16_t pi_step_mag_avr(pi_state*, const
         "clr r1\n\t"
         "pop r29\n\t"
         "pop r28\n\t"
-        "pop r17\n\t"
-        "pop r16\n\t"
-        "pop r15\n\t"
-        "pop r14\n\t"
-        "pop r13\n\t"
-        "pop r12\n\t"
         "ret\n\t" ::);
 }
 #endif
