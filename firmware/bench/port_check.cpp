@@ -105,7 +105,7 @@ static void check_cmt_one(uint16_t mech, int32_t speed_q8, int16_t drive, uint16
                           const cmt_lead* l) {
     g_n++;
     uint16_t da[3], dc[3];
-    cmt_drive_avr(mech, speed_q8, drive, offset, l, da);
+    cmt_drive(mech, speed_q8, drive, offset, l, da);  // the call the control step makes
     cmt_drive_c(mech, speed_q8, drive, offset, l, dc);
     if (da[0] != dc[0] || da[1] != dc[1] || da[2] != dc[2]) g_bad++;
 }

@@ -58,10 +58,11 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 2590 / 4602 / 4804 cycles min / mean / max = 29 % / 30 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4160 / 4333), with the
-        // PI called without the saves of r12..r17; before that 2590 / 4741 / 4934 (2376 / 4296 /
-        // 4458). 1000 steps/s. Target 2400 not met: see docs/hardware.md, "Control-step cycles".
+        // included, 1,993 steps): 2590 / 4575 / 4772 cycles min / mean / max = 29 % / 30 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4131 / 4301), with the
+        // PI and the commutation called without saving registers the step has saved; before that
+        // 2590 / 4741 / 4934 (2376 / 4296 / 4458). 1000 steps/s. Target 2400 not met: see
+        // docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

@@ -121,14 +121,26 @@ PORT_INLINE void cmt_drive_c(uint16_t mech14, int32_t speed_q8, int16_t drive, u
 }
 
 #if defined(__AVR__)
-extern "C" void cmt_drive_avr(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
-                              const cmt_lead* l, uint16_t duty[3]);
+// Not an avr-gcc ABI function: the arguments in the ABI's registers (r24:r25 mech14, r20..r23
+// speed_q8, r18:r19 drive, r16:r17 offset16, r14:r15 l, r12:r13 duty), but r16:r17 clobbered
+// (not saved: 8 cycles per call). Only called through cmt_drive below, which tells the compiler.
+extern "C" void cmt_drive_avr();
 #endif
 
 PORT_INLINE void cmt_drive(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
                            const cmt_lead* l, uint16_t duty[3]) {
 #if defined(__AVR__)
-    cmt_drive_avr(mech14, speed_q8, drive, offset16, l, duty);
+    register uint16_t r_m __asm__("r24") = mech14;
+    register int32_t r_sp __asm__("r20") = speed_q8;
+    register int16_t r_d __asm__("r18") = drive;
+    register uint16_t r_o __asm__("r16") = offset16;
+    register uint16_t r_l __asm__("r14") = static_cast<uint16_t>(reinterpret_cast<uintptr_t>(l));
+    register uint16_t r_du __asm__("r12") =
+        static_cast<uint16_t>(reinterpret_cast<uintptr_t>(duty));
+    __asm__ __volatile__("call cmt_drive_avr"
+                         : "+r"(r_m), "+r"(r_sp), "+r"(r_d), "+r"(r_o)
+                         : "r"(r_l), "r"(r_du)
+                         : "r0", "r26", "r27", "r30", "r31", "memory");
 #else
     cmt_drive_c(mech14, speed_q8, drive, offset16, l, duty);
 #endif

@@ -5,8 +5,8 @@
 // `make -C firmware port-check` compares it with cmt_drive_c on the simulated ATmega2560.
 // Arguments: r24:r25 mech14, r20..r23 speed_q8, r18:r19 drive, r16:r17 offset16, r14:r15 l,
 // r12:r13 duty. Register use: r20:r21 k2, r22:r23 sine, r25 zero, r24 byte 1 of a product,
-// r27 / r19 / r18 the table indices of phases 0 / 1 / 2, results v0 r26:r27, v1 r16:r17 (saved),
-// v2 r30:r31.
+// r27 / r19 / r18 the table indices of phases 0 / 1 / 2, results v0 r26:r27, v1 r16:r17 (not
+// saved: cmt_drive declares them clobbered), v2 r30:r31.
 #include "cmt.h"
 
 #if defined(__AVR__)
@@ -71,11 +71,8 @@ static_assert(CMT_PWM_MID == 400 && CMT_ANGLE_90 == 0x4000u && CMT_ANGLE_120 == 
     "\n"                      \
     "1" n ":\n\t"
 
-extern "C" __attribute__((naked, used)) void cmt_drive_avr(uint16_t, int32_t, int16_t, uint16_t,
-                                                           const cmt_lead*, uint16_t*) {
+extern "C" __attribute__((naked, used)) void cmt_drive_avr() {
     __asm__ __volatile__(
-        "push r16\n\t"
-        "push r17\n\t"
         "movw r30, r14\n\t"  // Z = l
         // ---- electrical angle: ((mech & 0x3FFF) << 2) * pole_pairs - offset, mod 2^16: r26:r27
         "andi r25, 0x3F\n\t"
@@ -206,8 +203,6 @@ extern "C" __attribute__((naked, used)) void cmt_drive_avr(uint16_t, int32_t, in
         "st X+, r22\n\t"
         "st X, r23\n\t"
         "clr r1\n\t"
-        "pop r17\n\t"
-        "pop r16\n\t"
         "ret\n\t" ::);
 }
 #endif
