@@ -52,8 +52,12 @@ def energy(model, N, N_dot, omega_w, rest_length):
     }
 
 
-def angular_momentum(model, N, N_dot, omega_w):
-    """Total angular momentum about the origin, shape (3,), kg m^2/s (Eq. 16 plus translation)."""
+def angular_momentum_parts(model, N, N_dot, omega_w):
+    """Each body's angular momentum about the origin, shape (3, beta + n), kg m^2/s.
+
+    Columns: one per bar (translation of its centre, Eq. 16 rotation and its wheel's spin), then
+    one per node (its point mass; zero columns where there is none).
+    """
     st = model.structure
     B = N[:, st.bar_end] - N[:, st.bar_start]
     B_dot = N_dot[:, st.bar_end] - N_dot[:, st.bar_start]
@@ -62,7 +66,21 @@ def angular_momentum(model, N, N_dot, omega_w):
     w = wheel_speeds_per_bar(model, omega_w)
     h = model.m_t * np.cross(R, R_dot, axis=0) + model.J_t * np.cross(B, B_dot, axis=0)
     h = h + model.J_a * model.l * w * B
-    return np.sum(h, axis=1) + np.cross(N, N_dot, axis=0) @ model.m_node
+    return np.hstack([h, np.cross(N, N_dot, axis=0) * model.m_node])
+
+
+def angular_momentum(model, N, N_dot, omega_w):
+    """Total angular momentum about the origin, shape (3,), kg m^2/s (Eq. 16 plus translation)."""
+    return np.sum(angular_momentum_parts(model, N, N_dot, omega_w), axis=1)
+
+
+def momentum_scale(model, N, N_dot, omega_w):
+    """Sum of the bodies' angular momentum magnitudes, kg m^2/s: the scale for relative drift.
+
+    Unlike the total it does not vanish when the parts cancel (a structure whose wheel momenta
+    and motions sum to zero), so a drift relative to it stays meaningful there.
+    """
+    return float(np.sum(np.linalg.norm(angular_momentum_parts(model, N, N_dot, omega_w), axis=0)))
 
 
 def linear_momentum(model, N_dot):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrotensegrity import Model, SimulationError, scene_from_dict
+from gyrotensegrity import Model, SimulationError, diagnostics, scene_from_dict
 
 SCENES = Path(__file__).resolve().parents[3] / "scenes"
 SETTINGS = {
@@ -153,7 +153,9 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> d
     bar = float(np.max(np.abs(run["bar_length_error"]) / model.l))
     joint = float(np.max(run["joint_error"], initial=0.0))
     H = run["angular_momentum"]
-    scale = max(float(np.max(np.linalg.norm(H, axis=1))), 1e-300)
+    wheels = run["omega_w"][:, model.wheel_bars]  # the run file holds one column per bar
+    states = zip(run["N"], run["N_dot"], wheels, strict=True)
+    scale = max(max(diagnostics.momentum_scale(model, N, Nd, w) for N, Nd, w in states), 1e-300)
     finite = all(np.all(np.isfinite(run[k])) for k in ("N", "N_dot", "energy"))
     return {
         "status": "holds" if finite else "NaN",

@@ -156,7 +156,8 @@ def errors(variant: Variant, run: Trajectory, reference: Trajectory) -> dict:
     dict
         ``node_error_m`` (max over samples and nodes), ``bar_length_error`` (max relative),
         ``joint_error_m``, ``energy_drift`` (relative, None when the scene does work),
-        ``momentum_drift`` (relative to the largest |H| of the reference).
+        ``momentum_drift`` (relative to the largest sum of body momentum magnitudes of the
+        reference, :func:`gyrotensegrity.diagnostics.momentum_scale`).
     """
     m = variant.model
     k = len(run.t)
@@ -169,13 +170,8 @@ def errors(variant: Variant, run: Trajectory, reference: Trajectory) -> dict:
             for N, Nd, w in zip(run.N, run.N_dot, run.omega, strict=True)
         ]
     )
-    H_ref = np.array(
-        [
-            diagnostics.angular_momentum(m, N, Nd, w)
-            for N, Nd, w in zip(reference.N, reference.N_dot, reference.omega, strict=True)
-        ]
-    )
-    scale = max(float(np.max(np.linalg.norm(H_ref, axis=1))), 1e-300)
+    ref_states = zip(reference.N, reference.N_dot, reference.omega, strict=True)
+    scale = max(max(diagnostics.momentum_scale(m, N, Nd, w) for N, Nd, w in ref_states), 1e-300)
     energy = None
     if _conservative(m):
         rest = variant.inputs(0.0)[: m.alpha]
