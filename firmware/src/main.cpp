@@ -58,10 +58,10 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 2590 / 4575 / 4772 cycles min / mean / max = 29 % / 30 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 2376 / 4131 / 4301), with the
-        // PI and the commutation called without saving registers the step has saved; before that
-        // 2590 / 4741 / 4934 (2376 / 4296 / 4458). 1000 steps/s. Target 2400 not met: see
+        // included, 1,994 steps): 1837 / 3699 / 3869 cycles min / mean / max = 23 % / 24 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 1693 / 3359 / 3522), with the
+        // four wheels unrolled and the step inlined here (every address a constant); before that
+        // 2590 / 4575 / 4772 (2376 / 4131 / 4301). 1000 steps/s. Target 2400 not met: see
         // docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);

@@ -43,60 +43,70 @@ PORT_INLINE uint16_t app_err_mrad_s(int32_t e_q8, bool* neg) {
     return static_cast<uint16_t>(m + port_mulhi_u16(m, 32639u));
 }
 
+// One wheel of the step, I its constant index (the step calls it four times): with a constant
+// index and, on AVR, the state at a constant address (main.cpp passes &g_app and the step is
+// inlined there), every field is a fixed address (lds/sts) and no pointer or counter lives in
+// the stack frame across the calls into the PI and the commutation.
+template <uint8_t I, class Io>
+PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t& word) {
+    const uint8_t bit = static_cast<uint8_t>(1u << I);
+    if (I != 0) word = io.word(I);
+    io.next(0);
+    app_wheel* w = &a->w[I];
+    const app_ctl* c = &a->ctl;
+    const bool closed = c->closed;
+    bool disabled = false;
+    if (closed) {
+        const bool good = enc_even_parity(word) && !(word & 0x4000u);
+        const uint16_t fbit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 * bit);
+        disabled =
+            flt_encoder_sample_at(&a->flt, &a->flt.enc_bad[I], fbit, good, c->enc_fault_limit);
+        if (good) {
+            spd_update(&w->spd, word, c->spd_k);
+        } else {
+            spd_skip(&w->spd);
+            a->enc_clear |= bit;  // clear the sensor's error flag after the step
+        }
+    }
+    io.next(1);
+    uint16_t* pwm = a->pwm[I];
+    const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
+    if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {
+        if (!disabled && !closed && (w->sp_mrad_s != 0 || w->target_mrad_s != 0)) {
+            app_wheel_open(c, w, pwm);
+            enable |= bit;
+        } else {
+            app_wheel_off(w, pwm);
+        }
+        io.next(2);
+        io.next(3);
+    } else {
+        const int32_t speed_q8 = spd_q8(&w->spd);
+        bool neg;
+        const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
+        io.next(2);
+        const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
+        w->drive_q15 = drive;
+        io.next(3);
+        // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),
+        // the torque-producing vector 90 degrees ahead of (or behind) the rotor.
+        cmt_drive(w->spd.last_angle, speed_q8, drive, c->enc_offset[I], &c->lead, pwm);
+        enable |= bit;
+    }
+    io.next(4);
+}
+
+// The four wheels one after the other (unrolled: constant indices). Inline on AVR so that the
+// board's call with &g_app makes every address a constant.
 template <class Io>
-void app_control_step_io(app_state* a, Io& io) {
-    // Few values live across the loop (a, io, i, bit, enable, two flags): everything else is
-    // re-derived from i, so the arithmetic of a wheel keeps its temporaries in registers.
+PORT_INLINE void app_control_step_io(app_state* a, Io& io) {
     uint8_t enable = 0;
     a->enc_clear = 0;
     uint16_t word = io.first();
-    uint8_t bit = 1;
-    for (uint8_t i = 0; i < APP_WHEELS; i++, bit = static_cast<uint8_t>(bit << 1)) {
-        if (i != 0) word = io.word(i);
-        io.next(0);
-        app_wheel* w = &a->w[i];
-        const app_ctl* c = &a->ctl;
-        const bool closed = c->closed;
-        bool disabled = false;
-        if (closed) {
-            const bool good = enc_even_parity(word) && !(word & 0x4000u);
-            const uint16_t fbit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 * bit);
-            disabled =
-                flt_encoder_sample_at(&a->flt, &a->flt.enc_bad[i], fbit, good, c->enc_fault_limit);
-            if (good) {
-                spd_update(&w->spd, word, c->spd_k);
-            } else {
-                spd_skip(&w->spd);
-                a->enc_clear |= bit;  // clear the sensor's error flag after the step
-            }
-        }
-        io.next(1);
-        uint16_t* pwm = a->pwm[i];
-        const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
-        if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {
-            if (!disabled && !closed && (w->sp_mrad_s != 0 || w->target_mrad_s != 0)) {
-                app_wheel_open(c, w, pwm);
-                enable |= bit;
-            } else {
-                app_wheel_off(w, pwm);
-            }
-            io.next(2);
-            io.next(3);
-        } else {
-            const int32_t speed_q8 = spd_q8(&w->spd);
-            bool neg;
-            const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
-            io.next(2);
-            const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
-            w->drive_q15 = drive;
-            io.next(3);
-            // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),
-            // the torque-producing vector 90 degrees ahead of (or behind) the rotor.
-            cmt_drive(w->spd.last_angle, speed_q8, drive, c->enc_offset[i], &c->lead, pwm);
-            enable |= bit;
-        }
-        io.next(4);
-    }
+    app_wheel_step<0>(a, io, enable, word);
+    app_wheel_step<1>(a, io, enable, word);
+    app_wheel_step<2>(a, io, enable, word);
+    app_wheel_step<3>(a, io, enable, word);
     a->enable_mask = enable;
 }
 
