@@ -58,8 +58,8 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,994 steps): 1837 / 3699 / 3869 cycles min / mean / max = 23 % / 24 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 1693 / 3359 / 3522), with the
+        // included, 1,994 steps): 1825 / 3667 / 3889 cycles min / mean / max = 23 % / 24 % of the
+        // 16,000-cycle tick (without the UART ISRs that preempt it 1665 / 3324 / 3490), with the
         // four wheels unrolled and the step inlined here (every address a constant); before that
         // 2590 / 4575 / 4772 (2376 / 4131 / 4301). 1000 steps/s. Target 2400 not met: see
         // docs/hardware.md, "Control-step cycles".
