@@ -22,7 +22,7 @@
  * SPI timing: simavr 1.6 completes every SPDR write after a fixed 100 us (1,600 cycles) whatever
  * the SPI clock. The bench takes over the SPDR write like firmware/sim/fil_harness.c does: the
  * byte completes after 8 SCK periods (8 * SPI clock divider CPU cycles), the reply goes into
- * simavr's input register and SPIF is raised through simavr's interrupt vector.
+ * simavr's input register and SPIF is raised through simavr's interrupt vector (sim/sim_spi.h).
  */
 #include <stdint.h>
 #include <stdio.h>
@@ -35,6 +35,8 @@
 #include <simavr/sim_elf.h>
 #include <simavr/sim_io.h>
 #include <simavr/sim_irq.h>
+
+#include "../sim/sim_spi.h"
 
 #define ADDR_GPIOR0 0x3E
 #define ADDR_GPIOR1 0x4A
@@ -59,7 +61,6 @@ static uint64_t g_isr_all, g_isr_in_step, g_isr_outside;
 /* The step without the ISRs that preempted it */
 static uint64_t g_isr_this_step, g_pure_sum, g_pure_max, g_pure_min = UINT64_MAX;
 static avr_t* g_avr;
-static avr_spi_t* g_spi;
 static uint16_t g_angle, g_word;
 static int g_byte_index;
 static uint64_t* g_profile; /* cycles per flash word inside the control step (PROFILE=file) */
@@ -117,8 +118,9 @@ static uint16_t enc_word(uint16_t angle) {
     return (ones & 1) ? (uint16_t)(w | 0x8000) : w;
 }
 
-/* The encoder's reply byte to the byte the firmware just sent. */
-static uint8_t encoder_byte(void) {
+/* The encoder's reply byte to the byte the firmware just sent (the command itself is ignored). */
+static uint8_t encoder_byte(uint8_t mosi) {
+    (void)mosi;
     if (g_byte_index == 0) {
         uint8_t cs = g_avr->data[ADDR_PORTA] >> 4; /* active low, bit i = encoder i */
         int odd = !(cs & 0x1) ? 0 : !(cs & 0x2) ? 1 : !(cs & 0x4) ? 0 : 1;
@@ -129,31 +131,6 @@ static uint8_t encoder_byte(void) {
     uint8_t miso = g_byte_index == 0 ? (uint8_t)(g_word >> 8) : (uint8_t)g_word;
     g_byte_index ^= 1;
     return miso;
-}
-
-static avr_cycle_count_t spi_byte_done(avr_t* avr, avr_cycle_count_t when, void* param) {
-    (void)when;
-    (void)param;
-    g_spi->input_data_register = encoder_byte();
-    avr_raise_interrupt(avr, &g_spi->spi);
-    return 0;
-}
-
-static uint32_t spi_byte_cycles(avr_t* avr) {
-    static const uint32_t div[4] = {4, 16, 64, 128};
-    uint32_t d =
-        div[avr_regbit_get(avr, g_spi->spr[0]) | (avr_regbit_get(avr, g_spi->spr[1]) << 1)];
-    if (avr_regbit_get(avr, g_spi->spr[2])) d /= 2;
-    return 8 * d;
-}
-
-static void spdr_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
-    (void)param;
-    avr->data[addr] = v;
-    if (!avr_regbit_get(avr, g_spi->spe) || !avr_regbit_get(avr, g_spi->mstr)) return;
-    avr_regbit_clear(avr, g_spi->spi.raised);
-    avr_cycle_timer_cancel(avr, spi_byte_done, NULL);
-    avr_cycle_timer_register(avr, spi_byte_cycles(avr), spi_byte_done, NULL);
 }
 
 static uint16_t crc16(const uint8_t* d, int n) {
@@ -220,13 +197,7 @@ int main(int argc, char** argv) {
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
-    g_spi = (avr_spi_t*)avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param;
-    if (!g_spi || g_spi->r_spdr != ADDR_SPDR) {
-        fprintf(stderr, "SPI module not found at SPDR 0x%02x\n", ADDR_SPDR);
-        return 1;
-    }
-    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.c = spdr_write; /* replace simavr's 100 us transfer */
-    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param = NULL;
+    if (sim_spi_install(avr, ADDR_SPDR, encoder_byte) != 0) return 1; /* not simavr's 100 us */
     avr_irq_t* uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
                             uart_out, NULL);

@@ -39,6 +39,8 @@
 #include <simavr/sim_io.h>
 #include <simavr/sim_irq.h>
 
+#include "sim_spi.h"
+
 /* ATmega2560 data-space addresses (avr-libc iomxx0_1.h, I/O address + 0x20). */
 enum {
     ADDR_PORTA = 0x22,
@@ -262,43 +264,6 @@ static uint8_t slaves_exchange(uint8_t mosi) {
         miso &= out;
     }
     return miso;
-}
-
-/*
- * SPI master transfers. simavr 1.6 completes every SPDR write after a fixed 100 us whatever the
- * SPI clock (avr_spi.c: avr_cycle_timer_register_usec(avr, 100, ...)), which would charge the
- * firmware 1,600 cycles per byte instead of 8 SCK periods. The harness takes over the SPDR write:
- * the byte completes after 8 * (SPI clock divider) CPU cycles, the answer goes into simavr's input
- * register and SPIF is raised through simavr's own interrupt vector (so SPIE works too); the SPDR
- * read stays simavr's.
- */
-static avr_spi_t* g_spi;
-static uint8_t g_spi_mosi;
-
-static avr_cycle_count_t spi_byte_done(avr_t* avr, avr_cycle_count_t when, void* param) {
-    (void)when;
-    (void)param;
-    g_spi->input_data_register = slaves_exchange(g_spi_mosi);
-    avr_raise_interrupt(avr, &g_spi->spi);
-    return 0;
-}
-
-static uint32_t spi_byte_cycles(avr_t* avr) {
-    static const uint32_t div[4] = {4, 16, 64, 128};
-    uint32_t d =
-        div[avr_regbit_get(avr, g_spi->spr[0]) | (avr_regbit_get(avr, g_spi->spr[1]) << 1)];
-    if (avr_regbit_get(avr, g_spi->spr[2])) d /= 2;
-    return 8 * d;
-}
-
-static void spdr_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
-    (void)param;
-    avr->data[addr] = v;
-    if (!avr_regbit_get(avr, g_spi->spe) || !avr_regbit_get(avr, g_spi->mstr)) return;
-    avr_regbit_clear(avr, g_spi->spi.raised);
-    g_spi_mosi = v;
-    avr_cycle_timer_cancel(avr, spi_byte_done, NULL);
-    avr_cycle_timer_register(avr, spi_byte_cycles(avr), spi_byte_done, NULL);
 }
 
 /* ---------------------------------------------------------------- PWM timers */
@@ -861,14 +826,8 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
     }
     printf("PTY %s\n", g_pty.pty.slavename); /* after the link: the line means "ready" */
 
-    g_spi = (avr_spi_t*)avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param;
-    if (!g_spi || g_spi->r_spdr != ADDR_SPDR) {
-        fprintf(stderr, "fil_harness: SPI module not found at SPDR 0x%02x\n", ADDR_SPDR);
-        exit(1);
-    }
-    /* replace, not chain: avr_register_io_write() would add ours next to simavr's handler */
-    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.c = spdr_write;
-    avr->io[AVR_DATA_TO_IO(ADDR_SPDR)].w.param = NULL;
+    /* SPI bytes at the real SCK rate (sim_spi.h), answered by the four emulated encoders */
+    if (sim_spi_install(avr, ADDR_SPDR, slaves_exchange) != 0) exit(1);
     for (int i = 0; i < N_MOTORS; i++) {
         /* pin IRQs fire on changes only and start at 0: begin as "not selected" and let the
            firmware's first high write be a no-op, its first low write a frame start */
