@@ -29,21 +29,6 @@ def test_batched_dynamics_equals_reference_rhs(model, config, moving_state):
     assert np.max(np.abs(f[L.q_dot] - ref[ML.q_dot])) < 1e-12 * np.max(np.abs(ref[ML.q_dot]))
 
 
-def test_estimator_and_model_fast_paths_agree(model, config, moving_state):
-    x, _, u = moving_state
-    ekf = TensegrityEKF(model, config, x0=x)
-    L, pm = ekf.layout, ekf.process
-    X = (x[: L.n_dynamic] + 1e-3j * np.eye(L.n_dynamic))[:5]  # complex batch
-    args = (
-        X[:, L.q].reshape(5, 3, model.m),
-        X[:, L.q_dot].reshape(5, 3, model.m),
-        X[:, L.omega],
-        X[:, L.rest],
-    )
-    for mine, theirs in zip(pm.dyn.accelerations(*args), pm.fast.accelerations(*args), strict=True):
-        assert np.max(np.abs(mine - theirs)) < 1e-12 * np.max(np.abs(mine))
-
-
 def test_complex_step_A_matches_finite_differences_of_reference_rhs(model, config, moving_state):
     x, _, u = moving_state
     ekf = TensegrityEKF(model, config, x0=x)

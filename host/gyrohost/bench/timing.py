@@ -84,9 +84,8 @@ def ekf_budget(model: Model, repeats=5, target_s=0.05, dt=0.01):
     """What the EKF needs per IMU sample (``dt`` s): one RK4 process step over dt (4 batched
     derivative calls, as the estimator's lean model), and the Jacobian ``A = df/dx`` by one
     batched complex-step call over all dynamic states (positions, velocities, torque-wheel
-    spins, rest lengths); for the estimator's ``BatchDynamics`` and for :class:`FastDynamics`
-    (same ``accelerations(q, q_dot, omega_w, rest)`` interface)."""
-    from gyrohost.estimator.fast_dynamics import BatchDynamics
+    spins, rest lengths); for :class:`FastDynamics`, the estimator's dynamics, against its own
+    numpy path as the baseline (``kernel=False``: batched numpy for every call)."""
 
     L, m, alpha = model.layout, model.m, model.alpha
     x, u = model.initial_state(), model.input_at(0.0)
@@ -104,7 +103,7 @@ def ekf_budget(model: Model, repeats=5, target_s=0.05, dt=0.01):
     R[6 * m + L.n_torque + np.arange(alpha), np.arange(alpha)] += h
     out = {}
     for name, dyn in (
-        ("BatchDynamics (estimator)", BatchDynamics(model)),
+        ("FastDynamics, numpy path", FastDynamics(model, kernel=False)),
         ("FastDynamics", FastDynamics(model)),
     ):
 

@@ -3,7 +3,8 @@
 ``f(x + i h e_j) = f(x) + i h df/dx_j + O(h^2)`` for a function analytic in its argument, so with
 ``h = 1e-20`` the imaginary part divided by ``h`` is the derivative to machine precision and the
 real part is ``f(x)``. The functions differentiated here are written complex-safe (see
-:mod:`.fast_dynamics`); tests check the results against central finite differences.
+:class:`gyrotensegrity.fast.FastDynamics`); tests check the results against central finite
+differences.
 """
 
 import numpy as np

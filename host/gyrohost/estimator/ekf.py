@@ -22,13 +22,12 @@ from gyrotensegrity import SimulationError
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .errors import EstimatorError
-from .fast_dynamics import check_model
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
 from .layout import from_model_state, layout_of
 from .manifold import Manifold
-from .process_model import ProcessModel
+from .process_model import ProcessModel, check_model
 from .timeouts import SourceMonitor
 
 SOURCES = (
@@ -146,7 +145,8 @@ class TensegrityEKF:
         L, K = self.layout, X.shape[0]
         q = X[:, L.q].reshape(K, 3, L.m)
         q_dot = X[:, L.q_dot].reshape(K, 3, L.m)
-        return self.process.dyn.nodes(q, q_dot)
+        dyn = self.process.dyn
+        return dyn.N_fix + dyn.node_values(q), dyn.node_values(q_dot)
 
     def attitude(self):
         """Sensor axes in the world (3, 3) and Z-Y-X angles (3,) rad of the estimate."""

@@ -7,10 +7,11 @@ Two variants (``process_method``):
     the RK4 step of the linearised dynamics, ``F = I + A dt + (A dt)^2/2 + (A dt)^3/6 +
     (A dt)^4/24`` (equal to ``exp(A dt)`` to 1e-3 here: the eigenvalues of ``A dt`` stay below
     0.6 although ``|A dt|`` ~ 30; scipy's ``expm`` gave the same F at 50 times the cost), with
-    ``A = df/dx`` from one batched complex-step evaluation (:class:`~.fast_dynamics.BatchDynamics`)
-    -- the one the accelerometer fusion has just made at the prior when there is one (the
-    posterior differs from it by the update only), else a fresh one. Where a string turns
-    taut or slack within the step the true Jacobian jumps and this F is only an average.
+    ``A = df/dx`` from one batched complex-step evaluation
+    (:class:`gyrotensegrity.fast.FastDynamics`) -- the one the accelerometer fusion has just
+    made at the prior when there is one (the posterior differs from it by the update only),
+    else a fresh one. Where a string turns taut or slack within the step the true Jacobian
+    jumps and this F is only an average.
 ``rk4``
     RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator), differentiated
     exactly by pushing the complex-step batch through every stage; about 40 times the cost.
@@ -28,14 +29,17 @@ response); the gyro bias is constant. Process noise is white: node accelerations
 import numpy as np
 from scipy.special import ndtr
 
-from . import complex_step
-from .fast_dynamics import BatchDynamics
+from gyrotensegrity.fast import FastDynamics
 
-try:
-    from gyrotensegrity.fast import FastDynamics
-except ImportError:  # an older gyrotensegrity: the estimator's own batched dynamics
-    FastDynamics = None
+from . import complex_step
+from .errors import EstimatorConfigError
 from .layout import layout_of
+
+
+def check_model(model) -> None:
+    """Raise :class:`EstimatorConfigError` for models the estimator does not support."""
+    if model.beta == 0:
+        raise EstimatorConfigError(f"scene {model.scene.name!r}: the estimator needs bars")
 
 
 class ProcessModel:
@@ -50,10 +54,9 @@ class ProcessModel:
     def __init__(self, model, config):
         self.model = model
         self.config = config
-        self.dyn = BatchDynamics(model)
-        # the model's own fast path (same equations and interface, compiled kernel when built;
-        # about half the cost); BatchDynamics stays the fallback and the tests' cross-check
-        self.fast = FastDynamics(model) if FastDynamics is not None else self.dyn
+        # the model's fast path: batched and complex-step safe, the compiled kernel for real
+        # single states; tests/model/test_fast.py compares it with the reference rhs
+        self.dyn = FastDynamics(model)
         self.layout = layout_of(model)
         self.columns = np.arange(self.layout.n_dynamic)
         self._noise: dict[float, np.ndarray] = {}
@@ -76,7 +79,7 @@ class ProcessModel:
         q = X[:, L.q].reshape(K, 3, m)
         q_dot = X[:, L.q_dot].reshape(K, 3, m)
         rest = X[:, L.rest]
-        eta2_ddot, N_ddot = self.fast.accelerations(q, q_dot, X[:, L.omega], rest)
+        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], rest)
         dx = np.empty_like(X)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
@@ -201,7 +204,7 @@ class ProcessModel:
         X = np.tile(x[: L.n_dynamic].astype(complex), (alpha, 1))
         X[:, L.rest] = rest - np.maximum(-margin, 0.0) - 1e-3
         X[np.arange(alpha), L.rest.start + np.arange(alpha)] += 1j * complex_step.STEP
-        a, _ = self.fast.accelerations(
+        a, _ = self.dyn.accelerations(
             X[:, L.q].reshape(alpha, 3, m),
             X[:, L.q_dot].reshape(alpha, 3, m),
             X[:, L.omega],
@@ -216,8 +219,9 @@ class ProcessModel:
     def string_lengths(self, x):
         """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""
         L, dyn = self.layout, self.dyn
-        Y = x[L.q].reshape(3, L.m) @ dyn.E_all[:, dyn.beta :] + dyn.Y0[:, dyn.beta :]
-        Y_dot = x[L.q_dot].reshape(3, L.m) @ dyn.E_all[:, dyn.beta :]
+        # bar and string vectors are EE_T(q) + off (bars first); keep the strings
+        Y = (dyn.EE_T(x[L.q].reshape(3, L.m)) + dyn.off)[:, dyn.beta :]
+        Y_dot = dyn.EE_T(x[L.q_dot].reshape(3, L.m))[:, dyn.beta :]
         s = np.sqrt((Y * Y).sum(axis=0))
         return s, (Y * Y_dot).sum(axis=0) / s
 

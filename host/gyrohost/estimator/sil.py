@@ -92,12 +92,12 @@ def score_log(folder) -> RunResult:
     node_cols = [f"{name}_{a}_m" for name in st.node_names for a in "xyz"]
     wheel_cols = [f"omega_{i}_rad_s" for i in range(L.n_wheels)]
     rest_cols = [streams.rest_column(s.name) for s in model.scene.strings]
-    U2T = ekf.process.dyn.U2T
+    U2 = ekf.model.U2.toarray()  # (n, m): N = N_fix + q U2^T
 
     def truth_at(e):
         N = _truth_at(truth, e.t, node_cols).reshape(st.n, 3).T  # virtual nodes repeat
         x_true = e.x.copy()
-        x_true[L.q] = np.linalg.lstsq(U2T.T, N.T, rcond=None)[0].T.ravel()  # N = N_fix + q U2^T
+        x_true[L.q] = np.linalg.lstsq(U2, N.T, rcond=None)[0].T.ravel()  # N = N_fix + q U2^T
         x_true[L.omega] = _truth_at(truth, e.t, wheel_cols)
         x_true[L.rest] = _truth_at(truth, e.t, rest_cols)
         R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
