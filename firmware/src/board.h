@@ -32,12 +32,15 @@
 #define BOARD_EN_SHIFT 0
 #define BOARD_EN_MASK 0x0Fu
 
-// ---- Encoders: AS5048A on SPI (mode 1, MSB first, clk/4 = 4 MHz; the sensor allows 10 MHz).
+// ---- Encoders: AS5048A on SPI (mode 1, MSB first, clk/2 = 8 MHz with SPI2X; the sensor allows
+// 10 MHz). On long encoder leads set BOARD_SPI_SPSR to 0 (clk/4 = 4 MHz): every byte of the
+// control step's encoder reads then takes 32 instead of 16 cycles (about 100 more per step).
 // SPI master pins: PB0 SS (D53, kept as output so the SPI stays master), PB1 SCK (D52),
 // PB2 MOSI (D51), PB3 MISO (D50). Chip selects M0..M3: PA4..PA7 (D26..D29), active low.
 #define BOARD_SPI_DDR DDRB
 #define BOARD_SPI_OUT_PINS (_BV(PB0) | _BV(PB1) | _BV(PB2))
 #define BOARD_SPI_SPCR (_BV(SPE) | _BV(MSTR) | _BV(CPHA))
+#define BOARD_SPI_SPSR _BV(SPI2X)
 #define BOARD_CS_PORT PORTA
 #define BOARD_CS_DDR DDRA
 #define BOARD_CS_SHIFT 4

@@ -1,6 +1,6 @@
 // board_enc_io.h - the encoder reads of the control step (app_step.h's Io) on the SPI master:
 // encoder 0 is read at once, encoder i+1 in five stages between the arithmetic of wheel i, so the
-// 8 SCK periods of each byte (32 cycles at clk/4) run while the CPU computes instead of polling.
+// 8 SCK periods of each byte (16 cycles at clk/2) run while the CPU computes instead of polling.
 // Frames as enc.h and board_spi.cpp: per encoder a command frame and a reply frame (0xFFFF each),
 // CS high >= 375 ns between them, CS low >= 375 ns before the clock.
 #ifndef BOARD_ENC_IO_H

@@ -15,7 +15,7 @@ void spi_init() {
     BOARD_CS_DDR |= BOARD_CS_MASK;
     BOARD_SPI_DDR |= BOARD_SPI_OUT_PINS;
     SPCR = BOARD_SPI_SPCR;
-    SPSR = 0;
+    SPSR = BOARD_SPI_SPSR;
 }
 
 static inline __attribute__((always_inline)) uint8_t spi_xfer(uint8_t out) {
@@ -25,7 +25,7 @@ static inline __attribute__((always_inline)) uint8_t spi_xfer(uint8_t out) {
     return SPDR;
 }
 
-// One 16-bit frame; the 8 SCK periods of each byte (32 cycles at clk/4) are the bulk of it.
+// One 16-bit frame; the 8 SCK periods of each byte (16 cycles at clk/2) are the bulk of it.
 static inline __attribute__((always_inline)) uint16_t enc_frame(uint8_t cs_bit, uint16_t cmd) {
     BOARD_CS_PORT &= static_cast<uint8_t>(~cs_bit);
     spi_wait_350ns();

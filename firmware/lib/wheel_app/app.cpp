@@ -30,6 +30,15 @@ static void app_send_param(app_state* a, uint8_t id) {
     app_send(a, PROTO_ID_PARAM_VALUE, p, sizeof p);
 }
 
+static void app_update_run_mask(app_state* a) {
+    uint8_t m = 0;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) {
+        if (a->w[i].sp_mrad_s != 0 || a->w[i].target_mrad_s != 0)
+            m |= static_cast<uint8_t>(1u << i);
+    }
+    a->run_mask = m;
+}
+
 static void app_reset_wheel(app_wheel* w) {
     spd_init(&w->spd);
     pi_reset(&w->pi);
@@ -77,6 +86,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->stopping = 0;
     a->enable_mask = 0;
     a->enc_clear = 0;
+    a->run_mask = 0;
     if (!prm_init(&a->prm, ee)) boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
     app_load_ctl(a);
     flt_set(&a->flt, boot_faults);
@@ -100,6 +110,7 @@ static void app_on_set_speeds(app_state* a, const uint8_t* p) {
     }
     for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = sp[i];
     a->stopping = 0;
+    app_update_run_mask(a);
 }
 
 static void app_on_param_set(app_state* a, const uint8_t* p) {
@@ -119,6 +130,7 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
         app_load_ctl(a);
         if (structural) {
             for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
+            app_update_run_mask(a);
         }
         app_send_param(a, id);
     }
@@ -129,6 +141,7 @@ static void app_on_simple(app_state* a, uint8_t id) {
         case PROTO_ID_STOP_ALL:
             for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
             a->stopping = 1;
+            app_update_run_mask(a);
             app_send_ack(a, id);
             break;
         case PROTO_ID_PARAM_SAVE:
@@ -145,6 +158,7 @@ static void app_on_simple(app_state* a, uint8_t id) {
                 prm_defaults(&a->prm);
                 app_load_ctl(a);
                 for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
+                app_update_run_mask(a);
                 app_send_ack(a, id);
             }
             break;
@@ -267,6 +281,7 @@ void app_setpoints_tick(app_state* a) {
         w->sp_q8 = spd_mrad_s_to_q8(w->sp_mrad_s);
         if (w->target_mrad_s != 0) w->stop_ticks = 0;  // a new setpoint ends a stop
     }
+    app_update_run_mask(a);
 }
 
 bool app_brake_on(app_wheel* w, bool was_enabled) {

@@ -82,6 +82,9 @@ struct app_state {
     uint8_t stopping;             // STOP_ALL in progress: ramp with DECEL
     uint16_t pwm[APP_WHEELS][3];  // compare values 0..CMT_PWM_TOP
     uint8_t enable_mask;          // bit w: driver stage of wheel w enabled
+    // Bit w: ramped setpoint or target of wheel w nonzero (app_update_run_mask, wherever either
+    // changes), so that the step tests one bit instead of two 32-bit values per wheel.
+    uint8_t run_mask;
     // Bit w: encoder w answered a bad word (error flag or parity) in this step; the board sends it
     // ENC_CMD_CLEAR_ERROR after the step, whose reply (the error register) comes in the next
     // step's command frame and is not used.

@@ -71,9 +71,9 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
     }
     io.next(1);
     uint16_t* pwm = a->pwm[I];
-    const bool idle = w->sp_mrad_s == 0 && w->target_mrad_s == 0;
-    if (disabled || !closed || (idle && !app_brake_on(w, a->enable_mask & bit))) {
-        if (!disabled && !closed && (w->sp_mrad_s != 0 || w->target_mrad_s != 0)) {
+    const bool run = a->run_mask & bit;
+    if (disabled || !closed || (!run && !app_brake_on(w, a->enable_mask & bit))) {
+        if (!disabled && !closed && run) {
             app_wheel_open(c, w, pwm);
             enable |= bit;
         } else {
