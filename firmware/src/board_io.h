@@ -18,11 +18,6 @@ void enc_clear_errors(uint8_t mask);
 
 void uart_init();
 bool uart_tx_frame(const uint8_t* data, uint8_t len);  // whole frame or nothing, never blocks
-// Pause the transmitter's interrupt (the byte in the shift register still goes out) and resume
-// it: the main loop holds it during the control step, so that no UDRE interrupt (63 cycles a
-// byte) lengthens the step or delays its PWM; the receiver keeps its interrupt.
-void uart_tx_hold();
-void uart_tx_release();
 bool uart_rx_pop(uint8_t* byte);
 bool uart_rx_take_overflow();  // true once after the RX ring overflowed
 

@@ -61,15 +61,6 @@ bool uart_tx_frame(const uint8_t* data, uint8_t len) {
     return true;
 }
 
-void uart_tx_hold() {
-    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
-}
-
-void uart_tx_release() {
-    // UDRIE0 is clear here, so the UDRE ISR cannot race this read-modify-write.
-    if (tx_head != tx_tail) UCSR0B |= _BV(UDRIE0);
-}
-
 bool uart_rx_pop(uint8_t* byte) {
     uint8_t t = rx_tail;
     if (t == rx_head) return false;

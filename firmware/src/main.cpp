@@ -63,11 +63,9 @@ int main() {
         // four wheels unrolled and the step inlined here (every address a constant); before that
         // 2590 / 4575 / 4772 (2376 / 4131 / 4301). 1000 steps/s. Target 2400 not met: see
         // docs/hardware.md, "Control-step cycles".
-        uart_tx_hold();
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
-        uart_tx_release();
         pwm_apply(g_app.pwm, g_app.enable_mask);
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step

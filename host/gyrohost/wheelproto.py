@@ -12,7 +12,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-PROTO_VERSION = 1
+PROTO_VERSION = 2
 MAX_PAYLOAD = 40
 MAX_RAW = 1 + MAX_PAYLOAD + 2
 MAX_ENCODED = MAX_RAW + 1
@@ -171,8 +171,8 @@ def _p(name: str, pid: int, default: int, lo: int, hi: int, unit: str) -> ParamS
 PARAMS: tuple[ParamSpec, ...] = (
     _p("MODE", 0, 0, 0, 1, "-"),
     _p("POLE_PAIRS", 1, 7, 1, 40, "-"),
-    _p("KP_Q8", 2, 80, 0, 32767, "Q15/(mrad/s)/256"),
-    _p("KI_Q8", 3, 2, 0, 32767, "Q15/(mrad/s)/256/tick"),
+    _p("KP", 2, 120, 0, 65535, "Q15/(count/tick)"),
+    _p("KI", 3, 3, 0, 65535, "Q15/(count/tick)/tick"),
     _p("DRIVE_MAX_Q15", 4, 16384, 0, 32767, "Q15"),
     _p("SLEW_Q15", 5, 1000, 1, 32767, "Q15/tick"),
     _p("SPEED_MAX_MRAD_S", 6, 157080, 0, 400000, "mrad/s"),

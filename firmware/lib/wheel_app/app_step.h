@@ -32,15 +32,13 @@ void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
 // turns at APP_STOP_Q8 or more and APP_STOP_TICKS have not passed; the loop then brakes on.
 bool app_brake_on(app_wheel* w, bool was_enabled);
 
-// PI error from q8 to mrad/s as sign and magnitude clamped to PI_ERR_CLAMP: 43748 q8 is
-// 65535.4 mrad/s; n * 98175 / 65536 = n + (n * 32639 >> 16), one 16 x 16 multiply.
-#define APP_ERR_CLAMP_Q8 43748L
-PORT_INLINE uint16_t app_err_mrad_s(int32_t e_q8, bool* neg) {
+// PI error in q8 (the gains KP, KI are per encoder count per tick) as sign and magnitude
+// clamped to PI_ERR_CLAMP (65535 q8 = 98 rad/s, where a sane KP saturates the drive anyway).
+PORT_INLINE uint16_t app_err_q8(int32_t e_q8, bool* neg) {
     *neg = e_q8 < 0;
     uint32_t n = *neg ? 0u - static_cast<uint32_t>(e_q8) : static_cast<uint32_t>(e_q8);
-    if (n > static_cast<uint32_t>(APP_ERR_CLAMP_Q8)) return static_cast<uint16_t>(PI_ERR_CLAMP);
-    uint16_t m = static_cast<uint16_t>(n);
-    return static_cast<uint16_t>(m + port_mulhi_u16(m, 32639u));
+    return n > static_cast<uint32_t>(PI_ERR_CLAMP) ? static_cast<uint16_t>(PI_ERR_CLAMP)
+                                                   : static_cast<uint16_t>(n);
 }
 
 // One wheel of the step, I its constant index (the step calls it four times): with a constant
@@ -84,7 +82,7 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
     } else {
         const int32_t speed_q8 = spd_q8(&w->spd);
         bool neg;
-        const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
+        const uint16_t mag = app_err_q8(w->sp_q8 - speed_q8, &neg);
         io.next(2);
         const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
         w->drive_q15 = drive;

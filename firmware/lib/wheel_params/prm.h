@@ -18,7 +18,7 @@ enum prm_id : uint8_t {
 };
 
 #define PRM_COUNT 19
-#define PRM_LAYOUT_VERSION 1
+#define PRM_LAYOUT_VERSION 2
 #define PRM_IMAGE_SIZE (4 + 4 * PRM_COUNT + 2)
 
 // The EEPROM behind a tiny interface: the board implements it on avr-libc, tests on a RAM array.

@@ -233,8 +233,8 @@ TEST_F(AppTest, ParamGetSetErrorsAndBusy) {
     EXPECT_EQ(proto_get_i32(&last(PROTO_ID_PARAM_VALUE)->payload[1]), 7);
     send(PROTO_ID_PARAM_GET, {200});
     expect_error(PROTO_ID_PARAM_GET, PROTO_ERR_UNKNOWN_PARAM, 200);
-    set_param(PRM_KP_Q8, -1);
-    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, PRM_KP_Q8);
+    set_param(PRM_KP, -1);
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, PRM_KP);
     set_param(PRM_COUNT, 1);
     expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_UNKNOWN_PARAM, PRM_COUNT);
     set_param(PRM_MODE, 1);
@@ -243,7 +243,7 @@ TEST_F(AppTest, ParamGetSetErrorsAndBusy) {
     set_param(PRM_MODE, 0);  // structural change while running
     expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_BUSY, PRM_MODE);
     EXPECT_EQ(app.prm.v[PRM_MODE], 1);
-    set_param(PRM_KP_Q8, 300);  // gains may change while running
+    set_param(PRM_KP, 300);  // gains may change while running
     EXPECT_EQ(proto_get_i32(&last(PROTO_ID_PARAM_VALUE)->payload[1]), 300);
 }
 
@@ -576,22 +576,23 @@ TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
 
 namespace {
 
-// The PI error in mrad/s from q8 at the clamp and the int32 extremes the step can form.
-TEST(AppStep, ErrorConversionAtExtremes) {
+// The PI error in q8 as sign and magnitude at the clamp and the int32 extremes the step can form.
+TEST(AppStep, ErrorAtExtremes) {
     bool neg = true;
-    EXPECT_EQ(app_err_mrad_s(0, &neg), 0);
+    EXPECT_EQ(app_err_q8(0, &neg), 0);
     EXPECT_FALSE(neg);
-    EXPECT_EQ(app_err_mrad_s(1, &neg), 1);  // 1.498 mrad/s
-    EXPECT_EQ(app_err_mrad_s(-1, &neg), 1);
+    EXPECT_EQ(app_err_q8(1, &neg), 1);
+    EXPECT_EQ(app_err_q8(-1, &neg), 1);
     EXPECT_TRUE(neg);
-    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8, &neg), 65535);  // 65535.9: the clamp itself
-    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8 + 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(-APP_ERR_CLAMP_Q8 - 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(INT32_MAX, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(INT32_MIN + 1, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_q8(PI_ERR_CLAMP, &neg), 65535);
+    EXPECT_EQ(app_err_q8(PI_ERR_CLAMP + 1, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_q8(-PI_ERR_CLAMP - 1, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_q8(INT32_MAX, &neg), PI_ERR_CLAMP);
+    EXPECT_EQ(app_err_q8(INT32_MIN + 1, &neg), PI_ERR_CLAMP);
     EXPECT_TRUE(neg);
-    for (int32_t e = -APP_ERR_CLAMP_Q8; e <= APP_ERR_CLAMP_Q8; e += 7) {
-        ASSERT_EQ(app_err_mrad_s(e, &neg), (static_cast<int64_t>(e < 0 ? -e : e) * 98175) >> 16);
+    for (int32_t e = -70000; e <= 70000; e += 7) {
+        const int32_t m = e < 0 ? -e : e;
+        ASSERT_EQ(app_err_q8(e, &neg), m > 65535 ? 65535 : m);
         ASSERT_EQ(neg, e < 0);
     }
 }

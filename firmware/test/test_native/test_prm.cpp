@@ -28,7 +28,7 @@ TEST(Prm, SaveIsNonBlockingAndReloads) {
     FakeEeprom::busy_polls = 3;
     prm_store s;
     prm_init(&s, &FakeEeprom::iface);
-    prm_set(&s, PRM_KP_Q8, 1234);
+    prm_set(&s, PRM_KP, 1234);
     prm_set(&s, PRM_SPEED_MAX_MRAD_S, 314159);
     prm_save_begin(&s);
     int polls = 0, done = 0;
@@ -42,7 +42,7 @@ TEST(Prm, SaveIsNonBlockingAndReloads) {
     EXPECT_GT(polls, PRM_IMAGE_SIZE * 3);  // waited for the busy EEPROM
     prm_store t;
     EXPECT_TRUE(prm_init(&t, &FakeEeprom::iface));
-    EXPECT_EQ(t.v[PRM_KP_Q8], 1234);
+    EXPECT_EQ(t.v[PRM_KP], 1234);
     EXPECT_EQ(t.v[PRM_SPEED_MAX_MRAD_S], 314159);
     // Saving the same values again writes nothing (update semantics).
     int w = FakeEeprom::writes;
@@ -56,13 +56,13 @@ TEST(Prm, SaveIsNonBlockingAndReloads) {
 TEST(Prm, CorruptImagesRejected) {
     prm_store s;
     prm_defaults(&s);
-    s.v[PRM_KI_Q8] = 77;
+    s.v[PRM_KI] = 77;
     uint8_t good[PRM_IMAGE_SIZE];
     prm_image_build(&s, good);
     prm_store t;
     prm_defaults(&t);
     ASSERT_TRUE(prm_image_parse(&t, good));
-    EXPECT_EQ(t.v[PRM_KI_Q8], 77);
+    EXPECT_EQ(t.v[PRM_KI], 77);
     for (int i = 0; i < PRM_IMAGE_SIZE; i++) {  // any flipped byte (magic, version, count,
         uint8_t bad[PRM_IMAGE_SIZE];            // value or CRC) is caught
         for (int k = 0; k < PRM_IMAGE_SIZE; k++) bad[k] = good[k];
@@ -70,7 +70,7 @@ TEST(Prm, CorruptImagesRejected) {
         prm_store u;
         prm_defaults(&u);
         EXPECT_FALSE(prm_image_parse(&u, bad)) << "byte " << i;
-        EXPECT_EQ(u.v[PRM_KI_Q8], prm_default(PRM_KI_Q8));
+        EXPECT_EQ(u.v[PRM_KI], prm_default(PRM_KI));
     }
 }
 

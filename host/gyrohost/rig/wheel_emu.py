@@ -381,8 +381,9 @@ class WheelBoardEmulator(PtyDevice):
                 continue
             if raw_rad_s is not None:
                 self.measured[i] += (raw_rad_s - self.measured[i]) * gain
-            error_mrad_s = self.setpoints[i] - self.measured[i] * 1000.0
-            drive = int(p[_P["KP_Q8"]] * error_mrad_s / 256.0) if self.enabled[i] else 0
+            error_rad_s = self.setpoints[i] / 1000.0 - self.measured[i]
+            error_counts_per_tick = error_rad_s / wp.TICK_HZ / RAD_PER_COUNT  # KP's unit
+            drive = int(p[_P["KP"]] * error_counts_per_tick) if self.enabled[i] else 0
             self.drive[i] = max(-drive_max, min(drive, drive_max))
 
     def _encoder_speed(self, i: int) -> float | None:
