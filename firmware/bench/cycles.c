@@ -15,9 +15,9 @@
  * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, telemetry
  * frame), the ISR load per tick and the CPU load per tick (that work plus the ISRs outside it).
  *
- * UART timing: simavr 1.6 sends a byte every 704 cycles (44 us) at UBRR0 = 3 with U2X, where the
- * ATmega2560 takes 20 us (500 kbaud): the 500 Hz telemetry keeps simavr's UART 83 % busy, so its
- * TX interrupt lands in most steps here, more often than on the board.
+ * UART timing: simavr 1.6 sends a byte every 22 us at UBRR0 = 1 with U2X (it ignores U2X and
+ * counts 11 bits), where the ATmega2560 takes 10 us (1 Mbaud): the bench sets the chip's byte
+ * time (sim/sim_uart.h), so the TX interrupts land in the steps as often as on the board.
  *
  * SPI timing: simavr 1.6 completes every SPDR write after a fixed 100 us (1,600 cycles) whatever
  * the SPI clock. The bench takes over the SPDR write like firmware/sim/fil_harness.c does: the
@@ -37,6 +37,7 @@
 #include <simavr/sim_irq.h>
 
 #include "../sim/sim_spi.h"
+#include "../sim/sim_uart.h"
 
 #define ADDR_GPIOR0 0x3E
 #define ADDR_GPIOR1 0x4A
@@ -49,6 +50,7 @@ typedef struct {
 } isr_stat_t;
 
 #define ADDR_SPDR 0x4E
+#define ADDR_UDR0 0xC6
 #define ADDR_PORTA 0x22
 #define TICK_CYCLES 16000u
 
@@ -220,7 +222,7 @@ int main(int argc, char** argv) {
     while (avr->cycle < end) {
         if (sent < ntx && avr->cycle >= next_byte) {
             avr_raise_irq(uart_in, tx[sent++]);
-            next_byte = avr->cycle + 400; /* a little slower than 500 kbaud */
+            next_byte = avr->cycle + 400; /* 25 us: the host sends little */
         }
         uint32_t pc = avr->pc;
         for (int k = 0; k < 3; k++) {
@@ -233,6 +235,7 @@ int main(int argc, char** argv) {
         }
         uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
         uint64_t c0 = avr->cycle;
+        sim_uart_chip_timing(avr, ADDR_UDR0); /* not simavr's 22 us per byte */
         int state = avr_run(avr);
         if (g_profile && g_mark_start) g_profile[pc >> 1] += avr->cycle - c0;
         if (op == 0x9518) { /* reti */

@@ -40,6 +40,7 @@
 #include <simavr/sim_irq.h>
 
 #include "sim_spi.h"
+#include "sim_uart.h"
 
 /* ATmega2560 data-space addresses (avr-libc iomxx0_1.h, I/O address + 0x20). */
 enum {
@@ -47,6 +48,7 @@ enum {
     ADDR_DDRA = 0x21,
     ADDR_GPIOR0 = 0x3E,
     ADDR_SPDR = 0x4E,
+    ADDR_UDR0 = 0xC6,
 };
 
 #define N_MOTORS 4
@@ -441,7 +443,7 @@ static avr_cycle_count_t model_timer(avr_t* avr, avr_cycle_count_t when, void* p
  * thread and silently drops bytes when that FIFO is full: a busy host (two cores, a test runner,
  * builds) lost telemetry bytes that way. Back-pressure instead: while the FIFO is more than half
  * full the simulation waits for the pty thread, as a UART would wait for a slow reader's USB
- * bridge. Checked every simulated millisecond (18 bytes of telemetry at 500 kbaud and 500 Hz).
+ * bridge. Checked every simulated millisecond (19 bytes of telemetry per ms at 1 Mbaud and 500 Hz).
  */
 static unsigned uart_out_fill(void) {
     return (unsigned)(g_pty.pty.in.write - g_pty.pty.in.read) & (uart_pty_fifo_fifo_size - 1);
@@ -465,6 +467,7 @@ static void uart_backpressure(void) {
 
 static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)param;
+    sim_uart_chip_timing(avr, ADDR_UDR0); /* the chip's byte time, not simavr's (sim_uart.h) */
     uart_backpressure();
     if (g_rate > 0) {
         double ahead = sim_time_s() / g_rate - (now_s() - g_wall_t0);

@@ -1,4 +1,4 @@
-// board_uart.cpp - UART0 at 500000 baud with interrupt-driven RX and TX rings.
+// board_uart.cpp - UART0 at 1000000 baud with interrupt-driven RX and TX rings.
 // Single producer / single consumer per ring with 8-bit indices: each index is written by one
 // side only and 8-bit loads/stores are atomic on AVR, so no interrupt locking is needed.
 #include <avr/interrupt.h>

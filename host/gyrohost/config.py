@@ -107,7 +107,7 @@ class WheelboardConfig:
     """Wheel board link (fields beyond port and baud belong to the wheel-board driver)."""
 
     port: str = "/dev/ttyACM0"
-    baud: int = field(default=500_000, metadata=_spec(lo=1200, hi=4_000_000))
+    baud: int = field(default=1_000_000, metadata=_spec(lo=1200, hi=4_000_000))
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ def test_simulated_rig_file():
     cfg = load_rig_config(ROOT / "configs/sim-rig.toml")
     assert cfg.imu.port == cfg.servos.port == cfg.wheelboard.port == EMULATED_PORT
     assert [s.name for s in cfg.servos.servo] == ["s13", "s24"]
-    assert cfg.wheelboard.baud == 500000
+    assert cfg.wheelboard.baud == 1_000_000
     assert cfg.scene_path == ROOT / "scenes/dbar-gyro.toml" and cfg.scene_path.exists()
     StringServoBus(cfg.servos)  # limits map into the multi-turn range
 

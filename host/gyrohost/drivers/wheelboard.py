@@ -19,7 +19,7 @@ from typing import Any
 
 from gyrohost import wheelproto as wp
 
-BAUD = 500_000
+BAUD = 1_000_000
 
 
 class WheelBoardError(RuntimeError):
@@ -67,7 +67,7 @@ class WheelBoard:
     Parameters
     ----------
     port : str or serial-like object
-        Device path (opened with pyserial at 500000 baud) or an object with ``read``/``write``.
+        Device path (opened with pyserial at 1000000 baud) or an object with ``read``/``write``.
     heartbeat_period_s : float, s
         Period of the background heartbeat; must be well below the board's HEARTBEAT_MS.
     on_telemetry : callable(Telemetry) or None
