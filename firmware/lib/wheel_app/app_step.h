@@ -57,9 +57,8 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
     if (closed) {
         // Error flag first (one bit test of the high byte), then the parity.
         const bool good = !(static_cast<uint8_t>(word >> 8) & 0x40u) && enc_even_parity(word);
-        const uint16_t fbit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 * bit);
-        disabled =
-            flt_encoder_sample_at(&a->flt, &a->flt.enc_bad[I], fbit, good, c->enc_fault_limit);
+        const uint8_t fbit = static_cast<uint8_t>(PROTO_FAULT_ENCODER_M0 * bit);
+        disabled = flt_encoder_sample(&a->flt, &a->flt.enc_bad[I], fbit, good, c->enc_fault_limit);
         if (good) {
             spd_update(&w->spd, word, c->spd_k);
         } else {

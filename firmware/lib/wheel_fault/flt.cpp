@@ -2,8 +2,9 @@
 
 #include "proto.h"
 
-static_assert(PROTO_FAULT_ENCODER_M3 == (PROTO_FAULT_ENCODER_M0 << 3),
-              "encoder fault bits of wheels 0..3 must be adjacent (flt_encoder_sample)");
+static_assert(PROTO_FAULT_ENCODER_M3 == (PROTO_FAULT_ENCODER_M0 << 3) &&
+                  PROTO_FAULT_ENCODER_M3 <= 0xFF,
+              "encoder fault bits of wheels 0..3: adjacent, in the low byte (flt_encoder_sample)");
 
 static uint16_t flt_encoder_bit(uint8_t w) {
     return static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 << w);

@@ -38,33 +38,21 @@ inline void flt_set(flt_state* f, uint16_t bits) {
     f->faults = static_cast<uint16_t>(f->faults | bits);
 }
 
-// Record an encoder word of wheel w; returns true if that wheel's encoder fault is latched.
-// Inline: it runs for every wheel in every control step.
-PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t w, bool good, uint8_t limit) {
-    uint8_t bad = f->enc_bad[w];
+// Record an encoder word of one wheel, given its counter of consecutive bad words and its fault
+// bit (PROTO_FAULT_ENCODER_Mw: bits 1..4, in the fault word's low byte); limit >= 1 (params.def).
+// Returns true if that wheel's encoder fault is latched. Inline: it runs for every wheel in every
+// control step, where a good word costs one store and one bit test.
+PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t* bad_count, uint8_t bit, bool good,
+                                    uint8_t limit) {
     if (good) {
-        bad = 0;
-    } else if (bad < 0xFFu) {
-        bad++;
+        *bad_count = 0;  // 0 < limit: nothing latches
+    } else {
+        uint8_t bad = *bad_count;
+        if (bad < 0xFFu) bad++;
+        *bad_count = bad;
+        if (bad >= limit) flt_set(f, bit);
     }
-    f->enc_bad[w] = bad;
-    uint16_t bit = static_cast<uint16_t>(PROTO_FAULT_ENCODER_M0 << w);
-    if (bad >= limit) flt_set(f, bit);
-    return (f->faults & bit) != 0;
-}
-
-// The same with the wheel's counter and fault bit given (the control step walks them).
-PORT_INLINE bool flt_encoder_sample_at(flt_state* f, uint8_t* bad_count, uint16_t bit, bool good,
-                                       uint8_t limit) {
-    uint8_t bad = *bad_count;
-    if (good) {
-        bad = 0;
-    } else if (bad < 0xFFu) {
-        bad++;
-    }
-    *bad_count = bad;
-    if (bad >= limit) flt_set(f, bit);
-    return (f->faults & bit) != 0;
+    return (static_cast<uint8_t>(f->faults) & bit) != 0;
 }
 
 #endif  // FLT_H
