@@ -14,9 +14,10 @@
 //   cmt_svm(i) = round(CMT_SVM_SCALE * h(2 * pi * (i + 1/2) / 256)),  |cmt_svm(i)| <= 795,
 // and cmt_svm(i ^ 0x80) == -cmt_svm(i) exactly (h(t + 180 deg) = -h(t)).
 // Each duty is then 400 + ((amp * cmt_svm(index)) >> 16) for a Q15 amplitude amp: one 16 x 16
-// multiply per phase, no min/max. Phase peak 459 * |amp| / 32768 counts (397.5 for the sine part
-// times 0.866 at full drive), so duties stay within 2..797 for TOP = 799; line-to-line amplitude
-// 795 * |amp| / 32768 counts, the full supply at full drive.
+// multiply per phase, no min/max. The sine part has 459 * |amp| / 32768 counts of amplitude, the
+// injected phase voltage peaks at 0.866 of it (397.5 counts at full drive), so duties stay within
+// 2..797 for TOP = 799; the line-to-line amplitude is sqrt(3) * 459 * |amp| / 32768 counts, 795
+// of the 800 counts of the supply at full drive (plain sine within 0..799: 693).
 #ifndef CMT_H
 #define CMT_H
 
