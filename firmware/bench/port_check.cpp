@@ -111,29 +111,40 @@ static void check_cmt_one(uint16_t mech, int32_t speed_q8, int16_t drive, uint16
 }
 
 static void check_cmt_all() {
-    static const int16_t drives[] = {0,    1,     -1,     2,     -2,     255,
-                                     -256, 16384, -16384, 32767, -32767, -32768};
+    // cmt_drive_avr addresses the table with the index as the low byte of Z.
+    g_n++;
+    if (reinterpret_cast<uintptr_t>(&cmt_svm_tab[0][0]) & 0xFFu) g_bad++;
+    static const int16_t drives[] = {0,   1,     -1,     2,     -2,     255,   -256,
+                                     256, 16384, -16384, 32767, -32767, -32768};
     static const int32_t speeds[] = {0,     1,      -1,      63,       64,      -64,     -65,
                                      49979, -49979, 2097151, -2097152, 2069380, -2069380};
-    static const uint8_t pps[] = {1, 7, 40};
-    static const uint16_t leads[] = {0, 128, 512};
-    for (uint8_t p = 0; p < 3; p++) {
-        for (uint8_t q = 0; q < 3; q++) {
+    static const uint16_t mechs[] = {0, 0x3FFF, 0xFFFF, 0xC000};
+    static const uint16_t leads[] = {0, 1, 128, 511, 512};
+    for (uint8_t pp = 1; pp <= 40; pp++) {
+        for (uint8_t q = 0; q < 5; q++) {
             cmt_lead l;
-            cmt_lead_init(&l, pps[p], leads[q]);
-            for (uint8_t d = 0; d < 12; d++) {
+            cmt_lead_init(&l, pp, leads[q]);
+            for (uint8_t d = 0; d < 13; d++) {
                 for (uint8_t v = 0; v < 13; v++) {
                     check_cmt_one(rnd16(), speeds[v], drives[d], rnd16(), &l);
-                    check_cmt_one(0x3FFF, speeds[v], drives[d], 0, &l);
-                    check_cmt_one(0xFFFF, speeds[v], drives[d], 0xFFFF, &l);
+                    check_cmt_one(mechs[(d + v) & 3], speeds[v], drives[d], 0, &l);
+                    check_cmt_one(mechs[(d + v + 1) & 3], speeds[v], drives[d], 0xFFFF, &l);
                 }
             }
-            for (uint16_t k = 0; k < 3000; k++) {
+            for (uint16_t k = 0; k < 400; k++) {
+                // speeds within +-2^21 and beyond the clamp, random drives (all signs)
                 int32_t sp =
                     static_cast<int32_t>((static_cast<uint32_t>(rnd16()) << 16) | rnd16()) >> 10;
                 check_cmt_one(rnd16(), sp, static_cast<int16_t>(rnd16()), rnd16(), &l);
             }
         }
+    }
+    // The rotor angle over every table entry and carry of the phase-b/c indices.
+    cmt_lead l;
+    cmt_lead_init(&l, 1, 0);
+    for (uint32_t m = 0; m < 16384; m += 3) {
+        check_cmt_one(static_cast<uint16_t>(m), 0, 32767, 0, &l);
+        check_cmt_one(static_cast<uint16_t>(m), 0, -32768, 0x55, &l);
     }
 }
 

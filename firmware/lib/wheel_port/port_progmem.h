@@ -27,9 +27,11 @@ typedef int32_t port_i24;
 #include <avr/pgmspace.h>
 #define PORT_PROGMEM PROGMEM
 #define PORT_READ_I16(addr) (static_cast<int16_t>(pgm_read_word(addr)))
+#define PORT_READ_U8(addr) (static_cast<uint8_t>(pgm_read_byte(addr)))
 #else
 #define PORT_PROGMEM
 #define PORT_READ_I16(addr) (*(addr))
+#define PORT_READ_U8(addr) (*(addr))
 #endif
 
 // Widening 16 x 16 -> 32 multiplies. avr-gcc 5.4 widens such products to 16 x 32 library calls
