@@ -55,7 +55,7 @@ int32_t spd_gap_q8(spd_state* s, int16_t delta);
 
 // Feed one good angle (14 bits; upper bits ignored) with the filter gain k of spd_gain().
 // spd_update_c is the reference in C (what the native tests run). On AVR the common case (primed,
-// no missed tick, k != 0) is spd_update_fast_avr (spd_avr.cpp, assembly, compared with
+// no missed tick, k != 0) is spd_update_fast_avr (spd_avr.h, inline assembly, compared with
 // spd_update_c on the chip by `make -C firmware port-check`). Inline: it runs for every wheel in
 // every control step.
 PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
@@ -77,7 +77,7 @@ PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
 }
 
 #if defined(__AVR__)
-extern "C" void spd_update_fast_avr(spd_state* s, uint16_t angle14, uint8_t k);
+#include "spd_avr.h"
 #endif
 
 PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
