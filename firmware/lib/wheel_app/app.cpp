@@ -44,8 +44,8 @@ static void app_reset_wheel(app_wheel* w) {
 static void app_load_ctl(app_state* a) {
     const int32_t* v = a->prm.v;  // all within their params.def ranges
     app_ctl* c = &a->ctl;
-    c->gains.kp_q8 = static_cast<int16_t>(v[PRM_KP_Q8]);
-    c->gains.ki_q8 = static_cast<int16_t>(v[PRM_KI_Q8]);
+    c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP_Q8]);
+    c->gains.ki_q8 = static_cast<uint16_t>(v[PRM_KI_Q8]);
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
     c->gains = pi_gains_sanitize(c->gains);

@@ -32,17 +32,6 @@ void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
 // turns at APP_STOP_Q8 or more and APP_STOP_TICKS have not passed; the loop then brakes on.
 bool app_brake_on(app_wheel* w, bool was_enabled);
 
-// PI error from q8 to mrad/s as sign and magnitude clamped to PI_ERR_CLAMP: 43748 q8 is
-// 65535.4 mrad/s; n * 98175 / 65536 = n + (n * 32639 >> 16), one 16 x 16 multiply.
-#define APP_ERR_CLAMP_Q8 43748L
-PORT_INLINE uint16_t app_err_mrad_s(int32_t e_q8, bool* neg) {
-    *neg = e_q8 < 0;
-    uint32_t n = *neg ? 0u - static_cast<uint32_t>(e_q8) : static_cast<uint32_t>(e_q8);
-    if (n > static_cast<uint32_t>(APP_ERR_CLAMP_Q8)) return static_cast<uint16_t>(PI_ERR_CLAMP);
-    uint16_t m = static_cast<uint16_t>(n);
-    return static_cast<uint16_t>(m + port_mulhi_u16(m, 32639u));
-}
-
 // One wheel of the step, I its constant index (the step calls it four times): with a constant
 // index and, on AVR, the state at a constant address (main.cpp passes &g_app and the step is
 // inlined there), every field is a fixed address (lds/sts) and no pointer or counter lives in
@@ -83,10 +72,9 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
         io.next(3);
     } else {
         const int32_t speed_q8 = spd_q8(&w->spd);
-        bool neg;
-        const uint16_t mag = app_err_mrad_s(w->sp_q8 - speed_q8, &neg);
         io.next(2);
-        const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
+        // The error in q8 speed units (the gains are per q8 unit): no conversion.
+        const int16_t drive = pi_step_err(&w->pi, &c->gains, w->sp_q8 - speed_q8);
         w->drive_q15 = drive;
         io.next(3);
         // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),

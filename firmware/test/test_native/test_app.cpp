@@ -576,26 +576,6 @@ TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
 
 namespace {
 
-// The PI error in mrad/s from q8 at the clamp and the int32 extremes the step can form.
-TEST(AppStep, ErrorConversionAtExtremes) {
-    bool neg = true;
-    EXPECT_EQ(app_err_mrad_s(0, &neg), 0);
-    EXPECT_FALSE(neg);
-    EXPECT_EQ(app_err_mrad_s(1, &neg), 1);  // 1.498 mrad/s
-    EXPECT_EQ(app_err_mrad_s(-1, &neg), 1);
-    EXPECT_TRUE(neg);
-    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8, &neg), 65535);  // 65535.9: the clamp itself
-    EXPECT_EQ(app_err_mrad_s(APP_ERR_CLAMP_Q8 + 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(-APP_ERR_CLAMP_Q8 - 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(INT32_MAX, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_mrad_s(INT32_MIN + 1, &neg), PI_ERR_CLAMP);
-    EXPECT_TRUE(neg);
-    for (int32_t e = -APP_ERR_CLAMP_Q8; e <= APP_ERR_CLAMP_Q8; e += 7) {
-        ASSERT_EQ(app_err_mrad_s(e, &neg), (static_cast<int64_t>(e < 0 ? -e : e) * 98175) >> 16);
-        ASSERT_EQ(neg, e < 0);
-    }
-}
-
 // Records the calls the board's encoder reader gets: stages 0..4 of the next encoder, in order,
 // once per wheel whatever path the wheel takes (closed, open loop, off).
 struct RecordingIo {
