@@ -71,15 +71,16 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
         io.next(2);
         io.next(3);
     } else {
-        const int32_t speed_q8 = spd_q8(&w->spd);
         io.next(2);
         // The error in q8 speed units (the gains are per q8 unit): no conversion.
-        const int16_t drive = pi_step_err(&w->pi, &c->gains, w->sp_q8 - speed_q8);
+        const int16_t drive = pi_step_err(&w->pi, &c->gains, w->sp_q8 - spd_q8(&w->spd));
         w->drive_q15 = drive;
         io.next(3);
         // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),
         // the torque-producing vector 90 degrees ahead of (or behind) the rotor.
-        cmt_drive(w->spd.last_angle, speed_q8, drive, c->enc_offset[I], &c->lead, pwm);
+        // The speed read again rather than kept across the PI (which clobbers r3..r17): three
+        // loads instead of a spill to the stack frame and its reloads.
+        cmt_drive(w->spd.last_angle, spd_q8(&w->spd), drive, c->enc_offset[I], &c->lead, pwm);
         enable |= bit;
     }
     io.next(4);

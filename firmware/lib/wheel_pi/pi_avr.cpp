@@ -51,7 +51,6 @@ static_assert(offsetof(pi_gains, kp_q8) == 0 && offsetof(pi_gains, ki_q8) == 2 &
 // within reach and no sign test is repeated): p = kp * mag, D = ki * mag, state and limits.
 // X is left at s + 5 (saturated), from where the stores run backwards.
 #define PI_COMMON(PSAT, PDONE, DSAT, DDONE) \
-    "clr r21\n\t"                           \
     "ldd r24, Z+0\n\t"                      \
     "ldd r25, Z+1\n\t"                      \
     "mul r24, r18\n\t"                      \
@@ -126,6 +125,7 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         ".Lpm_sat:\n\t"  // e > 65535
         "ldi r18, 0xFF\n\t"
         "ldi r19, 0xFF\n\t"
+        "clr r21\n\t"
         "rjmp .Lpm_done\n" PI_SATS(".Lpp_sat", ".Lpp_done", ".Lpd_sat", ".Lpd_done")
 
         // ================= entry: X = s, Z = g, r18..r21 = e, r1 = 0
@@ -137,7 +137,8 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "cp r20, r1\n\t"
         "cpc r21, r1\n\t"
         "brne .Lpm_sat\n"
-        ".Lpm_done:\n\t" PI_COMMON(".Lpp_sat", ".Lpp_done", ".Lpd_sat", ".Lpd_done")
+        ".Lpm_done:\n\t"  // r21 = 0 (the zero register from here on)
+        PI_COMMON(".Lpp_sat", ".Lpp_done", ".Lpd_sat", ".Lpd_done")
         // integ >= -ilim (floor(integ / 256) + out_max >= 0), else C
         "movw r22, r4\n\t"
         "add r22, r6\n\t"
@@ -287,51 +288,45 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "neg r18\n\t"
         "sbci r19, 0xFF\n\t"
         "breq .Lnm_sat\n"  // e = -65536
-        ".Lnm_done:\n\t" PI_COMMON(".Lnp_sat", ".Lnp_done", ".Lnd_sat", ".Lnd_done")
+        ".Lnm_done:\n\t"
+        "clr r21\n\t" PI_COMMON(".Lnp_sat", ".Lnp_done", ".Lnd_sat", ".Lnd_done")
         // integ <= ilim, else C
         "cp r21, r3\n\t"
         "cpc r6, r4\n\t"
         "cpc r7, r5\n\t"
         "brlt .Lneg_slow0\n\t"
-        // S = integ - D (32 bits) in r10..r13: integ + ~D + 1
+        // I = max(integ - D, -ilim) in place (r3..r5, r20 the top byte); integ = I + D below
         "mov r20, r5\n\t"
         "lsl r20\n\t"
         "sbc r20, r20\n\t"
-        "com r10\n\t"
-        "com r11\n\t"
-        "com r12\n\t"
-        "com r13\n\t"
-        "sec\n\t"
-        "adc r10, r3\n\t"
-        "adc r11, r4\n\t"
-        "adc r12, r5\n\t"
-        "adc r13, r20\n\t"
-        // I = max(S, -ilim): S + ilim < 0?
-        "add r11, r6\n\t"
-        "adc r12, r7\n\t"
-        "adc r13, r21\n\t"
+        "sub r3, r10\n\t"
+        "sbc r4, r11\n\t"
+        "sbc r5, r12\n\t"
+        "sbc r20, r13\n\t"
+        "add r4, r6\n\t"  // S + ilim < 0?
+        "adc r5, r7\n\t"
+        "adc r20, r21\n\t"
         "brmi .Lneg_imin\n\t"
-        "sub r11, r6\n\t"
-        "sbc r12, r7\n"
+        "sub r4, r6\n\t"
+        "sbc r5, r7\n"
         ".Lneg_i:\n\t"
         // lo = max(out - slew, -out_max): r22:r23
-        "clr r0\n\t"
-        "clr r1\n\t"
-        "sub r0, r6\n\t"
-        "sbc r1, r7\n\t"
         "movw r22, r24\n\t"
         "sub r22, r8\n\t"
         "sbc r23, r9\n\t"
         "brvs 5f\n\t"
-        "cp r22, r0\n\t"
-        "cpc r23, r1\n\t"
+        "movw r0, r22\n\t"
+        "add r0, r6\n\t"
+        "adc r1, r7\n\t"
         "brge 6f\n"
         "5:\n\t"
-        "movw r22, r0\n"
+        "clr r22\n\t"
+        "clr r23\n\t"
+        "sub r22, r6\n\t"
+        "sbc r23, r7\n"
         "6:\n\t"
         // u < lo?  w = floor(I / 256) - lo < 0, or pmc > w
-        "mov r0, r11\n\t"
-        "mov r1, r12\n\t"
+        "movw r0, r4\n\t"
         "sub r0, r22\n\t"
         "sbc r1, r23\n\t"
         "brlt .Lneg_below\n\t"
@@ -355,18 +350,21 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "st X, r21\n\t"
         "st -X, r25\n\t"
         "st -X, r24\n\t"
-        "st -X, r12\n\t"
-        "st -X, r11\n\t"
-        "st -X, r10\n\t"
+        "st -X, r5\n\t"
+        "st -X, r4\n\t"
+        "st -X, r3\n\t"
         "clr r1\n\t"
         "ret\n"
 
-        ".Lneg_imin:\n\t"  // I = -ilim
-        "clr r10\n\t"
-        "clr r11\n\t"
-        "clr r12\n\t"
-        "sub r11, r6\n\t"
-        "sbc r12, r7\n\t"
+        ".Lneg_imin:\n\t"  // I = -ilim; D = (S + ilim) + D = integ + ilim keeps I + D = integ
+        "add r10, r3\n\t"
+        "adc r11, r4\n\t"
+        "adc r12, r5\n\t"
+        "clr r3\n\t"
+        "clr r4\n\t"
+        "clr r5\n\t"
+        "sub r4, r6\n\t"
+        "sbc r5, r7\n\t"
         "rjmp .Lneg_i\n"
 
         ".Lneg_slow:\n\t" PI_SLOW("ldi r20, 1\n\t")
@@ -378,45 +376,51 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
             "st X, r20\n\t"
             "st -X, r25\n\t"
             "st -X, r24\n\t"
-            "st -X, r12\n\t"
-            "st -X, r11\n\t"
-            "st -X, r10\n\t"
+            "st -X, r5\n\t"
+            "st -X, r4\n\t"
+            "st -X, r3\n\t"
             "clr r1\n\t"
             "ret\n"
 
-            ".Lneg_below:\n\t"  // back-calculation, y = lo; lo <= hi needs lo <= out_max, out >=
-                                // -out_max
-            "movw r0, r6\n\t"   // k = out_max - lo
+            // Back-calculation, y = lo; lo <= hi needs lo <= out_max and out >= -out_max (else C).
+            ".Lneg_below:\n\t"
+            "add r10, r3\n\t"  // integ = I + D: r10..r12
+            "adc r11, r4\n\t"
+            "adc r12, r5\n\t"
+            "movw r0, r6\n\t"  // k = out_max - lo
             "sub r0, r22\n\t"
             "sbc r1, r23\n\t"
             "brlt .Lneg_slow\n\t"
-            "movw r10, r24\n\t"
-            "add r10, r6\n\t"
-            "adc r11, r7\n\t"
+            "movw r4, r24\n\t"
+            "add r4, r6\n\t"
+            "adc r5, r7\n\t"
             "brlt .Lneg_slow\n\t"
             "cp r21, r14\n\t"  // k - pmc < 0: c = out_max, cap = ilim >= integ
             "sbc r0, r15\n\t"
             "sbc r1, r16\n\t"
             "brcs .Lneg_prev\n\t"
-            "movw r10, r6\n\t"  // c = out_max - (k - pmc) = lo + pmc in [lo, out_max]
-            "sub r10, r0\n\t"
-            "sbc r11, r1\n\t"
-            "cp r3, r21\n\t"  // integ < cap = c * 256?
-            "cpc r4, r10\n\t"
-            "cpc r5, r11\n\t"
+            "movw r4, r6\n\t"  // c = out_max - (k - pmc) = lo + pmc in [lo, out_max]
+            "sub r4, r0\n\t"
+            "sbc r5, r1\n\t"
+            "cp r10, r21\n\t"  // integ < cap = c * 256?
+            "cpc r11, r4\n\t"
+            "cpc r12, r5\n\t"
             "brlt .Lneg_prev\n\t"
             "movw r24, r22\n\t"  // I = cap, u = lo: y = lo, saturated = 0
             "st X, r21\n\t"
             "st -X, r25\n\t"
             "st -X, r24\n\t"
-            "st -X, r11\n\t"
-            "st -X, r10\n\t"
+            "st -X, r5\n\t"
+            "st -X, r4\n\t"
             "st -X, r21\n\t"
             "clr r1\n\t"
             "ret\n"
 
-            ".Lneg_prev:\n\t"  // I = max(integ, -ilim): integ < -ilim is C; y = lo, saturated = 1
-            "movw r0, r4\n\t"  // (integ < cap: floor(integ / 256) - pmc <= lo - 1, unlike E > 0)
+            // I = max(integ, -ilim): integ < -ilim is C; y = lo, saturated = 1 (integ < cap:
+            // floor(integ / 256) - pmc <= lo - 1, unlike E > 0).
+            ".Lneg_prev:\n\t"
+            "mov r0, r11\n\t"
+            "mov r1, r12\n\t"
             "add r0, r6\n\t"
             "adc r1, r7\n\t"
             "brlt .Lneg_slow\n\t"
