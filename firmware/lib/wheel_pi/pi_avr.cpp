@@ -5,11 +5,12 @@
 // the C version).
 //
 // In the signed domain, with E = clamp(e, +-65535), lo/hi the output window of pi_step_mag_c:
-//   P = clamp(floor(kp * E / 256), +-65535)   (for E < 0: -pmc, pmc = min(ceil(kp|E| / 256),
-//   65535)) I = clamp(integ + sign(E) * min(ki|E|, 2 ilim), +-ilim),  u = P + floor(I / 256) E > 0,
-//   u > hi: c = max(hi - P, -out_max), I = min(max(c * 256, integ), ilim)   -> y = hi E < 0, u <
-//   lo: c = min(lo - P, out_max),  I = max(min(c * 256, integ), -ilim)  -> y = lo otherwise y =
-//   clamp(u, lo, hi); saturated = (y != u) with u recomputed from the final I.
+//   P = clamp(floor(kp * E / 256), +-65535)
+//     (E < 0: P = -pmc, pmc = min(ceil(kp * |E| / 256), 65535))
+//   I = clamp(integ + sign(E) * min(ki * |E|, 2 ilim), +-ilim),  u = P + floor(I / 256)
+//   E > 0 and u > hi: c = max(hi - P, -out_max), I = min(max(c * 256, integ), ilim), y = hi
+//   E < 0 and u < lo: c = min(lo - P, out_max), I = max(min(c * 256, integ), -ilim), y = lo
+//   otherwise y = clamp(u, lo, hi); saturated = (y != u), u recomputed from the final I.
 // Shortcuts that the port-check proves exact:
 // - With integ >= -ilim (E > 0) the clamp of the increment changes nothing (integ + 2 ilim >=
 //   ilim), so I = min(integ + D, ilim); mirrored for E < 0 with integ <= ilim.
@@ -25,16 +26,27 @@
 // the last output or integrator: lo > hi possible, |integ| > ilim) jump to pi_step_mag_slow
 // (pi.cpp, the C reference) with (s, g, neg, mag) in the ABI's registers.
 //
-// Register use: X = s (loads with X+, stores backwards with -X), Z = g (kept for the fallback),
-// r18:r19 = |e| clamped (mag, kept for the fallback), T = e < 0, r21 = 0 after the multiplies,
-// r24:r25 = kp, ki, then out, r3..r5 = integ, r6:r7 = out_max, r8:r9 = slew,
-// r10..r13 = ki * mag, then I, r14 = low byte of kp * mag, r15:r16 = kp * mag >> 8 (P),
-// r22:r23 = hi (E >= 0) or lo (E < 0), r0, r1, r20 scratch; y returned in r24:r25.
+// One path per sign (entered by the sign bit of e; each has its copy of the multiplies so that
+// every branch stays within reach). Register use: X = s (loads with X+, stores backwards with
+// -X), Z = g (kept for the fallback), r18:r19 = |e| clamped (mag, kept for the fallback),
+// r21 = 0, r24:r25 = kp, ki, then out, r3..r5 = integ (E < 0: I in place, integ = I + D when
+// needed), r6:r7 = out_max, r8:r9 = slew, r10..r13 = ki * mag (E >= 0: then I),
+// r14 = byte 0 of kp * mag, r15:r16 = bytes 1, 2 (P), r22:r23 = hi (E >= 0) or lo (E < 0),
+// r0, r1, r20 scratch; y returned in r24:r25. r2 and r28:r29 are not touched.
 //
-// Cycles (simavr PC profile of `make -C firmware cycles`, four wheels saturated at their limit
-// after the setpoint ramp, back-calculation every step): see docs/hardware.md ("Control-step
-// cycles"); the common part (magnitude, loads, two 16 x 16 multiplies) is about 70, each branch
-// 40..60 more with the stores and the return.
+// Cycle budget (ATmega2560, including the final ret; the caller adds its call, 5, and four ldi
+// for X and Z): magnitude 5 (E >= 0) or 11 (E < 0, with the jump to its path); multiplies and
+// loads 60 (two 16 x 16 -> 32 products 16 each, 13 loads); then to the end
+//   E >= 0, output inside the window                    125
+//   E >= 0, back-calculated at hi (I = cap)             128
+//   E < 0, output inside the window                     134
+//   E < 0, back-calculated at lo (I = cap)              144
+// and a few more where a clamp acts (e or P or D saturated, I at +-ilim, lo or hi at out_max).
+// Measured: 132.5 per call on average in the PC profile of `make -C firmware cycles` (four
+// wheels at +-715 rpm, about a third of the steps back-calculated); pi_step_mag_avr with the
+// C conversion of the error to mrad/s before it took about 235 + 45.
+// The C fallback (pi_step_mag_slow) costs about 500 but only runs after out_max was lowered
+// below the state; never in that bench.
 #include "pi.h"
 
 #if defined(__AVR__)
