@@ -1,7 +1,7 @@
 // port_check.cpp - runs on the ATmega2560 in simavr: compares the assembly of the control step
 // with C computed by avr-gcc's own 32-bit arithmetic: the multiplies of port_progmem.h over the
-// operand extremes and a sweep, and the PI (pi_step_mag_avr, 24-bit integrator) with its C
-// reference pi_step_mag_c over gain, limit and error extremes and random sequences, and the
+// operand extremes and a sweep, and the PI (pi_step_err_avr, 24-bit integrator) with its C
+// reference pi_step_err_c over gain, limit and error extremes and random sequences, and the
 // commutation (cmt_drive_avr) with cmt_drive_c over angle, speed, drive, lead and pole pairs, and
 // the estimator's common case (spd_update_fast_avr) with spd_update_c. The
 // native tests cannot see 24-bit overflow; this runs the AVR code itself. Prints "port-check: N
@@ -65,37 +65,70 @@ static uint16_t rnd16() {
     return static_cast<uint16_t>(g_rnd >> 12);
 }
 
+static uint32_t g_pi_bad, g_pi_n;
+
 // The same PI step in assembly and in C from the same state: output, integrator and flag.
-static void check_pi(pi_state* sa, pi_state* sc, const pi_gains* g, bool neg, uint16_t mag) {
+static void check_pi(pi_state* sa, pi_state* sc, const pi_gains* g, int32_t e) {
     g_n++;
-    int16_t ya = pi_step_mag(sa, g, neg, mag);  // the call the control step makes
-    int16_t yc = pi_step_mag_c(sc, g, neg, mag);
+    g_pi_n++;
+    int16_t ya = pi_step_err(sa, g, e);  // the call the control step makes
+    int16_t yc = pi_step_err_c(sc, g, e);
     if (ya != yc || static_cast<int32_t>(sa->integ) != static_cast<int32_t>(sc->integ) ||
         sa->out != sc->out || sa->saturated != sc->saturated) {
         g_bad++;
+        g_pi_bad++;
         *sa = *sc;  // go on from the reference state
     }
 }
 
+static int32_t rnd32() {
+    return static_cast<int32_t>((static_cast<uint32_t>(rnd16()) << 16) ^ rnd16());
+}
+
+// Runs from a reset state over gain, limit and error extremes: errors at the clamp and the int32
+// ends, random, and held constant for a whole run (the integrator winds up to the limits and the
+// back-calculation holds it there, as in the cycle bench); out_max shrinks or grows and ki
+// changes while running.
 static void check_pi_all() {
-    static const int16_t gains[] = {0, 1, 2, 80, 255, 256, 1000, 32767};
+    static const uint16_t gains[] = {0, 1, 2, 80, 120, 255, 256, 1000, 32767, 32768, 40000, 65535};
     static const int16_t limits[] = {0, 1, 100, 10000, 16384, 32767};
-    static const uint16_t mags[] = {0, 1, 2, 255, 256, 1000, 32767, 32768, 65534, 65535};
-    for (uint16_t run = 0; run < 1500; run++) {
-        pi_gains g = {gains[rnd16() & 7], gains[rnd16() & 7], limits[rnd16() % 6],
+    static const int32_t errs[] = {
+        0,          1,           -1,
+        2,          -2,          255,
+        -256,       59,          -59,
+        65534,      -65534,      65535,
+        -65535,     65536,       -65536,
+        65537,      -65537,      100000,
+        -100000,    16777216,    -16777216,
+        2147483647, -2147483647, -2147483647 - 1};  // INT32_MIN too (outside the contract)
+    const uint8_t ne = sizeof errs / sizeof errs[0];
+    for (uint16_t run = 0; run < 3000; run++) {
+        pi_gains g = {gains[rnd16() % 12], gains[rnd16() % 12], limits[rnd16() % 6],
                       static_cast<int16_t>(1 + (rnd16() & 0x7FFF) % 32767)};
         if (run % 3 == 0) g.slew = limits[1 + rnd16() % 5];
+        const uint8_t mode = static_cast<uint8_t>(run & 3);
+        const int32_t held =
+            (rnd16() & 1) ? errs[rnd16() % ne] : static_cast<int32_t>(rnd16() % 2001) - 1000;
+        const uint8_t steps = mode == 3 ? 200 : 50;
         pi_state sa, sc;
         pi_reset(&sa);
         pi_reset(&sc);
-        for (uint8_t k = 0; k < 40; k++) {
-            if (k == 20) g.out_max = limits[rnd16() % 6];  // out_max shrinks or grows
-            if (k == 30) g.ki_q8 = gains[rnd16() & 7];
-            uint16_t r = rnd16();
-            uint16_t mag =
-                (r & 3) == 0 ? mags[rnd16() % 10] : static_cast<uint16_t>(rnd16() % 20000);
-            bool neg = mag != 0 && (r & 4);
-            check_pi(&sa, &sc, &g, neg, mag);
+        for (uint8_t k = 0; k < steps; k++) {
+            if (k == 25 || k == 150) g.out_max = limits[rnd16() % 6];  // shrinks or grows
+            if (k == 35) g.ki_q8 = gains[rnd16() % 12];
+            if (k == 100 && (rnd16() & 1)) g.slew = limits[1 + rnd16() % 5];
+            int32_t e;
+            const uint16_t r = rnd16();
+            if (mode >= 2 && (r & 15) != 0) {
+                e = (k >= 120 && (r & 16)) ? -held : held;  // held, reversed late in long runs
+            } else if ((r & 3) == 0) {
+                e = errs[rnd16() % ne];
+            } else if ((r & 3) == 1) {
+                e = rnd32();
+            } else {
+                e = static_cast<int32_t>(rnd16() % 40001) - 20000;
+            }
+            check_pi(&sa, &sc, &g, e);
         }
     }
 }
@@ -197,7 +230,13 @@ int main() {
     msg = " mismatches in ";
     while (*msg) put(*msg++);
     put_u32(g_n);
-    msg = " checks\n";
+    msg = " checks (PI: ";
+    while (*msg) put(*msg++);
+    put_u32(g_pi_bad);
+    msg = " in ";
+    while (*msg) put(*msg++);
+    put_u32(g_pi_n);
+    msg = ")\n";
     while (*msg) put(*msg++);
     while (!(UCSR0A & _BV(TXC0))) {
     }

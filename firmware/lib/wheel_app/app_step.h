@@ -32,15 +32,6 @@ void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
 // turns at APP_STOP_Q8 or more and APP_STOP_TICKS have not passed; the loop then brakes on.
 bool app_brake_on(app_wheel* w, bool was_enabled);
 
-// PI error in q8 (the gains KP, KI are per encoder count per tick) as sign and magnitude
-// clamped to PI_ERR_CLAMP (65535 q8 = 98 rad/s, where a sane KP saturates the drive anyway).
-PORT_INLINE uint16_t app_err_q8(int32_t e_q8, bool* neg) {
-    *neg = e_q8 < 0;
-    uint32_t n = *neg ? 0u - static_cast<uint32_t>(e_q8) : static_cast<uint32_t>(e_q8);
-    return n > static_cast<uint32_t>(PI_ERR_CLAMP) ? static_cast<uint16_t>(PI_ERR_CLAMP)
-                                                   : static_cast<uint16_t>(n);
-}
-
 // One wheel of the step, I its constant index (the step calls it four times): with a constant
 // index and, on AVR, the state at a constant address (main.cpp passes &g_app and the step is
 // inlined there), every field is a fixed address (lds/sts) and no pointer or counter lives in
@@ -79,16 +70,16 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
         io.next(2);
         io.next(3);
     } else {
-        const int32_t speed_q8 = spd_q8(&w->spd);
-        bool neg;
-        const uint16_t mag = app_err_q8(w->sp_q8 - speed_q8, &neg);
         io.next(2);
-        const int16_t drive = pi_step_mag(&w->pi, &c->gains, neg, mag);
+        // The error in q8 speed units (the gains are per q8 unit): no conversion.
+        const int16_t drive = pi_step_err(&w->pi, &c->gains, w->sp_q8 - spd_q8(&w->spd));
         w->drive_q15 = drive;
         io.next(3);
         // Electrical angle advanced by speed * lead (sensor-to-PWM delay and half a tick),
         // the torque-producing vector 90 degrees ahead of (or behind) the rotor.
-        cmt_drive(w->spd.last_angle, speed_q8, drive, c->enc_offset[I], &c->lead, pwm);
+        // The speed read again rather than kept across the PI (which clobbers r3..r17): three
+        // loads instead of a spill to the stack frame and its reloads.
+        cmt_drive(w->spd.last_angle, spd_q8(&w->spd), drive, c->enc_offset[I], &c->lead, pwm);
         enable |= bit;
     }
     io.next(4);

@@ -1,16 +1,16 @@
 // pi.h - PI speed controller in fixed point with anti-windup, output and slew limits.
 //
-// Units: error e in mrad/s, clamped to +-PI_ERR_CLAMP and handled as sign and 16-bit magnitude;
-// output u in Q15 drive level (32767 = full supply voltage amplitude).
-// kp_q8: Q15 counts per mrad/s, times 256.  ki_q8: Q15 counts per mrad/s per tick, times 256.
-// u = (kp*e)/256 + I/256, I += ki*e each tick. The clamp of e only acts where a sane kp saturates
-// the output anyway (65.5 rad/s error).
+// Units: error e in the controller's error unit (the control step passes q8 speed units, spd.h),
+// clamped to +-PI_ERR_CLAMP; output u in Q15 drive level (32767 = full supply voltage amplitude).
+// kp_q8: Q15 counts per error unit, times 256.  ki_q8: Q15 counts per error unit per tick, times
+// 256. u = (kp*e)/256 + I/256, I += ki*e each tick. The clamp of e only acts where a sane kp
+// saturates the output anyway.
 // Anti-windup: I is clamped to +-out_max*256; while the output or slew limit holds the output in
 // the direction the error pushes it, I grows at most to the value that just reaches the limit
 // (back-calculation), so it releases at once when the error reverses.
-// Widths: kp * |e| < 2^31 and ki * |e| < 2^31 are 16 x 16 -> 32 multiplies; |I| <= 2^23; the
-// proportional term is used clamped to +-65535 (beyond that the output saturates whatever I is),
-// so u = P + I/256 stays within +-2^17.
+// Widths: gains are unsigned 16-bit, so kp * |e| and ki * |e| are 16 x 16 -> 32 unsigned
+// multiplies (< 2^32); |I| <= 2^23; the proportional term is used clamped to +-65535 (beyond that
+// the output saturates whatever I is), so u = P + I/256 stays within +-2^17.
 #ifndef PI_H
 #define PI_H
 
@@ -21,8 +21,8 @@
 #define PI_ERR_CLAMP 65535L
 
 struct pi_gains {
-    int16_t kp_q8;    // 0..32767 (negative gains are not supported)
-    int16_t ki_q8;    // 0..32767
+    uint16_t kp_q8;   // 0..65535 (negative gains are not supported)
+    uint16_t ki_q8;   // 0..65535
     int16_t out_max;  // 0..32767
     int16_t slew;     // max output change per tick, 1..32767
 };
@@ -35,22 +35,21 @@ struct pi_state {
 
 void pi_reset(pi_state* s);
 
-// Gains as pi_step_mag expects them: out_max >= 0, slew >= 1 (once per parameter change).
+// Gains as pi_step_err expects them: out_max >= 0, slew >= 1 (once per parameter change).
 pi_gains pi_gains_sanitize(pi_gains g);
 
-// Setpoint and measurement in mrad/s (|each| < 2^30); gains as given (sanitised here).
+// Setpoint and measurement in the error unit (|each| < 2^30); gains as given (sanitised here).
 int16_t pi_step(pi_state* s, const pi_gains* g, int32_t setpoint, int32_t measured);
 
-// The step itself, on the error as sign (neg: setpoint below measurement) and magnitude
-// (mrad/s, <= PI_ERR_CLAMP; 0 with neg false for no error), with sanitised gains. A negative error
-// is mirrored onto a positive one (I, lo and hi negated and swapped; I / 256 then rounds up
-// instead of down), so one path computes both. pi_step_mag_c is the reference in C (32-bit
-// intermediates); on AVR pi_step_mag calls pi_step_mag_avr (pi_avr.cpp, hand-written assembly,
-// compared with pi_step_mag_c on the chip by `make -C firmware port-check`).
+// The step on the error as sign (neg: setpoint below measurement) and magnitude (<= PI_ERR_CLAMP;
+// 0 with neg false for no error), with sanitised gains: the reference in C (32-bit
+// intermediates) that pi_step_err_c and the native tests run. A negative error is mirrored onto a
+// positive one (I, lo and hi negated and swapped; I / 256 then rounds up instead of down), so one
+// path computes both; the AVR assembly (pi_step_err_avr) computes the same in the signed domain.
 PORT_INLINE int16_t pi_step_mag_c(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
     // Proportional term, floor(kp * e / 256) for either sign, its magnitude clamped to 65535
     // (beyond it the output saturates whatever I is).
-    uint32_t p = port_mul_u16(static_cast<uint16_t>(g->kp_q8), mag);
+    uint32_t p = port_mul_u16(g->kp_q8, mag);
     if (neg) p += 255u;  // ceil of the magnitude: floor of the negative value
     const int32_t pm = (p >> 24) ? 0xFFFF : static_cast<int32_t>(p >> 8);
 
@@ -74,7 +73,7 @@ PORT_INLINE int16_t pi_step_mag_c(pi_state* s, const pi_gains* g, bool neg, uint
     }
     // Integrator: I + ki * e, the increment clamped to 2 * ilim, the sum to +-ilim (2^23).
     const int32_t ilim = static_cast<int32_t>(out_max) << 8;
-    uint32_t di = port_mul_u16(static_cast<uint16_t>(g->ki_q8), mag);
+    uint32_t di = port_mul_u16(g->ki_q8, mag);
     if (di > static_cast<uint32_t>(ilim) << 1) di = static_cast<uint32_t>(ilim) << 1;
     int32_t integ = prev + static_cast<int32_t>(di);
     if (integ > ilim) {
@@ -117,28 +116,45 @@ PORT_INLINE int16_t pi_step_mag_c(pi_state* s, const pi_gains* g, bool neg, uint
     return y;
 }
 
+// The step on the signed error e (setpoint - measured, |e| < 2^31), clamped to +-PI_ERR_CLAMP:
+// exactly pi_step_mag_c(s, g, e < 0, min(|e|, PI_ERR_CLAMP)). What the control step calls, as
+// pi_step_err below (on AVR the assembly pi_step_err_avr; `make -C firmware port-check` compares
+// the two on the chip).
+PORT_INLINE int16_t pi_step_err_c(pi_state* s, const pi_gains* g, int32_t e) {
+    uint16_t mag;
+    if (e > PI_ERR_CLAMP || e < -PI_ERR_CLAMP) {
+        mag = static_cast<uint16_t>(PI_ERR_CLAMP);
+    } else {
+        mag = static_cast<uint16_t>(e < 0 ? -e : e);
+    }
+    return pi_step_mag_c(s, g, e < 0, mag);
+}
+
 #if defined(__AVR__)
-// Not an avr-gcc ABI function: it takes the arguments in the ABI's registers (r24:r25 s,
-// r22:r23 g, r20 neg, r18:r19 mag) and returns y in r24:r25, but clobbers the call-saved r12..r17
-// as well (saving them cost 24 cycles per call; the control step's caller has them saved in its
-// own prologue anyway). Only called through pi_step_mag below, which tells the compiler.
-extern "C" void pi_step_mag_avr();
+// Not avr-gcc ABI functions. pi_step_err_avr (pi_avr.cpp) takes s in X (r26:r27), g in Z
+// (r30:r31) and e in r18..r21, returns y in r24:r25 and clobbers r0, r3..r25, X and Z without
+// saving any of them (the control step's caller has the call-saved ones saved in its own prologue
+// anyway; saving them would cost two cycles per register and call). Its rare cases (out_max
+// shrunk below the state) jump to pi_step_mag_slow, the ABI function in pi.cpp that runs
+// pi_step_mag_c. Only called through pi_step_err below, which tells the compiler.
+extern "C" void pi_step_err_avr_entry();
+extern "C" int16_t pi_step_mag_slow(pi_state* s, const pi_gains* g, bool neg, uint16_t mag);
 #endif
 
-PORT_INLINE int16_t pi_step_mag(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
+PORT_INLINE int16_t pi_step_err(pi_state* s, const pi_gains* g, int32_t e) {
 #if defined(__AVR__)
-    register uint16_t r_s __asm__("r24") = static_cast<uint16_t>(reinterpret_cast<uintptr_t>(s));
-    register uint16_t r_g __asm__("r22") = static_cast<uint16_t>(reinterpret_cast<uintptr_t>(g));
-    register uint8_t r_neg __asm__("r20") = neg;
-    register uint16_t r_mag __asm__("r18") = mag;
-    __asm__ __volatile__("call pi_step_mag_avr"
-                         : "+r"(r_s), "+r"(r_g), "+r"(r_neg), "+r"(r_mag)
+    register pi_state* r_s __asm__("r26") = s;
+    register const pi_gains* r_g __asm__("r30") = g;
+    register int32_t r_e __asm__("r18") = e;
+    register int16_t r_y __asm__("r24");
+    __asm__ __volatile__("call pi_step_err_avr_entry"
+                         : "=r"(r_y), "+r"(r_s), "+r"(r_g), "+r"(r_e)
                          :
-                         : "r0", "r12", "r13", "r14", "r15", "r16", "r17", "r21", "r26", "r27",
-                           "r30", "r31", "memory");
-    return static_cast<int16_t>(r_s);
+                         : "r0", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12",
+                           "r13", "r14", "r15", "r16", "r17", "r22", "r23", "memory");
+    return r_y;
 #else
-    return pi_step_mag_c(s, g, neg, mag);
+    return pi_step_err_c(s, g, e);
 #endif
 }
 

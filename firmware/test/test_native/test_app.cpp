@@ -576,27 +576,6 @@ TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
 
 namespace {
 
-// The PI error in q8 as sign and magnitude at the clamp and the int32 extremes the step can form.
-TEST(AppStep, ErrorAtExtremes) {
-    bool neg = true;
-    EXPECT_EQ(app_err_q8(0, &neg), 0);
-    EXPECT_FALSE(neg);
-    EXPECT_EQ(app_err_q8(1, &neg), 1);
-    EXPECT_EQ(app_err_q8(-1, &neg), 1);
-    EXPECT_TRUE(neg);
-    EXPECT_EQ(app_err_q8(PI_ERR_CLAMP, &neg), 65535);
-    EXPECT_EQ(app_err_q8(PI_ERR_CLAMP + 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_q8(-PI_ERR_CLAMP - 1, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_q8(INT32_MAX, &neg), PI_ERR_CLAMP);
-    EXPECT_EQ(app_err_q8(INT32_MIN + 1, &neg), PI_ERR_CLAMP);
-    EXPECT_TRUE(neg);
-    for (int32_t e = -70000; e <= 70000; e += 7) {
-        const int32_t m = e < 0 ? -e : e;
-        ASSERT_EQ(app_err_q8(e, &neg), m > 65535 ? 65535 : m);
-        ASSERT_EQ(neg, e < 0);
-    }
-}
-
 // Records the calls the board's encoder reader gets: stages 0..4 of the next encoder, in order,
 // once per wheel whatever path the wheel takes (closed, open loop, off).
 struct RecordingIo {

@@ -193,14 +193,14 @@ uint32_t lcg(uint32_t* x) {
 }  // namespace
 
 TEST(Pi, MatchesReferenceOverRandomSequencesAndExtremes) {
-    const int16_t gains[] = {0, 1, 2, 80, 255, 256, 1000, 32767};
+    const uint16_t gains[] = {0, 1, 2, 80, 255, 256, 1000, 32767, 32768, 65535};
     const int16_t limits[] = {0, 1, 100, 10000, 16384, 32767};
     const int32_t errors[] = {0,     1,      -1,     255,     -256,    65535,     -65535,
                               65536, -65536, 300000, -300000, 1 << 29, -(1 << 29)};
     uint32_t rnd = 12345;
     long steps = 0;
     for (int run = 0; run < 3000; run++) {
-        pi_gains g = {gains[lcg(&rnd) % 8], gains[lcg(&rnd) % 8], limits[lcg(&rnd) % 6],
+        pi_gains g = {gains[lcg(&rnd) % 10], gains[lcg(&rnd) % 10], limits[lcg(&rnd) % 6],
                       static_cast<int16_t>(1 + lcg(&rnd) % 32767)};
         if (run % 3 == 0) g.slew = limits[lcg(&rnd) % 6] == 0 ? 1 : limits[lcg(&rnd) % 6];
         pi_state s;
@@ -210,7 +210,7 @@ TEST(Pi, MatchesReferenceOverRandomSequencesAndExtremes) {
             int32_t e = (lcg(&rnd) % 4 == 0) ? errors[lcg(&rnd) % 13]
                                              : static_cast<int32_t>(lcg(&rnd) % 140001) - 70000;
             if (k == 30) g.out_max = limits[lcg(&rnd) % 6];  // limits change while running
-            if (k == 45) g.ki_q8 = gains[lcg(&rnd) % 8];
+            if (k == 45) g.ki_q8 = gains[lcg(&rnd) % 10];
             int16_t want = ref_pi_step(&r, &g, e, 0);
             int16_t got = pi_step(&s, &g, e, 0);
             ASSERT_EQ(got, want) << "run " << run << " step " << k << " e " << e;
@@ -223,16 +223,82 @@ TEST(Pi, MatchesReferenceOverRandomSequencesAndExtremes) {
     EXPECT_EQ(steps, 180000);
 }
 
-TEST(Pi, MagnitudeStepEqualsSignedStep) {
-    // pi_step_mag on (sign, magnitude) is what the control step calls; pi_step wraps it.
+TEST(Pi, SignedErrorStepEqualsMagnitudeStep) {
+    // pi_step_err on the signed error is what the control step calls; pi_step_mag_c is its core.
     pi_gains g = pi_gains_sanitize({300, 7, 20000, 500});
     pi_state a, b;
     pi_reset(&a);
     pi_reset(&b);
     for (int32_t e : {0, 5, -5, 65535, -65535, 1200, -30000, 0, 17}) {
         bool neg = e < 0;
-        EXPECT_EQ(pi_step_mag(&a, &g, neg, static_cast<uint16_t>(neg ? -e : e)),
-                  pi_step(&b, &g, e, 0));
+        EXPECT_EQ(pi_step_err_c(&a, &g, e),
+                  pi_step_mag_c(&b, &g, neg, static_cast<uint16_t>(neg ? -e : e)));
         EXPECT_EQ(a.integ, b.integ);
+        EXPECT_EQ(a.saturated, b.saturated);
     }
+}
+
+// The clamp of the signed error at +-65535 and its sign, against values worked out by hand:
+// kp = 256 (P = e exactly), ki = 0, limits wide open (out_max 32767, slew 32767), state reset.
+TEST(Pi, SignedErrorClampAndSign) {
+    const pi_gains g = {256, 0, 32767, 32767};
+    struct Case {
+        int32_t e;
+        int16_t y;
+        uint8_t sat;
+    };
+    // |P| <= 32767 passes; beyond, the output limit holds (P = +-65535 after the clamp of e).
+    const Case cases[] = {{0, 0, 0},
+                          {1, 1, 0},
+                          {-1, -1, 0},
+                          {32767, 32767, 0},
+                          {-32767, -32767, 0},
+                          {32768, 32767, 1},
+                          {-32768, -32767, 1},
+                          {65535, 32767, 1},
+                          {-65535, -32767, 1},
+                          {65536, 32767, 1},
+                          {-65536, -32767, 1},
+                          {INT32_MAX, 32767, 1},
+                          {INT32_MIN + 1, -32767, 1}};
+    for (const Case& c : cases) {
+        pi_state s;
+        pi_reset(&s);
+        EXPECT_EQ(pi_step_err_c(&s, &g, c.e), c.y) << "e " << c.e;
+        EXPECT_EQ(s.saturated, c.sat) << "e " << c.e;
+        EXPECT_EQ(s.integ, 0) << "e " << c.e;
+    }
+    // The clamp itself: with kp = 1, P = floor(E / 256), so E = +-65535 gives 255 and -256, and
+    // every error beyond gives the same (not 256 or -257 as the unclamped error would).
+    const pi_gains g1 = {1, 0, 32767, 32767};
+    const int32_t beyond[] = {65535, 65536, 65791, 1 << 24, INT32_MAX};
+    for (int32_t e : beyond) {
+        pi_state s;
+        pi_reset(&s);
+        EXPECT_EQ(pi_step_err_c(&s, &g1, e), 255) << "e " << e;
+        pi_reset(&s);
+        EXPECT_EQ(pi_step_err_c(&s, &g1, -e), -256) << "e " << -e;
+    }
+    // The integrator sees the clamped error too: ki = 65535, out_max 32767: di = 65535 * 65535 is
+    // clamped to 2 * ilim, the sum to ilim = 32767 * 256 whatever the error beyond the clamp.
+    const pi_gains gi = {0, 65535, 32767, 32767};
+    for (int32_t e : {65535, 70000, INT32_MAX}) {
+        pi_state s;
+        pi_reset(&s);
+        pi_step_err_c(&s, &gi, e);
+        EXPECT_EQ(s.integ, 32767L * 256) << "e " << e;
+        pi_reset(&s);
+        pi_step_err_c(&s, &gi, -e);
+        EXPECT_EQ(s.integ, -32767L * 256) << "e " << -e;
+    }
+    // Unsigned gains above 32767: kp = 40000, e = 100: P = floor(4,000,000 / 256) = 15625 and
+    // -15625 for e = -100 (floor of -15625 exactly).
+    const pi_gains gk = {40000, 0, 32767, 32767};
+    pi_state s;
+    pi_reset(&s);
+    EXPECT_EQ(pi_step_err_c(&s, &gk, 100), 15625);
+    pi_reset(&s);
+    EXPECT_EQ(pi_step_err_c(&s, &gk, -100), -15625);
+    pi_reset(&s);
+    EXPECT_EQ(pi_step_err_c(&s, &gk, -101), -15782);  // floor(-15781.25)
 }
