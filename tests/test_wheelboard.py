@@ -194,8 +194,8 @@ def test_host_side_checks_before_sending(fake):
             board.set_speeds([0.0, float("nan"), 0.0, 0.0])
         with pytest.raises(ValueError, match="need 4 speeds"):
             board.set_speeds([0.0])
-        with pytest.raises(ValueError, match="unknown wheel-board parameter 'KP'"):
-            board.get_param("KP")
+        with pytest.raises(ValueError, match="unknown wheel-board parameter 'KD'"):
+            board.get_param("KD")
         with pytest.raises(ValueError, match=r"POLE_PAIRS: 0 outside \[1, 40\]"):
             board.set_param("POLE_PAIRS", 0)
 
@@ -205,7 +205,8 @@ def test_version_mismatch_refused_with_clear_message():
     try:
         board = wb.WheelBoard(fake.path)
         with pytest.raises(
-            wb.FirmwareMismatchError, match=r"speaks protocol v2, this host speaks v1"
+            wb.FirmwareMismatchError,
+            match=rf"speaks protocol v{wp.PROTO_VERSION + 1}, this host speaks v{wp.PROTO_VERSION}",
         ):
             board.connect()
         board.close()
