@@ -8,8 +8,10 @@
 #include "board_enc_io.h"
 #include "board_io.h"
 
-// Maximum received bytes handled per loop pass, so that a burst cannot delay the tick much.
-#define MAIN_RX_BYTES_PER_PASS 32
+// Maximum received bytes handled per loop pass, so that a burst cannot delay the tick much: at
+// 1 Mbaud with 32 a connect's burst of requests delayed a step by up to 920 us (step_max_us),
+// with 8 by 324 us as at 500 kbaud.
+#define MAIN_RX_BYTES_PER_PASS 8
 
 static app_state g_app;
 static uint8_t g_reset_cause __attribute__((section(".noinit")));
@@ -58,10 +60,9 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,994 steps): 1825 / 3667 / 3889 cycles min / mean / max = 23 % / 24 % of the
-        // 16,000-cycle tick (without the UART ISRs that preempt it 1665 / 3324 / 3490), with the
-        // four wheels unrolled and the step inlined here (every address a constant); before that
-        // 2590 / 4575 / 4772 (2376 / 4131 / 4301). 1000 steps/s. Target 2400 not met: see
+        // included, 1,994 steps): 1347 / 2284 / 2336 cycles min / mean / max without the ISRs
+        // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
+        // them (a host frame's RX bytes). Was 3324 mean (3667 with ISRs at 500 kbaud); see
         // docs/hardware.md, "Control-step cycles".
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
