@@ -121,6 +121,13 @@ static_assert(offsetof(pi_gains, kp_q8) == 0 && offsetof(pi_gains, ki_q8) == 2 &
          "clr r13\n\t"                    \
          "rjmp " DDONE "\n"
 
+// Return: the saturated flag SAT, y (r24:r25) and the integrator bytes I2, I1, I0 stored
+// backwards from X = s + 5; PI_RETURN_Y leaves the integrator as it is in memory.
+#define PI_RETURN(SAT, I2, I1, I0)                                                              \
+    "st X, " SAT "\n\tst -X, r25\n\tst -X, r24\n\tst -X, " I2 "\n\tst -X, " I1 "\n\tst -X, " I0 \
+    "\n\tclr r1\n\tret\n"
+#define PI_RETURN_Y(SAT) "st X, " SAT "\n\tst -X, r25\n\tst -X, r24\n\tclr r1\n\tret\n"
+
 // pi_step_mag_slow(s, g, neg, mag): the C reference for the rare cases.
 #define PI_SLOW(NEG)        \
     "sbiw r26, 5\n\t"       \
@@ -201,65 +208,42 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "cpc r9, r1\n\t"
         "brlo .Lpos_below\n"
         "3:\n\t"  // y = u, saturated = 0
-        "movw r24, r14\n\t"
-        "st X, r21\n\t"
-        "st -X, r25\n\t"
-        "st -X, r24\n\t"
-        "st -X, r12\n\t"
-        "st -X, r11\n\t"
-        "st -X, r10\n\t"
-        "clr r1\n\t"
-        "ret\n"
+        "movw r24, r14\n\t" PI_RETURN("r21", "r12", "r11", "r10")
 
-        ".Lpos_imax:\n\t"  // I = ilim
-        "mov r10, r21\n\t"
-        "mov r11, r6\n\t"
-        "mov r12, r7\n\t"
-        "rjmp .Lpos_i\n"
+            ".Lpos_imax:\n\t"  // I = ilim
+            "mov r10, r21\n\t"
+            "mov r11, r6\n\t"
+            "mov r12, r7\n\t"
+            "rjmp .Lpos_i\n"
 
-        ".Lpos_slow:\n\t" PI_SLOW("clr r20\n\t")
+            ".Lpos_slow:\n\t" PI_SLOW("clr r20\n\t")
 
-            ".Lpos_below:\n\t"  // u < out - slew (> -out_max): y = lo = out - slew if lo <= hi
-            "movw r0, r24\n\t"
-            "sub r0, r8\n\t"
-            "sbc r1, r9\n\t"
-            "cp r6, r0\n\t"
-            "cpc r7, r1\n\t"
-            "brlt .Lpos_slow\n\t"  // lo > out_max >= hi: C
-            "movw r24, r0\n\t"
-            "ldi r20, 1\n\t"
-            "st X, r20\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"
-            "st -X, r12\n\t"
-            "st -X, r11\n\t"
-            "st -X, r10\n\t"
-            "clr r1\n\t"
-            "ret\n"
+                ".Lpos_below:\n\t"  // u < out - slew (> -out_max): y = lo = out - slew if lo <= hi
+                "movw r0, r24\n\t"
+                "sub r0, r8\n\t"
+                "sbc r1, r9\n\t"
+                "cp r6, r0\n\t"
+                "cpc r7, r1\n\t"
+                "brlt .Lpos_slow\n\t"  // lo > out_max >= hi: C
+                "movw r24, r0\n\t"
+                "ldi r20, 1\n\t" PI_RETURN("r20", "r12", "r11", "r10")
 
-            ".Lpos_above:\n\t"  // back-calculation: k = hi + out_max (< 0: lo > hi, C)
-            "movw r0, r22\n\t"
-            "add r0, r6\n\t"
-            "adc r1, r7\n\t"
-            "brlt .Lpos_slow\n\t"
-            "sub r0, r15\n\t"  // k - P < 0: c = -out_max, cap = -ilim <= integ
-            "sbc r1, r16\n\t"
-            "brcs .Lpos_prev\n\t"
-            "sub r0, r6\n\t"  // c = hi - P in [-out_max, hi]
-            "sbc r1, r7\n\t"
-            "cp r21, r3\n\t"  // cap = c * 256 < integ?
-            "cpc r0, r4\n\t"
-            "cpc r1, r5\n\t"
-            "brlt .Lpos_prev\n\t"
-            "movw r24, r22\n\t"  // I = cap, u = hi: y = hi, saturated = 0
-            "st X, r21\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"
-            "st -X, r1\n\t"
-            "st -X, r0\n\t"
-            "st -X, r21\n\t"
-            "clr r1\n\t"
-            "ret\n"
+                    ".Lpos_above:\n\t"  // back-calculation: k = hi + out_max (< 0: lo > hi, C)
+                    "movw r0, r22\n\t"
+                    "add r0, r6\n\t"
+                    "adc r1, r7\n\t"
+                    "brlt .Lpos_slow\n\t"
+                    "sub r0, r15\n\t"  // k - P < 0: c = -out_max, cap = -ilim <= integ
+                    "sbc r1, r16\n\t"
+                    "brcs .Lpos_prev\n\t"
+                    "sub r0, r6\n\t"  // c = hi - P in [-out_max, hi]
+                    "sbc r1, r7\n\t"
+                    "cp r21, r3\n\t"  // cap = c * 256 < integ?
+                    "cpc r0, r4\n\t"
+                    "cpc r1, r5\n\t"
+                    "brlt .Lpos_prev\n\t"
+                    "movw r24, r22\n\t"  // I = cap, u = hi: y = hi, saturated = 0
+        PI_RETURN("r21", "r1", "r0", "r21")
 
             ".Lpos_prev:\n\t"  // I = min(integ, ilim): integ > ilim is C; y = hi
             "cp r21, r3\n\t"
@@ -276,18 +260,13 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
             "brcs 4f\n\t"
             "clr r20\n"
             "4:\n\t"
-            "movw r24, r22\n\t"
-            "st X, r20\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"  // integ unchanged
-            "clr r1\n\t"
-            "ret\n"
+            "movw r24, r22\n\t" PI_RETURN_Y("r20")
 
-            // ================= E < 0: rare blocks
-            ".Lnm_sat:\n\t"  // e < -65535
-            "ldi r18, 0xFF\n\t"
-            "ldi r19, 0xFF\n\t"
-            "rjmp .Lnm_done\n"  // then a copy of the C call within reach of the first test
+        // ================= E < 0: rare blocks
+        ".Lnm_sat:\n\t"  // e < -65535
+        "ldi r18, 0xFF\n\t"
+        "ldi r19, 0xFF\n\t"
+        "rjmp .Lnm_done\n"  // then a copy of the C call within reach of the first test
         PI_SATS(".Lnp_sat", ".Lnp_done", ".Lnd_sat",
                 ".Lnd_done") ".Lneg_slow0:\n\t" PI_SLOW("ldi r20, 1\n\t")
 
@@ -358,90 +337,62 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "cpc r9, r1\n\t"
         "brlo .Lneg_above\n"
         "7:\n\t"  // y = u, saturated = 0
-        "movw r24, r14\n\t"
-        "st X, r21\n\t"
-        "st -X, r25\n\t"
-        "st -X, r24\n\t"
-        "st -X, r5\n\t"
-        "st -X, r4\n\t"
-        "st -X, r3\n\t"
-        "clr r1\n\t"
-        "ret\n"
+        "movw r24, r14\n\t" PI_RETURN("r21", "r5", "r4", "r3")
 
-        ".Lneg_imin:\n\t"  // I = -ilim; D = (S + ilim) + D = integ + ilim keeps I + D = integ
-        "add r10, r3\n\t"
-        "adc r11, r4\n\t"
-        "adc r12, r5\n\t"
-        "clr r3\n\t"
-        "clr r4\n\t"
-        "clr r5\n\t"
-        "sub r4, r6\n\t"
-        "sbc r5, r7\n\t"
-        "rjmp .Lneg_i\n"
-
-        ".Lneg_slow:\n\t" PI_SLOW("ldi r20, 1\n\t")
-
-            ".Lneg_above:\n\t"  // u > out + slew (< out_max): y = hi = out + slew
-            "add r24, r8\n\t"
-            "adc r25, r9\n\t"
-            "ldi r20, 1\n\t"
-            "st X, r20\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"
-            "st -X, r5\n\t"
-            "st -X, r4\n\t"
-            "st -X, r3\n\t"
-            "clr r1\n\t"
-            "ret\n"
-
-            // Back-calculation, y = lo; lo <= hi needs lo <= out_max and out >= -out_max (else C).
-            ".Lneg_below:\n\t"
-            "add r10, r3\n\t"  // integ = I + D: r10..r12
+            ".Lneg_imin:\n\t"  // I = -ilim; D = (S + ilim) + D = integ + ilim keeps I + D = integ
+            "add r10, r3\n\t"
             "adc r11, r4\n\t"
             "adc r12, r5\n\t"
-            "movw r0, r6\n\t"  // k = out_max - lo
-            "sub r0, r22\n\t"
-            "sbc r1, r23\n\t"
-            "brlt .Lneg_slow\n\t"
-            "movw r4, r24\n\t"
-            "add r4, r6\n\t"
-            "adc r5, r7\n\t"
-            "brlt .Lneg_slow\n\t"
-            "cp r21, r14\n\t"  // k - pmc < 0: c = out_max, cap = ilim >= integ
-            "sbc r0, r15\n\t"
-            "sbc r1, r16\n\t"
-            "brcs .Lneg_prev\n\t"
-            "movw r4, r6\n\t"  // c = out_max - (k - pmc) = lo + pmc in [lo, out_max]
-            "sub r4, r0\n\t"
-            "sbc r5, r1\n\t"
-            "cp r10, r21\n\t"  // integ < cap = c * 256?
-            "cpc r11, r4\n\t"
-            "cpc r12, r5\n\t"
-            "brlt .Lneg_prev\n\t"
-            "movw r24, r22\n\t"  // I = cap, u = lo: y = lo, saturated = 0
-            "st X, r21\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"
-            "st -X, r5\n\t"
-            "st -X, r4\n\t"
-            "st -X, r21\n\t"
-            "clr r1\n\t"
-            "ret\n"
+            "clr r3\n\t"
+            "clr r4\n\t"
+            "clr r5\n\t"
+            "sub r4, r6\n\t"
+            "sbc r5, r7\n\t"
+            "rjmp .Lneg_i\n"
 
-            // I = max(integ, -ilim): integ < -ilim is C; y = lo, saturated = 1 (integ < cap:
-            // floor(integ / 256) - pmc <= lo - 1, unlike E > 0).
-            ".Lneg_prev:\n\t"
-            "mov r0, r11\n\t"
-            "mov r1, r12\n\t"
-            "add r0, r6\n\t"
-            "adc r1, r7\n\t"
-            "brlt .Lneg_slow\n\t"
-            "movw r24, r22\n\t"
-            "ldi r20, 1\n\t"
-            "st X, r20\n\t"
-            "st -X, r25\n\t"
-            "st -X, r24\n\t"  // integ unchanged
-            "clr r1\n\t"
-            "ret\n\t" ::);
+            ".Lneg_slow:\n\t" PI_SLOW("ldi r20, 1\n\t")
+
+                ".Lneg_above:\n\t"  // u > out + slew (< out_max): y = hi = out + slew
+                "add r24, r8\n\t"
+                "adc r25, r9\n\t"
+                "ldi r20, 1\n\t" PI_RETURN("r20", "r5", "r4", "r3")
+
+        // Back-calculation, y = lo; lo <= hi needs lo <= out_max and out >= -out_max (else C).
+        ".Lneg_below:\n\t"
+        "add r10, r3\n\t"  // integ = I + D: r10..r12
+        "adc r11, r4\n\t"
+        "adc r12, r5\n\t"
+        "movw r0, r6\n\t"  // k = out_max - lo
+        "sub r0, r22\n\t"
+        "sbc r1, r23\n\t"
+        "brlt .Lneg_slow\n\t"
+        "movw r4, r24\n\t"
+        "add r4, r6\n\t"
+        "adc r5, r7\n\t"
+        "brlt .Lneg_slow\n\t"
+        "cp r21, r14\n\t"  // k - pmc < 0: c = out_max, cap = ilim >= integ
+        "sbc r0, r15\n\t"
+        "sbc r1, r16\n\t"
+        "brcs .Lneg_prev\n\t"
+        "movw r4, r6\n\t"  // c = out_max - (k - pmc) = lo + pmc in [lo, out_max]
+        "sub r4, r0\n\t"
+        "sbc r5, r1\n\t"
+        "cp r10, r21\n\t"  // integ < cap = c * 256?
+        "cpc r11, r4\n\t"
+        "cpc r12, r5\n\t"
+        "brlt .Lneg_prev\n\t"
+        "movw r24, r22\n\t"  // I = cap, u = lo: y = lo, saturated = 0
+        PI_RETURN("r21", "r5", "r4", "r21")
+
+        // I = max(integ, -ilim): integ < -ilim is C; y = lo, saturated = 1 (integ < cap:
+        // floor(integ / 256) - pmc <= lo - 1, unlike E > 0).
+        ".Lneg_prev:\n\t"
+        "mov r0, r11\n\t"
+        "mov r1, r12\n\t"
+        "add r0, r6\n\t"
+        "adc r1, r7\n\t"
+        "brlt .Lneg_slow\n\t"
+        "movw r24, r22\n\t"
+        "ldi r20, 1\n\t" PI_RETURN_Y("r20")::);
 }
 #endif
