@@ -200,6 +200,7 @@ int main(int argc, char** argv) {
     flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     if (sim_spi_install(avr, ADDR_SPDR, encoder_byte) != 0) return 1; /* not simavr's 100 us */
+    sim_uart_install(avr, ADDR_UDR0); /* the chip's byte time, not simavr's 22 us */
     avr_irq_t* uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
                             uart_out, NULL);
@@ -235,7 +236,6 @@ int main(int argc, char** argv) {
         }
         uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
         uint64_t c0 = avr->cycle;
-        sim_uart_chip_timing(avr, ADDR_UDR0); /* not simavr's 22 us per byte */
         int state = avr_run(avr);
         if (g_profile && g_mark_start) g_profile[pc >> 1] += avr->cycle - c0;
         if (op == 0x9518) { /* reti */

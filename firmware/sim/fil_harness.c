@@ -467,7 +467,6 @@ static void uart_backpressure(void) {
 
 static avr_cycle_count_t pace_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)param;
-    sim_uart_chip_timing(avr, ADDR_UDR0); /* the chip's byte time, not simavr's (sim_uart.h) */
     uart_backpressure();
     if (g_rate > 0) {
         double ahead = sim_time_s() / g_rate - (now_s() - g_wall_t0);
@@ -831,6 +830,7 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
 
     /* SPI bytes at the real SCK rate (sim_spi.h), answered by the four emulated encoders */
     if (sim_spi_install(avr, ADDR_SPDR, slaves_exchange) != 0) exit(1);
+    sim_uart_install(avr, ADDR_UDR0); /* the chip's UART byte time (sim_uart.h) */
     for (int i = 0; i < N_MOTORS; i++) {
         /* pin IRQs fire on changes only and start at 0: begin as "not selected" and let the
            firmware's first high write be a no-op, its first low write a frame start */
