@@ -11,8 +11,8 @@ import tty
 import pytest
 from protocol_reference import crc_bytewise
 
-from gyrohost import wheelproto as wp
 from gyrohost.drivers import wheelboard as wb
+from gyrohost.drivers import wheelproto as wp
 
 
 def cobs_by_hand(raw: bytes) -> bytes:

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from protocol_reference import crc_bytewise
 
-from gyrohost import wheelproto as wp
+from gyrohost.drivers import wheelproto as wp
 
 FW = Path(__file__).resolve().parents[1] / "firmware" / "lib"
 C_STRING = r'"((?:[^"\\]|\\.)*)"'

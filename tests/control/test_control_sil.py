@@ -12,7 +12,7 @@ import pytest
 
 from gyrohost.control import DBarReduced, Replanner
 from gyrohost.control.adapt import WheelGainFit
-from gyrohost.control.sil import run_sil, scene_with_wheel_inertia
+from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia
 from gyrotensegrity import Model
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"

@@ -6,8 +6,8 @@ import pytest
 
 from gyrohost.estimator import EstimatorConfig
 from gyrohost.estimator.layout import from_model_state
-from gyrohost.estimator.montecarlo import TRUTH_PSD_M2_S3
-from gyrohost.estimator.synthetic import sensor_streams, simulate_truth
+from gyrohost.experiments.montecarlo import TRUTH_PSD_M2_S3
+from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, Stepper, load_scene
 
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"

@@ -1,12 +1,13 @@
 """The filter on the rig's own truth model and IMU emulator (in process, simulated clock): a
-short software-in-the-loop check; the 20-run Monte Carlo is ``python -m gyrohost.estimator.sil``."""
+short software-in-the-loop check; the 20-run Monte Carlo is
+``python -m gyrohost.experiments.estimator_sil``."""
 
 from pathlib import Path
 
 import numpy as np
 
 from gyrohost.config import load_rig_config
-from gyrohost.estimator.sil import RIG_MODEL_KEYS, score_rig_model_run
+from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
 

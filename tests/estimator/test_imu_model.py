@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx, rotation_zyx
+from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx
+from gyrohost.geometry import rotation_zyx
 from gyrotensegrity import evaluate
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.estimator.synthetic import write_log
-from gyrohost.runlog import read_meta, read_stream
+from gyrohost.experiments.synthetic import write_log
+from gyrohost.run.log import read_meta, read_stream
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """Reduced software-in-the-loop Monte Carlo on the simulated rig (in process, simulated clock):
 6 noise seeds over the whole 3 s manoeuvre; the run-averaged NEES and the NIS of every source
 must lie inside the 95 % chi-square bounds of a 6-run average. The 20-run figures:
-``python -m gyrohost.estimator.sil`` (docs/estimator.md)."""
+``python -m gyrohost.experiments.estimator_sil`` (docs/estimator.md)."""
 
 from pathlib import Path
 
@@ -10,7 +10,7 @@ import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.consistency import average_bounds
-from gyrohost.estimator.sil import RIG_MODEL_KEYS, score_rig_model_run
+from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
 SEEDS = range(1, 7)

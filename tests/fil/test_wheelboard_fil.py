@@ -15,7 +15,7 @@ import pytest
 import serial
 from filharness import Harness, firmware_elf, stats_rpm
 
-from gyrohost import wheelproto as wp
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import DeviceError, WheelBoard
 
 pytestmark = pytest.mark.fil

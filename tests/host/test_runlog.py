@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from gyrohost.runlog import LogError, RunLog, read_meta, read_stream
+from gyrohost.run.log import LogError, RunLog, read_meta, read_stream
 
 
 def _log_with_imu(folder, rows):
@@ -78,7 +78,7 @@ def test_rows_survive_sigint(tmp_path, terminal_popen):
     """Every row written before Ctrl-C is on disk, without any close()."""
     script = f"""
 import time
-from gyrohost.runlog import RunLog
+from gyrohost.run.log import RunLog
 log = RunLog({str(tmp_path / "log")!r}, {{}})
 s = log.stream("wheels", ["t_s", "omega_rad_s"])
 for i in range(100):

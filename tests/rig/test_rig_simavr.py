@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrohost import wheelproto as wp
 from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.rig import simavr
 from gyrohost.rig.sim import FaultCommandError, SimulatedRig

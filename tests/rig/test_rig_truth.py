@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gyrohost.config import ServoConfig, TruthConfig
-from gyrohost.rig.imu_emu import rotation_zyx
+from gyrohost.geometry import rotation_zyx
 from gyrohost.rig.truth import RigSetupError, Truth, rig_scene
 from gyrotensegrity import Model, load_scene
 

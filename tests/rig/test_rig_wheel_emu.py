@@ -7,9 +7,9 @@ import time
 import numpy as np
 import pytest
 
-from gyrohost import wheelproto as wp
 from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelboard as wb
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.rig.wheel_emu import STOP_RAD_S, WheelBoardEmulator
 
 SPIN = 74.87462492  # rad/s, 715 rpm

@@ -8,8 +8,8 @@ import numpy as np
 
 from gyrohost.config import load_rig_config
 from gyrohost.control.maneuver import Target
-from gyrohost.control.rig_sil import compare, mismatched
-from gyrohost.runlog import read_meta, read_stream
+from gyrohost.experiments.rig_sil import compare, mismatched
+from gyrohost.run.log import read_meta, read_stream
 
 ROOT = Path(__file__).resolve().parents[2]
 TARGET = Target(-0.3, 4.0)

@@ -12,7 +12,7 @@ import numpy as np
 
 from gyrohost.cli import main
 from gyrohost.control.schedule import Schedule
-from gyrohost.runlog import read_meta, read_stream
+from gyrohost.run.log import read_meta, read_stream
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "configs" / "sim-rig.toml"

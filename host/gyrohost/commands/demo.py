@@ -39,8 +39,8 @@ def run(args) -> int:
     from gyrohost.commands.run import Progress
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.presets import paper
-    from gyrohost.plots_log import plot_compare, plot_log
-    from gyrohost.runloop import ScheduleRefused, run_simulated
+    from gyrohost.plots.log import plot_compare, plot_log
+    from gyrohost.run.loop import ScheduleRefused, run_simulated
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()
@@ -90,8 +90,8 @@ def summarise(folder: Path, label: str) -> dict:
     """Figures of one demo run from its log: tilts, peak n1/n3 z, rates, loop timing."""
     import numpy as np
 
-    from gyrohost.run_records import jitter_line
-    from gyrohost.runlog import read_meta, read_stream
+    from gyrohost.run.log import read_meta, read_stream
+    from gyrohost.run.records import jitter_line
 
     summary = read_meta(folder)["summary"]
     events = read_stream(folder, "events")

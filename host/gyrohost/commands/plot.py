@@ -1,7 +1,7 @@
 """``gyrotens plot FILE -o DIR``: figures of a recorded file, dispatched on the file's type.
 
 Run files of the dynamics model (.npz with ``N`` and ``node_names``) and run logs of the rig (a
-folder with ``meta.json``, written by ``gyrotens run``; figures in ``gyrohost.plots_log``).
+folder with ``meta.json``, written by ``gyrotens run``; figures in ``gyrohost.plots.log``).
 """
 
 from pathlib import Path
@@ -27,7 +27,7 @@ def _is_run_file(path: Path) -> bool:
 
 
 def _plot_run(args):
-    from gyrohost import plots
+    from gyrohost.plots import model as plots
     from gyrotensegrity import load_run
 
     return plots.plot_run(load_run(args.file), args.out, animation=not args.no_animation)
@@ -38,7 +38,7 @@ def _is_log(path: Path) -> bool:
 
 
 def _plot_log(args):
-    from gyrohost.plots_log import plot_log
+    from gyrohost.plots.log import plot_log
 
     return plot_log(args.file, args.out or args.file / "plots")
 
@@ -48,7 +48,7 @@ PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
 
 def run(args) -> int:
     from gyrohost.cli import CliError
-    from gyrohost.runlog import LogError
+    from gyrohost.run.log import LogError
 
     if not args.file.exists():
         raise CliError(f"{args.file}: no such file or folder")

@@ -15,8 +15,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.estimator import EstimatorConfigError, EstimatorError, load_config
-    from gyrohost.estimator.replay import replay
-    from gyrohost.runlog import LogError
+    from gyrohost.run.log import LogError
+    from gyrohost.run.replay import replay
     from gyrotensegrity import SceneError
 
     out = args.out or args.log.with_name(args.log.name + "-replay")

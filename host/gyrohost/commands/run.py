@@ -106,7 +106,7 @@ class Progress:
 
 def _wired(config, args):
     from gyrohost.cli import CliError
-    from gyrohost.runloop import with_ports
+    from gyrohost.run.loop import with_ports
 
     config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
     emulated = [
@@ -132,9 +132,9 @@ def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.errors import PlanError, ScheduleError
+    from gyrohost.rig.process import RigProcessError
     from gyrohost.rig.truth import RigSetupError
-    from gyrohost.rig_process import RigProcessError
-    from gyrohost.runloop import RunLoop, ScheduleRefused, run_simulated
+    from gyrohost.run.loop import RunLoop, ScheduleRefused, run_simulated
     from gyrotensegrity import SceneError
 
     try:
@@ -172,7 +172,7 @@ def _run_name(schedule) -> str:
 
 def report(result) -> int:
     """Print how a run ended and where its log is; returns its exit status."""
-    from gyrohost.run_records import jitter_line
+    from gyrohost.run.records import jitter_line
 
     s = result.summary
     print(f"log: {result.log_folder}")

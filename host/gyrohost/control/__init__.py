@@ -10,7 +10,7 @@ Typical use::
     p.schedule.save("schedules/tilt-0.3.toml")       # gyrotens run --schedule FILE
     u = p.schedule.input_at(model, t)                 # the model's input at t
 
-See ``docs/schedule.md``. ``python -m gyrohost.control`` prints the SIL figures.
+See ``docs/schedule.md``. ``python -m gyrohost.experiments.control_compare`` prints the SIL figures.
 """
 
 from .attitude import Attitude

@@ -20,6 +20,8 @@ A rotation of the whole structure by ``+phi`` about ``a`` gives ``tilt = +phi``.
 
 import numpy as np
 
+from gyrohost.geometry import plane_frame, tilt_angle
+
 from .errors import PlanError
 
 PLANE_NODES = ("n1", "n2", "n3", "n4")
@@ -32,37 +34,6 @@ def node_columns(model, names=PLANE_NODES):
     if missing:
         raise PlanError(f"scene {model.scene.name}: no node(s) {', '.join(missing)}")
     return [primary[n] for n in names]
-
-
-def plane_frame(N, cols):
-    """Plane frame of node positions.
-
-    Parameters
-    ----------
-    N : ndarray, shape (3, n), m
-        Node positions.
-    cols : sequence of 4 int
-        Columns of n1, n2, n3, n4 in ``N``.
-
-    Returns
-    -------
-    R : ndarray, shape (3, 3)
-        Columns ``e_x, e_y, e_z`` (unit vectors, world frame).
-    """
-    n1, n2, n3, n4 = (N[:, c] for c in cols)
-    ex = n3 - n1
-    ex = ex / np.linalg.norm(ex)
-    ey = n2 - n4
-    ey = ey - (ey @ ex) * ex
-    ey = ey / np.linalg.norm(ey)
-    return np.column_stack([ex, ey, np.cross(ex, ey)])
-
-
-def tilt_angle(normal, axis, normal0):
-    """Signed rotation (rad) of ``normal`` about ``axis`` away from ``normal0`` (all (3,))."""
-    axis = axis / np.linalg.norm(axis)
-    p = normal - (normal @ axis) * axis
-    return float(np.arctan2(np.cross(normal0, p) @ axis, normal0 @ p))
 
 
 class Attitude:

@@ -1,9 +1,9 @@
 """Client of the wheel board (four gimbal-motor speed loops on an ATmega2560) over a serial port.
 
-Protocol: docs/protocol.md, codec: :mod:`gyrohost.wheelproto`. One reader thread decodes every
-frame; telemetry goes to a bounded queue (oldest dropped) and an optional callback, replies to the
-request waiting for them. A heartbeat thread keeps the board's fail-safe from firing while the
-host is alive; if the host dies, the board ramps all wheels to zero on its own.
+Protocol: docs/protocol.md, codec: :mod:`gyrohost.drivers.wheelproto`. One reader thread decodes
+every frame; telemetry goes to a bounded queue (oldest dropped) and an optional callback,
+replies to the request waiting for them. A heartbeat thread keeps the board's fail-safe from
+firing while the host is alive; if the host dies, the board ramps all wheels to zero on its own.
 
 Speeds are rad/s on this side, mrad/s on the wire.
 """
@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from gyrohost import wheelproto as wp
+from gyrohost.drivers import wheelproto as wp
 
 BAUD = 1_000_000
 

@@ -6,8 +6,9 @@ The Jacobian of the Z-Y-X angles follows from the Jacobian of ``R_ws`` by the ch
 
 import numpy as np
 
+from gyrohost.geometry import wrap_angle
+
 from .fusion import Measurement
-from .imu_model import wrap_angle
 from .imu_prediction import ImuPrediction, full_jacobian
 
 SOURCE = "imu_angle"

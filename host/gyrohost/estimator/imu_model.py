@@ -13,7 +13,7 @@ x``; the IMU point is the midpoint of a and b. The sensor axes are the body axes
 
 import numpy as np
 
-from gyrohost.rig.imu_emu import rotation_zyx  # the emulator's, so both turn alike
+from gyrohost.geometry import rotation_zyx
 
 from .complex_step import atan2
 from .errors import EstimatorConfigError
@@ -100,11 +100,6 @@ def euler_zyx(R):
     pitch = -np.arcsin(R[:, 2, 0])
     yaw = atan2(R[:, 1, 0], R[:, 0, 0])
     return np.stack([roll, pitch, yaw], axis=1)
-
-
-def wrap_angle(a):
-    """Angles wrapped into [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def tilt(R):

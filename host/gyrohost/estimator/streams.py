@@ -1,6 +1,6 @@
 """Column names of the run-log streams the estimator reads and writes: the one place they live.
 
-The run loop writes the input streams with these columns (``gyrohost.runlog``); ``gyrotens
+The run loop writes the input streams with these columns (``gyrohost.run.log``); ``gyrotens
 replay`` and the estimator read them back; the output streams are written by
 :mod:`.replay`. Every time column is ``t_s``: host time since the start of the run, s.
 

@@ -29,6 +29,7 @@ from gyrohost.drivers.imu import (
     FrameType,
     encode_frame,
 )
+from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
 from gyrohost.rig.faults import FaultFilter
 from gyrohost.rig.pty_link import PtyDevice
 
@@ -52,25 +53,6 @@ class ImuTruth:
         default_factory=lambda: np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
     )
     R_wb: np.ndarray = field(default_factory=lambda: np.eye(3))
-
-
-def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Rotation matrix ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, shape (3, 3); angles in rad."""
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))  # fmt: skip
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (Z-Y-X) of rotation ``R``, shape (3,), rad."""
-    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
 
 
 def quantise(values: np.ndarray, scale: float) -> list[int]:
@@ -157,7 +139,7 @@ class Bwt61Emulator(PtyDevice):
         accel = R_bo.T @ truth.specific_force_m_s2 + self.accel_bias_m_s2
         accel += rng.normal(0.0, emu.accel_noise_density_m_s2_rthz * bandwidth_rthz, 3)
         euler = euler_zyx(truth.R_wb @ R_bo) + rng.normal(0.0, emu.angle_noise_std_rad, 3)
-        euler[2] = _wrap(euler[2] - self.yaw_offset_rad)
+        euler[2] = float(wrap_angle(euler[2] - self.yaw_offset_rad))
         temp = int(round((emu.temperature_degC - TEMP_OFFSET_DEGC) / TEMP_SCALE_DEGC))
         return b"".join(
             (
@@ -205,7 +187,3 @@ class Bwt61Emulator(PtyDevice):
             self.baud = _BAUDS[self.rate_hz]
         elif code in (0x65, 0x66):
             self.vertical = code == 0x66
-
-
-def _wrap(angle_rad: float) -> float:
-    return float((angle_rad + np.pi) % (2.0 * np.pi) - np.pi)

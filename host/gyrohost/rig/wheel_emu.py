@@ -1,8 +1,8 @@
 """Emulated wheel board (ATmega2560, four gimbal-motor speed loops) on a pseudo-terminal.
 
 The device side of the wheel-board protocol (docs/protocol.md), with the codec of
-:mod:`gyrohost.wheelproto`. Like the firmware it runs a 1 kHz control tick, counted from boot on
-the emulator's clock, so simulated-time runs are exact:
+:mod:`gyrohost.drivers.wheelproto`. Like the firmware it runs a 1 kHz control tick, counted
+from boot on the emulator's clock, so simulated-time runs are exact:
 
 - receiver rules: frames longer than 44 bytes, bad COBS, short frames and bad CRCs are dropped and
   counted; an unknown id or a device-to-host id, or a wrong payload length, gets an ERROR reply;
@@ -36,8 +36,8 @@ setpoints are 0; the wheels keep spinning and coast down.
 
 import math
 
-from gyrohost import wheelproto as wp
 from gyrohost.config import WheelEmuConfig
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.rig.faults import FaultFilter
 from gyrohost.rig.pty_link import PtyDevice
 

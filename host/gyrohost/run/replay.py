@@ -1,6 +1,6 @@
 """Rerun the estimator over a run log and write its estimates and innovations to a new log.
 
-Input: a log folder (``gyrohost.runlog``) with the streams of :mod:`.streams` (``imu``,
+Input: a log folder (``gyrohost.run.log``) with the streams of :mod:`.streams` (``imu``,
 ``wheels``, ``servos``, ``command``; any may be missing). The scene comes from ``scene`` in
 ``meta.json`` (a path, relative to the log folder or the working directory) unless given; the
 estimator configuration from ``estimator`` in ``meta.json`` (a table of :mod:`.config` keys)
@@ -19,15 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.runlog import LogError, RunLog, read_meta, read_stream
+from gyrohost.estimator import driver, streams
+from gyrohost.estimator.config import EstimatorConfig, config_from_dict
+from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
+from gyrohost.estimator.errors import EstimatorConfigError
+from gyrohost.estimator.imu_model import tilt
+from gyrohost.estimator.layout import from_model_state, layout_of
+from gyrohost.run.log import LogError, RunLog, read_meta, read_stream
 from gyrotensegrity import Model, load_scene
-
-from . import driver, streams
-from .config import EstimatorConfig, config_from_dict
-from .ekf import SOURCES, TensegrityEKF
-from .errors import EstimatorConfigError
-from .imu_model import tilt
-from .layout import from_model_state, layout_of
 
 _LABELS = {
     "imu_rate": ("x", "y", "z"),

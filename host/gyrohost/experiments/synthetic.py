@@ -13,12 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrohost.estimator import streams as cols
+from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx
+from gyrohost.estimator.layout import from_model_state
+from gyrohost.geometry import wrap_angle
 from gyrotensegrity import Stepper, evaluate
 from gyrotensegrity.projection import project
-
-from . import streams as cols
-from .imu_model import ImuGeometry, euler_zyx, wrap_angle
-from .layout import from_model_state
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ def sensor_streams(model, config, truth: TruthRun, seed, servo_every=5, servo_no
 
 def write_log(folder, data, scene_path, meta=None):
     """Write synthetic streams ``data`` as a run log (what the run loop would record)."""
-    from gyrohost.runlog import RunLog
+    from gyrohost.run.log import RunLog
 
     with RunLog(folder, {"scene": str(scene_path), **(meta or {})}) as log:
         for name, rows in data.items():

@@ -19,9 +19,9 @@ stop all wheels and wait until every measured speed is below ``stop_threshold_ra
 limit breach, an estimator fault and a time-out all end there; :class:`RunResult` then carries
 a non-zero exit status and the reason.
 
-Device I/O runs in background threads (:mod:`gyrohost.run_io`); the loop thread only drains a
+Device I/O runs in background threads (:mod:`gyrohost.run.devices`); the loop thread only drains a
 queue, fuses, commands and logs, and sleeps to the next tick of a fixed grid. Tick timing goes
-to the ``loop`` stream and the summary (:class:`gyrohost.run_records.LoopTimer`).
+to the ``loop`` stream and the summary (:class:`gyrohost.run.records.LoopTimer`).
 """
 
 import math
@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost import wheelproto as wp
 from gyrohost.control.closed_loop import ekf_estimate
 from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Limits, Schedule
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard, WheelBoardError
@@ -46,9 +46,10 @@ from gyrohost.estimator import streams as cols
 from gyrohost.estimator.config import noise_from_rig
 from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.rig_process import RigProcess, RigProcessError
-from gyrohost.run_io import ImuReader, Sample, ServoWorker, WheelTelemetry
-from gyrohost.run_records import (
+from gyrohost.rig.process import RigProcess, RigProcessError
+from gyrohost.run.devices import ImuReader, Sample, ServoWorker, WheelTelemetry
+from gyrohost.run.log import RunLog
+from gyrohost.run.records import (
     EstimateWriter,
     InnovationWriter,
     LoopTimer,
@@ -57,7 +58,6 @@ from gyrohost.run_records import (
     TruthProbe,
     jitter_line,
 )
-from gyrohost.runlog import RunLog
 from gyrotensegrity import Model, __version__, load_scene
 
 

@@ -1,6 +1,6 @@
 """Monte Carlo consistency check of the EKF on synthetic runs (and the lean model's cost).
 
-``python -m gyrohost.estimator.montecarlo [--runs 20] [--duration 3] [--method lean|rk4|both]``
+``python -m gyrohost.experiments.montecarlo [--runs 20] [--duration 3] [--method lean|rk4|both]``
 
 Each run draws its own truth disturbances, gyro bias, sensor noise and initial estimate error
 (seed = run index), runs the paper's D-bar manoeuvre through the reference model
@@ -18,13 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.estimator import driver, streams
+from gyrohost.estimator.config import EstimatorConfig
+from gyrohost.estimator.consistency import average_bounds, nees, sample_initial, tilt_error
+from gyrohost.estimator.ekf import TensegrityEKF
+from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, load_scene
-
-from . import driver, streams
-from .config import EstimatorConfig
-from .consistency import average_bounds, nees, sample_initial, tilt_error
-from .ekf import TensegrityEKF
-from .synthetic import sensor_streams, simulate_truth
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[3] / "scenes" / "dbar-gyro.toml"
 TRUTH_PSD_M2_S3 = 1e-4  # density of the disturbance the synthetic truth carries
@@ -147,7 +146,7 @@ def run_monte_carlo(model, config, runs, duration_s, first_seed=0):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.estimator.montecarlo")
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.montecarlo")
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE)
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--duration", type=float, default=3.0, help="s")

@@ -1,4 +1,5 @@
-"""``python -m gyrohost.control``: SIL figures of the tilt maneuver, open vs closed loop.
+"""``python -m gyrohost.experiments.control_compare``: SIL figures of the tilt maneuver, open
+vs closed loop.
 
 Truth: the scene with every wheel's J_3 scaled by ``--inertia-factor`` (default 1.2, a 20 %
 error); planner: the nominal scene. Prints the target, plan times, the planner-vs-simulation
@@ -12,12 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.control.errors import PlanError, ScheduleError
+from gyrohost.control.planner import Planner
+from gyrohost.control.schedule import Limits
+from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia, validate
 from gyrotensegrity import Model, load_scene
-
-from .errors import PlanError, ScheduleError
-from .planner import Planner
-from .schedule import Limits
-from .sil import run_sil, scene_with_wheel_inertia, validate
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gyrohost.runlog import read_meta, read_stream  # noqa: E402
+from gyrohost.run.log import read_meta, read_stream  # noqa: E402
 
 NODES = ("n1", "n2", "n3", "n4")
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")

@@ -1,12 +1,11 @@
 """Cost of one EKF cycle: predict 10 ms + fuse one IMU sample (rate, specific force, angles).
 
-``python -m gyrohost.estimator.benchmark`` prints the median and the 90th percentile over a run
-of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference model), for
-the lean and the rk4 process models, with the rest-length jitter through the strings' kinks
-(``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it out), next to one
-evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as the baseline
-measured in the same run.
-"""
+``python -m gyrohost.experiments.estimator_benchmark`` prints the median and the 90th percentile
+over a run of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference
+model), for the lean and the rk4 process models, with the rest-length jitter through the
+strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it out), next to
+one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as the baseline
+measured in the same run."""
 
 import argparse
 import time
@@ -15,12 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.estimator.config import EstimatorConfig
+from gyrohost.estimator.ekf import TensegrityEKF
+from gyrohost.estimator.imu_model import euler_zyx
+from gyrohost.experiments.synthetic import simulate_truth
 from gyrotensegrity import Model, load_scene, rhs
-
-from .config import EstimatorConfig
-from .ekf import TensegrityEKF
-from .imu_model import euler_zyx
-from .synthetic import simulate_truth
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[3] / "scenes" / "dbar-gyro.toml"
 
@@ -67,7 +65,7 @@ def rhs_time(model, repeats=200):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.estimator.benchmark")
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_benchmark")
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE)
     parser.add_argument("--cycles", type=int, default=200)
     parser.add_argument(

@@ -1,6 +1,6 @@
 """SIL on the simulated rig with the EKF: open vs closed loop under a wheel-inertia error.
 
-``python -m gyrohost.control.rig_sil [--config RIG.toml] [-o DIR] [--thread]`` runs the
+``python -m gyrohost.experiments.rig_sil [--config RIG.toml] [-o DIR] [--thread]`` runs the
 maneuver twice on the simulated rig in real time (``gyrotens run --sim --target-tilt``): the
 truth's wheels have ``J_3`` times ``--inertia-scale`` (``[sim.truth] wheel_inertia_scale``),
 the planner and the EKF the nominal scene. Open loop plays the first plan; closed loop
@@ -27,7 +27,7 @@ def mismatched(config, inertia_scale: float):
 
 def settled_tilt(folder) -> tuple[float, float]:
     """Truth tilt (rad) at the end of the settle phase and that time (host s), from the log."""
-    from gyrohost.runlog import read_stream
+    from gyrohost.run.log import read_stream
 
     events = read_stream(folder, "events")
     kinds, times = list(events["kind"]), np.asarray(events["t_s"], float)
@@ -39,7 +39,7 @@ def settled_tilt(folder) -> tuple[float, float]:
 
 def loop_figures(folder) -> dict:
     """Wall time per tick in the schedule phase (median, p99, max; s) and overruns."""
-    from gyrohost.runlog import read_stream
+    from gyrohost.run.log import read_stream
 
     loop = read_stream(folder, "loop")
     in_schedule = np.asarray(loop["phase"]) == "schedule"
@@ -59,7 +59,7 @@ def run_case(config, out, target, closed_loop: bool, threaded: bool = False) -> 
     """One run of the maneuver on the simulated rig; its figures."""
     from gyrohost.control.maneuver import Maneuver
     from gyrohost.control.schedule import Limits
-    from gyrohost.runloop import run_simulated
+    from gyrohost.run.loop import run_simulated
     from gyrotensegrity import Model, load_scene
 
     target = replace(target, closed_loop=closed_loop, threaded=threaded)
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     from gyrohost.config import load_rig_config
     from gyrohost.control.maneuver import Target
 
-    p = argparse.ArgumentParser(prog="python -m gyrohost.control.rig_sil", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m gyrohost.experiments.rig_sil", description=__doc__)
     p.add_argument("--config", type=Path, default=ROOT / "configs" / "sim-rig.toml")
     p.add_argument("-o", "--out", type=Path, default=Path("out/rig-sil"))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")

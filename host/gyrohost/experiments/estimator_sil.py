@@ -1,6 +1,6 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
-``python -m gyrohost.estimator.sil [--runs 20] [--config configs/sim-rig.toml]``
+``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config configs/sim-rig.toml]``
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
@@ -31,12 +31,11 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import null_space
 
-from gyrohost.runlog import read_stream
-
-from . import streams
-from .consistency import sample_initial
-from .montecarlo import RunResult, sampled_truth, score_run, summarise
-from .replay import prepare
+from gyrohost.estimator import streams
+from gyrohost.estimator.consistency import sample_initial
+from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
+from gyrohost.run.log import read_stream
+from gyrohost.run.replay import prepare
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
@@ -67,7 +66,7 @@ DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml
 def record_run(config, seed, folder, duration_s=3.0):
     """One run of the paper's schedule on the simulated rig with IMU seed ``seed``."""
     from gyrohost.control.presets import paper
-    from gyrohost.runloop import run_simulated
+    from gyrohost.run.loop import run_simulated
     from gyrotensegrity import Model, load_scene
 
     cfg = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
@@ -160,8 +159,7 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
     """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
     from gyrohost.drivers.imu import Bwt61Parser
     from gyrohost.drivers.servos import length_to_steps, steps_to_length
-
-    from .layout import from_model_state
+    from gyrohost.estimator.layout import from_model_state
 
     parser = Bwt61Parser()
     strings = [s.name for s in model.scene.strings]
@@ -216,7 +214,7 @@ class _WheelBoard:
     order) by ``t = 0``, its telemetry read off the pty and decoded."""
 
     def __init__(self, config, spins, rng):
-        from gyrohost import wheelproto as wp
+        from gyrohost.drivers import wheelproto as wp
         from gyrohost.rig.wheel_emu import WheelBoardEmulator
 
         self.wp = wp
@@ -264,8 +262,8 @@ class _WheelBoard:
 def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResult:
     """Filter one :func:`rig_model_run` and score it against its truth; ``overrides``: estimator
     keys on top of :func:`.config.noise_from_rig`."""
-    from .config import config_from_dict, noise_from_rig
-    from .ekf import TensegrityEKF
+    from gyrohost.estimator.config import config_from_dict, noise_from_rig
+    from gyrohost.estimator.ekf import TensegrityEKF
 
     model, data, truth_x, truth_R = rig_model_run(config, seed, duration_s)
     est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
@@ -280,7 +278,7 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
 def main(argv=None) -> int:
     from gyrohost.config import load_rig_config
 
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.estimator.sil")
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_sil")
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG)
     parser.add_argument("--duration", type=float, default=3.0, help="s (in-process runs)")

@@ -15,11 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.control.closed_loop import Replanner, TruthPlusNoise
+from gyrohost.control.errors import PlanError
+from gyrohost.control.planner import Plan, Planner
 from gyrotensegrity import Model, Stepper, scene_from_dict, simulate
-
-from .closed_loop import Replanner, TruthPlusNoise
-from .errors import PlanError
-from .planner import Plan, Planner
 
 
 def scene_with_wheel_inertia(path, factor: float):

@@ -1,0 +1,65 @@
+"""Rotations and plane frames shared by the estimator, the rig and the planner.
+
+Conventions: Z-Y-X Euler angles (roll about x, pitch about y, yaw about z, rad), as the
+BWT61CL reports them; rotation matrices map body (or sensor) axes to world axes, shape (3, 3).
+"""
+
+import numpy as np
+
+
+def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rotation matrix ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, shape (3, 3); angles in rad."""
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))  # fmt: skip
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def euler_zyx(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (Z-Y-X) of rotation ``R`` (3, 3), shape (3,), rad."""
+    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
+
+
+def wrap_angle(a):
+    """Angles wrapped into [-pi, pi), rad (any shape)."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def plane_frame(N, cols):
+    """Frame of a plane spanned by four nodes (the D-bar's rhombus).
+
+    ``e_x`` along node 0 -> node 2 of ``cols``, ``e_y`` along node 3 -> node 1 made orthogonal to
+    ``e_x``, ``e_z = e_x x e_y`` the plane normal.
+
+    Parameters
+    ----------
+    N : ndarray, shape (3, n), m
+        Node positions.
+    cols : sequence of 4 int
+        Columns of the four nodes in ``N`` (for the D-bar: n1, n2, n3, n4).
+
+    Returns
+    -------
+    R : ndarray, shape (3, 3)
+        Columns ``e_x, e_y, e_z`` (unit vectors, world frame).
+    """
+    n1, n2, n3, n4 = (N[:, c] for c in cols)
+    ex = n3 - n1
+    ex = ex / np.linalg.norm(ex)
+    ey = n2 - n4
+    ey = ey - (ey @ ex) * ex
+    ey = ey / np.linalg.norm(ey)
+    return np.column_stack([ex, ey, np.cross(ex, ey)])
+
+
+def tilt_angle(normal, axis, normal0) -> float:
+    """Signed rotation (rad) of ``normal`` about ``axis`` away from ``normal0`` (all (3,))."""
+    axis = axis / np.linalg.norm(axis)
+    p = normal - (normal @ axis) * axis
+    return float(np.arctan2(np.cross(normal0, p) @ axis, normal0 @ p))
