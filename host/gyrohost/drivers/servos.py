@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import dynamixel_sdk as sdk
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
+from gyrohost.errors import GyrohostError
 
 MODEL_MX12W = 104
 STEPS_PER_TURN = 4096
@@ -74,7 +75,7 @@ FAULT_BITS = {
 """Status packet error bits and their names."""
 
 
-class ServoError(RuntimeError):
+class ServoError(GyrohostError, RuntimeError):
     """A servo or its bus failed."""
 
 
@@ -106,7 +107,7 @@ class ServoFaultError(ServoError):
         self.states = list(states)
 
 
-class ServoLimitError(ValueError):
+class ServoLimitError(GyrohostError, ValueError):
     """A command outside a configured limit was refused; nothing was sent."""
 
 

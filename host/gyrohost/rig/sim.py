@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.config import WHEEL_KINDS, RigConfig
+from gyrohost.errors import GyrohostError
 from gyrohost.rig import simavr
 from gyrohost.rig.imu_emu import Bwt61Emulator
 from gyrohost.rig.servo_emu import Mx12Bus
@@ -49,11 +50,11 @@ STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
 DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
 
 
-class RigError(RuntimeError):
+class RigError(GyrohostError, RuntimeError):
     """The rig failed at run time (its loop raised, or it was used the wrong way)."""
 
 
-class FaultCommandError(ValueError):
+class FaultCommandError(GyrohostError, ValueError):
     """A fault request or command line that the rig does not understand."""
 
 

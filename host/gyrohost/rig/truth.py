@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.errors import GyrohostError
 from gyrohost.rig.imu_emu import ImuTruth
 from gyrotensegrity import Model, Scene, Stepper
 from gyrotensegrity.dynamics import evaluate, string_force_densities
@@ -43,7 +44,7 @@ FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
 
 
-class RigSetupError(ValueError):
+class RigSetupError(GyrohostError, ValueError):
     """The rig configuration does not fit the scene (unknown string or node, bad geometry)."""
 
 
