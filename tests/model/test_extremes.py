@@ -32,7 +32,7 @@ def test_stiff_string_refused_for_rk4_with_the_implicit_hint():
     model = model_of(prism(stiffness=1e7))
     with pytest.raises(SimulationError, match=r"stiff: s\d .*radau or bdf") as exc:
         simulate(model, duration=0.1, integrator="rk4", dt=1e-3, fast=True)
-    assert exc.value.t == 0.0 and exc.value.member.startswith("s")
+    assert exc.value.t_s == 0.0 and exc.value.member.startswith("s")
     with pytest.raises(SimulationError, match="stiff"):
         Stepper(model, max_dt=1e-3)
 
@@ -103,7 +103,7 @@ def test_collinear_loop_fails_clearly_on_both_paths():
     model = model_of(near_flat_dbar(0.0))
     with pytest.raises(SimulationError, match=r"singular at b\d\d") as exc:
         simulate(model, duration=0.1, fast=True)
-    assert exc.value.t == 0.0
+    assert exc.value.t_s == 0.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # scipy's singular-matrix and overflow warnings
         with pytest.raises(SimulationError, match=r"n1: rate not finite"):

@@ -46,7 +46,7 @@ class Variant:
 class Trajectory:
     """Samples of one run: ``N`` (K, 3, n) m, ``N_dot`` (K, 3, n) m/s, ``omega`` (K, n_w)."""
 
-    t: np.ndarray
+    t_s: np.ndarray
     N: np.ndarray
     N_dot: np.ndarray
     omega: np.ndarray
@@ -164,7 +164,7 @@ def errors(variant: Variant, run: Trajectory, reference: Trajectory) -> dict:
         reference, :func:`gyrotensegrity.diagnostics.momentum_scale`).
     """
     m = variant.model
-    k = len(run.t)
+    k = len(run.t_s)
     node_err = float(np.max(np.abs(run.N - reference.N[:k]))) if k else np.inf
     bar = max(float(np.max(np.abs(diagnostics.bar_length_error(m, N)) / m.l)) for N in run.N)
     joint = max(float(np.max(diagnostics.joint_error(m, N), initial=0.0)) for N in run.N)
