@@ -333,11 +333,6 @@ class SimulatedRig:
         with self._lock:
             return self.truth.nodes()
 
-    def truth_attitude(self) -> np.ndarray:
-        """True attitude of the IMU frame now (its axes in the world frame), shape (3, 3)."""
-        with self._lock:
-            return self.truth.attitude()
-
     def truth_wheel_speeds(self) -> np.ndarray:
         """True wheel spins now, shape (n_w,), rad/s (scene wheel order)."""
         with self._lock:
