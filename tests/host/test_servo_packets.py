@@ -119,14 +119,22 @@ def test_clean_reply(scripted):
     assert device.received == [Packet(3, 0x03, bytes([Addr.TORQUE_ENABLE, 1]), True)]
 
 
+STATE = bytes([0x78, 0xEC, 0x05, 0x04, 0x0A, 0x00])  # -5000 steps, speed -5, load +10
+
+
 def test_garbage_before_the_reply_is_skipped(scripted):
-    _, bus = scripted(b"\x00\x13\xff\x42" + OK)
-    bus.set_torque(True)
+    device, bus = scripted(b"\x00\x13\xff\x42" + status_packet(3, 0, STATE))
+    (state,) = bus.read_states()
+    assert state.position_steps == -5000 and state.faults == ()
+    assert len(device.received) == 1  # read once: the garbage cost no retry
 
 
 def test_a_reply_from_another_id_is_ignored(scripted):
-    _, bus = scripted(status_packet(9, 0) + OK)
-    bus.set_torque(True)
+    other = bytes([0x10, 0x00, 0x00, 0x00, 0x00, 0x00])  # +16 steps: must not be read as ID 3
+    device, bus = scripted(status_packet(9, 0, other) + status_packet(3, 0, STATE))
+    (state,) = bus.read_states()
+    assert state.servo_id == 3 and state.position_steps == -5000
+    assert len(device.received) == 1
 
 
 @pytest.mark.parametrize(
@@ -153,8 +161,7 @@ def test_each_error_bit_raises_the_named_fault(scripted, bit, name):
 
 
 def test_fault_bits_in_a_read_reach_the_state(scripted):
-    data = bytes([0x78, 0xEC, 0x05, 0x04, 0x0A, 0x00])  # -5000 steps, speed -5, load +10
-    _, bus = scripted(status_packet(3, 0x24, data))
+    _, bus = scripted(status_packet(3, 0x24, STATE))
     with pytest.raises(ServoFaultError, match="overheating, overload") as info:
         bus.read_states()
     (state,) = info.value.states
