@@ -11,12 +11,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
-from gyrohost.drivers.servos import (
+from gyrohost.drivers.mx12 import (
     FAULT_BITS,
     Addr,
-    ServoCommError,
-    ServoFaultError,
-    StringServoBus,
     fault_names,
     int16_from_word,
     length_to_steps,
@@ -25,6 +22,7 @@ from gyrohost.drivers.servos import (
     steps_to_length,
     word_from_int16,
 )
+from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
 from gyrohost.rig.pty_link import PtyDevice
 from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
 

@@ -3,7 +3,8 @@
 Each servo winds one string on a pulley of radius ``r`` in multi-turn mode (CW = CCW = 4095,
 positions -28672..28672 steps, 4096 steps per turn). The string length is
 ``L = length_at_zero_m + length_sign * (p - zero_position) * 2 pi r / 4096`` (see
-:func:`steps_to_length`). Limits on length and speed are checked before anything is sent:
+:func:`gyrohost.drivers.mx12.steps_to_length`; the control table and unit conversions live in
+:mod:`gyrohost.drivers.mx12`). Limits on length and speed are checked before anything is sent:
 a command outside them is refused with :class:`ServoLimitError` naming the servo, value and limit.
 
 SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
@@ -12,7 +13,7 @@ SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
   ``makeParam``, ``bulkReadTx`` and one ``readRx`` per servo itself (which also keeps each
   servo's error byte, which the group discards). ``read_mode = "per_servo"`` uses ``readTxRx``.
 - The SDK returns raw unsigned words: positions are 16-bit two's complement, present speed and
-  load are sign-magnitude (bit 10 = clockwise = negative here); converted in this module.
+  load are sign-magnitude (bit 10 = clockwise = negative here); converted by ``mx12``.
 - ``GroupSyncWrite`` is a broadcast without a status reply: goals are confirmed by reading back.
 - pyserial's low-latency ioctl fails on a pty; it is attempted and the failure tolerated.
 - The SDK's fixed 34 ms reply timeout and busy-wait are replaced (``_PortHandler``) by
@@ -27,52 +28,21 @@ from dataclasses import dataclass
 import dynamixel_sdk as sdk
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
+from gyrohost.drivers.mx12 import (
+    LOAD_UNIT,
+    MODEL_MX12W,
+    MULTI_TURN_LIMIT,
+    SPEED_MAX_UNITS,
+    Addr,
+    fault_names,
+    int16_from_word,
+    length_to_steps,
+    signed_from_sign_magnitude,
+    steps_to_length,
+    string_speed_per_unit,
+    word_from_int16,
+)
 from gyrohost.errors import GyrohostError
-
-MODEL_MX12W = 104
-STEPS_PER_TURN = 4096
-SPEED_UNIT_RAD_S = 0.916 * 2.0 * math.pi / 60.0
-"""Moving/present speed per unit, rad/s (0.916 rpm)."""
-LOAD_UNIT = 0.001
-"""Present load per unit, fraction of the maximum torque (0.1 %)."""
-MULTI_TURN_LIMIT = 4095
-SPEED_MAX_UNITS = 1023
-
-
-class Addr:
-    """MX-12W control table addresses (Protocol 1.0)."""
-
-    MODEL = 0
-    ID = 3
-    BAUD = 4
-    RETURN_DELAY = 5
-    CW_LIMIT = 6
-    CCW_LIMIT = 8
-    STATUS_RETURN = 16
-    SHUTDOWN = 18
-    MULTI_TURN_OFFSET = 20
-    RESOLUTION_DIVIDER = 22
-    TORQUE_ENABLE = 24
-    GOAL_POSITION = 30
-    MOVING_SPEED = 32
-    TORQUE_LIMIT = 34
-    PRESENT_POSITION = 36
-    PRESENT_SPEED = 38
-    PRESENT_LOAD = 40
-    MOVING = 46
-    GOAL_ACCELERATION = 73
-
-
-FAULT_BITS = {
-    0x01: "input voltage",
-    0x02: "angle limit",
-    0x04: "overheating",
-    0x08: "range",
-    0x10: "checksum",
-    0x20: "overload",
-    0x40: "instruction",
-}
-"""Status packet error bits and their names."""
 
 
 class ServoError(GyrohostError, RuntimeError):
@@ -95,7 +65,7 @@ class ServoFaultError(ServoError):
     ----------
     servo_id : int
     faults : tuple of str
-        Names from :data:`FAULT_BITS`.
+        Names from :data:`gyrohost.drivers.mx12.FAULT_BITS`.
     states : list of ServoState
         Everything read in the same call (when raised by :meth:`StringServoBus.read_states`).
     """
@@ -109,59 +79,6 @@ class ServoFaultError(ServoError):
 
 class ServoLimitError(GyrohostError, ValueError):
     """A command outside a configured limit was refused; nothing was sent."""
-
-
-def fault_names(error: int) -> tuple[str, ...]:
-    """Names of the fault bits set in a status ``error`` byte."""
-    return tuple(name for bit, name in FAULT_BITS.items() if error & bit)
-
-
-def int16_from_word(word: int) -> int:
-    """Signed value of a 16-bit two's complement ``word``."""
-    word &= 0xFFFF
-    return word - 0x10000 if word & 0x8000 else word
-
-
-def word_from_int16(value: int) -> int:
-    """16-bit two's complement word of a signed ``value`` in -32768..32767."""
-    if not -0x8000 <= value <= 0x7FFF:
-        raise ValueError(f"{value} does not fit a signed 16-bit word")
-    return value & 0xFFFF
-
-
-def signed_from_sign_magnitude(word: int) -> int:
-    """Signed value of an MX sign-magnitude word (bits 0-9 magnitude, bit 10 = negative)."""
-    magnitude = word & 0x3FF
-    return -magnitude if word & 0x400 else magnitude
-
-
-def sign_magnitude_from_signed(value: int) -> int:
-    """MX sign-magnitude word of a signed ``value`` in -1023..1023."""
-    if abs(value) > 0x3FF:
-        raise ValueError(f"{value} does not fit a 10-bit magnitude")
-    return (abs(value) & 0x3FF) | (0x400 if value < 0 else 0)
-
-
-def steps_per_metre(servo: ServoConfig) -> float:
-    """Position steps per metre of string."""
-    return STEPS_PER_TURN / (2.0 * math.pi * servo.pulley_radius_m)
-
-
-def length_to_steps(servo: ServoConfig, length_m: float) -> float:
-    """Servo position, steps (not rounded), at which the string is ``length_m`` m long."""
-    delta_m = length_m - servo.length_at_zero_m
-    return servo.zero_position + servo.length_sign * delta_m * steps_per_metre(servo)
-
-
-def steps_to_length(servo: ServoConfig, position_steps: float) -> float:
-    """String length, m, at servo position ``position_steps``."""
-    delta_steps = position_steps - servo.zero_position
-    return servo.length_at_zero_m + servo.length_sign * delta_steps / steps_per_metre(servo)
-
-
-def string_speed_per_unit(servo: ServoConfig) -> float:
-    """String speed, m/s, of one moving-speed unit."""
-    return SPEED_UNIT_RAD_S * servo.pulley_radius_m
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
 
 - **String rest lengths.** A servo with ``string = "<name>"`` in the configuration winds that scene
   string: its present string length (the servo calibration, ``L = length_at_zero_m + length_sign *
-  (p - zero_position) * 2 pi r / 4096``, :func:`gyrohost.drivers.servos.steps_to_length`) *is* the
+  (p - zero_position) * 2 pi r / 4096``, :func:`gyrohost.drivers.mx12.steps_to_length`) *is* the
   string's rest length, through a first-order lag ``servo_lag_s`` (string and pulley compliance;
   0 = none). Strings no servo winds keep their scene rest length at t = 0.
 - **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
