@@ -99,7 +99,7 @@ def test_bar_length_1_mm_and_100_m_scale_exactly():
 def test_collinear_loop_fails_clearly_on_both_paths():
     """The D-bar folded flat: its closed loop of bar constraints is singular. The fast path
     names the bar; the reference path (sparse solve) names the node whose rate is not finite
-    instead of letting scipy's step-size loop spin on NaN (it used to hang)."""
+    instead of letting scipy's step-size loop spin on NaN (it would never return)."""
     model = model_of(near_flat_dbar(0.0))
     with pytest.raises(SimulationError, match=r"singular at b\d\d") as exc:
         simulate(model, duration=0.1, fast=True)
