@@ -28,21 +28,40 @@ from dataclasses import dataclass
 import dynamixel_sdk as sdk
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
-from gyrohost.drivers.mx12 import (
-    LOAD_UNIT,
-    MODEL_MX12W,
-    MULTI_TURN_LIMIT,
-    SPEED_MAX_UNITS,
-    Addr,
-    fault_names,
-    int16_from_word,
-    length_to_steps,
-    signed_from_sign_magnitude,
-    steps_to_length,
-    string_speed_per_unit,
-    word_from_int16,
-)
+from gyrohost.drivers import mx12
 from gyrohost.errors import GyrohostError
+
+
+@dataclass(frozen=True)
+class ServoState:
+    """One servo read back.
+
+    Attributes
+    ----------
+    name : str
+    servo_id : int
+    position_steps : int
+        Present position, steps (multi-turn, signed).
+    length_m : float
+        String length at that position, m.
+    speed_m_s : float
+        Rate of change of the string length, m/s.
+    load_fraction : float
+        Present load, fraction of the maximum torque; positive = counter-clockwise torque.
+    faults : tuple of str
+        Fault names from the status error byte (empty when healthy).
+    t_ns : int
+        ``time.monotonic_ns`` when the reply was read, ns.
+    """
+
+    name: str
+    servo_id: int
+    position_steps: int
+    length_m: float
+    speed_m_s: float
+    load_fraction: float
+    faults: tuple[str, ...]
+    t_ns: int
 
 
 class ServoError(GyrohostError, RuntimeError):
@@ -79,38 +98,6 @@ class ServoFaultError(ServoError):
 
 class ServoLimitError(GyrohostError, ValueError):
     """A command outside a configured limit was refused; nothing was sent."""
-
-
-@dataclass(frozen=True)
-class ServoState:
-    """One servo read back.
-
-    Attributes
-    ----------
-    name : str
-    servo_id : int
-    position_steps : int
-        Present position, steps (multi-turn, signed).
-    length_m : float
-        String length at that position, m.
-    speed_m_s : float
-        Rate of change of the string length, m/s.
-    load_fraction : float
-        Present load, fraction of the maximum torque; positive = counter-clockwise torque.
-    faults : tuple of str
-        Fault names from the status error byte (empty when healthy).
-    t_ns : int
-        ``time.monotonic_ns`` when the reply was read, ns.
-    """
-
-    name: str
-    servo_id: int
-    position_steps: int
-    length_m: float
-    speed_m_s: float
-    load_fraction: float
-    faults: tuple[str, ...]
-    t_ns: int
 
 
 class _PortHandler(sdk.PortHandler):
@@ -213,10 +200,10 @@ class StringServoBus:
         for servo in self.config.servo:
             model, result, error = self.packets.ping(self.port, servo.id)
             self._check(servo, result, error, "ping")
-            if model != MODEL_MX12W:
+            if model != mx12.MODEL_MX12W:
                 raise ServoError(
                     f"servo '{servo.name}' (ID {servo.id}): model {model}, expected MX-12W "
-                    f"({MODEL_MX12W})"
+                    f"({mx12.MODEL_MX12W})"
                 )
             models[servo.name] = model
         return models
@@ -225,9 +212,9 @@ class StringServoBus:
         """Ping, select multi-turn mode (CW = CCW = 4095), enable torque and hold position."""
         self.ping_all()
         for servo in self.config.servo:
-            for addr in (Addr.CW_LIMIT, Addr.CCW_LIMIT):
+            for addr in (mx12.Addr.CW_LIMIT, mx12.Addr.CCW_LIMIT):
                 result, error = self.packets.write2ByteTxRx(
-                    self.port, servo.id, addr, MULTI_TURN_LIMIT
+                    self.port, servo.id, addr, mx12.MULTI_TURN_LIMIT
                 )
                 self._check(servo, result, error, f"write angle limit at {addr}")
         self.hold()
@@ -236,7 +223,7 @@ class StringServoBus:
         """Enable or disable the torque of every servo."""
         for servo in self.config.servo:
             result, error = self.packets.write1ByteTxRx(
-                self.port, servo.id, Addr.TORQUE_ENABLE, int(enable)
+                self.port, servo.id, mx12.Addr.TORQUE_ENABLE, int(enable)
             )
             self._check(servo, result, error, "write torque enable")
 
@@ -288,7 +275,7 @@ class StringServoBus:
             goals[state.name] = (state.position_steps, _speed_units(servo, servo.max_speed_m_s))
         self._sync_write_goals(goals)
         for servo in self.config.servo:
-            result, _ = self.packets.write1ByteTxRx(self.port, servo.id, Addr.TORQUE_ENABLE, 1)
+            result, _ = self.packets.write1ByteTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, 1)
             self._check(servo, result, 0, "write torque enable")
         return states
 
@@ -334,9 +321,9 @@ class StringServoBus:
         return {s.name: float(v) for s, v in zip(self.config.servo, values, strict=True)}
 
     def _sync_write_goals(self, goals: dict[str, tuple[int, int]]) -> None:
-        group = sdk.GroupSyncWrite(self.port, self.packets, Addr.GOAL_POSITION, 4)
+        group = sdk.GroupSyncWrite(self.port, self.packets, mx12.Addr.GOAL_POSITION, 4)
         for name, (steps, speed) in goals.items():
-            word = word_from_int16(steps)
+            word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
@@ -348,14 +335,14 @@ class StringServoBus:
             )
 
     def _read_all(self) -> list[ServoState]:
-        n = Addr.PRESENT_LOAD + 2 - Addr.PRESENT_POSITION
+        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
         if self.config.read_mode == "bulk":
-            raw = self._bulk_read(Addr.PRESENT_POSITION, n)
+            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, n)
         else:
             raw = {}
             for servo in self.config.servo:
                 data, result, error = self.packets.readTxRx(
-                    self.port, servo.id, Addr.PRESENT_POSITION, n
+                    self.port, servo.id, mx12.Addr.PRESENT_POSITION, n
                 )
                 self._check(servo, result, 0, "read present position/speed/load")
                 raw[servo.name] = (data, error, time.monotonic_ns())
@@ -377,17 +364,17 @@ class StringServoBus:
         return raw
 
     def _state(self, servo: ServoConfig, data: list[int], error: int, t_ns: int) -> ServoState:
-        position = int16_from_word(data[0] | data[1] << 8)
-        speed_units = signed_from_sign_magnitude(data[2] | data[3] << 8)
-        load_units = signed_from_sign_magnitude(data[4] | data[5] << 8)
+        position = mx12.int16_from_word(data[0] | data[1] << 8)
+        speed_units = mx12.signed_from_sign_magnitude(data[2] | data[3] << 8)
+        load_units = mx12.signed_from_sign_magnitude(data[4] | data[5] << 8)
         return ServoState(
             name=servo.name,
             servo_id=servo.id,
             position_steps=position,
-            length_m=steps_to_length(servo, position),
-            speed_m_s=servo.length_sign * speed_units * string_speed_per_unit(servo),
-            load_fraction=load_units * LOAD_UNIT,
-            faults=fault_names(error),
+            length_m=mx12.steps_to_length(servo, position),
+            speed_m_s=servo.length_sign * speed_units * mx12.string_speed_per_unit(servo),
+            load_fraction=load_units * mx12.LOAD_UNIT,
+            faults=mx12.fault_names(error),
             t_ns=t_ns,
         )
 
@@ -398,23 +385,23 @@ class StringServoBus:
                 f"{where}: {what}: {self.packets.getTxRxResult(result)}", servo.id, result
             )
         if error:
-            faults = fault_names(error)
+            faults = mx12.fault_names(error)
             raise ServoFaultError(f"{where}: {what}: {', '.join(faults)}", servo.id, faults)
 
 
 def _check_config_limits(servo: ServoConfig) -> None:
     """The configured length range must map into the multi-turn range; a speed unit must fit."""
     for length in (servo.min_length_m, servo.max_length_m):
-        steps = length_to_steps(servo, length)
+        steps = mx12.length_to_steps(servo, length)
         if abs(steps) > MX_POSITION_LIMIT:
             raise ServoLimitError(
                 f"servo '{servo.name}' (ID {servo.id}): length limit {length} m maps to "
                 f"position {steps:.0f}, outside +-{MX_POSITION_LIMIT} steps"
             )
-    if servo.max_speed_m_s < string_speed_per_unit(servo):
+    if servo.max_speed_m_s < mx12.string_speed_per_unit(servo):
         raise ServoLimitError(
             f"servo '{servo.name}' (ID {servo.id}): max_speed_m_s {servo.max_speed_m_s} is below "
-            f"one speed unit ({string_speed_per_unit(servo):.2e} m/s)"
+            f"one speed unit ({mx12.string_speed_per_unit(servo):.2e} m/s)"
         )
 
 
@@ -427,7 +414,7 @@ def _goal_steps(servo: ServoConfig, length_m: float) -> int:
             f"{where}: string length {length_m:.4f} m is outside the limit "
             f"[{servo.min_length_m}, {servo.max_length_m}] m"
         )
-    return int(round(length_to_steps(servo, length_m)))
+    return int(round(mx12.length_to_steps(servo, length_m)))
 
 
 def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:
@@ -438,5 +425,5 @@ def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:
             f"{where}: string speed {speed_m_s} m/s is outside the limit "
             f"(0, {servo.max_speed_m_s}] m/s"
         )
-    units = math.floor(speed_m_s / string_speed_per_unit(servo))
-    return min(max(units, 1), SPEED_MAX_UNITS)
+    units = math.floor(speed_m_s / mx12.string_speed_per_unit(servo))
+    return min(max(units, 1), mx12.SPEED_MAX_UNITS)
