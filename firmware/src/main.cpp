@@ -67,8 +67,8 @@ int main() {
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
         // included, 1,994 steps): 1347 / 2284 / 2336 cycles min / mean / max without the ISRs
         // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
-        // them (a host frame's RX bytes). Was 3324 mean (3667 with ISRs at 500 kbaud); see
-        // docs/hardware.md, "Control-step cycles".
+        // them (a host frame's RX bytes); docs/hardware.md, "Control-step cycles", has how each
+        // change to the step moved these figures.
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

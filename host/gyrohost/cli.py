@@ -10,12 +10,13 @@ import argparse
 import importlib
 import sys
 
+from gyrohost.errors import GyrohostError
 from gyrotensegrity import __version__
 
 COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
 
 
-class CliError(Exception):
+class CliError(GyrohostError, ValueError):
     """A user-facing error: printed as ``gyrotens: error: <message>``, exit status 2."""
 
 

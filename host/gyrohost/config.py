@@ -14,6 +14,8 @@ import typing
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
+from gyrohost.errors import GyrohostError
+
 EMULATED_PORT = "emulator"
 """Port value meaning: start the device emulator and use its pseudo-terminal."""
 
@@ -21,7 +23,7 @@ MX_POSITION_LIMIT = 28672
 """Largest magnitude of an MX-12W multi-turn position, steps (7 turns at divider 1)."""
 
 
-class ConfigError(ValueError):
+class ConfigError(GyrohostError, ValueError):
     """A rig configuration file or value is invalid; the message names the file and key."""
 
 

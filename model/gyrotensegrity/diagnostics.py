@@ -83,13 +83,6 @@ def momentum_scale(model, N, N_dot, omega_w):
     return float(np.sum(np.linalg.norm(angular_momentum_parts(model, N, N_dot, omega_w), axis=0)))
 
 
-def linear_momentum(model, N_dot):
-    """Total linear momentum, shape (3,), kg m/s."""
-    st = model.structure
-    R_dot = 0.5 * (N_dot[:, st.bar_end] + N_dot[:, st.bar_start])
-    return R_dot @ model.m_t + N_dot @ model.m_node
-
-
 def highest_frequency(model):
     """An upper estimate of the fastest motion of the model, for step-size checks.
 

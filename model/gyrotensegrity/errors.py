@@ -10,7 +10,7 @@ class SimulationError(ValueError):
 
     Attributes
     ----------
-    t : float
+    t_s : float
         Time of the failure, s.
     member : str
         The node, bar or joint at fault.
@@ -18,8 +18,8 @@ class SimulationError(ValueError):
         The run up to the last good sample (a :class:`gyrotensegrity.runfile.Run`), if any.
     """
 
-    def __init__(self, message: str, t: float, member: str, partial=None):
+    def __init__(self, message: str, t_s: float, member: str, partial=None):
         super().__init__(message)
-        self.t = t
+        self.t_s = t_s
         self.member = member
         self.partial = partial

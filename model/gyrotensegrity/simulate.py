@@ -5,7 +5,6 @@ it receives the scene's scheduled input ``u`` (rest lengths, wheel inputs) and r
 input to apply. Without a controller the scene's schedules drive the model.
 """
 
-import json
 import platform
 import time
 
@@ -394,6 +393,3 @@ class Stepper:
     def nodes(self):
         """Node positions and velocities (3, n), m and m/s."""
         return self.model.nodes(self.x)
-
-    def json_meta(self) -> str:
-        return json.dumps({"t": self.t, "method": self.method, "max_dt": self.max_dt})

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from filter_states import to_model_state
 
 from gyrohost.estimator import (
     EstimatorConfigError,
@@ -11,7 +12,6 @@ from gyrohost.estimator import (
     config_from_dict,
 )
 from gyrohost.estimator.imu_model import euler_zyx
-from gyrohost.estimator.layout import to_model_state
 from gyrotensegrity.projection import project
 
 

@@ -4,10 +4,10 @@ finite differences (of the reference model's rhs where there is one)."""
 from dataclasses import replace
 
 import numpy as np
+from filter_states import to_model_state
 
 from gyrohost.estimator import TensegrityEKF, fuse_servos
 from gyrohost.estimator.imu_prediction import predict_imu
-from gyrohost.estimator.layout import to_model_state
 from gyrotensegrity import Stepper, rhs
 
 

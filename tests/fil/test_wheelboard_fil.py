@@ -147,8 +147,7 @@ def test_heartbeat_loss_ramps_down_and_reports(harness):
     With DECEL_RAD_S2 = 200 the modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive)
     lags the ramp; the firmware brakes on after the ramped setpoint reached zero and disables a
     wheel once its measured speed is below 0.5 rad/s (APP_STOP_Q8). The filtered estimate lags the
-    braking by a few ticks, so the wheel is cut just past zero: 5-10 rpm measured, hence 3 %
-    (before the fix it coasted from the lag, about 100 rpm, and the bound was 20 %).
+    braking by a few ticks, so the wheel is cut just past zero: 5-10 rpm measured, hence 3 %.
     """
     h = harness
     # A client whose own heartbeat never fires: only the frames the test sends keep it alive.

@@ -7,14 +7,13 @@ from dataclasses import replace
 import pytest
 
 from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.drivers.mx12 import Addr, string_speed_per_unit
 from gyrohost.drivers.servos import (
-    Addr,
     ServoCommError,
     ServoError,
     ServoFaultError,
     ServoLimitError,
     StringServoBus,
-    string_speed_per_unit,
 )
 from gyrohost.rig.servo_emu import Mx12Bus
 

@@ -11,12 +11,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
-from gyrohost.drivers.servos import (
+from gyrohost.drivers.mx12 import (
     FAULT_BITS,
     Addr,
-    ServoCommError,
-    ServoFaultError,
-    StringServoBus,
     fault_names,
     int16_from_word,
     length_to_steps,
@@ -25,6 +22,7 @@ from gyrohost.drivers.servos import (
     steps_to_length,
     word_from_int16,
 )
+from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
 from gyrohost.rig.pty_link import PtyDevice
 from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
 
@@ -119,14 +117,22 @@ def test_clean_reply(scripted):
     assert device.received == [Packet(3, 0x03, bytes([Addr.TORQUE_ENABLE, 1]), True)]
 
 
+STATE = bytes([0x78, 0xEC, 0x05, 0x04, 0x0A, 0x00])  # -5000 steps, speed -5, load +10
+
+
 def test_garbage_before_the_reply_is_skipped(scripted):
-    _, bus = scripted(b"\x00\x13\xff\x42" + OK)
-    bus.set_torque(True)
+    device, bus = scripted(b"\x00\x13\xff\x42" + status_packet(3, 0, STATE))
+    (state,) = bus.read_states()
+    assert state.position_steps == -5000 and state.faults == ()
+    assert len(device.received) == 1  # read once: the garbage cost no retry
 
 
 def test_a_reply_from_another_id_is_ignored(scripted):
-    _, bus = scripted(status_packet(9, 0) + OK)
-    bus.set_torque(True)
+    other = bytes([0x10, 0x00, 0x00, 0x00, 0x00, 0x00])  # +16 steps: must not be read as ID 3
+    device, bus = scripted(status_packet(9, 0, other) + status_packet(3, 0, STATE))
+    (state,) = bus.read_states()
+    assert state.servo_id == 3 and state.position_steps == -5000
+    assert len(device.received) == 1
 
 
 @pytest.mark.parametrize(
@@ -153,8 +159,7 @@ def test_each_error_bit_raises_the_named_fault(scripted, bit, name):
 
 
 def test_fault_bits_in_a_read_reach_the_state(scripted):
-    data = bytes([0x78, 0xEC, 0x05, 0x04, 0x0A, 0x00])  # -5000 steps, speed -5, load +10
-    _, bus = scripted(status_packet(3, 0x24, data))
+    _, bus = scripted(status_packet(3, 0x24, STATE))
     with pytest.raises(ServoFaultError, match="overheating, overload") as info:
         bus.read_states()
     (state,) = info.value.states

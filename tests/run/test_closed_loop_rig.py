@@ -1,6 +1,6 @@
-"""Issue 7 on the simulated rig with the EKF: truth wheels with J_3 x 1.2, planner and EKF on
-the nominal scene; closed loop (re-planning from the EKF's estimate) lands nearer the target
-than open loop. Two real-time runs, about 10 s each."""
+"""The D-bar tilt maneuver on the simulated rig with the EKF: truth wheels with J_3 x 1.2,
+planner and EKF on the nominal scene; closed loop (re-planning from the EKF's estimate) lands
+nearer the target than open loop. Two real-time runs, about 10 s each."""
 
 from pathlib import Path
 

@@ -6,8 +6,7 @@
 // table is odd: cmt.h), the clamp of the lead's speed compares high bytes first.
 // Cycles (positive lead speed, no clamp; one more for a negative one): 138 from the first
 // instruction to the RET included, 168 per call in the control step with the caller's set-up
-// (four LDS, three MOVW, two LDI: 13), the CALL (5) and the stores of the duties (six STS: 12);
-// the previous version with min-max, k2 and the sign branch took about 250 all-in.
+// (four LDS, three MOVW, two LDI: 13), the CALL (5) and the stores of the duties (six STS: 12).
 // `make -C firmware port-check` compares it with cmt_drive_c on the simulated ATmega2560.
 // Arguments: r24:r25 mech14, r20..r23 speed_q8, r18:r19 drive (kept), r16:r17 offset16, r30:r31
 // l. Results: duties of phases a, b, c in r22:r23, r20:r21, r24:r25. Register use: r26:r27 the

@@ -119,8 +119,8 @@ TEST(Ramp, TimeToReachMatchesRate) {
     EXPECT_EQ(ticks, 749);
 }
 
-// ---- the PI against its previous implementation (int32 throughout, commit 31465ce), copied here
-// verbatim as the reference: the step on the error's sign and 16-bit magnitude, mirrored for a
+// ---- the PI against a reference with int32 arithmetic throughout, the plainest form of the
+// controller: the step on the error's sign and 16-bit magnitude, mirrored for a
 // negative error and with 24-bit intermediates, must give the same output, integrator and
 // saturation flag for every state, gain and error, including a shrinking out_max.
 namespace {

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.bench.runner import RunStopped
 from gyrotensegrity import Model, SimulationError, diagnostics, scene_from_dict
 
 SCENES = Path(__file__).resolve().parents[3] / "scenes"
@@ -119,10 +120,6 @@ def cells(quick: bool):
     )
 
 
-class _Budget(Exception):
-    pass
-
-
 def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> dict:
     """One cell: ``status`` holds / fails / budget, with figures or the error message."""
     from gyrotensegrity import simulate
@@ -132,7 +129,7 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> d
 
     def progress(t, total):
         if time.perf_counter() - start > budget_s:
-            raise _Budget(f"{t:.3g} of {total:g} s in {budget_s:g} s")
+            raise RunStopped(f"{t:.3g} of {total:g} s in {budget_s:g} s")
 
     sample = min(0.01 * max(duration, 1.0), duration / 10)
     try:
@@ -148,7 +145,7 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> d
         )
     except SimulationError as exc:
         return {"status": "fails", "message": str(exc), "wall_s": time.perf_counter() - start}
-    except _Budget as exc:
+    except RunStopped as exc:
         return {"status": "budget", "message": str(exc), "wall_s": time.perf_counter() - start}
     bar = float(np.max(np.abs(run["bar_length_error"]) / model.l))
     joint = float(np.max(run["joint_error"], initial=0.0))

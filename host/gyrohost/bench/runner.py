@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gyrohost.errors import GyrohostError
 from gyrotensegrity import Model, diagnostics
 from gyrotensegrity.fast import FastDynamics, InputTable
 from gyrotensegrity.integrators import ADAPTIVE, RK4, adaptive_solver
@@ -45,7 +46,7 @@ class Variant:
 class Trajectory:
     """Samples of one run: ``N`` (K, 3, n) m, ``N_dot`` (K, 3, n) m/s, ``omega`` (K, n_w)."""
 
-    t: np.ndarray
+    t_s: np.ndarray
     N: np.ndarray
     N_dot: np.ndarray
     omega: np.ndarray
@@ -88,7 +89,7 @@ def integrate(
             _adaptive(variant, method, setting, counted, samples, states, start, budget_s)
         else:
             _fixed(variant, method, setting, counted, samples, states, start, budget_s)
-    except _Stop as stop:
+    except RunStopped as stop:
         failure = str(stop)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         failure = f"{type(exc).__name__}: {exc}"
@@ -107,15 +108,18 @@ def integrate(
     )
 
 
-class _Stop(Exception):
-    pass
+class RunStopped(GyrohostError, RuntimeError):
+    """The bench stopped an integration early; the message says why.
+
+    Raised over the wall-time budget, on a non-finite state or on a failed solver step.
+    """
 
 
 def _check(x, start, budget_s, t):
     if not np.all(np.isfinite(x)):
-        raise _Stop(f"non-finite state at t = {t:.4g} s")
+        raise RunStopped(f"non-finite state at t = {t:.4g} s")
     if time.perf_counter() - start > budget_s:
-        raise _Stop("budget")
+        raise RunStopped("budget")
 
 
 def _fixed(variant, method, dt, f, samples, states, start, budget_s):
@@ -140,7 +144,7 @@ def _adaptive(variant, method, rtol, f, samples, states, start, budget_s):
     while k < len(samples):
         message = solver.step()
         if solver.status == "failed":
-            raise _Stop(f"{method} failed at t = {solver.t:.4g} s: {message}")
+            raise RunStopped(f"{method} failed at t = {solver.t:.4g} s: {message}")
         _check(solver.y, start, budget_s, solver.t)
         dense = solver.dense_output()
         while k < len(samples) and samples[k] <= solver.t:
@@ -160,7 +164,7 @@ def errors(variant: Variant, run: Trajectory, reference: Trajectory) -> dict:
         reference, :func:`gyrotensegrity.diagnostics.momentum_scale`).
     """
     m = variant.model
-    k = len(run.t)
+    k = len(run.t_s)
     node_err = float(np.max(np.abs(run.N - reference.N[:k]))) if k else np.inf
     bar = max(float(np.max(np.abs(diagnostics.bar_length_error(m, N)) / m.l)) for N in run.N)
     joint = max(float(np.max(diagnostics.joint_error(m, N), initial=0.0)) for N in run.N)

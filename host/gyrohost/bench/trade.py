@@ -36,8 +36,8 @@ class Case:
 
     name: str
     variants: list
-    duration: float
-    sample_dt: float = 0.01
+    duration_s: float
+    sample_dt_s: float = 0.01
 
 
 def dbar_model(damping=None) -> Model:
@@ -74,9 +74,9 @@ def cases(quick: bool) -> list:
                 Variant("full coordinates + multipliers", dbar, "full"),
                 Variant("no spin (gyroscopic off)", nospin),
             ],
-            duration=0.5 if quick else 3.0,
+            duration_s=0.5 if quick else 3.0,
         ),
-        Case(f"prism chain ({3 * prisms} bars)", chain_variants, duration=0.3 if quick else 1.0),
+        Case(f"prism chain ({3 * prisms} bars)", chain_variants, duration_s=0.3 if quick else 1.0),
     ]
 
 
@@ -85,7 +85,7 @@ def run_case(case: Case, quick: bool, log=print) -> list:
     rows = []
     budget = 5.0 if quick else 30.0
     for k, variant in enumerate(case.variants):
-        ref = integrate(variant, *REFERENCE, case.duration, case.sample_dt)
+        ref = integrate(variant, *REFERENCE, case.duration_s, case.sample_dt_s)
         if ref.failure:
             log(f"  {variant.name}: reference failed: {ref.failure}")
             continue
@@ -94,7 +94,7 @@ def run_case(case: Case, quick: bool, log=print) -> list:
             if method == "rk4-projected" and variant.coordinates == "full":
                 continue  # the projection works on the reduced state
             for setting in settings:
-                run = integrate(variant, method, setting, case.duration, case.sample_dt, budget)
+                run = integrate(variant, method, setting, case.duration_s, case.sample_dt_s, budget)
                 row = {
                     "case": case.name,
                     "variant": variant.name,
@@ -103,7 +103,7 @@ def run_case(case: Case, quick: bool, log=print) -> list:
                     "setting": setting,
                     "setting_kind": "dt_s" if method.startswith("rk4") else "rtol",
                     "wall_s": run.wall_s,
-                    "wall_per_sim_s": run.wall_s / case.duration,
+                    "wall_per_sim_s": run.wall_s / case.duration_s,
                     "nfev": run.nfev,
                     "failure": run.failure,
                 }

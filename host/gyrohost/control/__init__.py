@@ -1,4 +1,4 @@
-"""Model-based string schedules and the closed loop of the D-bar tilt maneuver (issue 7).
+"""Model-based string schedules and the closed loop of the D-bar tilt maneuver.
 
 Typical use::
 

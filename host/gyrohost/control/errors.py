@@ -1,9 +1,11 @@
 """Exception types of the schedule and control package (they subclass ``ValueError``)."""
 
+from gyrohost.errors import GyrohostError
 
-class ScheduleError(ValueError):
+
+class ScheduleError(GyrohostError, ValueError):
     """A schedule file or schedule value is invalid; the message names the file and key."""
 
 
-class PlanError(ValueError):
+class PlanError(GyrohostError, ValueError):
     """A planning request is invalid (target, duration, limits or model not supported)."""

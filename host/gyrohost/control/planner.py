@@ -74,10 +74,6 @@ class Plan:
     plan_time_s: float
     n_eval: int
 
-    @property
-    def predicted_error_rad(self) -> float:
-        return self.predicted_tilt_rad - self.target_tilt_rad
-
 
 def _interp_matrix(t, knot_t):
     """Matrix A (len(t), len(knot_t)) with A @ values = np.interp(t, knot_t, values)."""

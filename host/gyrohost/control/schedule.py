@@ -199,7 +199,7 @@ class Schedule:
         ------
         ScheduleError
             The strings differ, or the rest lengths would jump at ``t_s`` by more than
-            0.1 mm (a re-planned follower string starts on the exact rhombus geometry, the old
+            0.1 mm (a re-planned follower string starts on the exact rhombus geometry, the running
             schedule between its samples on a chord of it: tens of micrometres apart).
         """
         if other.names != self.names:

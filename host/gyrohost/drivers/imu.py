@@ -26,6 +26,8 @@ from enum import IntEnum
 import numpy as np
 import serial
 
+from gyrohost.errors import GyrohostError
+
 FRAME_LEN = 11
 HEADER = 0x55
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -64,7 +66,7 @@ RATE_COMMANDS = {100: (RATE_115200_100HZ, 115200), 20: (RATE_9600_20HZ, 9600)}
 """Output rate, Hz -> (command, baud rate the device switches to)."""
 
 
-class ImuError(RuntimeError):
+class ImuError(GyrohostError, RuntimeError):
     """The IMU link failed (port error, no data in time)."""
 
 
@@ -72,7 +74,7 @@ class ImuTimeoutError(ImuError):
     """No complete sample arrived within the timeout."""
 
 
-class ImuConfigError(ValueError):
+class ImuConfigError(GyrohostError, ValueError):
     """An invalid IMU driver setting (rate, mounting)."""
 
 

@@ -3,7 +3,8 @@
 Each servo winds one string on a pulley of radius ``r`` in multi-turn mode (CW = CCW = 4095,
 positions -28672..28672 steps, 4096 steps per turn). The string length is
 ``L = length_at_zero_m + length_sign * (p - zero_position) * 2 pi r / 4096`` (see
-:func:`steps_to_length`). Limits on length and speed are checked before anything is sent:
+:func:`gyrohost.drivers.mx12.steps_to_length`; the control table and unit conversions live in
+:mod:`gyrohost.drivers.mx12`). Limits on length and speed are checked before anything is sent:
 a command outside them is refused with :class:`ServoLimitError` naming the servo, value and limit.
 
 SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
@@ -12,7 +13,7 @@ SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
   ``makeParam``, ``bulkReadTx`` and one ``readRx`` per servo itself (which also keeps each
   servo's error byte, which the group discards). ``read_mode = "per_servo"`` uses ``readTxRx``.
 - The SDK returns raw unsigned words: positions are 16-bit two's complement, present speed and
-  load are sign-magnitude (bit 10 = clockwise = negative here); converted in this module.
+  load are sign-magnitude (bit 10 = clockwise = negative here); converted by ``mx12``.
 - ``GroupSyncWrite`` is a broadcast without a status reply: goals are confirmed by reading back.
 - pyserial's low-latency ioctl fails on a pty; it is attempted and the failure tolerated.
 - The SDK's fixed 34 ms reply timeout and busy-wait are replaced (``_PortHandler``) by
@@ -27,140 +28,8 @@ from dataclasses import dataclass
 import dynamixel_sdk as sdk
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
-
-MODEL_MX12W = 104
-STEPS_PER_TURN = 4096
-SPEED_UNIT_RAD_S = 0.916 * 2.0 * math.pi / 60.0
-"""Moving/present speed per unit, rad/s (0.916 rpm)."""
-LOAD_UNIT = 0.001
-"""Present load per unit, fraction of the maximum torque (0.1 %)."""
-MULTI_TURN_LIMIT = 4095
-SPEED_MAX_UNITS = 1023
-
-
-class Addr:
-    """MX-12W control table addresses (Protocol 1.0)."""
-
-    MODEL = 0
-    ID = 3
-    BAUD = 4
-    RETURN_DELAY = 5
-    CW_LIMIT = 6
-    CCW_LIMIT = 8
-    STATUS_RETURN = 16
-    SHUTDOWN = 18
-    MULTI_TURN_OFFSET = 20
-    RESOLUTION_DIVIDER = 22
-    TORQUE_ENABLE = 24
-    GOAL_POSITION = 30
-    MOVING_SPEED = 32
-    TORQUE_LIMIT = 34
-    PRESENT_POSITION = 36
-    PRESENT_SPEED = 38
-    PRESENT_LOAD = 40
-    MOVING = 46
-    GOAL_ACCELERATION = 73
-
-
-FAULT_BITS = {
-    0x01: "input voltage",
-    0x02: "angle limit",
-    0x04: "overheating",
-    0x08: "range",
-    0x10: "checksum",
-    0x20: "overload",
-    0x40: "instruction",
-}
-"""Status packet error bits and their names."""
-
-
-class ServoError(RuntimeError):
-    """A servo or its bus failed."""
-
-
-class ServoCommError(ServoError):
-    """No valid status packet (timeout, corrupt packet, port busy or failed)."""
-
-    def __init__(self, message: str, servo_id: int, result: int) -> None:
-        super().__init__(message)
-        self.servo_id = servo_id
-        self.result = result
-
-
-class ServoFaultError(ServoError):
-    """A servo reported faults in its status error byte.
-
-    Attributes
-    ----------
-    servo_id : int
-    faults : tuple of str
-        Names from :data:`FAULT_BITS`.
-    states : list of ServoState
-        Everything read in the same call (when raised by :meth:`StringServoBus.read_states`).
-    """
-
-    def __init__(self, message: str, servo_id: int, faults: tuple[str, ...], states=()) -> None:
-        super().__init__(message)
-        self.servo_id = servo_id
-        self.faults = faults
-        self.states = list(states)
-
-
-class ServoLimitError(ValueError):
-    """A command outside a configured limit was refused; nothing was sent."""
-
-
-def fault_names(error: int) -> tuple[str, ...]:
-    """Names of the fault bits set in a status ``error`` byte."""
-    return tuple(name for bit, name in FAULT_BITS.items() if error & bit)
-
-
-def int16_from_word(word: int) -> int:
-    """Signed value of a 16-bit two's complement ``word``."""
-    word &= 0xFFFF
-    return word - 0x10000 if word & 0x8000 else word
-
-
-def word_from_int16(value: int) -> int:
-    """16-bit two's complement word of a signed ``value`` in -32768..32767."""
-    if not -0x8000 <= value <= 0x7FFF:
-        raise ValueError(f"{value} does not fit a signed 16-bit word")
-    return value & 0xFFFF
-
-
-def signed_from_sign_magnitude(word: int) -> int:
-    """Signed value of an MX sign-magnitude word (bits 0-9 magnitude, bit 10 = negative)."""
-    magnitude = word & 0x3FF
-    return -magnitude if word & 0x400 else magnitude
-
-
-def sign_magnitude_from_signed(value: int) -> int:
-    """MX sign-magnitude word of a signed ``value`` in -1023..1023."""
-    if abs(value) > 0x3FF:
-        raise ValueError(f"{value} does not fit a 10-bit magnitude")
-    return (abs(value) & 0x3FF) | (0x400 if value < 0 else 0)
-
-
-def steps_per_metre(servo: ServoConfig) -> float:
-    """Position steps per metre of string."""
-    return STEPS_PER_TURN / (2.0 * math.pi * servo.pulley_radius_m)
-
-
-def length_to_steps(servo: ServoConfig, length_m: float) -> float:
-    """Servo position, steps (not rounded), at which the string is ``length_m`` m long."""
-    delta_m = length_m - servo.length_at_zero_m
-    return servo.zero_position + servo.length_sign * delta_m * steps_per_metre(servo)
-
-
-def steps_to_length(servo: ServoConfig, position_steps: float) -> float:
-    """String length, m, at servo position ``position_steps``."""
-    delta_steps = position_steps - servo.zero_position
-    return servo.length_at_zero_m + servo.length_sign * delta_steps / steps_per_metre(servo)
-
-
-def string_speed_per_unit(servo: ServoConfig) -> float:
-    """String speed, m/s, of one moving-speed unit."""
-    return SPEED_UNIT_RAD_S * servo.pulley_radius_m
+from gyrohost.drivers import mx12
+from gyrohost.errors import GyrohostError
 
 
 @dataclass(frozen=True)
@@ -193,6 +62,42 @@ class ServoState:
     load_fraction: float
     faults: tuple[str, ...]
     t_ns: int
+
+
+class ServoError(GyrohostError, RuntimeError):
+    """A servo or its bus failed."""
+
+
+class ServoCommError(ServoError):
+    """No valid status packet (timeout, corrupt packet, port busy or failed)."""
+
+    def __init__(self, message: str, servo_id: int, result: int) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.result = result
+
+
+class ServoFaultError(ServoError):
+    """A servo reported faults in its status error byte.
+
+    Attributes
+    ----------
+    servo_id : int
+    faults : tuple of str
+        Names from :data:`gyrohost.drivers.mx12.FAULT_BITS`.
+    states : list of ServoState
+        Everything read in the same call (when raised by :meth:`StringServoBus.read_states`).
+    """
+
+    def __init__(self, message: str, servo_id: int, faults: tuple[str, ...], states=()) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.faults = faults
+        self.states = list(states)
+
+
+class ServoLimitError(GyrohostError, ValueError):
+    """A command outside a configured limit was refused; nothing was sent."""
 
 
 class _PortHandler(sdk.PortHandler):
@@ -295,10 +200,10 @@ class StringServoBus:
         for servo in self.config.servo:
             model, result, error = self.packets.ping(self.port, servo.id)
             self._check(servo, result, error, "ping")
-            if model != MODEL_MX12W:
+            if model != mx12.MODEL_MX12W:
                 raise ServoError(
                     f"servo '{servo.name}' (ID {servo.id}): model {model}, expected MX-12W "
-                    f"({MODEL_MX12W})"
+                    f"({mx12.MODEL_MX12W})"
                 )
             models[servo.name] = model
         return models
@@ -307,9 +212,9 @@ class StringServoBus:
         """Ping, select multi-turn mode (CW = CCW = 4095), enable torque and hold position."""
         self.ping_all()
         for servo in self.config.servo:
-            for addr in (Addr.CW_LIMIT, Addr.CCW_LIMIT):
+            for addr in (mx12.Addr.CW_LIMIT, mx12.Addr.CCW_LIMIT):
                 result, error = self.packets.write2ByteTxRx(
-                    self.port, servo.id, addr, MULTI_TURN_LIMIT
+                    self.port, servo.id, addr, mx12.MULTI_TURN_LIMIT
                 )
                 self._check(servo, result, error, f"write angle limit at {addr}")
         self.hold()
@@ -318,7 +223,7 @@ class StringServoBus:
         """Enable or disable the torque of every servo."""
         for servo in self.config.servo:
             result, error = self.packets.write1ByteTxRx(
-                self.port, servo.id, Addr.TORQUE_ENABLE, int(enable)
+                self.port, servo.id, mx12.Addr.TORQUE_ENABLE, int(enable)
             )
             self._check(servo, result, error, "write torque enable")
 
@@ -370,7 +275,7 @@ class StringServoBus:
             goals[state.name] = (state.position_steps, _speed_units(servo, servo.max_speed_m_s))
         self._sync_write_goals(goals)
         for servo in self.config.servo:
-            result, _ = self.packets.write1ByteTxRx(self.port, servo.id, Addr.TORQUE_ENABLE, 1)
+            result, _ = self.packets.write1ByteTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, 1)
             self._check(servo, result, 0, "write torque enable")
         return states
 
@@ -416,9 +321,9 @@ class StringServoBus:
         return {s.name: float(v) for s, v in zip(self.config.servo, values, strict=True)}
 
     def _sync_write_goals(self, goals: dict[str, tuple[int, int]]) -> None:
-        group = sdk.GroupSyncWrite(self.port, self.packets, Addr.GOAL_POSITION, 4)
+        group = sdk.GroupSyncWrite(self.port, self.packets, mx12.Addr.GOAL_POSITION, 4)
         for name, (steps, speed) in goals.items():
-            word = word_from_int16(steps)
+            word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
@@ -430,14 +335,14 @@ class StringServoBus:
             )
 
     def _read_all(self) -> list[ServoState]:
-        n = Addr.PRESENT_LOAD + 2 - Addr.PRESENT_POSITION
+        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
         if self.config.read_mode == "bulk":
-            raw = self._bulk_read(Addr.PRESENT_POSITION, n)
+            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, n)
         else:
             raw = {}
             for servo in self.config.servo:
                 data, result, error = self.packets.readTxRx(
-                    self.port, servo.id, Addr.PRESENT_POSITION, n
+                    self.port, servo.id, mx12.Addr.PRESENT_POSITION, n
                 )
                 self._check(servo, result, 0, "read present position/speed/load")
                 raw[servo.name] = (data, error, time.monotonic_ns())
@@ -459,17 +364,17 @@ class StringServoBus:
         return raw
 
     def _state(self, servo: ServoConfig, data: list[int], error: int, t_ns: int) -> ServoState:
-        position = int16_from_word(data[0] | data[1] << 8)
-        speed_units = signed_from_sign_magnitude(data[2] | data[3] << 8)
-        load_units = signed_from_sign_magnitude(data[4] | data[5] << 8)
+        position = mx12.int16_from_word(data[0] | data[1] << 8)
+        speed_units = mx12.signed_from_sign_magnitude(data[2] | data[3] << 8)
+        load_units = mx12.signed_from_sign_magnitude(data[4] | data[5] << 8)
         return ServoState(
             name=servo.name,
             servo_id=servo.id,
             position_steps=position,
-            length_m=steps_to_length(servo, position),
-            speed_m_s=servo.length_sign * speed_units * string_speed_per_unit(servo),
-            load_fraction=load_units * LOAD_UNIT,
-            faults=fault_names(error),
+            length_m=mx12.steps_to_length(servo, position),
+            speed_m_s=servo.length_sign * speed_units * mx12.string_speed_per_unit(servo),
+            load_fraction=load_units * mx12.LOAD_UNIT,
+            faults=mx12.fault_names(error),
             t_ns=t_ns,
         )
 
@@ -480,23 +385,23 @@ class StringServoBus:
                 f"{where}: {what}: {self.packets.getTxRxResult(result)}", servo.id, result
             )
         if error:
-            faults = fault_names(error)
+            faults = mx12.fault_names(error)
             raise ServoFaultError(f"{where}: {what}: {', '.join(faults)}", servo.id, faults)
 
 
 def _check_config_limits(servo: ServoConfig) -> None:
     """The configured length range must map into the multi-turn range; a speed unit must fit."""
     for length in (servo.min_length_m, servo.max_length_m):
-        steps = length_to_steps(servo, length)
+        steps = mx12.length_to_steps(servo, length)
         if abs(steps) > MX_POSITION_LIMIT:
             raise ServoLimitError(
                 f"servo '{servo.name}' (ID {servo.id}): length limit {length} m maps to "
                 f"position {steps:.0f}, outside +-{MX_POSITION_LIMIT} steps"
             )
-    if servo.max_speed_m_s < string_speed_per_unit(servo):
+    if servo.max_speed_m_s < mx12.string_speed_per_unit(servo):
         raise ServoLimitError(
             f"servo '{servo.name}' (ID {servo.id}): max_speed_m_s {servo.max_speed_m_s} is below "
-            f"one speed unit ({string_speed_per_unit(servo):.2e} m/s)"
+            f"one speed unit ({mx12.string_speed_per_unit(servo):.2e} m/s)"
         )
 
 
@@ -509,7 +414,7 @@ def _goal_steps(servo: ServoConfig, length_m: float) -> int:
             f"{where}: string length {length_m:.4f} m is outside the limit "
             f"[{servo.min_length_m}, {servo.max_length_m}] m"
         )
-    return int(round(length_to_steps(servo, length_m)))
+    return int(round(mx12.length_to_steps(servo, length_m)))
 
 
 def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:
@@ -520,5 +425,5 @@ def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:
             f"{where}: string speed {speed_m_s} m/s is outside the limit "
             f"(0, {servo.max_speed_m_s}] m/s"
         )
-    units = math.floor(speed_m_s / string_speed_per_unit(servo))
-    return min(max(units, 1), SPEED_MAX_UNITS)
+    units = math.floor(speed_m_s / mx12.string_speed_per_unit(servo))
+    return min(max(units, 1), mx12.SPEED_MAX_UNITS)

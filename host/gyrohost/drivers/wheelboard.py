@@ -18,11 +18,12 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.errors import GyrohostError
 
 BAUD = 1_000_000
 
 
-class WheelBoardError(RuntimeError):
+class WheelBoardError(GyrohostError, RuntimeError):
     """The board or the link failed (timeouts, refused commands, faults)."""
 
 

@@ -12,6 +12,8 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
+from gyrohost.errors import GyrohostError
+
 PROTO_VERSION = 2
 MAX_PAYLOAD = 40
 MAX_RAW = 1 + MAX_PAYLOAD + 2
@@ -20,7 +22,7 @@ N_WHEELS = 4
 TICK_HZ = 1000
 
 
-class ProtocolError(ValueError):
+class ProtocolError(GyrohostError, ValueError):
     """Bytes or values that do not follow the wheel-board protocol."""
 
 

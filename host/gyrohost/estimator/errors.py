@@ -1,11 +1,13 @@
 """Exception types of the estimator."""
 
+from gyrohost.errors import GyrohostError
 
-class EstimatorConfigError(ValueError):
+
+class EstimatorConfigError(GyrohostError, ValueError):
     """An estimator configuration value or scene the estimator cannot use; names the key."""
 
 
-class EstimatorError(RuntimeError):
+class EstimatorError(GyrohostError, RuntimeError):
     """The filter cannot go on (non-finite state or covariance); names the time and member."""
 
     def __init__(self, message: str, t_s: float, member: str):

@@ -5,7 +5,6 @@ import numpy as np
 from .fusion import Innovation, Measurement, fuse
 
 SOURCE = "wheels"
-UNIT = "rad_s"
 
 
 def predict(ekf, x):

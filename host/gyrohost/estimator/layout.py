@@ -79,10 +79,3 @@ def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):
             np.asarray(gyro_bias, float),
         ]
     )
-
-
-def to_model_state(model, x):
-    """Model state of a filter state (wheel angles 0; the rest lengths belong to the input)."""
-    F = layout_of(model)
-    nw = F.n_wheels
-    return np.concatenate([x[F.q], x[F.q_dot], np.zeros(nw), x[F.omega][model.torque_wheels]])

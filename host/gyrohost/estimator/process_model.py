@@ -16,8 +16,8 @@ Two variants (``process_method``):
     RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator), differentiated
     exactly by pushing the complex-step batch through every stage; about 40 times the cost.
 
-An exponential-Euler step (``x + dt phi1(A dt) f``) was tried for the lean model and dropped: at
-10 ms its error was 6 mm/s per step, against 0.3 mm/s for one RK4 step.
+The lean model steps with RK4, not exponential Euler (``x + dt phi1(A dt) f``): at 10 ms the
+latter's velocity error per step is twenty times RK4's (docs/estimator.md).
 
 The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held); the rest
 lengths follow the commanded ones through a first-order lag ``servo_lag_s`` (the servos'

@@ -158,7 +158,7 @@ def rig_model_run(config, seed, duration_s=3.0):
 def _rig_model_rows(model, truth, emu, board, servos, duration_s):
     """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
     from gyrohost.drivers.imu import Bwt61Parser
-    from gyrohost.drivers.servos import length_to_steps, steps_to_length
+    from gyrohost.drivers.mx12 import length_to_steps, steps_to_length
     from gyrohost.estimator.layout import from_model_state
 
     parser = Bwt61Parser()

@@ -15,11 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrohost.errors import GyrohostError
+
 READY_TIMEOUT_S = 60.0
 """Longest wait for the child to import, build the rig and report its ptys, s."""
 
 
-class RigProcessError(RuntimeError):
+class RigProcessError(GyrohostError, RuntimeError):
     """The child process failed to start or its rig failed."""
 
 

@@ -18,13 +18,14 @@ import threading
 import time
 import tty
 
+from gyrohost.errors import GyrohostError
 from gyrohost.rig.faults import FaultFilter
 
 SWITCH_INTERVAL_S = 0.0005
 """GIL switch interval set while an emulator thread runs, s (see :meth:`PtyDevice.start`)."""
 
 
-class PtyLinkError(RuntimeError):
+class PtyLinkError(GyrohostError, RuntimeError):
     """The pseudo-terminal pair could not be created or used."""
 
 

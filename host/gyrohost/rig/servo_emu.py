@@ -1,7 +1,7 @@
 """Emulated Dynamixel MX-12W bus (Protocol 1.0) on a pseudo-terminal.
 
 Each :class:`EmulatedMx12` keeps the MX-12W control table (addresses as in
-``gyrohost.drivers.servos.Addr``) and moves its position toward the goal at the moving speed (0 =
+``gyrohost.drivers.mx12.Addr``) and moves its position toward the goal at the moving speed (0 =
 the no-load speed), quantised to 4096 steps per turn, in joint mode (clamped to CW..CCW limits),
 multi-turn mode (CW = CCW = 4095, +-28672 steps) or wheel mode (CW = CCW = 0, speed only).
 
@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 
 from gyrohost.config import MX_POSITION_LIMIT, ConfigError, ServoConfig, ServoEmuConfig
-from gyrohost.drivers.servos import (
+from gyrohost.drivers.mx12 import (
     LOAD_UNIT,
     MODEL_MX12W,
     MULTI_TURN_LIMIT,

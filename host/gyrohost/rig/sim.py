@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.config import WHEEL_KINDS, RigConfig
+from gyrohost.errors import GyrohostError
 from gyrohost.rig import simavr
 from gyrohost.rig.imu_emu import Bwt61Emulator
 from gyrohost.rig.servo_emu import Mx12Bus
@@ -49,11 +50,11 @@ STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
 DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
 
 
-class RigError(RuntimeError):
+class RigError(GyrohostError, RuntimeError):
     """The rig failed at run time (its loop raised, or it was used the wrong way)."""
 
 
-class FaultCommandError(ValueError):
+class FaultCommandError(GyrohostError, ValueError):
     """A fault request or command line that the rig does not understand."""
 
 
@@ -331,11 +332,6 @@ class SimulatedRig:
         """True scene node positions now, shape (3, n), m."""
         with self._lock:
             return self.truth.nodes()
-
-    def truth_attitude(self) -> np.ndarray:
-        """True attitude of the IMU frame now (its axes in the world frame), shape (3, 3)."""
-        with self._lock:
-            return self.truth.attitude()
 
     def truth_wheel_speeds(self) -> np.ndarray:
         """True wheel spins now, shape (n_w,), rad/s (scene wheel order)."""

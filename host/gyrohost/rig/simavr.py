@@ -26,6 +26,8 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
+from gyrohost.errors import GyrohostError
+
 REPO_ROOT = Path(__file__).resolve().parents[3]
 FIRMWARE = REPO_ROOT / "firmware"
 HARNESS = FIRMWARE / "build" / "sim" / "fil_harness"
@@ -39,7 +41,7 @@ UART_WAIT_MAX_S = 0.2
 """Rig: longest wait of the harness for a pty reader; then, with no host, output is dropped."""
 
 
-class HarnessError(RuntimeError):
+class HarnessError(GyrohostError, RuntimeError):
     """The harness or the firmware ELF is missing, or the harness misbehaved."""
 
 

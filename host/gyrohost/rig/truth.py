@@ -9,7 +9,7 @@ Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
 
 - **String rest lengths.** A servo with ``string = "<name>"`` in the configuration winds that scene
   string: its present string length (the servo calibration, ``L = length_at_zero_m + length_sign *
-  (p - zero_position) * 2 pi r / 4096``, :func:`gyrohost.drivers.servos.steps_to_length`) *is* the
+  (p - zero_position) * 2 pi r / 4096``, :func:`gyrohost.drivers.mx12.steps_to_length`) *is* the
   string's rest length, through a first-order lag ``servo_lag_s`` (string and pulley compliance;
   0 = none). Strings no servo winds keep their scene rest length at t = 0.
 - **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.errors import GyrohostError
 from gyrohost.rig.imu_emu import ImuTruth
 from gyrotensegrity import Model, Scene, Stepper
 from gyrotensegrity.dynamics import evaluate, string_force_densities
@@ -43,7 +44,7 @@ FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
 
 
-class RigSetupError(ValueError):
+class RigSetupError(GyrohostError, ValueError):
     """The rig configuration does not fit the scene (unknown string or node, bad geometry)."""
 
 
