@@ -73,7 +73,7 @@ def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
 
 def test_gyrotens_rig_user_errors(tmp_path, capsys):
     assert main(["rig", "--config", str(tmp_path / "none.toml")]) == 2
-    assert "cannot read" in capsys.readouterr().err
+    assert "none.toml: no such file and no shipped config" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
     bad.write_text('scene = "missing.toml"\n')
     assert main(["rig", "--config", str(bad)]) == 2
