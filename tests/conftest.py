@@ -1,9 +1,17 @@
 """Fixtures shared by every test folder."""
 
+import os
 import signal
 import subprocess
+from pathlib import Path
 
 import pytest
+
+FIRMWARE_BUILD = Path(__file__).resolve().parents[1] / "firmware" / "build"
+
+# The FIL tests and the simulated rig's simavr wheel board run this checkout's firmware build
+# (``make -C firmware check``); subprocesses of the tests inherit the setting.
+os.environ["GYROTENS_FIRMWARE_BUILD"] = str(FIRMWARE_BUILD)
 
 
 def _default_sigint() -> None:

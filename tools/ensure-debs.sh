@@ -1,9 +1,17 @@
 #!/usr/bin/env bash
-# Install the Debian packages the build and tests need, only those missing.
+# Install the Debian packages a target needs, only those missing.
+#   tools/ensure-debs.sh demo   what `make demo` needs: a venv and a C compiler for the kernel
+#   tools/ensure-debs.sh all    everything `make test` needs (firmware builds, simavr, clang)
 # Uses sudo when not root. Fast (one dpkg-query) when everything is present.
 set -euo pipefail
-packages=(gcc-avr avr-libc binutils-avr simavr libsimavr-dev libsimavrparts1 libgtest-dev cmake
-          g++ make clang libclang-rt-14-dev clang-format python3-venv python3-dev)
+demo=(python3-venv python3-dev gcc)
+case "${1:-all}" in
+    demo) packages=("${demo[@]}") ;;
+    all) packages=("${demo[@]}" gcc-avr avr-libc binutils-avr simavr libsimavr-dev
+                   libsimavrparts1 libgtest-dev cmake g++ make clang libclang-rt-14-dev
+                   clang-format) ;;
+    *) echo "usage: $0 demo|all" >&2; exit 2 ;;
+esac
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

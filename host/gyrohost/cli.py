@@ -11,7 +11,6 @@ import importlib
 import sys
 
 from gyrohost.errors import GyrohostError
-from gyrotensegrity import __version__
 
 COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
 
@@ -20,12 +19,25 @@ class CliError(GyrohostError, ValueError):
     """A user-facing error: printed as ``gyrotens: error: <message>``, exit status 2."""
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: print the version and exit; looked up only when asked for."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from gyrohost import version
+
+        print(f"gyrotens {version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gyrotens",
         description="Gyroscopic tensegrity robots: simulate, benchmark, run the rig.",
     )
-    parser.add_argument("--version", action="version", version=f"gyrotens {__version__}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"gyrohost.commands.{name}").register(sub)

@@ -15,6 +15,7 @@ from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
 from gyrohost.errors import GyrohostError
+from gyrohost.resources import ResourceError, resolve
 
 EMULATED_PORT = "emulator"
 """Port value meaning: start the device emulator and use its pseudo-terminal."""
@@ -163,8 +164,8 @@ class WheelEmuConfig:
     spin_sign: tuple[int, int, int, int] = field(
         default=(1, 1, 1, 1), metadata=_spec(choices=(-1, 1), doc="board wheel i -> scene spin")
     )
-    simavr_elf: str = field(default="", metadata=_spec(doc="'' = firmware/build/avr/*.elf"))
-    simavr_harness: str = field(default="", metadata=_spec(doc="'' = firmware/build/sim/..."))
+    simavr_elf: str = field(default="", metadata=_spec(doc="'' = $GYROTENS_FIRMWARE_BUILD/avr"))
+    simavr_harness: str = field(default="", metadata=_spec(doc="'' = $GYROTENS_FIRMWARE_BUILD/sim"))
     simavr_options: tuple[str, ...] = ()
 
     def problems(self) -> list[tuple[str, str]]:
@@ -199,7 +200,7 @@ class SimConfig:
 class RigConfig:
     """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
 
-    scene: str = "../scenes/dbar-gyro.toml"
+    scene: str = "dbar-gyro"
     imu: ImuConfig = ImuConfig()
     servos: ServoBusConfig = ServoBusConfig()
     wheelboard: WheelboardConfig = WheelboardConfig()
@@ -213,8 +214,18 @@ class RigConfig:
 
     @property
     def scene_path(self) -> Path:
-        """Scene file, resolved relative to the configuration file's folder."""
-        return (self.base_dir / self.scene).resolve()
+        """Scene file: ``scene`` relative to the configuration file's folder, else a shipped
+        scene of that name (:func:`gyrohost.resources.resolve`).
+
+        Raises
+        ------
+        ConfigError
+            ``scene`` is neither (the message names the file, the key and the shipped scenes).
+        """
+        try:
+            return resolve("scene", self.scene, self.base_dir)
+        except ResourceError as exc:
+            raise ConfigError(f"{self.source}: key 'scene': {exc}") from None
 
 
 def load_rig_config(path: str | Path) -> RigConfig:

@@ -3,7 +3,7 @@
 Depends on numpy and scipy only. Typical use::
 
     from gyrotensegrity import Model, load_scene, simulate
-    model = Model(load_scene("scenes/dbar-gyro.toml"))
+    model = Model(load_scene("model/gyrotensegrity/scenes/dbar-gyro.toml"))
     run = simulate(model)            # or Stepper(model).step(dt, u)
     run.save("out/dbar.npz")
 

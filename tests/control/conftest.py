@@ -1,11 +1,10 @@
-from pathlib import Path
-
 import pytest
 
 from gyrohost.control import Planner
+from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, load_scene
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = shipped_dir("scene")
 
 
 @pytest.fixture(scope="session")

@@ -1,11 +1,9 @@
 """SIL: truth with 20 % more wheel spin inertia; closed loop must land nearer the target.
 
-Truth = scenes/dbar-gyro.toml with every wheel's J_3 x 1.2; planner = the nominal scene;
+Truth = the shipped dbar-gyro scene with every wheel's J_3 x 1.2; planner = the nominal scene;
 target tilt -0.3 rad, landing at 4 s, servos at 0.05 m/s, re-planning at 4 Hz from the truth
 state plus noise (1 mm, 2 mm/s).
 """
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,9 +11,10 @@ import pytest
 from gyrohost.control import DBarReduced, Replanner
 from gyrohost.control.adapt import WheelGainFit
 from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia
+from gyrohost.resources import shipped
 from gyrotensegrity import Model
 
-SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"
+SCENE = shipped("scene", "dbar-gyro")
 TARGET, DURATION = -0.3, 4.0
 
 

@@ -1,18 +1,15 @@
 """The maneuver as the run loop plays it: per-servo length ranges, open and closed loop, and the
 re-planning worker thread (same plans as on the loop thread, taken at a later tick)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.control import Limits, PlanError, Planner
 from gyrohost.control.maneuver import Maneuver, Target
+from gyrohost.resources import shipped
 
-SERVOS = load_rig_config(
-    Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
-).servos.servo
+SERVOS = load_rig_config(shipped("config", "sim-rig")).servos.servo
 
 
 def test_each_servo_keeps_its_own_range(dbar):

@@ -1,13 +1,12 @@
 """The planner: constraints hold, target reached in its model, gradients, bad requests."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy import optimize
 
 from gyrohost.control import Limits, PlanError, Planner, plan
 from gyrohost.control.planner import _Problem
+from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene
 
 
@@ -73,6 +72,5 @@ def test_bad_requests(dbar, planner):
     kt = planner.knot_times(0.0, 2.0)
     with pytest.raises(PlanError, match="not before the end"):
         planner.plan_from_state(-0.1, dbar.initial_state(), 2.5, kt)
-    scenes = Path(__file__).resolve().parents[2] / "scenes"
     with pytest.raises(PlanError):
-        Planner(Model(load_scene(scenes / "double-pendulum.toml")))
+        Planner(Model(load_scene(shipped("scene", "double-pendulum"))))

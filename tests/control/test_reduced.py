@@ -1,11 +1,10 @@
 """The planner's reduced model against closed forms of the rhombus (Eqs. 12 and 16)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from gyrohost.control import DBarReduced, PlanError
+from gyrohost.resources import shipped
 
 
 def test_tables_match_closed_forms(dbar):
@@ -33,6 +32,5 @@ def test_momentum_at_rest_is_the_wheels(dbar):
 def test_other_structures_are_refused():
     from gyrotensegrity import Model, load_scene
 
-    scenes = Path(__file__).resolve().parents[2] / "scenes"
     with pytest.raises(PlanError, match="four bars|no node"):
-        DBarReduced(Model(load_scene(scenes / "prism-gyro.toml")))
+        DBarReduced(Model(load_scene(shipped("scene", "prism-gyro"))))

@@ -2,15 +2,15 @@
 
 import json
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gyrohost.control import Limits, Schedule, ScheduleError, load_schedule, preset
 from gyrohost.control.schedule import schedule_from_dict
+from gyrohost.resources import shipped_dir
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = shipped_dir("scene")
 
 
 def simple():
@@ -107,7 +107,7 @@ def test_paper_preset_is_the_scene_maneuver(dbar):
 
 
 def test_shipped_schedules(dbar):
-    root = SCENES.parent / "schedules"
+    root = shipped_dir("schedule")
     paper = load_schedule(root / "paper.toml")
     np.testing.assert_allclose(paper.rest_length, preset("paper", dbar).rest_length, atol=1e-12)
     tilt = load_schedule(root / "tilt-0.3rad-4s.toml")

@@ -1,16 +1,15 @@
 """Shared fixtures: the D-bar model and one synthetic run of the paper's manoeuvre."""
 
-from pathlib import Path
-
 import pytest
 
 from gyrohost.estimator import EstimatorConfig
 from gyrohost.estimator.layout import from_model_state
 from gyrohost.experiments.montecarlo import TRUTH_PSD_M2_S3
 from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
+from gyrohost.resources import shipped
 from gyrotensegrity import Model, Stepper, load_scene
 
-SCENE = Path(__file__).resolve().parents[2] / "scenes" / "dbar-gyro.toml"
+SCENE = shipped("scene", "dbar-gyro")
 
 
 @pytest.fixture(scope="session")

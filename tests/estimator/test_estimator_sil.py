@@ -2,14 +2,13 @@
 short software-in-the-loop check; the 20-run Monte Carlo is
 ``python -m gyrohost.experiments.estimator_sil``."""
 
-from pathlib import Path
-
 import numpy as np
 
 from gyrohost.config import load_rig_config
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
+from gyrohost.resources import shipped
 
-CONFIG = Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
+CONFIG = shipped("config", "sim-rig")
 
 
 def test_filter_tracks_the_rig_truth_model():

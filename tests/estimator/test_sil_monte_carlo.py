@@ -3,16 +3,15 @@
 must lie inside the 95 % chi-square bounds of a 6-run average. The 20-run figures:
 ``python -m gyrohost.experiments.estimator_sil`` (docs/estimator.md)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.consistency import average_bounds
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
+from gyrohost.resources import shipped
 
-CONFIG = Path(__file__).resolve().parents[2] / "configs" / "sim-rig.toml"
+CONFIG = shipped("config", "sim-rig")
 SEEDS = range(1, 7)
 DURATION_S = 3.0
 SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")

@@ -2,21 +2,20 @@
 
 Everything (locating the binaries with a clear error, starting the harness, parsing its ``PTY``,
 ``STATS`` and ``FINAL`` lines, stdin commands, shutdown) lives in the package, which the
-simulated rig also uses for ``--wheel-board simavr``. Only :data:`AVR_BUILD` is looked up here at
-call time, so a test can point :func:`firmware_elf` elsewhere. Nothing here builds anything:
+simulated rig also uses for ``--wheel-board simavr``. The suite tests this checkout's firmware:
+the binaries are those of ``firmware/build`` (``tests/conftest.py`` points
+``GYROTENS_FIRMWARE_BUILD`` there too). Only :data:`AVR_BUILD` is looked up here at call time, so
+a test can point :func:`firmware_elf` elsewhere. Nothing here builds anything:
 ``make -C firmware check`` does.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from gyrohost.rig import simavr
 from gyrohost.rig.simavr import (
-    FIRMWARE,
-    HARNESS,
-    REPO_ROOT,
-    SELFTEST_ELF,
     Harness,
     HarnessError,
     parse_kv,
@@ -24,8 +23,15 @@ from gyrohost.rig.simavr import (
     stats_rpm,
 )
 
-ROOT = REPO_ROOT
-AVR_BUILD = simavr.AVR_BUILD
+ROOT = Path(__file__).resolve().parents[2]
+FIRMWARE = ROOT / "firmware"
+BUILD = FIRMWARE / "build"
+HARNESS = BUILD / "sim" / "fil_harness"
+SELFTEST_ELF = BUILD / "sim" / "selftest.elf"
+AVR_BUILD = BUILD / "avr"
+
+# The harness's default binary comes from this setting; fil_bench.py runs without the conftest.
+os.environ.setdefault(simavr.FIRMWARE_BUILD_ENV, str(BUILD))
 
 
 def firmware_elf() -> Path:
@@ -35,6 +41,7 @@ def firmware_elf() -> Path:
 
 __all__ = [
     "AVR_BUILD",
+    "BUILD",
     "FIRMWARE",
     "HARNESS",
     "ROOT",

@@ -21,22 +21,23 @@ from gyrohost.config import (
     rig_config_from_dict,
 )
 from gyrohost.drivers.servos import StringServoBus
+from gyrohost.resources import shipped
 
 ROOT = Path(__file__).resolve().parents[2]
 SERVO = {"name": "s13", "id": 1, "pulley_radius_m": 0.01, "length_at_zero_m": 0.3}
 
 
 def test_simulated_rig_file():
-    cfg = load_rig_config(ROOT / "configs/sim-rig.toml")
+    cfg = load_rig_config(shipped("config", "sim-rig"))
     assert cfg.imu.port == cfg.servos.port == cfg.wheelboard.port == EMULATED_PORT
     assert [s.name for s in cfg.servos.servo] == ["s13", "s24"]
     assert cfg.wheelboard.baud == 1_000_000
-    assert cfg.scene_path == ROOT / "scenes/dbar-gyro.toml" and cfg.scene_path.exists()
+    assert cfg.scene == "dbar-gyro" and cfg.scene_path == shipped("scene", "dbar-gyro")
     StringServoBus(cfg.servos)  # limits map into the multi-turn range
 
 
 def test_lab_rig_template():
-    cfg = load_rig_config(ROOT / "configs/lab-rig.toml")
+    cfg = load_rig_config(shipped("config", "lab-rig"))
     assert cfg.servos.port.startswith("/dev/ttyUSB") and cfg.imu.port.startswith("/dev/ttyUSB")
     assert cfg.sim == RigConfig().sim  # untouched defaults
     StringServoBus(cfg.servos)

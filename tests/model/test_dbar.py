@@ -5,9 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import gyrotensegrity
 from gyrotensegrity import Model, load_scene, scene_from_dict, simulate
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 
 
 def z_of(run, name):

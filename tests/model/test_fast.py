@@ -5,12 +5,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import gyrotensegrity
 from gyrotensegrity import Model, SimulationError, evaluate, load_scene, rhs
 from gyrotensegrity.fast import FastDynamics, fast_rhs
 from gyrotensegrity.generators import prism_chain
 from gyrotensegrity.projection import project_velocities
 
-SCENES = sorted((Path(__file__).resolve().parents[2] / "scenes").glob("*.toml"))
+SCENES = sorted((Path(gyrotensegrity.__file__).parent / "scenes").glob("*.toml"))
 TOL = 1e-12  # relative to the largest derivative
 
 

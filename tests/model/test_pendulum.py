@@ -5,9 +5,10 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import solve_ivp
 
+import gyrotensegrity
 from gyrotensegrity import Model, load_scene, simulate
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 L1, L2, M1, M2, G = 0.5, 0.4, 1.0, 0.8, 9.81
 
 

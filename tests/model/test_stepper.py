@@ -5,10 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import gyrotensegrity
 from gyrotensegrity import Model, Stepper, load_scene, simulate
 from gyrotensegrity.dynamics import evaluate
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.servos import ServoError, StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard
+from gyrohost.resources import resolve
 
 SPIN = 74.87462492  # rad/s, 715 rpm
 SERVO_PERIOD_S = 0.02
@@ -21,7 +22,7 @@ SERVO_PERIOD_S = 0.02
 
 def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict[str, float]:
     """Drive the rig for ``duration_s`` s; return host-side rates (per second) and counts."""
-    config = load_rig_config(config_path)
+    config = load_rig_config(resolve("config", config_path))
     telemetry = []
     imu = Bwt61Driver(paths["imu"]).open()
     wheels = WheelBoard(paths["wheels"], on_telemetry=telemetry.append)
@@ -64,7 +65,7 @@ def main() -> None:
     parser.add_argument("imu")
     parser.add_argument("wheels")
     parser.add_argument("servos")
-    parser.add_argument("--config", default="configs/sim-rig.toml")
+    parser.add_argument("--config", default="sim-rig")
     parser.add_argument("--duration", type=float, default=10.0)
     args = parser.parse_args()
     paths = {"imu": args.imu, "wheels": args.wheels, "servos": args.servos}

@@ -25,20 +25,21 @@ def read_paths(proc) -> dict[str, str]:
     return paths
 
 
-def test_gyrotens_rig_serves_all_three_devices_at_their_rates():
-    proc = subprocess.Popen(
+def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
+    proc = subprocess.Popen(  # from any directory: the default configuration is shipped
         [sys.executable, "-m", "gyrohost", "rig", "--duration", str(DURATION_S)],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        cwd=tmp_path,
     )
     try:
         paths = read_paths(proc)
         assert set(paths) == {"imu", "wheels", "servos"}, proc.stderr.read()
         host = {}
         worker = threading.Thread(
-            target=lambda: host.update(exercise(paths, "configs/sim-rig.toml", DURATION_S - 2.5))
+            target=lambda: host.update(exercise(paths, "sim-rig", DURATION_S - 2.5))
         )
         worker.start()
         time.sleep(1.5)  # the host has its ports open by now
@@ -72,7 +73,7 @@ def test_gyrotens_rig_serves_all_three_devices_at_their_rates():
 
 def test_gyrotens_rig_user_errors(tmp_path, capsys):
     assert main(["rig", "--config", str(tmp_path / "none.toml")]) == 2
-    assert "cannot read" in capsys.readouterr().err
+    assert "none.toml: no such file and no shipped config" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
     bad.write_text('scene = "missing.toml"\n')
     assert main(["rig", "--config", str(bad)]) == 2

@@ -16,7 +16,7 @@ SPIN = 74.87462492
 L0 = 0.43105229381822  # both D-bar strings at t = 0, m
 CONFIG = rig_config_from_dict(
     {
-        "scene": "scenes/dbar-gyro.toml",
+        "scene": "dbar-gyro",
         "servos": {
             "servo": [
                 {"name": "left", "id": 1, "pulley_radius_m": 0.01, "length_at_zero_m": L0,

@@ -11,7 +11,6 @@ import subprocess
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,13 +18,13 @@ import pytest
 from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoard
+from gyrohost.resources import shipped
 from gyrohost.rig import simavr
 from gyrohost.rig.sim import FaultCommandError, SimulatedRig
 from gyrohost.rig.truth import RigSetupError
 
 pytestmark = pytest.mark.fil
 
-ROOT = Path(__file__).resolve().parents[2]
 RPM = 2 * math.pi / 60
 PATTERN_RAD_S = np.array([715.0, -715.0, -715.0, 715.0]) * RPM  # the paper's board pattern
 SPIN_SIGN = (1, -1, 1, 1)  # wheel 1 mounted the other way round
@@ -33,7 +32,7 @@ REPLY_TIMEOUT_S = 3.0  # a loaded 2-core host can slow the harness's replies (wa
 
 
 def simavr_config(**wheels):
-    base = load_rig_config(ROOT / "configs" / "sim-rig.toml")
+    base = load_rig_config(shipped("config", "sim-rig"))
     table = replace(base.sim.wheels, kind="simavr", **wheels)
     return replace(base, sim=replace(base.sim, wheels=table))
 
@@ -41,8 +40,7 @@ def simavr_config(**wheels):
 @pytest.fixture(scope="module")
 def binaries():
     """Fail (not skip) with the path and the make command when a binary is missing."""
-    simavr.require_file(simavr.HARNESS, "FIL harness")
-    return simavr.firmware_elf()
+    return simavr.build_binaries(simavr.firmware_build())
 
 
 def wait_settled(values, target, rel: float, hold_s: float, timeout_s: float) -> float:
@@ -100,14 +98,14 @@ def test_missing_binary_names_path_and_make_command(binaries, tmp_path):
         SimulatedRig(config)
 
 
-def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries):
+def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries, tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "gyrohost", "rig", "--wheel-board", "simavr", "--duration", "4"],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        cwd=ROOT,
+        cwd=tmp_path,
     )
     try:
         path = None

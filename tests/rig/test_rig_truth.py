@@ -7,10 +7,11 @@ import pytest
 
 from gyrohost.config import ServoConfig, TruthConfig
 from gyrohost.geometry import rotation_zyx
+from gyrohost.resources import shipped
 from gyrohost.rig.truth import RigSetupError, Truth, rig_scene
 from gyrotensegrity import Model, load_scene
 
-SCENE = load_scene("scenes/dbar-gyro.toml")
+SCENE = load_scene(shipped("scene", "dbar-gyro"))
 LEFT = ServoConfig(name="left", id=1, pulley_radius_m=0.01, string="s13")
 G = 9.80665
 

@@ -9,14 +9,14 @@ import numpy as np
 from gyrohost.config import load_rig_config
 from gyrohost.control.maneuver import Target
 from gyrohost.experiments.rig_sil import compare, mismatched
+from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta, read_stream
 
-ROOT = Path(__file__).resolve().parents[2]
 TARGET = Target(-0.3, 4.0)
 
 
 def test_closed_loop_lands_nearer_the_target_than_open_loop_on_the_rig(tmp_path):
-    config = mismatched(load_rig_config(ROOT / "configs" / "sim-rig.toml"), 1.2)
+    config = mismatched(load_rig_config(shipped("config", "sim-rig")), 1.2)
     result = compare(config, tmp_path, TARGET)
     open_err, closed_err = result["open"]["error_rad"], result["closed"]["error_rad"]
     # the wheel-inertia error is visible open loop (about -0.06 rad) ...

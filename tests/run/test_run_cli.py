@@ -12,10 +12,10 @@ import numpy as np
 
 from gyrohost.cli import main
 from gyrohost.control.schedule import Schedule
+from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta, read_stream
 
-ROOT = Path(__file__).resolve().parents[2]
-CONFIG = ROOT / "configs" / "sim-rig.toml"
+CONFIG = shipped("config", "sim-rig")
 L0 = 0.43105229381822
 
 
@@ -38,7 +38,7 @@ def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path, terminal_p
     cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
     cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
     proc = terminal_popen(
-        cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+        cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
     )
     try:
         wait_for(log / "events.csv", "phase,schedule", 60.0)
@@ -72,7 +72,7 @@ def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim
 
 def test_run_without_the_devices_ends_with_a_log_naming_the_missing_port(tmp_path, capsys):
     log = tmp_path / "log"
-    argv = ["run", "--config", str(ROOT / "configs" / "lab-rig.toml"), "-o", str(log)]
+    argv = ["run", "--config", "lab-rig", "-o", str(log)]
     argv += ["--imu", str(tmp_path / "no-imu")]
     assert main(argv) == 1
     assert f"ImuError: IMU: cannot open {tmp_path / 'no-imu'}" in capsys.readouterr().err

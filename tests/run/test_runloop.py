@@ -3,18 +3,17 @@ stream; Ctrl-C, device faults and limit breaches end in the safe state with a re
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
+from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta, read_stream
 from gyrohost.run.loop import RunSettings, ScheduleRefused, run_simulated
 
-ROOT = Path(__file__).resolve().parents[2]
-CONFIG = load_rig_config(ROOT / "configs" / "sim-rig.toml")
+CONFIG = load_rig_config(shipped("config", "sim-rig"))
 L0 = 0.43105229381822  # both D-bar strings at rest, m
 SPIN = 74.87462492  # rad/s
 SHORT = RunSettings(lead_in_s=0.2, settle_s=0.2)

@@ -8,14 +8,14 @@ Each cell runs :func:`gyrotensegrity.simulate` (the user's path, fast dynamics) 
 
 import time
 import tomllib
-from pathlib import Path
 
 import numpy as np
 
 from gyrohost.bench.runner import RunStopped
+from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, SimulationError, diagnostics, scene_from_dict
 
-SCENES = Path(__file__).resolve().parents[3] / "scenes"
+SCENES = shipped_dir("scene")
 SETTINGS = {
     "rk4": {"dt": 1e-3},
     "rk4-projected": {"dt": 1e-3},

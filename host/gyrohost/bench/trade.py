@@ -7,14 +7,14 @@ reference, bar-length and joint errors, energy and momentum drift.
 
 import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 
+from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, load_scene, scene_from_dict
 from gyrotensegrity.generators import prism_chain
 
 from .runner import Variant, errors, integrate
 
-SCENES = Path(__file__).resolve().parents[3] / "scenes"
+SCENES = shipped_dir("scene")
 REFERENCE = ("dop853", 1e-13)
 ACCURACY_CLASSES_M = (1e-3, 1e-6, 1e-9)
 
@@ -41,7 +41,7 @@ class Case:
 
 
 def dbar_model(damping=None) -> Model:
-    """The paper's D-bar maneuver (scenes/dbar-gyro.toml), optionally with string damping
+    """The paper's D-bar maneuver (the shipped dbar-gyro scene), optionally with string damping
     replaced (MuJoCo's tendon damping cannot switch off while a string is slack)."""
     if damping is None:
         return Model(load_scene(SCENES / "dbar-gyro.toml"))

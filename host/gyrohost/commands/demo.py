@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 RUNS = (("gyro", "dbar-gyro.toml", "wheels at 715 rpm"), ("nospin", "dbar-nospin.toml", "no spin"))
-DEFAULT_CONFIG = Path("configs/sim-rig.toml")
+DEFAULT_CONFIG = "sim-rig"
 
 
 def register(sub) -> None:
@@ -21,9 +21,9 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, default=Path("out/demo"), help="output folder")
     p.add_argument(
         "--config",
-        type=Path,
         default=DEFAULT_CONFIG,
-        help=f"simulated rig configuration (default {DEFAULT_CONFIG}); scenes from its folder",
+        help=f"simulated rig configuration, file or shipped name (default {DEFAULT_CONFIG}); "
+        "scenes from its scene's folder, else the shipped ones",
     )
     p.add_argument(
         "--duration",
@@ -40,18 +40,19 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.presets import paper
     from gyrohost.plots.log import plot_compare, plot_log
+    from gyrohost.resources import ResourceError, resolve
     from gyrohost.run.loop import ScheduleRefused, run_simulated
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()
     try:
-        config = load_rig_config(args.config)
-    except ConfigError as exc:
+        config = load_rig_config(resolve("config", args.config))
+        scenes = [resolve("scene", name, config.scene_path.parent) for _, name, _ in RUNS]
+    except (ConfigError, ResourceError) as exc:
         raise CliError(str(exc)) from None
     args.out.mkdir(parents=True, exist_ok=True)
     results = {}
-    for key, scene_file, label in RUNS:
-        scene = config.scene_path.parent / scene_file
+    for (key, _, label), scene in zip(RUNS, scenes, strict=True):
         folder = args.out / key
         if (folder / "meta.json").exists():
             shutil.rmtree(folder)  # the previous demo's log

@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-DEFAULT_CONFIG = Path("configs/sim-rig.toml")
+DEFAULT_CONFIG = "sim-rig"
 STDIN_POLL_S = 0.2
 
 
@@ -19,11 +19,13 @@ def register(sub) -> None:
     p = sub.add_parser("rig", help="serve the simulated rig (IMU, wheel board, servos) on ptys")
     p.add_argument(
         "--config",
-        type=Path,
         default=DEFAULT_CONFIG,
-        help=f"rig configuration (TOML, docs/rig-config.md; default {DEFAULT_CONFIG})",
+        help="rig configuration: a TOML file (docs/rig-config.md) or a shipped name "
+        f"(default {DEFAULT_CONFIG})",
     )
-    p.add_argument("--scene", type=Path, help="scene file (default: the configuration's)")
+    p.add_argument(
+        "--scene", help="scene file or shipped scene name (default: the configuration's)"
+    )
     p.add_argument("--duration", type=float, help="serve this long, s (default: until Ctrl-C)")
     p.add_argument(
         "--wheel-board",
@@ -31,21 +33,33 @@ def register(sub) -> None:
         help="wheel board: the Python emulator or the real firmware in the simavr harness "
         "(default: the configuration's [sim.wheels] kind)",
     )
+    p.add_argument(
+        "--firmware-build",
+        type=Path,
+        metavar="DIR",
+        help="firmware build directory for simavr (avr/*.elf, sim/fil_harness; default "
+        "$GYROTENS_FIRMWARE_BUILD or the configuration's simavr_elf/simavr_harness)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.resources import ResourceError, resolve
     from gyrohost.rig.sim import SimulatedRig
+    from gyrohost.rig.simavr import HarnessError
     from gyrohost.rig.truth import RigSetupError
 
     if args.duration is not None and not args.duration > 0:
         raise CliError(f"--duration must be positive, got {args.duration}")
     try:
-        config = load_rig_config(args.config)
-        rig = SimulatedRig(config, clock="real", scene=args.scene, wheels=args.wheel_board)
-    except (ConfigError, RigSetupError) as exc:
+        config = load_rig_config(resolve("config", args.config))
+        if args.firmware_build is not None:
+            config = with_firmware_build(config, args.firmware_build)
+        scene = resolve("scene", args.scene) if args.scene is not None else None
+        rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
+    except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
         raise CliError(str(exc)) from None
     with rig:
         _print_header(rig)
@@ -61,6 +75,19 @@ def run(args) -> int:
     if rig.loop_error is not None:
         raise CliError(f"the rig loop failed: {rig.loop_error!r}")
     return 0
+
+
+def with_firmware_build(config, build_dir: Path):
+    """``config`` with ``[sim.wheels] simavr_elf``/``simavr_harness`` of ``build_dir``."""
+    from dataclasses import replace
+
+    from gyrohost.rig.simavr import build_binaries
+
+    elf, harness = build_binaries(build_dir)
+    wheels = replace(
+        config.sim.wheels, simavr_elf=str(elf.resolve()), simavr_harness=str(harness.resolve())
+    )
+    return replace(config, sim=replace(config.sim, wheels=wheels))
 
 
 def _print_header(rig) -> None:

@@ -6,15 +6,18 @@ import sys
 import time
 from pathlib import Path
 
-from gyrohost.config import EMULATED_PORT
-
 
 def register(sub) -> None:
     p = sub.add_parser("run", help="run a schedule on the rig (hardware, ptys or --sim) and log it")
-    p.add_argument("--config", type=Path, required=True, help="rig configuration (TOML)")
+    p.add_argument(
+        "--config",
+        default="sim-rig",
+        help="rig configuration: a TOML file or a shipped name (default sim-rig, for --sim)",
+    )
     p.add_argument(
         "--schedule",
-        help="schedule file (.toml/.json, docs/schedule.md) or preset name (default: paper)",
+        help="schedule file (.toml/.json, docs/schedule.md), preset or shipped schedule name "
+        "(default: paper)",
     )
     p.add_argument(
         "--target-tilt",
@@ -36,7 +39,7 @@ def register(sub) -> None:
     )
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
-    p.add_argument("--scene", type=Path, help="scene file (default: the configuration's)")
+    p.add_argument("--scene", help="scene file or shipped name (default: the configuration's)")
     for dev in ("imu", "wheels", "servos"):
         p.add_argument(f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration)")
     p.set_defaults(func=run)
@@ -73,14 +76,26 @@ def _what_to_run(config, args):
 
 
 def load_schedule_arg(text: str, scene_path: Path):
-    """A schedule file, or a preset built for the scene at ``scene_path``."""
+    """A schedule file, else a preset built for the scene at ``scene_path``, else a shipped
+    schedule of that name.
+
+    Raises
+    ------
+    ScheduleError
+        ``text`` is none of them (the message lists the presets and the shipped schedules).
+    """
+    from gyrohost.control.errors import ScheduleError
     from gyrohost.control.presets import PRESETS, preset
     from gyrohost.control.schedule import load_schedule
+    from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, load_scene
 
-    if text in PRESETS:
+    if text in PRESETS and not Path(text).is_file():
         return preset(text, Model(load_scene(scene_path)))
-    return load_schedule(Path(text))
+    try:
+        return load_schedule(resolve("schedule", text))
+    except ResourceError as exc:
+        raise ScheduleError(f"{exc}; presets: {', '.join(PRESETS)}") from None
 
 
 class Progress:
@@ -106,6 +121,7 @@ class Progress:
 
 def _wired(config, args):
     from gyrohost.cli import CliError
+    from gyrohost.config import EMULATED_PORT
     from gyrohost.run.loop import with_ports
 
     config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
@@ -132,17 +148,18 @@ def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.errors import PlanError, ScheduleError
+    from gyrohost.resources import ResourceError, resolve
     from gyrohost.rig.process import RigProcessError
     from gyrohost.rig.truth import RigSetupError
     from gyrohost.run.loop import RunLoop, ScheduleRefused, run_simulated
     from gyrotensegrity import SceneError
 
     try:
-        config = load_rig_config(args.config)
+        config = load_rig_config(resolve("config", args.config))
         if args.scene is not None:
-            config = replace(config, scene=str(args.scene.resolve()))
+            config = replace(config, scene=str(resolve("scene", args.scene)))
         schedule = _what_to_run(config, args)
-    except (ConfigError, ScheduleError, PlanError, SceneError, OSError) as exc:
+    except (ConfigError, ResourceError, ScheduleError, PlanError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
     name = _run_name(schedule)
     out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{name}"

@@ -9,7 +9,6 @@ gap on the nominal model and the final tilt errors of open and closed loop.
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -17,14 +16,13 @@ from gyrohost.control.errors import PlanError, ScheduleError
 from gyrohost.control.planner import Planner
 from gyrohost.control.schedule import Limits
 from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia, validate
+from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene
-
-ROOT = Path(__file__).resolve().parents[3]
 
 
 def parse(argv):
     p = argparse.ArgumentParser(prog="python -m gyrohost.control", description=__doc__)
-    p.add_argument("--scene", default=str(ROOT / "scenes" / "dbar-gyro.toml"))
+    p.add_argument("--scene", default=str(shipped("scene", "dbar-gyro")))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")
     p.add_argument("--duration", type=float, default=4.0, help="maneuver length, s")
     p.add_argument("--max-speed", type=float, default=0.05, help="servo limit, m/s")

@@ -18,9 +18,10 @@ from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.estimator.imu_model import euler_zyx
 from gyrohost.experiments.synthetic import simulate_truth
+from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene, rhs
 
-DEFAULT_SCENE = Path(__file__).resolve().parents[3] / "scenes" / "dbar-gyro.toml"
+DEFAULT_SCENE = shipped("scene", "dbar-gyro")
 
 
 def cycle_times(model, config, cycles=200, start_s=0.5):

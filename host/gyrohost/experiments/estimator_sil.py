@@ -1,6 +1,6 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
-``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config configs/sim-rig.toml]``
+``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE]``
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
@@ -34,6 +34,7 @@ from scipy.linalg import null_space
 from gyrohost.estimator import streams
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
+from gyrohost.resources import shipped
 from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
 
@@ -60,7 +61,7 @@ RIG_MODEL_KEYS = {
     "wheel_speed_std_rad_s": 0.0146,
     "wheel_accel_psd_rad2_s3": 1e-4,
 }
-DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "configs" / "sim-rig.toml"
+DEFAULT_CONFIG = shipped("config", "sim-rig")
 
 
 def record_run(config, seed, folder, duration_s=3.0):

@@ -23,9 +23,10 @@ from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.consistency import average_bounds, nees, sample_initial, tilt_error
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
+from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene
 
-DEFAULT_SCENE = Path(__file__).resolve().parents[3] / "scenes" / "dbar-gyro.toml"
+DEFAULT_SCENE = shipped("scene", "dbar-gyro")
 TRUTH_PSD_M2_S3 = 1e-4  # density of the disturbance the synthetic truth carries
 
 

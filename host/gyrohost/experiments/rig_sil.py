@@ -16,8 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[3]
-
 
 def mismatched(config, inertia_scale: float):
     """``config`` with the truth's wheel inertia scaled (the planner and EKF keep the scene)."""
@@ -119,9 +117,10 @@ def report(result: dict, inertia_scale: float) -> str:
 def main(argv=None) -> int:
     from gyrohost.config import load_rig_config
     from gyrohost.control.maneuver import Target
+    from gyrohost.resources import shipped
 
     p = argparse.ArgumentParser(prog="python -m gyrohost.experiments.rig_sil", description=__doc__)
-    p.add_argument("--config", type=Path, default=ROOT / "configs" / "sim-rig.toml")
+    p.add_argument("--config", type=Path, default=shipped("config", "sim-rig"))
     p.add_argument("-o", "--out", type=Path, default=Path("out/rig-sil"))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")
     p.add_argument("--duration", type=float, default=4.0, help="landing time, s")

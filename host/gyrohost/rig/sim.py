@@ -193,9 +193,7 @@ class SimulatedRig:
         except simavr.HarnessError as exc:
             self.imu.close()
             self.servos.close()
-            raise RigSetupError(
-                f"wheels = simavr: {exc} (or set [sim.wheels] simavr_elf / simavr_harness)"
-            ) from exc
+            raise RigSetupError(f"wheels = simavr: {exc}") from exc
 
     # --- life cycle ---------------------------------------------------------------------------
     @property

@@ -1,12 +1,19 @@
 """The real wheel-board firmware in simavr: the FIL harness process, and the rig's wheel board.
 
-``firmware/build/sim/fil_harness`` (source ``firmware/sim/fil_harness.c``, docs/fil.md) runs the
-firmware ELF in simavr with four encoder and motor models and exposes UART0 as a pseudo-terminal.
+The harness ``sim/fil_harness`` of a firmware build (source ``firmware/sim/fil_harness.c``,
+docs/fil.md) runs the firmware ELF in simavr with four encoder and motor models and exposes UART0
+as a pseudo-terminal.
 It prints ``PTY <path>`` once that pty exists, a ``STATS k=v ...`` line every ``--stats-period``
 simulated seconds, with ``--speed-period`` a ``SPEED t_us w0 w1 w2 w3 frames`` line (the motor
 models' true speeds, rad/s, and the frames the firmware has sent), ``OK ...``/``ERR ...`` for each
 stdin command and ``FINAL k=v ...`` at exit. Nothing here builds anything:
-``make -C firmware check`` does.
+``make -C firmware check`` does, into ``firmware/build``.
+
+The binaries are found through settings, never through where this file sits: the
+``[sim.wheels] simavr_elf``/``simavr_harness`` keys of the rig configuration, else the firmware
+build directory named by the ``GYROTENS_FIRMWARE_BUILD`` environment variable (holding
+``avr/*.elf`` and ``sim/fil_harness``; ``gyrotens rig --firmware-build DIR`` sets the keys from
+one); with none of them :class:`HarnessError` says what to set.
 
 :class:`Harness` starts and talks to one harness process (used by ``tests/fil`` and the rig);
 :class:`SimavrWheelBoard` is the simulated rig's wheel board when ``[sim.wheels] kind =
@@ -17,6 +24,7 @@ from the SPEED lines.
 from __future__ import annotations
 
 import math
+import os
 import queue
 import signal
 import subprocess
@@ -28,11 +36,8 @@ from pathlib import Path
 
 from gyrohost.errors import GyrohostError
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-FIRMWARE = REPO_ROOT / "firmware"
-HARNESS = FIRMWARE / "build" / "sim" / "fil_harness"
-SELFTEST_ELF = FIRMWARE / "build" / "sim" / "selftest.elf"
-AVR_BUILD = FIRMWARE / "build" / "avr"
+FIRMWARE_BUILD_ENV = "GYROTENS_FIRMWARE_BUILD"
+"""Environment variable naming a firmware build directory (``avr/*.elf``, ``sim/fil_harness``)."""
 BUILD_HINT = "build it with `make -C firmware check`"
 
 SPEED_PERIOD_S = 0.01
@@ -52,8 +57,37 @@ def require_file(path: Path, what: str) -> Path:
     return Path(path)
 
 
-def firmware_elf(build_dir: Path = AVR_BUILD) -> Path:
-    """The wheel-board firmware ELF in ``build_dir`` (exactly one ``*.elf`` expected)."""
+def firmware_build() -> Path:
+    """The firmware build directory named by ``$GYROTENS_FIRMWARE_BUILD``.
+
+    Raises
+    ------
+    HarnessError
+        The variable is not set: the message says what to set and how to build.
+    """
+    value = os.environ.get(FIRMWARE_BUILD_ENV, "")
+    if not value:
+        raise HarnessError(
+            f"no firmware build to run in simavr: set {FIRMWARE_BUILD_ENV} to a firmware build "
+            "directory (holding avr/*.elf and sim/fil_harness), or give "
+            "`gyrotens rig --firmware-build DIR`, or set [sim.wheels] simavr_elf and "
+            "simavr_harness in the rig configuration; in a checkout, `make -C firmware check` "
+            "builds one in firmware/build"
+        )
+    return Path(value).expanduser()
+
+
+def harness_binary(build_dir: Path | None = None) -> Path:
+    """The FIL harness of ``build_dir`` (default :func:`firmware_build`); it must exist."""
+    return require_file((build_dir or firmware_build()) / "sim" / "fil_harness", "FIL harness")
+
+
+def firmware_elf(avr_dir: Path | None = None) -> Path:
+    """The wheel-board firmware ELF in ``avr_dir`` (exactly one ``*.elf`` expected).
+
+    ``avr_dir`` defaults to ``avr/`` of :func:`firmware_build`.
+    """
+    build_dir = avr_dir or firmware_build() / "avr"
     elfs = sorted(build_dir.glob("*.elf")) if build_dir.is_dir() else []
     if len(elfs) != 1:
         found = ", ".join(p.name for p in elfs) or "none"
@@ -61,6 +95,17 @@ def firmware_elf(build_dir: Path = AVR_BUILD) -> Path:
             f"want exactly one firmware ELF in {build_dir}, found {found} ({BUILD_HINT})"
         )
     return elfs[0]
+
+
+def build_binaries(build_dir: Path) -> tuple[Path, Path]:
+    """Firmware ELF and FIL harness of the firmware build directory ``build_dir``.
+
+    Raises
+    ------
+    HarnessError
+        Either is missing (the message names it and the make command).
+    """
+    return firmware_elf(build_dir / "avr"), harness_binary(build_dir)
 
 
 def parse_kv(line: str) -> dict[str, str]:
@@ -128,7 +173,7 @@ class Harness:
     start_timeout_s : float, s
         Longest wait for the ``PTY`` line.
     harness : Path, optional
-        Harness binary; ``firmware/build/sim/fil_harness`` of this checkout by default.
+        Harness binary; :func:`harness_binary` (``$GYROTENS_FIRMWARE_BUILD``) by default.
 
     Attributes
     ----------
@@ -151,7 +196,7 @@ class Harness:
         start_timeout_s: float = 10.0,
         harness: Path | None = None,
     ):
-        binary = require_file(harness or HARNESS, "FIL harness")
+        binary = require_file(harness, "FIL harness") if harness else harness_binary()
         require_file(elf, "firmware ELF")
         self.lines: queue.Queue[str] = queue.Queue()
         self.stats: list[dict[str, str]] = []
@@ -258,7 +303,7 @@ class SimavrWheelBoard:
     Parameters
     ----------
     elf, harness : Path
-        Firmware ELF and harness binary (:func:`firmware_elf`, :data:`HARNESS` by default).
+        Firmware ELF and harness binary (:func:`firmware_elf`, :func:`harness_binary`).
     options : sequence of str
         Extra harness options (motor constants: ``--kt 0.01`` ...; docs/fil.md).
     """
@@ -340,9 +385,10 @@ class SimavrWheelBoard:
 
 
 def simavr_wheel_board(elf: str, harness: str, options: tuple[str, ...], base: Path):
-    """:class:`SimavrWheelBoard` from the ``[sim.wheels]`` keys (``""`` = the build's default).
+    """:class:`SimavrWheelBoard` from the ``[sim.wheels]`` keys.
 
-    Relative paths are taken from ``base`` (the configuration file's folder).
+    Relative paths are taken from ``base`` (the configuration file's folder); ``""`` = the
+    binary of the build named by ``$GYROTENS_FIRMWARE_BUILD``.
 
     Raises
     ------
@@ -351,5 +397,5 @@ def simavr_wheel_board(elf: str, harness: str, options: tuple[str, ...], base: P
         not start.
     """
     elf_path = base / elf if elf else firmware_elf()
-    harness_path = base / harness if harness else HARNESS
+    harness_path = base / harness if harness else harness_binary()
     return SimavrWheelBoard(elf_path, harness_path, options)
