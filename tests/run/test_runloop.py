@@ -10,8 +10,8 @@ import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
+from gyrohost.run import RunSettings, ScheduleRefused, run_simulated
 from gyrohost.run.log import read_meta, read_stream
-from gyrohost.run.loop import RunSettings, ScheduleRefused, run_simulated
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = load_rig_config(ROOT / "configs" / "sim-rig.toml")

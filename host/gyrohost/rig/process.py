@@ -6,10 +6,17 @@ its own and the host side sees only its pseudo-terminals, as it would see hardwa
 also samples the truth every ``period_s`` and sends it up a pipe, stamped with
 ``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
 answers fault injections and statistics requests.
+
+The parent reads the pipe in a thread of its own: Ctrl-C (``KeyboardInterrupt``, raised in the
+main thread only) then never cuts a message in half, which would leave the rest of it in the
+pipe to be read as the next message. Every failure of the pipe (the child gone, a broken pipe)
+is a :class:`RigProcessError`.
 """
 
 import multiprocessing
+import queue
 import signal
+import threading
 import time
 from dataclasses import dataclass
 
@@ -20,7 +27,11 @@ READY_TIMEOUT_S = 60.0
 
 
 class RigProcessError(RuntimeError):
-    """The child process failed to start or its rig failed."""
+    """The child process failed to start, its rig failed or the pipe to it broke."""
+
+
+_PIPE_ERRORS = (EOFError, OSError)
+"""What a closed or broken pipe raises (BrokenPipeError is an OSError)."""
 
 
 @dataclass(frozen=True)
@@ -80,6 +91,9 @@ class RigProcess:
         self._proc.start()
         child.close()
         self._pending: list[TruthSample] = []
+        self._inbox: queue.Queue = queue.Queue()
+        self._reader = threading.Thread(target=self._read, name="gyrotens-rig-pipe", daemon=True)
+        self._reader.start()
         reply = self._reply("ready", READY_TIMEOUT_S)
         self.paths = reply["paths"]
         self.t0_ns = reply["t0_ns"]
@@ -88,20 +102,29 @@ class RigProcess:
         self.n_wheels = reply["n_wheels"]
 
     def truth(self) -> list[TruthSample]:
-        """Truth samples received since the last call (never waits)."""
-        while self._conn.poll():
-            self._take(self._conn.recv())
+        """Truth samples received since the last call (never waits).
+
+        Raises
+        ------
+        RigProcessError
+            The rig reported an error, or the pipe to it broke.
+        """
+        while True:
+            try:
+                self._take(self._inbox.get_nowait())
+            except queue.Empty:
+                break
         out, self._pending = self._pending, []
         return out
 
     def inject(self, device: str, fault: str, **kwargs) -> None:
         """Inject a fault now (arguments of ``SimulatedRig.inject``)."""
-        self._conn.send(("inject", (device, fault), kwargs))
+        self._send(("inject", (device, fault), kwargs))
         self._reply("injected")
 
     def stats_lines(self) -> list[str]:
         """The rig's rates and truth timing lines."""
-        self._conn.send(("stats", (), {}))
+        self._send(("stats", (), {}))
         return self._reply("stats")["lines"]
 
     def close(self) -> None:
@@ -109,12 +132,13 @@ class RigProcess:
         if self._proc.is_alive():
             try:
                 self._conn.send(("close", (), {}))
-            except (BrokenPipeError, OSError):
-                pass
+            except OSError:
+                pass  # the child is gone already
             self._proc.join(5.0)
             if self._proc.is_alive():
                 self._proc.terminate()
                 self._proc.join(1.0)
+        self._reader.join(1.0)  # ends on the pipe's end-of-file once the child has exited
         self._conn.close()
 
     def __enter__(self) -> "RigProcess":
@@ -123,8 +147,27 @@ class RigProcess:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def _send(self, msg) -> None:
+        try:
+            self._conn.send(msg)
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: cannot send '{msg[0]}': {exc!r}") from exc
+
+    def _read(self) -> None:
+        """Reader thread: every message of the child into the inbox, then why the pipe ended."""
+        while True:
+            try:
+                msg = self._conn.recv()
+            except _PIPE_ERRORS as exc:
+                self._inbox.put(("gone", f"the pipe to the rig ended: {exc!r}"))
+                return
+            self._inbox.put(msg)
+
     def _take(self, msg) -> dict | None:
         kind, body = msg
+        if kind == "gone":
+            self._inbox.put(msg)  # stays the answer to every later read
+            raise RigProcessError(f"simulated rig: {body}")
         if kind == "truth":
             self._pending.append(TruthSample(*body))
             return None
@@ -136,12 +179,15 @@ class RigProcess:
         deadline = time.monotonic() + timeout_s
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 or not self._proc.is_alive() and not self._conn.poll():
+            if left <= 0:
                 raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
-            if self._conn.poll(min(left, 0.1)):
-                reply = self._take(self._conn.recv())
-                if reply is not None and reply["kind"] == kind:
-                    return reply
+            try:
+                msg = self._inbox.get(timeout=min(left, 0.1))
+            except queue.Empty:
+                continue
+            reply = self._take(msg)
+            if reply is not None and reply["kind"] == kind:
+                return reply
 
 
 def _serve(conn, config, period_s: float) -> None:
