@@ -2,6 +2,7 @@
 stream; Ctrl-C, device faults and limit breaches end in the safe state with a readable log."""
 
 import math
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -140,3 +141,34 @@ def test_a_schedule_beyond_the_servo_limits_is_refused_before_anything_moves(tmp
     with pytest.raises(ScheduleRefused, match="s99: no servo winds this string"):
         run(tmp_path, unknown)
     assert not (tmp_path / "log").exists()  # no log: nothing was opened
+
+
+def test_the_safe_state_goes_on_whatever_the_truth_probe_raises(tmp_path):
+    def broken_truth():
+        raise EOFError("a probe that fails the way a desynchronised pipe did")
+
+    def interrupt(loop, phase, t_s):
+        if phase == "schedule" and t_s - loop.t_schedule_s > 0.3:
+            loop.rig.truth = broken_truth  # the safe state's ticks probe the truth first
+            raise KeyboardInterrupt
+
+    result, folder = run(tmp_path, on_tick=interrupt)
+    assert result.exit_status == 130, result.reason
+    safe = result.summary["safe_state"]
+    assert safe["wheels_stopped"] and safe["servos_holding"], safe
+    assert any(k == "fault" and m.startswith("truth probe: EOFError") for k, m in events(folder))
+    assert read_stream(folder, "command")["omega_cmd_0_rad_s"][-1] == 0.0
+
+
+def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
+    from gyrohost.rig.process import RigProcess, RigProcessError
+
+    with RigProcess(CONFIG) as rig:
+        rig._proc.kill()
+        rig._proc.join(5.0)
+        with pytest.raises(RigProcessError, match="the pipe to the rig ended: EOFError"):
+            for _ in range(100):  # the samples sent before the end come first
+                rig.truth()
+                time.sleep(0.01)
+        with pytest.raises(RigProcessError, match="simulated rig"):
+            rig.stats_lines()
