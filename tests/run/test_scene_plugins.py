@@ -68,13 +68,17 @@ def test_the_estimator_table_is_used_and_the_file_overrides_it(tmp_path):
     assert for_rig(lab).imu_rate_std_rad_s == lab.estimator.keys["imu_rate_std_rad_s"]
 
 
-def test_a_bad_estimator_key_names_the_file_and_the_key(tmp_path, capsys):
+def test_a_bad_estimator_key_or_attachment_is_refused_naming_it(tmp_path, capsys):
     path = _with_estimator_table(tmp_path, LAB_CONFIG, "imu_rate_std_rad = 4e-3")
     with pytest.raises(EstimatorConfigError, match=r"rig.toml: \[estimator\]: unknown estimator"):
         for_rig(load_rig_config(path))
     assert main(["run", "--config", str(path), "-o", str(tmp_path / "log")]) == 2
     assert "unknown estimator key 'imu_rate_std_rad'" in capsys.readouterr().err
     assert not (tmp_path / "log").exists()  # refused before anything was opened
+    prism = ["--scene", str(ROOT / "scenes" / "prism-gyro.toml"), "--schedule", str(PRISM_SCHEDULE)]
+    assert main(["run", "--config", str(LAB_CONFIG), *prism, "-o", str(tmp_path / "log")]) == 2
+    assert "estimator key 'imu_frame_nodes': node 'n1' is not in scene" in capsys.readouterr().err
+    assert not (tmp_path / "log").exists()
 
 
 def test_the_table_and_the_estimator_file_reach_the_logged_ekf_configuration(tmp_path, capsys):

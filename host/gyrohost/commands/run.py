@@ -176,6 +176,7 @@ def run(args) -> int:
             result = RunLoop(_wired(config, args), schedule, out, **options).run()
     except (
         GyrohostError,
+        EstimatorConfigError,
         ScheduleRefused,
         ScheduleError,
         RigSetupError,

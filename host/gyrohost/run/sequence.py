@@ -42,6 +42,7 @@ from gyrohost.drivers.servos import StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig, for_rig
+from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
@@ -79,7 +80,8 @@ class RunLoop:
     settings : RunSettings, optional
     estimator : EstimatorConfig, optional
         The EKF's configuration (default: :func:`gyrohost.estimator.config.for_rig` of
-        ``config``).
+        ``config``); its IMU attachment must name nodes of the scene (else
+        :class:`~gyrohost.estimator.EstimatorConfigError` here, before anything moves).
     rig : RigProcess, optional
         The simulated rig: its truth samples go to the ``truth`` stream, its statistics to the
         summary.
@@ -114,6 +116,7 @@ class RunLoop:
         self.model = Model(load_scene(config.scene_path))
         self.schedule.bind(self.model)
         self.tilt = attitude_of(self.model)
+        ImuGeometry(self.model, self.estimator_config)  # attached to nodes of this scene?
         self.strings = [s.name for s in self.model.scene.strings]
         self.servo_strings = [s.string or s.name for s in config.servos.servo]
         self.rest0 = np.array([s.rest_length(0.0) for s in self.model.scene.strings])
