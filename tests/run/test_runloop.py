@@ -2,6 +2,9 @@
 stream; Ctrl-C, device faults and limit breaches end in the safe state with a readable log."""
 
 import math
+import os
+import signal
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -172,3 +175,45 @@ def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
                 time.sleep(0.01)
         with pytest.raises(RigProcessError, match="simulated rig"):
             rig.stats_lines()
+
+
+class _Interrupted(Exception):
+    pass
+
+
+def _interrupt(signum, frame):
+    raise _Interrupted
+
+
+def test_ctrl_c_while_the_truth_is_received_never_breaks_the_pipe():
+    """An interrupt inside ``recv`` would leave half a message in the pipe and the next read
+    would fail (``EOFError: Ran out of input``) although the rig is alive."""
+    from gyrohost.rig.process import RigProcess
+
+    previous = signal.signal(signal.SIGINT, _interrupt)
+    stop = threading.Event()
+
+    def kick():
+        while not stop.wait(0.0007):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    samples = interrupts = 0
+    try:
+        with RigProcess(CONFIG, period_s=0.001) as rig:
+            kicker = threading.Thread(target=kick)
+            kicker.start()
+            end = time.monotonic() + 3.0
+            try:
+                while time.monotonic() < end:
+                    try:
+                        samples += len(rig.truth())
+                    except _Interrupted:
+                        interrupts += 1
+            finally:
+                stop.set()
+                kicker.join()
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            samples += len(rig.truth())  # still whole after thousands of interrupts
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert interrupts > 100 and samples > 1000, (interrupts, samples)

@@ -7,14 +7,14 @@ also samples the truth every ``period_s`` and sends it up a pipe, stamped with
 ``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
 answers fault injections and statistics requests.
 
-The parent reads the pipe in a thread of its own: Ctrl-C (``KeyboardInterrupt``, raised in the
-main thread only) then never cuts a message in half, which would leave the rest of it in the
-pipe to be read as the next message. Every failure of the pipe (the child gone, a broken pipe)
-is a :class:`RigProcessError`.
+A Ctrl-C that arrives while the parent receives is held until the message is whole: a
+``KeyboardInterrupt`` inside ``Connection.recv`` would leave the rest of the message in the pipe,
+read next as a broken message (``EOFError``) although the child is alive. (A reader thread would
+avoid that too, but under CPU load its GIL hand-offs made the loop's ticks late by 0.3 s.) Every
+failure of the pipe (the child gone, a broken pipe) is a :class:`RigProcessError`.
 """
 
 import multiprocessing
-import queue
 import signal
 import threading
 import time
@@ -91,9 +91,6 @@ class RigProcess:
         self._proc.start()
         child.close()
         self._pending: list[TruthSample] = []
-        self._inbox: queue.Queue = queue.Queue()
-        self._reader = threading.Thread(target=self._read, name="gyrotens-rig-pipe", daemon=True)
-        self._reader.start()
         reply = self._reply("ready", READY_TIMEOUT_S)
         self.paths = reply["paths"]
         self.t0_ns = reply["t0_ns"]
@@ -109,11 +106,9 @@ class RigProcess:
         RigProcessError
             The rig reported an error, or the pipe to it broke.
         """
-        while True:
-            try:
-                self._take(self._inbox.get_nowait())
-            except queue.Empty:
-                break
+        with _HeldSigint():
+            while self._poll(0.0):
+                self._take(self._recv())
         out, self._pending = self._pending, []
         return out
 
@@ -138,7 +133,6 @@ class RigProcess:
             if self._proc.is_alive():
                 self._proc.terminate()
                 self._proc.join(1.0)
-        self._reader.join(1.0)  # ends on the pipe's end-of-file once the child has exited
         self._conn.close()
 
     def __enter__(self) -> "RigProcess":
@@ -153,21 +147,20 @@ class RigProcess:
         except _PIPE_ERRORS as exc:
             raise RigProcessError(f"simulated rig: cannot send '{msg[0]}': {exc!r}") from exc
 
-    def _read(self) -> None:
-        """Reader thread: every message of the child into the inbox, then why the pipe ended."""
-        while True:
-            try:
-                msg = self._conn.recv()
-            except _PIPE_ERRORS as exc:
-                self._inbox.put(("gone", f"the pipe to the rig ended: {exc!r}"))
-                return
-            self._inbox.put(msg)
+    def _poll(self, timeout_s: float) -> bool:
+        try:
+            return self._conn.poll(timeout_s)
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: the pipe to the rig ended: {exc!r}") from exc
+
+    def _recv(self):
+        try:
+            return self._conn.recv()
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: the pipe to the rig ended: {exc!r}") from exc
 
     def _take(self, msg) -> dict | None:
         kind, body = msg
-        if kind == "gone":
-            self._inbox.put(msg)  # stays the answer to every later read
-            raise RigProcessError(f"simulated rig: {body}")
         if kind == "truth":
             self._pending.append(TruthSample(*body))
             return None
@@ -179,15 +172,39 @@ class RigProcess:
         deadline = time.monotonic() + timeout_s
         while True:
             left = deadline - time.monotonic()
-            if left <= 0:
+            if left <= 0 or not self._proc.is_alive() and not self._poll(0.0):
                 raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
-            try:
-                msg = self._inbox.get(timeout=min(left, 0.1))
-            except queue.Empty:
-                continue
-            reply = self._take(msg)
+            with _HeldSigint():
+                reply = self._take(self._recv()) if self._poll(min(left, 0.1)) else None
             if reply is not None and reply["kind"] == kind:
                 return reply
+
+
+class _HeldSigint:
+    """Context: a Ctrl-C inside is handled as it exits, not inside (main thread only)."""
+
+    def __init__(self):
+        self.previous = None
+        self.pending = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        self.pending = (signum, frame)
+
+    def __exit__(self, *exc):
+        if self.previous is None:
+            return False
+        signal.signal(signal.SIGINT, self.previous)
+        if self.pending is not None:
+            if callable(self.previous):
+                self.previous(*self.pending)  # KeyboardInterrupt, or the safe state's note
+            elif self.previous == signal.SIG_DFL:
+                signal.raise_signal(signal.SIGINT)
+        return False
 
 
 def _serve(conn, config, period_s: float) -> None:
