@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.config import load_rig_config
+from gyrohost.config import ConfigError, load_rig_config
 from gyrohost.estimator import EstimatorConfigError
 from gyrohost.estimator.config import for_rig, noise_from_rig
 from gyrohost.run.log import read_meta, read_stream
@@ -79,6 +79,15 @@ def test_a_bad_estimator_key_or_attachment_is_refused_naming_it(tmp_path, capsys
     assert main(["run", "--config", str(LAB_CONFIG), *prism, "-o", str(tmp_path / "log")]) == 2
     assert "estimator key 'imu_frame_nodes': node 'n1' is not in scene" in capsys.readouterr().err
     assert not (tmp_path / "log").exists()
+
+
+def test_the_estimator_table_is_checked_like_the_rest_of_the_rig_configuration(tmp_path):
+    path = _with_estimator_table(tmp_path, LAB_CONFIG, 'noise_from_sim = "yes"')
+    with pytest.raises(ConfigError, match=r"key 'estimator.noise_from_sim' must be true or false"):
+        load_rig_config(path)
+    path = _with_estimator_table(tmp_path, LAB_CONFIG, "imu_period_s = 2.0")
+    with pytest.raises(EstimatorConfigError, match=r"estimator key 'imu_period_s' is 2.0"):
+        for_rig(load_rig_config(path))
 
 
 def test_the_table_and_the_estimator_file_reach_the_logged_ekf_configuration(tmp_path, capsys):
