@@ -197,6 +197,19 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
+class EstimatorTable:
+    """The ``[estimator]`` table: the EKF's own settings on this rig (docs/estimator.md).
+
+    ``noise_from_sim`` takes the IMU noise and attachment from the ``[sim]`` tables (the
+    simulated rig's figures); every other key is an EKF key, kept in ``keys`` and checked by
+    :func:`gyrohost.estimator.config.for_rig`, which names the file and the key at fault.
+    """
+
+    noise_from_sim: bool = False
+    keys: dict = field(default_factory=dict, metadata={"internal": True, "rest_of_table": True})
+
+
+@dataclass(frozen=True)
 class RigConfig:
     """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
 
@@ -205,6 +218,7 @@ class RigConfig:
     servos: ServoBusConfig = ServoBusConfig()
     wheelboard: WheelboardConfig = WheelboardConfig()
     sim: SimConfig = SimConfig()
+    estimator: EstimatorTable = EstimatorTable()
     source: str = field(default="<defaults>", metadata={"internal": True})
 
     @property
@@ -256,8 +270,9 @@ def _build(cls: type, table: object, where: str, source: str):
         raise ConfigError(f"{source}: key '{where.rstrip('.') or '<root>'}' must be a table")
     hints = typing.get_type_hints(cls)
     known = {f.name: f for f in fields(cls) if not f.metadata.get("internal")}
+    rest = [f.name for f in fields(cls) if f.metadata.get("rest_of_table")]
     for key in table:
-        if key not in known:
+        if key not in known and not rest:
             raise ConfigError(
                 f"{source}: unknown key '{where}{key}' (known here: {', '.join(sorted(known))})"
             )
@@ -269,6 +284,8 @@ def _build(cls: type, table: object, where: str, source: str):
             _check_range(f.metadata, values[name], key, source)
         elif f.default is MISSING and f.default_factory is MISSING:
             raise ConfigError(f"{source}: missing required key '{key}'")
+    if rest:  # keys another module checks (it knows their meaning)
+        values[rest[0]] = {k: v for k, v in table.items() if k not in known}
     obj = cls(**values)
     for sub, message in getattr(obj, "problems", lambda: [])():
         raise ConfigError(f"{source}: key '{where}{sub}': {message}")
@@ -333,6 +350,7 @@ __all__ = [
     "EMULATED_PORT",
     "MX_POSITION_LIMIT",
     "ConfigError",
+    "EstimatorTable",
     "ImuConfig",
     "ImuEmuConfig",
     "RigConfig",

@@ -2,6 +2,10 @@
 stream; Ctrl-C, device faults and limit breaches end in the safe state with a readable log."""
 
 import math
+import os
+import signal
+import threading
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -10,8 +14,8 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.resources import shipped
+from gyrohost.run import RunSettings, ScheduleRefused, run_simulated
 from gyrohost.run.log import read_meta, read_stream
-from gyrohost.run.loop import RunSettings, ScheduleRefused, run_simulated
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
 L0 = 0.43105229381822  # both D-bar strings at rest, m
@@ -139,3 +143,76 @@ def test_a_schedule_beyond_the_servo_limits_is_refused_before_anything_moves(tmp
     with pytest.raises(ScheduleRefused, match="s99: no servo winds this string"):
         run(tmp_path, unknown)
     assert not (tmp_path / "log").exists()  # no log: nothing was opened
+
+
+def test_the_safe_state_goes_on_whatever_the_truth_probe_raises(tmp_path):
+    def broken_truth():
+        raise EOFError("a probe that fails the way a desynchronised pipe did")
+
+    def interrupt(loop, phase, t_s):
+        if phase == "schedule" and t_s - loop.t_schedule_s > 0.3:
+            loop.rig.truth = broken_truth  # the safe state's ticks probe the truth first
+            raise KeyboardInterrupt
+
+    result, folder = run(tmp_path, on_tick=interrupt)
+    assert result.exit_status == 130, result.reason
+    safe = result.summary["safe_state"]
+    assert safe["wheels_stopped"] and safe["servos_holding"], safe
+    assert any(k == "fault" and m.startswith("truth probe: EOFError") for k, m in events(folder))
+    assert read_stream(folder, "command")["omega_cmd_0_rad_s"][-1] == 0.0
+
+
+def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
+    from gyrohost.rig.process import RigProcess, RigProcessError
+
+    with RigProcess(CONFIG) as rig:
+        rig._proc.kill()
+        rig._proc.join(5.0)
+        with pytest.raises(RigProcessError, match="the pipe to the rig ended: EOFError"):
+            for _ in range(100):  # the samples sent before the end come first
+                rig.truth()
+                time.sleep(0.01)
+        with pytest.raises(RigProcessError, match="simulated rig"):
+            rig.stats_lines()
+
+
+class _Interrupted(Exception):
+    pass
+
+
+def _interrupt(signum, frame):
+    raise _Interrupted
+
+
+def test_ctrl_c_while_the_truth_is_received_never_breaks_the_pipe():
+    """An interrupt inside ``recv`` would leave half a message in the pipe and the next read
+    would fail (``EOFError: Ran out of input``) although the rig is alive."""
+    from gyrohost.rig.process import RigProcess
+
+    previous = signal.signal(signal.SIGINT, _interrupt)
+    stop = threading.Event()
+
+    def kick():
+        while not stop.wait(0.0007):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    samples = interrupts = 0
+    try:
+        with RigProcess(CONFIG, period_s=0.001) as rig:
+            kicker = threading.Thread(target=kick)
+            kicker.start()
+            end = time.monotonic() + 3.0
+            try:
+                while time.monotonic() < end:
+                    try:
+                        samples += len(rig.truth())
+                    except _Interrupted:
+                        interrupts += 1
+            finally:
+                stop.set()
+                kicker.join()
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            samples += len(rig.truth())  # still whole after thousands of interrupts
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert interrupts > 100 and samples > 1000, (interrupts, samples)

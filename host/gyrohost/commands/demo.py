@@ -41,7 +41,7 @@ def run(args) -> int:
     from gyrohost.control.presets import paper
     from gyrohost.plots.log import plot_compare, plot_log
     from gyrohost.resources import ResourceError, resolve
-    from gyrohost.run.loop import ScheduleRefused, run_simulated
+    from gyrohost.run import ScheduleRefused, run_simulated
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()
@@ -91,8 +91,8 @@ def summarise(folder: Path, label: str) -> dict:
     """Figures of one demo run from its log: tilts, peak n1/n3 z, rates, loop timing."""
     import numpy as np
 
+    from gyrohost.run import jitter_line
     from gyrohost.run.log import read_meta, read_stream
-    from gyrohost.run.records import jitter_line
 
     summary = read_meta(folder)["summary"]
     events = read_stream(folder, "events")

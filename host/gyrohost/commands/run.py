@@ -1,6 +1,7 @@
 """``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
-[--closed-loop]] [-o LOGDIR] [--sim]``: one run of a schedule or a planned tilt maneuver on the
-rig, from connection to the safe state, logged (docs/run.md, docs/schedule.md)."""
+[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim]``: one run of a schedule or a
+planned tilt maneuver on the rig, from connection to the safe state, logged (docs/run.md,
+docs/schedule.md)."""
 
 import sys
 import time
@@ -36,6 +37,12 @@ def register(sub) -> None:
     p.add_argument("--replan-period", type=float, default=0.25, metavar="S", help="(0.25 s)")
     p.add_argument(
         "--replan-thread", action="store_true", help="re-plan in a worker thread, off the loop"
+    )
+    p.add_argument(
+        "--estimator",
+        type=Path,
+        metavar="FILE",
+        help="TOML with an [estimator] table; its keys override the rig configuration's",
     )
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
@@ -122,7 +129,7 @@ class Progress:
 def _wired(config, args):
     from gyrohost.cli import CliError
     from gyrohost.config import EMULATED_PORT
-    from gyrohost.run.loop import with_ports
+    from gyrohost.run import with_ports
 
     config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
     emulated = [
@@ -146,34 +153,33 @@ def run(args) -> int:
     from dataclasses import replace
 
     from gyrohost.cli import CliError
-    from gyrohost.config import ConfigError, load_rig_config
-    from gyrohost.control.errors import PlanError, ScheduleError
-    from gyrohost.resources import ResourceError, resolve
-    from gyrohost.rig.process import RigProcessError
-    from gyrohost.rig.truth import RigSetupError
-    from gyrohost.run.loop import RunLoop, ScheduleRefused, run_simulated
+    from gyrohost.config import load_rig_config
+    from gyrohost.errors import GyrohostError
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.resources import resolve
+    from gyrohost.run import RunLoop, run_simulated
     from gyrotensegrity import SceneError
 
     try:
         config = load_rig_config(resolve("config", args.config))
         if args.scene is not None:
             config = replace(config, scene=str(resolve("scene", args.scene)))
+        estimator = for_rig(config, args.estimator)
         schedule = _what_to_run(config, args)
-    except (ConfigError, ResourceError, ScheduleError, PlanError, SceneError, OSError) as exc:
+    except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
     name = _run_name(schedule)
     out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{name}"
     if (out / "meta.json").exists():
         raise CliError(f"{out}: already holds a log; choose another -o")
     progress = Progress()
-    meta = {"command": sys.argv}
+    options = {"estimator": estimator, "progress": progress, "meta": {"command": sys.argv}}
     try:
         if args.sim:
-            result = run_simulated(config, schedule, out, progress=progress, meta=meta)
+            result = run_simulated(config, schedule, out, **options)
         else:
-            loop = RunLoop(_wired(config, args), schedule, out, progress=progress, meta=meta)
-            result = loop.run()
-    except (ScheduleRefused, ScheduleError, RigSetupError, SceneError, RigProcessError) as exc:
+            result = RunLoop(_wired(config, args), schedule, out, **options).run()
+    except (GyrohostError, SceneError) as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
@@ -189,7 +195,7 @@ def _run_name(schedule) -> str:
 
 def report(result) -> int:
     """Print how a run ended and where its log is; returns its exit status."""
-    from gyrohost.run.records import jitter_line
+    from gyrohost.run import jitter_line
 
     s = result.summary
     print(f"log: {result.log_folder}")

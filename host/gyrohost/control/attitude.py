@@ -16,6 +16,10 @@ perpendicular to ``a``::
     tilt = atan2(((n0 x p) . a), n0 . p)      rad, in (-pi, pi]
 
 A rotation of the whole structure by ``+phi`` about ``a`` gives ``tilt = +phi``.
+
+The D-bar is a plug-in of the run, the planner and the plots: :func:`attitude_of` gives a scene's
+attitude measure, ``None`` for a scene without the plane nodes (a prism), which then runs and
+plots with node positions and the estimate only.
 """
 
 import numpy as np
@@ -25,6 +29,7 @@ from gyrohost.geometry import plane_frame, tilt_angle
 from .errors import PlanError
 
 PLANE_NODES = ("n1", "n2", "n3", "n4")
+"""The D-bar's plane nodes, the one definition: n1-n3 the actuated diagonal, n2-n4 the other."""
 
 
 def node_columns(model, names=PLANE_NODES):
@@ -76,3 +81,34 @@ class Attitude:
     def n13(self, N):
         """Distance n1-n3 (m) of node positions ``N`` (3, n), m."""
         return float(np.linalg.norm(N[:, self.cols[2]] - N[:, self.cols[0]]))
+
+
+def has_plane(model) -> bool:
+    """Whether ``model``'s scene has the D-bar's plane nodes :data:`PLANE_NODES`."""
+    return all(n in model.structure.primary for n in PLANE_NODES)
+
+
+class TiltMeter:
+    """Tilt of the D-bar plane from scene node positions (as the planner measures it).
+
+    Parameters
+    ----------
+    model : gyrotensegrity.Model
+        A scene with the plane nodes; fixes the tilt axis (the n2-n4 axis at rest) and the
+        reference normal.
+    """
+
+    def __init__(self, model):
+        self.attitude = Attitude(model)
+        names = list(model.scene.node_names)
+        self.cols = [names.index(n) for n in PLANE_NODES]
+
+    def tilt(self, N_scene) -> float:
+        """Tilt, rad, of scene node positions ``N_scene`` (3, n_scene), m."""
+        normal = plane_frame(N_scene, self.cols)[:, 2]
+        return tilt_angle(normal, self.attitude.axis, self.attitude.normal0)
+
+
+def attitude_of(model) -> TiltMeter | None:
+    """The attitude measure of ``model``'s scene: a :class:`TiltMeter` for a D-bar, else None."""
+    return TiltMeter(model) if has_plane(model) else None

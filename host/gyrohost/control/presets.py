@@ -1,7 +1,8 @@
-"""Shipped schedules (presets) for the D-bar."""
+"""Shipped schedules (presets) for the D-bar; other scenes take schedule files."""
 
 import numpy as np
 
+from .attitude import PLANE_NODES, has_plane
 from .errors import ScheduleError
 from .reduced import DBarReduced
 from .schedule import Schedule
@@ -31,4 +32,9 @@ def preset(name: str, model) -> Schedule:
     """The preset ``name`` (see :data:`PRESETS`) for ``model``."""
     if name not in PRESETS:
         raise ScheduleError(f"unknown preset '{name}' (choose one of: {', '.join(PRESETS)})")
+    if not has_plane(model):
+        raise ScheduleError(
+            f"preset '{name}' is for the D-bar (nodes {', '.join(PLANE_NODES)}); scene "
+            f"{model.scene.name} has none: give a schedule file (docs/schedule.md)"
+        )
     return PRESETS[name](model)

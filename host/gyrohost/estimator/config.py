@@ -10,6 +10,8 @@ import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
+from gyrohost.config import TruthConfig
+
 from .errors import EstimatorConfigError
 
 _DEG = math.pi / 180.0
@@ -58,8 +60,9 @@ class EstimatorConfig:
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
     # IMU attachment (as the rig's truth, gyrohost.rig.truth): body frame from three scene
-    # nodes, sensor axes turned by mounting_rpy, gravity the sensor feels (world frame)
-    imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
+    # nodes (the rig's default: the D-bar's), sensor axes turned by mounting_rpy, gravity the
+    # sensor feels (world frame)
+    imu_frame_nodes: tuple[str, str, str] = TruthConfig.imu_frame_nodes
     imu_mounting_rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
 
@@ -79,22 +82,48 @@ def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
 
 def load_config(path: str | Path) -> EstimatorConfig:
     """Read the ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
+    return config_from_dict(read_table(path), str(path))
+
+
+def read_table(path: str | Path) -> dict:
+    """The ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise EstimatorConfigError(f"{path}: cannot read estimator configuration: {exc}") from exc
-    return config_from_dict(data.get("estimator", data), str(path))
+    return data.get("estimator", data)
+
+
+def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
+    """The EKF's configuration for a run on ``rig`` (a ``gyrohost.config.RigConfig``).
+
+    Layers, each overriding the keys it names: the defaults; the IMU's output period, time-out
+    and mounting from ``[imu]`` (:func:`imu_keys`); the simulated rig's noise and attachment
+    (:func:`noise_from_rig`) only if ``[estimator] noise_from_sim = true``; the rig's
+    ``[estimator]`` keys; the ``[estimator]`` table of the file ``path``
+    (``gyrotens run --estimator``).
+
+    Raises
+    ------
+    EstimatorConfigError
+        An unknown key or bad value, naming the file and the key.
+    """
+    table = rig.estimator
+    keys = noise_from_rig(rig) if table.noise_from_sim else imu_keys(rig)
+    config_from_dict(table.keys, f"{rig.source}: [estimator]")
+    keys.update(table.keys)
+    if path is not None:
+        extra = read_table(path)
+        config_from_dict(extra, str(path))
+        keys.update(extra)
+    return config_from_dict(keys, rig.source)
 
 
 def _check(f, value, where: str):
     default = f.default
     if isinstance(default, tuple):
-        if (
-            not isinstance(value, list | tuple)
-            or len(value) != len(default)
-            and f.name != ("imu_position_nodes")
-        ):
+        if not isinstance(value, list | tuple) or len(value) != len(default):
             raise EstimatorConfigError(f"{where} must be an array like {list(default)}")
         kind = type(default[0])
         if not all(isinstance(v, kind) or kind is float and isinstance(v, int) for v in value):
@@ -112,8 +141,18 @@ def _check(f, value, where: str):
     return float(value)
 
 
+def imu_keys(rig) -> dict:
+    """Keys a rig configuration's ``[imu]`` table fixes: output period, time-out, mounting."""
+    return {
+        "imu_timeout_s": rig.imu.timeout_s,
+        "imu_period_s": 1.0 / rig.imu.rate_hz,
+        "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),
+    }
+
+
 def noise_from_rig(rig) -> dict:
-    """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``).
+    """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``), with
+    the :func:`imu_keys` and the simulated IMU's attachment (``[sim.truth]``).
 
     White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
     format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
@@ -134,12 +173,10 @@ def noise_from_rig(rig) -> dict:
         "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
-        "imu_timeout_s": rig.imu.timeout_s,
-        "imu_period_s": 1.0 / rig.imu.rate_hz,
+        **imu_keys(rig),
         # an MX-12W under string load is not the filter's first-order lag: on the real-time
         # simulated rig its position differs from that model by about 1 mm (NIS 41 at 0.2 mm)
         "servo_length_std_m": 1.0e-3,
-        "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
     }

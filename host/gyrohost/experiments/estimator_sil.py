@@ -67,7 +67,7 @@ DEFAULT_CONFIG = shipped("config", "sim-rig")
 def record_run(config, seed, folder, duration_s=3.0):
     """One run of the paper's schedule on the simulated rig with IMU seed ``seed``."""
     from gyrohost.control.presets import paper
-    from gyrohost.run.loop import run_simulated
+    from gyrohost.run import run_simulated
     from gyrotensegrity import Model, load_scene
 
     cfg = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))

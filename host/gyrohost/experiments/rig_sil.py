@@ -57,7 +57,7 @@ def run_case(config, out, target, closed_loop: bool, threaded: bool = False) -> 
     """One run of the maneuver on the simulated rig; its figures."""
     from gyrohost.control.maneuver import Maneuver
     from gyrohost.control.schedule import Limits
-    from gyrohost.run.loop import run_simulated
+    from gyrohost.run import run_simulated
     from gyrotensegrity import Model, load_scene
 
     target = replace(target, closed_loop=closed_loop, threaded=threaded)

@@ -2,6 +2,11 @@
 
 Every figure has time on the host clock of the run (``t_s``, s) and marks where the schedule
 started; estimate lines are solid, truth lines (simulated rig only) dashed in the same colour.
+
+The figures follow the scene, as the log holds it: a D-bar log (its ``nodes`` stream has a
+``tilt_rad`` column) gets the paper's figures of the plane nodes and the tilt; any other scene
+gets every node's coordinates, the IMU's angles, wheels, innovations and loop timing
+(:func:`plots_for`).
 """
 
 from pathlib import Path
@@ -12,9 +17,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
 from gyrohost.run.log import read_meta, read_stream  # noqa: E402
 
-NODES = ("n1", "n2", "n3", "n4")
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
 
@@ -32,6 +37,15 @@ class RunData:
         starts = [] if events is None else events["t_s"][events["message"] == "schedule"]
         self.t_schedule = float(starts[0]) if len(starts) else None
         self.title = Path(str(self.meta.get("scene", self.folder.name))).stem
+        nodes = self.streams.get("nodes")
+        if nodes is None:
+            nodes = self.streams.get("truth")
+        columns = () if nodes is None else nodes.dtype.names
+        self.dbar = "tilt_rad" in columns
+        """The log is of a D-bar scene (it has the plane's tilt)."""
+        scene_nodes = [c[: -len("_x_m")] for c in columns if c.endswith("_x_m")]
+        self.nodes = PLANE_NODES if self.dbar else tuple(scene_nodes)
+        """The nodes the figures show: the D-bar's plane nodes, else every scene node."""
 
     def get(self, name):
         s = self.streams.get(name)
@@ -54,11 +68,11 @@ def _colors():
 
 
 def plot_nodes(data: RunData, path) -> Path:
-    """Node x, y, z of n1..n4 against time (Fig. 7): estimate solid, truth dashed."""
+    """Node x, y, z against time (Fig. 7 for the D-bar): estimate solid, truth dashed."""
     est, truth = data.get("nodes"), data.get("truth")
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
     for ax, axis in zip(axes, "xyz", strict=True):
-        for node, color in zip(NODES, _colors(), strict=False):
+        for node, color in zip(data.nodes, _colors(), strict=False):
             col = f"{node}_{axis}_m"
             if est is not None:
                 ax.plot(est["t_s"], est[col], color=color, label=f"{node} estimate")
@@ -69,15 +83,15 @@ def plot_nodes(data: RunData, path) -> Path:
         ax.set_ylabel(f"{axis} (m)")
     axes[0].legend(ncol=4, fontsize="x-small")
     axes[-1].set_xlabel("t (s)")
-    fig.suptitle(f"{data.title}: node coordinates (Fig. 7)")
+    fig.suptitle(f"{data.title}: node coordinates" + (" (Fig. 7)" if data.dbar else ""))
     return _finish(fig, axes, data, path)
 
 
 def plot_node_z(data: RunData, path) -> Path:
-    """Node z of n1..n4, estimate against truth (Fig. 8 on the rig)."""
+    """Node z of the D-bar's plane nodes, estimate against truth (Fig. 8 on the rig)."""
     est, truth = data.get("nodes"), data.get("truth")
     fig, axes = plt.subplots(2, 2, sharex=True, sharey=True, figsize=(8, 5.5))
-    for ax, node in zip(axes.ravel(), NODES, strict=True):
+    for ax, node in zip(axes.ravel(), PLANE_NODES, strict=True):
         col = f"{node}_z_m"
         if est is not None:
             ax.plot(est["t_s"], 100 * est[col], label="estimate (EKF)")
@@ -93,25 +107,30 @@ def plot_node_z(data: RunData, path) -> Path:
 
 
 def plot_attitude(data: RunData, path) -> Path:
-    """Tilt of the D-bar plane (estimate, truth) and the IMU's roll and pitch (measured, EKF)."""
+    """The IMU's roll and pitch (measured, EKF); for the D-bar above them the tilt of its plane
+    (estimate, truth)."""
     est, truth, imu = data.get("estimate"), data.get("truth"), data.get("imu")
     nodes = data.get("nodes")
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 5.5))
-    if nodes is not None:
-        axes[0].plot(nodes["t_s"], np.degrees(nodes["tilt_rad"]), label="estimate")
-    if truth is not None:
-        axes[0].plot(truth["t_s"], np.degrees(truth["tilt_rad"]), "k--", lw=0.9, label="truth")
-    axes[0].set_ylabel("plane tilt about n2-n4 (deg)")
-    axes[0].legend(fontsize="small")
+    fig, axes = plt.subplots(
+        2 if data.dbar else 1, 1, sharex=True, figsize=(7.5, 5.5 if data.dbar else 3.5)
+    )
+    axes = np.atleast_1d(axes)
+    if data.dbar:
+        if nodes is not None:
+            axes[0].plot(nodes["t_s"], np.degrees(nodes["tilt_rad"]), label="estimate")
+        if truth is not None:
+            axes[0].plot(truth["t_s"], np.degrees(truth["tilt_rad"]), "k--", lw=0.9, label="truth")
+        axes[0].set_ylabel("plane tilt about n2-n4 (deg)")
+        axes[0].legend(fontsize="small")
     if imu is not None:
         for col in ("roll_rad", "pitch_rad"):
-            axes[1].plot(imu["t_s"], np.degrees(imu[col]), lw=0.8, label=f"IMU {col[:-4]}")
+            axes[-1].plot(imu["t_s"], np.degrees(imu[col]), lw=0.8, label=f"IMU {col[:-4]}")
     if est is not None:
         for col in ("roll_rad", "pitch_rad"):
-            axes[1].plot(est["t_s"], np.degrees(est[col]), "--", lw=0.8, label=f"EKF {col[:-4]}")
-    axes[1].set_ylabel("angle (deg)")
-    axes[1].set_xlabel("t (s)")
-    axes[1].legend(fontsize="small", ncol=2)
+            axes[-1].plot(est["t_s"], np.degrees(est[col]), "--", lw=0.8, label=f"EKF {col[:-4]}")
+    axes[-1].set_ylabel("angle (deg)")
+    axes[-1].set_xlabel("t (s)")
+    axes[-1].legend(fontsize="small", ncol=2)
     fig.suptitle(f"{data.title}: attitude")
     return _finish(fig, axes, data, path)
 
@@ -183,21 +202,32 @@ PLOTS = {
 }
 
 
+DBAR_ONLY = ("fig8-node-z.png",)
+"""Figures of the D-bar's plane nodes, made for D-bar logs only."""
+
+
+def plots_for(data: RunData) -> dict:
+    """The figures (file name -> function) of a log: all of :data:`PLOTS` for a D-bar, all but
+    :data:`DBAR_ONLY` for any other scene."""
+    return {name: plot for name, plot in PLOTS.items() if data.dbar or name not in DBAR_ONLY}
+
+
 def plot_log(folder, out) -> list[Path]:
-    """Write every figure of the log ``folder`` into ``out``; returns the paths."""
+    """Write every figure of the log ``folder`` (:func:`plots_for`) into ``out``; returns the
+    paths."""
     data = RunData(folder)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot(data, out / name) for name, plot in PLOTS.items()]
+    return [plot(data, out / name) for name, plot in plots_for(data).items()]
 
 
 def plot_compare(folders, labels, path) -> Path:
-    """Node z of n1..n4 in several runs side by side (Fig. 7(a) against 7(b)), cm."""
+    """Node z in several runs side by side (Fig. 7(a) against 7(b) for the D-bar), cm."""
     runs = [RunData(f) for f in folders]
     fig, axes = plt.subplots(1, len(runs), sharey=True, figsize=(5 * len(runs), 4), squeeze=False)
     for ax, data, label in zip(axes[0], runs, labels, strict=True):
         est, truth = data.get("nodes"), data.get("truth")
-        for node, color in zip(NODES, _colors(), strict=False):
+        for node, color in zip(data.nodes, _colors(), strict=False):
             col = f"{node}_z_m"
             if est is not None:
                 ax.plot(est["t_s"], 100 * est[col], color=color, label=f"{node} estimate")

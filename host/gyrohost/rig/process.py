@@ -6,10 +6,17 @@ its own and the host side sees only its pseudo-terminals, as it would see hardwa
 also samples the truth every ``period_s`` and sends it up a pipe, stamped with
 ``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
 answers fault injections and statistics requests.
+
+A Ctrl-C that arrives while the parent receives is held until the message is whole: a
+``KeyboardInterrupt`` inside ``Connection.recv`` would leave the rest of the message in the pipe,
+read next as a broken message (``EOFError``) although the child is alive. (A reader thread would
+avoid that too, but under CPU load its GIL hand-offs made the loop's ticks late by 0.3 s.) Every
+failure of the pipe (the child gone, a broken pipe) is a :class:`RigProcessError`.
 """
 
 import multiprocessing
 import signal
+import threading
 import time
 from dataclasses import dataclass
 
@@ -22,7 +29,11 @@ READY_TIMEOUT_S = 60.0
 
 
 class RigProcessError(GyrohostError, RuntimeError):
-    """The child process failed to start or its rig failed."""
+    """The child process failed to start, its rig failed or the pipe to it broke."""
+
+
+_PIPE_ERRORS = (EOFError, OSError)
+"""What a closed or broken pipe raises (BrokenPipeError is an OSError)."""
 
 
 @dataclass(frozen=True)
@@ -90,20 +101,27 @@ class RigProcess:
         self.n_wheels = reply["n_wheels"]
 
     def truth(self) -> list[TruthSample]:
-        """Truth samples received since the last call (never waits)."""
-        while self._conn.poll():
-            self._take(self._conn.recv())
+        """Truth samples received since the last call (never waits).
+
+        Raises
+        ------
+        RigProcessError
+            The rig reported an error, or the pipe to it broke.
+        """
+        with _HeldSigint():
+            while self._poll(0.0):
+                self._take(self._recv())
         out, self._pending = self._pending, []
         return out
 
     def inject(self, device: str, fault: str, **kwargs) -> None:
         """Inject a fault now (arguments of ``SimulatedRig.inject``)."""
-        self._conn.send(("inject", (device, fault), kwargs))
+        self._send(("inject", (device, fault), kwargs))
         self._reply("injected")
 
     def stats_lines(self) -> list[str]:
         """The rig's rates and truth timing lines."""
-        self._conn.send(("stats", (), {}))
+        self._send(("stats", (), {}))
         return self._reply("stats")["lines"]
 
     def close(self) -> None:
@@ -111,8 +129,8 @@ class RigProcess:
         if self._proc.is_alive():
             try:
                 self._conn.send(("close", (), {}))
-            except (BrokenPipeError, OSError):
-                pass
+            except OSError:
+                pass  # the child is gone already
             self._proc.join(5.0)
             if self._proc.is_alive():
                 self._proc.terminate()
@@ -124,6 +142,24 @@ class RigProcess:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def _send(self, msg) -> None:
+        try:
+            self._conn.send(msg)
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: cannot send '{msg[0]}': {exc!r}") from exc
+
+    def _poll(self, timeout_s: float) -> bool:
+        try:
+            return self._conn.poll(timeout_s)
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: the pipe to the rig ended: {exc!r}") from exc
+
+    def _recv(self):
+        try:
+            return self._conn.recv()
+        except _PIPE_ERRORS as exc:
+            raise RigProcessError(f"simulated rig: the pipe to the rig ended: {exc!r}") from exc
 
     def _take(self, msg) -> dict | None:
         kind, body = msg
@@ -138,12 +174,39 @@ class RigProcess:
         deadline = time.monotonic() + timeout_s
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 or not self._proc.is_alive() and not self._conn.poll():
+            if left <= 0 or not self._proc.is_alive() and not self._poll(0.0):
                 raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
-            if self._conn.poll(min(left, 0.1)):
-                reply = self._take(self._conn.recv())
-                if reply is not None and reply["kind"] == kind:
-                    return reply
+            with _HeldSigint():
+                reply = self._take(self._recv()) if self._poll(min(left, 0.1)) else None
+            if reply is not None and reply["kind"] == kind:
+                return reply
+
+
+class _HeldSigint:
+    """Context: a Ctrl-C inside is handled as it exits, not inside (main thread only)."""
+
+    def __init__(self):
+        self.previous = None
+        self.pending = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self.previous = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        self.pending = (signum, frame)
+
+    def __exit__(self, *exc):
+        if self.previous is None:
+            return False
+        signal.signal(signal.SIGINT, self.previous)
+        if self.pending is not None:
+            if callable(self.previous):
+                self.previous(*self.pending)  # KeyboardInterrupt, or the safe state's note
+            elif self.previous == signal.SIG_DFL:
+                signal.raise_signal(signal.SIGINT)
+        return False
 
 
 def _serve(conn, config, period_s: float) -> None:

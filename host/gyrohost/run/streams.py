@@ -1,20 +1,22 @@
-"""What the run loop writes: the log streams, their rows, the truth probe and loop timing.
+"""The log schema of a run: every stream the run writes, its columns and its row writers.
 
 Stream columns of the estimator's inputs and outputs come from
-:mod:`gyrohost.estimator.streams` (the one place they are named); this module adds the run
-loop's own streams (``nodes``, ``truth``, ``loop``, ``events``) and extra columns after the
-estimator's (device clock and status words), which a replay ignores. docs/run.md lists them all.
+:mod:`gyrohost.estimator.streams` (the one place they are named); this module adds the run's own
+streams (``events``, ``loop``, ``nodes``, ``truth``, ``replan``) and extra columns after the
+estimator's (device clock and status words), which a replay ignores. A scene with an attitude
+measure (:func:`gyrohost.control.attitude.attitude_of`, the D-bar) adds a ``tilt_rad`` column to
+``nodes`` and ``truth``. docs/run.md lists them all.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from gyrohost.control.attitude import Attitude, node_columns, plane_frame, tilt_angle
+from gyrohost.control.attitude import TiltMeter, node_columns
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 
-PLANE_NODES = ("n1", "n2", "n3", "n4")
 INNOVATION_COMPONENTS = {
     "imu_rate": ("x", "y", "z"),
     "imu_accel": ("x", "y", "z"),
@@ -27,24 +29,85 @@ def node_columns_of(names, prefix: str = "") -> list[str]:
     return [f"{prefix}{n}_{a}_m" for n in names for a in "xyz"]
 
 
-class TiltMeter:
-    """Tilt of the D-bar plane from scene node positions (as the planner measures it).
+def tilt_column(tilt: TiltMeter | None) -> list[str]:
+    """The ``tilt_rad`` column given an attitude measure, none without."""
+    return [] if tilt is None else ["tilt_rad"]
+
+
+def tilt_of(tilt: TiltMeter | None, N_scene) -> float:
+    """Tilt, rad, of scene node positions ``N_scene`` (3, n), m; NaN without a measure."""
+    return float("nan") if tilt is None else tilt.tilt(N_scene)
+
+
+def tilt_value(tilt: TiltMeter | None, value: float) -> tuple:
+    """The row cells of :func:`tilt_column`."""
+    return () if tilt is None else (value,)
+
+
+@dataclass
+class RunStreams:
+    """The streams every run writes (opened with :func:`open_run_streams`)."""
+
+    events: object
+    loop: object
+    imu: object
+    wheels: object
+    servos: object
+    command: object
+
+
+def open_run_streams(log, strings, servo_strings) -> RunStreams:
+    """Open the run's own streams and the device streams.
 
     Parameters
     ----------
-    model : gyrotensegrity.Model
-        Fixes the tilt axis (the n2-n4 axis at rest) and the reference normal.
+    log : RunLog
+    strings : list of str
+        Scene strings, scene order (the ``command`` stream).
+    servo_strings : list of str
+        Strings the servos wind, servo order (the ``servos`` stream).
     """
-
-    def __init__(self, model):
-        self.attitude = Attitude(model)
-        names = list(model.scene.node_names)
-        self.cols = [names.index(n) for n in PLANE_NODES]
-
-    def tilt(self, N_scene) -> float:
-        """Tilt, rad, of scene node positions ``N_scene`` (3, n_scene), m."""
-        normal = plane_frame(N_scene, self.cols)[:, 2]
-        return tilt_angle(normal, self.attitude.axis, self.attitude.normal0)
+    names = servo_strings
+    return RunStreams(
+        events=log.stream(
+            "events", ["t_s", "kind", "message"], ("kind", "message"), "phases, faults, outcome"
+        ),
+        loop=log.stream(
+            "loop",
+            ["t_s", "late_s", "work_s", "cpu_s", "samples", "phase"],
+            ("phase",),
+            "one row per host tick: lateness against the grid, wall and CPU time spent (s)",
+        ),
+        imu=log.stream(
+            cols.IMU, [*cols.imu_columns(), "temperature_degC"], (), "IMU samples at arrival"
+        ),
+        wheels=log.stream(
+            cols.WHEELS,
+            [
+                *cols.wheels_columns(),
+                "device_t_us",
+                "seq",
+                "status",
+                "faults",
+                *(f"drive_{i}" for i in range(wp.N_WHEELS)),
+            ],
+            description="wheel-board telemetry at arrival; drive as a fraction of the supply",
+        ),
+        servos=log.stream(
+            cols.SERVOS,
+            [
+                *cols.servos_columns(names),
+                *(f"{n}_speed_m_s" for n in names),
+                *(f"{n}_load" for n in names),
+            ],
+            description="servo read-back at arrival; load as a fraction of the maximum torque",
+        ),
+        command=log.stream(
+            cols.COMMAND,
+            cols.command_columns(strings),
+            description="commanded rest lengths (m) and wheel speeds (rad/s), every tick",
+        ),
+    )
 
 
 class EstimateWriter:
@@ -52,17 +115,18 @@ class EstimateWriter:
 
     ``estimate`` is the estimator's own row (as ``gyrotens replay`` writes it; its ``tilt_rad``
     is the angle of the sensor z axis from the vertical, unsigned). ``nodes`` holds the scene
-    node positions and the signed tilt of the D-bar plane about the n2-n4 axis
-    (:class:`TiltMeter`, as in the ``truth`` stream).
+    node positions and, given an attitude measure, the signed tilt of the D-bar plane about the
+    n2-n4 axis (as in the ``truth`` stream).
 
     Parameters
     ----------
     log : RunLog
     ekf : TensegrityEKF
-    tilt : TiltMeter
+    tilt : TiltMeter or None
+        The scene's attitude measure (None: no tilt column).
     """
 
-    def __init__(self, log, ekf, tilt: TiltMeter):
+    def __init__(self, log, ekf, tilt: TiltMeter | None):
         self.ekf, self.tilt = ekf, tilt
         model = ekf.model
         self.names = list(model.scene.node_names)
@@ -74,21 +138,22 @@ class EstimateWriter:
         )
         self.nodes = log.stream(
             "nodes",
-            ["t_s", *node_columns_of(self.names), "tilt_rad"],
+            ["t_s", *node_columns_of(self.names), *tilt_column(tilt)],
             description="scene node positions of the estimate, m; plane tilt, rad",
         )
 
     def write(self, t_s: float) -> tuple[np.ndarray, float]:
-        """Write one row of each stream at host time ``t_s``; returns (N (3, n), plane tilt rad)."""
+        """Write one row of each stream at host time ``t_s``; returns (N (3, n) m, plane tilt rad,
+        NaN without an attitude measure)."""
         ekf = self.ekf
         x = ekf.x
         N_all, _ = ekf.batch_nodes(x[None, :])
         N = N_all[0][:, self.scene_cols]
         R, euler = ekf.attitude()
-        tilt = self.tilt.tilt(N)
+        tilt = tilt_of(self.tilt, N)
         std = np.sqrt(np.clip(np.diag(ekf.P), 0.0, None))
         self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, sensor_tilt(R))
-        self.nodes.write(t_s, *N.T.ravel(), tilt)
+        self.nodes.write(t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt))
         return N, tilt
 
 
@@ -140,12 +205,13 @@ class TruthProbe:
         Source of :class:`~gyrohost.rig.process.TruthSample` (``truth()``), node and string
         names, wheel count.
     log : RunLog
-    tilt : TiltMeter
+    tilt : TiltMeter or None
+        The scene's attitude measure (None: no tilt column).
     t0_ns : int
         ``time.monotonic_ns`` of the run's time zero, ns.
     """
 
-    def __init__(self, rig, log, tilt: TiltMeter, t0_ns: int):
+    def __init__(self, rig, log, tilt: TiltMeter | None, t0_ns: int):
         self.rig, self.tilt, self.t0_ns = rig, tilt, t0_ns
         self.latest_tilt = float("nan")
         self.stream = log.stream(
@@ -156,7 +222,7 @@ class TruthProbe:
                 "truth_t_s",
                 "wall_t_s",
                 *node_columns_of(rig.node_names),
-                "tilt_rad",
+                *tilt_column(tilt),
                 *(f"omega_{i}_rad_s" for i in range(rig.n_wheels)),
                 *(cols.rest_column(s) for s in rig.string_names),
             ],
@@ -166,72 +232,17 @@ class TruthProbe:
     def write(self) -> None:
         """Write every truth sample received since the last call."""
         for s in self.rig.truth():
-            self.latest_tilt = self.tilt.tilt(s.N)
+            self.latest_tilt = tilt_of(self.tilt, s.N)
             self.stream.write(
                 (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s,
                 s.rig_t_s,
                 s.truth_t_s,
                 (s.t_ns - self.t0_ns) * 1e-9,
                 *s.N.T.ravel(),
-                self.latest_tilt,
+                *tilt_value(self.tilt, self.latest_tilt),
                 *s.omega_w_rad_s,
                 *s.rest_length_m,
             )
-
-
-@dataclass
-class LoopTimer:
-    """Periods and lateness of the fixed-rate loop's ticks.
-
-    Parameters
-    ----------
-    period_s : float, s
-        The nominal period.
-    """
-
-    period_s: float
-    starts: list = field(default_factory=list)
-    lates: list = field(default_factory=list)
-
-    def record(self, start_s: float, due_s: float) -> None:
-        """A tick started at ``start_s`` (host time, s) that was due at ``due_s``."""
-        self.starts.append(start_s)
-        self.lates.append(start_s - due_s)
-
-    def stats(self) -> dict:
-        """Period mean, std, p99 and max, lateness max and ticks more than a period late (s)."""
-        periods = np.diff(self.starts)
-        if periods.size == 0:
-            return {"ticks": len(self.starts), "nominal_period_s": self.period_s}
-        lates = np.array(self.lates)
-        return {
-            "ticks": len(self.starts),
-            "nominal_period_s": self.period_s,
-            "period_mean_s": float(periods.mean()),
-            "period_std_s": float(periods.std()),
-            "period_p99_s": float(np.percentile(periods, 99)),
-            "period_max_s": float(periods.max()),
-            "late_max_s": float(lates.max()),
-            "late_p99_s": float(np.percentile(lates, 99)),
-            "overruns": int(np.sum(lates > self.period_s)),
-        }
-
-
-def jitter_line(stats: dict) -> str:
-    """One line of the loop timing figures (ms)."""
-    if "period_mean_s" not in stats:
-        return f"loop: {stats['ticks']} ticks (too few for timing figures)"
-
-    def ms(key):
-        return 1e3 * stats[key]
-
-    rate = 1.0 / stats["nominal_period_s"]
-    return (
-        f"loop at {rate:g} Hz: {stats['ticks']} ticks, period mean {ms('period_mean_s'):.3f} ms, "
-        f"std {ms('period_std_s'):.3f} ms, p99 {ms('period_p99_s'):.3f} ms, "
-        f"max {ms('period_max_s'):.3f} ms; late max {ms('late_max_s'):.3f} ms, "
-        f"{stats['overruns']} overruns"
-    )
 
 
 class ReplanWriter:

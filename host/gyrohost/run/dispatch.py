@@ -1,0 +1,136 @@
+"""Per-device handling of the samples the readers queue: log each one, fuse the newest.
+
+One small handler per device (:class:`ImuHandler`, :class:`WheelHandler`, :class:`ServoHandler`)
+writes its device's stream row and hands the sample to the estimator; :class:`Dispatcher`
+drains the queue once a tick, in time order, and decides which samples are fused.
+"""
+
+import queue
+
+import numpy as np
+
+from gyrohost.run.devices import Sample
+
+
+class ImuHandler:
+    """IMU samples (:class:`~gyrohost.drivers.imu.ImuSample`): the ``imu`` stream, fused."""
+
+    device = "imu"
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def take(self, t_s: float, v, ekf) -> None:
+        """Log the sample taken at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        self.stream.write(t_s, *v.omega_rad_s, *v.accel_m_s2, *v.euler_rad, v.temperature_degC)
+        if ekf is not None:
+            ekf.fuse_imu(t_s, v.omega_rad_s, v.accel_m_s2, v.euler_rad)
+
+
+class WheelHandler:
+    """Wheel-board telemetry: the ``wheels`` stream; the scene's wheels fused.
+
+    Parameters
+    ----------
+    stream : Stream
+    n_wheels : int
+        Wheels of the scene (the board's first ``n_wheels``).
+    """
+
+    device = "wheels"
+
+    def __init__(self, stream, n_wheels: int):
+        self.stream, self.n_wheels = stream, n_wheels
+
+    def take(self, t_s: float, v, ekf) -> None:
+        """Log the sample taken at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        self.stream.write(t_s, *v.omega_rad_s, v.t_us, v.seq, v.status, v.faults, *v.drive)
+        if ekf is not None:
+            ekf.fuse_wheels(t_s, np.array(v.omega_rad_s)[: self.n_wheels])
+
+
+class ServoHandler:
+    """Servo read-back (a list of ServoState, servo order): the ``servos`` stream, fused.
+
+    Parameters
+    ----------
+    stream : Stream
+    strings : list of str
+        Scene strings, scene order.
+    servo_strings : list of str
+        The string each servo winds, servo order.
+
+    Attributes
+    ----------
+    latest : list of ServoState
+        The newest read-back (empty before the first).
+    """
+
+    device = "servos"
+
+    def __init__(self, stream, strings, servo_strings):
+        self.stream, self.strings, self.servo_strings = stream, strings, servo_strings
+        self.latest: list = []
+
+    def take(self, t_s: float, v, ekf) -> None:
+        """Log the sample taken at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        self.stream.write(
+            t_s,
+            *(s.length_m for s in v),
+            *(s.speed_m_s for s in v),
+            *(s.load_fraction for s in v),
+        )
+        self.latest = v
+        if ekf is not None:
+            idx = [self.strings.index(name) for name in self.servo_strings]
+            ekf.fuse_servos(t_s, [s.length_m for s in v], idx)
+
+
+class Dispatcher:
+    """Drains the readers' queue once a tick and hands each sample to its device's handler.
+
+    Parameters
+    ----------
+    samples : queue.Queue
+        Where the readers put :class:`~gyrohost.run.devices.Sample` and faults.
+    handlers : list
+        One handler per device (``device`` names it, as in ``Sample.device``).
+    max_fused_per_tick : int
+        Samples of one device fused per tick at most (the newest); older ones are only logged,
+        so a loop that fell behind catches up instead of spiralling.
+
+    Attributes
+    ----------
+    skipped : dict
+        Device -> samples logged but not fused.
+    """
+
+    def __init__(self, samples: queue.Queue, handlers, max_fused_per_tick: int):
+        self.queue = samples
+        self.handlers = {h.device: h for h in handlers}
+        self.max_fused = max_fused_per_tick
+        self.skipped: dict[str, int] = {}
+
+    def drain(self, t0_ns: int, ekf) -> tuple[int, list]:
+        """Log every queued sample in time order, fuse the fusable ones into ``ekf`` (None:
+        none); returns (samples taken, faults queued by the readers)."""
+        items = []
+        while True:
+            try:
+                items.append(self.queue.get_nowait())
+            except queue.Empty:
+                break
+        faults = [i for i in items if isinstance(i, BaseException)]
+        samples = sorted((i for i in items if isinstance(i, Sample)), key=lambda s: s.t_ns)
+        for sample in samples:
+            t_s = (sample.t_ns - t0_ns) * 1e-9
+            fuse = ekf is not None and t_s >= ekf.t_start and self._newest(sample, samples)
+            self.handlers[sample.device].take(t_s, sample.value, ekf if fuse else None)
+        return len(samples), faults
+
+    def _newest(self, sample: Sample, samples: list) -> bool:
+        newer = sum(1 for s in samples if s.device == sample.device and s.t_ns > sample.t_ns)
+        if newer < self.max_fused:
+            return True
+        self.skipped[sample.device] = self.skipped.get(sample.device, 0) + 1
+        return False

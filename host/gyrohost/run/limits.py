@@ -1,0 +1,79 @@
+"""Limits of a run: the schedule against the servos before anything moves, and the measured and
+estimated values every tick of the run."""
+
+import math
+
+import numpy as np
+
+from gyrohost.control.schedule import Limits, Schedule
+from gyrohost.estimator.ekf import Status
+from gyrohost.run.errors import LimitBreach, RunError, ScheduleRefused
+
+
+def check_schedule(schedule: Schedule, servos) -> None:
+    """Refuse a schedule that breaks any servo's limits (before anything moves).
+
+    Each scheduled string must be wound by a configured servo; its rest lengths must lie in
+    that servo's ``[min_length_m, max_length_m]`` and change no faster than ``max_speed_m_s``.
+
+    Raises
+    ------
+    ScheduleRefused
+        Naming the string, the value and the limit.
+    """
+    by_string = {s.string or s.name: s for s in servos}
+    problems = []
+    for i, name in enumerate(schedule.names):
+        servo = by_string.get(name)
+        if servo is None:
+            problems.append(f"{name}: no servo winds this string (servos: {sorted(by_string)})")
+            continue
+        one = Schedule((name,), schedule.t, schedule.rest_length[:, [i]], schedule.name)
+        problems += one.problems(Limits.from_servos([servo]))
+    if problems:
+        raise ScheduleRefused(
+            f"schedule {schedule.name} refused, nothing moved: " + "; ".join(problems)
+        )
+
+
+def check_limits(settings, omega_cmd, wheel_telemetry, servo_states, tilt_rad, ekf) -> None:
+    """Raise if a value of this tick is beyond its limit.
+
+    Parameters
+    ----------
+    settings : RunSettings
+    omega_cmd : ndarray, rad/s
+        Commanded wheel speeds.
+    wheel_telemetry : WheelTelemetry sample or None
+        The newest wheel-board telemetry.
+    servo_states : list of ServoState
+        The newest servo read-back.
+    tilt_rad : float
+        The estimated plane tilt (NaN without an estimate or an attitude measure: unchecked).
+    ekf : TensegrityEKF or None
+
+    Raises
+    ------
+    LimitBreach
+        Wheel speed, servo load or tilt beyond its limit.
+    RunError
+        The estimator has only predictions left (every source timed out).
+    """
+    s = settings
+    if wheel_telemetry is not None:
+        limit = np.max(np.abs(omega_cmd)) + s.wheel_speed_margin_rad_s
+        fast = np.max(np.abs(wheel_telemetry.omega_rad_s))
+        if fast > limit:
+            raise LimitBreach(f"wheel speed {fast:.2f} rad/s above the limit {limit:.2f} rad/s")
+    for state in servo_states:
+        if abs(state.load_fraction) > s.max_servo_load:
+            raise LimitBreach(
+                f"servo '{state.name}' load {state.load_fraction:.2f} above the limit "
+                f"{s.max_servo_load:g}"
+            )
+    if not math.isnan(tilt_rad) and abs(tilt_rad) > s.max_tilt_rad:
+        raise LimitBreach(
+            f"estimated tilt {tilt_rad:.3f} rad beyond the limit {s.max_tilt_rad:g} rad"
+        )
+    if ekf is not None and ekf.status & Status.PREDICTION_ONLY:
+        raise RunError(f"estimator fault: every source timed out (status {ekf.status!r})")

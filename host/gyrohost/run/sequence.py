@@ -1,0 +1,403 @@
+"""The experiment sequence on the rig (hardware or simulated), as explicit phases.
+
+::
+
+    check      schedule against every servo's limits, strings against the servos  (nothing moves)
+    connect    IMU sample, wheel-board handshake (protocol version; faults latched before the
+               run cleared and logged), servo pings (MX-12W)
+    hold       servos: multi-turn mode, torque on, hold the present position
+    spinup     wheels to the scene's spins; wait for steady speed (time-out)
+    lead_in    estimator started from the steady state, schedule at its first sample
+    schedule   the schedule played at the host rate (100 Hz), every device sample fused
+    settle     schedule held at its last sample, estimator running
+    rampdown   wheels stopped, wait until they are slow (bounded), servos held: the safe state
+
+Every exit path, a normal end included, goes through one routine, :meth:`RunLoop.safe_state`
+(:mod:`gyrohost.run.safe_state`). Ctrl-C (``KeyboardInterrupt``), a device fault (a driver
+error, a reader's :class:`~gyrohost.run.devices.DeviceFault`), a limit breach, an estimator
+fault and a time-out all end there; :class:`~gyrohost.run.settings.RunResult` then carries a
+non-zero exit status and the reason.
+
+Device I/O runs in background threads (:mod:`gyrohost.run.devices`); the loop thread only drains
+their queue (:mod:`gyrohost.run.dispatch`), fuses, commands and logs
+(:mod:`gyrohost.run.streams`), and sleeps to the next tick of a fixed grid
+(:mod:`gyrohost.run.ticker`).
+"""
+
+import math
+import queue
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from gyrohost.control.attitude import attitude_of
+from gyrohost.control.closed_loop import ekf_estimate
+from gyrohost.control.maneuver import Maneuver
+from gyrohost.control.schedule import Schedule
+from gyrohost.drivers import wheelproto as wp
+from gyrohost.drivers.imu import Bwt61Driver
+from gyrohost.drivers.servos import StringServoBus
+from gyrohost.drivers.wheelboard import WheelBoard
+from gyrohost.estimator import TensegrityEKF
+from gyrohost.estimator.config import EstimatorConfig, for_rig
+from gyrohost.estimator.imu_model import ImuGeometry
+from gyrohost.estimator.layout import from_model_state, layout_of
+from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry
+from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
+from gyrohost.run.errors import LimitBreach, RunError
+from gyrohost.run.limits import check_limits, check_schedule
+from gyrohost.run.log import RunLog
+from gyrohost.run.safe_state import reach_safe_state
+from gyrohost.run.settings import RunResult, RunSettings
+from gyrohost.run.streams import (
+    EstimateWriter,
+    InnovationWriter,
+    ReplanWriter,
+    TruthProbe,
+    open_run_streams,
+)
+from gyrohost.run.summary import run_meta, run_summary
+from gyrohost.run.ticker import Ticker
+from gyrotensegrity import Model, load_scene
+
+
+class RunLoop:
+    """One run of a schedule on a rig.
+
+    Parameters
+    ----------
+    config : RigConfig
+        Device ports (real devices or ptys), servos, IMU; ``scene_path`` gives the model.
+    schedule : Schedule or Maneuver
+        A fixed schedule, or a planned tilt maneuver (:class:`gyrohost.control.maneuver.
+        Maneuver`, planned on the same scene): its first plan is played; closed loop, every
+        tick of the schedule phase hands it the EKF's estimate and plays what it returns.
+        Every plan goes to the ``replan`` stream.
+    log_folder : path
+        New log folder (must not hold a log).
+    settings : RunSettings, optional
+    estimator : EstimatorConfig, optional
+        The EKF's configuration (default: :func:`gyrohost.estimator.config.for_rig` of
+        ``config``); its IMU attachment must name nodes of the scene (else
+        :class:`~gyrohost.estimator.EstimatorConfigError` here, before anything moves).
+    rig : RigProcess, optional
+        The simulated rig: its truth samples go to the ``truth`` stream, its statistics to the
+        summary.
+    on_tick : callable(loop, phase, t_s), optional
+        Called at the end of every tick (tests inject faults or Ctrl-C from here).
+    progress : callable(phase, t_s, fraction), optional
+        Called every tick; ``fraction`` of the schedule played, in [0, 1].
+    meta : dict, optional
+        Extra items for ``meta.json`` (command line, ...).
+    """
+
+    def __init__(
+        self,
+        config,
+        schedule: Schedule | Maneuver,
+        log_folder,
+        settings: RunSettings | None = None,
+        estimator: EstimatorConfig | None = None,
+        rig=None,
+        on_tick=None,
+        progress=None,
+        meta: dict | None = None,
+    ):
+        self.config = config
+        self.maneuver = schedule if isinstance(schedule, Maneuver) else None
+        self.schedule = schedule.schedule if self.maneuver else schedule
+        self.settings = settings or RunSettings()
+        self.estimator_config = estimator or for_rig(config)
+        self.rig = rig
+        self.on_tick = on_tick
+        self.progress = progress
+        self.model = Model(load_scene(config.scene_path))
+        self.schedule.bind(self.model)
+        self.tilt = attitude_of(self.model)
+        ImuGeometry(self.model, self.estimator_config)  # attached to nodes of this scene?
+        self.strings = [s.name for s in self.model.scene.strings]
+        self.servo_strings = [s.string or s.name for s in config.servos.servo]
+        self.rest0 = np.array([s.rest_length(0.0) for s in self.model.scene.strings])
+        self.spins = np.zeros(wp.N_WHEELS)
+        wheels = [self.model.scene.bars[b].wheel for b in self.model.wheel_bars]
+        self.spins[: len(wheels)] = [w.spin0 for w in wheels]
+        self.log_folder = Path(log_folder)
+        self.extra_meta = meta or {}
+        self.phase = "check"
+        self.queue: queue.Queue = queue.Queue()
+        self.ticker = Ticker(self.settings.rate_hz)
+        self.dispatcher = self.servo_handler = None
+        self.imu = self.wheels = self.servos = None
+        self.readers: list = []
+        self.wheel_reader = self.servo_worker = None
+        self.ekf = None
+        self.estimates = None
+        self.truth = None
+        self.latest_tilt = math.nan
+        self.final: dict = {}
+        self.omega_cmd = np.zeros(wp.N_WHEELS)
+        self.rest_cmd = self.rest0.copy()
+        self.t_schedule_s = math.nan
+        self.estimate = self.replans = None
+
+    # --- the sequence -------------------------------------------------------------------------
+    def run(self) -> RunResult:
+        """Run the whole sequence; never leaves the rig anywhere but in the safe state.
+
+        Raises
+        ------
+        ScheduleRefused
+            Before anything is opened or moved.
+        """
+        check_schedule(self.schedule, self.config.servos.servo)
+        with RunLog(self.log_folder, run_meta(self)) as log:
+            self.log = log
+            self._open_streams()
+            try:
+                self._sequence()
+                reason, status = "completed", 0
+            except KeyboardInterrupt:
+                reason, status = "interrupted (Ctrl-C)", 130
+            except Exception as exc:  # every fault ends in the safe state, then is reported
+                reason, status = f"{type(exc).__name__}: {exc}", 1
+            self.event("end", reason)
+            if self.maneuver is not None:
+                self.maneuver.join()
+                self.replans.write(self.maneuver.records)
+            safe = self.safe_state(reason)
+            summary = run_summary(self, reason, safe)
+            log.update_meta(summary=summary)
+        return RunResult(status == 0, reason, status, self.log_folder, summary)
+
+    def _sequence(self) -> None:
+        self._enter("connect")
+        self._connect()
+        self._enter("hold")
+        self.servos.configure()
+        self._start_readers()
+        self._enter("spinup")
+        self._spin_up()
+        self._enter("lead_in")
+        self._start_estimator()
+        self._ticks(self.settings.lead_in_s)
+        self._enter("schedule")
+        self.t_schedule_s = self.now()
+        self._ticks(self.schedule.t_end)
+        self._record_tilts("tilt_end")
+        self._enter("settle")
+        self._ticks(self.settings.settle_s)
+        self._record_tilts("tilt_settled")
+
+    def _enter(self, phase: str) -> None:
+        self.phase = phase
+        self.event("phase", phase)
+
+    def _record_tilts(self, key: str) -> None:
+        """The tilts of the estimate and the truth now, for the summary (D-bar scenes)."""
+        if self.tilt is None:
+            return
+        self.final[f"{key}_estimate_rad"] = self.latest_tilt
+        if self.truth is not None:
+            self.final[f"{key}_truth_rad"] = self.truth.latest_tilt
+
+    def safe_state(self, reason: str) -> dict:
+        """Ramp the wheels down, hold the servos, log the outcome; returns what was reached
+        (:func:`gyrohost.run.safe_state.reach_safe_state`)."""
+        return reach_safe_state(self, reason)
+
+    # --- devices ------------------------------------------------------------------------------
+    def _connect(self) -> None:
+        cfg, s = self.config, self.settings
+        self.imu = Bwt61Driver(cfg.imu.port, baud=cfg.imu.baud, timeout_s=s.imu_silence_s).open()
+        first = self.imu.read_sample()
+        self.wheel_reader = WheelTelemetry(self.queue, s.wheel_silence_s)
+        self.wheels = WheelBoard(cfg.wheelboard.port, on_telemetry=self.wheel_reader.on_telemetry)
+        hello = self.wheels.connect()
+        before = self.wheels.faults
+        self.wheels.clear_faults()  # e.g. HEARTBEAT_LOST latched while no host was connected
+        if before:
+            self.event("cleared", f"wheel-board faults latched before the run: {before}")
+        self.wheel_reader.arm()
+        self.wheels.set_param("TELEMETRY_DIV", s.telemetry_div)
+        self.wheels.set_param("HEARTBEAT_MS", s.heartbeat_ms)
+        speed_max = self.wheels.get_param("SPEED_MAX_MRAD_S") / 1000.0
+        if np.max(np.abs(self.spins)) > speed_max:
+            raise LimitBreach(
+                f"scene spins up to {np.max(np.abs(self.spins)):.2f} rad/s exceed the wheel "
+                f"board's SPEED_MAX {speed_max:.2f} rad/s"
+            )
+        self.servos = StringServoBus(cfg.servos).open()
+        models = self.servos.ping_all()
+        versions = {
+            "wheel_board": hello,
+            "servo_models": models,
+            "imu_first_sample_temperature_degC": first.temperature_degC,
+        }
+        self.log.update_meta(devices=versions)
+        self.event("versions", f"wheel board fw {hello['fw_major']}.{hello['fw_minor']} "
+                   f"protocol v{hello['proto_version']}; servos {models}")  # fmt: skip
+
+    def _start_readers(self) -> None:
+        s = self.settings
+        self.servo_worker = ServoWorker(self.servos, self.queue, s.servo_rate_hz)
+        self.readers = [
+            ImuReader(self.imu, self.queue, s.imu_silence_s),
+            self.wheel_reader,
+            self.servo_worker,
+        ]
+        for r in self.readers:
+            r.start()
+        self.ticker.regrid()
+
+    def _spin_up(self) -> None:
+        s = self.settings
+        self.omega_cmd = self.spins.copy()
+        self.wheels.set_speeds(list(self.omega_cmd))
+        deadline = self.now() + s.spinup_timeout_s
+        steady_since = None
+        while True:
+            self.tick()
+            tel = self.wheel_reader.latest
+            err = np.max(np.abs(np.array(tel.omega_rad_s) - self.omega_cmd)) if tel else math.inf
+            now = self.now()
+            if err <= s.steady_tolerance_rad_s:
+                steady_since = now if steady_since is None else steady_since
+                if now - steady_since >= s.steady_hold_s:
+                    self.event("steady", f"wheels within {err:.2f} rad/s of their setpoints")
+                    return
+            else:
+                steady_since = None
+            if now > deadline:
+                raise RunError(
+                    f"spin-up time-out: wheels {err:.2f} rad/s off their setpoints after "
+                    f"{s.spinup_timeout_s:g} s"
+                )
+
+    def _start_estimator(self) -> None:
+        est_cfg = self.estimator_config
+        model = self.model
+        # as gyrotens replay starts: the scene's state, the last wheel speeds and string lengths
+        x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
+        layout = layout_of(model)
+        x0[layout.omega] = np.array(self.wheel_reader.latest.omega_rad_s)[: layout.n_wheels]
+        for string, state in zip(self.servo_strings, self.latest_servos, strict=False):
+            x0[layout.rest.start + self.strings.index(string)] = state.length_m  # none yet: scene
+        innovations = InnovationWriter(self.log, self.servo_strings)
+        t0 = self.now()
+        self.ekf = TensegrityEKF(model, est_cfg, x0=x0, t0_s=t0, log=innovations)
+        self.log.update_meta(estimator=asdict(est_cfg))  # what gyrotens replay reads
+        self.ekf.set_input(self.rest_cmd)
+        self.estimates = EstimateWriter(self.log, self.ekf, self.tilt)
+        self.estimate = ekf_estimate(self.ekf)
+
+    @property
+    def latest_servos(self) -> list:
+        """The newest servo read-back (ServoState per servo; empty before the first)."""
+        return self.servo_handler.latest if self.servo_handler is not None else []
+
+    # --- one tick -----------------------------------------------------------------------------
+    def now(self) -> float:
+        """Host time since the run's time zero, s."""
+        return self.ticker.now()
+
+    def _ticks(self, duration_s: float) -> None:
+        end = self.now() + duration_s
+        while self.now() < end:
+            self.tick()
+
+    def tick(self, strict: bool = True) -> None:
+        """Wait for the next tick of the grid, then drain, fuse, command, check and log.
+
+        ``strict`` False (in the safe state): device faults are logged, not raised, no limit is
+        checked and no hook called.
+        """
+        start, due = self.ticker.wait()
+        cpu0 = time.thread_time()
+        n, faults = self.dispatcher.drain(self.ticker.t0_ns, self.ekf)
+        for fault in faults:
+            if strict:
+                raise fault
+            self.event("fault", str(fault))
+        self._command(start)
+        if self.ekf is not None:
+            self.ekf.advance(max(start, self.ekf.t))
+            _, self.latest_tilt = self.estimates.write(start)
+            if strict and self.phase == "schedule" and self.maneuver is not None:
+                self._follow_estimate()
+        if self.truth is not None:
+            self._write_truth(strict)
+        if strict:
+            tel = self.wheel_reader.latest if self.wheels is not None else None
+            check_limits(self.settings, self.omega_cmd, tel, self.latest_servos,
+                         self.latest_tilt, self.ekf)  # fmt: skip
+        cpu = time.thread_time() - cpu0
+        self.streams.loop.write(start, start - due, self.now() - start, cpu, n, self.phase)
+        if self.progress is not None:
+            self.progress(self.phase, start, self._played(start))
+        if strict and self.on_tick is not None:
+            self.on_tick(self, self.phase, start)
+
+    def _follow_estimate(self) -> None:
+        """Closed loop: the estimate to the maneuver, its schedule from the next tick on."""
+        t_s, x = self.estimate()
+        self.schedule = self.maneuver.update(t_s - self.t_schedule_s, x)
+        self.replans.write(self.maneuver.records)
+
+    def _write_truth(self, strict: bool) -> None:
+        """The simulated rig's truth to its stream; in the safe state a failing probe (whatever
+        it raises) is logged and dropped, so the rest of the safe state goes on."""
+        try:
+            self.truth.write()
+        except Exception as exc:
+            if strict:
+                raise
+            self.event("fault", f"truth probe: {type(exc).__name__}: {exc}")
+            self.truth = None
+
+    def _played(self, t_s: float) -> float:
+        if self.phase in ("settle", "rampdown"):
+            return 1.0
+        if self.phase != "schedule":
+            return 0.0
+        return min((t_s - self.t_schedule_s) / max(self.schedule.t_end, 1e-9), 1.0)
+
+    def _command(self, t_s: float) -> None:
+        if self.phase in ("schedule", "settle", "lead_in"):
+            t_rel = t_s - self.t_schedule_s if self.phase != "lead_in" else 0.0
+            rest = self.rest0.copy()
+            rest[self.schedule.bind(self.model)] = self.schedule(t_rel)
+            self.rest_cmd = rest
+            goals = {
+                s.name: rest[self.strings.index(name)]
+                for s, name in zip(self.config.servos.servo, self.servo_strings, strict=True)
+                if name in self.schedule.names
+            }
+            self.servo_worker.command(goals)
+            if self.ekf is not None:
+                self.ekf.set_input(rest)
+        self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
+
+    # --- the log ------------------------------------------------------------------------------
+    def _open_streams(self) -> None:
+        log = self.log
+        self.ticker.start()
+        self.streams = open_run_streams(log, self.strings, self.servo_strings)
+        self.servo_handler = ServoHandler(self.streams.servos, self.strings, self.servo_strings)
+        handlers = [
+            ImuHandler(self.streams.imu),
+            WheelHandler(self.streams.wheels, len(self.model.wheel_bars)),
+            self.servo_handler,
+        ]
+        self.dispatcher = Dispatcher(self.queue, handlers, self.settings.max_fused_per_tick)
+        if self.rig is not None:
+            self.truth = TruthProbe(self.rig, log, self.tilt, self.ticker.t0_ns)
+        if self.maneuver is not None:
+            self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
+            self.replans.write(self.maneuver.records)  # the first plan, made before the run
+
+    def event(self, kind: str, message: str) -> None:
+        """Append one row to the ``events`` stream (commas become semicolons)."""
+        text = " ".join(str(message).replace(",", ";").split())
+        self.streams.events.write(self.now(), kind, text)

@@ -1,0 +1,54 @@
+"""What a run records about itself in ``meta.json``: the set-up before it starts, the summary
+once it has reached the safe state."""
+
+from dataclasses import asdict
+
+from gyrohost.rig.process import RigProcessError
+from gyrohost.run.ticker import jitter_line
+from gyrotensegrity import __version__
+
+
+def run_meta(loop) -> dict:
+    """``meta.json`` at the start: software, rig configuration, scene, schedule, settings."""
+    return {
+        "software": {"gyrotens": __version__},
+        "rig_config": asdict(loop.config),
+        "scene": str(loop.config.scene_path),
+        "schedule": loop.schedule.to_dict(),
+        **({"target": loop.maneuver.target.to_dict()} if loop.maneuver else {}),
+        "settings": asdict(loop.settings),
+        "time": "t_s: host time since the start of the run (time.monotonic), s",
+        **loop.extra_meta,
+    }
+
+
+def run_summary(loop, reason: str, safe: dict) -> dict:
+    """The ``summary`` of ``meta.json``: outcome, safe state, loop timing, rows, tilts.
+
+    Also logs the timing line as a ``timing`` event.
+    """
+    timing = loop.ticker.timer.stats()
+    out = {
+        "reason": reason,
+        "completed": reason == "completed",
+        "safe_state": safe,
+        "loop": timing,
+        "rows": {name: s.rows for name, s in loop.log.streams.items()},
+        "not_fused": loop.dispatcher.skipped,
+        "servo_comm_retries": getattr(loop.servo_worker, "comm_errors_total", 0),
+        "duration_s": loop.now(),
+    }
+    out.update(loop.final)
+    if loop.maneuver is not None:
+        out["maneuver"] = loop.maneuver.summary()
+        target = loop.maneuver.target.tilt_rad
+        for key in ("tilt_end", "tilt_settled"):
+            if f"{key}_truth_rad" in out:
+                out[f"{key}_truth_error_rad"] = out[f"{key}_truth_rad"] - target
+    if loop.rig is not None:
+        try:
+            out["rig"] = loop.rig.stats_lines()
+        except RigProcessError as exc:
+            out["rig"] = [str(exc)]
+    loop.event("timing", jitter_line(timing))
+    return out
