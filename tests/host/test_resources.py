@@ -12,8 +12,8 @@ def test_every_kind_ships_its_files():
     assert shipped_names("scene") == [
         "dbar-gyro", "dbar-nospin", "double-pendulum", "prism-gyro", "prism-string-mass"
     ]  # fmt: skip
-    assert shipped_names("config") == ["lab-rig", "sim-rig"]
-    assert shipped_names("schedule") == ["paper", "tilt-0.3rad-4s"]
+    assert shipped_names("config") == ["lab-rig", "prism-sim-rig", "sim-rig"]
+    assert shipped_names("schedule") == ["paper", "prism-s7", "tilt-0.3rad-4s"]
     assert shipped("scene", "dbar-gyro.toml") == shipped("scene", "dbar-gyro")
 
 

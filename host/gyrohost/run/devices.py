@@ -19,12 +19,13 @@ from dataclasses import dataclass
 
 from gyrohost.drivers.imu import ImuError
 from gyrohost.drivers.servos import ServoCommError, ServoError, ServoLimitError
+from gyrohost.errors import GyrohostError
 
 POLL_IDLE_S = 0.002
 """Sleep of the IMU reader when nothing has arrived, s (at most this much extra latency)."""
 
 
-class DeviceFault(RuntimeError):
+class DeviceFault(GyrohostError, RuntimeError):
     """A device failed during a run; ``device`` names it (``imu``, ``wheels``, ``servos``)."""
 
     def __init__(self, device: str, message: str):

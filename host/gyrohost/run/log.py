@@ -22,11 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.errors import GyrohostError
+
 FORMAT = "gyrotens-log"
 FORMAT_VERSION = 1
 
 
-class LogError(ValueError):
+class LogError(GyrohostError, ValueError):
     """A log folder or row that does not follow the format; the message names the file and row."""
 
 
