@@ -10,10 +10,11 @@ from pathlib import Path
 import gyrohost
 
 ROOT = Path(gyrohost.__file__).parent
-BASE = {"errors", "geometry", "config", "resources"}
+BASE = {"errors", "geometry", "config", "resources", "sigint"}
 ALLOWED = {
     "errors": set(),
     "geometry": set(),
+    "sigint": set(),
     "resources": {"errors"},
     "config": {"errors", "resources"},
     "drivers": BASE | {"drivers"},

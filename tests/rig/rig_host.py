@@ -7,6 +7,8 @@ Used by tests/rig/test_rig_cli.py; also runnable by hand next to ``gyrotens rig`
 """
 
 import argparse
+import subprocess
+import sys
 import time
 from dataclasses import replace
 
@@ -18,6 +20,18 @@ from gyrohost.resources import resolve
 
 SPIN = 74.87462492  # rad/s, 715 rpm
 SERVO_PERIOD_S = 0.02
+
+
+def start_rig(cwd, *options: str, stdin=subprocess.DEVNULL) -> subprocess.Popen:
+    """``gyrotens rig OPTIONS`` in a subprocess started in ``cwd``, its output as text pipes."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "gyrohost", "rig", *options],
+        stdin=stdin,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=cwd,
+    )
 
 
 def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict[str, float]:

@@ -2,12 +2,11 @@
 
 import re
 import subprocess
-import sys
 import threading
 import time
 
 import pytest
-from rig_host import exercise
+from rig_host import exercise, start_rig
 
 from gyrohost.cli import main
 
@@ -26,14 +25,8 @@ def read_paths(proc) -> dict[str, str]:
 
 
 def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
-    proc = subprocess.Popen(  # from any directory: the default configuration is shipped
-        [sys.executable, "-m", "gyrohost", "rig", "--duration", str(DURATION_S)],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=tmp_path,
-    )
+    # from any directory: the default configuration is shipped
+    proc = start_rig(tmp_path, "--duration", str(DURATION_S), stdin=subprocess.PIPE)
     try:
         paths = read_paths(proc)
         assert set(paths) == {"imu", "wheels", "servos"}, proc.stderr.read()

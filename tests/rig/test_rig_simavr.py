@@ -7,13 +7,12 @@ the harness is paced to wall time (so are the host's heartbeats).
 
 import math
 import re
-import subprocess
-import sys
 import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from rig_host import start_rig
 
 from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
 from gyrohost.drivers import wheelproto as wp
@@ -99,14 +98,7 @@ def test_missing_binary_names_path_and_make_command(binaries, tmp_path):
 
 
 def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries, tmp_path):
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "gyrohost", "rig", "--wheel-board", "simavr", "--duration", "4"],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=tmp_path,
-    )
+    proc = start_rig(tmp_path, "--wheel-board", "simavr", "--duration", "4")
     try:
         path = None
         for line in proc.stdout:

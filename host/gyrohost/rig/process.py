@@ -16,13 +16,13 @@ failure of the pipe (the child gone, a broken pipe) is a :class:`RigProcessError
 
 import multiprocessing
 import signal
-import threading
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from gyrohost.errors import GyrohostError
+from gyrohost.sigint import SigintHeld
 
 READY_TIMEOUT_S = 60.0
 """Longest wait for the child to import, build the rig and report its ptys, s."""
@@ -108,7 +108,7 @@ class RigProcess:
         RigProcessError
             The rig reported an error, or the pipe to it broke.
         """
-        with _HeldSigint():
+        with SigintHeld():
             while self._poll(0.0):
                 self._take(self._recv())
         out, self._pending = self._pending, []
@@ -176,37 +176,10 @@ class RigProcess:
             left = deadline - time.monotonic()
             if left <= 0 or not self._proc.is_alive() and not self._poll(0.0):
                 raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
-            with _HeldSigint():
+            with SigintHeld():
                 reply = self._take(self._recv()) if self._poll(min(left, 0.1)) else None
             if reply is not None and reply["kind"] == kind:
                 return reply
-
-
-class _HeldSigint:
-    """Context: a Ctrl-C inside is handled as it exits, not inside (main thread only)."""
-
-    def __init__(self):
-        self.previous = None
-        self.pending = None
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self.previous = signal.signal(signal.SIGINT, self._hold)
-        return self
-
-    def _hold(self, signum, frame):
-        self.pending = (signum, frame)
-
-    def __exit__(self, *exc):
-        if self.previous is None:
-            return False
-        signal.signal(signal.SIGINT, self.previous)
-        if self.pending is not None:
-            if callable(self.previous):
-                self.previous(*self.pending)  # KeyboardInterrupt, or the safe state's note
-            elif self.previous == signal.SIG_DFL:
-                signal.raise_signal(signal.SIGINT)
-        return False
 
 
 def _serve(conn, config, period_s: float) -> None:

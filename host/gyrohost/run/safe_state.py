@@ -7,13 +7,14 @@ raised (a fault is logged as an event): the wheels are what must stop.
 """
 
 import math
-import signal
-import threading
 
 import numpy as np
 
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoardError
+from gyrohost.sigint import SigintHandled
+
+IGNORED_NOTE = "Ctrl-C during the safe state: ignored until it is reached"
 
 
 def reach_safe_state(loop, reason: str) -> dict:
@@ -29,7 +30,7 @@ def reach_safe_state(loop, reason: str) -> dict:
     Ctrl-C is ignored meanwhile (when running in the main thread): the routine is bounded by
     ``rampdown_timeout_s`` plus the servo reply time-outs.
     """
-    with SigintDeferred(loop.event):
+    with SigintHandled(lambda *_: loop.event("interrupt", IGNORED_NOTE)):
         loop.phase = "rampdown"
         loop.event("safe_state", f"reason: {reason}")
         loop.ekf = None  # the estimate ends with the run; the safe state needs none
@@ -103,29 +104,3 @@ def describe(out: dict) -> str:
             f"{out['wheel_speed_max_rad_s']:.2f} rad/s after {out['rampdown_s']:.2f} s)"
         )
     return f"{w}; servos {'holding' if out['servos_holding'] else 'NOT holding'}"
-
-
-class SigintDeferred:
-    """Context: Ctrl-C logs a note through ``event`` instead of interrupting (main thread only).
-
-    Parameters
-    ----------
-    event : callable(kind, message)
-    """
-
-    def __init__(self, event):
-        self.event = event
-        self.previous = None
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self.previous = signal.signal(signal.SIGINT, self._note)
-        return self
-
-    def _note(self, *_):
-        self.event("interrupt", "Ctrl-C during the safe state: ignored until it is reached")
-
-    def __exit__(self, *exc):
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
-        return False
