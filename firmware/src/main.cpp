@@ -76,7 +76,9 @@ int main() {
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
+        BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
+        BOARD_TELEM_MARK = 0;
         BOARD_TICK_MARK = 0;
     }
 }
