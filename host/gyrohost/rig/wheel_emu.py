@@ -43,7 +43,7 @@ from gyrohost.rig.pty_link import PtyDevice
 
 FW_MAJOR, FW_MINOR = 1, 0
 SAVE_TICKS = 300
-"""Ticks an EEPROM save takes (82 bytes, about 3.3 ms each)."""
+"""Ticks an EEPROM save takes (one 84-byte slot, about 3.3 ms a byte)."""
 ENCODER_COUNTS = 1 << 14
 """Counts per turn of the AS5048A (14 bits)."""
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
