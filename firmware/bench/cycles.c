@@ -108,8 +108,9 @@ static void gpior1_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param)
 }
 
 /* GPIOR2 windows: the telemetry call. A window longer than TELEM_FRAME_MIN cycles built and
- * queued a frame (payload, CRC, COBS, TX ring copy); the others only counted the divider. */
-#define TELEM_FRAME_MIN 200u
+ * queued a frame (payload, CRC, COBS, TX ring copy: over 3000); the others only counted the
+ * divider (about 20 cycles, more when an interrupt lands in them). */
+#define TELEM_FRAME_MIN 1000u
 static uint64_t g_telem_start, g_telem_n, g_telem_sum, g_telem_max, g_telem_min = UINT64_MAX;
 static void gpior2_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
     (void)param;
