@@ -14,7 +14,8 @@
  * (the interrupt response and vector jump add 8 cycles on the ATmega2560, not included), the bytes
  * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, telemetry
  * frame), the telemetry frame alone (GPIOR2 = 1 .. 0 around the telemetry call), the ISR load
- * per tick and the CPU load per tick (that work plus the ISRs outside it).
+ * per tick and the CPU load per tick (that work plus the ISRs outside it), and the deepest stack
+ * (lowest SP after every instruction).
  *
  * UART timing: simavr 1.6 sends a byte every 22 us at UBRR0 = 1 with U2X (it ignores U2X and
  * counts 11 bits), where the ATmega2560 takes 10 us (1 Mbaud): the bench sets the chip's byte
@@ -43,6 +44,9 @@
 #define ADDR_GPIOR0 0x3E
 #define ADDR_GPIOR1 0x4A
 #define ADDR_GPIOR2 0x4B
+#define ADDR_SPL 0x5D
+#define ADDR_SPH 0x5E
+#define RAMEND 0x21FF
 
 typedef struct {
     const char* name;
@@ -127,6 +131,9 @@ static void gpior2_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param)
         if (d > g_telem_max) g_telem_max = d;
     }
 }
+
+/* Lowest stack pointer of the whole run (the stack grows down from RAMEND). */
+static uint16_t g_sp_min = 0xFFFF;
 
 /* Bytes and frames (zero delimiters) the firmware sent on UART0. */
 static uint64_t g_tx_bytes, g_tx_frames;
@@ -261,6 +268,8 @@ int main(int argc, char** argv) {
         uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
         uint64_t c0 = avr->cycle;
         int state = avr_run(avr);
+        uint16_t sp = (uint16_t)(avr->data[ADDR_SPL] | (avr->data[ADDR_SPH] << 8));
+        if (sp < g_sp_min) g_sp_min = sp;
         if (g_profile && g_mark_start) g_profile[pc >> 1] += avr->cycle - c0;
         if (op == 0x9518) { /* reti */
             for (int k = 0; k < 3; k++) {
@@ -316,6 +325,8 @@ int main(int argc, char** argv) {
     }
     printf("UART TX: %llu bytes, %llu frames in %.1f s (telemetry at 500 Hz: about 1000)\n",
            (unsigned long long)g_tx_bytes, (unsigned long long)g_tx_frames, end / 16e6);
+    printf("stack: deepest %u bytes below RAMEND (lowest SP 0x%04X over the run)\n",
+           (unsigned)(RAMEND - g_sp_min), (unsigned)g_sp_min);
     if (g_telem_n > 0) {
         printf(
             "telemetry frame (GPIOR2: payload, CRC, COBS, TX ring; ISRs inside included): n=%llu "

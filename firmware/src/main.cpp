@@ -65,7 +65,7 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,994 steps): 1347 / 2284 / 2336 cycles min / mean / max without the ISRs
+        // included, 1,993 steps): 1336 / 2290 / 2336 cycles min / mean / max without the ISRs
         // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
         // them (a host frame's RX bytes); docs/hardware.md, "Control-step cycles", has how each
         // change to the step moved these figures.
