@@ -13,7 +13,9 @@
  * (control steps per simulated second), each ISR from its first instruction to its reti inclusive
  * (the interrupt response and vector jump add 8 cycles on the ATmega2560, not included), the bytes
  * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, telemetry
- * frame), the ISR load per tick and the CPU load per tick (that work plus the ISRs outside it).
+ * frame), the telemetry frame alone (GPIOR2 = 1 .. 0 around the telemetry call), the ISR load
+ * per tick and the CPU load per tick (that work plus the ISRs outside it), and the deepest stack
+ * (lowest SP after every instruction).
  *
  * UART timing: simavr 1.6 sends a byte every 22 us at UBRR0 = 1 with U2X (it ignores U2X and
  * counts 11 bits), where the ATmega2560 takes 10 us (1 Mbaud): the bench sets the chip's byte
@@ -41,6 +43,10 @@
 
 #define ADDR_GPIOR0 0x3E
 #define ADDR_GPIOR1 0x4A
+#define ADDR_GPIOR2 0x4B
+#define ADDR_SPL 0x5D
+#define ADDR_SPH 0x5E
+#define RAMEND 0x21FF
 
 typedef struct {
     const char* name;
@@ -104,6 +110,30 @@ static void gpior1_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param)
         if (d > g_tick_max) g_tick_max = d;
     }
 }
+
+/* GPIOR2 windows: the telemetry call. A window longer than TELEM_FRAME_MIN cycles built and
+ * queued a frame (payload, CRC, COBS, TX ring copy: over 3000); the others only counted the
+ * divider (about 20 cycles, more when an interrupt lands in them). */
+#define TELEM_FRAME_MIN 1000u
+static uint64_t g_telem_start, g_telem_n, g_telem_sum, g_telem_max, g_telem_min = UINT64_MAX;
+static void gpior2_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)param;
+    avr->data[addr] = v;
+    if (v == 1) {
+        g_telem_start = avr->cycle;
+    } else if (g_telem_start) {
+        uint64_t d = avr->cycle - g_telem_start;
+        g_telem_start = 0;
+        if (!g_first_mark || d < TELEM_FRAME_MIN) return;
+        g_telem_n++;
+        g_telem_sum += d;
+        if (d < g_telem_min) g_telem_min = d;
+        if (d > g_telem_max) g_telem_max = d;
+    }
+}
+
+/* Lowest stack pointer of the whole run (the stack grows down from RAMEND). */
+static uint16_t g_sp_min = 0xFFFF;
 
 /* Bytes and frames (zero delimiters) the firmware sent on UART0. */
 static uint64_t g_tx_bytes, g_tx_frames;
@@ -195,6 +225,7 @@ int main(int argc, char** argv) {
     avr_load_firmware(avr, &fw);
     avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
     avr_register_io_write(avr, ADDR_GPIOR1, gpior1_write, NULL);
+    avr_register_io_write(avr, ADDR_GPIOR2, gpior2_write, NULL);
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
@@ -237,6 +268,8 @@ int main(int argc, char** argv) {
         uint16_t op = (uint16_t)(avr->flash[pc] | (avr->flash[pc + 1] << 8));
         uint64_t c0 = avr->cycle;
         int state = avr_run(avr);
+        uint16_t sp = (uint16_t)(avr->data[ADDR_SPL] | (avr->data[ADDR_SPH] << 8));
+        if (sp < g_sp_min) g_sp_min = sp;
         if (g_profile && g_mark_start) g_profile[pc >> 1] += avr->cycle - c0;
         if (op == 0x9518) { /* reti */
             for (int k = 0; k < 3; k++) {
@@ -292,6 +325,15 @@ int main(int argc, char** argv) {
     }
     printf("UART TX: %llu bytes, %llu frames in %.1f s (telemetry at 500 Hz: about 1000)\n",
            (unsigned long long)g_tx_bytes, (unsigned long long)g_tx_frames, end / 16e6);
+    printf("stack: deepest %u bytes below RAMEND (lowest SP 0x%04X over the run)\n",
+           (unsigned)(RAMEND - g_sp_min), (unsigned)g_sp_min);
+    if (g_telem_n > 0) {
+        printf(
+            "telemetry frame (GPIOR2: payload, CRC, COBS, TX ring; ISRs inside included): n=%llu "
+            "min=%llu mean=%.0f max=%llu cycles\n",
+            (unsigned long long)g_telem_n, (unsigned long long)g_telem_min,
+            (double)g_telem_sum / (double)g_telem_n, (unsigned long long)g_telem_max);
+    }
     if (g_tick_n > 0) {
         double ticks = (double)(g_last_mark - g_first_mark) / TICK_CYCLES;
         double work = (double)g_tick_sum / (double)g_tick_n;

@@ -3,7 +3,8 @@
 // operand extremes and a sweep, and the PI (pi_step_err_avr, 24-bit integrator) with its C
 // reference pi_step_err_c over gain, limit and error extremes and random sequences, and the
 // commutation (cmt_drive_avr) with cmt_drive_c over angle, speed, drive, lead and pole pairs, and
-// the estimator's common case (spd_update_fast_avr) with spd_update_c. The
+// the estimator's common case (spd_update_fast_avr) with spd_update_c, and the link's CRC
+// (crc16_ccitt, table lookups in assembly) with the bit-by-bit division. The
 // native tests cannot see 24-bit overflow; this runs the AVR code itself. Prints "port-check: N
 // mismatches in M checks" on UART0 and stops (`make -C firmware port-check` fails unless N is 0).
 #include <avr/interrupt.h>
@@ -12,6 +13,7 @@
 #include <stdint.h>
 
 #include "cmt.h"
+#include "crc16.h"
 #include "pi.h"
 #include "spd.h"
 #include "port_progmem.h"
@@ -205,6 +207,36 @@ static void check_spd_all() {
     }
 }
 
+// Bit-by-bit CRC-16/CCITT-FALSE, the definition the table encodes.
+static uint16_t crc16_bitwise(const uint8_t* p, uint8_t len) {
+    uint16_t crc = CRC16_INIT;
+    for (uint8_t i = 0; i < len; i++) {
+        crc ^= static_cast<uint16_t>(static_cast<uint16_t>(p[i]) << 8);
+        for (uint8_t b = 0; b < 8; b++) {
+            crc = (crc & 0x8000u) ? static_cast<uint16_t>((crc << 1) ^ 0x1021u)
+                                  : static_cast<uint16_t>(crc << 1);
+        }
+    }
+    return crc;
+}
+
+// Every length 0..48 of random buffers, plus all-zero and all-0xFF buffers.
+static void check_crc_all() {
+    static uint8_t buf[48];
+    for (uint16_t run = 0; run < 2000; run++) {
+        const uint8_t len = static_cast<uint8_t>(run % (sizeof buf + 1));
+        for (uint8_t i = 0; i < len; i++) {
+            buf[i] = run < 49 ? 0 : run < 98 ? 0xFF : static_cast<uint8_t>(rnd16());
+        }
+        g_n++;
+        if (crc16_ccitt(buf, len) != crc16_bitwise(buf, len)) g_bad++;
+        uint16_t one = CRC16_INIT;
+        for (uint8_t i = 0; i < len; i++) one = crc16_update(one, buf[i]);
+        g_n++;
+        if (one != crc16_bitwise(buf, len)) g_bad++;
+    }
+}
+
 int main() {
     UBRR0 = 3;
     UCSR0A = _BV(U2X0);
@@ -224,6 +256,7 @@ int main() {
     check_pi_all();
     check_cmt_all();
     check_spd_all();
+    check_crc_all();
     const char* msg = "port-check: ";
     while (*msg) put(*msg++);
     put_u32(g_bad);

@@ -12,7 +12,7 @@
 
 namespace {
 
-uint8_t g_ee[PRM_IMAGE_SIZE + 16];
+uint8_t g_ee[PRM_EEPROM_USED + 16];
 uint8_t ee_read(uint16_t a) {
     return a < sizeof g_ee ? g_ee[a] : 0xFF;
 }

@@ -60,8 +60,10 @@
 #define BOARD_UART_TX_SIZE 256  // power of two (8-bit indices)
 
 // ---- Cycle measurement: GPIOR0 = 1 just before the control step of all wheels, 0 right after;
-// GPIOR1 = 1 while the main loop works on a tick (step, PWM, telemetry frame), 0 after it.
+// GPIOR1 = 1 while the main loop works on a tick (step, PWM, telemetry frame), 0 after it;
+// GPIOR2 = 1 around the telemetry call (a frame built and queued on every TELEMETRY_DIV-th tick).
 #define BOARD_CYCLE_MARK GPIOR0
 #define BOARD_TICK_MARK GPIOR1
+#define BOARD_TELEM_MARK GPIOR2
 
 #endif  // BOARD_H

@@ -65,7 +65,7 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,994 steps): 1347 / 2284 / 2336 cycles min / mean / max without the ISRs
+        // included, 1,993 steps): 1336 / 2290 / 2336 cycles min / mean / max without the ISRs
         // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
         // them (a host frame's RX bytes); docs/hardware.md, "Control-step cycles", has how each
         // change to the step moved these figures.
@@ -76,7 +76,9 @@ int main() {
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
+        BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
+        BOARD_TELEM_MARK = 0;
         BOARD_TICK_MARK = 0;
     }
 }

@@ -146,8 +146,8 @@ def test_heartbeat_loss_ramps_down_and_reports(harness):
 
     With DECEL_RAD_S2 = 200 the modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive)
     lags the ramp; the firmware brakes on after the ramped setpoint reached zero and disables a
-    wheel once its measured speed is below 0.5 rad/s (APP_STOP_Q8). The filtered estimate lags the
-    braking by a few ticks, so the wheel is cut just past zero: 5-10 rpm measured, hence 3 %.
+    wheel once the encoder's last tick shows it below 0.5 rad/s (APP_STOP_Q8): it then coasts at
+    a few rpm at most, hence 3 %.
     """
     h = harness
     # A client whose own heartbeat never fires: only the frames the test sends keep it alive.
@@ -301,3 +301,41 @@ def test_open_loop_mode_turns_at_field_speed(rig):
     for i, want in enumerate(commanded_rpm):
         got = sum(stats_rpm(s)[i] for s in window) / len(window)
         assert got == pytest.approx(want, rel=0.02, abs=1.0), f"wheel {i}"
+
+
+def test_stop_all_from_715_rpm_ends_without_reversing():
+    """STOP_ALL from +-715 rpm: braking ends when the encoder shows the wheel stopped.
+
+    The true rotor speeds (the harness's SPEED lines every 2 ms of simulated time) are followed
+    from STOP_ALL until 1.5 s later: no wheel turns backwards by 0.5 rad/s or more at any
+    sample, every wheel ends within 0.8 rad/s of zero (released within one count per tick of
+    measured speed, then coasting with its driver off) and every output is off.
+    """
+    signs = [1, -1, 1, -1]
+    with Harness(firmware_elf(), ["--speed-period", "0.002"]) as h:
+        board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
+        try:
+            board.connect()
+            board.set_speeds([s * TARGET_RAD_S for s in signs])
+            wait_true_rpm(h, lambda rpm: all(abs(abs(r) - 715) < 0.02 * 715 for r in rpm))
+            board.stop_all()
+            t_stop_us = h.speed.t_us
+            wrong_way = [0.0] * 4
+            last = None
+            deadline = time.monotonic() + 30.0
+            while True:
+                sample = h.speed
+                if sample is not last:
+                    last = sample
+                    for i in range(4):
+                        wrong_way[i] = max(wrong_way[i], -signs[i] * sample.omega_rad_s[i])
+                    if sample.t_us >= t_stop_us + 1_500_000:
+                        break
+                assert time.monotonic() < deadline, "simulation too slow"
+                time.sleep(0.001)
+            pwm = h.command("pwm")
+        finally:
+            board.close()
+    assert all(w < 0.5 for w in wrong_way), f"reversed: {wrong_way} rad/s"
+    assert all(abs(w) < 0.8 for w in last.omega_rad_s), last
+    assert all(f"m{i}=0/" in pwm for i in range(4)), pwm

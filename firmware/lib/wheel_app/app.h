@@ -17,12 +17,19 @@
 #define APP_TICK_HZ 1000
 
 // Stopping in closed loop: when a running wheel's ramped setpoint and target reach 0 (STOP_ALL,
-// fail-safe, SET_SPEEDS 0), the loop keeps driving (braking towards 0) until the measured speed
-// is below APP_STOP_Q8 (334 q8 = 0.50 rad/s = 4.8 rpm) or APP_STOP_TICKS ticks (500 ms) have
-// passed, and only then disables the wheel's driver. The time-out bounds a wheel that cannot be
-// stopped (a load, a frozen encoder); a wheel already off stays off however it turns.
+// fail-safe, SET_SPEEDS 0), the loop keeps driving (braking towards 0) until the wheel has
+// stopped, then disables the wheel's driver. Stopped is judged on the encoder's angle change over
+// the last tick, not on the filtered estimate: the filter lags a braking wheel by a few rad/s, so
+// braking until it read zero drove the wheel backwards. The end: the last tick's angle change in
+// the direction being braked (the sign of the lagging estimate) is below APP_STOP_Q8 (334 q8 =
+// 1.3 counts per tick = 0.50 rad/s = 4.8 rpm), which also ends it the tick the wheel reverses;
+// a tick with a bad encoder word is not judged. With the 1-count resolution a wheel is released at
+// 0.38 rad/s or less measured (below about 0.8 rad/s true; it then coasts, drivers off), never
+// after it turned backwards by more than a tick's worth of braking. APP_STOP_TICKS (500 ms) bounds
+// a wheel that cannot be stopped (a load, a frozen encoder); a wheel already off stays off.
 #define APP_STOP_Q8 334L
 #define APP_STOP_TICKS 500u
+#define APP_NO_ANGLE 0xFFFFu  // brake_angle not yet taken (angles are 14 bits)
 
 // Enqueue one whole frame for transmission; false if it does not fit (the frame is dropped).
 typedef bool (*app_tx_fn)(const uint8_t* data, uint8_t len);
@@ -51,6 +58,7 @@ struct app_wheel {
     uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
     int16_t drive_q15;      // signed drive level
     uint16_t stop_ticks;    // ticks braking at setpoint 0 (APP_STOP_TICKS)
+    uint16_t brake_angle;   // encoder angle at the last braking tick, or APP_NO_ANGLE
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change

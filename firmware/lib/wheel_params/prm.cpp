@@ -52,39 +52,71 @@ prm_result prm_set(prm_store* s, uint8_t id, int32_t value) {
     return PRM_OK;
 }
 
-void prm_image_build(const prm_store* s, uint8_t* image) {
+void prm_image_build(const prm_store* s, uint16_t seq, uint8_t* image) {
     image[0] = 'G';
     image[1] = 'W';
     image[2] = PRM_LAYOUT_VERSION;
     image[3] = PRM_COUNT;
-    for (uint8_t i = 0; i < PRM_COUNT; i++) proto_put_i32(&image[4 + 4 * i], s->v[i]);
+    proto_put_u16(&image[4], seq);
+    for (uint8_t i = 0; i < PRM_COUNT; i++) {
+        proto_put_i32(&image[PRM_HEADER_SIZE + 4 * i], s->v[i]);
+    }
     proto_put_u16(&image[PRM_IMAGE_SIZE - 2], crc16_ccitt(image, PRM_IMAGE_SIZE - 2));
 }
 
-bool prm_image_parse(prm_store* s, const uint8_t* image) {
-    if (image[0] != 'G' || image[1] != 'W') return false;
-    if (image[2] != PRM_LAYOUT_VERSION || image[3] != PRM_COUNT) return false;
-    if (crc16_ccitt(image, PRM_IMAGE_SIZE - 2) != proto_get_u16(&image[PRM_IMAGE_SIZE - 2])) {
+bool prm_image_parse(prm_store* s, const uint8_t* image, uint16_t* seq) {
+    if (image[0] != 'G' || image[1] != 'W' || image[3] != PRM_COUNT) return false;
+    uint8_t header;
+    if (image[2] == PRM_LAYOUT_VERSION) {
+        header = PRM_HEADER_SIZE;
+    } else if (image[2] == PRM_LEGACY_VERSION) {
+        header = PRM_LEGACY_HEADER_SIZE;
+    } else {
         return false;
     }
+    const uint8_t body = static_cast<uint8_t>(header + 4 * PRM_COUNT);
+    if (crc16_ccitt(image, body) != proto_get_u16(&image[body])) return false;
+    const uint8_t* values = &image[header];
     for (uint8_t i = 0; i < PRM_COUNT; i++) {
-        if (!prm_in_range(i, proto_get_i32(&image[4 + 4 * i]))) return false;
+        if (!prm_in_range(i, proto_get_i32(&values[4 * i]))) return false;
     }
-    for (uint8_t i = 0; i < PRM_COUNT; i++) s->v[i] = proto_get_i32(&image[4 + 4 * i]);
+    if (s) {
+        for (uint8_t i = 0; i < PRM_COUNT; i++) s->v[i] = proto_get_i32(&values[4 * i]);
+    }
+    *seq = header == PRM_HEADER_SIZE ? proto_get_u16(&image[4]) : 0;
     return true;
+}
+
+static void prm_read_slot(prm_store* s, uint8_t slot) {
+    const uint16_t base = PRM_SLOT_ADDR(slot);
+    for (uint8_t i = 0; i < PRM_IMAGE_SIZE; i++) {
+        s->image[i] = s->ee->read(static_cast<uint16_t>(base + i));
+    }
 }
 
 bool prm_init(prm_store* s, const prm_eeprom_if* ee) {
     s->ee = ee;
     s->saving = 0;
     s->save_pos = 0;
+    s->seq = 0;
+    s->slot = 1;  // nothing valid: the first save goes to slot 0
     prm_defaults(s);
-    for (uint8_t i = 0; i < PRM_IMAGE_SIZE; i++) s->image[i] = ee->read(i);
-    return prm_image_parse(s, s->image);
+    uint16_t seq0 = 0;
+    uint16_t seq1 = 0;
+    prm_read_slot(s, 0);
+    const bool ok0 = prm_image_parse(nullptr, s->image, &seq0);
+    prm_read_slot(s, 1);
+    const bool ok1 = prm_image_parse(nullptr, s->image, &seq1);
+    if (!ok0 && !ok1) return false;
+    // Serial-number order: slot 1 is the newer if its sequence number is ahead by 1..32767.
+    s->slot =
+        (ok1 && (!ok0 || static_cast<int16_t>(static_cast<uint16_t>(seq1 - seq0)) > 0)) ? 1 : 0;
+    if (s->slot == 0) prm_read_slot(s, 0);
+    return prm_image_parse(s, s->image, &s->seq);
 }
 
 void prm_save_begin(prm_store* s) {
-    prm_image_build(s, s->image);
+    prm_image_build(s, static_cast<uint16_t>(s->seq + 1), s->image);
     s->save_pos = 0;
     s->saving = 1;
 }
@@ -92,15 +124,22 @@ void prm_save_begin(prm_store* s) {
 bool prm_save_poll(prm_store* s) {
     if (!s->saving) return false;
     if (!s->ee->ready()) return false;
+    const uint8_t target = static_cast<uint8_t>(s->slot ^ 1);
+    const uint16_t base = PRM_SLOT_ADDR(target);
     // Skip bytes that already hold the right value (saves EEPROM wear and time).
-    while (s->save_pos < PRM_IMAGE_SIZE && s->ee->read(s->save_pos) == s->image[s->save_pos]) {
+    while (s->save_pos < PRM_IMAGE_SIZE &&
+           s->ee->read(static_cast<uint16_t>(base + s->save_pos)) == s->image[s->save_pos]) {
         s->save_pos++;
     }
     if (s->save_pos < PRM_IMAGE_SIZE) {
-        s->ee->write(s->save_pos, s->image[s->save_pos]);
+        s->ee->write(static_cast<uint16_t>(base + s->save_pos), s->image[s->save_pos]);
         s->save_pos++;
         return false;
     }
+    // The new image is complete: it is the one loaded at the next boot, the next save goes to
+    // the other slot.
+    s->seq = static_cast<uint16_t>(s->seq + 1);
+    s->slot = target;
     s->saving = 0;
     return true;
 }

@@ -501,8 +501,8 @@ TEST_F(AppTest, MissedTicksKeepSpeedEstimateAndLoopRight) {
 
 // Fail-safe in closed loop at the default DECEL (200 rad/s^2, faster than this motor brakes):
 // the motor lags the ramp, so the loop brakes on after the setpoint reached 0 and disables the
-// outputs only once the measured speed is below APP_STOP_Q8. Before, the outputs went off when
-// the setpoint reached 0 and the wheels coasted from the lag.
+// outputs only once the encoder shows the wheel below APP_STOP_Q8; going off when the setpoint
+// reached 0 would leave the wheels coasting from the lag.
 TEST_F(AppTest, FailSafeBrakesUntilTheWheelHasStopped) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
     set_param(PRM_HEARTBEAT_MS, 100);
@@ -539,6 +539,76 @@ TEST_F(AppTest, FailSafeBrakesUntilTheWheelHasStopped) {
     }
     EXPECT_EQ(t_off[3], -1);  // never enabled
     EXPECT_EQ(app.enable_mask, 0);
+}
+
+// STOP_ALL from +-715 rpm at the default DECEL (the motor lags the ramp): braking ends when the
+// encoder shows the wheel stopped, not when the lagging filtered estimate does, so no wheel turns
+// backwards: the true speed never passes 0.5 rad/s the wrong way, and it is released within
+// 0.8 rad/s of zero (the 1-count resolution of one tick's angle change).
+TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
+    set_param(PRM_DRIVE_MAX_Q15, 32767);
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    Motor m[4];
+    const int32_t sp[4] = {74870, -74870, 20000, -5000};
+    send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
+    int t_off[4] = {-1, -1, -1, -1}, t_sp0[4] = {-1, -1, -1, -1};
+    double omega_off[4] = {0, 0, 0, 0}, wrong_way[4] = {0, 0, 0, 0};
+    for (int t = 0; t < 7000; t++) {
+        if (t == 4000) {
+            for (int i = 0; i < 4; i++) ASSERT_NEAR(m[i].omega, sp[i] * 1e-3, 0.05 * 78.4);
+            send(PROTO_ID_STOP_ALL);
+        }
+        uint16_t words[4];
+        for (int i = 0; i < 4; i++) words[i] = m[i].word();
+        const uint8_t was = app.enable_mask;
+        app_control_step(&app, words);
+        for (int i = 0; i < 4; i++) {
+            if (((was & ~app.enable_mask) >> i) & 1) {
+                t_off[i] = t;
+                omega_off[i] = m[i].omega;
+            }
+            m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
+            if (t >= 4000 && t_sp0[i] < 0 && app.w[i].sp_mrad_s == 0) t_sp0[i] = t;
+            if (t >= 4000) {
+                const double back = sp[i] > 0 ? -m[i].omega : m[i].omega;
+                if (back > wrong_way[i]) wrong_way[i] = back;
+            }
+        }
+    }
+    for (int i = 0; i < 4; i++) {
+        ASSERT_GT(t_off[i], 4000) << "wheel " << i;
+        EXPECT_LT(t_off[i] - t_sp0[i], static_cast<int>(APP_STOP_TICKS)) << "wheel " << i;
+        EXPECT_LT(fabs(omega_off[i]), 0.8) << "wheel " << i;
+        EXPECT_LT(wrong_way[i], 0.5) << "wheel " << i;  // never reversed
+        EXPECT_LT(fabs(m[i].omega), 0.8) << "wheel " << i;
+    }
+    EXPECT_EQ(app.enable_mask, 0);
+}
+
+// A bad encoder word while braking is not taken for a stopped wheel: the tick is not judged.
+TEST_F(AppTest, BadWordWhileBrakingDoesNotEndTheStop) {
+    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_ACCEL_RAD_S2, 10000);
+    set_param(PRM_DECEL_RAD_S2, 10000);
+    send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
+    uint32_t angle = 0;
+    auto tick = [&](bool bad) {
+        angle += 130;  // 49.9 rad/s: keeps turning whatever the drive
+        uint16_t words[4] = {enc_make_reply(static_cast<uint16_t>(angle & 0x3FFF), bad),
+                             enc_make_reply(0, false), enc_make_reply(0, false),
+                             enc_make_reply(0, false)};
+        app_control_step(&app, words);
+    };
+    for (int t = 0; t < 300; t++) tick(false);
+    send(PROTO_ID_STOP_ALL);
+    for (int t = 0; t < 20; t++) tick(false);
+    ASSERT_EQ(app.enable_mask, 0x1);
+    tick(true);  // the angle held: a zero change if it were judged
+    EXPECT_EQ(app.enable_mask, 0x1);
+    tick(false);  // the first good word after it only takes the angle again
+    EXPECT_EQ(app.enable_mask, 0x1);
+    tick(false);
+    EXPECT_EQ(app.enable_mask, 0x1);
 }
 
 // A wheel whose measured speed does not fall (here an encoder turning on its own at 50 rad/s):

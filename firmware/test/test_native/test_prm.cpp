@@ -1,7 +1,14 @@
-// Parameter store: table sanity, EEPROM image checks, non-blocking save.
+// Parameter store: table sanity, EEPROM image checks, non-blocking save, two slots with a power
+// cut at every byte of a save.
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "crc16.h"
 #include "prm.h"
+#include "proto.h"
 #include "test_support.h"
 
 TEST(Prm, DefaultsInRangeAndOutOfRangeRejected) {
@@ -44,12 +51,17 @@ TEST(Prm, SaveIsNonBlockingAndReloads) {
     EXPECT_TRUE(prm_init(&t, &FakeEeprom::iface));
     EXPECT_EQ(t.v[PRM_KP], 1234);
     EXPECT_EQ(t.v[PRM_SPEED_MAX_MRAD_S], 314159);
-    // Saving the same values again writes nothing (update semantics).
-    int w = FakeEeprom::writes;
-    prm_save_begin(&t);
-    while (!prm_save_poll(&t)) {
+    // Saving the same values again goes to the other slot; once both slots hold them, a save
+    // writes only the bytes that differ: the sequence number and the CRC (update semantics).
+    for (int k = 0; k < 2; k++) {
+        int w = FakeEeprom::writes;
+        prm_save_begin(&t);
+        while (!prm_save_poll(&t)) {
+        }
+        if (k == 1) {
+            EXPECT_LE(FakeEeprom::writes - w, 4);
+        }
     }
-    EXPECT_EQ(FakeEeprom::writes, w);
     FakeEeprom::busy_polls = 0;
 }
 
@@ -58,18 +70,20 @@ TEST(Prm, CorruptImagesRejected) {
     prm_defaults(&s);
     s.v[PRM_KI] = 77;
     uint8_t good[PRM_IMAGE_SIZE];
-    prm_image_build(&s, good);
+    prm_image_build(&s, 513, good);
     prm_store t;
     prm_defaults(&t);
-    ASSERT_TRUE(prm_image_parse(&t, good));
+    uint16_t seq = 0;
+    ASSERT_TRUE(prm_image_parse(&t, good, &seq));
     EXPECT_EQ(t.v[PRM_KI], 77);
+    EXPECT_EQ(seq, 513);
     for (int i = 0; i < PRM_IMAGE_SIZE; i++) {  // any flipped byte (magic, version, count,
         uint8_t bad[PRM_IMAGE_SIZE];            // value or CRC) is caught
         for (int k = 0; k < PRM_IMAGE_SIZE; k++) bad[k] = good[k];
         bad[i] ^= 0x10;
         prm_store u;
         prm_defaults(&u);
-        EXPECT_FALSE(prm_image_parse(&u, bad)) << "byte " << i;
+        EXPECT_FALSE(prm_image_parse(&u, bad, &seq)) << "byte " << i;
         EXPECT_EQ(u.v[PRM_KI], prm_default(PRM_KI));
     }
 }
@@ -79,9 +93,225 @@ TEST(Prm, ValidCrcButValueOutOfRangeRejected) {
     prm_defaults(&s);
     s.v[PRM_POLE_PAIRS] = 99;  // bypass prm_set
     uint8_t img[PRM_IMAGE_SIZE];
-    prm_image_build(&s, img);
+    prm_image_build(&s, 1, img);
     prm_store t;
     prm_defaults(&t);
-    EXPECT_FALSE(prm_image_parse(&t, img));
+    uint16_t seq = 0;
+    EXPECT_FALSE(prm_image_parse(&t, img, &seq));
     EXPECT_EQ(t.v[PRM_POLE_PAIRS], 7);
+}
+
+// ---- Two slots: which set a boot loads after saves and after a power cut inside a save.
+
+// An EEPROM that loses power at a chosen write: writes before it land, the write at the cut is
+// torn (the byte keeps its old value, reads erased 0xFF, or holds garbage), later ones are lost.
+namespace {
+enum Torn { TORN_KEEP, TORN_ERASED, TORN_GARBAGE };
+uint8_t g_mem[4096];
+long g_writes;
+long g_cut = -1;  // index of the write that the power cut hits; -1: none
+Torn g_torn = TORN_KEEP;
+uint8_t ee_read(uint16_t a) {
+    return g_mem[a];
+}
+bool ee_ready() {
+    return true;
+}
+void ee_write(uint16_t a, uint8_t v) {
+    const long n = g_writes++;
+    if (g_cut < 0 || n < g_cut) {
+        g_mem[a] = v;
+    } else if (n == g_cut) {
+        g_mem[a] = g_torn == TORN_KEEP ? g_mem[a] : g_torn == TORN_ERASED ? 0xFF : v ^ 0xA5;
+    }
+}
+const prm_eeprom_if g_iface = {ee_read, ee_ready, ee_write};
+
+struct Set {
+    int32_t v[PRM_COUNT];
+    bool operator==(const Set& o) const {
+        for (int i = 0; i < PRM_COUNT; i++) {
+            if (v[i] != o.v[i]) return false;
+        }
+        return true;
+    }
+};
+
+Set set_of(const prm_store& s) {
+    Set r;
+    for (int i = 0; i < PRM_COUNT; i++) r.v[i] = s.v[i];
+    return r;
+}
+
+Set defaults_set() {
+    prm_store s;
+    prm_defaults(&s);
+    return set_of(s);
+}
+
+// A parameter set with every value random within its range (most bytes differ between two).
+Set random_set(std::mt19937& rng) {
+    Set r;
+    for (uint8_t i = 0; i < PRM_COUNT; i++) {
+        int32_t v;
+        do {
+            v = static_cast<int32_t>(rng() % 400001);
+        } while (!prm_in_range(i, v));
+        r.v[i] = v;
+    }
+    return r;
+}
+
+// Boot, set the values, save to completion (no cut). Returns the number of bytes written.
+long save(const Set& want) {
+    prm_store s;
+    prm_init(&s, &g_iface);
+    for (uint8_t i = 0; i < PRM_COUNT; i++) EXPECT_EQ(prm_set(&s, i, want.v[i]), PRM_OK);
+    const long before = g_writes;
+    prm_save_begin(&s);
+    int polls = 0;
+    while (!prm_save_poll(&s) && ++polls < 1000) {
+    }
+    EXPECT_FALSE(s.saving);
+    return g_writes - before;
+}
+
+// Boot and report what was loaded.
+Set boot(bool* ok) {
+    prm_store s;
+    *ok = prm_init(&s, &g_iface);
+    return set_of(s);
+}
+}  // namespace
+
+TEST(PrmSlots, SavesAlternateSlotsAndTheNewestLoads) {
+    std::memset(g_mem, 0xFF, sizeof g_mem);
+    g_cut = -1;
+    std::mt19937 rng(3);
+    for (int k = 0; k < 6; k++) {
+        const Set want = random_set(rng);
+        save(want);
+        bool ok = false;
+        EXPECT_TRUE(boot(&ok) == want) << "save " << k;
+        EXPECT_TRUE(ok);
+        // Slot k % 2 holds this save, sequence k + 1.
+        const uint16_t base = PRM_SLOT_ADDR(k % 2);
+        EXPECT_EQ(g_mem[base + 2], PRM_LAYOUT_VERSION);
+        EXPECT_EQ(g_mem[base + 4] | (g_mem[base + 5] << 8), k + 1);
+    }
+}
+
+TEST(PrmSlots, SequenceNumberWrapsInSerialOrder) {
+    std::memset(g_mem, 0xFF, sizeof g_mem);
+    g_cut = -1;
+    std::mt19937 rng(4);
+    const Set a = random_set(rng);
+    const Set b = random_set(rng);
+    prm_store s;
+    for (int i = 0; i < PRM_COUNT; i++) s.v[i] = a.v[i];
+    uint8_t img[PRM_IMAGE_SIZE];
+    prm_image_build(&s, 0xFFFF, img);
+    for (int i = 0; i < PRM_IMAGE_SIZE; i++) g_mem[PRM_SLOT_ADDR(0) + i] = img[i];
+    for (int i = 0; i < PRM_COUNT; i++) s.v[i] = b.v[i];
+    prm_image_build(&s, 0x0000, img);  // one after 0xFFFF
+    for (int i = 0; i < PRM_IMAGE_SIZE; i++) g_mem[PRM_SLOT_ADDR(1) + i] = img[i];
+    bool ok = false;
+    EXPECT_TRUE(boot(&ok) == b);
+    EXPECT_TRUE(ok);
+}
+
+TEST(PrmSlots, LayoutTwoImageAtSlotZeroLoadsAndIsKeptUntilReplaced) {
+    std::memset(g_mem, 0xFF, sizeof g_mem);
+    g_cut = -1;
+    std::mt19937 rng(5);
+    const Set old = random_set(rng);
+    // Layout 2: 'G' 'W' 2 count | values | CRC (82 bytes), as written by earlier firmware.
+    uint8_t img[PRM_LEGACY_HEADER_SIZE + 4 * PRM_COUNT + 2] = {'G', 'W', PRM_LEGACY_VERSION,
+                                                               PRM_COUNT};
+    for (int i = 0; i < PRM_COUNT; i++) {
+        proto_put_i32(&img[PRM_LEGACY_HEADER_SIZE + 4 * i], old.v[i]);
+    }
+    const uint8_t body = PRM_LEGACY_HEADER_SIZE + 4 * PRM_COUNT;
+    proto_put_u16(&img[body], crc16_ccitt(img, body));
+    for (unsigned i = 0; i < sizeof img; i++) g_mem[i] = img[i];
+    bool ok = false;
+    EXPECT_TRUE(boot(&ok) == old);
+    EXPECT_TRUE(ok);
+    const Set next = random_set(rng);
+    save(next);  // goes to slot 1, sequence 1: the layout-2 image stays as the previous set
+    EXPECT_EQ(g_mem[0], 'G');
+    EXPECT_EQ(g_mem[2], PRM_LEGACY_VERSION);
+    EXPECT_TRUE(boot(&ok) == next);
+}
+
+// The acceptance test of the two slots: a save interrupted at every one of its writes, with the
+// interrupted byte kept, erased or garbage, leaves the set loaded before it or the new one (the
+// new one only once its last byte is written), never the defaults; across several consecutive
+// saves, so that both the blank slot and a slot with an older image are overwritten.
+TEST(PrmSlots, PowerCutAtEveryByteOfASaveLoadsThePreviousOrTheNewSet) {
+    std::mt19937 rng(7);
+    const Set defaults = defaults_set();
+    for (int start = 0; start < 2; start++) {  // from blank EEPROM, or from a layout-2 image
+        std::memset(g_mem, 0xFF, sizeof g_mem);
+        g_cut = -1;
+        g_writes = 0;
+        Set previous = defaults;
+        bool have_previous = false;
+        if (start == 1) {
+            previous = random_set(rng);
+            prm_store s;
+            for (int i = 0; i < PRM_COUNT; i++) s.v[i] = previous.v[i];
+            uint8_t img[PRM_IMAGE_SIZE];
+            prm_image_build(&s, 0, img);
+            // Rewrite as layout 2 (drop the sequence number, CRC over the shorter body).
+            uint8_t legacy[PRM_IMAGE_SIZE];
+            legacy[0] = 'G';
+            legacy[1] = 'W';
+            legacy[2] = PRM_LEGACY_VERSION;
+            legacy[3] = PRM_COUNT;
+            for (int i = 0; i < 4 * PRM_COUNT; i++) legacy[4 + i] = img[PRM_HEADER_SIZE + i];
+            const uint8_t body = PRM_LEGACY_HEADER_SIZE + 4 * PRM_COUNT;
+            proto_put_u16(&legacy[body], crc16_ccitt(legacy, body));
+            for (int i = 0; i < body + 2; i++) g_mem[i] = legacy[i];
+            have_previous = true;
+        }
+        for (int round = 0; round < 5; round++) {
+            const Set next = random_set(rng);
+            uint8_t before[sizeof g_mem];
+            std::memcpy(before, g_mem, sizeof g_mem);
+            // Count the writes of the uninterrupted save.
+            g_cut = -1;
+            g_writes = 0;
+            const long total = save(next);
+            ASSERT_GE(total, 3);  // at least the sequence number and the CRC change
+            uint8_t after[sizeof g_mem];
+            std::memcpy(after, g_mem, sizeof g_mem);
+            for (long cut = 0; cut < total; cut++) {
+                for (int torn = TORN_KEEP; torn <= TORN_GARBAGE; torn++) {
+                    std::memcpy(g_mem, before, sizeof g_mem);
+                    g_writes = 0;
+                    g_cut = cut;
+                    g_torn = static_cast<Torn>(torn);
+                    save(next);  // runs to its end; writes from the cut on are lost
+                    g_cut = -1;
+                    bool ok = false;
+                    const Set got = boot(&ok);
+                    const bool is_prev = got == previous;
+                    const bool is_next = got == next;
+                    ASSERT_TRUE(is_prev || is_next)
+                        << "start " << start << " round " << round << " cut " << cut;
+                    ASSERT_EQ(ok, have_previous || is_next) << "defaults reported";
+                    // The last write completes the image: before it, the new set cannot load.
+                    if (cut < total - 1) {
+                        ASSERT_TRUE(is_prev) << "cut " << cut;
+                    }
+                }
+            }
+            std::memcpy(g_mem, after, sizeof g_mem);
+            bool ok = false;
+            ASSERT_TRUE(boot(&ok) == next);
+            previous = next;
+            have_previous = true;
+        }
+    }
 }

@@ -17,21 +17,45 @@ TEST(Crc16, CheckValue) {
     EXPECT_EQ(crc16_ccitt(s, 0), 0xFFFF);
 }
 
+// Bit-by-bit CRC-16/CCITT-FALSE: the definition the table-driven crc16_ccitt must reproduce.
+static uint16_t crc16_bitwise(const uint8_t* p, size_t len) {
+    uint16_t crc = 0xFFFF;
+    for (size_t i = 0; i < len; i++) {
+        crc ^= static_cast<uint16_t>(p[i] << 8);
+        for (int b = 0; b < 8; b++) {
+            crc = (crc & 0x8000) ? static_cast<uint16_t>((crc << 1) ^ 0x1021)
+                                 : static_cast<uint16_t>(crc << 1);
+        }
+    }
+    return crc;
+}
+
+TEST(Crc16, TableIsTheBitwiseRemainder) {
+    for (int i = 0; i < 256; i++) {
+        uint16_t r = static_cast<uint16_t>(i << 8);
+        for (int b = 0; b < 8; b++) {
+            r = (r & 0x8000) ? static_cast<uint16_t>((r << 1) ^ 0x1021)
+                             : static_cast<uint16_t>(r << 1);
+        }
+        ASSERT_EQ(crc16_table[0][i], r >> 8) << i;
+        ASSERT_EQ(crc16_table[1][i], r & 0xFF) << i;
+    }
+}
+
 TEST(Crc16, MatchesBitwiseReference) {
     std::mt19937 rng(1);
-    for (int n = 0; n < 200; n++) {
-        uint8_t buf[40];
-        uint8_t len = static_cast<uint8_t>(rng() % 40);
-        uint16_t ref = 0xFFFF;
+    for (int n = 0; n < 50000; n++) {
+        uint8_t buf[255];
+        uint8_t len = static_cast<uint8_t>(n < 256 ? n : rng() % 256);
+        const int kind = n % 8;  // mostly random bytes, some all-zero and all-0xFF buffers
         for (uint8_t i = 0; i < len; i++) {
-            buf[i] = static_cast<uint8_t>(rng());
-            ref ^= static_cast<uint16_t>(buf[i] << 8);
-            for (int b = 0; b < 8; b++) {
-                ref = (ref & 0x8000) ? static_cast<uint16_t>((ref << 1) ^ 0x1021)
-                                     : static_cast<uint16_t>(ref << 1);
-            }
+            buf[i] = kind == 0 ? 0 : kind == 1 ? 0xFF : static_cast<uint8_t>(rng());
         }
-        ASSERT_EQ(crc16_ccitt(buf, len), ref);
+        const uint16_t ref = crc16_bitwise(buf, len);
+        ASSERT_EQ(crc16_ccitt(buf, len), ref) << "n=" << n << " len=" << int(len);
+        uint16_t one = CRC16_INIT;
+        for (uint8_t i = 0; i < len; i++) one = crc16_update(one, buf[i]);
+        ASSERT_EQ(one, ref) << "n=" << n;
     }
 }
 

@@ -12,7 +12,8 @@ from boot on the emulator's clock, so simulated-time runs are exact:
   after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS, GET_STATS;
 - fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
   setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
-  ramped to rest brakes on until it has nearly stopped (``STOP_RAD_S``, ``STOP_TICKS``);
+  ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
+  in the direction being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
   status and fault word.
 
@@ -43,15 +44,16 @@ from gyrohost.rig.pty_link import PtyDevice
 
 FW_MAJOR, FW_MINOR = 1, 0
 SAVE_TICKS = 300
-"""Ticks an EEPROM save takes (82 bytes, about 3.3 ms each)."""
+"""Ticks an EEPROM save takes (one 84-byte slot, about 3.3 ms a byte)."""
 ENCODER_COUNTS = 1 << 14
 """Counts per turn of the AS5048A (14 bits)."""
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
 STOP_RAD_S = 0.5
-"""A wheel ramped to rest brakes in closed loop while its measured speed is this or more
-(the firmware's ``APP_STOP_Q8``), for at most ``STOP_TICKS`` ticks (``APP_STOP_TICKS``)."""
+"""A wheel ramped to rest brakes in closed loop while the encoder's speed over the last tick, in
+the direction of the (lagging) filtered estimate, is this or more (the firmware's
+``APP_STOP_Q8``), for at most ``STOP_TICKS`` ticks (``APP_STOP_TICKS``)."""
 STOP_TICKS = 500
 
 _P = {p.name: p.id for p in wp.PARAMS}
@@ -121,6 +123,7 @@ class WheelBoardEmulator(PtyDevice):
         self.setpoints = [0] * wp.N_WHEELS
         self.measured = [0.0] * wp.N_WHEELS
         self._last_count: list[int | None] = [None] * wp.N_WHEELS  # None: encoder not primed
+        self._raw_rad_s: list[float | None] = [None] * wp.N_WHEELS  # last tick's count difference
         self.drive = [0] * wp.N_WHEELS
         self.enabled = [False] * wp.N_WHEELS
         self._stop_ticks = [0] * wp.N_WHEELS
@@ -350,7 +353,11 @@ class WheelBoardEmulator(PtyDevice):
         if not self.enabled[i] or self._stop_ticks[i] >= STOP_TICKS:
             return False
         self._stop_ticks[i] += 1
-        return abs(self.measured[i]) >= STOP_RAD_S
+        raw = self._raw_rad_s[i]
+        if raw is None:
+            return True
+        # the filtered estimate lags the braking: its sign is the direction being braked
+        return (raw if self.measured[i] >= 0 else -raw) >= STOP_RAD_S
 
     def _physics(self, dt_s: float) -> None:
         emu = self.emu
@@ -374,6 +381,7 @@ class WheelBoardEmulator(PtyDevice):
         drive_max = p[_P["DRIVE_MAX_Q15"]]
         for i in range(wp.N_WHEELS):
             raw_rad_s = self._encoder_speed(i)
+            self._raw_rad_s[i] = raw_rad_s
             if open_loop:
                 self.measured[i] = self.setpoints[i] / 1000.0 if self.enabled[i] else 0.0
                 drive = p[_P["OPEN_LOOP_DRIVE_Q15"]] if self.enabled[i] else 0
