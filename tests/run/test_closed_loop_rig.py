@@ -27,7 +27,10 @@ def test_closed_loop_lands_nearer_the_target_than_open_loop_on_the_rig(tmp_path)
     closed = Path(result["closed"]["log"])
     replans = read_stream(closed, "replan")
     assert len(replans) >= 10 and np.all(replans["accepted"] == 1)  # 1 first plan + re-plans
-    assert np.all(np.diff(replans["schedule_t_s"]) > 0.2)  # at the re-planning period
+    # on the re-planning grid: at most one plan per period (a late one uses up its period, the
+    # next comes at the next grid point, so two plans may stand closer than a period)
+    slots = np.floor((replans["schedule_t_s"] - replans["schedule_t_s"][0]) / TARGET.period_s)
+    assert np.all(np.diff(slots) >= 1), replans["schedule_t_s"]
     kappa = replans["kappa"][-1]
     assert 1.1 < kappa < 1.3  # the gain fit from the EKF's estimate sees the heavier wheels
     meta = read_meta(closed)

@@ -111,7 +111,8 @@ class Replanner:
             att = self.planner.attitude
             self.fit.add(att.n13(N), att.tilt_rate(N, N_dot))
         if self._next_s <= t_s < self.t_end_s:
-            self._next_s += self.period_s * max(1.0, np.floor((t_s - self._next_s) / self.period_s))
+            # the first grid point after t_s: a late re-plan uses up every period it overran
+            self._next_s += self.period_s * (np.floor((t_s - self._next_s) / self.period_s) + 1.0)
             return True
         return False
 
