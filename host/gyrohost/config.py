@@ -210,6 +210,17 @@ class EstimatorTable:
 
 
 @dataclass(frozen=True)
+class StartCheckConfig:
+    """How far the measured state may be from the scene's initial state when a run connects,
+    before anything moves (``gyrohost.run.start_check``); beyond, the run is refused."""
+
+    attitude_rad: float = field(default=0.1, metadata=_spec(lo=0.0, hi=math.pi))
+    rate_rad_s: float = field(default=0.05, metadata=_spec(lo=0.0, hi=100.0))
+    length_m: float = field(default=0.005, metadata=_spec(lo=0.0, hi=10.0))
+    wheel_speed_rad_s: float = field(default=1.0, metadata=_spec(lo=0.0, hi=1000.0))
+
+
+@dataclass(frozen=True)
 class RigConfig:
     """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
 
@@ -219,6 +230,7 @@ class RigConfig:
     wheelboard: WheelboardConfig = WheelboardConfig()
     sim: SimConfig = SimConfig()
     estimator: EstimatorTable = EstimatorTable()
+    start_check: StartCheckConfig = StartCheckConfig()
     source: str = field(default="<defaults>", metadata={"internal": True})
 
     @property
@@ -358,6 +370,7 @@ __all__ = [
     "ServoConfig",
     "ServoEmuConfig",
     "SimConfig",
+    "StartCheckConfig",
     "StreamFaultConfig",
     "TruthConfig",
     "WHEEL_KINDS",

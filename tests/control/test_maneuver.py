@@ -62,3 +62,30 @@ def test_the_worker_thread_makes_the_same_plans_and_hands_them_over_later(dbar):
     switches = [k for k in range(1, len(played)) if played[k] is not played[k - 1]]
     assert switches == [26, 51, 76, 101]  # re-planned at ticks 25, 50, ...; taken one tick later
     assert threaded.taken == 4
+
+
+def test_a_target_out_of_reach_is_refused_with_the_reachable_range(dbar):
+    limits = Limits.per_string(SERVOS)
+    with pytest.raises(PlanError) as refused:
+        Maneuver(dbar, limits, Target(0.2, 4.0))
+    message = str(refused.value)
+    assert "target tilt +0.2000 rad is out of reach in 4 s" in message
+    # s13 can lengthen only to 0.45 m: the plane lands at most 0.084 rad up, far down
+    lo, hi = (
+        float(v) for v in message.split("lands between ")[1].split(" rad (")[0].split(" and ")
+    )
+    assert hi == pytest.approx(0.084, abs=1e-3) and lo < -2.0
+    best = Maneuver(dbar, limits, Target(hi, 4.0))  # the edge of the range is taken
+    assert best.landing_miss_rad < 1e-3
+    assert best.summary()["first_plan"]["landing_miss_rad"] == best.landing_miss_rad
+    assert Maneuver(dbar, limits, Target(hi, 8.0)).first.success  # a longer maneuver reaches
+
+
+def test_a_plan_on_the_length_limit_stays_exactly_on_it(dbar):
+    limits = Limits.per_string(SERVOS)
+    plan = Maneuver(dbar, limits, Target(0.084, 4.0)).first.schedule  # s13 up to 0.45 m
+    s13 = plan.rest_length[:, plan.names.index("s13")]
+    assert s13.max() == 0.45  # not 0.45000000000000007 (one ulp past, refused by the servo)
+    for name, column in zip(plan.names, plan.rest_length.T, strict=True):
+        low, high = limits.range_of(name)
+        assert low <= column.min() and column.max() <= high

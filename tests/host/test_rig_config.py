@@ -15,6 +15,7 @@ from gyrohost.config import (
     ServoBusConfig,
     ServoConfig,
     ServoEmuConfig,
+    StartCheckConfig,
     StreamFaultConfig,
     WheelboardConfig,
     load_rig_config,
@@ -48,6 +49,7 @@ def test_empty_file_gives_the_defaults(tmp_path):
     path.write_text("")
     cfg = load_rig_config(path)
     assert cfg.imu == ImuConfig() and cfg.servos == ServoBusConfig()
+    assert cfg.start_check == StartCheckConfig()
     assert cfg.source == str(path)
 
 
@@ -77,6 +79,10 @@ def test_empty_file_gives_the_defaults(tmp_path):
             "sim.imu.faults.stall_duration_s': must be shorter",
         ),
         ({"sim": {"servos": {"overload_ids": [1, 999]}}}, "overload_ids' is 999, above"),
+        ({"start_check": {"angle_rad": 0.1}}, "unknown key 'start_check.angle_rad'"),
+        ({"start_check": {"length_m": -0.001}}, "'start_check.length_m' is -0.001, below"),
+        ({"start_check": {"attitude_rad": 4.0}}, "'start_check.attitude_rad' is 4.0, above"),
+        ({"start_check": {"rate_rad_s": "1"}}, "'start_check.rate_rad_s' must be a number"),
     ],
 )
 def test_errors_name_the_file_and_key(data, message):
@@ -108,7 +114,7 @@ def _keys(cls) -> list[str]:
 @pytest.mark.parametrize(
     "cls",
     [ImuConfig, ServoBusConfig, ServoConfig, WheelboardConfig, ImuEmuConfig, ServoEmuConfig,
-     StreamFaultConfig],
+     StreamFaultConfig, StartCheckConfig],
 )  # fmt: skip
 def test_every_key_is_documented(cls):
     doc = (ROOT / "docs/rig-config.md").read_text()

@@ -251,3 +251,16 @@ def test_emulator_shuts_down_cleanly():
     device.close()
     device.close()  # idempotent
     assert device.link.write(b"x") == 0 and device.link.read(0.01) == b""
+
+
+def test_a_length_on_the_limit_is_commanded_within_it(rig):
+    device, bus = rig()
+    # LEFT's 0.50 m is 13037.97 steps from its zero: the nearest step, 13038, is past the limit
+    assert bus.command_lengths({"left": 0.50})["left"] == 13037
+    one_ulp_past = math.nextafter(0.50, 1.0)
+    assert bus.command_lengths({"left": one_ulp_past})["left"] == 13037  # rounding: clamped
+    assert bus.command_lengths({"left": 0.10 - 1e-12})["left"] == -13037  # and at the bottom
+    with pytest.raises(ServoLimitError, match="outside the limit"):
+        bus.command_lengths({"left": 0.50 + 1e-6})  # beyond rounding: refused
+    states = wait_until_at(bus, [0.10, 0.30])
+    assert 0.10 <= states[0].length_m <= 0.10 + STEP_M

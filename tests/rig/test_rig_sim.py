@@ -135,6 +135,35 @@ def test_faults_reach_the_drivers_as_named_errors(rig):
     assert rig.command("stats").startswith("rates: imu")
 
 
+def test_reset_puts_the_rig_back_where_the_scene_starts(rig):
+    rig, imu, wheels, bus = rig
+    nodes0 = rig.truth_nodes()
+    wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
+    rig.advance(1.0)
+    goal = L0 - 0.1
+    bus.command_lengths({"left": goal, "right": np.sqrt(4 * 0.3048**2 - goal**2)})
+    for _ in range(4):
+        rig.advance(0.25)
+        imu.poll()
+    assert np.max(np.abs(rig.truth_nodes() - nodes0)) > 0.01  # moved, shape and tilt
+    assert rig.truth_rest_lengths()[0] == pytest.approx(goal, abs=1e-3)
+    wheels.stop_all()  # the host's safe state: torque stays on, the goals are held
+    bus.hold()
+    assert rig.command("reset") == (
+        "reset: truth at the scene's initial state, servos at their start, wheels at rest"
+    )
+    np.testing.assert_array_equal(rig.truth_nodes(), nodes0)
+    np.testing.assert_array_equal(rig.truth_wheel_speeds(), np.zeros(4))
+    rig.advance(0.2)  # the held servos stay where the reset put them: nothing moves back
+    assert list(bus.read_lengths().values()) == pytest.approx([L0, L0], abs=1e-9)
+    np.testing.assert_allclose(rig.truth_nodes(), nodes0, atol=1e-9)
+    assert wheels.last_telemetry.omega_rad_s == pytest.approx([0.0] * 4, abs=0.05)
+    imu.poll()
+    rig.advance(0.05)
+    sample = imu.poll()[-1]
+    assert np.max(np.abs(sample.euler_rad)) < 0.01 and np.max(np.abs(sample.omega_rad_s)) < 0.01
+
+
 def test_advance_needs_the_sim_clock():
     rig = SimulatedRig(CONFIG, clock="real")
     try:

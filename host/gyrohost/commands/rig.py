@@ -3,7 +3,8 @@
 Prints the device paths (one ``name: path`` line each), serves until Ctrl-C or ``--duration``,
 then prints the measured rates per device and the truth step timing. While it runs, lines typed
 on standard input are rig commands: ``fault imu silence 2``, ``fault wheels reset``,
-``fault servos overload 1 0.5``, ``stats`` (docs/rig.md).
+``fault servos overload 1 0.5``, ``stats``, ``reset`` (the rig back to the scene's initial state,
+between two runs; docs/rig.md).
 """
 
 import select
@@ -98,7 +99,11 @@ def _print_header(rig) -> None:
     )
     for name, path in rig.paths.items():
         print(f"{name}: {path}")
-    print("type 'fault DEVICE FAULT [ARGS]' or 'stats'; Ctrl-C stops", flush=True)
+    print(
+        "type 'fault DEVICE FAULT [ARGS]', 'stats' or 'reset' (back to the scene's initial "
+        "state, between runs); Ctrl-C stops",
+        flush=True,
+    )
 
 
 def _serve(rig, duration_s: float | None) -> None:

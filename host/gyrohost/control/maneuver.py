@@ -45,6 +45,9 @@ class Target:
         Fit the wheel-momentum gain while re-planning (``Replanner.adapt``).
     threaded : bool
         Re-plan in a worker thread instead of on the loop thread.
+    reach_tolerance_rad : float, rad
+        The first plan may land at most this far from ``tilt_rad``; farther, the target is out
+        of reach and refused (:class:`Maneuver`).
     """
 
     tilt_rad: float
@@ -54,10 +57,13 @@ class Target:
     knots: int = 6
     adapt: bool = True
     threaded: bool = False
+    reach_tolerance_rad: float = 0.005
 
     def __post_init__(self):
         if not np.isfinite(self.tilt_rad):
             raise PlanError(f"target tilt must be finite, got {self.tilt_rad}")
+        if not self.reach_tolerance_rad > 0.0:
+            raise PlanError(f"reach tolerance must be positive, got {self.reach_tolerance_rad} rad")
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
             raise PlanError(
                 f"duration ({self.duration_s} s) and re-planning period ({self.period_s} s) "
@@ -82,7 +88,9 @@ class Maneuver:
     Raises
     ------
     PlanError
-        The scene is not a D-bar, or no first plan within the limits.
+        The scene is not a D-bar, no first plan within the limits, or the target is out of
+        reach: the best plan lands more than ``target.reach_tolerance_rad`` from it (the
+        message gives the tilts reachable in ``target.duration_s``).
     """
 
     def __init__(self, model, limits: Limits, target: Target):
@@ -97,12 +105,28 @@ class Maneuver:
             adapt=target.adapt,
         )
         self.first = self.replanner.start(0.0, model.initial_state())
+        self.landing_miss_rad = abs(self.first.predicted_tilt_rad - target.tilt_rad)
+        if self.landing_miss_rad > target.reach_tolerance_rad:
+            self._refuse_unreachable(model.initial_state())
         self._worker: threading.Thread | None = None
         self._lock = threading.Lock()
         self._ready: Schedule | None = None
         self._playing = self.first.schedule
         self.taken = 0
         """Re-planned schedules taken into the loop (threaded: at a later tick)."""
+
+    def _refuse_unreachable(self, x0) -> None:
+        planner, t = self.planner, self.target
+        tilt, momentum, omega_w = planner.state_terms(x0, 0.0)
+        knots = self.replanner.knot_t
+        lo, hi = planner.reach(knots, 0.0, tilt, momentum, omega_w, planner.dbar.d_rest)
+        raise PlanError(
+            f"target tilt {t.tilt_rad:+.4f} rad is out of reach in {t.duration_s:g} s: within "
+            f"the servo limits the plane lands between {lo:+.4f} and {hi:+.4f} rad (the best "
+            f"plan lands at {self.first.predicted_tilt_rad:+.4f} rad, "
+            f"{self.landing_miss_rad:.4f} rad off, more than {t.reach_tolerance_rad:g} rad); "
+            "choose a target in that range or another duration"
+        )
 
     @property
     def schedule(self) -> Schedule:
@@ -159,6 +183,7 @@ class Maneuver:
             "target": self.target.to_dict(),
             "first_plan": {
                 "predicted_tilt_rad": self.first.predicted_tilt_rad,
+                "landing_miss_rad": self.landing_miss_rad,
                 "plan_time_s": self.first.plan_time_s,
                 "message": self.first.message,
             },

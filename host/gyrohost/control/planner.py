@@ -212,6 +212,21 @@ class Planner:
             n_eval=problem.n_eval,
         )
 
+    def reach(self, knot_t_s, t_start_s, tilt0_rad, momentum, omega_w, d_start_m):
+        """The lowest and highest tilt (rad) a plan can land at, within the limits.
+
+        Parameters as :meth:`plan`. Each bound is an optimisation of the landing tilt alone
+        under the same constraints (servo speed, length range, diagonals).
+        """
+        knot_t_s = np.asarray(knot_t_s, float)
+        t_end = float(knot_t_s[-1])
+        free_t = knot_t_s[(knot_t_s > t_start_s + 1e-9) & (knot_t_s < t_end - 1e-9)]
+        kt = np.concatenate([[t_start_s], free_t, [t_end]])
+        problem = _Problem(self, kt, tilt0_rad, momentum, omega_w, d_start_m, tilt0_rad)
+        z0 = self._guess(kt, free_t, d_start_m, None)
+        lo, hi = (problem.final_tilt(problem.values(problem.extreme(z0, s))) for s in (-1, 1))
+        return lo, hi
+
     def _guess(self, kt, free_t, d_start, warm):
         if warm is not None:
             col = warm.names.index(self.names[0])
@@ -302,11 +317,21 @@ class _Problem:
         Jf = np.diff(fp[:, None] * self.A_s, axis=0)
         return np.vstack([-Jd, Jd, -Jf, Jf])[:, 1:-1]
 
-    def solve(self, z0):
+    def landing(self, z, sign):
+        """``sign`` times the landing tilt (rad) and its gradient by the free knots."""
+        kv = self.values(z)
+        _, dw = self._rates(self.A_q @ kv)
+        return sign * self.final_tilt(kv), sign * ((self.trap * dw) @ self.A_q)[1:-1]
+
+    def extreme(self, z0, sign):
+        """Free knots of the lowest (``sign`` -1) or highest (+1) landing tilt."""
         if z0.size == 0:
-            return z0, True, "no free knots left: the schedule runs to its end"
-        res = optimize.minimize(
-            self.cost,
+            return z0
+        return self._minimize(lambda z: self.landing(z, -sign), z0).x.clip(self.p.d_lo, self.p.d_hi)
+
+    def _minimize(self, cost, z0):
+        return optimize.minimize(
+            cost,
             z0,
             jac=True,
             method="SLSQP",
@@ -314,11 +339,18 @@ class _Problem:
             constraints=[{"type": "ineq", "fun": self.speed_margins, "jac": self.speed_jacobian}],
             options={"maxiter": 200, "ftol": 1e-14},
         )
+
+    def solve(self, z0):
+        if z0.size == 0:
+            return z0, True, "no free knots left: the schedule runs to its end"
+        res = self._minimize(self.cost, z0)
         return np.clip(res.x, self.p.d_lo, self.p.d_hi), bool(res.success), str(res.message)
 
     def schedule(self, kv):
-        d = self.A_s @ kv
-        f = self.p.dbar.follower_length(d)
+        # Sampling between knots on a bound (and the follower of a bound) may round one ulp
+        # past it: the samples are clipped so that no command leaves the limits.
+        d = np.clip(self.A_s @ kv, self.p.d_lo, self.p.d_hi)
+        f = np.clip(self.p.dbar.follower_length(d), *self.p.limits.range_of(self.p.names[1]))
         return Schedule(self.p.names, self.t_s, np.column_stack([d, f]), "plan")
 
 

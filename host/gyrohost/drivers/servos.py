@@ -5,7 +5,9 @@ positions -28672..28672 steps, 4096 steps per turn). The string length is
 ``L = length_at_zero_m + length_sign * (p - zero_position) * 2 pi r / 4096`` (see
 :func:`gyrohost.drivers.mx12.steps_to_length`; the control table and unit conversions live in
 :mod:`gyrohost.drivers.mx12`). Limits on length and speed are checked before anything is sent:
-a command outside them is refused with :class:`ServoLimitError` naming the servo, value and limit.
+a command outside them is refused with :class:`ServoLimitError` naming the servo, value and limit
+(rounding, within ``LENGTH_ROUNDING_M`` of a limit, is commanded at the limit; the goal position
+never maps to a length beyond it).
 
 SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
 
@@ -94,6 +96,11 @@ class ServoFaultError(ServoError):
         self.servo_id = servo_id
         self.faults = faults
         self.states = list(states)
+
+
+LENGTH_ROUNDING_M = 1e-9
+"""A length commanded this close outside a servo's length limit is rounding (a schedule sampled
+or planned on the limit): it is commanded at the limit. Farther out it is refused."""
 
 
 class ServoLimitError(GyrohostError, ValueError):
@@ -406,15 +413,23 @@ def _check_config_limits(servo: ServoConfig) -> None:
 
 
 def _goal_steps(servo: ServoConfig, length_m: float) -> int:
+    """The goal position of a string length: a length within ``LENGTH_ROUNDING_M`` outside the
+    limit is taken as the limit, and the position is rounded to the step nearest the length
+    whose length is still within the limit."""
     where = f"servo '{servo.name}' (ID {servo.id})"
+    lo, hi = servo.min_length_m, servo.max_length_m
     if not math.isfinite(length_m):
         raise ServoLimitError(f"{where}: string length {length_m} m is not finite")
-    if not servo.min_length_m <= length_m <= servo.max_length_m:
+    if not lo - LENGTH_ROUNDING_M <= length_m <= hi + LENGTH_ROUNDING_M:
         raise ServoLimitError(
-            f"{where}: string length {length_m:.4f} m is outside the limit "
-            f"[{servo.min_length_m}, {servo.max_length_m}] m"
+            f"{where}: string length {length_m:.4f} m is outside the limit [{lo}, {hi}] m"
         )
-    return int(round(mx12.length_to_steps(servo, length_m)))
+    length_m = min(max(length_m, lo), hi)
+    exact = mx12.length_to_steps(servo, length_m)
+    steps = round(exact)
+    if not lo <= mx12.steps_to_length(servo, steps) <= hi:  # half a step past a limit
+        steps = math.floor(exact) if steps > exact else math.ceil(exact)
+    return int(steps)
 
 
 def _speed_units(servo: ServoConfig, speed_m_s: float) -> int:

@@ -119,6 +119,12 @@ class RigProcess:
         self._send(("inject", (device, fault), kwargs))
         self._reply("injected")
 
+    def command(self, line: str) -> str:
+        """Run one text command of ``gyrotens rig`` (``SimulatedRig.command``: ``reset``, ...);
+        returns its answer."""
+        self._send(("command", (line,), {}))
+        return self._reply("answer")["text"]
+
     def stats_lines(self) -> list[str]:
         """The rig's rates and truth timing lines."""
         self._send(("stats", (), {}))
@@ -221,6 +227,11 @@ def _serve(conn, config, period_s: float) -> None:
                     try:
                         rig.inject(*args, **kwargs)
                         conn.send(("injected", {}))
+                    except FaultCommandError as exc:
+                        conn.send(("error", str(exc)))
+                elif kind == "command":
+                    try:
+                        conn.send(("answer", {"text": rig.command(*args)}))
                     except FaultCommandError as exc:
                         conn.send(("error", str(exc)))
                 elif kind == "stats":

@@ -161,6 +161,14 @@ class EmulatedMx12:
         self.overload_latched = False
         self._store_goal(int(round(self.position_steps)))
 
+    def reset(self) -> None:
+        """Back to the start position (the calibrated zero), at rest, that position the goal;
+        an overload latched by tension is cleared (mode and torque stay)."""
+        self.position_steps = float(self.spec.zero_position if self.spec is not None else 0)
+        self.velocity_steps_s = 0.0
+        self.overload_latched = False
+        self._store_goal(int(round(self.position_steps)))
+
     # --- control table ------------------------------------------------------------------------
     def word(self, addr: int) -> int:
         return self.table[addr] | self.table[addr + 1] << 8
@@ -334,6 +342,12 @@ class Mx12Bus(PtyDevice):
         """Make servo ``servo_id`` ignore every packet (the driver sees a timeout)."""
         with self.lock:
             self._servo(servo_id).no_reply = on
+
+    def reset(self) -> None:
+        """Every servo back to its start position (:meth:`EmulatedMx12.reset`)."""
+        with self.lock:
+            for servo in self.servos.values():
+                servo.reset()
 
     def string_length_m(self, servo_id: int) -> float:
         """Present string length of servo ``servo_id``, m: the rest length for the model."""

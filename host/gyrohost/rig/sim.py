@@ -19,7 +19,8 @@ Clocks:
   wheel-board client is connected (or raise HEARTBEAT_MS).
 
 Run-time faults: :meth:`SimulatedRig.inject`, or :meth:`SimulatedRig.command` with the text
-form (``"fault imu silence 2"``) used by ``gyrotens rig`` on its standard input; see docs/rig.md.
+form (``"fault imu silence 2"``) used by ``gyrotens rig`` on its standard input, and ``reset``
+(:meth:`SimulatedRig.reset`, between two runs against one rig); see docs/rig.md.
 """
 
 import math
@@ -440,6 +441,17 @@ class SimulatedRig:
                     self.servos.set_overload(sid, False)
                     self.servos.set_no_reply(sid, False)
 
+    def reset(self) -> str:
+        """The truth to the scene's initial state, the servos to their start, the emulated wheels
+        to rest (simavr wheels run as the firmware drives them); returns what was done."""
+        with self._lock:
+            self.truth.reset()
+            self.servos.reset()
+            if self.wheels_kind == "emulator":
+                self.wheels.rest()
+        wheels = "wheels at rest" if self.wheels_kind == "emulator" else "simavr wheels as they are"
+        return f"reset: truth at the scene's initial state, servos at their start, {wheels}"
+
     def _later(self, duration_s: float | None, action) -> None:
         if duration_s is not None:
             self._timers.append((self._dev_t_s + duration_s, action))
@@ -448,7 +460,7 @@ class SimulatedRig:
         """Run one text command; returns a one-line answer.
 
         ``fault DEVICE FAULT [ARG...]`` (``fault imu silence 2``, ``fault wheels corrupt 40``,
-        ``fault servos overload 1 0.5``, ``fault wheels reset``) or ``stats``.
+        ``fault servos overload 1 0.5``, ``fault wheels reset``), ``stats`` or ``reset``.
 
         Raises
         ------
@@ -459,10 +471,10 @@ class SimulatedRig:
         if words == ["stats"]:
             stats = self.stats()
             return f"{stats.rates_line()}; {stats.truth_line()}"
+        if words == ["reset"]:
+            return self.reset()
         if len(words) < 3 or words[0] != "fault":
-            raise FaultCommandError(
-                f"unknown command {line.strip()!r}: try 'fault imu silence 2' or 'stats'"
-            )
+            raise FaultCommandError(f"unknown command {line.strip()!r}: try 'fault imu silence 2'")
         device, fault, args = words[1], words[2], words[3:]
         try:
             numbers = [float(a) for a in args]

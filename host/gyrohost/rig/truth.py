@@ -158,7 +158,8 @@ class Truth:
         depth = int(math.ceil(config.imu_latency_s / self.dt_s)) + 2
         self._history: deque = deque(maxlen=depth)
         self._record: list | None = None
-        self.set_state(self.stepper.x)
+        self._x0 = self.stepper.x.copy()
+        self.set_state(self._x0)
 
     def _frame_nodes(self, scene: Scene, names: Sequence[str]) -> list[int]:
         unknown = [n for n in names if n not in scene.node_names]
@@ -184,6 +185,14 @@ class Truth:
         self.stepper.x = np.array(x, dtype=float)
         self._history.clear()
         self._history.append((self.stepper.t, self.stepper.x.copy(), self.u))
+
+    def reset(self) -> None:
+        """Back to the scene's initial state (nodes, velocities, rest lengths), wheels at rest;
+        the truth's clock runs on."""
+        self.rest_length_m[:] = [s.rest_length(0.0) for s in self.model.scene.strings]
+        self.wheel_input_rad_s[:] = 0.0
+        self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        self.set_state(self._x0)
 
     @property
     def t_s(self) -> float:

@@ -144,6 +144,15 @@ class WheelBoardEmulator(PtyDevice):
         with self.lock:
             self._reset_request = (down_s, watchdog)
 
+    def rest(self) -> None:
+        """Every wheel at rest at once, targets and setpoints 0 (the rig put back by hand)."""
+        with self.lock:
+            self._reset_wheels()
+            self.omega_rad_s = [0.0] * wp.N_WHEELS
+            self._base_rad_s = [0.0] * wp.N_WHEELS
+            self.measured = [0.0] * wp.N_WHEELS
+            self.enabled = [False] * wp.N_WHEELS
+
     def wheel_speeds_rad_s(self) -> list[float]:
         """True wheel speeds, rad/s (a copy, taken under the lock)."""
         with self.lock:

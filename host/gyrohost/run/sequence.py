@@ -4,7 +4,8 @@
 
     check      schedule against every servo's limits, strings against the servos  (nothing moves)
     connect    IMU sample, wheel-board handshake (protocol version; faults latched before the
-               run cleared and logged), servo pings (MX-12W)
+               run cleared and logged), servo pings (MX-12W); the measured state against the
+               scene's initial state (run/start_check.py: refused outside tolerances, exit 2)
     hold       servos: multi-turn mode, torque on, hold the present position
     spinup     wheels to the scene's spins; wait for steady speed (time-out)
     lead_in    estimator started from the steady state, schedule at its first sample
@@ -51,6 +52,7 @@ from gyrohost.run.limits import check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.safe_state import reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
+from gyrohost.run.start_check import StartStateRefused, check_start_state
 from gyrohost.run.streams import (
     EstimateWriter,
     InnovationWriter,
@@ -160,6 +162,8 @@ class RunLoop:
                 reason, status = "completed", 0
             except KeyboardInterrupt:
                 reason, status = "interrupted (Ctrl-C)", 130
+            except StartStateRefused as exc:  # a user error: put the rig back
+                reason, status = f"start state refused: {exc}", 2
             except Exception as exc:  # every fault ends in the safe state, then is reported
                 reason, status = f"{type(exc).__name__}: {exc}", 1
             self.event("end", reason)
@@ -174,6 +178,7 @@ class RunLoop:
     def _sequence(self) -> None:
         self._enter("connect")
         self._connect()
+        check_start_state(self)
         self._enter("hold")
         self.servos.configure()
         self._start_readers()
