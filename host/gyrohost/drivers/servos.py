@@ -279,6 +279,22 @@ class StringServoBus:
             self._check(servo, result, 0, "write torque enable")
         return states
 
+    def read_hold(self, name: str) -> tuple[bool, int, ServoState]:
+        """Read back whether one servo holds: torque enabled, goal position (steps), its state.
+
+        Raises
+        ------
+        ServoCommError
+            The servo did not answer or the answer was corrupt.
+        """
+        servo = self.servos[name]
+        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.TORQUE_ENABLE
+        data, result, error = self.packets.readTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, n)
+        self._check(servo, result, 0, "read torque enable/goal/present")
+        goal = mx12.int16_from_word(data[6] | data[7] << 8)  # GOAL_POSITION = TORQUE_ENABLE + 6
+        present = data[mx12.Addr.PRESENT_POSITION - mx12.Addr.TORQUE_ENABLE :]
+        return bool(data[0]), goal, self._state(servo, present, error, time.monotonic_ns())
+
     # --- read back ----------------------------------------------------------------------------
     def read_states(self) -> list[ServoState]:
         """Read position, speed and load of every servo (configuration order).

@@ -66,6 +66,11 @@ class _Reader:
         self._thread.start()
         return self
 
+    @property
+    def alive(self) -> bool:
+        """The thread is running."""
+        return self._thread.is_alive()
+
     def stop(self, timeout_s: float = 2.0) -> None:
         self._stop.set()
         if self._thread.is_alive():
@@ -120,6 +125,14 @@ class WheelTelemetry(_Reader):
     :meth:`arm` is called, i.e. after faults latched before the run were cleared): telemetry
     silent for ``silence_s`` s, the device clock ``t_us`` running backwards (a reboot), and
     latched fault bits (names from the protocol table).
+
+    Attributes
+    ----------
+    latest : wheelproto.Telemetry or None
+        The newest frame; ``latest_ns`` its arrival time (``time.monotonic_ns``), ns.
+    reboots : list of (int, str)
+        Every reboot seen once armed (also after the first fault): arrival time, ns, and what
+        the board reported (its clock, the reset cause).
     """
 
     name = "wheels"
@@ -128,6 +141,8 @@ class WheelTelemetry(_Reader):
         super().__init__(out)
         self.silence_s = silence_s
         self.latest = None
+        self.latest_ns: int | None = None
+        self.reboots: list[tuple[int, str]] = []
         self._last_ns = time.monotonic_ns()
         self._last_t_us: int | None = None
         self._fault: DeviceFault | None = None
@@ -145,16 +160,20 @@ class WheelTelemetry(_Reader):
         self._last_ns = now
         rebooted = self._last_t_us is not None and 0 < self._last_t_us - tel.t_us < 2**31
         if self._armed and rebooted:
-            self._fault = self._fault or DeviceFault(
-                "wheels",
-                f"board rebooted (device clock went from {self._last_t_us} us to {tel.t_us} us)",
+            # the boot state (docs/protocol.md): drives off, no setpoint; the watchdog says so
+            cause = "watchdog reset" if "WATCHDOG_RESET" in tel.fault_names else "reset"
+            what = (
+                f"board rebooted ({cause}: device clock went from {self._last_t_us} us to "
+                f"{tel.t_us} us; drives off since, wheels coasting)"
             )
+            self.reboots.append((now, what))
+            self._fault = self._fault or DeviceFault("wheels", what)
         self._last_t_us = tel.t_us
         if self._armed and tel.faults:
             self._fault = self._fault or DeviceFault(
                 "wheels", f"faults latched: {', '.join(tel.fault_names)}"
             )
-        self.latest = tel
+        self.latest, self.latest_ns = tel, now
         self.out.put(Sample("wheels", now, tel))
 
     def _cycle(self) -> None:
