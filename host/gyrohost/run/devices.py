@@ -1,8 +1,8 @@
 """Device I/O of the run loop in background threads, so the fixed-rate loop never waits on a port.
 
 Each device gets one reader that turns what arrives into :class:`Sample` objects (host arrival
-time plus the parsed values) on one shared queue; a reader that fails puts a :class:`DeviceFault`
-there instead and stops, so the loop learns about it at its next tick.
+time plus the parsed values) on one shared queue; a reader that fails (whatever it raises) puts a
+:class:`DeviceFault` there instead and stops, so the loop learns about it at its next tick.
 
 - :class:`ImuReader`: polls the BWT61CL driver; silence longer than ``silence_s`` is a fault.
 - :class:`WheelTelemetry`: the wheel-board client already reads in its own thread; this stamps
@@ -17,8 +17,7 @@ import threading
 import time
 from dataclasses import dataclass
 
-from gyrohost.drivers.imu import ImuError
-from gyrohost.drivers.servos import ServoCommError, ServoError, ServoLimitError
+from gyrohost.drivers.servos import ServoCommError
 from gyrohost.errors import GyrohostError
 
 POLL_IDLE_S = 0.002
@@ -82,7 +81,7 @@ class _Reader:
                 self._cycle()
         except DeviceFault as exc:
             self.out.put(exc)
-        except (ImuError, ServoError, ServoLimitError, OSError) as exc:
+        except Exception as exc:  # a driver error, OSError, termios.error of a port gone: any
             self.out.put(DeviceFault(self.name, f"{type(exc).__name__}: {exc}"))
 
     def _cycle(self) -> None:  # pragma: no cover - every reader overrides it

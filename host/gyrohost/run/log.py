@@ -26,6 +26,9 @@ from gyrohost.errors import GyrohostError
 
 FORMAT = "gyrotens-log"
 FORMAT_VERSION = 1
+RESERVE_BYTES = 65536
+"""Disk space a log holds back (the file ``.reserve``) while it is written and gives up when a
+write is refused, so a full disk still takes the summary in ``meta.json`` (about 20 kB)."""
 
 
 class LogError(GyrohostError, ValueError):
@@ -135,7 +138,13 @@ class RunLog:
         self.streams: dict[str, Stream] = {}
         self.failure: str | None = None
         self.last_t_s = math.nan
+        self._reserve = self.folder / ".reserve"
         self._write_meta()
+        try:
+            with open(self._reserve, "wb") as f:
+                f.write(bytes(RESERVE_BYTES))
+        except OSError as exc:
+            self.fail(f"{self._reserve.name}: {exc}")
 
     def stream(
         self,
@@ -184,8 +193,16 @@ class RunLog:
             self.check()
 
     def fail(self, failure: str) -> None:
-        """Record a refused write (the first one is kept); later rows are dropped."""
+        """Record a refused write (the first one is kept); later rows are dropped and the
+        reserved space is given up for the summary."""
         self.failure = self.failure or failure
+        self._release()
+
+    def _release(self) -> None:
+        try:
+            self._reserve.unlink(missing_ok=True)
+        except OSError:
+            pass  # a folder gone read-only: nothing more will be written either
 
     def wrote_at(self, t_s) -> None:
         """A row stamped ``t_s`` was written whole."""
@@ -211,6 +228,7 @@ class RunLog:
         """Close every stream (a failing close is recorded, not raised)."""
         for s in self.streams.values():
             s.close()
+        self._release()
 
     def __enter__(self):
         return self
