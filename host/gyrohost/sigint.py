@@ -2,9 +2,9 @@
 that must not be cut short.
 
 Ctrl-C (SIGINT), ``kill`` (SIGTERM) and a closed terminal or ssh session (SIGHUP) all mean "stop
-now": :class:`InterruptsRaised` turns SIGTERM and SIGHUP into :class:`Interrupted`, a
-``KeyboardInterrupt``, so whatever ends a run on Ctrl-C ends it on them too, and
-:func:`exit_status` gives the shell's status (128 + signal). Python delivers signals to the main
+now": :class:`InterruptsRaised` turns SIGTERM and SIGHUP into a ``KeyboardInterrupt`` naming
+the signal, so whatever ends a run on Ctrl-C ends it on them too, and :func:`exit_status` gives
+the shell's status (128 + signal). Python delivers signals to the main
 thread only, so in any other thread these contexts do nothing (a signal then reaches the main
 thread's handler as usual).
 """
@@ -16,22 +16,23 @@ INTERRUPTS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """The signals that mean "stop now"."""
 
 
-class Interrupted(KeyboardInterrupt):
-    """SIGTERM or SIGHUP, raised as an interrupt; ``signum`` is the signal."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
+def interrupt_signal(exc: KeyboardInterrupt) -> signal.Signals:
+    """The signal behind an interrupt: the one its argument names (raised by
+    :class:`InterruptsRaised`), else SIGINT (Python's own Ctrl-C)."""
+    name = exc.args[0] if exc.args else None
+    known = isinstance(name, str) and name in signal.Signals.__members__
+    return signal.Signals[name] if known else signal.SIGINT
 
 
 def signal_name(exc: KeyboardInterrupt) -> str:
-    """``Ctrl-C`` for a plain ``KeyboardInterrupt``, else the signal's name (``SIGTERM``)."""
-    return "Ctrl-C" if not isinstance(exc, Interrupted) else signal.Signals(exc.signum).name
+    """``Ctrl-C`` for SIGINT, else the signal's name (``SIGTERM``)."""
+    signum = interrupt_signal(exc)
+    return "Ctrl-C" if signum == signal.SIGINT else signum.name
 
 
 def exit_status(exc: KeyboardInterrupt) -> int:
     """The shell's exit status of a process ended by this interrupt: 128 + signal (130 Ctrl-C)."""
-    return 128 + getattr(exc, "signum", signal.SIGINT)
+    return 128 + interrupt_signal(exc)
 
 
 def ignore_interrupts() -> None:
@@ -67,16 +68,16 @@ class InterruptsHandled:
         return False
 
 
-def _raise_interrupted(signum, frame):
-    raise Interrupted(signum)
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 class InterruptsRaised(InterruptsHandled):
-    """Context: inside, SIGTERM and SIGHUP raise :class:`Interrupted` (SIGINT keeps its
-    handler: Python's own raises ``KeyboardInterrupt``)."""
+    """Context: inside, SIGTERM and SIGHUP raise ``KeyboardInterrupt("SIGTERM")`` (or
+    ``"SIGHUP"``); SIGINT keeps its handler (Python's own raises ``KeyboardInterrupt``)."""
 
     def __init__(self):
-        super().__init__(_raise_interrupted, (signal.SIGTERM, signal.SIGHUP))
+        super().__init__(_raise_interrupt, (signal.SIGTERM, signal.SIGHUP))
 
 
 class InterruptsHeld(InterruptsHandled):
@@ -98,7 +99,7 @@ class InterruptsHeld(InterruptsHandled):
         signum, frame = self.pending
         handler = previous.get(signum)
         if callable(handler):
-            handler(signum, frame)  # KeyboardInterrupt, Interrupted, or the safe state's note
+            handler(signum, frame)  # KeyboardInterrupt, or the safe state's note
         elif handler == signal.SIG_DFL:
             signal.raise_signal(signum)
         return False

@@ -221,7 +221,8 @@ def report(result) -> int:
     if "maneuver" in s:
         print(maneuver_line(s))
     safe = s["safe_state"]
-    for line in failed_steps(safe):
+    failed = failed_steps(safe)  # one line each, what the step reached included
+    for line in failed:
         print(f"gyrotens run: safe state: {line}", file=sys.stderr)
     if result.exit_status == 0:
         print(f"run completed; rig in the safe state: {describe(safe)}")
@@ -230,7 +231,8 @@ def report(result) -> int:
         print("gyrotens run: completed, but the log is incomplete", file=sys.stderr)
     else:
         print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
-    print(f"gyrotens run: {describe(safe)}", file=sys.stderr)
+    if not failed:
+        print(f"gyrotens run: {describe(safe)}", file=sys.stderr)
     return result.exit_status
 
 

@@ -268,6 +268,7 @@ class StringServoBus:
         Fault bits do not stop this (it is what a fault handler calls); communication
         failures do. Returns the states read, faults included.
         """
+        self._release_port()
         states = self._read_all()
         goals = {}
         for state in states:
@@ -288,6 +289,7 @@ class StringServoBus:
             The servo did not answer or the answer was corrupt.
         """
         servo = self.servos[name]
+        self._release_port()
         n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.TORQUE_ENABLE
         data, result, error = self.packets.readTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, n)
         self._check(servo, result, 0, "read torque enable/goal/present")
@@ -323,6 +325,11 @@ class StringServoBus:
         return {s.name: s.length_m for s in self.read_states()}
 
     # --- internals ----------------------------------------------------------------------------
+    def _release_port(self) -> None:
+        """Clear the SDK's busy flag: a transaction cut short by an exception (a port gone, in
+        another thread) leaves it set, and every later one would fail as "Port is in use"."""
+        self.port.is_using = False
+
     def _by_name(self, values, what: str) -> dict[str, float]:
         if isinstance(values, Mapping):
             unknown = set(values) - set(self.servos)

@@ -24,6 +24,15 @@ POLL_IDLE_S = 0.002
 """Sleep of the IMU reader when nothing has arrived, s (at most this much extra latency)."""
 
 
+def failure_text(exc: BaseException) -> str:
+    """``Type: message`` of an exception, its module named for a bare ``error``
+    (``termios.error``)."""
+    name = type(exc).__name__
+    if name == "error":
+        name = f"{type(exc).__module__}.error"
+    return f"{name}: {exc}"
+
+
 class DeviceFault(GyrohostError, RuntimeError):
     """A device failed during a run; ``device`` names it (``imu``, ``wheels``, ``servos``)."""
 
@@ -82,7 +91,7 @@ class _Reader:
         except DeviceFault as exc:
             self.out.put(exc)
         except Exception as exc:  # a driver error, OSError, termios.error of a port gone: any
-            self.out.put(DeviceFault(self.name, f"{type(exc).__name__}: {exc}"))
+            self.out.put(DeviceFault(self.name, failure_text(exc)))
 
     def _cycle(self) -> None:  # pragma: no cover - every reader overrides it
         raise NotImplementedError

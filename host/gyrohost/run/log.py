@@ -35,7 +35,7 @@ class LogError(GyrohostError, ValueError):
     """A log folder or row that does not follow the format; the message names the file and row."""
 
 
-class LogWriteError(GyrohostError, OSError):
+class LogWriteError(GyrohostError, RuntimeError):
     """Writing the log failed (a full disk, a lost drive); the message says where the log ends."""
 
 

@@ -16,6 +16,7 @@ from functools import partial
 import numpy as np
 
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.run.devices import failure_text
 from gyrohost.sigint import InterruptsHandled
 
 HOLD_TOLERANCE_STEPS = 32
@@ -73,7 +74,7 @@ def attempt(loop, out: dict, name: str, step) -> None:
     try:
         ok, detail = step()
     except Exception as exc:  # the next step must run whatever this one raised
-        ok, detail = False, f"{type(exc).__name__}: {exc}"
+        ok, detail = False, failure_text(exc)
     out["steps"].append({"step": name, "ok": ok, "detail": detail})
     if not ok:
         loop.event("fault", f"safe state: {name} failed: {detail}")
@@ -90,10 +91,7 @@ def _stop_wheels(loop, out: dict) -> tuple[bool, str]:
         loop.wheels.stop_all()
         sent = None
     except Exception as exc:  # pyserial's errors are OSErrors; a timed-out ACK, anything
-        sent = (
-            f"STOP_ALL failed ({type(exc).__name__}: {exc}); the board's heartbeat fail-safe "
-            "stops the wheels if it is alive"
-        )
+        sent = f"STOP_ALL failed ({failure_text(exc)})"
     start = loop.now()
     ramped = False
     while not ramped and loop.now() - start < s.rampdown_timeout_s:
@@ -115,9 +113,10 @@ def _wheels_at_exit(loop, out: dict, stop_ns: int, ramped: bool) -> tuple[str, b
     s, reader = loop.settings, loop.wheel_reader
     tel, tel_ns = reader.latest, reader.latest_ns
     out["wheels_stopped"] = False
+    alive = "if the board is alive, its heartbeat fail-safe stops the wheels"
     if tel is None:
         out["wheel_speeds_at_exit_rad_s"] = None
-        return "wheel speeds unknown: no telemetry in the run", False
+        return f"wheel speeds unknown: no telemetry in the run; {alive}", False
     speeds = [float(w) for w in tel.omega_rad_s]
     fastest = max(abs(w) for w in speeds)
     out["wheel_speeds_at_exit_rad_s"] = speeds
@@ -126,7 +125,7 @@ def _wheels_at_exit(loop, out: dict, stop_ns: int, ramped: bool) -> tuple[str, b
     if tel_ns <= stop_ns:
         return (
             f"wheel speeds unknown: no telemetry since the safe state began (the last, "
-            f"{out['wheel_telemetry_age_s']:.1f} s old: max {fastest:.1f} rad/s)"
+            f"{out['wheel_telemetry_age_s']:.1f} s old: max {fastest:.1f} rad/s); {alive}"
         ), False
     measured = f"max {fastest:.2f} rad/s measured at exit"
     if fastest < s.stop_threshold_rad_s:
@@ -153,7 +152,7 @@ def _hold_servos(loop, out: dict) -> tuple[bool, str]:
     try:
         loop.servos.hold()
     except Exception as exc:  # each servo is read back below: some may hold all the same
-        failed = f"hold: {type(exc).__name__}: {exc}"
+        failed = f"hold: {failure_text(exc)}"
     servos = {servo.name: _read_hold(loop.servos, servo.name) for servo in loop.config.servos.servo}
     out["servos"] = servos
     out["servos_holding"] = all(s["holding"] for s in servos.values())
@@ -166,7 +165,7 @@ def _read_hold(bus, name: str) -> dict:
     try:
         torque, goal, state = bus.read_hold(name)
     except Exception as exc:
-        return {"holding": False, "why": f"no read-back: {type(exc).__name__}: {exc}"}
+        return {"holding": False, "why": f"no read-back: {failure_text(exc)}"}
     off = goal - state.position_steps
     out = {"holding": torque and abs(off) <= HOLD_TOLERANCE_STEPS, "length_m": state.length_m,
            "faults": list(state.faults)}  # fmt: skip
@@ -201,7 +200,7 @@ def _close_devices(loop, out: dict) -> tuple[bool, str]:
             try:
                 dev.close()
             except Exception as exc:  # a device already gone (pyserial errors are OSErrors)
-                failed.append(f"{type(dev).__name__}: {type(exc).__name__}: {exc}")
+                failed.append(f"{type(dev).__name__}: {failure_text(exc)}")
     return not failed, "; ".join(failed) or "closed"
 
 

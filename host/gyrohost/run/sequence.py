@@ -44,7 +44,7 @@ from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig, for_rig
 from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry
+from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import LimitBreach, RunError
 from gyrohost.run.limits import check_limits, check_schedule
@@ -162,7 +162,7 @@ class RunLoop:
             except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP
                 reason, status = f"interrupted ({signal_name(exc)})", exit_status(exc)
             except Exception as exc:  # every fault ends in the safe state, then is reported
-                reason, status = f"{type(exc).__name__}: {exc}", 1
+                reason, status = failure_text(exc), 1
             with ignore_interrupts(self, "the end of the run"):
                 summary = self._end(reason)
         if self.log.failure is not None and status == 0:
@@ -390,7 +390,7 @@ class RunLoop:
         except Exception as exc:
             if strict:
                 raise
-            self.event("fault", f"truth probe: {type(exc).__name__}: {exc}")
+            self.event("fault", f"truth probe: {failure_text(exc)}")
             self.truth = None
 
     def _played(self, t_s: float) -> float:
