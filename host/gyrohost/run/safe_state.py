@@ -28,7 +28,7 @@ def ignore_interrupts(loop, what: str) -> InterruptsHandled:
 
     def note(signum, frame):
         name = signal.Signals(signum).name
-        loop.event("interrupt", f"{name} during {what}: ignored until it is reached")
+        loop.event("interrupt", f"{name} during {what}: ignored")
 
     return InterruptsHandled(note)
 

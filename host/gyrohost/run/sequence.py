@@ -163,7 +163,7 @@ class RunLoop:
                 reason, status = f"interrupted ({signal_name(exc)})", exit_status(exc)
             except Exception as exc:  # every fault ends in the safe state, then is reported
                 reason, status = failure_text(exc), 1
-            with ignore_interrupts(self, "the end of the run"):
+            with ignore_interrupts(self, "the safe state and the summary"):
                 summary = self._end(reason)
         if self.log.failure is not None and status == 0:
             status = 1  # the run completed, its log did not
