@@ -122,7 +122,7 @@ def test_an_injected_device_fault_ends_in_the_safe_state_and_is_named(tmp_path, 
     if fault[0] != "wheels":  # a rebooted board lets its wheels coast: nothing to ramp
         assert_safe_state(folder, result)
     if fault[0] == "servos":
-        assert "overload" in " ".join(safe["servo_faults"]["s13"]).lower()
+        assert "overload" in " ".join(safe["servos"]["s13"]["faults"]).lower()
 
 
 def test_a_limit_breach_during_the_run_ends_in_the_safe_state(tmp_path):

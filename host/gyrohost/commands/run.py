@@ -150,6 +150,17 @@ def _wired(config, args):
 
 
 def run(args) -> int:
+    from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
+
+    try:
+        with InterruptsRaised():  # SIGTERM, SIGHUP before the run loop: as Ctrl-C there
+            return _run(args)
+    except KeyboardInterrupt as exc:  # before anything moved, or after the log was written
+        print(f"gyrotens run: interrupted ({signal_name(exc)})", file=sys.stderr)
+        return exit_status(exc)
+
+
+def _run(args) -> int:
     from dataclasses import replace
 
     from gyrohost.cli import CliError
@@ -196,10 +207,12 @@ def _run_name(schedule) -> str:
 def report(result) -> int:
     """Print how a run ended and where its log is; returns its exit status."""
     from gyrohost.run import jitter_line
+    from gyrohost.run.safe_state import describe, failed_steps
 
     s = result.summary
     print(f"log: {result.log_folder}")
-    print(jitter_line(s["loop"]))
+    if "loop" in s:  # none if the summary could not be made
+        print(jitter_line(s["loop"]))
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
         if "tilt_end_truth_rad" in s:
@@ -207,10 +220,19 @@ def report(result) -> int:
         print(line)
     if "maneuver" in s:
         print(maneuver_line(s))
-    if result.exit_status:
-        print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
+    safe = s["safe_state"]
+    failed = failed_steps(safe)  # one line each, what the step reached included
+    for line in failed:
+        print(f"gyrotens run: safe state: {line}", file=sys.stderr)
+    if result.exit_status == 0:
+        print(f"run completed; rig in the safe state: {describe(safe)}")
+        return 0
+    if result.completed:  # the schedule ran to its end, the log did not
+        print("gyrotens run: completed, but the log is incomplete", file=sys.stderr)
     else:
-        print("run completed; rig in the safe state (wheels stopped, servos holding)")
+        print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
+    if not failed:
+        print(f"gyrotens run: {describe(safe)}", file=sys.stderr)
     return result.exit_status
 
 

@@ -275,6 +275,7 @@ class StringServoBus:
         Fault bits do not stop this (it is what a fault handler calls); communication
         failures do. Returns the states read, faults included.
         """
+        self._release_port()
         states = self._read_all()
         goals = {}
         for state in states:
@@ -285,6 +286,23 @@ class StringServoBus:
             result, _ = self.packets.write1ByteTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, 1)
             self._check(servo, result, 0, "write torque enable")
         return states
+
+    def read_hold(self, name: str) -> tuple[bool, int, ServoState]:
+        """Read back whether one servo holds: torque enabled, goal position (steps), its state.
+
+        Raises
+        ------
+        ServoCommError
+            The servo did not answer or the answer was corrupt.
+        """
+        servo = self.servos[name]
+        self._release_port()
+        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.TORQUE_ENABLE
+        data, result, error = self.packets.readTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, n)
+        self._check(servo, result, 0, "read torque enable/goal/present")
+        goal = mx12.int16_from_word(data[6] | data[7] << 8)  # GOAL_POSITION = TORQUE_ENABLE + 6
+        present = data[mx12.Addr.PRESENT_POSITION - mx12.Addr.TORQUE_ENABLE :]
+        return bool(data[0]), goal, self._state(servo, present, error, time.monotonic_ns())
 
     # --- read back ----------------------------------------------------------------------------
     def read_states(self) -> list[ServoState]:
@@ -314,6 +332,11 @@ class StringServoBus:
         return {s.name: s.length_m for s in self.read_states()}
 
     # --- internals ----------------------------------------------------------------------------
+    def _release_port(self) -> None:
+        """Clear the SDK's busy flag: a transaction cut short by an exception (a port gone, in
+        another thread) leaves it set, and every later one would fail as "Port is in use"."""
+        self.port.is_using = False
+
     def _by_name(self, values, what: str) -> dict[str, float]:
         if isinstance(values, Mapping):
             unknown = set(values) - set(self.servos)

@@ -7,22 +7,22 @@ also samples the truth every ``period_s`` and sends it up a pipe, stamped with
 ``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
 answers fault injections and statistics requests.
 
-A Ctrl-C that arrives while the parent receives is held until the message is whole: a
-``KeyboardInterrupt`` inside ``Connection.recv`` would leave the rest of the message in the pipe,
-read next as a broken message (``EOFError``) although the child is alive. (A reader thread would
-avoid that too, but under CPU load its GIL hand-offs made the loop's ticks late by 0.3 s.) Every
-failure of the pipe (the child gone, a broken pipe) is a :class:`RigProcessError`.
+An interrupt (Ctrl-C, SIGTERM, SIGHUP) that arrives while the parent receives is held until the
+message is whole: a ``KeyboardInterrupt`` inside ``Connection.recv`` would leave the rest of the
+message in the pipe, read next as a broken message (``EOFError``) although the child is alive.
+(A reader thread would avoid that too, but under CPU load its GIL hand-offs made the loop's ticks
+late by 0.3 s.) Every failure of the pipe (the child gone, a broken pipe) is a
+:class:`RigProcessError`.
 """
 
 import multiprocessing
-import signal
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from gyrohost.errors import GyrohostError
-from gyrohost.sigint import SigintHeld
+from gyrohost.sigint import InterruptsHeld, ignore_interrupts
 
 READY_TIMEOUT_S = 60.0
 """Longest wait for the child to import, build the rig and report its ptys, s."""
@@ -108,7 +108,7 @@ class RigProcess:
         RigProcessError
             The rig reported an error, or the pipe to it broke.
         """
-        with SigintHeld():
+        with InterruptsHeld():
             while self._poll(0.0):
                 self._take(self._recv())
         out, self._pending = self._pending, []
@@ -182,7 +182,7 @@ class RigProcess:
             left = deadline - time.monotonic()
             if left <= 0 or not self._proc.is_alive() and not self._poll(0.0):
                 raise RigProcessError(f"simulated rig: no '{kind}' reply within {timeout_s:g} s")
-            with SigintHeld():
+            with InterruptsHeld():
                 reply = self._take(self._recv()) if self._poll(min(left, 0.1)) else None
             if reply is not None and reply["kind"] == kind:
                 return reply
@@ -192,7 +192,7 @@ def _serve(conn, config, period_s: float) -> None:
     """Child process: build and start the rig, stream the truth, answer requests."""
     from gyrohost.rig.sim import FaultCommandError, SimulatedRig
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it still needs the rig
+    ignore_interrupts()  # Ctrl-C, SIGTERM, SIGHUP are the parent's: it still needs the rig
     try:
         rig = SimulatedRig(config, clock="real")
         t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)

@@ -1,8 +1,8 @@
 """Device I/O of the run loop in background threads, so the fixed-rate loop never waits on a port.
 
 Each device gets one reader that turns what arrives into :class:`Sample` objects (host arrival
-time plus the parsed values) on one shared queue; a reader that fails puts a :class:`DeviceFault`
-there instead and stops, so the loop learns about it at its next tick.
+time plus the parsed values) on one shared queue; a reader that fails (whatever it raises) puts a
+:class:`DeviceFault` there instead and stops, so the loop learns about it at its next tick.
 
 - :class:`ImuReader`: polls the BWT61CL driver; silence longer than ``silence_s`` is a fault.
 - :class:`WheelTelemetry`: the wheel-board client already reads in its own thread; this stamps
@@ -17,12 +17,20 @@ import threading
 import time
 from dataclasses import dataclass
 
-from gyrohost.drivers.imu import ImuError
-from gyrohost.drivers.servos import ServoCommError, ServoError, ServoLimitError
+from gyrohost.drivers.servos import ServoCommError
 from gyrohost.errors import GyrohostError
 
 POLL_IDLE_S = 0.002
 """Sleep of the IMU reader when nothing has arrived, s (at most this much extra latency)."""
+
+
+def failure_text(exc: BaseException) -> str:
+    """``Type: message`` of an exception, its module named for a bare ``error``
+    (``termios.error``)."""
+    name = type(exc).__name__
+    if name == "error":
+        name = f"{type(exc).__module__}.error"
+    return f"{name}: {exc}"
 
 
 class DeviceFault(GyrohostError, RuntimeError):
@@ -66,6 +74,11 @@ class _Reader:
         self._thread.start()
         return self
 
+    @property
+    def alive(self) -> bool:
+        """The thread is running."""
+        return self._thread.is_alive()
+
     def stop(self, timeout_s: float = 2.0) -> None:
         self._stop.set()
         if self._thread.is_alive():
@@ -77,8 +90,8 @@ class _Reader:
                 self._cycle()
         except DeviceFault as exc:
             self.out.put(exc)
-        except (ImuError, ServoError, ServoLimitError, OSError) as exc:
-            self.out.put(DeviceFault(self.name, f"{type(exc).__name__}: {exc}"))
+        except Exception as exc:  # a driver error, OSError, termios.error of a port gone: any
+            self.out.put(DeviceFault(self.name, failure_text(exc)))
 
     def _cycle(self) -> None:  # pragma: no cover - every reader overrides it
         raise NotImplementedError
@@ -120,6 +133,14 @@ class WheelTelemetry(_Reader):
     :meth:`arm` is called, i.e. after faults latched before the run were cleared): telemetry
     silent for ``silence_s`` s, the device clock ``t_us`` running backwards (a reboot), and
     latched fault bits (names from the protocol table).
+
+    Attributes
+    ----------
+    latest : wheelproto.Telemetry or None
+        The newest frame; ``latest_ns`` its arrival time (``time.monotonic_ns``), ns.
+    reboots : list of (int, str)
+        Every reboot seen once armed (also after the first fault): arrival time, ns, and what
+        the board reported (its clock, the reset cause).
     """
 
     name = "wheels"
@@ -128,6 +149,8 @@ class WheelTelemetry(_Reader):
         super().__init__(out)
         self.silence_s = silence_s
         self.latest = None
+        self.latest_ns: int | None = None
+        self.reboots: list[tuple[int, str]] = []
         self._last_ns = time.monotonic_ns()
         self._last_t_us: int | None = None
         self._fault: DeviceFault | None = None
@@ -145,16 +168,20 @@ class WheelTelemetry(_Reader):
         self._last_ns = now
         rebooted = self._last_t_us is not None and 0 < self._last_t_us - tel.t_us < 2**31
         if self._armed and rebooted:
-            self._fault = self._fault or DeviceFault(
-                "wheels",
-                f"board rebooted (device clock went from {self._last_t_us} us to {tel.t_us} us)",
+            # the boot state (docs/protocol.md): drives off, no setpoint; the watchdog says so
+            cause = "watchdog reset" if "WATCHDOG_RESET" in tel.fault_names else "reset"
+            what = (
+                f"board rebooted ({cause}: device clock went from {self._last_t_us} us to "
+                f"{tel.t_us} us; drives off since, wheels coasting)"
             )
+            self.reboots.append((now, what))
+            self._fault = self._fault or DeviceFault("wheels", what)
         self._last_t_us = tel.t_us
         if self._armed and tel.faults:
             self._fault = self._fault or DeviceFault(
                 "wheels", f"faults latched: {', '.join(tel.fault_names)}"
             )
-        self.latest = tel
+        self.latest, self.latest_ns = tel, now
         self.out.put(Sample("wheels", now, tel))
 
     def _cycle(self) -> None:

@@ -26,21 +26,40 @@ from gyrohost.errors import GyrohostError
 
 FORMAT = "gyrotens-log"
 FORMAT_VERSION = 1
+RESERVE_BYTES = 65536
+"""Disk space a log holds back (the file ``.reserve``) while it is written and gives up when a
+write is refused, so a full disk still takes the summary in ``meta.json`` (about 20 kB)."""
 
 
 class LogError(GyrohostError, ValueError):
     """A log folder or row that does not follow the format; the message names the file and row."""
 
 
-class Stream:
-    """One append-only CSV stream with a fixed list of columns."""
+class LogWriteError(GyrohostError, RuntimeError):
+    """Writing the log failed (a full disk, a lost drive); the message says where the log ends."""
 
-    def __init__(self, path: Path, columns: Sequence[str]):
+
+class Stream:
+    """One append-only CSV stream with a fixed list of columns, of the log ``log``.
+
+    A write the file system refuses (``OSError``: a full disk) is not raised here: the log
+    records it (:attr:`RunLog.failure`) and drops every later row of every stream, so what was
+    written stays readable and the writer goes on (the run to its safe state).
+    """
+
+    def __init__(self, path: Path, columns: Sequence[str], log: "RunLog"):
         self.path = path
         self.columns = tuple(columns)
-        self._file = open(path, "x", buffering=1, encoding="ascii")  # line-buffered
-        self._file.write(",".join(self.columns) + "\n")
+        self.log = log
         self.rows = 0
+        self._file = None
+        if log.failure is not None:
+            return  # the log ends before this stream: nothing is created
+        try:
+            self._file = open(path, "x", buffering=1, encoding="ascii")  # line-buffered
+            self._file.write(",".join(self.columns) + "\n")
+        except OSError as exc:
+            log.fail(f"{path.name}: {exc}")
 
     def write(self, *values) -> None:
         """Append one row; ``values`` in column order (numbers, or strings without commas)."""
@@ -49,11 +68,27 @@ class Stream:
                 f"{self.path.name}: row has {len(values)} values, "
                 f"columns are {len(self.columns)}: {', '.join(self.columns)}"
             )
-        self._file.write(",".join(_format(v) for v in values) + "\n")
+        line = ",".join(_format(v) for v in values) + "\n"
+        if self._file is None or self.log.failure is not None:
+            return
+        try:
+            self._file.write(line)
+        except OSError as exc:
+            self.log.fail(f"{self.path.name}: {exc}")
+            return
         self.rows += 1
+        if self.columns[0] == "t_s":
+            self.log.wrote_at(values[0])
 
     def close(self) -> None:
-        self._file.close()
+        """Close the file; a failing flush is recorded as the log's failure, not raised."""
+        if self._file is None:
+            return
+        file, self._file = self._file, None
+        try:
+            file.close()
+        except OSError as exc:
+            self.log.fail(f"{self.path.name}: {exc}")
 
 
 def _format(value) -> str:
@@ -78,6 +113,14 @@ class RunLog:
         Created if missing; must not already hold a log.
     meta : dict
         JSON-serialisable description of the run (configuration, scene, command line, ...).
+
+    Attributes
+    ----------
+    failure : str or None
+        The first write the file system refused (file and error), None while all is written;
+        from then on no row is written (:class:`Stream`), and :meth:`check` raises.
+    last_t_s : float
+        ``t_s`` of the last row written whole (NaN before any): where the log ends, s.
     """
 
     def __init__(self, folder: Path | str, meta: dict):
@@ -93,7 +136,15 @@ class RunLog:
             **meta,
         }
         self.streams: dict[str, Stream] = {}
+        self.failure: str | None = None
+        self.last_t_s = math.nan
+        self._reserve = self.folder / ".reserve"
         self._write_meta()
+        try:
+            with open(self._reserve, "wb") as f:
+                f.write(bytes(RESERVE_BYTES))
+        except OSError as exc:
+            self.fail(f"{self._reserve.name}: {exc}")
 
     def stream(
         self,
@@ -108,7 +159,7 @@ class RunLog:
         unknown = set(text_columns) - set(columns)
         if unknown:
             raise LogError(f"stream {name!r}: text columns {sorted(unknown)} are not columns")
-        s = Stream(self.folder / f"{name}.csv", columns)
+        s = Stream(self.folder / f"{name}.csv", columns, self)
         self.streams[name] = s
         self.meta["streams"][name] = {
             "columns": list(columns),
@@ -119,24 +170,75 @@ class RunLog:
         return s
 
     def update_meta(self, **items) -> None:
-        """Add or replace top-level items of ``meta.json`` (e.g. a summary at the end of a run)."""
+        """Add or replace top-level items of ``meta.json`` (e.g. a summary at the end of a run).
+
+        Raises
+        ------
+        LogWriteError
+            ``meta.json`` could not be written (it keeps its previous content).
+        """
         self.meta.update(items)
         self._write_meta()
 
     def _write_meta(self) -> None:
         tmp = self.folder / "meta.json.tmp"
-        tmp.write_text(json.dumps(self.meta, indent=2, default=_json_default) + "\n")
-        tmp.replace(self.folder / "meta.json")
+        text = json.dumps(self.meta, indent=2, default=_json_default) + "\n"
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
+            tmp.replace(self.folder / "meta.json")  # whole or not at all
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            self.fail(f"meta.json: {exc}")
+            self.check()
+
+    def fail(self, failure: str) -> None:
+        """Record a refused write (the first one is kept); later rows are dropped and the
+        reserved space is given up for the summary."""
+        self.failure = self.failure or failure
+        self._release()
+
+    def _release(self) -> None:
+        try:
+            self._reserve.unlink(missing_ok=True)
+        except OSError:
+            pass  # a folder gone read-only: nothing more will be written either
+
+    def wrote_at(self, t_s) -> None:
+        """A row stamped ``t_s`` was written whole."""
+        t = float(t_s)
+        if math.isnan(self.last_t_s) or t > self.last_t_s:
+            self.last_t_s = t
+
+    def ends_at(self) -> str:
+        """Where the log ends, for the user: ``t = 3.210 s`` (host time of the last row)."""
+        if math.isnan(self.last_t_s):
+            return "before its first row"
+        return f"at t = {self.last_t_s:.3f} s"
+
+    def check(self) -> None:
+        """Raise :class:`LogWriteError` if a write failed."""
+        if self.failure is not None:
+            raise LogWriteError(
+                f"{self.folder}: writing the log failed ({self.failure}); the log ends "
+                f"{self.ends_at()}"
+            )
 
     def close(self) -> None:
+        """Close every stream (a failing close is recorded, not raised)."""
         for s in self.streams.values():
             s.close()
+        self._release()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
+        """Close; with no other exception under way, a failed write raises
+        :class:`LogWriteError` here, so no writer loses rows without knowing."""
         self.close()
+        if exc[0] is None:
+            self.check()
         return False
 
 

@@ -45,12 +45,12 @@ from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig, for_rig
 from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry
+from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import LimitBreach, RunError
 from gyrohost.run.limits import check_limits, check_schedule
 from gyrohost.run.log import RunLog
-from gyrohost.run.safe_state import reach_safe_state
+from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import StartStateRefused, check_start_state
 from gyrohost.run.streams import (
@@ -62,6 +62,7 @@ from gyrohost.run.streams import (
 )
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Ticker
+from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
 from gyrotensegrity import Model, load_scene
 
 
@@ -142,7 +143,7 @@ class RunLoop:
         self.omega_cmd = np.zeros(wp.N_WHEELS)
         self.rest_cmd = self.rest0.copy()
         self.t_schedule_s = math.nan
-        self.estimate = self.replans = None
+        self.estimate = self.replans = self.streams = None
 
     # --- the sequence -------------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -154,26 +155,61 @@ class RunLoop:
             Before anything is opened or moved.
         """
         check_schedule(self.schedule, self.config.servos.servo)
-        with RunLog(self.log_folder, run_meta(self)) as log:
-            self.log = log
-            self._open_streams()
+        with InterruptsRaised():  # SIGTERM, SIGHUP: as Ctrl-C
+            self.log = RunLog(self.log_folder, run_meta(self))
             try:
+                self._open_streams()
                 self._sequence()
                 reason, status = "completed", 0
-            except KeyboardInterrupt:
-                reason, status = "interrupted (Ctrl-C)", 130
+            except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP
+                reason, status = f"interrupted ({signal_name(exc)})", exit_status(exc)
             except StartStateRefused as exc:  # a user error: put the rig back
                 reason, status = f"start state refused: {exc}", 2
             except Exception as exc:  # every fault ends in the safe state, then is reported
-                reason, status = f"{type(exc).__name__}: {exc}", 1
-            self.event("end", reason)
-            if self.maneuver is not None:
-                self.maneuver.join()
-                self.replans.write(self.maneuver.records)
-            safe = self.safe_state(reason)
-            summary = run_summary(self, reason, safe)
-            log.update_meta(summary=summary)
-        return RunResult(status == 0, reason, status, self.log_folder, summary)
+                reason, status = failure_text(exc), 1
+            with ignore_interrupts(self, "the safe state and the summary"):
+                summary = self._end(reason)
+        if self.log.failure is not None and status == 0:
+            status = 1  # the run completed, its log did not
+        return RunResult(reason == "completed", reason, status, self.log_folder, summary)
+
+    def _end(self, reason: str) -> dict:
+        """The safe state, then the log closed and the summary written: each step attempted
+        whatever the others raised; returns the summary (in ``meta.json`` if it could be
+        written, its ``safe_state.steps`` saying what failed)."""
+        self.event("end", reason)
+        out = {"reason": reason, "steps": []}
+        if self.maneuver is not None:
+            attempt(self, out, "join re-planner", self._join_maneuver)
+        safe = self.safe_state(reason)
+        safe["steps"][:0] = out["steps"]
+        summary = {"reason": reason, "safe_state": safe}
+        attempt(self, safe, "summary", lambda: self._summarise(summary, reason, safe))
+        attempt(self, safe, "close log", lambda: self._close_log(safe))
+        attempt(self, safe, "write summary", lambda: self._write_summary(summary))
+        return summary
+
+    def _join_maneuver(self) -> tuple[bool, str]:
+        self.maneuver.join()
+        self.replans.write(self.maneuver.records)
+        return True, "joined"
+
+    def _summarise(self, summary: dict, reason: str, safe: dict) -> tuple[bool, str]:
+        summary.update(run_summary(self, reason, safe))
+        return True, "made"
+
+    def _close_log(self, safe: dict) -> tuple[bool, str]:
+        """Close every stream; a write refused during the run is reported here."""
+        self.log.close()
+        if self.log.failure is None:
+            return True, "every row written"
+        safe["log_failure"] = self.log.failure
+        safe["log_ends_t_s"] = self.log.last_t_s
+        return False, f"{self.log.failure}: the log ends {self.log.ends_at()}"
+
+    def _write_summary(self, summary: dict) -> tuple[bool, str]:
+        self.log.update_meta(summary=summary)
+        return True, "in meta.json"
 
     def _sequence(self) -> None:
         self._enter("connect")
@@ -334,6 +370,7 @@ class RunLoop:
         if self.truth is not None:
             self._write_truth(strict)
         if strict:
+            self.log.check()  # a refused write ends the run here, wherever it happened
             tel = self.wheel_reader.latest if self.wheels is not None else None
             check_limits(self.settings, self.omega_cmd, tel, self.latest_servos,
                          self.latest_tilt, self.ekf)  # fmt: skip
@@ -358,7 +395,7 @@ class RunLoop:
         except Exception as exc:
             if strict:
                 raise
-            self.event("fault", f"truth probe: {type(exc).__name__}: {exc}")
+            self.event("fault", f"truth probe: {failure_text(exc)}")
             self.truth = None
 
     def _played(self, t_s: float) -> float:
@@ -405,4 +442,5 @@ class RunLoop:
     def event(self, kind: str, message: str) -> None:
         """Append one row to the ``events`` stream (commas become semicolons)."""
         text = " ".join(str(message).replace(",", ";").split())
-        self.streams.events.write(self.now(), kind, text)
+        if self.streams is not None:  # none before the log is open
+            self.streams.events.write(self.now(), kind, text)

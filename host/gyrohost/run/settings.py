@@ -48,9 +48,11 @@ class RunResult:
     completed : bool
         The schedule ran to its end (the safe state was then reached as the normal end).
     reason : str
-        Why the run ended (``"completed"``, the fault, ``"interrupted (Ctrl-C)"``).
+        Why the run ended (``"completed"``, the fault, ``"interrupted (Ctrl-C)"``,
+        ``"interrupted (SIGTERM)"``).
     exit_status : int
-        0 completed, 1 fault, limit or time-out, 130 Ctrl-C.
+        0 completed and logged, 1 fault, limit, time-out or a log write refused, 128 + signal
+        for an interrupt (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP).
     log_folder : Path
     summary : dict
         Also written to the log's ``meta.json`` under ``summary``.
