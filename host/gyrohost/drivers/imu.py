@@ -149,8 +149,9 @@ class ParserStats:
 
     def since(self, earlier: "ParserStats") -> "ParserStats":
         """What was counted after ``earlier`` (a :meth:`copy` of these counters)."""
-        return ParserStats(**{f.name: getattr(self, f.name) - getattr(earlier, f.name)
-                              for f in fields(self)})  # fmt: skip
+        return ParserStats(
+            **{f.name: getattr(self, f.name) - getattr(earlier, f.name) for f in fields(self)}
+        )
 
     def describe(self) -> str:
         """One line of what the parser saw: bytes, garbage skipped, frames, bad ones."""
