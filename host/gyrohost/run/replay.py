@@ -25,7 +25,7 @@ from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
 from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.log import LogError, RunLog, read_meta, read_stream
+from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_stream
 from gyrotensegrity import Model, load_scene
 
 _LABELS = {
@@ -153,6 +153,7 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
         Counters per source and the final status word (also stored in ``out/meta.json``).
     """
     log, out = Path(log), Path(out)
+    check_new_log_folder(out)
     meta = read_meta(log)
     ekf, data = prepare(log, scene, config)
     out_meta = {
