@@ -38,9 +38,17 @@ def _is_log(path: Path) -> bool:
 
 
 def _plot_log(args):
+    from gyrohost.cli import CliError
+    from gyrohost.commands.replay import Warnings
     from gyrohost.plots.log import plot_log
 
-    return plot_log(args.file, args.out or args.file / "plots")
+    out = args.out or args.file / "plots"
+    warn = Warnings("plot")
+    paths = plot_log(args.file, out, warn)
+    warn.close()
+    if not paths:
+        raise CliError(f"{args.file}: no stream with rows to plot; nothing written")
+    return paths
 
 
 PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
