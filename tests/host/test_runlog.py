@@ -123,3 +123,19 @@ time.sleep(30)
     p.wait(timeout=10)
     data = read_stream(tmp_path / "log", "wheels")
     assert data["omega_rad_s"].tolist() == [float(i) for i in range(100)]
+
+
+@pytest.mark.parametrize(
+    ("content", "what"),
+    [
+        (b"\xff\xfe\0{", "not valid JSON"),
+        (b'{"format": "gyrotens-log", "str', "not valid JSON"),
+        (b"[1, 2]", "not a log's meta.json (no table of streams)"),
+    ],
+)
+def test_a_damaged_meta_json_is_one_line(content, what, tmp_path):
+    (tmp_path / "meta.json").write_bytes(content)
+    with pytest.raises(LogError) as info:
+        read_meta(tmp_path)
+    assert str(info.value).startswith(f"{tmp_path / 'meta.json'}: {what}")
+    assert "\n" not in str(info.value)

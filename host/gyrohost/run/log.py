@@ -202,11 +202,15 @@ def read_meta(folder: Path | str) -> dict:
     """Read and check ``meta.json`` of a log folder."""
     path = Path(folder) / "meta.json"
     try:
-        meta = json.loads(path.read_text())
+        meta = json.loads(path.read_bytes())
     except FileNotFoundError:
         raise LogError(f"{folder}: not a log folder (no meta.json)") from None
-    except json.JSONDecodeError as exc:
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise LogError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("streams", {}), dict):
+        raise LogError(f"{path}: not a log's meta.json (no table of streams)")
     if meta.get("format") != FORMAT:
         raise LogError(f"{path}: format is {meta.get('format')!r}, expected {FORMAT!r}")
     if meta.get("format_version", 0) > FORMAT_VERSION:
@@ -234,7 +238,7 @@ def read_stream(
         header line, or (without ``warn``) a row cannot be read.
     """
     path = Path(folder) / f"{name}.csv"
-    schema = read_meta(folder)["streams"].get(name)
+    schema = read_meta(folder).get("streams", {}).get(name)
     if schema is None or not path.exists():
         raise LogError(f"{folder}: no stream {name!r} ({path.name} or its schema missing)")
     text = set(schema.get("text_columns", ()))

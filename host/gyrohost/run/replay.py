@@ -153,7 +153,7 @@ def read_inputs(log: Path, warn: Callable[[str], None] | None = None) -> dict:
     meta = read_meta(log)
     names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND, streams.ESTIMATE)
     out = {}
-    for name in (n for n in names if n in meta["streams"]):
+    for name in (n for n in names if n in meta.get("streams", {})):
         try:
             out[name] = read_stream(log, name, warn)
         except LogError as exc:
