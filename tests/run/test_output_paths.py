@@ -134,3 +134,15 @@ def test_plot_of_a_run_file_writes_inside_o_whatever_the_scene_is_called(tmp_pat
         "run.npz", "work", "work/figs", "work/figs/_.._escaped-constraints.png",
         "work/figs/_.._escaped-invariants.png", "work/figs/_.._escaped-nodes.png",
     ]  # fmt: skip
+
+
+def test_replay_o_holding_a_stream_file_is_refused(tmp_path, capsys):
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "estimate.csv").write_text("t_s\n")
+    assert main(["replay", str(_tiny_log(tmp_path / "log")), "-o", str(target)]) == 2
+    assert capsys.readouterr().err == (
+        f"gyrotens replay: error: {target}: already holds a log (estimate.csv); "
+        "choose another folder\n"
+    )
+    assert listing(target) == ["estimate.csv"]

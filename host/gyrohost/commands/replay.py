@@ -61,7 +61,7 @@ def run(args) -> int:
         summary = replay(args.log, out, scene=args.scene, config=config, warn=warn)
     except (LogError, EstimatorConfigError, EstimatorError, SceneError) as exc:
         raise CliError(str(exc)) from None
-    warn.close(f"{out}/meta.json (summary.warnings)")
+    warn.close(f"{out}/meta.json, summary.warnings")
     for source, c in summary["sources"].items():
         print(
             f"{source:10s} accepted {c['accepted']:6d}  rejected {c['rejected']:5d}  "
