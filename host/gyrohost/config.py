@@ -16,6 +16,7 @@ from pathlib import Path
 
 from gyrohost.errors import GyrohostError
 from gyrohost.resources import ResourceError, resolve
+from gyrotensegrity.textfile import TextFileError, read_text
 
 EMULATED_PORT = "emulator"
 """Port value meaning: start the device emulator and use its pseudo-terminal."""
@@ -264,9 +265,9 @@ def load_rig_config(path: str | Path) -> RigConfig:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
+        data = tomllib.loads(read_text(path))
+    except TextFileError as exc:
+        raise ConfigError(str(exc)) from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
     return rig_config_from_dict(data, str(path))

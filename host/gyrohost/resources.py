@@ -1,4 +1,4 @@
-"""Files shipped with the package: scenes, rig configurations and schedules.
+"""Files shipped with the package: scenes, rig configurations and schedules; safe file names.
 
 Scenes ship with the model library (``gyrotensegrity/scenes/*.toml``), rig configurations and
 schedules with the host (``gyrohost/configs/*.toml``, ``gyrohost/schedules/*.toml``); they are
@@ -11,6 +11,7 @@ current directory by default) wins; otherwise a bare name such as ``dbar-gyro``,
 shipped names.
 """
 
+import re
 from importlib import resources
 from pathlib import Path
 
@@ -101,4 +102,28 @@ def resolve(kind: str, arg: str | Path, base: str | Path | None = None) -> Path:
     )
 
 
-__all__ = ["KINDS", "ResourceError", "resolve", "shipped", "shipped_dir", "shipped_names"]
+def safe_name(text: str, fallback: str = "run") -> str:
+    """``text`` (a name read from a file: a schedule's, a scene's) made one safe path component.
+
+    Characters other than ASCII letters, digits, ``.``, ``_``, ``+`` and ``-`` become ``_`` (a
+    ``/`` can no longer leave the chosen folder), leading dots are dropped (no ``..``, no hidden
+    file) and the name is cut to 64 characters; ``fallback`` if nothing is left.
+
+    Examples
+    --------
+    >>> safe_name("../../x"), safe_name("tilt 0.3 rad"), safe_name("..")
+    ('_.._x', 'tilt_0.3_rad', 'run')
+    """
+    name = re.sub(r"[^A-Za-z0-9._+-]", "_", str(text)).lstrip(".")[:64]
+    return name or fallback
+
+
+__all__ = [
+    "KINDS",
+    "ResourceError",
+    "resolve",
+    "safe_name",
+    "shipped",
+    "shipped_dir",
+    "shipped_names",
+]

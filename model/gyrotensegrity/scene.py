@@ -15,6 +15,7 @@ import numpy as np
 
 from .errors import SceneError
 from .schedule import Schedule, constant
+from .textfile import TextFileError, read_text
 
 INTEGRATORS = ("rk4", "rk4-projected", "dop853", "rk45", "radau", "bdf")
 
@@ -149,11 +150,9 @@ def load_scene(path) -> Scene:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise SceneError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+        data = tomllib.loads(read_text(path))
+    except TextFileError as exc:
+        raise SceneError(str(exc)) from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: invalid TOML: {exc}") from None
     return scene_from_dict(data, source=path.name)

@@ -1,5 +1,6 @@
 """BWT61CL driver against its emulator over a pty: truth recovery, commands, faults."""
 
+import queue
 import time
 from dataclasses import replace
 
@@ -10,6 +11,7 @@ from gyrohost.config import ImuConfig, ImuEmuConfig, StreamFaultConfig
 from gyrohost.drivers.imu import Bwt61Driver, ImuConfigError, ImuError, ImuTimeoutError
 from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrohost.rig.imu_emu import Bwt61Emulator, ImuTruth
+from gyrohost.run.devices import DeviceFault, ImuReader
 
 G = 9.80665
 QUIET = ImuEmuConfig(gyro_bias_std_rad_s=0.0, accel_bias_std_m_s2=0.0)
@@ -192,3 +194,24 @@ def _wait_for(condition, timeout_s=1.0):
     while not condition():
         assert time.monotonic() < deadline, "condition not met in time"
         time.sleep(0.005)
+
+
+def test_a_garbage_stream_is_counted_in_the_silence_fault(rig):
+    """1 s of garbage (every byte corrupted): the reader stops on silence and says what it saw."""
+    device, driver = rig()
+    driver.read_sample()
+    out = queue.Queue()
+    reader = ImuReader(driver, out, silence_s=0.5)
+    device.faults.corrupt_next(3300)  # 1 s of output at 100 Hz, 33 bytes per sample
+    reader.start()
+    try:
+        fault = out.get(timeout=5.0)
+        while not isinstance(fault, DeviceFault):
+            fault = out.get(timeout=5.0)
+    finally:
+        reader.stop()
+    message = str(fault)
+    assert message.startswith("imu: no sample for 0.5 s (")
+    assert "0 frames" in message and "0 samples" in message
+    skipped = int(message.split("skipped ")[1].split(" bytes")[0])
+    assert skipped > 1000  # about 0.5 s of garbage at 3300 bytes/s

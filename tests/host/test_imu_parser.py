@@ -182,3 +182,20 @@ def test_random_bytes_never_raise(data):
     stats = parser.stats
     assert stats.bytes_in == len(data)
     assert stats.frames * FRAME_LEN + stats.skipped_bytes <= len(data)
+
+
+def test_garbage_counts_as_skipped_bytes_and_describes_itself():
+    p = Bwt61Parser()
+    assert len(p.feed(sample_bytes(), t_ns=0)) == 1
+    before = p.stats.copy()
+    garbage = bytes([0x00, 0x55, 0x99] * 200) + encode_frame(0x52, (1, 2, 3, 4))[:10] + b"\x00"
+    assert p.feed(garbage, t_ns=1) == []
+    seen = p.stats.since(before)
+    assert seen.bytes_in == len(garbage)
+    assert seen.frames == 0 and seen.samples == 0
+    assert seen.unknown_type == 200 and seen.corrupt_frames == 1
+    assert seen.skipped_bytes == len(garbage)
+    assert seen.describe() == (
+        f"{len(garbage)} bytes in, skipped {len(garbage)} bytes, 0 frames "
+        "(1 bad checksums, 200 unknown types, 0 dropped), 0 samples"
+    )

@@ -49,8 +49,39 @@ def test_malformed_row_names_file_and_row(tmp_path):
     folder = _log_with_imu(tmp_path / "log", [(0.0, 1.0, "a")])
     with open(folder / "imu.csv", "a") as f:
         f.write("0.02,x,b\n")
-    with pytest.raises(LogError, match=r"imu.csv: row 3 holds a non-number"):
+    with pytest.raises(LogError, match=r"imu.csv: row 3, column 'omega_x_rad_s': 'x' is not a"):
         read_stream(folder, "imu")
+
+
+def test_damaged_rows_are_skipped_with_a_warning_naming_file_row_and_column(tmp_path):
+    folder = _log_with_imu(tmp_path / "log", [(0.0, 1.0, "a")])
+    with open(folder / "imu.csv", "ab") as f:
+        f.write(b"0.01,x,b\n")  # not a number
+        f.write(b"0.02,2.0\n")  # a field missing
+        f.write(b"0.03,3.0,c,d\n")  # one too many
+        f.write(b"0.04,4\xff.0,e\n")  # a byte that is not ASCII
+        f.write(b"0.05,5.0,f\n")
+        f.write(b"0.06,6.0,g\n")
+        f.write(b"\0\0\0\0")  # what a power loss leaves at the end of a file
+    warnings = []
+    s = read_stream(folder, "imu", warn=warnings.append)
+    assert s["omega_x_rad_s"].tolist() == [1.0, 5.0, 6.0] and s["event"].tolist() == ["a", "f", "g"]
+    path = folder / "imu.csv"
+    assert warnings == [
+        f"{path}: row 9 cut short (no newline at the end: the run stopped while writing it); "
+        "row dropped",
+        f"{path}: row 3, column 'omega_x_rad_s': 'x' is not a number; row skipped",
+        f"{path}: row 4, column 'event': missing (2 fields, the header has 3); row skipped",
+        f"{path}: row 5, after column 'event': 4 fields, the header has 3; row skipped",
+        f"{path}: row 6, column 'omega_x_rad_s': bytes that are not ASCII text; row skipped",
+    ]
+
+
+def test_an_empty_stream_file_is_refused(tmp_path):
+    folder = _log_with_imu(tmp_path / "log", [])
+    (folder / "imu.csv").write_bytes(b"")
+    with pytest.raises(LogError, match=r"imu.csv: empty \(no header line\)"):
+        read_stream(folder, "imu", warn=print)
 
 
 def test_wrong_number_of_values_is_refused(tmp_path):
@@ -92,3 +123,19 @@ time.sleep(30)
     p.wait(timeout=10)
     data = read_stream(tmp_path / "log", "wheels")
     assert data["omega_rad_s"].tolist() == [float(i) for i in range(100)]
+
+
+@pytest.mark.parametrize(
+    ("content", "what"),
+    [
+        (b"\xff\xfe\0{", "not valid JSON"),
+        (b'{"format": "gyrotens-log", "str', "not valid JSON"),
+        (b"[1, 2]", "not a log's meta.json (no table of streams)"),
+    ],
+)
+def test_a_damaged_meta_json_is_one_line(content, what, tmp_path):
+    (tmp_path / "meta.json").write_bytes(content)
+    with pytest.raises(LogError) as info:
+        read_meta(tmp_path)
+    assert str(info.value).startswith(f"{tmp_path / 'meta.json'}: {what}")
+    assert "\n" not in str(info.value)

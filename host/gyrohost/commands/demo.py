@@ -42,13 +42,15 @@ def run(args) -> int:
     from gyrohost.plots.log import plot_compare, plot_log
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.run import ScheduleRefused, run_simulated
+    from gyrohost.run.log import LogError, check_output_folder
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()
     try:
         config = load_rig_config(resolve("config", args.config))
         scenes = [resolve("scene", name, config.scene_path.parent) for _, name, _ in RUNS]
-    except (ConfigError, ResourceError) as exc:
+        check_output_folder(args.out)
+    except (ConfigError, ResourceError, LogError) as exc:
         raise CliError(str(exc)) from None
     args.out.mkdir(parents=True, exist_ok=True)
     results = {}
@@ -62,7 +64,7 @@ def run(args) -> int:
             result = run_simulated(
                 config, schedule, folder, scene=scene, progress=progress, meta={"demo": label}
             )
-        except ScheduleRefused as exc:
+        except (ScheduleRefused, LogError) as exc:
             raise CliError(str(exc)) from None
         finally:
             progress.close()

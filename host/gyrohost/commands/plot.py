@@ -38,9 +38,17 @@ def _is_log(path: Path) -> bool:
 
 
 def _plot_log(args):
+    from gyrohost.cli import CliError
+    from gyrohost.commands.replay import Warnings
     from gyrohost.plots.log import plot_log
 
-    return plot_log(args.file, args.out or args.file / "plots")
+    out = args.out or args.file / "plots"
+    warn = Warnings("plot")
+    paths = plot_log(args.file, out, warn)
+    warn.close()
+    if not paths:
+        raise CliError(f"{args.file}: no stream with rows to plot; nothing written")
+    return paths
 
 
 PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
@@ -48,7 +56,7 @@ PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
 
 def run(args) -> int:
     from gyrohost.cli import CliError
-    from gyrohost.run.log import LogError
+    from gyrohost.run.log import LogError, check_output_folder
 
     if not args.file.exists():
         raise CliError(f"{args.file}: no such file or folder")
@@ -61,6 +69,7 @@ def run(args) -> int:
             if args.out is None and not args.file.is_dir():
                 raise CliError("give the output folder with -o")
             try:
+                check_output_folder(args.out or args.file / "plots")
                 paths = plot(args)
             except LogError as exc:
                 raise CliError(str(exc)) from None

@@ -169,6 +169,7 @@ def _run(args) -> int:
     from gyrohost.estimator.config import for_rig
     from gyrohost.resources import resolve
     from gyrohost.run import RunLoop, run_simulated
+    from gyrohost.run.log import LogError, check_new_log_folder
     from gyrotensegrity import SceneError
 
     try:
@@ -179,10 +180,11 @@ def _run(args) -> int:
         schedule = _what_to_run(config, args)
     except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
-    name = _run_name(schedule)
-    out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{name}"
-    if (out / "meta.json").exists():
-        raise CliError(f"{out}: already holds a log; choose another -o")
+    out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{_run_name(schedule)}"
+    try:
+        check_new_log_folder(out)
+    except LogError as exc:
+        raise CliError(str(exc)) from None
     progress = Progress()
     options = {"estimator": estimator, "progress": progress, "meta": {"command": sys.argv}}
     try:
@@ -198,9 +200,13 @@ def _run(args) -> int:
 
 
 def _run_name(schedule) -> str:
+    """The run's name in its default log folder: one safe path component (the schedule's name
+    comes from a file)."""
+    from gyrohost.resources import safe_name
+
     target = getattr(schedule, "target", None)
     if target is None:
-        return schedule.name
+        return safe_name(schedule.name)
     return f"tilt{target.tilt_rad:+g}-{'closed' if target.closed_loop else 'open'}"
 
 

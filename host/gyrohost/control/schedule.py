@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrotensegrity.textfile import TextFileError, read_text
+
 from .errors import ScheduleError
 
 
@@ -301,11 +303,9 @@ def load_schedule(path) -> Schedule:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScheduleError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise ScheduleError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+        text = read_text(path)
+    except TextFileError as exc:
+        raise ScheduleError(str(exc)) from None
     try:
         data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
     except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:

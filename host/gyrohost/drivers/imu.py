@@ -20,7 +20,7 @@ Layers, each usable alone:
 
 import struct
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from enum import IntEnum
 
 import numpy as np
@@ -142,6 +142,24 @@ class ParserStats:
     dropped_frames: int = 0
     """Frames missing from the 0x51, 0x52, 0x53 sequence (lost or corrupt)."""
     samples: int = 0
+
+    def copy(self) -> "ParserStats":
+        """The counters as they are now (the parser goes on counting in ``self``)."""
+        return replace(self)
+
+    def since(self, earlier: "ParserStats") -> "ParserStats":
+        """What was counted after ``earlier`` (a :meth:`copy` of these counters)."""
+        return ParserStats(
+            **{f.name: getattr(self, f.name) - getattr(earlier, f.name) for f in fields(self)}
+        )
+
+    def describe(self) -> str:
+        """One line of what the parser saw: bytes, garbage skipped, frames, bad ones."""
+        return (
+            f"{self.bytes_in} bytes in, skipped {self.skipped_bytes} bytes, {self.frames} frames "
+            f"({self.corrupt_frames} bad checksums, {self.unknown_type} unknown types, "
+            f"{self.dropped_frames} dropped), {self.samples} samples"
+        )
 
 
 class Bwt61FrameParser:
@@ -325,6 +343,7 @@ class Bwt61Driver:
             No complete sample arrived in time (silent, stalled or corrupted link).
         """
         wait_s = self.timeout_s if timeout_s is None else timeout_s
+        before = self.stats.copy()
         deadline = time.monotonic() + wait_s
         while True:
             samples = self.poll()
@@ -334,8 +353,7 @@ class Bwt61Driver:
             if time.monotonic() >= deadline:
                 raise ImuTimeoutError(
                     f"IMU: no complete sample on {self.port} within {wait_s:.3f} s "
-                    f"(frames {self.stats.frames}, corrupt {self.stats.corrupt_frames}, "
-                    f"dropped {self.stats.dropped_frames})"
+                    f"({self.stats.since(before).describe()})"
                 )
             time.sleep(0.0005)
 

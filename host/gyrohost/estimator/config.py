@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from gyrohost.config import TruthConfig
+from gyrotensegrity.textfile import TextFileError, read_text
 
 from .errors import EstimatorConfigError
 
@@ -89,8 +90,10 @@ def read_table(path: str | Path) -> dict:
     """The ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+        data = tomllib.loads(read_text(path))
+    except TextFileError as exc:
+        raise EstimatorConfigError(str(exc)) from None
+    except tomllib.TOMLDecodeError as exc:
         raise EstimatorConfigError(f"{path}: cannot read estimator configuration: {exc}") from exc
     return data.get("estimator", data)
 

@@ -6,9 +6,11 @@ started; estimate lines are solid, truth lines (simulated rig only) dashed in th
 The figures follow the scene, as the log holds it: a D-bar log (its ``nodes`` stream has a
 ``tilt_rad`` column) gets the paper's figures of the plane nodes and the tilt; any other scene
 gets every node's coordinates, the IMU's angles, wheels, innovations and loop timing
-(:func:`plots_for`).
+(:func:`plots_for`). A figure whose streams are all missing or empty (a replay's log, a damaged
+log) is left out and said so: no figure is written empty.
 """
 
+from collections.abc import Callable
 from pathlib import Path
 
 import matplotlib
@@ -18,21 +20,31 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
-from gyrohost.run.log import read_meta, read_stream  # noqa: E402
+from gyrohost.run.log import LogError, read_meta, read_stream  # noqa: E402
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
 
 
 class RunData:
-    """The streams of one log folder, read once (missing streams are ``None``)."""
+    """The streams of one log folder, read once (missing streams are ``None``).
 
-    def __init__(self, folder):
+    Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
+    are skipped and a stream whose file is missing or empty is left out, each told to ``warn``
+    (:func:`gyrohost.run.log.read_stream`).
+    """
+
+    def __init__(self, folder, warn: Callable[[str], None] | None = None):
         self.folder = Path(folder)
         self.meta = read_meta(self.folder)
-        self.streams = {
-            name: read_stream(self.folder, name) for name in self.meta.get("streams", {})
-        }
+        self.streams = {}
+        for name in self.meta.get("streams", {}):
+            try:
+                self.streams[name] = read_stream(self.folder, name, warn)
+            except LogError as exc:
+                if warn is None:
+                    raise
+                warn(f"{exc}; left out")
         events = self.streams.get("events")
         starts = [] if events is None else events["t_s"][events["message"] == "schedule"]
         self.t_schedule = float(starts[0]) if len(starts) else None
@@ -201,6 +213,16 @@ PLOTS = {
     "loop-jitter.png": plot_jitter,
 }
 
+NEEDS = {
+    "fig7-nodes.png": ("nodes", "truth"),
+    "fig8-node-z.png": ("nodes", "truth"),
+    "attitude.png": ("nodes", "truth", "imu", "estimate"),
+    "wheels.png": ("wheels", "command"),
+    "innovations.png": tuple(f"innov_{s}" for s in INNOVATION_SOURCES),
+    "loop-jitter.png": ("loop",),
+}
+"""Figure -> the streams it draws; it is made if at least one of them has rows."""
+
 
 DBAR_ONLY = ("fig8-node-z.png",)
 """Figures of the D-bar's plane nodes, made for D-bar logs only."""
@@ -212,13 +234,24 @@ def plots_for(data: RunData) -> dict:
     return {name: plot for name, plot in PLOTS.items() if data.dbar or name not in DBAR_ONLY}
 
 
-def plot_log(folder, out) -> list[Path]:
-    """Write every figure of the log ``folder`` (:func:`plots_for`) into ``out``; returns the
-    paths."""
-    data = RunData(folder)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    return [plot(data, out / name) for name, plot in plots_for(data).items()]
+def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Path]:
+    """Write every figure of the log ``folder`` (:func:`plots_for`) that has data into ``out``;
+    returns the paths.
+
+    A figure whose streams (:data:`NEEDS`) are all missing or empty is left out, and said so to
+    ``warn``; with ``warn`` a damaged stream is read as far as it can be (:class:`RunData`).
+    Nothing is created when no figure has data.
+    """
+    data = RunData(folder, warn)
+    made = {}
+    for name, plot in plots_for(data).items():
+        if any(data.get(s) is not None for s in NEEDS[name]):
+            made[name] = plot
+        elif warn is not None:
+            warn(f"{name} left out: no rows in {data.folder} of {', '.join(NEEDS[name])}")
+    if made:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    return [plot(data, Path(out) / name) for name, plot in made.items()]
 
 
 def plot_compare(folders, labels, path) -> Path:

@@ -9,6 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from gyrohost.resources import safe_name  # noqa: E402
+
 
 def _scene_nodes(run):
     """Indices of the primary node of each scene node (first occurrence), with names."""
@@ -105,7 +107,7 @@ def plot_run(run, out, animation=True):
     """Write all figures of a run into folder ``out``; returns the paths written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    name = json.loads(str(run["scene"])).get("name", "run")
+    name = safe_name(json.loads(str(run["scene"])).get("name", "run"))
     paths = [out / f"{name}-nodes.png", out / f"{name}-constraints.png"]
     paths.append(out / f"{name}-invariants.png")
     plot_nodes(run, paths[0])

@@ -107,6 +107,7 @@ class ImuReader(_Reader):
         self.driver = driver
         self.silence_s = silence_s
         self._last_ns = time.monotonic_ns()
+        self._stats_at_last = driver.stats.copy()
 
     def _cycle(self) -> None:
         samples = self.driver.poll()
@@ -115,14 +116,11 @@ class ImuReader(_Reader):
         now = time.monotonic_ns()
         if samples:
             self._last_ns = now
+            self._stats_at_last = self.driver.stats.copy()
             return
         if now - self._last_ns > self.silence_s * 1e9:
-            stats = self.driver.stats
-            raise DeviceFault(
-                "imu",
-                f"no sample for {self.silence_s:g} s (frames {stats.frames}, corrupt "
-                f"{stats.corrupt_frames}, dropped {stats.dropped_frames})",
-            )
+            seen = self.driver.stats.since(self._stats_at_last)
+            raise DeviceFault("imu", f"no sample for {self.silence_s:g} s ({seen.describe()})")
         time.sleep(POLL_IDLE_S)
 
 

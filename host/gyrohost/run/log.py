@@ -16,8 +16,9 @@ Floats are written with 17 significant digits, so a replay reads back bit-identi
 
 import json
 import math
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -104,13 +105,61 @@ def _format(value) -> str:
     return "nan" if math.isnan(x) else repr(x)
 
 
+def check_output_folder(folder: Path | str) -> None:
+    """Refuse an output folder that cannot be written, before anything is created.
+
+    ``folder`` may be missing (then its nearest existing parent is checked, and nothing is
+    created); if it exists it must be a folder. Writing is tried with an unnamed temporary file,
+    so the check leaves nothing behind and sees what the process will see (a read-only file
+    system, permissions, a full quota of inodes).
+
+    Raises
+    ------
+    LogError
+        ``folder`` or one of its parents is a file, or the folder cannot be written; one line
+        naming the path.
+    """
+    folder = Path(folder)
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        what = folder if existing == folder else f"{folder}: its parent {existing}"
+        raise LogError(f"{what} is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        raise LogError(f"{existing}: cannot write there: {exc.strerror or exc}") from None
+
+
+def check_new_log_folder(folder: Path | str) -> None:
+    """Refuse a folder that cannot take a new log: :func:`check_output_folder`, and a folder that
+    already holds a log or any of its files (``meta.json``, a stream's ``.csv``).
+
+    Raises
+    ------
+    LogError
+        One line naming the folder and, if it holds log files, the first few of them.
+    """
+    folder = Path(folder)
+    check_output_folder(folder)
+    if folder.is_dir():
+        found = sorted(
+            p.name for p in folder.iterdir() if p.name == "meta.json" or p.suffix == ".csv"
+        )
+        if found:
+            listed = ", ".join(found[:3]) + (", ..." if len(found) > 3 else "")
+            raise LogError(f"{folder}: already holds a log ({listed}); choose another folder")
+
+
 class RunLog:
     """A log folder being written. Use as a context manager so streams close on any exit.
 
     Parameters
     ----------
     folder : path
-        Created if missing; must not already hold a log.
+        Created if missing; must pass :func:`check_new_log_folder`.
     meta : dict
         JSON-serialisable description of the run (configuration, scene, command line, ...).
 
@@ -125,9 +174,8 @@ class RunLog:
 
     def __init__(self, folder: Path | str, meta: dict):
         self.folder = Path(folder)
+        check_new_log_folder(self.folder)
         self.folder.mkdir(parents=True, exist_ok=True)
-        if (self.folder / "meta.json").exists():
-            raise LogError(f"{self.folder}: already holds a log (meta.json exists)")
         self.meta = {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
@@ -256,11 +304,15 @@ def read_meta(folder: Path | str) -> dict:
     """Read and check ``meta.json`` of a log folder."""
     path = Path(folder) / "meta.json"
     try:
-        meta = json.loads(path.read_text())
+        meta = json.loads(path.read_bytes())
     except FileNotFoundError:
         raise LogError(f"{folder}: not a log folder (no meta.json)") from None
-    except json.JSONDecodeError as exc:
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise LogError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or not isinstance(meta.get("streams", {}), dict):
+        raise LogError(f"{path}: not a log's meta.json (no table of streams)")
     if meta.get("format") != FORMAT:
         raise LogError(f"{path}: format is {meta.get('format')!r}, expected {FORMAT!r}")
     if meta.get("format_version", 0) > FORMAT_VERSION:
@@ -271,39 +323,73 @@ def read_meta(folder: Path | str) -> dict:
     return meta
 
 
-def read_stream(folder: Path | str, name: str) -> np.ndarray:
+def read_stream(
+    folder: Path | str, name: str, warn: Callable[[str], None] | None = None
+) -> np.ndarray:
     """Read one stream as a structured array (one field per column).
 
-    A last row cut short by a crash is dropped; any other malformed row raises ``LogError`` naming
-    the file and row.
+    A row that cannot be read (a field that is not a number or not ASCII, too few or too many
+    fields: a log damaged on disk or cut by a power loss) raises ``LogError`` naming the file,
+    row and column; with ``warn`` given the row is skipped and ``warn`` gets that message. A last
+    row without its newline (cut short by a crash) is dropped, and said so to ``warn``.
+
+    Raises
+    ------
+    LogError
+        The stream is not in the log (file or schema missing), the file cannot be read or has no
+        header line, or (without ``warn``) a row cannot be read.
     """
     path = Path(folder) / f"{name}.csv"
-    schema = read_meta(folder)["streams"].get(name)
+    schema = read_meta(folder).get("streams", {}).get(name)
     if schema is None or not path.exists():
         raise LogError(f"{folder}: no stream {name!r} ({path.name} or its schema missing)")
     text = set(schema.get("text_columns", ()))
-    lines = path.read_text(encoding="ascii").split("\n")
+    try:
+        # A power loss can leave NULs or stray bytes: they become U+FFFD and fail their row only.
+        lines = path.read_bytes().decode("ascii", errors="replace").split("\n")
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read: {exc.strerror or exc}") from None
     header = lines[0].split(",")
+    if header == [""]:
+        raise LogError(f"{path}: empty (no header line)")
     rows = lines[1:]
-    if rows and rows[-1] == "":
-        rows.pop()  # the file ends with a newline: complete
-    elif rows:
-        rows.pop()  # no final newline: the last row was being written when the run stopped
-    split = [line.split(",") for line in rows]
-    width = {
-        c: max((len(f[j]) for f in split if len(f) > j), default=1) for j, c in enumerate(header)
-    }
+    if rows and rows.pop() and warn is not None:
+        warn(
+            f"{path}: row {len(rows) + 2} cut short (no newline at the end: the run stopped "
+            "while writing it); row dropped"
+        )
+    good = []
+    for i, line in enumerate(rows):
+        fields = line.split(",")
+        problem = _row_problem(fields, header, text)
+        if problem is None:
+            good.append(fields)
+        elif warn is None:
+            raise LogError(f"{path}: row {i + 2}{problem}")
+        else:
+            warn(f"{path}: row {i + 2}{problem}; row skipped")
+    width = {c: max((len(f[j]) for f in good), default=1) for j, c in enumerate(header)}
     dtype = [(c, f"U{max(width[c], 1)}" if c in text else "f8") for c in header]
-    out = np.empty(len(rows), dtype=dtype)
-    for i, (line, fields) in enumerate(zip(rows, split, strict=True)):
-        if len(fields) != len(header):
-            raise LogError(
-                f"{path}: row {i + 2} has {len(fields)} fields, header has {len(header)}"
-            )
-        try:
-            out[i] = tuple(
-                f if c in text else float(f) for c, f in zip(header, fields, strict=True)
-            )
-        except ValueError:
-            raise LogError(f"{path}: row {i + 2} holds a non-number: {line!r}") from None
+    out = np.empty(len(good), dtype=dtype)
+    for i, fields in enumerate(good):
+        out[i] = tuple(f if c in text else float(f) for c, f in zip(header, fields, strict=True))
     return out
+
+
+def _row_problem(fields: list[str], header: list[str], text: set[str]) -> str | None:
+    """What makes a row unreadable (``", column 'c': ..."``), or ``None``."""
+    if len(fields) < len(header):
+        n = len(fields)
+        return f", column {header[n]!r}: missing ({n} fields, the header has {len(header)})"
+    if len(fields) > len(header):
+        n = len(fields)
+        return f", after column {header[-1]!r}: {n} fields, the header has {len(header)}"
+    for c, f in zip(header, fields, strict=True):
+        if "\ufffd" in f or "\0" in f:
+            return f", column {c!r}: bytes that are not ASCII text"
+        if c not in text:
+            try:
+                float(f)
+            except ValueError:
+                return f", column {c!r}: {f!r} is not a number"
+    return None

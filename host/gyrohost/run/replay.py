@@ -1,7 +1,10 @@
 """Rerun the estimator over a run log and write its estimates and innovations to a new log.
 
 Input: a log folder (``gyrohost.run.log``) with the streams of :mod:`.streams` (``imu``,
-``wheels``, ``servos``, ``command``; any may be missing). The scene comes from ``scene`` in
+``wheels``, ``servos``, ``command``; any but ``imu`` may be missing). A damaged log is taken as a
+power loss or a bad disk leaves it: a row that cannot be read is skipped, a stream whose file is
+missing or empty is left out, each with a warning naming the file, row and column (to the
+caller's ``warn`` and into ``summary.warnings`` of the output). The scene comes from ``scene`` in
 ``meta.json`` (a path, relative to the log folder or the working directory) unless given; the
 estimator configuration from ``estimator`` in ``meta.json`` (a table of :mod:`.config` keys)
 unless given.
@@ -11,9 +14,12 @@ the wheel speeds, servo lengths and command last logged before it (as the run lo
 
 Output: a new log folder with the streams ``estimate`` and ``innov_<source>`` (columns in
 :mod:`.streams`) and a ``meta.json`` whose creation time is the input's, so that two replays of
-one log are identical byte for byte.
+one log are identical byte for byte. Its summary compares the replay's estimate with the run's
+own (the input's ``estimate`` stream): the largest difference per group of the filter state
+(:data:`GROUPS`) at the run's estimate rows.
 """
 
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
@@ -25,8 +31,18 @@ from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
 from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.log import LogError, RunLog, read_meta, read_stream
+from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_stream
 from gyrotensegrity import Model, load_scene
+
+GROUPS = {
+    "nodes_m": "q",
+    "velocities_m_s": "q_dot",
+    "wheels_rad_s": "omega",
+    "rest_lengths_m": "rest",
+    "gyro_bias_rad_s": "bias",
+}
+"""Group of the filter state in the comparison with the run's estimate -> its slice of
+:class:`~gyrohost.estimator.layout.FilterLayout`."""
 
 _LABELS = {
     "imu_rate": ("x", "y", "z"),
@@ -60,6 +76,7 @@ class _Writer:
 
     def __init__(self, out: RunLog, ekf):
         self.ekf = ekf
+        self.times, self.states = [], []
         self.estimate = out.stream(
             streams.ESTIMATE,
             streams.estimate_columns(ekf.layout.labels()),
@@ -88,26 +105,78 @@ class _Writer:
         R, euler = ekf.attitude()
         std = np.sqrt(np.clip(np.diag(ekf.P), 0.0, None))
         self.estimate.write(ekf.t, int(ekf.status), *ekf.x, *std, *euler, tilt(R))
+        self.times.append(ekf.t)
+        self.states.append(ekf.x.copy())
 
 
-def read_inputs(log: Path) -> dict:
-    """The input streams present in a log folder, as structured arrays."""
+def compare_live(live, times, states, layout) -> dict:
+    """Largest ``|replay - run|`` per state group (:data:`GROUPS`) at the run's estimate rows.
+
+    Parameters
+    ----------
+    live : structured array or None
+        The run's ``estimate`` stream.
+    times, states : sequences
+        The replay's estimate: filter time, s, and state after every step.
+    layout : FilterLayout
+
+    Returns
+    -------
+    dict
+        ``rows`` compared and one maximum per group (units in the key); empty if there is
+        nothing to compare (no estimate in the log, or none within the replay's span).
+    """
+    labels = layout.labels()
+    if live is None or not times or not set(labels) <= set(live.dtype.names):
+        return {}
+    # The replay's estimate as it stood at each of the run's rows: its last step at or before.
+    at = np.searchsorted(np.asarray(times), live["t_s"], side="right") - 1
+    rows = at >= 0
+    if not np.any(rows):
+        return {}
+    run = np.column_stack([live[c] for c in labels])[rows]
+    diff = np.abs(np.asarray(states)[at[rows]] - run)
+    out = {"rows": int(np.sum(rows))}
+    for group, attr in GROUPS.items():
+        part = diff[:, getattr(layout, attr)]
+        if part.size:
+            out[group] = float(np.nanmax(part)) if np.any(np.isfinite(part)) else float("nan")
+    return out
+
+
+def read_inputs(log: Path, warn: Callable[[str], None] | None = None) -> dict:
+    """The input streams of a log folder, as structured arrays.
+
+    Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
+    are skipped and a stream whose file is missing or empty is left out, each told to ``warn``.
+    """
     meta = read_meta(log)
-    names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND)
-    return {n: read_stream(log, n) for n in names if n in meta["streams"]}
+    names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND, streams.ESTIMATE)
+    out = {}
+    for name in (n for n in names if n in meta.get("streams", {})):
+        try:
+            out[name] = read_stream(log, name, warn)
+        except LogError as exc:
+            if warn is None:
+                raise
+            warn(f"{exc}; replayed without it")
+    return out
 
 
-def prepare(log, scene=None, config: EstimatorConfig | None = None):
+def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     """Model, configuration, input streams and initial filter of a log folder.
 
     The filter runs over the span of the run's estimator (the log's ``estimate`` stream; else
     all samples). It starts from the scene's initial state with the last
     wheel speeds, servo lengths and command before that time; earlier samples are left out.
 
+    ``warn``: as :func:`read_inputs`.
+
     Returns
     -------
     ekf : TensegrityEKF
-    data : dict of structured arrays (samples from the start on)
+    data : dict of structured arrays (samples from the start on; the run's ``estimate``, if
+        the log has one, whole)
     """
     log = Path(log)
     meta = read_meta(log)
@@ -115,12 +184,13 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None):
     if config is None:
         config = config_from_dict(meta.get("estimator", {}), f"{log}/meta.json")
     model = Model(load_scene(scene_path))
-    data = read_inputs(log)
+    data = read_inputs(log, warn)
+    live = data.pop(streams.ESTIMATE, None)
     if streams.IMU not in data or not len(data[streams.IMU]):
         raise LogError(f"{log}: no imu samples to replay")
     t1 = np.inf
-    if streams.ESTIMATE in meta["streams"] and len(est := read_stream(log, streams.ESTIMATE)):
-        t0, t1 = float(est["t_s"][0]), float(est["t_s"][-1])
+    if live is not None and len(live):
+        t0, t1 = float(live["t_s"][0]), float(live["t_s"][-1])
     else:
         t0 = min(float(d["t_s"][0]) for d in data.values() if len(d))
     x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
@@ -141,20 +211,36 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None):
         ekf.set_input([last[streams.rest_column(s.name)] for s in model.scene.strings])
     after = {k: d[(d["t_s"] >= t0 if k == streams.IMU else d["t_s"] > t0) & (d["t_s"] <= t1)]
              for k, d in data.items()}  # fmt: skip
+    if live is not None:
+        after[streams.ESTIMATE] = live
     return ekf, after
 
 
-def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
+def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=None) -> dict:
     """Run the estimator over log folder ``log``; write log folder ``out``.
+
+    ``warn``, if given, is called with each warning about the input (a skipped row, a stream
+    left out) as it is found; they are in the summary's ``warnings`` either way.
 
     Returns
     -------
     dict
-        Counters per source and the final status word (also stored in ``out/meta.json``).
+        Counters per source, the final status word, the warnings and the comparison with the
+        run's estimate (``compare_live``, :func:`compare_live`); also stored in
+        ``out/meta.json``.
     """
     log, out = Path(log), Path(out)
+    check_new_log_folder(out)
     meta = read_meta(log)
-    ekf, data = prepare(log, scene, config)
+    warnings = []
+
+    def note(message: str) -> None:
+        warnings.append(message)
+        if warn is not None:
+            warn(message)
+
+    ekf, data = prepare(log, scene, config, note)
+    live = data.pop(streams.ESTIMATE, None)
     out_meta = {
         "replay_of": str(log),
         "scene": str(ekf.model.scene.name),
@@ -168,6 +254,8 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None) -> dict:
         summary = {
             "final_status": int(ekf.status),
             "sources": {s: m.counters() for s, m in ekf.monitors.items()},
+            "warnings": warnings,
+            "compare_live": compare_live(live, writer.times, writer.states, ekf.layout),
         }
         run.update_meta(created_unix_s=meta.get("created_unix_s", 0.0), summary=summary)
     return summary
