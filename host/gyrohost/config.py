@@ -9,14 +9,13 @@ loader checks them all the same way; cross-field rules live in each class's ``pr
 """
 
 import math
-import tomllib
 import typing
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
 from gyrohost.errors import GyrohostError
 from gyrohost.resources import ResourceError, resolve
-from gyrotensegrity.textfile import TextFileError, read_text
+from gyrotensegrity.textfile import read_toml
 
 EMULATED_PORT = "emulator"
 """Port value meaning: start the device emulator and use its pseudo-terminal."""
@@ -263,14 +262,7 @@ def load_rig_config(path: str | Path) -> RigConfig:
     ConfigError
         The file is missing or not TOML, or a key is unknown, mistyped, out of range or missing.
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(read_text(path))
-    except TextFileError as exc:
-        raise ConfigError(str(exc)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
-    return rig_config_from_dict(data, str(path))
+    return rig_config_from_dict(read_toml(path, ConfigError), str(path))
 
 
 def rig_config_from_dict(data: dict, source: str = "<dict>") -> RigConfig:

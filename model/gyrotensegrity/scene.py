@@ -7,7 +7,6 @@ Every error is a :class:`SceneError` naming the source and the key at fault, e.g
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import numpy as np
 
 from .errors import SceneError
 from .schedule import Schedule, constant
-from .textfile import TextFileError, read_text
+from .textfile import read_toml
 
 INTEGRATORS = ("rk4", "rk4-projected", "dop853", "rk45", "radau", "bdf")
 
@@ -148,14 +147,7 @@ def load_scene(path) -> Scene:
     SceneError
         If the file cannot be read or parsed, or any key is missing, unknown or invalid.
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(read_text(path))
-    except TextFileError as exc:
-        raise SceneError(str(exc)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: invalid TOML: {exc}") from None
-    return scene_from_dict(data, source=path.name)
+    return scene_from_dict(read_toml(path, SceneError), source=Path(path).name)
 
 
 def scene_from_dict(data: dict, source: str = "<scene>") -> Scene:

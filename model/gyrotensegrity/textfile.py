@@ -6,6 +6,7 @@ A leading UTF-8 byte-order mark, which some editors write, is dropped: the rest 
 were not there.
 """
 
+import tomllib
 from pathlib import Path
 
 BOM = "\ufeff"
@@ -41,3 +42,20 @@ def read_text(path: str | Path) -> str:
             "a binary file or another encoding; save it as UTF-8"
         ) from None
     return text.removeprefix(BOM)
+
+
+def read_toml(path: str | Path, error: type[Exception]) -> dict:
+    """The parsed TOML file at ``path``.
+
+    Raises
+    ------
+    error
+        The file is not readable UTF-8 text (:func:`read_text`) or not valid TOML; one line
+        naming the file (``<path>: invalid TOML: ...``).
+    """
+    try:
+        return tomllib.loads(read_text(path))
+    except TextFileError as exc:
+        raise error(str(exc)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: invalid TOML: {exc}") from None

@@ -96,7 +96,7 @@ def test_unreadable_and_invalid_files(tmp_path):
         load_rig_config(tmp_path / "missing.toml")
     bad = tmp_path / "bad.toml"
     bad.write_text("[imu\nport = 1")
-    with pytest.raises(ConfigError, match="bad.toml: not valid TOML"):
+    with pytest.raises(ConfigError, match="bad.toml: invalid TOML"):
         load_rig_config(bad)
 
 

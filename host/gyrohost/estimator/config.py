@@ -6,12 +6,11 @@ The keys (one flat table, ``[estimator]`` in a TOML file or a dict) are document
 """
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from gyrohost.config import TruthConfig
-from gyrotensegrity.textfile import TextFileError, read_text
+from gyrotensegrity.textfile import read_toml
 
 from .errors import EstimatorConfigError
 
@@ -88,13 +87,7 @@ def load_config(path: str | Path) -> EstimatorConfig:
 
 def read_table(path: str | Path) -> dict:
     """The ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(read_text(path))
-    except TextFileError as exc:
-        raise EstimatorConfigError(str(exc)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise EstimatorConfigError(f"{path}: cannot read estimator configuration: {exc}") from exc
+    data = read_toml(path, EstimatorConfigError)
     return data.get("estimator", data)
 
 
