@@ -62,8 +62,6 @@ typedef struct {
 
 static uint64_t g_mark_start, g_steps, g_sum, g_min = UINT64_MAX, g_max;
 static uint64_t g_first_mark, g_last_mark;
-/* GPIOR1 windows: the main loop's work on a tick (step, PWM, telemetry frame) */
-static uint64_t g_tick_start, g_tick_n, g_tick_sum, g_tick_max, g_tick_min = UINT64_MAX;
 /* ISR cycles (+8 entry each) while measuring: in total, inside the step, outside the tick work */
 static uint64_t g_isr_all, g_isr_in_step, g_isr_outside;
 /* The step without the ISRs that preempted it */
@@ -95,41 +93,35 @@ static void gpior0_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param)
     }
 }
 
-static void gpior1_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
-    (void)param;
-    avr->data[addr] = v;
-    if (v == 1) {
-        g_tick_start = avr->cycle;
-    } else if (g_tick_start) {
-        uint64_t d = avr->cycle - g_tick_start;
-        g_tick_start = 0;
-        if (!g_first_mark) return; /* start-up */
-        g_tick_n++;
-        g_tick_sum += d;
-        if (d < g_tick_min) g_tick_min = d;
-        if (d > g_tick_max) g_tick_max = d;
-    }
-}
+/* A window the firmware marks by writing 1 to a GPIOR at its start and 0 at its end. */
+typedef struct {
+    uint64_t min_cycles; /* shorter windows are not counted */
+    uint64_t start, n, sum, max, min;
+} window_t;
 
-/* GPIOR2 windows: the telemetry call. A window longer than TELEM_FRAME_MIN cycles built and
- * queued a frame (payload, CRC, COBS, TX ring copy: over 3000); the others only counted the
- * divider (about 20 cycles, more when an interrupt lands in them). */
-#define TELEM_FRAME_MIN 1000u
-static uint64_t g_telem_start, g_telem_n, g_telem_sum, g_telem_max, g_telem_min = UINT64_MAX;
-static void gpior2_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
-    (void)param;
+/* GPIOR1: the main loop's work on a tick (step, PWM, telemetry frame). */
+static window_t g_tick = {0, 0, 0, 0, 0, UINT64_MAX};
+
+/* GPIOR2: the telemetry call. A window longer than 1000 cycles built and queued a frame
+ * (payload, CRC, COBS, TX ring copy: over 3000); the others only counted the divider (about 20
+ * cycles, more when an interrupt lands in them). */
+static window_t g_telem = {1000u, 0, 0, 0, 0, UINT64_MAX};
+
+static void window_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    window_t* w = (window_t*)param;
     avr->data[addr] = v;
     if (v == 1) {
-        g_telem_start = avr->cycle;
-    } else if (g_telem_start) {
-        uint64_t d = avr->cycle - g_telem_start;
-        g_telem_start = 0;
-        if (!g_first_mark || d < TELEM_FRAME_MIN) return;
-        g_telem_n++;
-        g_telem_sum += d;
-        if (d < g_telem_min) g_telem_min = d;
-        if (d > g_telem_max) g_telem_max = d;
+        w->start = avr->cycle;
+        return;
     }
+    if (!w->start) return;
+    uint64_t d = avr->cycle - w->start;
+    w->start = 0;
+    if (!g_first_mark || d < w->min_cycles) return; /* start-up, or too short */
+    w->n++;
+    w->sum += d;
+    if (d < w->min) w->min = d;
+    if (d > w->max) w->max = d;
 }
 
 /* Lowest stack pointer of the whole run (the stack grows down from RAMEND). */
@@ -224,8 +216,8 @@ int main(int argc, char** argv) {
     avr->frequency = 16000000;
     avr_load_firmware(avr, &fw);
     avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
-    avr_register_io_write(avr, ADDR_GPIOR1, gpior1_write, NULL);
-    avr_register_io_write(avr, ADDR_GPIOR2, gpior2_write, NULL);
+    avr_register_io_write(avr, ADDR_GPIOR1, window_write, &g_tick);
+    avr_register_io_write(avr, ADDR_GPIOR2, window_write, &g_telem);
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~(uint32_t)AVR_UART_FLAG_STDIO;
@@ -327,21 +319,21 @@ int main(int argc, char** argv) {
            (unsigned long long)g_tx_bytes, (unsigned long long)g_tx_frames, end / 16e6);
     printf("stack: deepest %u bytes below RAMEND (lowest SP 0x%04X over the run)\n",
            (unsigned)(RAMEND - g_sp_min), (unsigned)g_sp_min);
-    if (g_telem_n > 0) {
+    if (g_telem.n > 0) {
         printf(
             "telemetry frame (GPIOR2: payload, CRC, COBS, TX ring; ISRs inside included): n=%llu "
             "min=%llu mean=%.0f max=%llu cycles\n",
-            (unsigned long long)g_telem_n, (unsigned long long)g_telem_min,
-            (double)g_telem_sum / (double)g_telem_n, (unsigned long long)g_telem_max);
+            (unsigned long long)g_telem.n, (unsigned long long)g_telem.min,
+            (double)g_telem.sum / (double)g_telem.n, (unsigned long long)g_telem.max);
     }
-    if (g_tick_n > 0) {
+    if (g_tick.n > 0) {
         double ticks = (double)(g_last_mark - g_first_mark) / TICK_CYCLES;
-        double work = (double)g_tick_sum / (double)g_tick_n;
+        double work = (double)g_tick.sum / (double)g_tick.n;
         printf(
             "tick work (GPIOR1: step, PWM, telemetry frame; ISRs inside included): n=%llu "
             "min=%llu mean=%.0f max=%llu cycles\n",
-            (unsigned long long)g_tick_n, (unsigned long long)g_tick_min, work,
-            (unsigned long long)g_tick_max);
+            (unsigned long long)g_tick.n, (unsigned long long)g_tick.min, work,
+            (unsigned long long)g_tick.max);
         printf(
             "ISR load (+8 entry each): %.0f cycles per tick (%.1f %%), inside the step %.1f per "
             "step, outside the tick work %.0f per tick\n",
