@@ -4,8 +4,9 @@ Typical use::
 
     from gyrotensegrity import Model, load_scene
     from gyrohost.control import Limits, Planner, Replanner, load_schedule, plan, preset
+    from gyrohost.resources import shipped
 
-    model = Model(load_scene("scenes/dbar-gyro.toml"))
+    model = Model(load_scene(shipped("scene", "dbar-gyro")))
     p = plan(model, target_tilt_rad=-0.3, duration_s=4.0, limits=Limits(max_speed_m_s=0.05))
     p.schedule.save("schedules/tilt-0.3.toml")       # gyrotens run --schedule FILE
     u = p.schedule.input_at(model, t)                 # the model's input at t

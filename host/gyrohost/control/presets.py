@@ -12,7 +12,7 @@ def paper(model, fraction=1.0 / 3.0, duration_s=3.0, sample_dt_s=0.1) -> Schedul
     """The paper's open-loop maneuver (Section VI): the n1-n3 rest length goes linearly to
     ``fraction`` of its initial length in ``duration_s``; the n2-n4 rest length follows the
     rhombus geometry ``sqrt(4 l^2 - d13^2)``, sampled every ``sample_dt_s`` (as
-    ``scenes/dbar-gyro.toml`` does).
+    the shipped scene ``dbar-gyro`` does).
 
     Note: at 1/3 in 3 s the n1-n3 string moves at 0.096 m/s, above the default servo limit
     (0.05 m/s); :meth:`Schedule.problems` reports it.

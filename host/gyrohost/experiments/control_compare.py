@@ -21,7 +21,9 @@ from gyrotensegrity import Model, load_scene
 
 
 def parse(argv):
-    p = argparse.ArgumentParser(prog="python -m gyrohost.control", description=__doc__)
+    p = argparse.ArgumentParser(
+        prog="python -m gyrohost.experiments.control_compare", description=__doc__
+    )
     p.add_argument("--scene", default=str(shipped("scene", "dbar-gyro")))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")
     p.add_argument("--duration", type=float, default=4.0, help="maneuver length, s")
