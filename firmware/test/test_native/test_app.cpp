@@ -81,6 +81,22 @@ class AppTest : public ::testing::Test {
                                   enc_make_reply(0, false), enc_make_reply(0, false)};
         for (int i = 0; i < n; i++) app_control_step(&app, zero);
     }
+    // Wheel 0 commanded to 50 rad/s (fast ramps, no heartbeat time-out) while its encoder turns
+    // on its own at 49.9 rad/s, whatever the drive: a wheel that does not slow down.
+    uint32_t free_angle = 0;
+    void command_free_wheel0() {
+        set_param(PRM_HEARTBEAT_MS, 60000);
+        set_param(PRM_ACCEL_RAD_S2, 10000);
+        set_param(PRM_DECEL_RAD_S2, 10000);
+        send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
+    }
+    void step_free_wheel0(bool bad_word = false) {
+        free_angle += 130;  // counts per tick: 49.9 rad/s
+        const uint16_t words[4] = {
+            enc_make_reply(static_cast<uint16_t>(free_angle & 0x3FFF), bad_word),
+            enc_make_reply(0, false), enc_make_reply(0, false), enc_make_reply(0, false)};
+        app_control_step(&app, words);
+    }
     const RxFrame* last(uint8_t id) {
         for (auto it = TxCapture::frames.rbegin(); it != TxCapture::frames.rend(); ++it) {
             if (it->id == id) return &*it;
@@ -587,57 +603,34 @@ TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
 
 // A bad encoder word while braking is not taken for a stopped wheel: the tick is not judged.
 TEST_F(AppTest, BadWordWhileBrakingDoesNotEndTheStop) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
-    set_param(PRM_ACCEL_RAD_S2, 10000);
-    set_param(PRM_DECEL_RAD_S2, 10000);
-    send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
-    uint32_t angle = 0;
-    auto tick = [&](bool bad) {
-        angle += 130;  // 49.9 rad/s: keeps turning whatever the drive
-        uint16_t words[4] = {enc_make_reply(static_cast<uint16_t>(angle & 0x3FFF), bad),
-                             enc_make_reply(0, false), enc_make_reply(0, false),
-                             enc_make_reply(0, false)};
-        app_control_step(&app, words);
-    };
-    for (int t = 0; t < 300; t++) tick(false);
+    command_free_wheel0();
+    for (int t = 0; t < 300; t++) step_free_wheel0();
     send(PROTO_ID_STOP_ALL);
-    for (int t = 0; t < 20; t++) tick(false);
+    for (int t = 0; t < 20; t++) step_free_wheel0();
     ASSERT_EQ(app.enable_mask, 0x1);
-    tick(true);  // the angle held: a zero change if it were judged
+    step_free_wheel0(true);  // the angle held: a zero change if it were judged
     EXPECT_EQ(app.enable_mask, 0x1);
-    tick(false);  // the first good word after it only takes the angle again
+    step_free_wheel0();  // the first good word after it only takes the angle again
     EXPECT_EQ(app.enable_mask, 0x1);
-    tick(false);
+    step_free_wheel0();
     EXPECT_EQ(app.enable_mask, 0x1);
 }
 
 // A wheel whose measured speed does not fall (here an encoder turning on its own at 50 rad/s):
 // the outputs go off APP_STOP_TICKS after the setpoint reached 0, and stay off.
 TEST_F(AppTest, StopTimesOutWhenTheWheelDoesNotSlowDown) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
-    set_param(PRM_ACCEL_RAD_S2, 10000);
-    set_param(PRM_DECEL_RAD_S2, 10000);
-    send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
-    uint32_t angle = 0;
-    const uint32_t counts_per_tick = 130;  // 49.9 rad/s
-    auto tick = [&]() {
-        angle += counts_per_tick;
-        uint16_t words[4] = {enc_make_reply(static_cast<uint16_t>(angle & 0x3FFF), false),
-                             enc_make_reply(0, false), enc_make_reply(0, false),
-                             enc_make_reply(0, false)};
-        app_control_step(&app, words);
-    };
-    for (int t = 0; t < 300; t++) tick();
+    command_free_wheel0();
+    for (int t = 0; t < 300; t++) step_free_wheel0();
     EXPECT_EQ(app.enable_mask, 0x1);
     send(PROTO_ID_STOP_ALL);
     int ticks = 0;
     while (app.enable_mask && ticks < 2000) {
-        tick();
+        step_free_wheel0();
         ticks++;
     }
     // 5 ticks of ramp (the step sees the last one a tick later), then the time-out.
     EXPECT_EQ(ticks, 1 + 5 + static_cast<int>(APP_STOP_TICKS));
-    for (int t = 0; t < 100; t++) tick();
+    for (int t = 0; t < 100; t++) step_free_wheel0();
     EXPECT_EQ(app.enable_mask, 0);
     EXPECT_EQ(app.w[0].drive_q15, 0);
 }
