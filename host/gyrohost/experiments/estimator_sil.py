@@ -122,8 +122,11 @@ def rig_model_run(config, seed, duration_s=3.0):
     Returns
     -------
     data : dict of structured arrays (streams of :mod:`.streams`)
-    truth_x : ndarray, shape (k, n), true filter states at the IMU samples
-    truth_R : ndarray, shape (k, 3, 3), true sensor axes at the IMU samples
+    truth_x : ndarray, shape (k, n), true filter states at every truth step (``dt_s`` apart)
+    truth_R : ndarray, shape (k, 3, 3), true sensor axes at every truth step
+    frames : ndarray, shape (f, 1 + n_w), every telemetry frame from t = 0: the board's own
+        time (its clock less its time at t = 0), s, and the speeds, rad/s
+    dt_s : float, the truth's step, s
     """
     from gyrohost.rig.imu_emu import Bwt61Emulator
     from gyrohost.rig.truth import Truth
@@ -153,7 +156,8 @@ def rig_model_run(config, seed, duration_s=3.0):
         data[name] = np.empty(len(arr), dtype=[(c, "f8") for c in columns[name]])
         for j, c in enumerate(columns[name]):
             data[name][c] = arr[:, j]
-    return model, data, np.array(truth_x), np.array(truth_R)
+    frames = np.array([f for f in board.frames if f[0] >= -1e-9])
+    return model, data, np.array(truth_x), np.array(truth_R), frames, truth.dt_s
 
 
 def _rig_model_rows(model, truth, emu, board, servos, duration_s):
@@ -182,8 +186,8 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
         reported = {  # the servo's position now, quantised to its steps
             s.id: steps_to_length(s, round(length_to_steps(s, position[s.id]))) for s in servos
         }
+        imu = truth.imu_truth(t)
         if k % imu_every == 0:
-            imu = truth.imu_truth(t)
             (sample,) = parser.feed(emu.encode_sample(imu), int(round(t * 1e9)))
             rows[streams.IMU].append(
                 [t, *sample.omega_rad_s, *sample.accel_m_s2, *sample.euler_rad]
@@ -192,13 +196,14 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
             rows[streams.COMMAND].append([t, *command, *spins])
             if k % (4 * imu_every) == 0:
                 rows[streams.SERVOS].append([t, *(reported[s.id] for s in servos)])
-            # the truth's plant has speed-driven wheels: its state has no spins, its input has;
-            # the true rest lengths are the servos' (continuous, unquantised) positions now
-            rest = truth.rest_length_m.copy()
-            rest[servo_strings] = [position[s.id] for s in servos]
-            u = truth.model.pack_input(rest, board.true_speeds())
-            truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
-            truth_R.append(imu.R_wb)
+        # the truth at every step (the real-time effects score at stamps off the IMU grid); its
+        # plant has speed-driven wheels: its state has no spins, its input has; the true rest
+        # lengths are the servos' (continuous, unquantised) positions now
+        rest = truth.rest_length_m.copy()
+        rest[servo_strings] = [position[s.id] for s in servos]
+        u = truth.model.pack_input(rest, board.true_speeds())
+        truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
+        truth_R.append(imu.R_wb)
         held = {}
         for s, i in zip(servos, servo_strings, strict=True):
             start = position[s.id]
@@ -235,6 +240,7 @@ class _WheelBoard:
         ):
             self.dev.handle_rx(msg, t0)
         self.latest = np.zeros(len(spins))
+        self.frames: list = []  # (board time since t = 0, s; speeds) of every frame
         for k in range(1, int(WHEEL_SPIN_UP_S * 100) + 1):
             self.advance(t0 + 0.01 * k)  # in 10 ms chunks: the pty holds a few kB
 
@@ -249,6 +255,7 @@ class _WheelBoard:
             if msg.name == "TELEMETRY":
                 w = [msg.fields[f"w{i}_mrad_s"] * 1e-3 for i in range(len(self.latest))]
                 self.latest = self.sign * np.array(w)
+                self.frames.append((msg.fields["t_us"] * 1e-6 - WHEEL_SPIN_UP_S, *self.latest))
         return self.latest
 
     def true_speeds(self):
@@ -266,14 +273,14 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     from gyrohost.estimator.config import config_from_dict, noise_from_rig
     from gyrohost.estimator.ekf import TensegrityEKF
 
-    model, data, truth_x, truth_R = rig_model_run(config, seed, duration_s)
+    model, data, truth_x, truth_R, _, dt_s = rig_model_run(config, seed, duration_s)
     est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
     # the initial estimate is drawn around the truth with the filter's initial covariance (an
     # error-free start scores the unobservable centre of mass at zero error for the whole run)
     ekf = TensegrityEKF(model, est_cfg)
     rng = np.random.default_rng(seed + 7_000_001)
     ekf = TensegrityEKF(model, est_cfg, x0=sample_initial(ekf, truth_x[0], rng))
-    return score_run(ekf, data, sampled_truth(truth_x, truth_R))
+    return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
 def main(argv=None) -> int:

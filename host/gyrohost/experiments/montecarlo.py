@@ -44,7 +44,7 @@ class RunResult:
     cpu_s: float
 
 
-def score_run(ekf, data, truth_at, nees_of=nees) -> RunResult:
+def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run) -> RunResult:
     """Run ``ekf`` over the streams ``data`` and score every IMU sample.
 
     Parameters
@@ -52,6 +52,9 @@ def score_run(ekf, data, truth_at, nees_of=nees) -> RunResult:
     truth_at : callable(ekf) -> (x_true (n,), R_true (3, 3))
         The true filter state and sensor axes at the filter's time.
     nees_of : callable(ekf, x_true) -> (value, dof)
+    feed : callable(ekf, data, on_step)
+        What hands the samples to the filter (:func:`gyrohost.estimator.driver.run`: all in
+        time order).
     """
     nis: dict = {}
     ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
@@ -67,7 +70,7 @@ def score_run(ekf, data, truth_at, nees_of=nees) -> RunResult:
             rows.append((e.t, value, dof, tilt_error(R, R_true), pos))
 
     c0 = time.process_time()
-    driver.run(ekf, data, score)
+    feed(ekf, data, score)
     cpu = time.process_time() - c0
     t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
     nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
@@ -75,11 +78,14 @@ def score_run(ekf, data, truth_at, nees_of=nees) -> RunResult:
 
 
 def sampled_truth(x, R, dt_s=0.01):
-    """``truth_at`` for truth sampled every ``dt_s`` from t = 0: states (k, n), axes (k, 3, 3)."""
+    """``truth_at`` for truth sampled every ``dt_s`` from t = 0: states (k, n), axes (k, 3, 3);
+    the state interpolated linearly to the filter's time, the axes the nearest sample's."""
 
     def truth_at(ekf):
-        k = int(round(ekf.t / dt_s))
-        return x[k], R[k]
+        u = min(max(ekf.t / dt_s, 0.0), len(x) - 1.0)
+        k = min(int(u), len(x) - 2)
+        w = u - k
+        return (1.0 - w) * x[k] + w * x[k + 1], R[int(round(u))]
 
     return truth_at
 

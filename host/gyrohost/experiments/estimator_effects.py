@@ -1,0 +1,176 @@
+"""The real-time run loop's effects on the filter's consistency, one at a time, on the simulated
+clock (deterministic: every delay is drawn from the run's seed).
+
+``python -m gyrohost.experiments.estimator_effects [--runs 3] [--duration 3] [--delay-ms 2]``
+
+The in-process SIL (:mod:`.estimator_sil`) hands the filter every sample at its true time, the
+wheel board's latest frame at every IMU sample. The run loop (``gyrohost.run``) differs in the
+ways :class:`Effects` names; each can be switched on alone and the runs scored as the SIL
+scores them (NEES over the full state at the filter's time, against the truth interpolated to
+it). Delays: a sample arrives ``0.5 ms + Exp(delay)`` after it was taken (serial transfer, the
+reader thread's wake-up); the loop's ticks are ``10 ms k + Exp(late)`` (its measured lateness:
+p99 a few ms on an idle machine, tens of ms under load).
+"""
+
+import argparse
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from gyrohost.estimator import driver, streams
+from gyrohost.estimator.config import config_from_dict, noise_from_rig
+from gyrohost.estimator.consistency import sample_initial
+from gyrohost.estimator.ekf import TensegrityEKF
+from gyrohost.experiments.estimator_sil import DEFAULT_CONFIG, RIG_MODEL_KEYS, rig_model_run
+from gyrohost.experiments.montecarlo import sampled_truth, score_run, summarise
+
+TICK_S = 0.01  # the run loop's period, s
+MIN_DELAY_S = 5e-4  # the smallest arrival delay, s
+MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Which of the run loop's ways differ from the in-process SIL (all False: the SIL)."""
+
+    imu_arrival: bool = False  # IMU samples stamped on arrival
+    imu_regrid: bool = False  # ...and put back on the IMU's 10 ms grid (driver.regular_times)
+    wheel_frames: bool = False  # every telemetry frame, stamped on arrival, 4 newest per tick
+    wheel_clock: bool = False  # ...stamped by the board's clock, the newest one per tick
+    late_ticks: bool = False  # ticks late as the loop's (commands set at the tick's time)
+    rig_noise: bool = False  # the filter's noise keys of the real-time rig (no RIG_MODEL_KEYS)
+
+    def label(self) -> str:
+        on = [f.name for f in fields(self) if getattr(self, f.name)]
+        return " + ".join(on) or "none (the SIL)"
+
+
+def _with_times(arr, t_s):
+    out = arr.copy()
+    out["t_s"] = t_s
+    return out
+
+
+def _wheel_frames(frames, n_w):
+    arr = np.empty(len(frames), dtype=[(c, "f8") for c in streams.wheels_columns(n_w)])
+    arr["t_s"] = frames[:, 0]
+    for i, c in enumerate(streams.wheel_speed_columns(n_w)):
+        arr[c] = frames[:, 1 + i]
+    return arr
+
+
+def loop_streams(data, frames, effects: Effects, rng, delay_s: float, late_s: float):
+    """The streams as the run loop hands them to the filter.
+
+    Returns
+    -------
+    data : dict of structured arrays, ``t_s`` the time the filter is told
+    arrival_s : dict, stream -> ndarray, when each sample reaches the host, s
+    ticks_s : ndarray, the loop's tick times, s
+    """
+    out, arrival = dict(data), {}
+    imu_t = data[streams.IMU]["t_s"]
+    ticks = np.arange(0.0, imu_t[-1] + 2 * TICK_S, TICK_S)
+    if effects.late_ticks:
+        ticks = ticks + rng.exponential(late_s, len(ticks))
+    for name in out:
+        arrival[name] = out[name]["t_s"].copy()
+    if effects.imu_arrival:
+        arrival[streams.IMU] = imu_t + MIN_DELAY_S + rng.exponential(delay_s, len(imu_t))
+        stamps = arrival[streams.IMU]
+        if effects.imu_regrid:
+            stamps = driver.regular_times(stamps, TICK_S, 0.03)
+        out[streams.IMU] = _with_times(data[streams.IMU], stamps)
+    if effects.wheel_frames:
+        w = _wheel_frames(frames, len(frames[0]) - 1)
+        board_t = w["t_s"].copy()
+        arrival[streams.WHEELS] = board_t + MIN_DELAY_S + rng.exponential(delay_s, len(w))
+        stamps = arrival[streams.WHEELS]
+        if effects.wheel_clock:  # the board's clock on the host's: the smallest delay so far
+            stamps = board_t + np.minimum.accumulate(stamps - board_t)
+        out[streams.WHEELS] = _with_times(w, stamps)
+    if effects.late_ticks:  # commands are set when their tick runs
+        k = np.rint(data[streams.COMMAND]["t_s"] / TICK_S).astype(int)
+        arrival[streams.COMMAND] = ticks[k]
+        out[streams.COMMAND] = _with_times(data[streams.COMMAND], ticks[k])
+    return out, arrival, ticks
+
+
+def ticked_feed(arrival, ticks, newest_wheels_only: bool):
+    """A ``feed`` for :func:`.montecarlo.score_run`: each tick drains what has arrived since
+    the last and fuses the newest ``MAX_FUSED_PER_TICK`` of each stream (one of the wheels when
+    ``newest_wheels_only``) in the order of their stamps, as ``gyrohost.run.dispatch`` does."""
+
+    def feed(ekf, data, on_step):
+        prev = -np.inf
+        for tick in ticks:
+            part = {}
+            for name, arr in data.items():
+                idx = np.flatnonzero((arrival[name] > prev) & (arrival[name] <= tick))
+                keep = 1 if name == streams.WHEELS and newest_wheels_only else MAX_FUSED_PER_TICK
+                if name != streams.COMMAND:
+                    idx = idx[np.argsort(arr["t_s"][idx], kind="stable")][-keep:]
+                if idx.size:
+                    part[name] = arr[idx]
+            prev = tick
+            if part:
+                driver.run(ekf, part, on_step)
+
+    return feed
+
+
+def score_with_effects(config, seed, effects: Effects, duration_s=3.0, delay_s=2e-3, late_s=1e-3):
+    """One :func:`.estimator_sil.rig_model_run` handed to the filter as ``effects`` say."""
+    model, data, truth_x, truth_R, frames, dt_s = rig_model_run(config, seed, duration_s)
+    rng = np.random.default_rng(seed + 9_000_011)
+    fed, arrival, ticks = loop_streams(data, frames, effects, rng, delay_s, late_s)
+    keys = {**noise_from_rig(config), **({} if effects.rig_noise else RIG_MODEL_KEYS)}
+    est_cfg = config_from_dict({**keys, "imu_period_s": 0.0})  # stamps as loop_streams made them
+    ekf = TensegrityEKF(model, est_cfg)
+    x0 = sample_initial(ekf, truth_x[0], np.random.default_rng(seed + 7_000_001))
+    ekf = TensegrityEKF(model, est_cfg, x0=x0)
+    feed = ticked_feed(arrival, ticks, effects.wheel_clock)
+    return score_run(ekf, fed, sampled_truth(truth_x, truth_R, dt_s), feed=feed)
+
+
+CASES = {
+    "sil": Effects(),
+    "imu-arrival": Effects(imu_arrival=True),
+    "imu-regrid": Effects(imu_arrival=True, imu_regrid=True),
+    "wheel-frames": Effects(wheel_frames=True),
+    "wheel-clock": Effects(wheel_frames=True, wheel_clock=True),
+    "late-ticks": Effects(late_ticks=True),
+    "rig-noise": Effects(rig_noise=True),
+    "loop-today": Effects(imu_arrival=True, wheel_frames=True, late_ticks=True, rig_noise=True),
+    "loop-fixed": Effects(
+        imu_arrival=True, imu_regrid=True, wheel_frames=True, wheel_clock=True, late_ticks=True
+    ),
+}
+
+
+def main(argv=None) -> int:
+    from gyrohost.config import load_rig_config
+
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_effects")
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--duration", type=float, default=3.0, help="s")
+    parser.add_argument("--delay-ms", type=float, default=2.0, help="mean arrival delay, ms")
+    parser.add_argument("--late-ms", type=float, default=1.0, help="mean tick lateness, ms")
+    parser.add_argument("--case", choices=sorted(CASES), action="append")
+    args = parser.parse_args(argv)
+    config = load_rig_config(DEFAULT_CONFIG)
+    for name in args.case or CASES:
+        effects = CASES[name]
+        results = [
+            score_with_effects(
+                config, s, effects, args.duration, 1e-3 * args.delay_ms, 1e-3 * args.late_ms
+            )
+            for s in range(1, args.runs + 1)
+        ]
+        print(f"--- {name}: {effects.label()}; {args.runs} runs")
+        summarise(results, f"[{name}] ")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
