@@ -13,6 +13,7 @@ import sys
 from gyrohost.errors import GyrohostError
 
 COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
+COMMANDS.append("sil")
 
 
 class CliError(GyrohostError, ValueError):

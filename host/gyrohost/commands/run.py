@@ -213,6 +213,7 @@ def _run_name(schedule) -> str:
 def report(result) -> int:
     """Print how a run ended and where its log is; returns its exit status."""
     from gyrohost.run import jitter_line
+    from gyrohost.run.health import health_lines
     from gyrohost.run.safe_state import describe, failed_steps
 
     s = result.summary
@@ -226,6 +227,8 @@ def report(result) -> int:
         print(line)
     if "maneuver" in s:
         print(maneuver_line(s))
+    for line in health_lines(s.get("estimator", {"nis": {}})):
+        print(line)
     safe = s["safe_state"]
     failed = failed_steps(safe)  # one line each, what the step reached included
     for line in failed:
@@ -233,8 +236,13 @@ def report(result) -> int:
     if result.exit_status == 0:
         print(f"run completed; rig in the safe state: {describe(safe)}")
         return 0
-    if result.completed:  # the schedule ran to its end, the log did not
-        print("gyrotens run: completed, but the log is incomplete", file=sys.stderr)
+    if result.completed:  # the schedule ran to its end, the log or the estimate did not
+        what = (
+            "the estimate diverged"
+            if s.get("estimator", {}).get("diverged")
+            else "the log is incomplete"
+        )
+        print(f"gyrotens run: completed, but {what}", file=sys.stderr)
     else:
         print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
     if not failed:

@@ -54,6 +54,9 @@ class EstimatorConfig:
     # IMU sample times from arrival stamps (replay): period (0 = keep stamps), largest delay
     imu_period_s: float = field(default=0.01, metadata=_pos("IMU output period", 0.0, 1.0))
     imu_max_delay_s: float = field(default=0.03, metadata=_pos("IMU arrival delay", 0.0, 1.0))
+    # how far a sample's reconstructed time may be off its true one (latency, the grid's
+    # residual jitter): adds (dh/dt)^2 imu_time_std_s^2 to each IMU source's noise, s
+    imu_time_std_s: float = field(default=0.0, metadata=_pos("IMU sample time std", 0.0, 0.1))
     # process model
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})

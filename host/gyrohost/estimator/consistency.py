@@ -41,3 +41,50 @@ def sample_initial(ekf, x_true, rng):
     Pt = T.T @ P0 @ T
     e = T @ (np.linalg.cholesky(Pt) @ rng.standard_normal(Pt.shape[0]))
     return ekf.manifold.project_state(x_true + e)
+
+
+def observed_nees(ekf, x, P, x_true):
+    """NEES over what a truth of node positions, wheel speeds and rest lengths observes: the
+    node coordinates in the tangent space of the bar lengths at ``x``, the wheel speeds and the
+    rest lengths (no velocities, no bias).
+
+    Parameters
+    ----------
+    ekf : TensegrityEKF
+        Its model, layout and manifold.
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+    x_true : ndarray, shape (n,), only the entries named above are read
+
+    Returns
+    -------
+    value : float
+    dof : int
+    """
+    L = ekf.layout
+    Tq = null_space(ekf.manifold.jacobian(x)[: ekf.model.beta, L.q])
+    idx = np.r_[L.q.start : L.q.stop, L.omega.start : L.rest.stop]
+    k = L.n_wheels + L.n_strings
+    T = np.zeros((len(idx), Tq.shape[1] + k))
+    T[: Tq.shape[0], : Tq.shape[1]] = Tq
+    T[Tq.shape[0] :, Tq.shape[1] :] = np.eye(k)
+    err = T.T @ (x_true - x)[idx]
+    return float(err @ np.linalg.solve(T.T @ P[np.ix_(idx, idx)] @ T, err)), T.shape[1]
+
+
+def state_of_truth(ekf, x, N, omega_rad_s, rest_m):
+    """``x`` with the node coordinates, wheel speeds and rest lengths of a truth sample.
+
+    Parameters
+    ----------
+    N : ndarray, shape (3, n_nodes), m, every node of the structure (virtual ones included)
+    omega_rad_s : ndarray, shape (n_w,)
+    rest_m : ndarray, shape (n_s,)
+    """
+    L, dyn = ekf.layout, ekf.process.dyn
+    U2 = ekf.model.U2.toarray()  # (n, m): N = N_fix + q U2^T
+    out = np.array(x, dtype=float)
+    out[L.q] = np.linalg.lstsq(U2, (N - dyn.N_fix).T, rcond=None)[0].T.ravel()
+    out[L.omega] = omega_rad_s
+    out[L.rest] = rest_m
+    return out

@@ -1,7 +1,8 @@
 """Feeding recorded streams to the filter in time order (shared by replay and the tests).
 
-IMU samples get regular times reconstructed from their arrival stamps (:func:`regular_times`,
-``imu_period_s``; 0 keeps the stamps). Samples of all streams are then merged by time; at equal
+The IMU's sample times are reconstructed from its arrival stamps by :class:`RegularClock`
+(online, ``gyrohost.run.dispatch``) or :func:`regular_times` (a logged stream, before it is
+handed here). Samples of all streams are merged by time; at equal
 times commands come first, then the IMU, the wheels and the servos (a fixed order, so a replay
 is deterministic). Before each sample the filter predicts to its time; a gap longer than
 ``process_dt_s`` is bridged in prediction steps, each reported like a sample (this is where
@@ -21,12 +22,35 @@ def _servo_map(model, names):
     return [c for c, _ in found], np.array([i for _, i in found], dtype=int)
 
 
-def regular_times(arrival_s, period_s, max_delay_s):
-    """Sample times of a device that samples every ``period_s``, from its arrival stamps.
+class RegularClock:
+    """Sample times of a device that samples every ``period_s``, from its arrival stamps, one
+    sample at a time (online; :func:`regular_times` for a whole stream).
 
     Reads in bursts stamp several samples alike; a sample cannot have been taken later than its
     arrival, nor earlier than ``max_delay_s`` before it, nor sooner than ``period_s`` after the
-    previous one (as reconstructed). Causal: each time depends on earlier arrivals only.
+    previous one (as reconstructed). ``period_s`` 0 keeps the arrival stamps.
+
+    Parameters
+    ----------
+    period_s, max_delay_s : float, s
+    """
+
+    def __init__(self, period_s: float, max_delay_s: float):
+        self.period_s, self.max_delay_s = period_s, max_delay_s
+        self.last_s: float | None = None
+
+    def __call__(self, arrival_s: float) -> float:
+        """The sample time, s, of the sample that arrived at ``arrival_s``, s."""
+        t = float(arrival_s)
+        if self.last_s is not None and self.period_s > 0.0:
+            t = max(t - self.max_delay_s, min(t, self.last_s + self.period_s))
+        self.last_s = t
+        return t
+
+
+def regular_times(arrival_s, period_s, max_delay_s):
+    """:class:`RegularClock` over a whole stream (causal: each time depends on earlier arrivals
+    only).
 
     Parameters
     ----------
@@ -37,10 +61,8 @@ def regular_times(arrival_s, period_s, max_delay_s):
     -------
     ndarray, shape (k,), s
     """
-    out = np.array(arrival_s, dtype=float)
-    for k in range(1, len(out)):
-        out[k] = max(out[k] - max_delay_s, min(out[k], out[k - 1] + period_s))
-    return out
+    clock = RegularClock(period_s, max_delay_s)
+    return np.array([clock(a) for a in np.asarray(arrival_s, dtype=float)])
 
 
 def events(data):
@@ -72,13 +94,6 @@ def run(ekf, data, on_step=None):
     n_w = len(model.wheel_bars)
     wheel_cols = cols.wheel_speed_columns(n_w)
     dt = ekf.config.process_dt_s
-    if ekf.config.imu_period_s > 0.0 and cols.IMU in data:
-        data = dict(data)
-        data[cols.IMU] = data[cols.IMU].copy()
-        c = ekf.config
-        data[cols.IMU]["t_s"] = regular_times(
-            data[cols.IMU]["t_s"], c.imu_period_s, c.imu_max_delay_s
-        )
     for t, name, i in events(data):
         while t - ekf.t > dt * (1.0 + 1e-9):
             ekf.advance(ekf.t + dt)

@@ -17,7 +17,8 @@ class ImuPrediction:
     """Values and Jacobians (columns: the dynamic states) at one estimate.
 
     R_ws (3, 3) and its Jacobian (9, n_dynamic); omega (3,) rad/s and (3, n_dynamic);
-    specific_force (3,) m/s^2 and (3, n_dynamic); A (n_dynamic, n_dynamic).
+    specific_force (3,) m/s^2 and (3, n_dynamic); A (n_dynamic, n_dynamic); x_dot
+    (n_dynamic,) the dynamics' time derivative of the state.
     """
 
     R_ws: np.ndarray
@@ -27,6 +28,7 @@ class ImuPrediction:
     specific_force: np.ndarray
     d_specific_force: np.ndarray
     A: np.ndarray
+    x_dot: np.ndarray
 
 
 def predict_imu(ekf, x, u) -> ImuPrediction:
@@ -41,7 +43,16 @@ def predict_imu(ekf, x, u) -> ImuPrediction:
     R, dR = complex_step.split(R_ws.reshape(K, 9))
     w, dw = complex_step.split(omega)
     fv, df = complex_step.split(f)
-    return ImuPrediction(R.reshape(3, 3), dR, w, dw, fv, df, complex_step.split(dx)[1])
+    x_dot, A = complex_step.split(dx)
+    return ImuPrediction(R.reshape(3, 3), dR, w, dw, fv, df, A, x_dot)
+
+
+def timing_noise(ekf, pred: ImuPrediction, J, std):
+    """Measurement covariance (k, k) of white noise ``std`` per component plus the IMU's
+    sample-time uncertainty (``imu_time_std_s``): a sample taken ``dt`` off the time it is
+    fused at reads ``h + dt dh/dt``, ``dh/dt = J x_dot`` (J over the dynamic states)."""
+    h_dot = J @ pred.x_dot
+    return np.eye(len(h_dot)) * std**2 + ekf.config.imu_time_std_s**2 * np.outer(h_dot, h_dot)
 
 
 def full_jacobian(ekf, J):

@@ -37,7 +37,8 @@ class Effects:
     imu_regrid: bool = False  # ...and put back on the IMU's 10 ms grid (driver.regular_times)
     wheel_frames: bool = False  # every telemetry frame, stamped on arrival, 4 newest per tick
     wheel_clock: bool = False  # ...stamped by the board's clock, the newest one per tick
-    late_ticks: bool = False  # ticks late as the loop's (commands set at the tick's time)
+    late_ticks: bool = False  # ticks late as the loop's: commands sent then, the filter told
+    command_at_last_sample: bool = False  # ...told at the newest sample fused before it
     rig_noise: bool = False  # the filter's noise keys of the real-time rig (no RIG_MODEL_KEYS)
 
     def label(self) -> str:
@@ -59,20 +60,22 @@ def _wheel_frames(frames, n_w):
     return arr
 
 
-def loop_streams(data, frames, effects: Effects, rng, delay_s: float, late_s: float):
+def loop_ticks(duration_s: float, effects: Effects, rng, late_s: float):
+    """The run loop's tick times, s (10 ms apart, each late by Exp(``late_s``) if so said)."""
+    ticks = np.arange(0.0, duration_s + 2 * TICK_S, TICK_S)
+    return ticks + rng.exponential(late_s, len(ticks)) if effects.late_ticks else ticks
+
+
+def loop_streams(data, frames, effects: Effects, rng, delay_s: float):
     """The streams as the run loop hands them to the filter.
 
     Returns
     -------
     data : dict of structured arrays, ``t_s`` the time the filter is told
     arrival_s : dict, stream -> ndarray, when each sample reaches the host, s
-    ticks_s : ndarray, the loop's tick times, s
     """
     out, arrival = dict(data), {}
     imu_t = data[streams.IMU]["t_s"]
-    ticks = np.arange(0.0, imu_t[-1] + 2 * TICK_S, TICK_S)
-    if effects.late_ticks:
-        ticks = ticks + rng.exponential(late_s, len(ticks))
     for name in out:
         arrival[name] = out[name]["t_s"].copy()
     if effects.imu_arrival:
@@ -89,17 +92,14 @@ def loop_streams(data, frames, effects: Effects, rng, delay_s: float, late_s: fl
         if effects.wheel_clock:  # the board's clock on the host's: the smallest delay so far
             stamps = board_t + np.minimum.accumulate(stamps - board_t)
         out[streams.WHEELS] = _with_times(w, stamps)
-    if effects.late_ticks:  # commands are set when their tick runs
-        k = np.rint(data[streams.COMMAND]["t_s"] / TICK_S).astype(int)
-        arrival[streams.COMMAND] = ticks[k]
-        out[streams.COMMAND] = _with_times(data[streams.COMMAND], ticks[k])
-    return out, arrival, ticks
+    return out, arrival
 
 
-def ticked_feed(arrival, ticks, newest_wheels_only: bool):
+def ticked_feed(arrival, ticks, effects: Effects):
     """A ``feed`` for :func:`.montecarlo.score_run`: each tick drains what has arrived since
-    the last and fuses the newest ``MAX_FUSED_PER_TICK`` of each stream (one of the wheels when
-    ``newest_wheels_only``) in the order of their stamps, as ``gyrohost.run.dispatch`` does."""
+    the last and fuses the newest ``MAX_FUSED_PER_TICK`` of each stream (the newest wheel frame
+    only with ``wheel_clock``) in the order of their stamps, as ``gyrohost.run.dispatch`` does;
+    then the tick's command (``command_at_last_sample``: at the filter's time by then)."""
 
     def feed(ekf, data, on_step):
         prev = -np.inf
@@ -107,29 +107,38 @@ def ticked_feed(arrival, ticks, newest_wheels_only: bool):
             part = {}
             for name, arr in data.items():
                 idx = np.flatnonzero((arrival[name] > prev) & (arrival[name] <= tick))
-                keep = 1 if name == streams.WHEELS and newest_wheels_only else MAX_FUSED_PER_TICK
-                if name != streams.COMMAND:
-                    idx = idx[np.argsort(arr["t_s"][idx], kind="stable")][-keep:]
+                keep = 1 if name == streams.WHEELS and effects.wheel_clock else MAX_FUSED_PER_TICK
+                idx = idx[np.argsort(arr["t_s"][idx], kind="stable")][-keep:]
                 if idx.size:
                     part[name] = arr[idx]
             prev = tick
+            command = part.pop(streams.COMMAND, None)
             if part:
                 driver.run(ekf, part, on_step)
+            if command is not None:
+                if effects.command_at_last_sample:
+                    command = _with_times(command, np.full(len(command), max(ekf.t, 0.0)))
+                driver.run(ekf, {streams.COMMAND: command}, on_step)
 
     return feed
 
 
-def score_with_effects(config, seed, effects: Effects, duration_s=3.0, delay_s=2e-3, late_s=1e-3):
-    """One :func:`.estimator_sil.rig_model_run` handed to the filter as ``effects`` say."""
-    model, data, truth_x, truth_R, frames, dt_s = rig_model_run(config, seed, duration_s)
+def score_with_effects(
+    config, seed, effects: Effects, duration_s=3.0, delay_s=2e-3, late_s=1e-3, overrides=None
+):
+    """One :func:`.estimator_sil.rig_model_run` handed to the filter as ``effects`` say;
+    ``overrides``: estimator keys on top of the case's."""
     rng = np.random.default_rng(seed + 9_000_011)
-    fed, arrival, ticks = loop_streams(data, frames, effects, rng, delay_s, late_s)
+    ticks = loop_ticks(duration_s, effects, rng, late_s)
+    model, data, truth_x, truth_R, frames, dt_s = rig_model_run(config, seed, duration_s, ticks)
+    fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
     keys = {**noise_from_rig(config), **({} if effects.rig_noise else RIG_MODEL_KEYS)}
-    est_cfg = config_from_dict({**keys, "imu_period_s": 0.0})  # stamps as loop_streams made them
+    keys.update(overrides or {})
+    est_cfg = config_from_dict(keys)
     ekf = TensegrityEKF(model, est_cfg)
     x0 = sample_initial(ekf, truth_x[0], np.random.default_rng(seed + 7_000_001))
     ekf = TensegrityEKF(model, est_cfg, x0=x0)
-    feed = ticked_feed(arrival, ticks, effects.wheel_clock)
+    feed = ticked_feed(arrival, ticks, effects)
     return score_run(ekf, fed, sampled_truth(truth_x, truth_R, dt_s), feed=feed)
 
 
@@ -140,8 +149,15 @@ CASES = {
     "wheel-frames": Effects(wheel_frames=True),
     "wheel-clock": Effects(wheel_frames=True, wheel_clock=True),
     "late-ticks": Effects(late_ticks=True),
+    "command-at-last-sample": Effects(late_ticks=True, command_at_last_sample=True),
     "rig-noise": Effects(rig_noise=True),
-    "loop-today": Effects(imu_arrival=True, wheel_frames=True, late_ticks=True, rig_noise=True),
+    "loop-today": Effects(
+        imu_arrival=True,
+        wheel_frames=True,
+        late_ticks=True,
+        command_at_last_sample=True,
+        rig_noise=True,
+    ),
     "loop-fixed": Effects(
         imu_arrival=True, imu_regrid=True, wheel_frames=True, wheel_clock=True, late_ticks=True
     ),
@@ -157,13 +173,21 @@ def main(argv=None) -> int:
     parser.add_argument("--delay-ms", type=float, default=2.0, help="mean arrival delay, ms")
     parser.add_argument("--late-ms", type=float, default=1.0, help="mean tick lateness, ms")
     parser.add_argument("--case", choices=sorted(CASES), action="append")
+    parser.add_argument("--key", action="append", default=[], help="estimator KEY=VALUE")
     args = parser.parse_args(argv)
     config = load_rig_config(DEFAULT_CONFIG)
+    overrides = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.key)}
     for name in args.case or CASES:
         effects = CASES[name]
         results = [
             score_with_effects(
-                config, s, effects, args.duration, 1e-3 * args.delay_ms, 1e-3 * args.late_ms
+                config,
+                s,
+                effects,
+                args.duration,
+                1e-3 * args.delay_ms,
+                1e-3 * args.late_ms,
+                overrides,
             )
             for s in range(1, args.runs + 1)
         ]

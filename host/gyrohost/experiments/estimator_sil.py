@@ -29,10 +29,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import null_space
 
+from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
-from gyrohost.estimator.consistency import sample_initial
+from gyrohost.estimator.consistency import observed_nees, sample_initial, state_of_truth
 from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_stream
@@ -64,6 +64,10 @@ RIG_MODEL_KEYS = {
 DEFAULT_CONFIG = shipped("config", "sim-rig")
 
 
+class SilError(GyrohostError, ValueError):
+    """A SIL run cannot start (its log folder exists)."""
+
+
 def record_run(config, seed, folder, duration_s=3.0):
     """One run of the paper's schedule on the simulated rig with IMU seed ``seed``."""
     from gyrohost.control.presets import paper
@@ -92,32 +96,24 @@ def score_log(folder) -> RunResult:
     node_cols = [f"{name}_{a}_m" for name in st.node_names for a in "xyz"]
     wheel_cols = [f"omega_{i}_rad_s" for i in range(L.n_wheels)]
     rest_cols = [streams.rest_column(s.name) for s in model.scene.strings]
-    U2 = ekf.model.U2.toarray()  # (n, m): N = N_fix + q U2^T
 
     def truth_at(e):
         N = _truth_at(truth, e.t, node_cols).reshape(st.n, 3).T  # virtual nodes repeat
-        x_true = e.x.copy()
-        x_true[L.q] = np.linalg.lstsq(U2, N.T, rcond=None)[0].T.ravel()  # N = N_fix + q U2^T
-        x_true[L.omega] = _truth_at(truth, e.t, wheel_cols)
-        x_true[L.rest] = _truth_at(truth, e.t, rest_cols)
+        omega, rest = _truth_at(truth, e.t, wheel_cols), _truth_at(truth, e.t, rest_cols)
         R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
-        return x_true, R_true[0]
+        return state_of_truth(e, e.x, N, omega, rest), R_true[0]
 
     def partial_nees(e, x_true):
-        Tq = null_space(e.manifold.jacobian(e.x)[: model.beta, L.q])
-        idx = np.r_[L.q.start : L.q.stop, L.omega.start : L.rest.stop]
-        T = np.zeros((len(idx), Tq.shape[1] + L.n_wheels + L.n_strings))
-        T[: Tq.shape[0], : Tq.shape[1]] = Tq
-        T[Tq.shape[0] :, Tq.shape[1] :] = np.eye(L.n_wheels + L.n_strings)
-        err = T.T @ (x_true - e.x)[idx]
-        P = T.T @ e.P[np.ix_(idx, idx)] @ T
-        return float(err @ np.linalg.solve(P, err)), T.shape[1]
+        return observed_nees(e, e.x, e.P, x_true)
 
     return score_run(ekf, data, truth_at, partial_nees)
 
 
-def rig_model_run(config, seed, duration_s=3.0):
+def rig_model_run(config, seed, duration_s=3.0, command_times_s=None):
     """One in-process run on the rig's truth model and sensor emulators (see module docstring).
+
+    ``command_times_s`` (increasing, s): when the host sends its commands, each the schedule at
+    its time, reaching the servos at the first truth step from then on (default: every 10 ms).
 
     Returns
     -------
@@ -140,7 +136,9 @@ def rig_model_run(config, seed, duration_s=3.0):
     strings = [s.name for s in scene.strings]
     board = _WheelBoard(config, model.spin0, np.random.default_rng(seed + 5_000_003))
     try:
-        rows, truth_x, truth_R = _rig_model_rows(model, truth, emu, board, servos, duration_s)
+        rows, truth_x, truth_R = _rig_model_rows(
+            model, truth, emu, board, servos, duration_s, command_times_s
+        )
     finally:
         board.close()
     n_w = len(model.spin0)
@@ -160,7 +158,7 @@ def rig_model_run(config, seed, duration_s=3.0):
     return model, data, np.array(truth_x), np.array(truth_R), frames, truth.dt_s
 
 
-def _rig_model_rows(model, truth, emu, board, servos, duration_s):
+def _rig_model_rows(model, truth, emu, board, servos, duration_s, command_times_s=None):
     """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
     from gyrohost.drivers.imu import Bwt61Parser
     from gyrohost.drivers.mx12 import length_to_steps, steps_to_length
@@ -178,11 +176,15 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
     gain = 1.0 - np.exp(-dt / SERVO_LAG_S)
     rows = {streams.IMU: [], streams.WHEELS: [], streams.SERVOS: [], streams.COMMAND: []}
     truth_x, truth_R = [], []
+    sends = np.arange(0.0, duration_s + dt, 0.01) if command_times_s is None else command_times_s
+    sent, command = 0, model.input_at(0.0)[: model.alpha]
     for k in range(int(round(duration_s / dt)) + 1):
         t = k * dt
         wheels = board.advance(t)
-        if k % imu_every == 0:  # the host sends a command every tick (10 ms), held in between
-            command = model.input_at(t)[: model.alpha]
+        while sent < len(sends) and sends[sent] <= t + 1e-9:  # held until the next one
+            command = model.input_at(sends[sent])[: model.alpha]
+            rows[streams.COMMAND].append([sends[sent], *command, *spins])
+            sent += 1
         reported = {  # the servo's position now, quantised to its steps
             s.id: steps_to_length(s, round(length_to_steps(s, position[s.id]))) for s in servos
         }
@@ -193,7 +195,6 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s):
                 [t, *sample.omega_rad_s, *sample.accel_m_s2, *sample.euler_rad]
             )
             rows[streams.WHEELS].append([t, *wheels])  # the latest frame
-            rows[streams.COMMAND].append([t, *command, *spins])
             if k % (4 * imu_every) == 0:
                 rows[streams.SERVOS].append([t, *(reported[s.id] for s in servos)])
         # the truth at every step (the real-time effects score at stamps off the IMU grid); its
@@ -283,35 +284,53 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
-def main(argv=None) -> int:
-    from gyrohost.config import load_rig_config
+def sil_results(config, runs, duration_s=3.0, realtime=False, out=None, score_only=False):
+    """``runs`` SIL runs (seeds 1, 2, ...): in process on the simulated clock, or with
+    ``realtime`` recorded on the real-time simulated rig into ``out``/runNN (``score_only``:
+    score logs already there) and scored from their logs. Returns the :class:`RunResult` list."""
+    if not realtime:
+        return [
+            score_rig_model_run(config, s, duration_s, RIG_MODEL_KEYS) for s in range(1, runs + 1)
+        ]
+    results = []
+    for seed in range(1, runs + 1):
+        folder = Path(out) / f"run{seed:02d}"
+        if not score_only:
+            if (folder / "meta.json").exists():
+                raise SilError(f"{folder} exists; remove it or score it (--score-only)")
+            record_run(config, seed, folder, duration_s)
+        results.append(score_log(folder))
+        print(f"run {seed}: {len(results[-1].t_s)} IMU samples scored", file=sys.stderr)
+    return results
 
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_sil")
+
+def add_arguments(parser) -> None:
+    """The options of ``gyrotens sil`` and of this module's command line."""
     parser.add_argument("--runs", type=int, default=20)
-    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG)
-    parser.add_argument("--duration", type=float, default=3.0, help="s (in-process runs)")
+    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
+    parser.add_argument("--duration", type=float, default=3.0, help="schedule length, s")
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
     parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
     parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
-    args = parser.parse_args(argv)
+
+
+def report(args) -> dict:
+    """Run and print the SIL table of ``args`` (:func:`add_arguments`); returns the figures."""
+    from gyrohost.config import load_rig_config
+
     config = load_rig_config(args.config)
-    if not args.realtime:
-        runs = range(1, args.runs + 1)
-        results = [score_rig_model_run(config, s, args.duration, RIG_MODEL_KEYS) for s in runs]
-        print(f"--- SIL (rig truth model and sensor emulators, simulated clock): {args.runs} runs")
-        summarise(results, "[sil] ")
-        return 0
-    results = []
-    for seed in range(1, args.runs + 1):
-        folder = args.out / f"run{seed:02d}"
-        if not args.score_only:
-            if (folder / "meta.json").exists():
-                raise SystemExit(f"{folder} exists; remove it or use --score-only")
-            record_run(config, seed, folder)
-        results.append(score_log(folder))
-        print(f"run {seed}: {len(results[-1].t_s)} IMU samples scored", file=sys.stderr)
-    print(f"--- SIL: {len(results)} runs of the paper's schedule on the simulated rig")
-    summarise(results, "[sil] ")
+    results = sil_results(
+        config, args.runs, args.duration, args.realtime, args.out, args.score_only
+    )
+    clock = "real-time rig through the run loop" if args.realtime else "simulated clock"
+    print(f"--- SIL ({clock}): {len(results)} runs of the paper's schedule")
+    return summarise(results, "[sil] ")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_sil")
+    add_arguments(parser)
+    report(parser.parse_args(argv))
     return 0
 
 

@@ -9,22 +9,37 @@ import queue
 
 import numpy as np
 
+from gyrohost.estimator.driver import RegularClock
 from gyrohost.run.devices import Sample
 
 
 class ImuHandler:
-    """IMU samples (:class:`~gyrohost.drivers.imu.ImuSample`): the ``imu`` stream, fused."""
+    """IMU samples (:class:`~gyrohost.drivers.imu.ImuSample`): the ``imu`` stream, fused.
+
+    Logged at their arrival stamps; fused at the times of the IMU's own output grid
+    (:class:`~gyrohost.estimator.driver.RegularClock` over every sample, as ``gyrotens replay``
+    reconstructs them from the log): an arrival stamp carries the serial link's and the reader
+    thread's delay, which the filter would take for motion.
+
+    Parameters
+    ----------
+    stream : Stream
+    config : EstimatorConfig
+        ``imu_period_s`` (0: fuse at the arrival stamps) and ``imu_max_delay_s``.
+    """
 
     device = "imu"
 
-    def __init__(self, stream):
+    def __init__(self, stream, config):
         self.stream = stream
+        self.clock = RegularClock(config.imu_period_s, config.imu_max_delay_s)
 
     def take(self, t_s: float, v, ekf) -> None:
-        """Log the sample taken at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        """Log the sample that arrived at host time ``t_s``; fuse it unless ``ekf`` is None."""
         self.stream.write(t_s, *v.omega_rad_s, *v.accel_m_s2, *v.euler_rad, v.temperature_degC)
+        t_sample_s = self.clock(t_s)
         if ekf is not None:
-            ekf.fuse_imu(t_s, v.omega_rad_s, v.accel_m_s2, v.euler_rad)
+            ekf.fuse_imu(t_sample_s, v.omega_rad_s, v.accel_m_s2, v.euler_rad)
 
 
 class WheelHandler:

@@ -167,7 +167,9 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     """Model, configuration, input streams and initial filter of a log folder.
 
     The filter runs over the span of the run's estimator (the log's ``estimate`` stream; else
-    all samples). It starts from the scene's initial state with the last
+    all samples); the IMU samples at the times of the IMU's grid reconstructed from all their
+    arrival stamps (:func:`~gyrohost.estimator.driver.regular_times`), as the run loop fuses
+    them. It starts from the scene's initial state with the last
     wheel speeds, servo lengths and command before that time; earlier samples are left out.
 
     ``warn``: as :func:`read_inputs`.
@@ -211,6 +213,13 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
         ekf.set_input([last[streams.rest_column(s.name)] for s in model.scene.strings])
     after = {k: d[(d["t_s"] >= t0 if k == streams.IMU else d["t_s"] > t0) & (d["t_s"] <= t1)]
              for k, d in data.items()}  # fmt: skip
+    # fused at the IMU's grid reconstructed from every arrival, as the run loop fused them
+    imu = data[streams.IMU]
+    kept = (imu["t_s"] >= t0) & (imu["t_s"] <= t1)
+    after[streams.IMU] = imu[kept].copy()
+    after[streams.IMU]["t_s"] = driver.regular_times(
+        imu["t_s"], config.imu_period_s, config.imu_max_delay_s
+    )[kept]
     if live is not None:
         after[streams.ESTIMATE] = live
     return ekf, after

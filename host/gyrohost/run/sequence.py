@@ -171,6 +171,8 @@ class RunLoop:
                 summary = self._end(reason)
         if self.log.failure is not None and status == 0:
             status = 1  # the run completed, its log did not
+        if summary.get("estimator", {}).get("diverged") and status == 0:
+            status = 1  # the run completed, its estimate did not hold
         return RunResult(reason == "completed", reason, status, self.log_folder, summary)
 
     def _end(self, reason: str) -> dict:
@@ -391,7 +393,7 @@ class RunLoop:
         """The simulated rig's truth to its stream; in the safe state a failing probe (whatever
         it raises) is logged and dropped, so the rest of the safe state goes on."""
         try:
-            self.truth.write()
+            self.truth.write(self.estimates.score if self.estimates is not None else None)
         except Exception as exc:
             if strict:
                 raise
@@ -428,7 +430,7 @@ class RunLoop:
         self.streams = open_run_streams(log, self.strings, self.servo_strings)
         self.servo_handler = ServoHandler(self.streams.servos, self.strings, self.servo_strings)
         handlers = [
-            ImuHandler(self.streams.imu),
+            ImuHandler(self.streams.imu, self.estimator_config),
             WheelHandler(self.streams.wheels, len(self.model.wheel_bars)),
             self.servo_handler,
         ]

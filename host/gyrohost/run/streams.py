@@ -16,6 +16,7 @@ from gyrohost.control.attitude import TiltMeter, node_columns
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
+from gyrohost.run.health import NisTally, TruthScore
 
 INNOVATION_COMPONENTS = {
     "imu_rate": ("x", "y", "z"),
@@ -128,6 +129,7 @@ class EstimateWriter:
 
     def __init__(self, log, ekf, tilt: TiltMeter | None):
         self.ekf, self.tilt = ekf, tilt
+        self.score = TruthScore(ekf)  # the estimate at the simulated rig's truth samples
         model = ekf.model
         self.names = list(model.scene.node_names)
         self.scene_cols = node_columns(model, self.names)
@@ -153,6 +155,7 @@ class EstimateWriter:
         tilt = tilt_of(self.tilt, N)
         std = np.sqrt(np.clip(np.diag(ekf.P), 0.0, None))
         self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, sensor_tilt(R))
+        self.score.estimate()
         self.nodes.write(t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt))
         return N, tilt
 
@@ -168,8 +171,10 @@ class InnovationWriter:
         self.log = log
         self.components = dict(INNOVATION_COMPONENTS, servos=tuple(servo_strings))
         self.streams: dict = {}
+        self.tally = NisTally()  # the estimator's health in the summary
 
     def __call__(self, inn) -> None:
+        self.tally.add(inn)
         stream = self.streams.get(inn.source)
         if stream is None:
             k = len(inn.innovation)
@@ -229,12 +234,16 @@ class TruthProbe:
             description="the simulated rig's truth at its rig time on the host clock (t_s)",
         )
 
-    def write(self) -> None:
-        """Write every truth sample received since the last call."""
+    def write(self, score: TruthScore | None = None) -> None:
+        """Write every truth sample received since the last call; score the estimate at each
+        (``score``: the estimate writer's, None before the estimator starts)."""
         for s in self.rig.truth():
             self.latest_tilt = tilt_of(self.tilt, s.N)
+            t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s
+            if score is not None:
+                score.truth(t_s, s.N, s.omega_w_rad_s, s.rest_length_m)
             self.stream.write(
-                (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s,
+                t_s,
                 s.rig_t_s,
                 s.truth_t_s,
                 (s.t_ns - self.t0_ns) * 1e-9,

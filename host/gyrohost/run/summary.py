@@ -4,6 +4,7 @@ once it has reached the safe state."""
 from dataclasses import asdict
 
 from gyrohost.rig.process import RigProcessError
+from gyrohost.run.health import health
 from gyrohost.run.ticker import jitter_line
 from gyrotensegrity import __version__
 
@@ -39,6 +40,9 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "duration_s": loop.now(),
     }
     out.update(loop.final)
+    if loop.ekf is not None:
+        score = loop.estimates.score if loop.truth is not None else None
+        out["estimator"] = health(loop.ekf.log.tally, score)
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
         target = loop.maneuver.target.tilt_rad

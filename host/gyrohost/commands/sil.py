@@ -1,0 +1,28 @@
+"""``gyrotens sil [--runs N] [--realtime] [--config C]``: the estimator's consistency.
+
+Runs the paper's schedule ``N`` times on the simulated rig (in process on a simulated clock, or
+``--realtime`` through the run loop) and prints NEES and the NIS of every source against the
+95 % bounds of an N-run average, the share of time steps inside them, tilt and node errors and
+the filter's CPU time (:mod:`gyrohost.experiments.estimator_sil`, docs/estimator.md).
+"""
+
+
+def register(sub) -> None:
+    from gyrohost.experiments.estimator_sil import add_arguments
+
+    p = sub.add_parser("sil", help="estimator consistency on the simulated rig (NEES, NIS)")
+    add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from gyrohost.cli import CliError
+    from gyrohost.experiments.estimator_sil import SilError, report
+
+    if args.runs < 1:
+        raise CliError(f"--runs must be at least 1, got {args.runs}")
+    try:
+        report(args)
+    except SilError as exc:
+        raise CliError(str(exc)) from None
+    return 0

@@ -1,0 +1,154 @@
+"""The estimator's health over a run: NIS per source, gate rejections, and on the simulated rig
+the NEES against its truth; a diverged estimate fails the run.
+
+:class:`NisTally` counts every fusion attempt (the run's innovation writer feeds it);
+:class:`TruthScore` scores each truth sample of the simulated rig against the estimate of the
+tick nearest to it (:func:`gyrohost.estimator.consistency.observed_nees`: node coordinates on
+the constraint manifold, wheel speeds and rest lengths). The summary's ``estimator`` table
+(:func:`health`) gives each mean with the two-sided 95 % chi-square bounds of a mean over that
+many samples (as if independent: a guide, not a test) and says whether the estimate diverged.
+"""
+
+from collections import deque
+
+import numpy as np
+
+from gyrohost.estimator.consistency import average_bounds, observed_nees, state_of_truth
+
+DIVERGED_NODE_ERROR_M = 0.02
+"""RMS node coordinate error (over the last :data:`RECENT` truth samples) above which the
+estimate has diverged: four times the filter's own error on the loaded simulated rig."""
+DIVERGED_REJECTED_IN_A_ROW = 50
+"""Gate rejections in a row of one source after which the estimate has diverged (0.5 s of IMU)."""
+RECENT = 50
+MAX_GAP_S = 0.006  # a truth sample further than this from every recent estimate is not scored
+
+
+def _mean_row(total: float, samples: int, dof: int) -> dict:
+    lo, hi = average_bounds(dof, samples) if samples else (float("nan"),) * 2
+    mean = total / samples if samples else float("nan")
+    return {"mean": mean, "dof": dof, "samples": samples, "bounds95": [lo, hi]}
+
+
+class NisTally:
+    """Fusion attempts per source: samples, rejected, rejected in a row, NIS sum."""
+
+    def __init__(self):
+        self.sources: dict = {}
+
+    def add(self, inn) -> None:
+        """Count one :class:`~gyrohost.estimator.fusion.Innovation`."""
+        s = self.sources.setdefault(
+            inn.source,
+            {"samples": 0, "rejected": 0, "in_a_row": 0, "nis": 0.0, "dof": len(inn.innovation)},
+        )
+        s["samples"] += 1
+        s["nis"] += inn.nis
+        s["rejected"] += not inn.accepted
+        s["in_a_row"] = 0 if inn.accepted else s["in_a_row"] + 1
+
+    def table(self) -> dict:
+        """Source -> mean NIS with its bounds, samples, rejected, most recent rejections in a
+        row."""
+        out = {}
+        for source, s in self.sources.items():
+            row = _mean_row(s["nis"], s["samples"], s["dof"])
+            out[source] = {**row, "rejected": s["rejected"], "rejected_in_a_row": s["in_a_row"]}
+        return out
+
+
+class TruthScore:
+    """NEES and node error of the estimate at the simulated rig's truth samples.
+
+    Parameters
+    ----------
+    ekf : TensegrityEKF
+    """
+
+    def __init__(self, ekf):
+        self.ekf = ekf
+        self.recent: deque = deque(maxlen=64)  # (t_s, x, P) after each tick
+        self.nees: list[float] = []
+        self.node_error_m: list[float] = []
+        self.dof = 0
+
+    def estimate(self) -> None:
+        """Keep the estimate as it stands now (once a tick)."""
+        e = self.ekf
+        self.recent.append((e.t, e.x.copy(), e.P.copy()))
+
+    def truth(self, t_s: float, N, omega_rad_s, rest_m) -> None:
+        """Score the estimate nearest in time to a truth sample (skipped if none is close).
+
+        Parameters
+        ----------
+        t_s : float, s, host time of the sample
+        N : ndarray, shape (3, n_nodes), m, every node of the structure
+        omega_rad_s : ndarray, shape (n_w,); rest_m : ndarray, shape (n_s,)
+        """
+        if not self.recent:
+            return
+        t, x, P = min(self.recent, key=lambda r: abs(r[0] - t_s))
+        if abs(t - t_s) > MAX_GAP_S:
+            return
+        x_true = state_of_truth(self.ekf, x, N, omega_rad_s, rest_m)
+        value, self.dof = observed_nees(self.ekf, x, P, x_true)
+        self.nees.append(value)
+        q = self.ekf.layout.q
+        self.node_error_m.append(float(np.sqrt(np.mean((x[q] - x_true[q]) ** 2))))
+
+    def table(self) -> dict:
+        """NEES mean with its bounds, node error RMS over the run and over the last samples."""
+        err = np.array(self.node_error_m)
+        out = _mean_row(float(np.sum(self.nees)), len(self.nees), self.dof)
+        out["node_error_rms_m"] = float(np.sqrt(np.mean(err**2))) if err.size else float("nan")
+        out["node_error_recent_rms_m"] = (
+            float(np.sqrt(np.mean(err[-RECENT:] ** 2))) if err.size else float("nan")
+        )
+        return out
+
+
+def health(nis: NisTally | None, truth: TruthScore | None) -> dict:
+    """The summary's ``estimator`` table: ``nis`` per source, ``nees`` (simulated rig only),
+    ``diverged`` and why."""
+    out: dict = {"nis": nis.table() if nis is not None else {}}
+    why = [
+        f"{source}: last {row['rejected_in_a_row']} samples rejected by the gate"
+        for source, row in out["nis"].items()
+        if row["rejected_in_a_row"] >= DIVERGED_REJECTED_IN_A_ROW
+    ]
+    if truth is not None and truth.nees:
+        out["nees"] = truth.table()
+        recent = out["nees"]["node_error_recent_rms_m"]
+        if recent > DIVERGED_NODE_ERROR_M:
+            why.append(
+                f"node error {1e3 * recent:.1f} mm RMS over the last truth samples "
+                f"(limit {1e3 * DIVERGED_NODE_ERROR_M:g} mm)"
+            )
+    out["diverged"] = bool(why)
+    out["why"] = "; ".join(why)
+    return out
+
+
+def health_lines(table: dict) -> list[str]:
+    """Printable lines of a :func:`health` table."""
+
+    def row(name, r):
+        lo, hi = r["bounds95"]
+        return (
+            f"{name} {r['mean']:.2f} (dof {r['dof']}, 95 % [{lo:.2f}, {hi:.2f}], n {r['samples']})"
+        )
+
+    lines = []
+    if "nees" in table:
+        n = table["nees"]
+        lines.append(
+            f"estimator vs truth: {row('NEES', n)}; node error RMS "
+            f"{1e3 * n['node_error_rms_m']:.2f} mm"
+        )
+    nis = [f"{row(s, r)}, {r['rejected']} rejected" for s, r in table["nis"].items()]
+    if nis:
+        lines.append("estimator NIS: " + "; ".join(nis))
+    if table.get("diverged"):
+        lines.append(f"estimator DIVERGED: {table['why']}")
+    return lines
