@@ -176,6 +176,11 @@ def noise_from_rig(rig) -> dict:
         # an MX-12W under string load is not the filter's first-order lag: on the real-time
         # simulated rig its position differs from that model by about 1 mm (NIS 41 at 0.2 mm)
         "servo_length_std_m": 1.0e-3,
+        # the wheel board emulator's telemetry: the encoder's quantisation through the
+        # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds its speeds, so
+        # they walk only slowly (the default 0.5 rad/s gave a wheel NIS of 0.003)
+        "wheel_speed_std_rad_s": 0.0146,
+        "wheel_accel_psd_rad2_s3": 1.0e-4,
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
     }

@@ -77,11 +77,13 @@ def state_of_truth(ekf, x, N, omega_rad_s, rest_m):
 
     Parameters
     ----------
-    N : ndarray, shape (3, n_nodes), m, every node of the structure (virtual ones included)
+    N : ndarray, shape (3, n_scene_nodes), m, the scene's nodes in scene order
     omega_rad_s : ndarray, shape (n_w,)
     rest_m : ndarray, shape (n_s,)
     """
-    L, dyn = ekf.layout, ekf.process.dyn
+    L, dyn, model = ekf.layout, ekf.process.dyn, ekf.model
+    scene_nodes = list(model.scene.node_names)
+    N = np.asarray(N)[:, [scene_nodes.index(n) for n in model.structure.node_names]]
     U2 = ekf.model.U2.toarray()  # (n, m): N = N_fix + q U2^T
     out = np.array(x, dtype=float)
     out[L.q] = np.linalg.lstsq(U2, (N - dyn.N_fix).T, rcond=None)[0].T.ravel()

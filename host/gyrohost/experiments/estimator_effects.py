@@ -161,6 +161,14 @@ CASES = {
     "loop-fixed": Effects(
         imu_arrival=True, imu_regrid=True, wheel_frames=True, wheel_clock=True, late_ticks=True
     ),
+    "loop-fixed-rig-noise": Effects(
+        imu_arrival=True,
+        imu_regrid=True,
+        wheel_frames=True,
+        wheel_clock=True,
+        late_ticks=True,
+        rig_noise=True,
+    ),
 }
 
 

@@ -51,15 +51,13 @@ SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order
 # servos here are exactly the filter's first-order lag: their length noise is the step
 # quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um) and the rest lengths barely walk. The
 # wheel telemetry noise is the emulator's measured encoder quantisation through the firmware's
-# low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds the true speeds constant, so they
-# walk only slowly.
+# low-pass (0.0146 rad/s RMS, docs/rig.md, in noise_from_rig); the board holds the true speeds
+# constant, so they walk only slowly.
 RIG_MODEL_KEYS = {
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "rest_psd_m2_s": 1e-10,
     "rest_jitter_psd_m2_s": 2e-10,
-    "wheel_speed_std_rad_s": 0.0146,
-    "wheel_accel_psd_rad2_s3": 1e-4,
 }
 DEFAULT_CONFIG = shipped("config", "sim-rig")
 
@@ -91,17 +89,20 @@ def score_log(folder) -> RunResult:
     speeds and rest lengths: NEES over those, the positions in the tangent space of the bar
     lengths; the velocity entries of ``x_true`` are the estimate's own)."""
     ekf, data = prepare(folder)
-    model, L, st = ekf.model, ekf.layout, ekf.model.structure
+    model, L = ekf.model, ekf.layout
     truth = read_stream(folder, "truth")
-    node_cols = [f"{name}_{a}_m" for name in st.node_names for a in "xyz"]
+    scene_nodes = list(model.scene.node_names)
+    node_cols = [f"{name}_{a}_m" for name in scene_nodes for a in "xyz"]
     wheel_cols = [f"omega_{i}_rad_s" for i in range(L.n_wheels)]
     rest_cols = [streams.rest_column(s.name) for s in model.scene.strings]
 
     def truth_at(e):
-        N = _truth_at(truth, e.t, node_cols).reshape(st.n, 3).T  # virtual nodes repeat
+        N = _truth_at(truth, e.t, node_cols).reshape(len(scene_nodes), 3).T
         omega, rest = _truth_at(truth, e.t, wheel_cols), _truth_at(truth, e.t, rest_cols)
-        R_true, _ = e.imu.frame(N[None], np.zeros_like(N)[None])
-        return state_of_truth(e, e.x, N, omega, rest), R_true[0]
+        x_true = state_of_truth(e, e.x, N, omega, rest)
+        N_all, _ = e.batch_nodes(x_true[None, :])
+        R_true, _ = e.imu.frame(N_all, np.zeros_like(N_all))
+        return x_true, R_true[0]
 
     def partial_nees(e, x_true):
         return observed_nees(e, e.x, e.P, x_true)

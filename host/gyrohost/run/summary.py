@@ -40,9 +40,9 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "duration_s": loop.now(),
     }
     out.update(loop.final)
-    if loop.ekf is not None:
+    if loop.estimates is not None:  # the estimator ran (the safe state has let go of it)
         score = loop.estimates.score if loop.truth is not None else None
-        out["estimator"] = health(loop.ekf.log.tally, score)
+        out["estimator"] = health(loop.estimates.ekf.log.tally, score)
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
         target = loop.maneuver.target.tilt_rad

@@ -1,0 +1,111 @@
+"""The estimator as the run loop feeds it: IMU samples fused at the IMU's reconstructed grid, the
+health table of the run summary (NIS per source, gate rejections, NEES against the simulated
+rig's truth) and the divergence that fails a run."""
+
+import numpy as np
+
+from gyrohost.estimator.driver import RegularClock, regular_times
+from gyrohost.estimator.ekf import TensegrityEKF
+from gyrohost.estimator.fusion import Innovation
+from gyrohost.run.dispatch import ImuHandler
+from gyrohost.run.health import (
+    DIVERGED_NODE_ERROR_M,
+    DIVERGED_REJECTED_IN_A_ROW,
+    NisTally,
+    TruthScore,
+    health,
+    health_lines,
+)
+
+
+class _Stream:
+    def __init__(self):
+        self.rows = []
+
+    def write(self, *row):
+        self.rows.append(row)
+
+
+class _Ekf:
+    def __init__(self):
+        self.fused_at = []
+
+    def fuse_imu(self, t_s, *_):
+        self.fused_at.append(t_s)
+
+
+class _Sample:
+    omega_rad_s = accel_m_s2 = euler_rad = (0.0, 0.0, 0.0)
+    temperature_degC = 25.0
+
+
+def test_the_run_loop_logs_arrivals_and_fuses_at_the_grid_replay_reconstructs(config):
+    rng = np.random.default_rng(1)
+    arrival = 0.01 * np.arange(60) + 5e-4 + rng.exponential(4e-3, 60)
+    arrival[20:23] = arrival[22]  # a burst: three samples read at once
+    stream, ekf = _Stream(), _Ekf()
+    handler = ImuHandler(stream, config)
+    for t in arrival:
+        handler.take(float(t), _Sample(), ekf)
+    assert [r[0] for r in stream.rows] == list(arrival)  # the log keeps the arrival stamps
+    expected = regular_times(arrival, config.imu_period_s, config.imu_max_delay_s)
+    assert np.array_equal(ekf.fused_at, expected)  # what gyrotens replay fuses them at
+    assert np.all(np.diff(ekf.fused_at) > 0.0)  # the burst spread out
+    late = np.asarray(ekf.fused_at[10:]) - 0.01 * np.arange(10, 60)
+    assert np.ptp(late) < np.ptp(arrival[10:] - 0.01 * np.arange(10, 60))  # less jitter
+    clock = RegularClock(0.0, 0.03)
+    assert [clock(t) for t in (0.5, 0.5, 0.7)] == [0.5, 0.5, 0.7]  # period 0: the stamps
+
+
+def _innovation(source, accepted, nis=3.0, k=3):
+    return Innovation(source, 0.0, np.zeros(k), np.ones(k), nis, nis / 20.0, accepted, 0)
+
+
+def test_nis_per_source_and_rejections_in_a_row_decide_divergence():
+    tally = NisTally()
+    for _ in range(10):
+        tally.add(_innovation("imu_rate", True, nis=2.0))
+        tally.add(_innovation("wheels", True, nis=6.0, k=4))
+    table = health(tally, None)
+    assert not table["diverged"]
+    rate = table["nis"]["imu_rate"]
+    assert rate["mean"] == 2.0 and rate["dof"] == 3 and rate["samples"] == 10
+    lo, hi = rate["bounds95"]
+    assert lo < 3.0 < hi
+    assert "nees" not in table  # no truth on a real rig
+    for _ in range(DIVERGED_REJECTED_IN_A_ROW - 1):
+        tally.add(_innovation("imu_rate", False, nis=500.0))
+    assert not health(tally, None)["diverged"]
+    tally.add(_innovation("imu_rate", False, nis=500.0))
+    table = health(tally, None)
+    assert table["diverged"] and "imu_rate" in table["why"]
+    assert table["nis"]["imu_rate"]["rejected"] == DIVERGED_REJECTED_IN_A_ROW
+    assert any("DIVERGED" in line for line in health_lines(table))
+    tally.add(_innovation("imu_rate", True))
+    assert not health(tally, None)["diverged"]  # fusing again
+
+
+def _truth_of(ekf):
+    N, _ = ekf.batch_nodes(ekf.x[None, :])
+    names = list(ekf.model.structure.node_names)
+    scene = [N[0][:, names.index(n)] for n in ekf.model.scene.node_names]
+    L = ekf.layout
+    return np.array(scene).T, ekf.x[L.omega].copy(), ekf.x[L.rest].copy()
+
+
+def test_nees_against_the_truth_and_a_diverged_estimate(model, config):
+    ekf = TensegrityEKF(model, config)
+    score = TruthScore(ekf)
+    score.estimate()
+    N, omega, rest = _truth_of(ekf)
+    score.truth(ekf.t + 0.003, N, omega, rest)  # the truth is the estimate: NEES 0
+    score.truth(ekf.t + 0.05, N, omega, rest)  # no estimate near it: not scored
+    table = health(NisTally(), score)
+    assert table["nees"]["samples"] == 1 and table["nees"]["mean"] < 1e-12
+    assert table["nees"]["dof"] == 14  # 8 node coordinates on the manifold, 4 wheels, 2 rests
+    assert not table["diverged"]
+    for _ in range(10):  # the whole structure 5 cm off: the estimate has diverged
+        score.truth(ekf.t, N + np.array([[0.05], [0.0], [0.0]]), omega, rest)
+    table = health(NisTally(), score)
+    assert table["nees"]["node_error_recent_rms_m"] > DIVERGED_NODE_ERROR_M
+    assert table["diverged"] and "node error" in table["why"]
