@@ -13,7 +13,7 @@ p99 a few ms on an idle machine, tens of ms under load).
 """
 
 import argparse
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -161,15 +161,8 @@ CASES = {
     "loop-fixed": Effects(
         imu_arrival=True, imu_regrid=True, wheel_frames=True, wheel_clock=True, late_ticks=True
     ),
-    "loop-fixed-rig-noise": Effects(
-        imu_arrival=True,
-        imu_regrid=True,
-        wheel_frames=True,
-        wheel_clock=True,
-        late_ticks=True,
-        rig_noise=True,
-    ),
 }
+CASES["loop-fixed-rig-noise"] = replace(CASES["loop-fixed"], rig_noise=True)
 
 
 def main(argv=None) -> int:

@@ -1,6 +1,7 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
-``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE]``
+``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE] [--realtime]``, or
+``gyrotens sil`` (same options).
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
@@ -17,7 +18,8 @@ would correlate frames 2 ms apart). Scored at every IMU sample against the truth
 (full state, on the constraint manifold), NIS per source, tilt error.
 
 ``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
-(``run_simulated``: ptys, drivers, arrival time stamps) and scores the replayed log against its
+(``run_simulated``: ptys, drivers, arrival time stamps, the IMU's fused at its reconstructed
+grid) and scores the replayed log against its
 ``truth`` stream (positions, wheel speeds, rest lengths only: the stream has no velocities). On a
 loaded machine the real-time rig's truth lags by up to 0.2 s and its truth stream with it.
 """

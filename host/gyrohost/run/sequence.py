@@ -419,8 +419,8 @@ class RunLoop:
                 if name in self.schedule.names
             }
             self.servo_worker.command(goals)
-            if self.ekf is not None:
-                self.ekf.set_input(rest)
+            if self.ekf is not None:  # from the tick's time on, when the servos get it
+                self.ekf.set_input(rest, t_s)
         self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
 
     # --- the log ------------------------------------------------------------------------------
