@@ -26,3 +26,15 @@ def test_arrival_stamps_break_consistency_and_the_grid_restores_it(nees):
     # over 0.2-1 s string s24 crosses its kink: the SIL itself is above its dof (25) there
     assert nees["imu-arrival"] > 5.0 * nees["sil"], nees
     assert nees["imu-regrid"] < 0.25 * nees["imu-arrival"], nees
+
+
+def test_gyrotens_sil_prints_the_consistency_table(capsys):
+    from gyrohost.cli import main
+
+    assert main(["sil", "--runs", "1", "--duration", "0.3"]) == 0
+    out = capsys.readouterr().out
+    assert "SIL (simulated clock): 1 runs" in out
+    for name in ("NEES", "NIS imu_rate", "NIS imu_accel", "NIS imu_angle", "NIS wheels"):
+        assert f"[sil] {name}: mean " in out and "95 % bounds of a 1-run average" in out, name
+    assert "time steps inside" in out and "tilt error RMS" in out and "filter CPU" in out
+    assert main(["sil", "--runs", "0"]) == 2
