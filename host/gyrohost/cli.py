@@ -22,6 +22,7 @@ COMMANDS = [
     "bench",
     "ports",
     "doctor",
+    "servo-setup",
 ]
 
 
