@@ -11,7 +11,7 @@ from gyrohost.drivers import wheelproto as wp
 
 def test_ports_identifies_the_three_devices_and_prints_config_lines(rig_ports, capsys):
     paths = [rig_ports[d] for d in ("imu", "wheels", "servos")]
-    assert main(["ports", "--hello-timeout", "0.5", "--reply-timeout", "0.2", *paths]) == 0
+    assert main(["ports", "--hello-timeout", "1.0", "--reply-timeout", "0.2", *paths]) == 0
     out = capsys.readouterr().out
     assert "BWT61CL, " in out and " Hz" in out
     assert "wheel board firmware 1.0, protocol v2, 4 wheels" in out

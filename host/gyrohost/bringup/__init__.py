@@ -9,3 +9,19 @@ devices (``gyrotens doctor``), servos given their IDs (``gyrotens servo-setup``)
 - :mod:`.doctor`: one PASS/FAIL line per check of a configuration and its devices.
 - :mod:`.servo_setup`: a lone servo's ID and baud rate, a move to calibrate ``zero_position``.
 """
+
+HELLO_TIMEOUT_S = 2.5
+"""Default wait for the wheel board's HELLO reply, s: opening the Mega's port resets it, and its
+bootloader runs for about two seconds before the firmware answers."""
+
+
+def add_hello_timeout(parser) -> None:
+    """The ``--hello-timeout S`` option of the commands that probe (argparse ``parser``); here,
+    where importing costs nothing, because ``gyrotens --help`` registers every command."""
+    parser.add_argument(
+        "--hello-timeout",
+        type=float,
+        default=HELLO_TIMEOUT_S,
+        metavar="S",
+        help="wait for the wheel board's HELLO reply (its bootloader runs first; 2.5 s)",
+    )

@@ -14,6 +14,7 @@ Nothing else is written: no speed, no goal, no torque; probing moves nothing.
 import time
 from dataclasses import dataclass, field
 
+from gyrohost.bringup import HELLO_TIMEOUT_S
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.imu import Bwt61Parser
 from gyrohost.drivers.mx12 import MODEL_MX12W
@@ -119,7 +120,10 @@ def model_name(model: int) -> str:
 
 
 def probe(
-    port: str, imu_window_s: float = 0.5, hello_timeout_s: float = 2.5, reply_timeout_s=0.034
+    port: str,
+    imu_window_s: float = 0.5,
+    hello_timeout_s: float = HELLO_TIMEOUT_S,
+    reply_timeout_s: float = 0.034,
 ) -> ProbeResult:
     """Find which device answers on ``port`` (see the module's docstring for the order).
 

@@ -1,6 +1,8 @@
 """``gyrotens doctor --config FILE``: one PASS/FAIL line per check of a rig configuration and its
 devices; the exit status is the number of failures. Nothing moves (docs/bring-up.md)."""
 
+from gyrohost.bringup import add_hello_timeout
+
 
 def register(sub) -> None:
     p = sub.add_parser("doctor", help="check a rig configuration and its devices (nothing moves)")
@@ -8,12 +10,13 @@ def register(sub) -> None:
     p.add_argument(
         "--imu-window", type=float, default=1.0, metavar="S", help="IMU rate measured over (1 s)"
     )
+    add_hello_timeout(p)
     p.add_argument(
-        "--hello-timeout",
+        "--imu-rate-tolerance",
         type=float,
-        default=2.5,
-        metavar="S",
-        help="wait for the wheel board's HELLO reply (its bootloader runs first; 2.5 s)",
+        default=0.2,
+        metavar="F",
+        help="measured IMU rate within this fraction of imu.rate_hz (0.2)",
     )
     p.set_defaults(func=run)
 
@@ -31,7 +34,9 @@ def run(args) -> int:
         return 1
     print(Check("configuration", True, config.source).line())
     failures = 0
-    for check in run_checks(config, windows=Windows(args.imu_window, args.hello_timeout)):
+    for check in run_checks(
+        config, windows=Windows(args.imu_window, args.hello_timeout, args.imu_rate_tolerance)
+    ):
         print(check.line(), flush=True)
         failures += not check.ok
     return failures

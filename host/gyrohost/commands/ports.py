@@ -4,6 +4,8 @@ moves."""
 
 import sys
 
+from gyrohost.bringup import add_hello_timeout
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -11,13 +13,7 @@ def register(sub) -> None:
     )
     p.add_argument("paths", nargs="*", metavar="PATH", help="more ports to probe (ptys, ...)")
     p.add_argument("--no-probe", action="store_true", help="list only, open nothing")
-    p.add_argument(
-        "--hello-timeout",
-        type=float,
-        default=2.5,
-        metavar="S",
-        help="wait for the wheel board's HELLO reply (its bootloader runs first; 2.5 s)",
-    )
+    add_hello_timeout(p)
     p.add_argument(
         "--reply-timeout",
         type=float,
