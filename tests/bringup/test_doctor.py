@@ -82,6 +82,8 @@ def test_doctor_checks_the_rfcomm_binding_of_the_imu(tmp_path, rig_ports):
     sysfs = tmp_path / "sys"
     found = checks(tmp_path, text, sys_root=sysfs)
     assert not found["imu rfcomm"].ok and "sudo rfcomm bind 7 " in found["imu rfcomm"].detail
-    assert not found["imu.port /dev/rfcomm7"].ok
+    assert "imu.port /dev/rfcomm7" not in found  # the one failure of an unbound IMU
     (sysfs / "class/tty/rfcomm7").mkdir(parents=True)
-    assert checks(tmp_path, text, sys_root=sysfs)["imu rfcomm"].ok
+    found = checks(tmp_path, text, sys_root=sysfs)
+    assert found["imu rfcomm"].ok and found["imu rfcomm"].detail == "rfcomm7 bound"
+    assert not found["imu.port /dev/rfcomm7"].ok  # bound here in a fake sysfs only

@@ -131,15 +131,11 @@ def _imu(config, sys_root: Path, windows: Windows) -> Iterator[Check]:
     port = config.imu.port
     name = Path(port).resolve().name  # a udev link to /dev/rfcomm0 is an rfcomm port too
     if name.startswith("rfcomm"):
-        bound = rfcomm_bound(name, sys_root)
-        yield Check(
-            "imu rfcomm",
-            bound,
-            f"{name} bound"
-            if bound
-            else f"{name} not bound: sudo rfcomm bind {name[6:]} "
-            "<BWT61CL address> 1 (docs/bring-up.md)",
-        )
+        if not rfcomm_bound(name, sys_root):  # then its port cannot exist: one failure, not two
+            fix = f"sudo rfcomm bind {name[6:]} <BWT61CL address> 1 (docs/bring-up.md)"
+            yield Check("imu rfcomm", False, f"{name} not bound: {fix}")
+            return
+        yield Check("imu rfcomm", True, f"{name} bound")
     access = _access("imu.port", port)
     yield access
     if not access.ok:
