@@ -1,6 +1,8 @@
 """``gyrotens run`` on real ports refuses, before anything is opened, a configuration whose
 calibration keys are still the lab-rig template's, and ports it cannot open (every one named)."""
 
+from dataclasses import replace
+
 from gyrohost.bringup.placeholders import find_placeholders, marked_keys
 from gyrohost.bringup.serialports import access_problem
 from gyrohost.cli import main
@@ -54,3 +56,13 @@ def test_a_port_of_a_group_you_are_not_in_says_how_to_join_it(tmp_path):
     assert "sudo usermod -aG" in problem and "$USER, then log out and back in" in problem
     assert access_problem(str(port), uid=port.stat().st_uid + 1, groups=(gid,)) is None
     assert access_problem(str(tmp_path / "rfcomm3")).startswith("no such device (the Bluetooth")
+
+
+def test_the_run_table_of_the_configuration_sets_the_run_loops_limits(tmp_path):
+    from gyrohost.commands.run import load_schedule_arg
+    from gyrohost.config import RunTable, load_rig_config
+    from gyrohost.run import RunLoop
+
+    config = replace(load_rig_config(shipped("config", "sim-rig")), run=RunTable(max_tilt_rad=0.5))
+    loop = RunLoop(config, load_schedule_arg("paper", config.scene_path), tmp_path / "log")
+    assert loop.settings.max_tilt_rad == 0.5 and loop.settings.imu_silence_s == 0.5
