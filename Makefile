@@ -1,6 +1,7 @@
 # Two commands do everything on a fresh Debian/Ubuntu machine:
 #   make demo   the paper's D-bar experiment end to end, with logs and plots
 #   make test   every test: lint, Python tests, firmware native tests, AVR build, firmware in the loop
+#   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test and
 # bench extras (pyproject.toml) beside it.
@@ -13,7 +14,12 @@ EXTRAS  := $(VENV)/.test-extras-stamp
 DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 
-.PHONY: demo test lint pytest firmware setup clean
+.PHONY: demo test lint pytest firmware setup clean flash
+
+# The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
+# it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
+PROGRAMMER   ?= stk500v2
+FIRMWARE_ELF := firmware/build/avr/wheelboard.elf
 
 demo: $(DEMODEBS) $(RUNTIME)
 	$(BIN)/gyrotens demo
@@ -52,6 +58,12 @@ firmware:
 
 pytest:
 	$(BIN)/pytest
+
+flash:
+	@test -n "$(PORT)" || { echo "usage: make flash PORT=/dev/ttyACM0 ('gyrotens ports' lists them)" >&2; exit 2; }
+	@command -v avrdude >/dev/null || { echo "avrdude is missing: tools/ensure-debs.sh all" >&2; exit 2; }
+	$(MAKE) --no-print-directory -C firmware avr
+	avrdude -p atmega2560 -c $(PROGRAMMER) -P $(PORT) -b 115200 -D -U flash:w:$(FIRMWARE_ELF):e
 
 clean:
 	rm -rf build firmware/build out

@@ -21,7 +21,8 @@ ALLOWED = {
     "estimator": BASE | {"drivers", "estimator"},
     "control": BASE | {"estimator", "control"},
     "rig": BASE | {"drivers", "rig"},
-    "run": BASE | {"drivers", "estimator", "control", "rig", "run"},
+    "bringup": BASE | {"drivers", "bringup"},
+    "run": BASE | {"drivers", "estimator", "control", "rig", "bringup", "run"},
     "plots": BASE | {"run", "control", "plots"},
     "bench": BASE | {"bench"},
 }

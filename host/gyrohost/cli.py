@@ -12,8 +12,19 @@ import sys
 
 from gyrohost.errors import GyrohostError
 
-COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
-COMMANDS.append("sil")
+COMMANDS = [
+    "demo",
+    "simulate",
+    "plot",
+    "rig",
+    "run",
+    "replay",
+    "bench",
+    "ports",
+    "doctor",
+    "servo-setup",
+    "sil",
+]
 
 
 class CliError(GyrohostError, ValueError):
@@ -41,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
-        importlib.import_module(f"gyrohost.commands.{name}").register(sub)
+        importlib.import_module(f"gyrohost.commands.{name.replace('-', '_')}").register(sub)
     return parser
 
 

@@ -221,6 +221,32 @@ class StartCheckConfig:
 
 
 @dataclass(frozen=True)
+class RunTable:
+    """The ``[run]`` table: limits of a run on this rig (``gyrohost.run.settings.RunSettings``
+    takes its defaults from here). Beyond a limit the run ends in the safe state, exit status 1."""
+
+    max_tilt_rad: float = field(
+        default=math.inf, metadata=_spec(lo=1e-3, hi=math.pi, doc="absent = unchecked")
+    )
+    imu_silence_s: float = field(default=0.5, metadata=_spec(lo=0.01, hi=10.0))
+    wheel_silence_s: float = field(default=0.5, metadata=_spec(lo=0.01, hi=10.0))
+    wheel_speed_margin_rad_s: float = field(default=15.0, metadata=_spec(lo=0.1, hi=1000.0))
+    max_servo_load: float = field(default=0.95, metadata=_spec(lo=0.01, hi=1.0))
+    spinup_timeout_s: float = field(default=10.0, metadata=_spec(lo=0.1, hi=600.0))
+    steady_tolerance_rad_s: float = field(default=1.5, metadata=_spec(lo=0.01, hi=100.0))
+    stop_threshold_rad_s: float = field(default=3.0, metadata=_spec(lo=0.01, hi=100.0))
+    rampdown_timeout_s: float = field(default=5.0, metadata=_spec(lo=0.1, hi=600.0))
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.steady_tolerance_rad_s >= self.wheel_speed_margin_rad_s:
+            return [
+                ("steady_tolerance_rad_s", "must be smaller than wheel_speed_margin_rad_s "
+                 "(wheels counted steady would be beyond the speed limit)")
+            ]  # fmt: skip
+        return []
+
+
+@dataclass(frozen=True)
 class RigConfig:
     """The whole rig. ``source`` is set by the loader (the file read), never by the file."""
 
@@ -231,7 +257,17 @@ class RigConfig:
     sim: SimConfig = SimConfig()
     estimator: EstimatorTable = EstimatorTable()
     start_check: StartCheckConfig = StartCheckConfig()
+    run: RunTable = RunTable()
     source: str = field(default="<defaults>", metadata={"internal": True})
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.run.max_tilt_rad <= self.start_check.attitude_rad:
+            return [
+                ("run.max_tilt_rad", f"{self.run.max_tilt_rad:g} rad must exceed start_check."
+                 f"attitude_rad {self.start_check.attitude_rad:g} rad (a run allowed to start "
+                 "would break the limit at once)")
+            ]  # fmt: skip
+        return []
 
     @property
     def base_dir(self) -> Path:
@@ -359,6 +395,7 @@ __all__ = [
     "ImuConfig",
     "ImuEmuConfig",
     "RigConfig",
+    "RunTable",
     "ServoBusConfig",
     "ServoConfig",
     "ServoEmuConfig",

@@ -39,9 +39,30 @@ def test_simulated_rig_file():
 
 def test_lab_rig_template():
     cfg = load_rig_config(shipped("config", "lab-rig"))
-    assert cfg.servos.port.startswith("/dev/ttyUSB") and cfg.imu.port.startswith("/dev/ttyUSB")
+    assert cfg.servos.port == "/dev/gyrotens-servos" and cfg.imu.port == "/dev/rfcomm0"
+    assert cfg.wheelboard.port == "/dev/gyrotens-wheels"  # the names of tools/udev
     assert cfg.sim == RigConfig().sim  # untouched defaults
+    assert cfg.run == RigConfig().run  # today's limits, written out
     StringServoBus(cfg.servos)
+
+
+def test_run_table_sets_the_run_limits_and_names_a_bad_key(tmp_path):
+    from gyrohost.run.settings import RunSettings
+
+    path = tmp_path / "rig.toml"
+    path.write_text("[run]\nmax_tilt_rad = 0.6\nimu_silence_s = 0.25\n")
+    settings = RunSettings.for_rig(load_rig_config(path))
+    assert settings.max_tilt_rad == 0.6 and settings.imu_silence_s == 0.25
+    assert settings.wheel_silence_s == RunSettings().wheel_silence_s == 0.5
+    path.write_text("[run]\nimu_silence_s = 0.0\n")
+    with pytest.raises(ConfigError, match="key 'run.imu_silence_s' is 0.0, below the minimum"):
+        load_rig_config(path)
+    path.write_text("[run]\nmax_tilt_rad = 0.05\n")
+    with pytest.raises(ConfigError, match="key 'run.max_tilt_rad': 0.05 rad must exceed start_c"):
+        load_rig_config(path)
+    path.write_text("[run]\nsteady_tolerance_rad_s = 20.0\n")
+    with pytest.raises(ConfigError, match="'run.steady_tolerance_rad_s': must be smaller than"):
+        load_rig_config(path)
 
 
 def test_empty_file_gives_the_defaults(tmp_path):

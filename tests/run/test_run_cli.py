@@ -70,16 +70,18 @@ def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim
     assert not (tmp_path / "y").exists()
 
 
-def test_run_without_the_devices_ends_with_a_log_naming_the_missing_port(tmp_path, capsys):
+def test_run_without_the_devices_names_every_missing_port_and_leaves_no_log(tmp_path, capsys):
+    calibrated = tmp_path / "rig.toml"
+    text = shipped("config", "lab-rig").read_text().replace("# CALIBRATE", "# calibrated")
+    calibrated.write_text(text)
     log = tmp_path / "log"
-    argv = ["run", "--config", "lab-rig", "-o", str(log)]
-    argv += ["--imu", str(tmp_path / "no-imu")]
-    assert main(argv) == 1
-    assert f"ImuError: IMU: cannot open {tmp_path / 'no-imu'}" in capsys.readouterr().err
-    summary = read_meta(log)["summary"]
-    assert (
-        summary["reason"].startswith("ImuError") and summary["safe_state"]["wheels_stopped"] is None
-    )
+    argv = ["run", "--config", str(calibrated), "-o", str(log), "--imu", str(tmp_path / "no-imu")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"key 'imu.port' = {tmp_path / 'no-imu'}: no such device" in err
+    assert "key 'wheelboard.port' = /dev/gyrotens-wheels: no such device" in err
+    assert "key 'servos.port' = /dev/gyrotens-servos: no such device" in err
+    assert "Traceback" not in err and not log.exists()
 
 
 def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):

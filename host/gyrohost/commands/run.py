@@ -146,6 +146,9 @@ def _wired(config, args):
             f"{args.config}: port(s) of {', '.join(emulated)} are '{EMULATED_PORT}': add --sim, "
             "or give the ptys printed by 'gyrotens rig' with --imu/--wheels/--servos"
         )
+    from gyrohost.run.devices import check_real_rig
+
+    check_real_rig(config)
     return config
 
 

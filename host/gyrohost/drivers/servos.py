@@ -18,7 +18,7 @@ SDK facts this module relies on (field notes section 5, dynamixel-sdk 4.1.0):
   load are sign-magnitude (bit 10 = clockwise = negative here); converted by ``mx12``.
 - ``GroupSyncWrite`` is a broadcast without a status reply: goals are confirmed by reading back.
 - pyserial's low-latency ioctl fails on a pty; it is attempted and the failure tolerated.
-- The SDK's fixed 34 ms reply timeout and busy-wait are replaced (``_PortHandler``) by
+- The SDK's fixed 34 ms reply timeout and busy-wait are replaced (``PortHandler``) by
   ``reply_timeout_s`` from the configuration and reads that sleep in ``select``.
 """
 
@@ -107,7 +107,7 @@ class ServoLimitError(GyrohostError, ValueError):
     """A command outside a configured limit was refused; nothing was sent."""
 
 
-class _PortHandler(sdk.PortHandler):
+class PortHandler(sdk.PortHandler):
     """dynamixel-sdk port with a configurable reply timeout and reads that wait a little.
 
     The SDK times a reply out after the transfer time plus ``2 * LATENCY_TIMER + 2`` = 34 ms, and
@@ -157,7 +157,7 @@ class StringServoBus:
         self.servos = {s.name: s for s in config.servo}
         for servo in config.servo:
             _check_config_limits(servo)
-        self.port = _PortHandler(config.port, config.reply_timeout_s)
+        self.port = PortHandler(config.port, config.reply_timeout_s)
         self.packets = sdk.PacketHandler(1.0)
         self.low_latency = False
         self._open = False

@@ -382,6 +382,8 @@ class Mx12Bus(PtyDevice):
             self._broadcast(inst, params, now_s)
         elif servo_id in self.servos:
             self._unicast(self.servos[servo_id], inst, params, now_s)
+        if inst == INST_WRITE:  # an ID written: the servo answers to the new one from now on
+            self.servos = {servo.servo_id: servo for servo in self.servos.values()}
 
     def _unicast(self, servo: EmulatedMx12, inst: int, params: bytes, now_s: float) -> None:
         if servo.no_reply:

@@ -10,6 +10,9 @@ time plus the parsed values) on one shared queue; a reader that fails (whatever 
   faults and silence.
 - :class:`ServoWorker`: owns the Dynamixel bus while the loop runs (the SDK is not thread-safe):
   sends the newest length goals, reads the states back at ``rate_hz``.
+
+Before any of them, :func:`check_real_rig` refuses a configuration of real ports that cannot
+run: calibration keys left at the template's values, ports missing or not permitted.
 """
 
 import queue
@@ -17,6 +20,9 @@ import threading
 import time
 from dataclasses import dataclass
 
+from gyrohost.bringup.placeholders import find_placeholders
+from gyrohost.bringup.serialports import check_ports
+from gyrohost.config import ConfigError
 from gyrohost.drivers.servos import ServoCommError
 from gyrohost.errors import GyrohostError
 
@@ -31,6 +37,38 @@ def failure_text(exc: BaseException) -> str:
     if name == "error":
         name = f"{type(exc).__module__}.error"
     return f"{name}: {exc}"
+
+
+def device_ports(config) -> dict[str, str]:
+    """Configuration key -> port of the three devices of ``config`` (a ``RigConfig``)."""
+    return {
+        "imu.port": config.imu.port,
+        "wheelboard.port": config.wheelboard.port,
+        "servos.port": config.servos.port,
+    }
+
+
+def check_real_rig(config) -> None:
+    """Refuse a run on real ports before anything is opened (no log folder either).
+
+    Raises
+    ------
+    ConfigError
+        A calibration key of the configuration file is still at the lab-rig template's value
+        (:mod:`gyrohost.bringup.placeholders`); every one is named.
+    PortAccessError
+        Ports missing or not readable and writable: one line per port, naming its key, with the
+        fix for a permission (the ``dialout`` group).
+    """
+    if config.source.endswith(".toml"):
+        unset = [p.describe() for p in find_placeholders(config.source) if p.required]
+        if unset:
+            raise ConfigError(
+                f"{config.source}: calibration keys still at the template's values (calibrate "
+                "them, docs/bring-up.md; 'gyrotens doctor' lists every check):\n  "
+                + "\n  ".join(unset)
+            )
+    check_ports(device_ports(config), config.source)
 
 
 class DeviceFault(GyrohostError, RuntimeError):

@@ -111,7 +111,7 @@ class RunLoop:
         self.config = config
         self.maneuver = schedule if isinstance(schedule, Maneuver) else None
         self.schedule = schedule.schedule if self.maneuver else schedule
-        self.settings = settings or RunSettings()
+        self.settings = settings or RunSettings.for_rig(config)
         self.estimator_config = estimator or for_rig(config)
         self.rig = rig
         self.on_tick = on_tick

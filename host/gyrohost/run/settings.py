@@ -1,13 +1,15 @@
 """What a run is given (:class:`RunSettings`) and how it ended (:class:`RunResult`)."""
 
-import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+
+from gyrohost.config import RunTable
 
 
 @dataclass(frozen=True)
 class RunSettings:
-    """Timing, thresholds and limits of a run (SI units)."""
+    """Timing, thresholds and limits of a run (SI units); the limits' defaults are those of the
+    rig configuration's ``[run]`` table (:class:`gyrohost.config.RunTable`)."""
 
     rate_hz: float = 100.0
     servo_rate_hz: float = 25.0
@@ -15,23 +17,28 @@ class RunSettings:
     """Wheel-board TELEMETRY every this many 1 kHz ticks (20: 50 Hz)."""
     heartbeat_ms: int = 500
     """Wheel-board fail-safe time-out: no frame from the host this long stops the wheels, ms."""
-    spinup_timeout_s: float = 10.0
-    steady_tolerance_rad_s: float = 1.5
+    spinup_timeout_s: float = RunTable.spinup_timeout_s
+    steady_tolerance_rad_s: float = RunTable.steady_tolerance_rad_s
     steady_hold_s: float = 0.3
     lead_in_s: float = 0.5
     settle_s: float = 0.5
-    stop_threshold_rad_s: float = 3.0
+    stop_threshold_rad_s: float = RunTable.stop_threshold_rad_s
     """Wheels count as stopped below this speed, or once the board has switched them off."""
-    rampdown_timeout_s: float = 5.0
-    imu_silence_s: float = 0.5
-    wheel_silence_s: float = 0.5
-    max_tilt_rad: float = math.inf
+    rampdown_timeout_s: float = RunTable.rampdown_timeout_s
+    imu_silence_s: float = RunTable.imu_silence_s
+    wheel_silence_s: float = RunTable.wheel_silence_s
+    max_tilt_rad: float = RunTable.max_tilt_rad
     """Largest |tilt| of the estimate, rad; off by default: the simulated D-bar floats free and
     keeps turning after the maneuver (set it on a rig whose supports bound the tilt)."""
-    wheel_speed_margin_rad_s: float = 15.0
-    max_servo_load: float = 0.95
+    wheel_speed_margin_rad_s: float = RunTable.wheel_speed_margin_rad_s
+    max_servo_load: float = RunTable.max_servo_load
     max_fused_per_tick: int = 4
     """Samples of one device fused per tick at most (the newest); older ones are only logged."""
+
+    @classmethod
+    def for_rig(cls, config) -> "RunSettings":
+        """The defaults with the limits of ``config``'s ``[run]`` table (a ``RigConfig``)."""
+        return cls(**asdict(config.run))
 
     def __post_init__(self):
         for name, value in asdict(self).items():

@@ -1,0 +1,193 @@
+"""``gyrotens doctor``: a rig configuration checked against itself and its devices, one PASS or
+FAIL line per check (docs/bring-up.md).
+
+The devices are opened and identified with the probes of :mod:`.probe` (IMU frames listened to,
+HELLO to the wheel board, PING to each configured servo): nothing moves.
+"""
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from gyrohost.bringup import HELLO_TIMEOUT_S, probe
+from gyrohost.bringup.placeholders import find_placeholders
+from gyrohost.bringup.serialports import (
+    SYS,
+    access_problem,
+    latency_timer_fix,
+    latency_timer_ms,
+    rfcomm_bound,
+)
+from gyrohost.drivers import wheelproto as wp
+from gyrohost.drivers.mx12 import MODEL_MX12W
+from gyrohost.drivers.servos import ServoLimitError, StringServoBus
+
+IMU_BAUD_FOR_RATE = {100: 115200, 20: 9600}
+"""The BWT61CL's output rate, Hz -> the baud rate that carries it."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One check: its name, passed or not, what was found (and the fix when it failed)."""
+
+    name: str
+    ok: bool
+    detail: str
+
+    def line(self) -> str:
+        """``PASS  name: detail``."""
+        return f"{'PASS' if self.ok else 'FAIL'}  {self.name}: {self.detail}"
+
+
+@dataclass(frozen=True)
+class Windows:
+    """How long the doctor listens and how close it wants the IMU's rate.
+
+    Attributes
+    ----------
+    imu_s : float, s
+        IMU rate measured over this window.
+    hello_s : float, s
+        Wait for the wheel board's HELLO reply.
+    imu_rate_tolerance : float
+        The measured IMU rate may differ from ``imu.rate_hz`` by this fraction (Bluetooth
+        bunches samples; a loaded machine serving emulators falls behind).
+    """
+
+    imu_s: float = 1.0
+    hello_s: float = HELLO_TIMEOUT_S
+    imu_rate_tolerance: float = 0.2
+
+
+def run_checks(config, sys_root: Path = SYS, windows: Windows = Windows()) -> Iterator[Check]:
+    """Every check of ``config`` (a loaded ``RigConfig``) and its devices, in order."""
+    yield _placeholders(config)
+    yield _limits(config)
+    yield from _imu(config, sys_root, windows)
+    yield from _wheelboard(config, windows)
+    yield from _servos(config, sys_root)
+
+
+def _placeholders(config) -> Check:
+    if not config.source.endswith(".toml"):
+        return Check("placeholders", True, "no configuration file to compare")
+    found = find_placeholders(config.source)
+    if not found:
+        return Check("placeholders", True, "no MEASURE or CALIBRATE key at its template value")
+    listed = "; ".join(p.describe() for p in found)
+    return Check(
+        "placeholders",
+        False,
+        f"{len(found)} keys still at the lab-rig template's values (measure them, then delete "
+        f"the marker): {listed}",
+    )
+
+
+def contradictions(config) -> list[str]:
+    """Limits of ``config`` that contradict each other or the scene, one sentence each."""
+    from gyrotensegrity import load_scene
+
+    problems = []
+    imu = config.imu
+    if IMU_BAUD_FOR_RATE[imu.rate_hz] != imu.baud:
+        problems.append(
+            f"imu.rate_hz = {imu.rate_hz} needs imu.baud = {IMU_BAUD_FOR_RATE[imu.rate_hz]}, "
+            f"not {imu.baud}"
+        )
+    try:
+        StringServoBus(config.servos)  # checks each servo's ranges; opens nothing
+    except ServoLimitError as exc:
+        problems.append(str(exc))
+    rest = {s.name: s.rest_length(0.0) for s in load_scene(config.scene_path).strings}
+    for i, servo in enumerate(config.servos.servo):
+        length = rest.get(servo.string)
+        if length is not None and not servo.min_length_m <= length <= servo.max_length_m:
+            problems.append(
+                f"servos.servo[{i}]: the scene starts string {servo.string} at {length:.4f} m, "
+                f"outside [min_length_m, max_length_m] = [{servo.min_length_m:g}, "
+                f"{servo.max_length_m:g}] m"
+            )
+    return problems
+
+
+def _limits(config) -> Check:
+    found = contradictions(config)
+    if found:
+        return Check("limits", False, "; ".join(found))
+    tilt = config.run.max_tilt_rad
+    tilt_text = "unchecked" if math.isinf(tilt) else f"{tilt:g} rad"
+    return Check(
+        "limits", True, f"consistent (servo ranges hold the scene's start; tilt {tilt_text})"
+    )
+
+
+def _access(key: str, port: str) -> Check:
+    problem = access_problem(port)
+    return Check(f"{key} {port}", problem is None, problem or "present, readable and writable")
+
+
+def _imu(config, sys_root: Path, windows: Windows) -> Iterator[Check]:
+    port = config.imu.port
+    name = Path(port).resolve().name  # a udev link to /dev/rfcomm0 is an rfcomm port too
+    if name.startswith("rfcomm"):
+        if not rfcomm_bound(name, sys_root):  # then its port cannot exist: one failure, not two
+            fix = f"sudo rfcomm bind {name[6:]} <BWT61CL address> 1 (docs/bring-up.md)"
+            yield Check("imu rfcomm", False, f"{name} not bound: {fix}")
+            return
+        yield Check("imu rfcomm", True, f"{name} bound")
+    access = _access("imu.port", port)
+    yield access
+    if not access.ok:
+        return
+    with probe.open_serial(port, config.imu.baud) as ser:
+        rate_hz = probe.listen_wt61(ser, windows.imu_s)
+    off = abs(rate_hz - config.imu.rate_hz) / config.imu.rate_hz
+    detail = f"BWT61CL frames at {rate_hz:.1f} Hz over {windows.imu_s:g} s"
+    if rate_hz == 0:
+        detail = f"no WT61 frame in {windows.imu_s:g} s at {config.imu.baud} baud"
+    elif off > windows.imu_rate_tolerance:
+        detail += f", configured imu.rate_hz = {config.imu.rate_hz}"
+    yield Check("imu", rate_hz > 0 and off <= windows.imu_rate_tolerance, detail)
+
+
+def _wheelboard(config, windows: Windows) -> Iterator[Check]:
+    access = _access("wheelboard.port", config.wheelboard.port)
+    yield access
+    if not access.ok:
+        return
+    with probe.open_serial(config.wheelboard.port, config.wheelboard.baud) as ser:
+        fields = probe.hello(ser, windows.hello_s)
+    if fields is None:
+        detail = (
+            f"no HELLO reply in {windows.hello_s:g} s (flashed? 'make flash', docs/bring-up.md)"
+        )
+        yield Check("wheel board", False, detail)
+        return
+    yield Check("wheel board", fields["proto_version"] == wp.PROTO_VERSION,
+                probe.describe_hello(fields))  # fmt: skip
+
+
+def _servos(config, sys_root: Path) -> Iterator[Check]:
+    bus = config.servos
+    access = _access("servos.port", bus.port)
+    yield access
+    if not access.ok:
+        return
+    latency = latency_timer_ms(bus.port, sys_root)
+    if latency is None:
+        yield Check("servos latency timer", True, "no FTDI latency timer on this port")
+    else:
+        fix = "" if latency == 1 else f" (1 ms wanted: {latency_timer_fix(bus.port, sys_root)})"
+        yield Check("servos latency timer", latency == 1, f"{latency} ms{fix}")
+    ids = [s.id for s in bus.servo]
+    found = probe.ping_ids(bus.port, bus.baud, ids, bus.reply_timeout_s)
+    missing = [i for i in ids if i not in found]
+    wrong = {i: m for i, m in found.items() if m != MODEL_MX12W}
+    answered = ", ".join(f"ID {i} {probe.model_name(m)}" for i, m in found.items()) or "none"
+    detail = f"answered at {bus.baud} baud: {answered}"
+    if missing:
+        detail += f"; no reply from ID {', '.join(map(str, missing))} ('gyrotens ports' scans)"
+    if wrong:
+        detail += f"; not an MX-12W (model {MODEL_MX12W}): {sorted(wrong)}"
+    yield Check("servos", not missing and not wrong, detail)

@@ -1,0 +1,99 @@
+"""``gyrotens servo-setup id|zero``: a lone servo's ID and baud rate; the zero of a servo's
+length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
+
+import sys
+
+
+def register(sub) -> None:
+    p = sub.add_parser("servo-setup", help="set a servo's ID and baud rate, calibrate its zero")
+    steps = p.add_subparsers(dest="step", metavar="STEP", required=True)
+    ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
+    ids.add_argument("--port", required=True, help="the U2D2's port, one servo connected")
+    ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
+    ids.add_argument("--new-id", type=int, required=True, metavar="ID")
+    ids.add_argument("--new-baud", type=int, metavar="BAUD", help="(default: unchanged)")
+    ids.add_argument(
+        "--scan-ids", default="0-252", metavar="A-B", help="IDs searched (0-252: every one)"
+    )
+    ids.add_argument("--reply-timeout", type=float, default=0.034, metavar="S", help="(0.034 s)")
+    ids.set_defaults(func=run_id)
+    zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
+    zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
+    zero.add_argument("--servo", required=True, metavar="NAME", help="servo name, e.g. s13")
+    zero.add_argument("--length-m", type=float, metavar="M", help="the length measured (asked)")
+    zero.add_argument(
+        "--check-m", type=float, default=0.01, metavar="M", help="length_sign test move (0.01 m)"
+    )
+    zero.add_argument("--yes", action="store_true", help="move without asking")
+    zero.set_defaults(func=run_zero)
+
+
+def _id_range(text: str) -> range:
+    from gyrohost.cli import CliError
+
+    try:
+        lo, _, hi = text.partition("-")
+        ids = range(int(lo), int(hi or lo) + 1)
+    except ValueError:
+        raise CliError(f"--scan-ids {text!r}: expected A-B, e.g. 1-10") from None
+    if not ids or ids.start < 0 or ids.stop > 253:
+        raise CliError(f"--scan-ids {text!r}: IDs are 0..252")
+    return ids
+
+
+def run_id(args) -> int:
+    from gyrohost.bringup.servo_setup import change_id
+    from gyrohost.cli import CliError
+    from gyrohost.errors import GyrohostError
+
+    ids = _id_range(args.scan_ids)
+    try:
+        change = change_id(args.port, args.baud, args.new_id, args.new_baud, ids,
+                           args.reply_timeout)  # fmt: skip
+    except (GyrohostError, OSError) as exc:
+        raise CliError(str(exc)) from None
+    print(change.describe())
+    return 0
+
+
+def ask(question: str) -> bool:
+    """``question [y/N]`` on the terminal; True for y or yes."""
+    return input(f"{question} [y/N] ").strip().lower() in ("y", "yes")
+
+
+def run_zero(args) -> int:
+    from dataclasses import replace
+
+    from gyrohost.bringup.servo_setup import check_sign, read_zero
+    from gyrohost.cli import CliError
+    from gyrohost.config import load_rig_config
+    from gyrohost.errors import GyrohostError
+    from gyrohost.resources import resolve
+
+    try:
+        config = load_rig_config(resolve("config", args.config))
+        by_name = {s.name: (i, s) for i, s in enumerate(config.servos.servo)}
+        if args.servo not in by_name:
+            raise CliError(f"{config.source}: no servo named {args.servo!r} ({sorted(by_name)})")
+        index, servo = by_name[args.servo]
+        print(f"servo '{servo.name}' (ID {servo.id}): torque off, wind its string by hand")
+        zero = read_zero(config.servos, servo)
+        length_m = args.length_m
+        if length_m is None:
+            length_m = float(input("length measured between the string's nodes, m: "))
+        servo = replace(servo, zero_position=zero, length_at_zero_m=length_m)
+        confirm = (lambda _q: True) if args.yes else ask
+        goal, moved = check_sign(config.servos, servo, args.check_m, config.run.max_servo_load,
+                                 confirm)  # fmt: skip
+        as_asked = ask(f"moved {moved:+d} steps: did the string get {_word(goal > length_m)}?")
+    except (GyrohostError, OSError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    sign = servo.length_sign if as_asked else -servo.length_sign
+    print(f'\nin [[servos.servo]] {index} of {config.source} (name = "{servo.name}"):')
+    print(f"zero_position = {zero}\nlength_at_zero_m = {length_m:g}\nlength_sign = {sign}")
+    sys.stdout.flush()
+    return 0
+
+
+def _word(longer: bool) -> str:
+    return "longer" if longer else "shorter"

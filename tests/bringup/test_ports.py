@@ -1,0 +1,43 @@
+"""``gyrotens ports`` against the simulated rig's ptys: each device found by its own protocol,
+the configuration lines to paste; a port where nothing answers said so."""
+
+import os
+import pty
+
+from gyrohost.bringup.probe import probe
+from gyrohost.cli import main
+from gyrohost.drivers import wheelproto as wp
+
+
+def test_ports_identifies_the_three_devices_and_prints_config_lines(rig_ports, capsys):
+    paths = [rig_ports[d] for d in ("imu", "wheels", "servos")]
+    assert main(["ports", "--hello-timeout", "1.0", "--reply-timeout", "0.2", *paths]) == 0
+    out = capsys.readouterr().out
+    assert "BWT61CL, " in out and " Hz" in out
+    assert "wheel board firmware 1.0, protocol v2, 4 wheels" in out
+    assert "ID 1 MX-12W, ID 2 MX-12W at 1000000 baud" in out
+    pasted = out.split("configuration lines to paste (docs/rig-config.md):\n")[1]
+    assert f'[imu]\nport = "{rig_ports["imu"]}"\nbaud = 115200' in pasted
+    assert f'[wheelboard]\nport = "{rig_ports["wheels"]}"\nbaud = 1000000' in pasted
+    assert f'[servos]\nport = "{rig_ports["servos"]}"\nbaud = 1000000' in pasted
+
+
+def test_probe_writes_only_hello_and_ping_where_nothing_answers():
+    master, slave = pty.openpty()
+    try:
+        result = probe(
+            os.ttyname(slave), imu_window_s=0.2, hello_timeout_s=0.3, reply_timeout_s=0.005
+        )
+        assert result.device == "" and result.detail.startswith("nothing answered")
+        os.set_blocking(master, False)
+        sent = os.read(master, 4096)
+    finally:
+        os.close(master)
+        os.close(slave)
+    pings = [bytes([0xFF, 0xFF, i, 2, 1, ~(i + 3) & 0xFF]) for i in range(1, 11)]
+    rest = sent
+    for ping in pings * 2:  # IDs 1..10 at 1 Mbps, then at 57600
+        assert ping in rest
+        rest = rest.replace(ping, b"", 1)
+    frames = [f for f in rest.split(b"\x00") if f]
+    assert frames and set(frames) == {wp.encode("HELLO")[:-1]}  # HELLO, repeated; nothing else
