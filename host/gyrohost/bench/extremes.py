@@ -11,9 +11,9 @@ import tomllib
 
 import numpy as np
 
-from gyrohost.bench.runner import RunStopped
+from gyrohost.bench.runner import RunStopped, run_drifts
 from gyrohost.resources import shipped_dir
-from gyrotensegrity import Model, SimulationError, diagnostics, scene_from_dict
+from gyrotensegrity import Model, SimulationError, scene_from_dict
 
 SCENES = shipped_dir("scene")
 SETTINGS = {
@@ -149,16 +149,12 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> d
         return {"status": "budget", "message": str(exc), "wall_s": time.perf_counter() - start}
     bar = float(np.max(np.abs(run["bar_length_error"]) / model.l))
     joint = float(np.max(run["joint_error"], initial=0.0))
-    H = run["angular_momentum"]
-    wheels = run["omega_w"][:, model.wheel_bars]  # the run file holds one column per bar
-    states = zip(run["N"], run["N_dot"], wheels, strict=True)
-    scale = max(max(diagnostics.momentum_scale(model, N, Nd, w) for N, Nd, w in states), 1e-300)
     finite = all(np.all(np.isfinite(run[k])) for k in ("N", "N_dot", "energy"))
     return {
         "status": "holds" if finite else "NaN",
         "bar_length_error": bar,
         "joint_error_m": joint,
-        "momentum_drift": float(np.max(np.linalg.norm(H - H[0], axis=1)) / scale),
+        "momentum_drift": run_drifts(model, run)["momentum_drift"],
         "wall_s": time.perf_counter() - start,
     }
 
