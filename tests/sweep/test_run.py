@@ -3,6 +3,7 @@ failed cases are recorded while the others go on; finished cases are kept and no
 
 import math
 
+import numpy as np
 import pytest
 
 from gyrohost.cli import main
@@ -134,3 +135,20 @@ def test_cli_sweep_runs_serially_and_a_bad_spec_exits_2(spec, tmp_path, capsys):
     bad.write_text(SPEC.replace('op = "stretch"', 'op = "squash"'))
     assert main(["sweep", str(bad), "-o", str(tmp_path / "bad")]) == 2
     assert "bad.toml: axes[1].op: 'squash'" in capsys.readouterr().err
+
+
+def test_monte_carlo_runs_the_same_on_dask(cluster):
+    from gyrohost.estimator.config import EstimatorConfig
+    from gyrohost.experiments.montecarlo import run_monte_carlo
+    from gyrohost.resources import shipped
+    from gyrotensegrity import Model, load_scene
+
+    model = Model(load_scene(shipped("scene", "dbar-gyro")))
+    args = (model, EstimatorConfig(), 2, 0.05)
+    serial, dask = run_monte_carlo(*args), run_monte_carlo(*args, executor=cluster)
+    for a, b in zip(serial, dask, strict=True):
+        for name in ("t_s", "nees", "tilt_rad", "position_m"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert a.nis.keys() == b.nis.keys()
+        assert all(np.array_equal(a.nis[s][1], b.nis[s][1]) for s in a.nis)
+    assert not np.array_equal(serial[0].nees, serial[1].nees)  # two seeds, two runs

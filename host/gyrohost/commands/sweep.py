@@ -7,6 +7,7 @@ kept in DIR and not run again.
 """
 
 import sys
+import time
 from pathlib import Path
 
 from gyrohost import parallel
@@ -32,14 +33,18 @@ def run(args) -> int:
     except (SpecError, ExecutorError) as exc:
         raise CliError(str(exc)) from None
     print(f"{spec.name}: {spec.scene_path.name}, {len(spec.axes)} axes, {executor.describe()}")
+    start = time.perf_counter()
     try:
         with executor:
+            ready = time.perf_counter()
             result = run_sweep(spec, args.out, executor)
     except ExecutorError as exc:
         raise CliError(str(exc)) from None
+    wall_s = time.perf_counter() - ready
     print(
         f"\n{len(result.rows)} cases: {result.ran} run, {result.kept} kept from {args.out}, "
-        f"{result.failed} failed"
+        f"{result.failed} failed; {wall_s:.1f} s ({result.ran / wall_s:.2f} cases/s) after "
+        f"{ready - start:.1f} s to start the executor"
     )
     for row in [r for r in result.rows if r["error"] is not None][:3]:
         print(f"  case {row['case']} failed: {row['error']}")
