@@ -13,7 +13,7 @@ import numpy as np
 
 from gyrohost.bench.runner import run_drifts
 from gyrohost.control.attitude import TiltMeter
-from gyrotensegrity import Model, scene_from_dict, simulate
+from gyrotensegrity import Model, __version__, scene_from_dict, simulate
 
 from .spec import Spec, apply
 
@@ -27,8 +27,8 @@ class Task:
     index : int
         Position in the sweep's case list.
     case_id : str
-        Hash of everything the result depends on (scene data, integrator, records): a finished
-        case with the same id is not run again.
+        Hash of everything the result depends on (scene data, integrator, records, the
+        package's version): a finished case with the same id is not run again.
     values : tuple of float
         The axis values, in axis order.
     scene : dict
@@ -54,7 +54,7 @@ def tasks(spec: Spec, values: list) -> list:
     out = []
     for k, case in enumerate(values):
         scene = apply(spec.scene, spec.axes, case)
-        key = json.dumps([scene, spec.integrator, spec.record], sort_keys=True)
+        key = json.dumps([scene, spec.integrator, spec.record, __version__], sort_keys=True)
         case_id = hashlib.sha256(key.encode()).hexdigest()[:16]
         out.append(
             Task(
@@ -94,7 +94,7 @@ def run_case(task: Task) -> dict:
         if name == "wall_s":
             out[name] = wall_s
         elif name == "final_tilt_deg":
-            out[name] = float(np.degrees(TiltMeter(model).tilt(run["N"][-1])))
+            out[name] = final_tilt_deg(model, run)
         elif name == "peak_node_z_m":
             out[name] = float(np.max(run["N"][:, 2, :]))
         elif name in ("energy_drift", "momentum_drift"):
@@ -103,6 +103,15 @@ def run_case(task: Task) -> dict:
         else:
             out[name] = run_quantity(run, name)
     return out
+
+
+def final_tilt_deg(model, run) -> float:
+    """The D-bar's turn at the end of the run, degrees: the tilt
+    (:class:`gyrohost.control.attitude.TiltMeter`) unwrapped over the samples, so a turn past
+    180 degrees counts whole instead of wrapping to the other sign."""
+    meter = TiltMeter(model)
+    tilt = np.unwrap([meter.tilt(N) for N in run["N"]])
+    return float(np.degrees(tilt[-1]))
 
 
 def run_quantity(run, name: str):

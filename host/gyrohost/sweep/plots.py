@@ -84,7 +84,7 @@ def pareto(spec: Spec, rows: list, path: Path) -> Path | None:
     plt, fig, ax = _figure()
     ax.scatter(cost, score, s=12, color="0.6", label="cases")
     ax.plot(cost[front], score[front], "o-", color="C3", label="Pareto front")
-    ylabel = f"|{p['goal']} - {p['target']:g}|" if "target" in p else p["goal"]
+    ylabel = f"|{p['goal']} - target| (target {p['target']:g})" if "target" in p else p["goal"]
     if p.get("sense") == "max":
         ylabel = f"-{p['goal']}"
     ax.set_xlabel(f"{p['cost']} (cost)")
