@@ -93,7 +93,7 @@ class Executor:
         except ImportError as exc:
             raise ExecutorError(
                 f"Dask is not installed ({exc}): pip install 'gyrotensegrity[sweep]', "
-                "or run serially"
+                "or pass --serial"
             ) from None
         try:
             if self.scheduler:

@@ -1,7 +1,7 @@
 """The sweep spec (TOML, docs/sweeps.md): base scene, axes, sampling, integrator, records, plots.
 
 :func:`load_spec` reads and checks a spec; every mistake is a :class:`SpecError` naming the file
-and the key (``dbar-turn.toml: axes[1].key: 'bars.*.wheel.spn': no key 'spn' in bars[0].wheel``).
+and the key (``dbar-turn.toml: axes[1].key: 'bars.*.wheel.spn': no key 'spn' in bars.*.wheel``).
 :func:`cases` expands the axes into the cases (grid or Latin hypercube) and :func:`apply` writes
 one case's values into a copy of the base scene's data by dotted key.
 """
@@ -27,11 +27,19 @@ OPS = ("set", "scale", "magnitude", "stretch")
 x = v x, ``magnitude`` x = sign(x) v (keeps a spin pattern), ``stretch`` a list times
 v / its last element (a schedule's times end at v)."""
 METRICS = ("final_tilt_deg", "peak_node_z_m", "energy_drift", "momentum_drift", "wall_s")
-"""Recorded quantities computed by the sweep; any other name is a run-file quantity."""
+"""Recorded quantities computed by the sweep (:func:`gyrohost.sweep.case.run_case`); any other
+name is a run-file quantity (:data:`NUMERIC_RUN_KEYS`) with an optional ``:reducer``."""
 NUMERIC_RUN_KEYS = tuple(k for k in RUN_KEYS if k not in ("node_names", "scene", "meta"))
 REDUCERS = ("final", "max", "min", "mean", "maxabs")
-INTEGRATOR_KEYS = ("integrator", "dt", "rtol", "atol", "sample_dt", "duration")
-INTEGRATOR_KEYS += ("constraint_tolerance",)
+INTEGRATOR_KEYS = (
+    "integrator",
+    "dt",
+    "rtol",
+    "atol",
+    "sample_dt",
+    "duration",
+    "constraint_tolerance",
+)
 SAMPLINGS = ("grid", "lhs")
 
 
