@@ -38,7 +38,7 @@ def heatmap(spec: Spec, rows: list, path: Path) -> Path | None:
             Z[ys.index(yv), xs.index(xv)] = zv
         mesh = ax.pcolormesh(xs, ys, Z, shading="nearest", cmap="viridis")
         if spec.contour is not None and np.nanmin(Z) < spec.contour < np.nanmax(Z):
-            lines = ax.contour(xs, ys, Z, levels=[spec.contour], colors="w")
+            lines = ax.contour(xs, ys, Z, levels=[spec.contour], colors="w", linestyles="solid")
             ax.clabel(lines, fmt=f"{spec.heatmap} = {spec.contour:g}")
     else:
         mesh = ax.scatter(x, y, c=z, cmap="viridis", s=18)
