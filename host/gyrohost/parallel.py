@@ -65,15 +65,18 @@ class Executor:
         Worker processes of the ``LocalCluster`` (one thread each); default ``os.cpu_count()``.
     progress : bool
         Show Dask's text progress bar while the cases run (not in serial mode).
+    timeout_s : float, s
+        How long to try to reach ``scheduler``.
     """
 
-    def __init__(self, serial=False, scheduler=None, workers=None, progress=False):
+    def __init__(self, serial=False, scheduler=None, workers=None, progress=False, timeout_s=10.0):
         if workers is not None and workers < 1:
             raise ExecutorError(f"workers: {workers} (need at least 1)")
         self.serial = serial
         self.scheduler = scheduler
         self.workers = workers
         self.progress = progress
+        self.timeout_s = timeout_s
         self.client = None
         self._cluster = None
 
@@ -97,7 +100,7 @@ class Executor:
             ) from None
         try:
             if self.scheduler:
-                self.client = Client(self.scheduler, timeout="10s")
+                self.client = Client(self.scheduler, timeout=f"{self.timeout_s}s")
             else:
                 self._cluster = LocalCluster(
                     n_workers=self.workers or os.cpu_count(),
