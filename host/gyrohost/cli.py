@@ -12,7 +12,8 @@ import sys
 
 from gyrohost.errors import GyrohostError
 
-COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench", "sweep"]
+COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
+COMMANDS.append("sweep")
 
 
 class CliError(GyrohostError, ValueError):

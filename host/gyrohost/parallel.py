@@ -1,9 +1,9 @@
 """One executor for independent cases: serial in this process, or Dask tasks on a cluster.
 
 Used by ``gyrotens sweep`` (:mod:`gyrohost.sweep`), the estimator's Monte Carlo
-(:mod:`gyrohost.experiments.montecarlo`, :mod:`gyrohost.experiments.estimator_sil`) and the
-independent cases of ``gyrotens bench``. Every case is one call ``fn(item)``; the results come
-back in the order of the items, whichever worker finished first.
+(:mod:`gyrohost.experiments.montecarlo`) and the independent cases of ``gyrotens bench``. Every
+case is one call ``fn(item)``; the results come back in the order of the items, whichever worker
+finished first.
 
 - ``serial``: plain calls in this process, one after the other (timing runs that must not share
   cores; nothing is pickled).

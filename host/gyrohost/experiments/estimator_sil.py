@@ -1,7 +1,6 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
-``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE] [--serial | --scheduler
-ADDRESS | --workers N]`` (the in-process runs are cases of :mod:`gyrohost.parallel`)
+``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE]``
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
@@ -27,13 +26,11 @@ import argparse
 import os
 import sys
 from dataclasses import replace
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 from scipy.linalg import null_space
 
-from gyrohost import parallel
 from gyrohost.estimator import streams
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
@@ -279,11 +276,6 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     return score_run(ekf, data, sampled_truth(truth_x, truth_R))
 
 
-def _seed_run(config, duration_s, seed) -> RunResult:
-    """:func:`score_rig_model_run` of one seed, the estimator at the rig model's keys."""
-    return score_rig_model_run(config, seed, duration_s, RIG_MODEL_KEYS)
-
-
 def main(argv=None) -> int:
     from gyrohost.config import load_rig_config
 
@@ -294,14 +286,11 @@ def main(argv=None) -> int:
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
     parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
     parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
-    parallel.add_arguments(parser)
     args = parser.parse_args(argv)
     config = load_rig_config(args.config)
     if not args.realtime:
         runs = range(1, args.runs + 1)
-        task = partial(_seed_run, config, args.duration)
-        with parallel.from_args(args) as executor:
-            results = executor.map(task, runs)
+        results = [score_rig_model_run(config, s, args.duration, RIG_MODEL_KEYS) for s in runs]
         print(f"--- SIL (rig truth model and sensor emulators, simulated clock): {args.runs} runs")
         summarise(results, "[sil] ")
         return 0
