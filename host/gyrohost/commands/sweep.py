@@ -28,6 +28,10 @@ def run(args) -> int:
     from gyrohost.sweep.plots import goal_score
 
     try:
+        import pyarrow  # noqa: F401  (the table; checked before any case runs)
+    except ImportError as exc:
+        raise CliError(f"{exc}: pip install 'gyrotensegrity[sweep]'") from None
+    try:
         spec = load_spec(args.spec)
         executor = parallel.from_args(args, progress=True)
     except (SpecError, ExecutorError) as exc:
