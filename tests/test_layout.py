@@ -10,11 +10,12 @@ from pathlib import Path
 import gyrohost
 
 ROOT = Path(gyrohost.__file__).parent
-BASE = {"errors", "geometry", "config", "resources", "sigint"}
+BASE = {"errors", "geometry", "config", "resources", "sigint", "parallel"}
 ALLOWED = {
     "errors": set(),
     "geometry": set(),
     "sigint": set(),
+    "parallel": {"errors"},
     "resources": {"errors"},
     "config": {"errors", "resources"},
     "drivers": BASE | {"drivers"},
@@ -25,6 +26,7 @@ ALLOWED = {
     "run": BASE | {"drivers", "estimator", "control", "rig", "bringup", "run"},
     "plots": BASE | {"run", "control", "plots"},
     "bench": BASE | {"bench"},
+    "sweep": BASE | {"control", "bench", "sweep"},
 }
 """Top-level part of ``gyrohost`` -> the parts it may import. ``experiments``, ``commands``,
 ``cli`` and ``__main__`` sit on top and may import anything but each other's modules."""

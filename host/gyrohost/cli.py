@@ -24,6 +24,7 @@ COMMANDS = [
     "doctor",
     "servo-setup",
     "sil",
+    "sweep",
 ]
 
 

@@ -195,6 +195,31 @@ def errors(variant: Variant, run: Trajectory, reference: Trajectory) -> dict:
     }
 
 
+def run_drifts(model: Model, run) -> dict:
+    """Invariant drifts of a run file (:func:`gyrotensegrity.simulate`'s ``Run``).
+
+    Returns
+    -------
+    dict
+        ``momentum_drift``: largest change of the total angular momentum relative to the
+        largest sum of body momentum magnitudes (:func:`gyrotensegrity.diagnostics.momentum_scale`);
+        ``energy_drift``: largest change of the total energy relative to the initial one, None
+        when the scene does work (schedules, damping, driven wheels).
+    """
+    H = run["angular_momentum"]
+    wheels = run["omega_w"][:, model.wheel_bars]  # the run file holds one column per bar
+    states = zip(run["N"], run["N_dot"], wheels, strict=True)
+    scale = max(max(diagnostics.momentum_scale(model, N, Nd, w) for N, Nd, w in states), 1e-300)
+    energy = None
+    if _conservative(model):
+        e = run["energy"]
+        energy = float(np.max(np.abs(e - e[0])) / max(abs(e[0]), 1e-300))
+    return {
+        "energy_drift": energy,
+        "momentum_drift": float(np.max(np.linalg.norm(H - H[0], axis=1)) / scale),
+    }
+
+
 def _conservative(model: Model) -> bool:
     """Energy is conserved: constant rest lengths, no damping, no driven wheels."""
     constant = all(len(s.t) == 1 for s in model.rest_schedules)

@@ -2,12 +2,15 @@
 
 Writes DIR/report.md, DIR/bench.json and the plots. ``--quick`` is the smoke version (small
 grids, short runs; under 2 minutes on 2 cores); the full run is what docs/performance.md
-carries.
+carries. Everything runs serially in this process (timings must not share cores) unless
+``--workers N`` or ``--scheduler ADDRESS`` sends the extremes' cells to Dask (docs/sweeps.md).
 """
 
 import sys
 import time
 from pathlib import Path
+
+from gyrohost import parallel
 
 
 def register(sub) -> None:
@@ -21,6 +24,7 @@ def register(sub) -> None:
         choices=["trade", "peers", "scaling", "extremes"],
         help="leave a section out (repeatable)",
     )
+    parallel.add_arguments(p, serial_default=True)  # timing: serial unless asked
     p.set_defaults(func=run)
 
 
@@ -77,7 +81,8 @@ def run(args) -> int:
         }
     if "extremes" not in args.skip:
         _log("extremes")
-        data["extremes"] = extremes.sweep(args.quick, _log)
+        with parallel.from_args(args) as executor:
+            data["extremes"] = extremes.sweep(args.quick, _log, executor)
     data["bench_wall_s"] = time.perf_counter() - start
     files = report.plots(out, data)
     report.write_json(out / "bench.json", data)

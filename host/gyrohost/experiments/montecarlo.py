@@ -1,6 +1,8 @@
 """Monte Carlo consistency check of the EKF on synthetic runs (and the lean model's cost).
 
-``python -m gyrohost.experiments.montecarlo [--runs 20] [--duration 3] [--method lean|rk4|both]``
+``python -m gyrohost.experiments.montecarlo [--runs 20] [--duration 3] [--method lean|rk4|both]
+[--serial | --scheduler ADDRESS | --workers N]`` (the runs are cases of :mod:`gyrohost.parallel`:
+a Dask ``LocalCluster`` of this machine's cores by default)
 
 Each run draws its own truth disturbances, gyro bias, sensor noise and initial estimate error
 (seed = run index), runs the paper's D-bar manoeuvre through the reference model
@@ -14,10 +16,12 @@ time.
 import argparse
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from gyrohost import parallel
 from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.consistency import average_bounds, nees, sample_initial, tilt_error
@@ -147,9 +151,18 @@ def _report(name, avg, dof, runs):
     return {"mean": mean, "dof": dof, "lo": lo, "hi": hi, "inside": inside}
 
 
-def run_monte_carlo(model, config, runs, duration_s, first_seed=0):
-    """``runs`` runs with seeds ``first_seed, first_seed + 1, ...``."""
-    return [one_run(model, config, first_seed + i, duration_s) for i in range(runs)]
+def scene_run(scene, config, duration_s, seed):
+    """:func:`one_run` of the model of ``scene``: a task that travels to a Dask worker (a
+    ``Model`` does not pickle; built from its scene it is the same model)."""
+    return one_run(Model(scene), config, seed, duration_s)
+
+
+def run_monte_carlo(model, config, runs, duration_s, first_seed=0, executor=None):
+    """``runs`` runs with seeds ``first_seed, first_seed + 1, ...``, each a case of
+    ``executor`` (:class:`gyrohost.parallel.Executor`; default serial in this process)."""
+    task = partial(scene_run, model.scene, config, duration_s)
+    seeds = range(first_seed, first_seed + runs)
+    return (executor or parallel.Executor(serial=True)).map(task, seeds)
 
 
 def main(argv=None) -> int:
@@ -158,13 +171,16 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--duration", type=float, default=3.0, help="s")
     parser.add_argument("--method", choices=("lean", "rk4", "both"), default="both")
+    parallel.add_arguments(parser)
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     methods = ("lean", "rk4") if args.method == "both" else (args.method,)
-    for method in methods:
-        cfg = replace(EstimatorConfig(), process_method=method)
-        print(f"--- {args.runs} runs of {args.duration} s, process model {method}")
-        summarise(run_monte_carlo(model, cfg, args.runs, args.duration), f"[{method}] ")
+    with parallel.from_args(args) as executor:
+        for method in methods:
+            cfg = replace(EstimatorConfig(), process_method=method)
+            print(f"--- {args.runs} runs of {args.duration} s, process model {method}")
+            results = run_monte_carlo(model, cfg, args.runs, args.duration, executor=executor)
+            summarise(results, f"[{method}] ")
     return 0
 
 
