@@ -5,8 +5,9 @@
 
 #include "board.h"
 #include "board_io.h"
+#include "proto.h"
 
-static_assert((BOARD_UART_RX_SIZE & (BOARD_UART_RX_SIZE - 1)) == 0, "RX size: power of two");
+static_assert(BOARD_UART_RX_SIZE == 256, "RX ring uses free-running 8-bit indices");
 static_assert(BOARD_UART_TX_SIZE == 256, "TX ring uses free-running 8-bit indices");
 
 static volatile uint8_t rx_buf[BOARD_UART_RX_SIZE];
@@ -17,6 +18,14 @@ static volatile uint8_t tx_buf[BOARD_UART_TX_SIZE];
 static volatile uint8_t tx_head;  // written by the main loop
 static volatile uint8_t tx_tail;  // written by the ISR
 
+// STOP_ALL as a real-time command (as grbl's feed hold): the receive interrupt compares the bytes
+// since the last delimiter with the STOP_ALL wire frame, so a stop does not wait behind the
+// frames queued in the ring. stop_match: bytes of the frame matched so far (0..4), or
+// PROTO_STOP_ALL_WIRE_LEN when this frame is something else (until the next 0x00).
+static const uint8_t k_stop_wire[PROTO_STOP_ALL_WIRE_LEN] = PROTO_STOP_ALL_WIRE;
+static volatile uint8_t stop_match;
+static volatile uint8_t stop_request;
+
 void uart_init() {
     UBRR0 = BOARD_UART_UBRR;
     UCSR0A = _BV(U2X0);
@@ -24,18 +33,29 @@ void uart_init() {
     UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
 }
 
-// Cost measured in simavr (firmware/bench): see docs/hardware.md, "ISR cycle costs".
-// USART0_RX: 66 cycles first instruction to reti + 8 entry = 74 per received byte (simavr,
-// make -C firmware cycles).
+// USART0_RX, per received byte: the ring store and the STOP_ALL match. Budget: at 1 Mbaud a byte
+// arrives every 160 cycles, and this ISR must leave the main loop most of them; measured cost in
+// docs/hardware.md, "ISR costs" (make -C firmware cycles).
 ISR(USART0_RX_vect) {
-    uint8_t b = UDR0;
-    uint8_t next = static_cast<uint8_t>((rx_head + 1) & (BOARD_UART_RX_SIZE - 1));
+    const uint8_t b = UDR0;
+    const uint8_t h = rx_head;
+    const uint8_t next = static_cast<uint8_t>(h + 1);
     if (next == rx_tail) {
         rx_overflow = 1;  // byte lost; counted by the main loop
     } else {
-        rx_buf[rx_head] = b;
+        rx_buf[h] = b;
         rx_head = next;
     }
+    uint8_t m = stop_match;
+    if (b == 0) {
+        if (m == PROTO_STOP_ALL_WIRE_LEN - 1) stop_request = 1;
+        m = 0;
+    } else if (m < PROTO_STOP_ALL_WIRE_LEN - 1 && b == k_stop_wire[m]) {
+        m++;
+    } else {
+        m = PROTO_STOP_ALL_WIRE_LEN;
+    }
+    stop_match = m;
 }
 
 // USART0_UDRE: 55..60 cycles first instruction to reti + 8 entry = 63..68 per sent byte (simavr).
@@ -65,12 +85,18 @@ bool uart_rx_pop(uint8_t* byte) {
     uint8_t t = rx_tail;
     if (t == rx_head) return false;
     *byte = rx_buf[t];
-    rx_tail = static_cast<uint8_t>((t + 1) & (BOARD_UART_RX_SIZE - 1));
+    rx_tail = static_cast<uint8_t>(t + 1);
     return true;
 }
 
 bool uart_rx_take_overflow() {
     if (!rx_overflow) return false;
     rx_overflow = 0;
+    return true;
+}
+
+bool uart_take_stop_request() {
+    if (!stop_request) return false;
+    stop_request = 0;
     return true;
 }

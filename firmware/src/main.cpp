@@ -15,15 +15,46 @@
 #define MAIN_RX_BYTES_PER_PASS 8
 
 static app_state g_app;
-static uint8_t g_reset_cause __attribute__((section(".noinit")));
+// Kept across resets (.noinit is neither loaded nor cleared at start-up). The stock bootloader
+// uses the bottom of RAM for its few globals and the top for its stack (a 285-byte message
+// buffer), not the addresses after the application's .bss where these lie.
+static uint32_t g_wdt_mark __attribute__((section(".noinit")));
+static uint8_t g_boot_watchdog __attribute__((section(".noinit")));
 
-// Runs before main (.init3): keep the reset cause and stop a watchdog left running by a
-// watchdog reset (it would otherwise fire again during start-up).
+// Runs before main and before .data and .bss are set up (.init3): every output off first, then
+// the reset cause (the watchdog's mark, or WDRF when no bootloader cleared MCUSR), then a watchdog
+// left running by a watchdog reset stopped (it would fire again during start-up).
 extern "C" void main_early_init() __attribute__((naked, used, section(".init3")));
 extern "C" void main_early_init() {
-    g_reset_cause = MCUSR;
+    board_outputs_off();
+    g_boot_watchdog = (g_wdt_mark == BOARD_WDT_MARK || (MCUSR & _BV(WDRF))) ? 1 : 0;
+    g_wdt_mark = 0;
     MCUSR = 0;
     wdt_disable();
+}
+
+// 16 ms without a completed control step (board.h): outputs off, the mark for the next boot, and
+// wait for the reset, which the watchdog (now in reset mode: entering this vector cleared WDIE)
+// gives 16 ms later.
+// Naked (it never returns): only __zero_reg__ needs setting, as the interrupted code may have
+// been between a MUL and its clr r1.
+ISR(WDT_vect, ISR_NAKED) {
+    __asm__ __volatile__("clr __zero_reg__");
+    board_outputs_off();
+    g_wdt_mark = BOARD_WDT_MARK;
+    for (;;) {
+    }
+}
+
+// Watchdog in interrupt-then-reset mode, 16 ms. The change sequence must reach WDTCSR within
+// four cycles of WDCE; interrupts are still off here.
+static void main_watchdog_start() {
+    __asm__ __volatile__(
+        "wdr\n\t"
+        "sts %0, %1\n\t"
+        "sts %0, %2\n\t" ::"n"(_SFR_MEM_ADDR(WDTCSR)),
+        "r"(static_cast<uint8_t>(_BV(WDCE) | _BV(WDE))),
+        "r"(static_cast<uint8_t>(_BV(WDIE) | _BV(WDE))));
 }
 
 // tick_seen: the tick count the main loop last handled. The encoders are sampled when the step
@@ -41,18 +72,18 @@ static void main_handle_rx(uint8_t tick_seen) {
 int main() {
     pwm_init();
     spi_init();
-    uart_init();
-    uint16_t boot_faults =
-        (g_reset_cause & _BV(WDRF)) ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
+    uint16_t boot_faults = g_boot_watchdog ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
     app_init(&g_app, &g_board_eeprom, uart_tx_frame, boot_faults);
     tick_init();
-    wdt_enable(WDTO_30MS);
+    main_watchdog_start();
+    // The receiver last: enabled earlier, bytes arriving during app_init (interrupts still off)
+    // would overrun the UART's 2-byte receive buffer.
+    uart_init();
     sei();
 
     uint8_t last_tick = g_tick_count;
     uint32_t t_ms = 0;
     for (;;) {
-        wdt_reset();
         main_handle_rx(last_tick);
         app_poll(&g_app);
         uint8_t now = g_tick_count;
@@ -62,17 +93,17 @@ int main() {
         BOARD_TICK_MARK = 1;
         last_tick = now;
         t_ms += elapsed;
+        if (uart_take_stop_request()) app_stop_all(&g_app);
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 1336 / 2290 / 2336 cycles min / mean / max without the ISRs
-        // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
-        // them (a host frame's RX bytes); docs/hardware.md, "Control-step cycles", has how each
-        // change to the step moved these figures.
+        // included): docs/hardware.md, "Control-step cycles", has the figures and how each
+        // change to the step moved them.
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
+        wdt_reset();  // only here: a step that no longer runs (Timer2 stopped, a hang) trips it
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));

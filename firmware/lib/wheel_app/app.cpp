@@ -136,12 +136,16 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
     }
 }
 
+void app_stop_all(app_state* a) {
+    for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
+    a->stopping = 1;
+    app_update_run_mask(a);
+}
+
 static void app_on_simple(app_state* a, uint8_t id) {
     switch (id) {
         case PROTO_ID_STOP_ALL:
-            for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
-            a->stopping = 1;
-            app_update_run_mask(a);
+            app_stop_all(a);
             app_send_ack(a, id);
             break;
         case PROTO_ID_PARAM_SAVE:

@@ -105,6 +105,11 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
 // Feed one byte received from the host; complete frames are dispatched at once.
 void app_rx_byte(app_state* a, uint8_t byte);
 
+// STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and
+// acknowledges the frame); the board also calls it at the tick after its receive interrupt saw a
+// STOP_ALL frame, so that a stop does not wait behind the frames queued before it.
+void app_stop_all(app_state* a);
+
 // Background work of the main loop (EEPROM save progress).
 void app_poll(app_state* a);
 

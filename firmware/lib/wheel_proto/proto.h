@@ -53,6 +53,13 @@ enum proto_rx_result : uint8_t {
     PROTO_RX_BAD_LENGTH,  // CRC good, payload length differs from the table: out->id/len set
 };
 
+// The whole wire frame of STOP_ALL (no payload): COBS(0x04 | CRC 0xA174, low byte first) and the
+// delimiter. Fixed, so that the board's receive interrupt can recognise it byte by byte
+// (test_proto.cpp checks it against proto_build).
+#define PROTO_STOP_ALL_WIRE \
+    { 0x04, 0x04, 0x74, 0xA1, 0x00 }
+#define PROTO_STOP_ALL_WIRE_LEN 5
+
 struct proto_frame {
     uint8_t id;
     uint8_t len;             // payload length
