@@ -93,7 +93,6 @@ int main() {
         BOARD_TICK_MARK = 1;
         last_tick = now;
         t_ms += elapsed;
-        if (uart_take_stop_request()) app_stop_all(&g_app);
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
@@ -105,6 +104,9 @@ int main() {
         pwm_apply(g_app.pwm, g_app.enable_mask);
         wdt_reset();  // only here: a step that no longer runs (Timer2 stopped, a hang) trips it
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
+        // A STOP_ALL the receive interrupt saw since the last tick: taken right before the ramp,
+        // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.
+        if (uart_take_stop_request()) app_stop_all_early(&g_app);
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         BOARD_TELEM_MARK = 1;
