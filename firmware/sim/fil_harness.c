@@ -22,7 +22,9 @@
  *
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
  * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "pwm",
- * "tick-stop" (Timer2's clock off: the firmware's control tick stops), "quit".
+ * "tick-stop" (Timer2's clock off: the firmware's control tick stops), "rx HEX" (bytes queued for
+ * UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the same every PERIOD_US
+ * of simulated time, COUNT times), "quit".
  * The harness never calls uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
  */
 #include <errno.h>
@@ -492,6 +494,10 @@ static uint8_t g_rxq[RX_QUEUE_SIZE];
 static unsigned g_rxq_head, g_rxq_tail; /* both in the simulation thread */
 static avr_irq_t* g_uart_irq;           /* UART0's IRQ block (UART_IRQ_INPUT, _OUT_XON, _XOFF) */
 static int g_rx_held;                   /* uart_pty told to hold (XOFF) */
+/* uart_rx_timer registered. Not avr_cycle_timer_status(): a byte handed to the UART can make
+   uart_pty send the next one from inside the timer, which is then off the list, and a second
+   timer would double the rate. */
+static int g_rx_timer_on;
 /* --rx-mark: a frame (bytes before a 0x00) whose delivery is reported as "RXMARK t_us=..." */
 static uint8_t g_mark[64];
 static unsigned g_mark_len, g_mark_pos; /* g_mark_pos > g_mark_len: this frame differs */
@@ -518,7 +524,10 @@ static avr_uart_t* uart0(void) {
 
 static avr_cycle_count_t uart_rx_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
     (void)param;
-    if (g_rxq_head == g_rxq_tail) return 0;
+    if (g_rxq_head == g_rxq_tail) {
+        g_rx_timer_on = 0;
+        return 0;
+    }
     uint8_t b = g_rxq[g_rxq_tail++ & (RX_QUEUE_SIZE - 1)];
     avr_uart_t* u = uart0();
     unsigned unread = (unsigned)(u->input.write - u->input.read) & (uart_fifo_fifo_size - 1);
@@ -546,7 +555,8 @@ static void uart_rx_from_pty(struct avr_irq_t* irq, uint32_t value, void* param)
         g_rx_held = 1;
         avr_raise_irq(g_uart_irq + UART_IRQ_OUT_XOFF, 1);
     }
-    if (avr_cycle_timer_status(g_avr, uart_rx_timer, NULL) == 0) {
+    if (!g_rx_timer_on) {
+        g_rx_timer_on = 1;
         sim_uart_chip_timing(g_avr, ADDR_UDR0);
         avr_cycle_timer_register(g_avr, uart0()->cycles_per_byte, uart_rx_timer, NULL);
     }
@@ -556,6 +566,78 @@ static void uart_rx_pace_install(avr_t* avr) {
     g_uart_irq = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     avr_unconnect_irq(g_pty.irq + IRQ_UART_PTY_BYTE_OUT, g_uart_irq + UART_IRQ_INPUT);
     avr_irq_register_notify(g_pty.irq + IRQ_UART_PTY_BYTE_OUT, uart_rx_from_pty, NULL);
+}
+
+/* Host bytes generated in simulated time ("rx" and "rx-every" on stdin): a stream whose timing
+   no host scheduling can bunch. Each injection is queued as the pty's bytes are. */
+typedef struct {
+    uint8_t bytes[256];
+    unsigned len;
+    unsigned period_cycles, count; /* count 0: once */
+} rx_inject_t;
+#define RX_INJECT_MAX 4
+static rx_inject_t g_inject[RX_INJECT_MAX]; /* owned by the simulation thread once active */
+static rx_inject_t g_inject_req;            /* from the stdin thread, under g_inject_lock */
+static int g_inject_pending;
+static pthread_mutex_t g_inject_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void rx_queue_bytes(const uint8_t* b, unsigned n) {
+    for (unsigned i = 0; i < n; i++) uart_rx_from_pty(NULL, b[i], NULL);
+}
+
+static avr_cycle_count_t inject_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)avr;
+    rx_inject_t* in = param;
+    rx_queue_bytes(in->bytes, in->len);
+    if (in->count > 1) {
+        in->count--;
+        return when + in->period_cycles;
+    }
+    in->len = 0; /* slot free */
+    return 0;
+}
+
+/* In the simulation thread: start the injection the stdin thread asked for. */
+static void rx_inject_start(void) {
+    pthread_mutex_lock(&g_inject_lock);
+    rx_inject_t req = g_inject_req;
+    g_inject_pending = 0;
+    pthread_mutex_unlock(&g_inject_lock);
+    if (req.count == 0) {
+        rx_queue_bytes(req.bytes, req.len);
+        printf("OK rx %u t_s=%.6f\n", req.len, sim_time_s());
+        fflush(stdout);
+        return;
+    }
+    for (int i = 0; i < RX_INJECT_MAX; i++) {
+        if (g_inject[i].len) continue;
+        g_inject[i] = req;
+        avr_cycle_timer_register(g_avr, 1, inject_timer, &g_inject[i]);
+        printf("OK rx-every %u t_s=%.6f\n", req.len, sim_time_s());
+        fflush(stdout);
+        return;
+    }
+    printf("ERR rx-every: %d injections already running\n", RX_INJECT_MAX);
+    fflush(stdout);
+}
+
+/* "rx HEX" / "rx-every PERIOD_US COUNT HEX" from the stdin thread; 0 if the line is malformed. */
+static int rx_inject_request(const char* hex, double period_us, unsigned count) {
+    rx_inject_t r = {.len = 0, .count = count};
+    size_t n = strlen(hex);
+    unsigned v;
+    if (n == 0 || n % 2 || n / 2 > sizeof(r.bytes) || period_us < 0) return 0;
+    for (size_t i = 0; i < n; i += 2) {
+        if (sscanf(hex + i, "%2x", &v) != 1) return 0;
+        r.bytes[r.len++] = (uint8_t)v;
+    }
+    r.period_cycles = (unsigned)(period_us * 1e-6 * (double)g_avr->frequency);
+    if (count && r.period_cycles == 0) return 0;
+    pthread_mutex_lock(&g_inject_lock);
+    g_inject_req = r;
+    g_inject_pending = 1;
+    pthread_mutex_unlock(&g_inject_lock);
+    return 1;
 }
 
 /* ---------------------------------------------------------------- periodic work */
@@ -712,7 +794,8 @@ static void register_timers(avr_t* avr) {
                                  speed_timer, NULL);
     }
     if (g_profile) avr_cycle_timer_register(avr, PROFILE_PERIOD, profile_timer, NULL);
-    if (g_rxq_head != g_rxq_tail) avr_cycle_timer_register(avr, 160, uart_rx_timer, NULL);
+    g_rx_timer_on = g_rxq_head != g_rxq_tail;
+    if (g_rx_timer_on) avr_cycle_timer_register(avr, 160, uart_rx_timer, NULL);
 }
 
 /* The stock bootloader on a watchdog reset: MCUSR read and cleared, the application started at
@@ -763,7 +846,7 @@ static int parse_fault(const char* s) {
 
 static void* stdin_thread(void* arg) {
     (void)arg;
-    char line[128];
+    char line[768]; /* "rx" lines carry up to 256 bytes in hex */
     while (fgets(line, sizeof(line), stdin)) {
         char cmd[16] = "", mode[16] = "";
         int motor = -1;
@@ -774,6 +857,19 @@ static void* stdin_thread(void* arg) {
             g_stop = 1;
         } else if (n >= 1 && strcmp(cmd, "pwm") == 0) {
             g_pwm_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "rx") == 0) {
+            char hex[600] = "";
+            if (sscanf(line, "%*s %599s", hex) != 1 || !rx_inject_request(hex, 0, 0)) {
+                printf("ERR rx wants up to 256 bytes in hex: %s", line);
+            }
+        } else if (n >= 1 && strcmp(cmd, "rx-every") == 0) {
+            char hex[600] = "";
+            double period_us = 0;
+            unsigned count = 0;
+            if (sscanf(line, "%*s %lf %u %599s", &period_us, &count, hex) != 3 || count == 0 ||
+                !rx_inject_request(hex, period_us, count)) {
+                printf("ERR rx-every wants PERIOD_US COUNT HEX: %s", line);
+            }
         } else if (n >= 1 && strcmp(cmd, "tick-stop") == 0) {
             g_tick_stop_request = 1;
         } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
@@ -1106,6 +1202,7 @@ int main(int argc, char** argv) {
         state = avr_run(g_avr);
         if (state == cpu_Done || state == cpu_Crashed) break;
         if (g_isr_stats) isr_track();
+        if (g_inject_pending) rx_inject_start();
         if (g_tick_stop_request) {
             g_tick_stop_request = 0;
             stop_tick_timer();

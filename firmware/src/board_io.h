@@ -45,7 +45,30 @@ void enc_clear_errors(uint8_t mask);
 
 void uart_init();
 bool uart_tx_frame(const uint8_t* data, uint8_t len);  // whole frame or nothing, never blocks
-bool uart_rx_pop(uint8_t* byte);
+// The RX ring (board_uart.cpp): the oldest received byte without taking it, then taking it.
+// Inline: the main loop reads up to 100 bytes a tick at 1 Mbaud.
+extern "C" {
+extern volatile uint8_t board_rx_buf[BOARD_UART_RX_SIZE];
+extern volatile uint8_t board_rx_head;
+extern volatile uint8_t board_rx_tail;
+}
+static inline bool uart_rx_peek(uint8_t* byte) {
+    const uint8_t t = board_rx_tail;
+    if (t == board_rx_head) return false;
+    *byte = board_rx_buf[t];
+    return true;
+}
+static inline void uart_rx_next() {
+    board_rx_tail = static_cast<uint8_t>(board_rx_tail + 1);
+}
+// The TX interrupt held off (the bytes wait in the ring) and let go again: around the control
+// step, so that only the RX interrupts stretch it during a full-duplex burst.
+static inline void uart_tx_hold() {
+    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
+}
+static inline void uart_tx_release() {
+    UCSR0B |= _BV(UDRIE0);  // an empty ring: the interrupt clears it again at once
+}
 bool uart_rx_take_overflow();  // true once after the RX ring overflowed
 // True once after the receive interrupt saw a whole STOP_ALL frame (board_uart.cpp); the frame
 // also goes through the ring and is dispatched (and acknowledged) in order.

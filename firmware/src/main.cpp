@@ -13,8 +13,17 @@
 // main_handle_rx also stops at a pending tick, so at most one frame's dispatch (its reply
 // built) lies between a tick and its step.
 #define MAIN_RX_BYTES_PER_PASS 8
+// Received bytes wait here between the interrupt's 256-byte ring and the decoder: the main loop
+// moves every byte of the ring here on each pass (about 12 cycles a byte), then decodes and
+// dispatches at most MAIN_RX_BYTES_PER_PASS. A burst at the line rate comes in faster than its
+// frames are dispatched (a PARAM_SET with its reply takes about 2,500 cycles, the time of 15
+// received bytes); together the two hold 768 bytes, three of the documented bursts.
+#define MAIN_RX_FIFO_SIZE 512u  // power of two
 
 static app_state g_app;
+static uint8_t g_rx_fifo[MAIN_RX_FIFO_SIZE];
+static uint16_t g_rx_in;   // bytes put into g_rx_fifo, free-running
+static uint16_t g_rx_out;  // bytes taken from it
 // Kept across resets (.noinit is neither loaded nor cleared at start-up). The stock bootloader
 // uses the bottom of RAM for its few globals and the top for its stack (a 285-byte message
 // buffer), not the addresses after the application's .bss where these lie.
@@ -62,11 +71,15 @@ static void main_watchdog_start() {
 // (then shorter) interval, a transient of about 1 % per 80 us of delay after its filter.
 static void main_handle_rx(uint8_t tick_seen) {
     uint8_t b;
-    for (uint8_t i = 0; i < MAIN_RX_BYTES_PER_PASS && g_tick_count == tick_seen && uart_rx_pop(&b);
-         i++) {
-        app_rx_byte(&g_app, b);
+    while (static_cast<uint16_t>(g_rx_in - g_rx_out) < MAIN_RX_FIFO_SIZE && uart_rx_peek(&b)) {
+        uart_rx_next();
+        g_rx_fifo[g_rx_in++ & (MAIN_RX_FIFO_SIZE - 1)] = b;
     }
     if (uart_rx_take_overflow()) app_note_rx_overflow(&g_app);
+    for (uint8_t i = 0;
+         i < MAIN_RX_BYTES_PER_PASS && g_tick_count == tick_seen && g_rx_out != g_rx_in; i++) {
+        app_rx_byte(&g_app, g_rx_fifo[g_rx_out++ & (MAIN_RX_FIFO_SIZE - 1)]);
+    }
 }
 
 int main() {
@@ -98,17 +111,20 @@ int main() {
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
         // included): docs/hardware.md, "Control-step cycles", has the figures and how each
         // change to the step moved them.
+        uart_tx_hold();
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
+        uart_tx_release();
+        // step_max_us: from the tick to the outputs updated, preempting ISRs included
+        app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         wdt_reset();  // only here: a step that no longer runs (Timer2 stopped, a hang) trips it
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         // A STOP_ALL the receive interrupt saw since the last tick: taken right before the ramp,
         // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.
         if (uart_take_stop_request()) app_stop_all_early(&g_app);
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
-        app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TELEM_MARK = 0;

@@ -237,7 +237,7 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
     }
 }
 
-void app_rx_byte(app_state* a, uint8_t byte) {
+void app_rx_byte_end(app_state* a, uint8_t byte) {
     proto_frame f;
     switch (proto_rx_push(&a->rx, byte, &f)) {
         case PROTO_RX_NONE:

@@ -103,8 +103,12 @@ struct app_state {
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
 
-// Feed one byte received from the host; complete frames are dispatched at once.
-void app_rx_byte(app_state* a, uint8_t byte);
+// Feed one byte received from the host; complete frames are dispatched at once. Inline: a byte
+// inside a frame is one store, without the call into the dispatcher and its stack frame.
+void app_rx_byte_end(app_state* a, uint8_t byte);
+inline void app_rx_byte(app_state* a, uint8_t byte) {
+    if (!proto_rx_append(&a->rx, byte)) app_rx_byte_end(a, byte);
+}
 
 // STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and
 // acknowledges the frame).
