@@ -39,10 +39,12 @@ void uart_init() {
 }
 
 // USART0_RX, once per received byte, at most every 160 cycles at 1 Mbaud: the ring store and the
-// STOP_ALL match in assembly, 50 cycles on the common path (a byte of any other frame) with the
-// 8 of entry (response and vector jump): prologue 11, ring 17, match 7, epilogue 15 (gcc's C for
-// the same work took 83-92). A full-duplex burst (a byte in each direction every 160 cycles)
-// leaves the main loop about 40 % of the CPU (docs/hardware.md, "ISR costs").
+// STOP_ALL match in assembly. Budget, measured (make -C firmware cycles): 49 cycles from the first
+// instruction to reti on the common path (a byte of any frame but STOP_ALL: prologue 11, ring 17,
+// match 6, epilogue 15), 57 with the 8 of response and vector jump, up to 64 + 8 while a STOP_ALL
+// matches (gcc's C for the same work took 83-92). With the 40 of the UDRE interrupt, a full-duplex
+// burst (a byte each way every 160 cycles) leaves the main loop 39 % of the CPU
+// (docs/hardware.md, "ISR costs").
 ISR(USART0_RX_vect, ISR_NAKED) {
     __asm__ __volatile__(
         "push r30\n\t"
@@ -115,7 +117,8 @@ ISR(USART0_RX_vect, ISR_NAKED) {
         [k3] "n"(k_stop_wire[3]));
 }
 
-// USART0_UDRE, once per sent byte: 41 cycles with the 8 of entry (gcc's C took 63-68).
+// USART0_UDRE, once per sent byte: 31-34 cycles to reti, 39-42 with the 8 of entry (gcc's C
+// took 63-68).
 ISR(USART0_UDRE_vect, ISR_NAKED) {
     __asm__ __volatile__(
         "push r30\n\t"
