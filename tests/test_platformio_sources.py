@@ -34,6 +34,17 @@ def pio_config() -> dict:
     return {section: dict(items) for section, items in json.loads(out)}
 
 
+def make_print(target: str) -> str:
+    """Output of ``make -s -C firmware <target>`` (print-sources, print-flags)."""
+    return subprocess.run(
+        ["make", "-s", "-C", "firmware", target],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+
+
 def filter_sources(src_dir: Path, filters: list[str]) -> set[Path]:
     """Apply PlatformIO's ordered +<glob>/-<glob> filter to the C/C++ files of src_dir."""
     files = [p for p in src_dir.rglob("*") if p.suffix in {".c", ".cpp", ".S"}]
@@ -77,13 +88,7 @@ def test_offline_build_compiles_the_platformio_sources():
     libs = reached_libraries(srcs, lib_dir)
     pio_set = srcs | {p for lib in libs for p in lib.glob("*.cpp")}
 
-    out = subprocess.run(
-        ["make", "-s", "-C", "firmware", "print-sources"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
+    out = make_print("print-sources")
     make_set = {ROOT / "firmware" / line for line in out.split()}
     rel = lambda s: sorted(p.relative_to(ROOT).as_posix() for p in s)  # noqa: E731
     assert rel(make_set) == rel(pio_set), (
@@ -103,3 +108,35 @@ def test_platformio_envs_are_the_documented_ones():
     assert native["platform"] == "native"
     assert native["test_framework"] == "googletest"
     assert Path(cfg["platformio"]["test_dir"]) == ROOT / "firmware" / "test"
+
+
+# PlatformIO's bare atmelavr flags (platform-atmelavr, builder/frameworks/_bare.py: CCFLAGS with
+# the machine flag, CXXFLAGS, CPPDEFINES F_CPU; LINKFLAGS and LIBS), as `pio run` passes them.
+PIO_BARE_COMPILE = (
+    "-mmcu=atmega2560 -Os -Wall -ffunction-sections -fdata-sections -flto "
+    "-Wno-error=narrowing -fno-exceptions -fno-threadsafe-statics -fpermissive -std=gnu++11"
+).split()
+PIO_BARE_LINK = "-mmcu=atmega2560 -Os -Wl,--gc-sections -flto -fuse-linker-plugin -lm".split()
+
+
+def test_offline_build_uses_the_platformio_flags():
+    """One ELF: the Makefile's flags are PlatformIO's after platformio.ini's unflags and flags."""
+    mega = pio_config()[ENV]
+    unflags = set(" ".join(mega.get("build_unflags", [])).split())
+    extra = " ".join(mega.get("build_flags", [])).split()
+    f_cpu = str(mega["board_build.f_cpu"])
+    pio_compile = {f for f in PIO_BARE_COMPILE if f not in unflags} | set(extra)
+    pio_compile.add(f"-DF_CPU={f_cpu}")
+    pio_link = {f for f in PIO_BARE_LINK if f not in unflags}
+    out = make_print("print-flags")
+    lines = dict(line.split(" ", 1) for line in out.splitlines())
+    make_compile, make_link = set(lines["compile"].split()), set(lines["link"].split())
+    assert make_compile == pio_compile, (
+        f"only in Makefile: {sorted(make_compile - pio_compile)}; "
+        f"only in platformio.ini: {sorted(pio_compile - make_compile)}"
+    )
+    assert make_link == pio_link, (
+        f"only in Makefile: {sorted(make_link - pio_link)}; "
+        f"only in platformio.ini: {sorted(pio_link - make_link)}"
+    )
+    assert "-flto" not in make_compile, "LTO off in both (platformio.ini build_unflags)"

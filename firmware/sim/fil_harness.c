@@ -6,15 +6,25 @@
  *     and optionally linked at --pty-link.
  *   - Four AS5048A encoders are emulated on SPI, selected by PA4..PA7 (active low).
  *   - Four motors are modelled from the PWM compare registers of Timers 1/3/4/5 (fast PWM,
- *     TOP = ICRn) and the enables PA0..PA3: applied voltage space vector (Clarke transform of the
- *     three duties around 50 %), torque = k_t |V| sin(angle(V) - p theta), J dw/dt = torque - b w.
+ *     TOP = ICRn; M0's phase C on Timer0 OC0B, TOP = OCR0A) and the enables PA0..PA3: applied
+ *     voltage space vector (Clarke transform of the three duties around 50 %),
+ *     torque = k_t |V| sin(angle(V) - p theta), J dw/dt = torque - b w.
+ *   - Bytes from the pty reach UART0 at the line rate (one per byte time of UBRR0/U2X0, as
+ *     sim_uart.h times the transmitter); a byte that finds the chip's 2-byte receive FIFO full
+ *     is lost (data overrun), counted as rx_overrun.
+ *   - Resets: the watchdog's reset restarts the firmware as on the chip; the harness then acts as
+ *     the stock Mega bootloader (stk500v2) does on a watchdog reset: MCUSR cleared, application
+ *     started. A "RESET t_s=... wdrf=1" line reports each one.
  *   - The control step is timed in CPU cycles between the firmware's writes GPIOR0 = 1 and
  *     GPIOR0 = 0; min/mean/max are printed periodically ("STATS ...") and at exit ("FINAL ...").
  *   - With --speed-period, a compact "SPEED t_us w0 w1 w2 w3 frames" line gives the model's true
  *     rotor speeds (rad/s) for a consumer such as the simulated rig's truth model.
  *
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
- * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "quit".
+ * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "pwm",
+ * "tick-stop" (Timer2's clock off: the firmware's control tick stops), "rx HEX" (bytes queued for
+ * UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the same every PERIOD_US
+ * of simulated time, COUNT times), "quit".
  * The harness never calls uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
  */
 #include <errno.h>
@@ -40,6 +50,7 @@
 #include <simavr/sim_irq.h>
 
 #include "sim_spi.h"
+#include "sim_rx.h"
 #include "sim_uart.h"
 
 /* ATmega2560 data-space addresses (avr-libc iomxx0_1.h, I/O address + 0x20). */
@@ -49,23 +60,35 @@ enum {
     ADDR_GPIOR0 = 0x3E,
     ADDR_SPDR = 0x4E,
     ADDR_UDR0 = 0xC6,
+    ADDR_MCUSR = 0x54,
+    ADDR_TCCR2B = 0xB1,
 };
 
 #define N_MOTORS 4
 #define TWO_PI 6.283185307179586
 #define ENC_COUNTS 16384
 
-/* Timer register block of one motor: TCCRnA, TCCRnB, ICRn, OCRnA/B/C (16-bit, low byte first). */
+/* One phase output: the timer's TCCRnA/TCCRnB, its TOP register (ICRn in mode 14, OCR0A in
+   Timer0's mode 7), its compare register, the channel (0..2 = A..C, for the COM bits) and whether
+   the timer is 16-bit (the registers are then 16-bit, low byte first). */
 typedef struct {
-    uint16_t tccra, tccrb, icr, ocr[3];
-} timer_regs_t;
+    uint16_t tccra, tccrb, top, ocr;
+    uint8_t ch, wide;
+} phase_regs_t;
 
-static const timer_regs_t k_timers[N_MOTORS] = {
-    {0x80, 0x81, 0x86, {0x88, 0x8A, 0x8C}},       /* M0: Timer1 */
-    {0x90, 0x91, 0x96, {0x98, 0x9A, 0x9C}},       /* M1: Timer3 */
-    {0xA0, 0xA1, 0xA6, {0xA8, 0xAA, 0xAC}},       /* M2: Timer4 */
-    {0x120, 0x121, 0x126, {0x128, 0x12A, 0x12C}}, /* M3: Timer5 */
+#define PH16(n, c) \
+    { 0x80 + 16 * (n), 0x81 + 16 * (n), 0x86 + 16 * (n), 0x88 + 16 * (n) + 2 * (c), c, 1 }
+#define PH16_T5(c) \
+    { 0x120, 0x121, 0x126, 0x128 + 2 * (c), c, 1 }
+static const phase_regs_t k_phases[N_MOTORS][3] = {
+    /* M0: Timer1 OC1A, OC1B; phase C on Timer0 OC0B (OC1C is PB7, the LED the bootloader drives) */
+    {PH16(0, 0), PH16(0, 1), {0x44, 0x45, 0x47, 0x48, 1, 0}},
+    {PH16(1, 0), PH16(1, 1), PH16(1, 2)}, /* M1: Timer3 (0x90..) */
+    {PH16(2, 0), PH16(2, 1), PH16(2, 2)}, /* M2: Timer4 (0xA0..) */
+    {PH16_T5(0), PH16_T5(1), PH16_T5(2)}, /* M3: Timer5 */
 };
+#undef PH16
+#undef PH16_T5
 
 typedef enum {
     ENC_OK = 0,
@@ -145,6 +168,8 @@ static double g_speed_period_s; /* simulated seconds between SPEED lines; 0 = no
 static double g_uart_wait_max_s = 2.0; /* longest back-pressure wait for the pty reader */
 static int g_uart_no_reader;           /* a wait timed out: drop output until the FIFO drains */
 static unsigned long long g_frames;    /* 0x00 bytes (COBS frame delimiters) the UART sent */
+static volatile int g_tick_stop_request;
+static unsigned long long g_resets; /* resets after power-on (watchdog) */
 
 static double now_s(void) {
     struct timespec ts;
@@ -279,7 +304,8 @@ static uint8_t slaves_exchange(uint8_t mosi) {
  * OC pin levels are then not simulated (warned about if the firmware enables such an
  * interrupt); --sim-pwm-timers restores simavr's own handling.
  */
-static const uint16_t k_timsk[N_MOTORS] = {0x6F, 0x71, 0x72, 0x73};
+/* TIMSKn of the PWM timers 1, 3, 4, 5 and 0 */
+static const uint16_t k_timsk[] = {0x6F, 0x71, 0x72, 0x73, 0x6E};
 static int g_sim_pwm_timers;
 static int g_timsk_warned;
 
@@ -288,20 +314,27 @@ static void plain_store(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) 
     avr->data[addr] = v;
 }
 
-static void detach_pwm_timers(avr_t* avr) {
-    for (int i = 0; i < N_MOTORS; i++) {
-        /* TCCRnA/B/C, TCNTn, ICRn, OCRnA/B/C are consecutive; an OCR write alone would make
-           simavr reconfigure, and so start, the timer from the stored TCCRnB */
-        for (uint16_t a = k_timers[i].tccra; a <= k_timers[i].ocr[2] + 1; a++) {
-            avr->io[AVR_DATA_TO_IO(a)].w.c = plain_store;
-            avr->io[AVR_DATA_TO_IO(a)].w.param = NULL;
-        }
+static void detach_range(avr_t* avr, uint16_t first, uint16_t last) {
+    for (uint16_t a = first; a <= last; a++) {
+        avr->io[AVR_DATA_TO_IO(a)].w.c = plain_store;
+        avr->io[AVR_DATA_TO_IO(a)].w.param = NULL;
     }
+}
+
+static void detach_pwm_timers(avr_t* avr) {
+    /* TCCRnA/B/C, TCNTn, ICRn, OCRnA/B/C are consecutive; an OCR write alone would make simavr
+       reconfigure, and so start, the timer from the stored TCCRnB. Timer0: TCCR0A..OCR0B. */
+    for (int i = 0; i < N_MOTORS; i++) {
+        const phase_regs_t* a = &k_phases[i][0]; /* phase A: always on the motor's 16-bit timer */
+        detach_range(avr, a->tccra, a->tccra + 0x0D); /* TCCRnA .. OCRnC high byte */
+    }
+    const phase_regs_t* t0 = &k_phases[0][2];
+    detach_range(avr, t0->tccra, t0->ocr);
 }
 
 static void check_timer_interrupts(void) {
     if (g_sim_pwm_timers || g_timsk_warned) return;
-    for (int i = 0; i < N_MOTORS; i++) {
+    for (size_t i = 0; i < sizeof(k_timsk) / sizeof(k_timsk[0]); i++) {
         if (g_avr->data[k_timsk[i]] != 0) {
             printf(
                 "WARN firmware enabled TIMSK 0x%02x = 0x%02x on a PWM timer; its interrupts "
@@ -314,17 +347,19 @@ static void check_timer_interrupts(void) {
 
 /* ---------------------------------------------------------------- motor model */
 
-static double phase_duty(const timer_regs_t* t, int ch, uint16_t top) {
-    uint8_t com = (uint8_t)((g_avr->data[t->tccra] >> (6 - 2 * ch)) & 3);
-    double d = (double)read16(t->ocr[ch]) / (double)top;
-    if (d > 1.0) d = 1.0;
-    if (com == 3) d = 1.0 - d; /* inverting */
-    if (com < 2) d = 0.5;      /* output disconnected from the pin: phase floats, no drive */
-    return d;
+static uint16_t phase_reg(const phase_regs_t* p, uint16_t addr) {
+    return p->wide ? read16(addr) : g_avr->data[addr];
 }
 
-static uint16_t pwm_top(const timer_regs_t* t) {
-    int wgm = (g_avr->data[t->tccra] & 3) | ((g_avr->data[t->tccrb] >> 1) & 0x0C);
+/* TOP of the phase's timer in a fast PWM mode, 0 otherwise (no drive: phase-correct modes do not
+   run in simavr). */
+static uint16_t pwm_top(const phase_regs_t* p) {
+    uint8_t a = g_avr->data[p->tccra], b = g_avr->data[p->tccrb];
+    if (!p->wide) { /* Timer0: WGM02 in TCCR0B bit 3 */
+        int wgm = (a & 3) | ((b >> 1) & 4);
+        return wgm == 3 ? 0xFF : wgm == 7 ? g_avr->data[p->top] : 0;
+    }
+    int wgm = (a & 3) | ((b >> 1) & 0x0C);
     switch (wgm) {
         case 5:
             return 0xFF;
@@ -333,29 +368,45 @@ static uint16_t pwm_top(const timer_regs_t* t) {
         case 7:
             return 0x3FF;
         case 14:
-            return read16(t->icr);
+            return read16(p->top);
         case 15:
-            return read16(t->ocr[0]);
+            return read16(p->top + 2); /* OCRnA */
         default:
-            return 0; /* not a fast PWM mode: no drive (phase-correct does not run in simavr) */
+            return 0;
     }
 }
 
+/* Duty of a fast PWM output as on the chip: high for OCR + 1 of TOP + 1 counts (non-inverting;
+   COM = 3 inverts; a disconnected output counts as 50 %, a floating phase); -1 if the timer is
+   not in a fast PWM mode. */
+static double phase_duty(const phase_regs_t* p) {
+    uint16_t top = pwm_top(p);
+    if (top == 0) return -1.0;
+    uint8_t com = (uint8_t)((g_avr->data[p->tccra] >> (6 - 2 * p->ch)) & 3);
+    double d = ((double)phase_reg(p, p->ocr) + 1.0) / ((double)top + 1.0);
+    if (d > 1.0) d = 1.0;
+    if (com == 3) d = 1.0 - d;
+    if (com < 2) d = 0.5;
+    return d;
+}
+
 static void motor_voltage(int i, motor_t* m) {
-    const timer_regs_t* t = &k_timers[i];
     uint8_t porta = g_avr->data[ADDR_PORTA] & g_avr->data[ADDR_DDRA];
-    uint16_t top = pwm_top(t);
-    m->enabled = ((porta >> i) & 1) && top > 0;
+    double v[3];
+    int running = 1;
+    for (int k = 0; k < 3; k++) {
+        double d = phase_duty(&k_phases[i][k]);
+        if (d < 0) running = 0;
+        v[k] = (d - 0.5) * g_par.vbus_v;
+    }
+    m->enabled = ((porta >> i) & 1) && running;
     if (!m->enabled) {
         m->v_alpha = m->v_beta = 0.0;
         return;
     }
-    double va = (phase_duty(t, 0, top) - 0.5) * g_par.vbus_v;
-    double vb = (phase_duty(t, 1, top) - 0.5) * g_par.vbus_v;
-    double vc = (phase_duty(t, 2, top) - 0.5) * g_par.vbus_v;
     /* amplitude-invariant Clarke transform: the common mode drops out */
-    m->v_alpha = (2.0 / 3.0) * (va - 0.5 * vb - 0.5 * vc);
-    m->v_beta = (2.0 / 3.0) * (0.8660254037844386 * (vb - vc));
+    m->v_alpha = (2.0 / 3.0) * (v[0] - 0.5 * v[1] - 0.5 * v[2]);
+    m->v_beta = (2.0 / 3.0) * (0.8660254037844386 * (v[1] - v[2]));
 }
 
 static void motor_step(motor_t* m, double dt) {
@@ -387,25 +438,28 @@ static void print_stats(const char* tag, const cyc_stats_t* s) {
     printf(
         "%s t_s=%.3f wall_s=%.3f rt=%.3f steps=%llu cyc_min=%llu cyc_mean=%.1f cyc_max=%llu "
         "load_pct=%.2f overruns=%llu rpm=%.2f,%.2f,%.2f,%.2f vq=%.2f,%.2f,%.2f,%.2f "
-        "vd=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s uart_wait_s=%.3f\n",
+        "vd=%.2f,%.2f,%.2f,%.2f faults=%s,%s,%s,%s uart_wait_s=%.3f resets=%llu rx_overrun=%llu\n",
         tag, t, wall, wall > 0 ? t / wall : 0.0, (unsigned long long)s->n,
         (unsigned long long)s->min, mean, (unsigned long long)s->max,
         100.0 * (double)s->max / (double)g_tick_cycles, (unsigned long long)s->overruns,
         rpm(&g_mot[0]), rpm(&g_mot[1]), rpm(&g_mot[2]), rpm(&g_mot[3]), g_mot[0].v_q, g_mot[1].v_q,
         g_mot[2].v_q, g_mot[3].v_q, g_mot[0].v_d, g_mot[1].v_d, g_mot[2].v_d, g_mot[3].v_d,
         k_fault_names[g_mot[0].fault], k_fault_names[g_mot[1].fault], k_fault_names[g_mot[2].fault],
-        k_fault_names[g_mot[3].fault], g_uart_wait_s);
+        k_fault_names[g_mot[3].fault], g_uart_wait_s, g_resets, sim_rx_overrun);
     fflush(stdout);
 }
 
-/* "OK pwm": per motor enable, TOP, the three compare values, rotor angle and speed */
+/* "OK pwm": per motor enable, TOP and compare value of each phase (TOP/OCR), rotor angle, speed
+   and the encoder's last answer */
 static void print_pwm(void) {
     printf("OK pwm");
     for (int i = 0; i < N_MOTORS; i++) {
-        const timer_regs_t* t = &k_timers[i];
-        printf(" m%d=%d/%u/%u/%u/%u/%.4f/%.3f/%04x", i, g_mot[i].enabled, pwm_top(t),
-               read16(t->ocr[0]), read16(t->ocr[1]), read16(t->ocr[2]), g_mot[i].theta_rad,
-               g_mot[i].omega_rad_s, g_mot[i].tx_word);
+        printf(" m%d=%d", i, g_mot[i].enabled);
+        for (int k = 0; k < 3; k++) {
+            const phase_regs_t* p = &k_phases[i][k];
+            printf("/%u:%u", pwm_top(p), phase_reg(p, p->ocr));
+        }
+        printf("/%.4f/%.3f/%04x", g_mot[i].theta_rad, g_mot[i].omega_rad_s, g_mot[i].tx_word);
     }
     printf("\n");
     fflush(stdout);
@@ -564,6 +618,61 @@ static void print_isr_stats(void) {
     }
 }
 
+/* ---------------------------------------------------------------- timers and resets */
+
+static void register_timers(avr_t* avr) {
+    avr_cycle_timer_register(avr, g_par.model_cycles, model_timer, NULL);
+    avr_cycle_timer_register(avr, avr->frequency / 1000, pace_timer, NULL);
+    sim_uart_install(avr, ADDR_UDR0); /* the chip's UART byte time (sim_uart.h) */
+    if (g_stats_period_s > 0) {
+        avr_cycle_timer_register(avr, (avr_cycle_count_t)(g_stats_period_s * avr->frequency),
+                                 stats_timer, NULL);
+    }
+    if (g_speed_period_s > 0) {
+        avr_cycle_timer_register(avr, (avr_cycle_count_t)(g_speed_period_s * avr->frequency),
+                                 speed_timer, NULL);
+    }
+    if (g_profile) avr_cycle_timer_register(avr, PROFILE_PERIOD, profile_timer, NULL);
+    sim_rx_reset(avr);
+}
+
+/* The stock bootloader on a watchdog reset: MCUSR read and cleared, the application started at
+   once. Run one cycle after the reset, when simavr's watchdog has set WDRF. */
+static avr_cycle_count_t bootloader_timer(avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)when;
+    (void)param;
+    uint8_t mcusr = avr->data[ADDR_MCUSR];
+    avr->data[ADDR_MCUSR] = 0;
+    printf("RESET t_s=%.6f wdrf=%d\n", sim_time_s(), (mcusr >> 3) & 1);
+    fflush(stdout);
+    return 0;
+}
+
+/* avr_reset() (the watchdog's) drops every cycle timer and clears the I/O registers; SRAM, the
+   EEPROM and the pins' IRQ hooks stay. Registered after avr_init(), so called on resets only. */
+static void on_reset(avr_io_t* io) {
+    avr_t* avr = io->avr;
+    g_resets++;
+    g_step_open = 0;
+    register_timers(avr);
+    avr_cycle_timer_register(avr, 1, bootloader_timer, NULL);
+}
+
+static avr_io_t g_reset_io = {.kind = "fil-reset", .reset = on_reset};
+
+/* Timer2's clock off through its register's write handler (simavr then stops the timer), as a
+   firmware stuck outside its control tick would leave it. */
+static void stop_tick_timer(void) {
+    avr_io_addr_t a = AVR_DATA_TO_IO(ADDR_TCCR2B);
+    if (g_avr->io[a].w.c) {
+        g_avr->io[a].w.c(g_avr, ADDR_TCCR2B, 0, g_avr->io[a].w.param);
+    } else {
+        g_avr->data[ADDR_TCCR2B] = 0;
+    }
+    printf("OK tick-stop t_s=%.6f\n", sim_time_s());
+    fflush(stdout);
+}
+
 /* ---------------------------------------------------------------- stdin commands */
 
 static int parse_fault(const char* s) {
@@ -575,7 +684,7 @@ static int parse_fault(const char* s) {
 
 static void* stdin_thread(void* arg) {
     (void)arg;
-    char line[128];
+    char line[768]; /* "rx" lines carry up to 256 bytes in hex */
     while (fgets(line, sizeof(line), stdin)) {
         char cmd[16] = "", mode[16] = "";
         int motor = -1;
@@ -586,6 +695,21 @@ static void* stdin_thread(void* arg) {
             g_stop = 1;
         } else if (n >= 1 && strcmp(cmd, "pwm") == 0) {
             g_pwm_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "rx") == 0) {
+            char hex[600] = "";
+            if (sscanf(line, "%*s %599s", hex) != 1 || !sim_rx_inject_request(hex, 0, 0)) {
+                printf("ERR rx wants up to 256 bytes in hex: %s", line);
+            }
+        } else if (n >= 1 && strcmp(cmd, "rx-every") == 0) {
+            char hex[600] = "";
+            double period_us = 0;
+            unsigned count = 0;
+            if (sscanf(line, "%*s %lf %u %599s", &period_us, &count, hex) != 3 || count == 0 ||
+                !sim_rx_inject_request(hex, period_us, count)) {
+                printf("ERR rx-every wants PERIOD_US COUNT HEX: %s", line);
+            }
+        } else if (n >= 1 && strcmp(cmd, "tick-stop") == 0) {
+            g_tick_stop_request = 1;
         } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
             g_stats_request = 1;
         } else if (n == 3 && strcmp(cmd, "fault") == 0 && motor_ok && parse_fault(mode) >= 0) {
@@ -647,6 +771,8 @@ static void usage(const char* prog) {
             "      --model-cycles N   CPU cycles per motor-model step (default %u)\n"
             "      --freq HZ          CPU clock (default 16000000)\n"
             "      --isr-stats        cycles per interrupt vector, printed as ISR lines at exit\n"
+            "      --rx-mark HEX      print \"RXMARK t_us=T\" when the received frame HEX (its\n"
+            "                         bytes before the 0x00, e.g. 040474a1) has reached UART0\n"
             "      --profile FILE     sample the PC inside the control step, write FILE at exit\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
             "                         firmware uses their counters or interrupts)\n",
@@ -668,7 +794,8 @@ enum {
     OPT_PROFILE,
     OPT_ISR,
     OPT_SPEED,
-    OPT_UART_WAIT
+    OPT_UART_WAIT,
+    OPT_RX_MARK
 };
 
 typedef struct {
@@ -722,6 +849,7 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"ke", required_argument, 0, OPT_KE},
         {"speed-period", required_argument, 0, OPT_SPEED},
         {"uart-wait-max", required_argument, 0, OPT_UART_WAIT},
+        {"rx-mark", required_argument, 0, OPT_RX_MARK},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -785,6 +913,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
             case OPT_SPEED:
                 g_speed_period_s = parse_double(optarg, "--speed-period");
                 break;
+            case OPT_RX_MARK:
+                sim_rx_parse_mark(optarg);
+                break;
             case OPT_UART_WAIT:
                 g_uart_wait_max_s = parse_double(optarg, "--uart-wait-max");
                 break;
@@ -830,7 +961,7 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
 
     /* SPI bytes at the real SCK rate (sim_spi.h), answered by the four emulated encoders */
     if (sim_spi_install(avr, ADDR_SPDR, slaves_exchange) != 0) exit(1);
-    sim_uart_install(avr, ADDR_UDR0); /* the chip's UART byte time (sim_uart.h) */
+    sim_rx_install(avr, &g_pty, ADDR_UDR0);
     for (int i = 0; i < N_MOTORS; i++) {
         /* pin IRQs fire on changes only and start at 0: begin as "not selected" and let the
            firmware's first high write be a no-op, its first low write a frame start */
@@ -874,21 +1005,9 @@ int main(int argc, char** argv) {
        the OC3B/OC3C outputs, so that polling alone halved the simulation speed. The wheel
        firmware uses no external interrupt; level sense then acts like an edge. */
     for (uint8_t i = 0; i < EXTINT_COUNT; i++) avr_extint_set_strict_lvl_trig(g_avr, i, 0);
-    avr_cycle_timer_register(g_avr, g_par.model_cycles, model_timer, NULL);
-    avr_cycle_timer_register(g_avr, opt.freq_hz / 1000, pace_timer, NULL);
-    if (g_stats_period_s > 0) {
-        avr_cycle_timer_register(g_avr, (avr_cycle_count_t)(g_stats_period_s * opt.freq_hz),
-                                 stats_timer, NULL);
-    }
-    if (g_speed_period_s > 0) {
-        avr_cycle_timer_register(g_avr, (avr_cycle_count_t)(g_speed_period_s * opt.freq_hz),
-                                 speed_timer, NULL);
-    }
-
-    if (g_profile_path) {
-        g_profile = calloc(0x20000, sizeof(uint32_t));
-        avr_cycle_timer_register(g_avr, PROFILE_PERIOD, profile_timer, NULL);
-    }
+    if (g_profile_path) g_profile = calloc(0x20000, sizeof(uint32_t));
+    register_timers(g_avr);
+    avr_register_io(g_avr, &g_reset_io);
 
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
@@ -905,6 +1024,11 @@ int main(int argc, char** argv) {
         state = avr_run(g_avr);
         if (state == cpu_Done || state == cpu_Crashed) break;
         if (g_isr_stats) isr_track();
+        if (sim_rx_inject_pending) sim_rx_inject_start();
+        if (g_tick_stop_request) {
+            g_tick_stop_request = 0;
+            stop_tick_timer();
+        }
         if (g_pwm_request) {
             g_pwm_request = 0;
             print_pwm();

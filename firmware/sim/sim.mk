@@ -16,7 +16,8 @@ SIM_AVR_FLAGS := -mmcu=atmega2560 -DF_CPU=16000000UL -Os -std=gnu11 -Wall -Wextr
 
 sim: $(SIM_HARNESS) $(SIM_SELFTEST)
 
-$(SIM_HARNESS): $(SIM_DIR)/fil_harness.c $(SIM_DIR)/sim_spi.h $(SIM_DIR)/sim_uart.h $(SIM_DIR)/sim.mk
+$(SIM_HARNESS): $(SIM_DIR)/fil_harness.c $(SIM_DIR)/sim_spi.h $(SIM_DIR)/sim_uart.h $(SIM_DIR)/sim_rx.h \
+                $(SIM_DIR)/sim.mk
 	@mkdir -p $(@D)
 	$(SIM_CC) $(SIM_CFLAGS) -o $@ $< $(SIM_LDLIBS)
 

@@ -8,25 +8,45 @@
 
 #define BOARD_WHEELS 4
 
-// ---- Motor phases: hardware PWM, fast PWM mode 14 (TOP = ICRn), prescaler 1 -> 20 kHz.
-#define BOARD_PWM_TOP 799
-// M0 Timer1: OC1A PB5 (D11), OC1B PB6 (D12), OC1C PB7 (D13)
+// ---- Motor phases: hardware PWM at 20 kHz, phase-aligned (the timers start together, board_pwm).
+// Timers 1/3/4/5: fast PWM mode 14 (TOP = ICRn), prescaler 1, compare values 0..BOARD_PWM_TOP.
+// M0 phase C is on Timer0 (8-bit), not on OC1C: OC1C is PB7 (D13), the Mega's LED, which the
+// stock bootloader drives and blinks at every reset. The twelve 16-bit compare outputs are
+// exactly the twelve phases, and OC1C has no other pin, so one phase has to go to an 8-bit
+// timer: Timer0 fast PWM mode 7 (TOP = OCR0A = 99), prescaler 8, 16 MHz / 8 / 100 = 20 kHz;
+// its compare value is the phase's 0..799 value >> 3 (steps of 8 counts, 1 % of the supply).
+// M0 Timer1: OC1A PB5 (D11), OC1B PB6 (D12); Timer0: OC0B PG5 (D4)
 // M1 Timer3: OC3A PE3 (D5),  OC3B PE4 (D2),  OC3C PE5 (D3)
 // M2 Timer4: OC4A PH3 (D6),  OC4B PH4 (D7),  OC4C PH5 (D8)
 // M3 Timer5: OC5A PL3 (D46), OC5B PL4 (D45), OC5C PL5 (D44)
+#define BOARD_PWM_TOP 799
+#define BOARD_PWM0_TOP 99
+#define BOARD_PWM0_SHIFT 3  // (BOARD_PWM_TOP + 1) / (BOARD_PWM0_TOP + 1) = 2^3
+#define BOARD_M0_PORT PORTB
 #define BOARD_M0_DDR DDRB
-#define BOARD_M0_PINS (_BV(PB5) | _BV(PB6) | _BV(PB7))
+#define BOARD_M0_PINS (_BV(PB5) | _BV(PB6))
+#define BOARD_M0C_PORT PORTG
+#define BOARD_M0C_DDR DDRG
+#define BOARD_M0C_PINS _BV(PG5)
+#define BOARD_M1_PORT PORTE
 #define BOARD_M1_DDR DDRE
 #define BOARD_M1_PINS (_BV(PE3) | _BV(PE4) | _BV(PE5))
+#define BOARD_M2_PORT PORTH
 #define BOARD_M2_DDR DDRH
 #define BOARD_M2_PINS (_BV(PH3) | _BV(PH4) | _BV(PH5))
+#define BOARD_M3_PORT PORTL
 #define BOARD_M3_DDR DDRL
 #define BOARD_M3_PINS (_BV(PL3) | _BV(PL4) | _BV(PL5))
 // TCCRnA: non-inverting on A/B/C, WGMn1; TCCRnB: WGMn3 | WGMn2 | CSn0 (mode 14, clk/1).
 #define BOARD_PWM_TCCRA(n) (_BV(COM##n##A1) | _BV(COM##n##B1) | _BV(COM##n##C1) | _BV(WGM##n##1))
 #define BOARD_PWM_TCCRB(n) (_BV(WGM##n##3) | _BV(WGM##n##2) | _BV(CS##n##0))
+// Timer0: non-inverting on B only (OC0A, PB7, stays a plain port pin), mode 7, clk/8.
+#define BOARD_PWM0_TCCRA (_BV(COM0B1) | _BV(WGM01) | _BV(WGM00))
+#define BOARD_PWM0_TCCRB (_BV(WGM02) | _BV(CS01))
 
-// ---- Driver enables M0..M3: PA0..PA3 (D22..D25), active high.
+// ---- Driver enables M0..M3: PA0..PA3 (D22..D25), active high. Every enable needs a pull-down
+// (10 kOhm to GND, docs/hardware.md): the pins float from reset through the bootloader (about
+// 1 s after a power-on or DTR reset) until main_early_init drives them low.
 #define BOARD_EN_PORT PORTA
 #define BOARD_EN_DDR DDRA
 #define BOARD_EN_SHIFT 0
@@ -52,12 +72,19 @@
 #define BOARD_TICK_OCR 249
 #define BOARD_TICK_US_PER_COUNT 4
 
+// ---- Watchdog: interrupt-then-reset mode, 16 ms (WDP = 0). Kicked after every completed control
+// step only. 16 ms without a step: the watchdog interrupt switches every output off and leaves
+// BOARD_WDT_MARK in a .noinit word, then waits; 16 ms later the watchdog resets the chip. The
+// mark, not MCUSR, tells the next boot that the watchdog reset it: the stock Mega bootloader
+// (stk500v2) clears MCUSR before it starts the application and passes nothing on.
+#define BOARD_WDT_MARK 0x57444F47UL  // "WDOG"
+
 // ---- Host link: UART0 (D0 RX, D1 TX via the USB bridge), 1000000 baud exact: U2X, UBRR0 = 1.
 // A 38-byte telemetry frame takes 380 us, so it is sent before the next control step starts
 // and its TX interrupts do not preempt the step (at 500 kbaud they did, about 330 cycles a step).
 #define BOARD_UART_UBRR 1
-#define BOARD_UART_RX_SIZE 128  // power of two
-#define BOARD_UART_TX_SIZE 256  // power of two (8-bit indices)
+#define BOARD_UART_RX_SIZE 256  // free-running 8-bit indices
+#define BOARD_UART_TX_SIZE 256  // free-running 8-bit indices
 
 // ---- Cycle measurement: GPIOR0 = 1 just before the control step of all wheels, 0 right after;
 // GPIOR1 = 1 while the main loop works on a tick (step, PWM, telemetry frame), 0 after it;

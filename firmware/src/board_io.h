@@ -4,8 +4,35 @@
 
 #include <stdint.h>
 
+#include "board.h"
 #include "prm.h"
 
+// Every output that can move a motor off: the driver enables driven low, the PWM compare outputs
+// disconnected from their pins (TCCRnA = 0) and those pins driven low. Inline with constant
+// addresses only, so that it runs in .init3 (before .data and .bss exist) and in the watchdog
+// interrupt alike.
+static inline __attribute__((always_inline)) void board_outputs_off() {
+    BOARD_EN_PORT &= static_cast<uint8_t>(~BOARD_EN_MASK);
+    BOARD_EN_DDR |= BOARD_EN_MASK;
+    TCCR1A = 0;
+    TCCR3A = 0;
+    TCCR4A = 0;
+    TCCR5A = 0;
+    TCCR0A = 0;
+    BOARD_M0_PORT &= static_cast<uint8_t>(~BOARD_M0_PINS);
+    BOARD_M0C_PORT &= static_cast<uint8_t>(~BOARD_M0C_PINS);
+    BOARD_M1_PORT &= static_cast<uint8_t>(~BOARD_M1_PINS);
+    BOARD_M2_PORT &= static_cast<uint8_t>(~BOARD_M2_PINS);
+    BOARD_M3_PORT &= static_cast<uint8_t>(~BOARD_M3_PINS);
+    BOARD_M0_DDR |= BOARD_M0_PINS;
+    BOARD_M0C_DDR |= BOARD_M0C_PINS;
+    BOARD_M1_DDR |= BOARD_M1_PINS;
+    BOARD_M2_DDR |= BOARD_M2_PINS;
+    BOARD_M3_DDR |= BOARD_M3_PINS;
+}
+
+// Timers set up and started together (phase-aligned), compare values 0, outputs connected. The
+// pins are outputs already (board_outputs_off in .init3).
 void pwm_init();
 // duty: compare values 0..BOARD_PWM_TOP per wheel and phase; enable_mask bit w enables wheel w.
 void pwm_apply(const uint16_t duty[][3], uint8_t enable_mask);
@@ -18,8 +45,34 @@ void enc_clear_errors(uint8_t mask);
 
 void uart_init();
 bool uart_tx_frame(const uint8_t* data, uint8_t len);  // whole frame or nothing, never blocks
-bool uart_rx_pop(uint8_t* byte);
+// The RX ring (board_uart.cpp): the oldest received byte without taking it, then taking it.
+// Inline: the main loop reads up to 100 bytes a tick at 1 Mbaud.
+extern "C" {
+extern volatile uint8_t board_rx_buf[BOARD_UART_RX_SIZE];
+extern volatile uint8_t board_rx_head;
+extern volatile uint8_t board_rx_tail;
+}
+static inline bool uart_rx_peek(uint8_t* byte) {
+    const uint8_t t = board_rx_tail;
+    if (t == board_rx_head) return false;
+    *byte = board_rx_buf[t];
+    return true;
+}
+static inline void uart_rx_next() {
+    board_rx_tail = static_cast<uint8_t>(board_rx_tail + 1);
+}
+// The TX interrupt held off (the bytes wait in the ring) and let go again: around the control
+// step, so that only the RX interrupts stretch it during a full-duplex burst.
+static inline void uart_tx_hold() {
+    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
+}
+static inline void uart_tx_release() {
+    UCSR0B |= _BV(UDRIE0);  // an empty ring: the interrupt clears it again at once
+}
 bool uart_rx_take_overflow();  // true once after the RX ring overflowed
+// True once after the receive interrupt saw a whole STOP_ALL frame (board_uart.cpp); the frame
+// also goes through the ring and is dispatched (and acknowledged) in order.
+bool uart_take_stop_request();
 
 void tick_init();
 extern volatile uint8_t g_tick_count;  // incremented by the Timer2 compare ISR

@@ -5,17 +5,31 @@
 
 #include "board.h"
 #include "board_io.h"
+#include "proto.h"
 
-static_assert((BOARD_UART_RX_SIZE & (BOARD_UART_RX_SIZE - 1)) == 0, "RX size: power of two");
-static_assert(BOARD_UART_TX_SIZE == 256, "TX ring uses free-running 8-bit indices");
+static_assert(BOARD_UART_RX_SIZE == 256, "RX ring: free-running 8-bit indices, aligned");
+static_assert(BOARD_UART_TX_SIZE == 256, "TX ring: free-running 8-bit indices, aligned");
 
-static volatile uint8_t rx_buf[BOARD_UART_RX_SIZE];
-static volatile uint8_t rx_head;  // written by the ISR
-static volatile uint8_t rx_tail;  // written by the main loop
-static volatile uint8_t rx_overflow;
-static volatile uint8_t tx_buf[BOARD_UART_TX_SIZE];
-static volatile uint8_t tx_head;  // written by the main loop
-static volatile uint8_t tx_tail;  // written by the ISR
+// The rings are aligned to 256 bytes so that an index is the low byte of the address: the
+// interrupts then form the pointer with one LDI. extern "C": the assembly names them.
+extern "C" {
+volatile uint8_t board_rx_buf[BOARD_UART_RX_SIZE] __attribute__((aligned(256)));
+volatile uint8_t board_tx_buf[BOARD_UART_TX_SIZE] __attribute__((aligned(256)));
+volatile uint8_t board_rx_head;  // written by the RX ISR
+volatile uint8_t board_rx_tail;  // written by the main loop
+volatile uint8_t board_rx_overflow;
+volatile uint8_t board_tx_head;  // written by the main loop
+volatile uint8_t board_tx_tail;  // written by the UDRE ISR
+// STOP_ALL as a real-time command (as grbl's feed hold): the receive interrupt compares the bytes
+// since the last delimiter with the STOP_ALL wire frame, so a stop does not wait behind the
+// frames queued in the ring. board_stop_match: bytes of the frame matched so far (0..4), 5 when
+// this frame is something else (until the next 0x00).
+volatile uint8_t board_stop_match;
+volatile uint8_t board_stop_request;
+}
+
+static constexpr uint8_t k_stop_wire[PROTO_STOP_ALL_WIRE_LEN] = PROTO_STOP_ALL_WIRE;
+static_assert(PROTO_STOP_ALL_WIRE_LEN == 5 && k_stop_wire[4] == 0, "4 bytes and the delimiter");
 
 void uart_init() {
     UBRR0 = BOARD_UART_UBRR;
@@ -24,53 +38,135 @@ void uart_init() {
     UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
 }
 
-// Cost measured in simavr (firmware/bench): see docs/hardware.md, "ISR cycle costs".
-// USART0_RX: 66 cycles first instruction to reti + 8 entry = 74 per received byte (simavr,
-// make -C firmware cycles).
-ISR(USART0_RX_vect) {
-    uint8_t b = UDR0;
-    uint8_t next = static_cast<uint8_t>((rx_head + 1) & (BOARD_UART_RX_SIZE - 1));
-    if (next == rx_tail) {
-        rx_overflow = 1;  // byte lost; counted by the main loop
-    } else {
-        rx_buf[rx_head] = b;
-        rx_head = next;
-    }
+// USART0_RX, once per received byte, at most every 160 cycles at 1 Mbaud: the ring store and the
+// STOP_ALL match in assembly. Budget, measured (make -C firmware cycles): 49 cycles from the first
+// instruction to reti on the common path (a byte of any frame but STOP_ALL: prologue 11, ring 17,
+// match 6, epilogue 15), 57 with the 8 of response and vector jump, up to 64 + 8 while a STOP_ALL
+// matches (gcc's C for the same work took 83-92). With the 40 of the UDRE interrupt, a full-duplex
+// burst (a byte each way every 160 cycles) leaves the main loop 39 % of the CPU
+// (docs/hardware.md, "ISR costs").
+ISR(USART0_RX_vect, ISR_NAKED) {
+    __asm__ __volatile__(
+        "push r30\n\t"
+        "in r30, __SREG__\n\t"
+        "push r30\n\t"
+        "push r31\n\t"
+        "push r24\n\t"
+        "push r25\n\t"
+        "lds r24, %[udr]\n\t"  // b
+        "lds r30, board_rx_head\n\t"
+        "mov r25, r30\n\t"
+        "inc r25\n\t"  // next head
+        "lds r31, board_rx_tail\n\t"
+        "cp r25, r31\n\t"
+        "breq 1f\n\t"
+        "sts board_rx_head, r25\n\t"
+        "ldi r31, hi8(board_rx_buf)\n\t"
+        "st Z, r24\n"
+        "2:\n\t"
+        "lds r25, board_stop_match\n\t"
+        "tst r24\n\t"
+        "breq 5f\n\t"
+        "cpi r25, 5\n\t"
+        "breq 9f\n\t"  // a byte of another frame: the common path
+        "cpi r25, 4\n\t"
+        "brsh 4f\n\t"  // 4 matched and another byte, or already another frame
+        "cpi r25, 1\n\t"
+        "brlo 10f\n\t"
+        "breq 11f\n\t"
+        "cpi r25, 3\n\t"
+        "brlo 12f\n\t"
+        "cpi r24, %[k3]\n\t"
+        "rjmp 3f\n"
+        "10:\n\t"
+        "cpi r24, %[k0]\n\t"
+        "rjmp 3f\n"
+        "11:\n\t"
+        "cpi r24, %[k1]\n\t"
+        "rjmp 3f\n"
+        "12:\n\t"
+        "cpi r24, %[k2]\n"
+        "3:\n\t"
+        "brne 4f\n\t"
+        "inc r25\n\t"
+        "sts board_stop_match, r25\n\t"
+        "rjmp 9f\n"
+        "4:\n\t"
+        "ldi r25, 5\n\t"
+        "sts board_stop_match, r25\n\t"
+        "rjmp 9f\n"
+        "5:\n\t"  // delimiter: a STOP_ALL if exactly its 4 bytes came since the last one
+        "cpi r25, 4\n\t"
+        "brne 6f\n\t"
+        "sts board_stop_request, r25\n"
+        "6:\n\t"
+        "sts board_stop_match, r24\n"  // r24 = 0
+        "9:\n\t"
+        "pop r25\n\t"
+        "pop r24\n\t"
+        "pop r31\n\t"
+        "pop r30\n\t"
+        "out __SREG__, r30\n\t"
+        "pop r30\n\t"
+        "reti\n"
+        "1:\n\t"  // ring full: the byte is lost, counted by the main loop
+        "ldi r25, 1\n\t"
+        "sts board_rx_overflow, r25\n\t"
+        "rjmp 2b\n\t" ::[udr] "n"(_SFR_MEM_ADDR(UDR0)),
+        [k0] "n"(k_stop_wire[0]), [k1] "n"(k_stop_wire[1]), [k2] "n"(k_stop_wire[2]),
+        [k3] "n"(k_stop_wire[3]));
 }
 
-// USART0_UDRE: 55..60 cycles first instruction to reti + 8 entry = 63..68 per sent byte (simavr).
-ISR(USART0_UDRE_vect) {
-    uint8_t t = tx_tail;
-    if (t == tx_head) {
-        UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));  // ring empty: stop the interrupt
-        return;
-    }
-    UDR0 = tx_buf[t];
-    tx_tail = static_cast<uint8_t>(t + 1);
+// USART0_UDRE, once per sent byte: 31-34 cycles to reti, 39-42 with the 8 of entry (gcc's C
+// took 63-68).
+ISR(USART0_UDRE_vect, ISR_NAKED) {
+    __asm__ __volatile__(
+        "push r30\n\t"
+        "in r30, __SREG__\n\t"
+        "push r30\n\t"
+        "push r31\n\t"
+        "lds r30, board_tx_tail\n\t"
+        "lds r31, board_tx_head\n\t"
+        "cp r30, r31\n\t"
+        "breq 1f\n\t"
+        "ldi r31, hi8(board_tx_buf)\n\t"
+        "ld r31, Z+\n\t"  // ZL = tail + 1 (wraps at 256: the ring is aligned)
+        "sts %[udr], r31\n\t"
+        "sts board_tx_tail, r30\n\t"
+        "rjmp 2f\n"
+        "1:\n\t"  // ring empty: stop the interrupt
+        "lds r31, %[ucsrb]\n\t"
+        "andi r31, %[noudrie]\n\t"
+        "sts %[ucsrb], r31\n"
+        "2:\n\t"
+        "pop r31\n\t"
+        "pop r30\n\t"
+        "out __SREG__, r30\n\t"
+        "pop r30\n\t"
+        "reti\n\t" ::[udr] "n"(_SFR_MEM_ADDR(UDR0)),
+        [ucsrb] "n"(_SFR_MEM_ADDR(UCSR0B)), [noudrie] "n"(static_cast<uint8_t>(~_BV(UDRIE0))));
 }
 
 bool uart_tx_frame(const uint8_t* data, uint8_t len) {
-    uint8_t h = tx_head;
-    uint8_t used = static_cast<uint8_t>(h - tx_tail);
+    uint8_t h = board_tx_head;
+    uint8_t used = static_cast<uint8_t>(h - board_tx_tail);
     if (static_cast<uint16_t>(used) + len > BOARD_UART_TX_SIZE - 1) return false;
-    for (uint8_t i = 0; i < len; i++) tx_buf[static_cast<uint8_t>(h + i)] = data[i];
-    tx_head = static_cast<uint8_t>(h + len);
+    for (uint8_t i = 0; i < len; i++) board_tx_buf[static_cast<uint8_t>(h + i)] = data[i];
+    board_tx_head = static_cast<uint8_t>(h + len);
     // Read-modify-write of a memory-mapped register: the UDRE ISR may clear UDRIE0 in between,
     // which is harmless because this write sets it again and the ring is not empty.
     UCSR0B |= _BV(UDRIE0);
     return true;
 }
 
-bool uart_rx_pop(uint8_t* byte) {
-    uint8_t t = rx_tail;
-    if (t == rx_head) return false;
-    *byte = rx_buf[t];
-    rx_tail = static_cast<uint8_t>((t + 1) & (BOARD_UART_RX_SIZE - 1));
+bool uart_rx_take_overflow() {
+    if (!board_rx_overflow) return false;
+    board_rx_overflow = 0;
     return true;
 }
 
-bool uart_rx_take_overflow() {
-    if (!rx_overflow) return false;
-    rx_overflow = 0;
+bool uart_take_stop_request() {
+    if (!board_stop_request) return false;
+    board_stop_request = 0;
     return true;
 }

@@ -13,17 +13,57 @@
 // main_handle_rx also stops at a pending tick, so at most one frame's dispatch (its reply
 // built) lies between a tick and its step.
 #define MAIN_RX_BYTES_PER_PASS 8
+// Received bytes wait here between the interrupt's 256-byte ring and the decoder: the main loop
+// moves every byte of the ring here on each pass (about 12 cycles a byte), then decodes and
+// dispatches at most MAIN_RX_BYTES_PER_PASS. A burst at the line rate comes in faster than its
+// frames are dispatched (a PARAM_SET with its reply takes about 2,500 cycles, the time of 15
+// received bytes); together the two hold 768 bytes, three of the documented bursts.
+#define MAIN_RX_FIFO_SIZE 512u  // power of two
 
 static app_state g_app;
-static uint8_t g_reset_cause __attribute__((section(".noinit")));
+static uint8_t g_rx_fifo[MAIN_RX_FIFO_SIZE];
+static uint16_t g_rx_in;   // bytes put into g_rx_fifo, free-running
+static uint16_t g_rx_out;  // bytes taken from it
+// Kept across resets (.noinit is neither loaded nor cleared at start-up). The stock bootloader
+// uses the bottom of RAM for its few globals and the top for its stack (a 285-byte message
+// buffer), not the addresses after the application's .bss where these lie.
+static uint32_t g_wdt_mark __attribute__((section(".noinit")));
+static uint8_t g_boot_watchdog __attribute__((section(".noinit")));
 
-// Runs before main (.init3): keep the reset cause and stop a watchdog left running by a
-// watchdog reset (it would otherwise fire again during start-up).
+// Runs before main and before .data and .bss are set up (.init3): every output off first, then
+// the reset cause (the watchdog's mark, or WDRF when no bootloader cleared MCUSR), then a watchdog
+// left running by a watchdog reset stopped (it would fire again during start-up).
 extern "C" void main_early_init() __attribute__((naked, used, section(".init3")));
 extern "C" void main_early_init() {
-    g_reset_cause = MCUSR;
+    board_outputs_off();
+    g_boot_watchdog = (g_wdt_mark == BOARD_WDT_MARK || (MCUSR & _BV(WDRF))) ? 1 : 0;
+    g_wdt_mark = 0;
     MCUSR = 0;
     wdt_disable();
+}
+
+// 16 ms without a completed control step (board.h): outputs off, the mark for the next boot, and
+// wait for the reset, which the watchdog (now in reset mode: entering this vector cleared WDIE)
+// gives 16 ms later.
+// Naked (it never returns): only __zero_reg__ needs setting, as the interrupted code may have
+// been between a MUL and its clr r1.
+ISR(WDT_vect, ISR_NAKED) {
+    __asm__ __volatile__("clr __zero_reg__");
+    board_outputs_off();
+    g_wdt_mark = BOARD_WDT_MARK;
+    for (;;) {
+    }
+}
+
+// Watchdog in interrupt-then-reset mode, 16 ms. The change sequence must reach WDTCSR within
+// four cycles of WDCE; interrupts are still off here.
+static void main_watchdog_start() {
+    __asm__ __volatile__(
+        "wdr\n\t"
+        "sts %0, %1\n\t"
+        "sts %0, %2\n\t" ::"n"(_SFR_MEM_ADDR(WDTCSR)),
+        "r"(static_cast<uint8_t>(_BV(WDCE) | _BV(WDE))),
+        "r"(static_cast<uint8_t>(_BV(WDIE) | _BV(WDE))));
 }
 
 // tick_seen: the tick count the main loop last handled. The encoders are sampled when the step
@@ -31,28 +71,32 @@ extern "C" void main_early_init() {
 // (then shorter) interval, a transient of about 1 % per 80 us of delay after its filter.
 static void main_handle_rx(uint8_t tick_seen) {
     uint8_t b;
-    for (uint8_t i = 0; i < MAIN_RX_BYTES_PER_PASS && g_tick_count == tick_seen && uart_rx_pop(&b);
-         i++) {
-        app_rx_byte(&g_app, b);
+    while (static_cast<uint16_t>(g_rx_in - g_rx_out) < MAIN_RX_FIFO_SIZE && uart_rx_peek(&b)) {
+        uart_rx_next();
+        g_rx_fifo[g_rx_in++ & (MAIN_RX_FIFO_SIZE - 1)] = b;
     }
     if (uart_rx_take_overflow()) app_note_rx_overflow(&g_app);
+    for (uint8_t i = 0;
+         i < MAIN_RX_BYTES_PER_PASS && g_tick_count == tick_seen && g_rx_out != g_rx_in; i++) {
+        app_rx_byte(&g_app, g_rx_fifo[g_rx_out++ & (MAIN_RX_FIFO_SIZE - 1)]);
+    }
 }
 
 int main() {
     pwm_init();
     spi_init();
-    uart_init();
-    uint16_t boot_faults =
-        (g_reset_cause & _BV(WDRF)) ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
+    uint16_t boot_faults = g_boot_watchdog ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
     app_init(&g_app, &g_board_eeprom, uart_tx_frame, boot_faults);
     tick_init();
-    wdt_enable(WDTO_30MS);
+    main_watchdog_start();
+    // The receiver last: enabled earlier, bytes arriving during app_init (interrupts still off)
+    // would overrun the UART's 2-byte receive buffer.
+    uart_init();
     sei();
 
     uint8_t last_tick = g_tick_count;
     uint32_t t_ms = 0;
     for (;;) {
-        wdt_reset();
         main_handle_rx(last_tick);
         app_poll(&g_app);
         uint8_t now = g_tick_count;
@@ -65,17 +109,22 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included, 1,993 steps): 1336 / 2290 / 2336 cycles min / mean / max without the ISRs
-        // that preempt it (14.3 % / 14.6 % of the 16,000-cycle tick; target 2400), 2917 max with
-        // them (a host frame's RX bytes); docs/hardware.md, "Control-step cycles", has how each
-        // change to the step moved these figures.
+        // included): docs/hardware.md, "Control-step cycles", has the figures and how each
+        // change to the step moved them.
+        uart_tx_hold();
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
-        if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
-        app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
+        uart_tx_release();
+        // step_max_us: from the tick to the outputs updated, preempting ISRs included
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
+        wdt_reset();  // only here: a step that no longer runs (Timer2 stopped, a hang) trips it
+        if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
+        // A STOP_ALL the receive interrupt saw since the last tick: taken right before the ramp,
+        // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.
+        if (uart_take_stop_request()) app_stop_all_early(&g_app);
+        app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TELEM_MARK = 0;

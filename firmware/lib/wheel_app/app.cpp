@@ -87,6 +87,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->enable_mask = 0;
     a->enc_clear = 0;
     a->run_mask = 0;
+    a->stops_ahead = 0;
     if (!prm_init(&a->prm, ee)) boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
     app_load_ctl(a);
     flt_set(&a->flt, boot_faults);
@@ -95,6 +96,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
 // ---------------------------------------------------------------- dispatcher
 
 static void app_on_set_speeds(app_state* a, const uint8_t* p) {
+    if (a->stops_ahead) return;  // sent before a STOP_ALL that has already stopped the wheels
     if (flt_blocks_setpoints(&a->flt)) {
         app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
         return;
@@ -136,12 +138,22 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
     }
 }
 
+void app_stop_all(app_state* a) {
+    for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
+    a->stopping = 1;
+    app_update_run_mask(a);
+}
+
+void app_stop_all_early(app_state* a) {
+    app_stop_all(a);
+    if (a->stops_ahead < 0xFFu) a->stops_ahead++;
+}
+
 static void app_on_simple(app_state* a, uint8_t id) {
     switch (id) {
         case PROTO_ID_STOP_ALL:
-            for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
-            a->stopping = 1;
-            app_update_run_mask(a);
+            if (a->stops_ahead) a->stops_ahead--;
+            app_stop_all(a);
             app_send_ack(a, id);
             break;
         case PROTO_ID_PARAM_SAVE:
@@ -225,7 +237,7 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
     }
 }
 
-void app_rx_byte(app_state* a, uint8_t byte) {
+void app_rx_byte_end(app_state* a, uint8_t byte) {
     proto_frame f;
     switch (proto_rx_push(&a->rx, byte, &f)) {
         case PROTO_RX_NONE:
@@ -365,6 +377,7 @@ void app_note_overrun(app_state* a, uint8_t missed_ticks) {
 }
 
 void app_note_rx_overflow(app_state* a) {
+    a->stops_ahead = 0;  // a STOP_ALL seen early may have lost bytes in the ring: not dispatched
     a->cnt.rx_overflow = sat_inc(a->cnt.rx_overflow);
     flt_set(&a->flt, PROTO_FAULT_RX_OVERFLOW);
 }

@@ -88,6 +88,7 @@ struct app_state {
     uint16_t seq;
     uint8_t telem_count;
     uint8_t stopping;             // STOP_ALL in progress: ramp with DECEL
+    uint8_t stops_ahead;          // STOP_ALL frames acted on early, not yet dispatched
     uint16_t pwm[APP_WHEELS][3];  // compare values 0..CMT_PWM_TOP
     uint8_t enable_mask;          // bit w: driver stage of wheel w enabled
     // Bit w: ramped setpoint or target of wheel w nonzero (app_update_run_mask, wherever either
@@ -102,8 +103,22 @@ struct app_state {
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
 
-// Feed one byte received from the host; complete frames are dispatched at once.
-void app_rx_byte(app_state* a, uint8_t byte);
+// Feed one byte received from the host; complete frames are dispatched at once. Inline: a byte
+// inside a frame is one store, without the call into the dispatcher and its stack frame.
+void app_rx_byte_end(app_state* a, uint8_t byte);
+inline void app_rx_byte(app_state* a, uint8_t byte) {
+    if (!proto_rx_append(&a->rx, byte)) app_rx_byte_end(a, byte);
+}
+
+// STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and
+// acknowledges the frame).
+void app_stop_all(app_state* a);
+
+// STOP_ALL acted on before its turn: the board's receive interrupt recognised the frame, so the
+// stop does not wait behind the frames queued before it in the ring. Those frames are still
+// dispatched in order, except SET_SPEEDS: sent before the stop, they are dropped until the
+// STOP_ALL itself is dispatched (and acknowledged).
+void app_stop_all_early(app_state* a);
 
 // Background work of the main loop (EEPROM save progress).
 void app_poll(app_state* a);

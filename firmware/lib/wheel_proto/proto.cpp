@@ -51,17 +51,14 @@ static proto_rx_result proto_rx_finish(proto_rx* rx, proto_frame* out) {
 }
 
 proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out) {
+    if (proto_rx_append(rx, byte)) return PROTO_RX_NONE;
     if (byte == 0) {
         proto_rx_result r = proto_rx_finish(rx, out);
         rx->n = 0;
         rx->overflow = 0;
         return r;
     }
-    if (rx->n < PROTO_MAX_ENCODED) {
-        rx->buf[rx->n++] = byte;
-    } else {
-        rx->overflow = 1;  // keep discarding until the next delimiter
-    }
+    rx->overflow = 1;  // past PROTO_MAX_ENCODED: keep discarding until the next delimiter
     return PROTO_RX_NONE;
 }
 

@@ -1,6 +1,7 @@
 /*
  * selftest.c - a tiny ATmega2560 program that exercises every interface of the FIL harness,
- * independent of the real firmware: fast PWM mode 14 on Timers 1/3/4/5, enables PA0..PA3,
+ * independent of the real firmware: fast PWM mode 14 on Timers 1/3/4/5 (M0's phase C on Timer0
+ * OC0B, mode 7, TOP 99, as the wheel board's pin map has it), enables PA0..PA3,
  * AS5048A reads over SPI with chip selects PA4..PA7, a 1 kHz Timer2 tick bracketed by
  * GPIOR0 = 1 / 0, and UART0 at 500 kbaud.
  *
@@ -80,9 +81,13 @@ int main(void) {
     }
     DDRA = 0xFF;
     PORTA = 0xF0; /* chip selects high, enables low */
-    DDRB = _BV(PB0) | _BV(PB1) | _BV(PB2) | _BV(PB5) | _BV(PB6) | _BV(PB7);
+    DDRB = _BV(PB0) | _BV(PB1) | _BV(PB2) | _BV(PB5) | _BV(PB6);
+    DDRG = _BV(PG5);
     SPCR = _BV(SPE) | _BV(MSTR) | _BV(CPHA) | _BV(SPR0);
     pwm_init(&TCCR1A, &TCCR1B, &ICR1);
+    OCR0A = (TOP + 1) / 8 - 1; /* 20 kHz at clk/8 */
+    TCCR0A = _BV(COM0B1) | _BV(WGM01) | _BV(WGM00);
+    TCCR0B = _BV(WGM02) | _BV(CS01);
     pwm_init(&TCCR3A, &TCCR3B, &ICR3);
     pwm_init(&TCCR4A, &TCCR4B, &ICR4);
     pwm_init(&TCCR5A, &TCCR5B, &ICR5);
@@ -114,7 +119,9 @@ int main(void) {
         for (uint8_t m = 0; m < 4; m++) {
             phase[m] += (uint32_t)((full_inc[m] >> 10) * ramp);
         }
-        set_duties(&OCR1A, &OCR1B, &OCR1C, phase[0]);
+        uint16_t m0c;
+        set_duties(&OCR1A, &OCR1B, &m0c, phase[0]);
+        OCR0B = (uint8_t)(m0c >> 3);
         set_duties(&OCR3A, &OCR3B, &OCR3C, phase[1]);
         set_duties(&OCR4A, &OCR4B, &OCR4C, phase[2]);
         set_duties(&OCR5A, &OCR5B, &OCR5C, phase[3]);

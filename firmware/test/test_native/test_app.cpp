@@ -688,4 +688,34 @@ TEST_F(AppTest, EncoderStagesInOrderInOpenLoop) {
     EXPECT_EQ(app_speed_mrad_s(&app, 0), 100);  // ramping at ACCEL 100 rad/s^2
 }
 
+// A STOP_ALL acted on early (the board's receive interrupt saw it behind queued frames): the
+// SET_SPEEDS queued before it are dropped, the other frames answered, until the STOP_ALL's own
+// turn acknowledges it; then setpoints are taken again.
+TEST_F(AppTest, EarlyStopAllDropsTheSetpointsQueuedBeforeIt) {
+    set_param(PRM_MODE, 1);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 10000, 10000, 10000}));
+    step(5);
+    app_stop_all_early(&app);
+    EXPECT_EQ(app.w[0].target_mrad_s, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({20000, 20000, 20000, 20000}));  // queued before the stop
+    EXPECT_EQ(app.w[0].target_mrad_s, 0);
+    send(PROTO_ID_PARAM_GET, {PRM_DECEL_RAD_S2});
+    EXPECT_EQ(last(PROTO_ID_PARAM_VALUE)->payload[0], PRM_DECEL_RAD_S2);
+    EXPECT_EQ(count(PROTO_ID_ERROR), 0);
+    send(PROTO_ID_STOP_ALL);  // its own turn
+    EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_STOP_ALL);
+    send(PROTO_ID_SET_SPEEDS, i32s({20000, 20000, 20000, 20000}));  // sent after the stop
+    EXPECT_EQ(app.w[0].target_mrad_s, 20000);
+}
+
+// An RX overflow may have cut the STOP_ALL seen early out of the ring: setpoints are not held off
+// waiting for a frame that will never be dispatched.
+TEST_F(AppTest, RxOverflowEndsTheWaitForAnEarlyStopAll) {
+    app_stop_all_early(&app);
+    app_note_rx_overflow(&app);
+    app.flt.faults = 0;
+    send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
+    EXPECT_EQ(app.w[0].target_mrad_s, 1000);
+}
+
 }  // namespace

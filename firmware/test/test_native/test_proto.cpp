@@ -254,3 +254,10 @@ TEST(Proto, LittleEndianPacking) {
     EXPECT_EQ(b[0], 0x34);
     EXPECT_EQ(proto_get_u16(b), 0x1234);
 }
+
+// The board's receive interrupt recognises STOP_ALL by these bytes alone (board_uart.cpp).
+TEST(Proto, StopAllWireFrameIsTheBuiltOne) {
+    const Bytes wire = PROTO_STOP_ALL_WIRE;
+    ASSERT_EQ(wire.size(), static_cast<size_t>(PROTO_STOP_ALL_WIRE_LEN));
+    EXPECT_EQ(build(PROTO_ID_STOP_ALL, {}), wire);
+}
