@@ -1,0 +1,136 @@
+"""The rig-fidelity model against MuJoCo modelling the same rig independently.
+
+MuJoCo's D-bar: bar b12 floats (free joint); b23, b34, b41 hang on it through hinge joints at
+n2, n3, n4 (axis normal to the rhombus), an equality ``connect`` closes the loop at n1 (the
+hinge axis there follows from the other three). Each bar body carries its mass with the
+transverse inertia ``m_b l^2 / 12`` and the stator's axial inertia; its rotor is a child body on
+a hinge along the bar (mass ``m_w``, inertia ``J_1, J_1, J_3``) driven by a ``motor`` actuator,
+so the motor torque acts on the rotor and, reversed, on the bar. Strings are spatial tendons
+with a dead band ``[0, rest]`` (tension only) and no damping (MuJoCo's tendon damping also acts
+while slack). RK4 at dt 1e-5 s with a stiff loop closure (time constant 2 dt, solimp 0.9999):
+the setting at which MuJoCo's closure reaches 1e-6 m (docs/performance.md).
+"""
+
+import mujoco
+import numpy as np
+import pytest
+from test_rig_fidelity import dbar_rig_scene
+
+from gyrotensegrity import Model, simulate
+
+DT_S, SOLREF_S, SOLIMP = 1e-5, 2e-5, 0.9999
+SAMPLE_DT_S = 0.01
+NODE_TOLERANCE_M = 1e-6
+
+
+def _vec(v):
+    return " ".join(f"{a:.17g}" for a in v)
+
+
+def _inertia(transverse, axial, d):
+    """MJCF fullinertia (xx yy zz xy xz yz) of a body symmetric about the unit axis d."""
+    inertia = transverse * (np.eye(3) - np.outer(d, d)) + axial * np.outer(d, d)
+    return _vec([inertia[i, j] for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))])
+
+
+def rig_mjcf(model: Model) -> str:
+    """MJCF of a four-bar loop scene whose bars form the cycle of the scene order."""
+    sc = model.scene
+    pos = {name: sc.positions[:, i] for i, name in enumerate(sc.node_names)}
+    stator = sc.rig.stator_inertia
+    bodies, actuators, parent = "", "", np.zeros(3)
+    bars = [(pos[b.start], pos[b.end], b) for b in sc.bars]
+    for i, (start, end, bar) in enumerate(bars):
+        b = end - start
+        length = np.linalg.norm(b)
+        d = b / length
+        if i == 0:
+            joint = "<freejoint/>"
+        else:
+            prev = bars[i - 1][1] - bars[i - 1][0]
+            axis = np.cross(prev, b)
+            joint = f'<joint type="hinge" axis="{_vec(axis / np.linalg.norm(axis))}"/>'
+        w = bar.wheel
+        J1 = w.mass * (3 * w.radius**2 + w.thickness**2) / 12.0
+        J3 = 0.5 * w.mass * w.radius**2
+        bodies += (
+            f'<body name="bar{i}" pos="{_vec(start - parent)}">{joint}'
+            f'<inertial pos="{_vec(b / 2)}" mass="{bar.mass}" '
+            f'fullinertia="{_inertia(bar.mass * length**2 / 12.0, stator, d)}"/>'
+            f'<site name="{bar.start}" pos="0 0 0"/>'
+            f'<body name="rotor{i}" pos="{_vec(b / 2)}">'
+            f'<joint name="spin{i}" type="hinge" axis="{_vec(d)}"/>'
+            f'<inertial pos="0 0 0" mass="{w.mass}" fullinertia="{_inertia(J1, J3, d)}"/>'
+            "</body>"
+        )
+        actuators += f'<motor joint="spin{i}" gear="1"/>'
+        parent = start
+    last = bars[-1][1] - bars[-1][0]
+    bodies += "</body>" * len(bars)
+    close = (
+        f'<connect body1="bar{len(bars) - 1}" body2="bar0" anchor="{_vec(last)}" '
+        f'solref="{SOLREF_S} 1" solimp="{SOLIMP} {SOLIMP} 0.001"/>'
+    )
+    tendons = "".join(
+        f'<spatial name="{s.name}" stiffness="{s.stiffness}" '
+        f'springlength="0 {s.rest_length(0.0)}"><site site="{s.start}"/><site site="{s.end}"/>'
+        "</spatial>"
+        for s in sc.strings
+    )
+    return (
+        '<mujoco model="dbar-rig"><compiler angle="radian"/>'
+        f'<option timestep="{DT_S}" integrator="RK4" gravity="{_vec(sc.gravity)}">'
+        '<flag contact="disable"/></option>'
+        f"<worldbody>{bodies}</worldbody><equality>{close}</equality>"
+        f"<tendon>{tendons}</tendon><actuator>{actuators}</actuator></mujoco>"
+    )
+
+
+def run_mujoco(model: Model, duration_s: float):
+    """Primary nodes (K, 3, n_scene) every SAMPLE_DT_S; rest lengths and motor torques follow
+    the scene's schedules (taken at the middle of each step)."""
+    m = mujoco.MjModel.from_xml_string(rig_mjcf(model))
+    d = mujoco.MjData(m)
+    sc = model.scene
+    for i, bar in enumerate(sc.bars):
+        joint = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"spin{i}")
+        d.qvel[m.jnt_dofadr[joint]] = bar.wheel.spin0
+    mujoco.mj_forward(m, d)
+    sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in sc.node_names]
+    steps = int(round(SAMPLE_DT_S / DT_S))
+    out = [d.site_xpos[sites].T.copy()]
+    for _ in range(int(round(duration_s / SAMPLE_DT_S))):
+        for _ in range(steps):
+            u = model.input_at(d.time + 0.5 * DT_S)
+            m.tendon_lengthspring[:, 1] = u[: model.alpha]
+            d.ctrl[:] = u[model.alpha :]
+            mujoco.mj_step(m, d)
+        out.append(d.site_xpos[sites].T.copy())
+    return np.array(out)
+
+
+def node_error(model: Model, duration_s: float):
+    """Max over samples and primary nodes of |ours - MuJoCo|, and MuJoCo's largest node
+    displacement, both m."""
+    ours = simulate(model, duration=duration_s, rtol=1e-11, atol=1e-13, sample_dt=SAMPLE_DT_S)
+    primary = [model.structure.primary[n] for n in model.scene.node_names]
+    peer = run_mujoco(model, duration_s)
+    moved = float(np.max(np.abs(peer - peer[0])))
+    return float(np.max(np.abs(ours["N"][:, :, primary] - peer))), moved
+
+
+@pytest.mark.parametrize("case", ["spin-up", "braking"])
+def test_spin_up_and_braking_at_rest_match_mujoco(case):
+    model = Model(dbar_rig_scene(case, damping=0.0))
+    err, moved = node_error(model, 0.2)
+    print(f"{case}: node error against MuJoCo {err:.2e} m (nodes moved {moved:.2e} m)")
+    assert moved > 1e-3  # the structure turned
+    assert err < NODE_TOLERANCE_M
+
+
+def test_dbar_maneuver_with_hinges_matches_mujoco():
+    model = Model(dbar_rig_scene("maneuver", damping=0.0))
+    err, moved = node_error(model, 0.3)
+    print(f"maneuver with hinges: node error against MuJoCo {err:.2e} m (moved {moved:.2e} m)")
+    assert moved > 1e-3
+    assert err < NODE_TOLERANCE_M
