@@ -26,13 +26,14 @@ def dbar_rig_scene(case, damping=None, rig=None):
     """Variants of the shipped dbar-rig scene.
 
     case: "spin-up" (wheels from rest to 715 rpm in BRAKE_S at constant torque), "braking"
-    (715 rpm to rest in BRAKE_S), "maneuver" (dbar-gyro's string maneuver, wheels at 715 rpm).
+    (715 rpm to rest in BRAKE_S), "maneuver" (dbar-gyro's n1-n3 string maneuver, wheels at
+    715 rpm).
     damping: string damping, N s/m (default the scene's); rig: the [rig_fidelity] table
     (default the scene's; False: none).
     """
     d = _dict("dbar-rig")
     if case == "maneuver":
-        d["strings"] = copy.deepcopy(_dict("dbar-gyro")["strings"])
+        d["strings"] = [s for s in _dict("dbar-gyro")["strings"] if s["name"] == "s13"]
     J3 = 0.5 * 0.050 * 0.031**2
     for bar in d["bars"]:
         sign = np.sign(bar["wheel"]["spin"])

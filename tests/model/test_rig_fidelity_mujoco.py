@@ -11,16 +11,20 @@ while slack). RK4 at dt 1e-5 s with a stiff loop closure (time constant 2 dt, so
 the setting at which MuJoCo's closure reaches 1e-6 m (docs/performance.md).
 """
 
+import dataclasses
+from importlib.resources import files
+
 import mujoco
 import numpy as np
 import pytest
 from test_rig_fidelity import dbar_rig_scene
 
-from gyrotensegrity import Model, simulate
+from gyrotensegrity import Model, load_scene, simulate
 
 DT_S, SOLREF_S, SOLIMP = 1e-5, 2e-5, 0.9999
 SAMPLE_DT_S = 0.01
 NODE_TOLERANCE_M = 1e-6
+FRAME_MASS_KG = 1e-5  # the frame's mass; the difference to the hinge model grows with it
 
 
 def _vec(v):
@@ -86,10 +90,68 @@ def rig_mjcf(model: Model) -> str:
     )
 
 
-def run_mujoco(model: Model, duration_s: float):
+def frame_mjcf(model: Model, frame_mass_kg: float) -> str:
+    """MJCF of the rig's cross frame: a free body at the rhombus centre with two lines (n1-n3,
+    n2-n4); each node is a slider on its line, each bar hangs on the slider of its start node
+    by a hinge normal to the frame and is closed on the slider of its end node. The frame holds
+    the rhombus, so the scene's string s24 is left out."""
+    sc = model.scene
+    pos = {name: sc.positions[:, i] for i, name in enumerate(sc.node_names)}
+    centre = np.mean(list(pos.values()), axis=0)
+    normal = np.cross(pos["n3"] - pos["n1"], pos["n2"] - pos["n4"])
+    normal = normal / np.linalg.norm(normal)
+    stator, tiny = sc.rig.stator_inertia, frame_mass_kg * 1e-3
+    sliders, closes, actuators = "", "", ""
+    for i, bar in enumerate(sc.bars):
+        start, end = pos[bar.start], pos[bar.end]
+        b = end - start
+        length = np.linalg.norm(b)
+        d = b / length
+        line = (start - centre) / np.linalg.norm(start - centre)
+        w = bar.wheel
+        J1 = w.mass * (3 * w.radius**2 + w.thickness**2) / 12.0
+        J3 = 0.5 * w.mass * w.radius**2
+        sliders += (
+            f'<body name="slider_{bar.start}" pos="{_vec(start - centre)}">'
+            f'<joint type="slide" axis="{_vec(line)}"/>'
+            f'<inertial pos="0 0 0" mass="{tiny}" diaginertia="{tiny} {tiny} {tiny}"/>'
+            f'<site name="{bar.start}" pos="0 0 0"/>'
+            f'<body name="bar{i}"><joint type="hinge" axis="{_vec(normal)}"/>'
+            f'<inertial pos="{_vec(b / 2)}" mass="{bar.mass}" '
+            f'fullinertia="{_inertia(bar.mass * length**2 / 12.0, stator, d)}"/>'
+            f'<body name="rotor{i}" pos="{_vec(b / 2)}">'
+            f'<joint name="spin{i}" type="hinge" axis="{_vec(d)}"/>'
+            f'<inertial pos="0 0 0" mass="{w.mass}" fullinertia="{_inertia(J1, J3, d)}"/>'
+            "</body></body></body>"
+        )
+        closes += (
+            f'<connect body1="bar{i}" body2="slider_{bar.end}" anchor="{_vec(b)}" '
+            f'solref="{SOLREF_S} 1" solimp="{SOLIMP} {SOLIMP} 0.001"/>'
+        )
+        actuators += f'<motor joint="spin{i}" gear="1"/>'
+    f = frame_mass_kg
+    tendons = "".join(
+        f'<spatial name="{s.name}" stiffness="{s.stiffness}" '
+        f'springlength="0 {s.rest_length(0.0)}"><site site="{s.start}"/><site site="{s.end}"/>'
+        "</spatial>"
+        for s in sc.strings
+        if s.name != "s24"
+    )
+    return (
+        '<mujoco model="dbar-frame"><compiler angle="radian"/>'
+        f'<option timestep="{DT_S}" integrator="RK4" gravity="{_vec(sc.gravity)}">'
+        '<flag contact="disable"/></option>'
+        f'<worldbody><body name="frame" pos="{_vec(centre)}"><freejoint/>'
+        f'<inertial pos="0 0 0" mass="{f}" diaginertia="{f * 1e-2} {f * 1e-2} {f * 1e-2}"/>'
+        f"{sliders}</body></worldbody><equality>{closes}</equality>"
+        f"<tendon>{tendons}</tendon><actuator>{actuators}</actuator></mujoco>"
+    )
+
+
+def run_mujoco(model: Model, duration_s: float, xml: str | None = None):
     """Primary nodes (K, 3, n_scene) every SAMPLE_DT_S; rest lengths and motor torques follow
-    the scene's schedules (taken at the middle of each step)."""
-    m = mujoco.MjModel.from_xml_string(rig_mjcf(model))
+    the scene's schedules (taken at the middle of each step). ``xml`` default: rig_mjcf."""
+    m = mujoco.MjModel.from_xml_string(xml or rig_mjcf(model))
     d = mujoco.MjData(m)
     sc = model.scene
     for i, bar in enumerate(sc.bars):
@@ -97,12 +159,17 @@ def run_mujoco(model: Model, duration_s: float):
         d.qvel[m.jnt_dofadr[joint]] = bar.wheel.spin0
     mujoco.mj_forward(m, d)
     sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in sc.node_names]
+    names = [s.name for s in sc.strings]
+    strings = [
+        names.index(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_TENDON, k)) for k in range(m.ntendon)
+    ]
     steps = int(round(SAMPLE_DT_S / DT_S))
     out = [d.site_xpos[sites].T.copy()]
     for _ in range(int(round(duration_s / SAMPLE_DT_S))):
         for _ in range(steps):
             u = model.input_at(d.time + 0.5 * DT_S)
-            m.tendon_lengthspring[:, 1] = u[: model.alpha]
+            for k in range(m.ntendon):
+                m.tendon_lengthspring[k, 1] = u[strings[k]]
             d.ctrl[:] = u[model.alpha :]
             mujoco.mj_step(m, d)
         out.append(d.site_xpos[sites].T.copy())
@@ -134,3 +201,24 @@ def test_dbar_maneuver_with_hinges_matches_mujoco():
     print(f"maneuver with hinges: node error against MuJoCo {err:.2e} m (moved {moved:.2e} m)")
     assert moved > 1e-3
     assert err < NODE_TOLERANCE_M
+
+
+def test_cross_frame_adds_nothing_to_the_hinged_rhombus():
+    """The rig's sliding-hinge frame (nearly massless here) against the hinge model without
+    a string n2-n4: same node motion. The tracking string s24 of the ball-joint scenes, added to
+    the hinge model, fights the elastic s13 (it tracks s13's rest length, not its length)."""
+    model = Model(dbar_rig_scene("maneuver", damping=0.0))
+    assert [s.name for s in model.scene.strings] == ["s13"]
+    duration = 0.2
+    peer = run_mujoco(model, duration, frame_mjcf(model, FRAME_MASS_KG))
+    primary = [model.structure.primary[n] for n in model.scene.node_names]
+    ours = simulate(model, duration=duration, rtol=1e-11, atol=1e-13, sample_dt=SAMPLE_DT_S)
+    err = float(np.max(np.abs(ours["N"][:, :, primary] - peer)))
+    gyro = load_scene(files("gyrotensegrity") / "scenes" / "dbar-gyro.toml")
+    s24 = next(s for s in gyro.strings if s.name == "s24")
+    tracked = Model(dataclasses.replace(model.scene, strings=[*model.scene.strings, s24]))
+    with_s24 = simulate(tracked, duration=duration, rtol=1e-10, atol=1e-12, sample_dt=SAMPLE_DT_S)
+    err_s24 = float(np.max(np.abs(with_s24["N"][:, :, primary] - peer)))
+    print(f"cross frame vs hinges: {err:.1e} m; vs hinges + s24: {err_s24:.1e} m")
+    assert err < NODE_TOLERANCE_M
+    assert err_s24 > 1e-4
