@@ -198,3 +198,27 @@ def test_hinge_needs_a_stator_on_each_bar_and_two_bars_per_node():
     d["bars"].append(copy.deepcopy(d["bars"][0]) | {"name": "b13", "nodes": ["n1", "n3"]})
     with pytest.raises(SceneError, match=r"node n1 joins 3 bars; a hinge joins two"):
         Model(scene_from_dict(d, "bad.toml"))
+
+
+def test_collinear_bars_give_no_hinge_axis():
+    d = _dict("double-pendulum")
+    d["rig_fidelity"] = {"joints": "hinge", "stator_inertia": 1e-5}
+    for bar in d["bars"]:
+        bar["wheel"] = {"mass": 0.05, "radius": 0.03, "thickness": 0.01}
+    names = list(d["nodes"])
+    start = np.array(d["nodes"][d["bars"][0]["nodes"][0]])
+    joint = np.array(d["nodes"][d["bars"][0]["nodes"][1]])
+    end = d["bars"][1]["nodes"][1]
+    d["nodes"][end] = (2 * joint - start).tolist()  # second bar in line with the first
+    assert end in names
+    with pytest.raises(SceneError, match=r"are collinear at node .*: no hinge axis"):
+        Model(scene_from_dict(d, "bad.toml"))
+
+
+def test_cli_refuses_the_fast_path_with_exit_status_2(tmp_path, capsys):
+    from gyrohost.cli import main
+
+    assert main(["simulate", "dbar-rig", "--duration", "0.01", "-o", str(tmp_path / "r.npz")]) == 2
+    assert "rig_fidelity" in capsys.readouterr().err
+    out = str(tmp_path / "ref.npz")
+    assert main(["simulate", "dbar-rig", "--duration", "0.01", "--reference", "-o", out]) == 0
