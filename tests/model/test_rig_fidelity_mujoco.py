@@ -37,57 +37,71 @@ def _inertia(transverse, axial, d):
     return _vec([inertia[i, j] for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))])
 
 
+def _bar(i, bar, b, stator, attributes, joint, site=""):
+    """Bar body i, left open (its joint, inertia and site), with its rotor on a hinge along it."""
+    length = np.linalg.norm(b)
+    d = b / length
+    w = bar.wheel
+    J1 = w.mass * (3 * w.radius**2 + w.thickness**2) / 12.0
+    J3 = 0.5 * w.mass * w.radius**2
+    return (
+        f'<body name="bar{i}" {attributes}>{joint}'
+        f'<inertial pos="{_vec(b / 2)}" mass="{bar.mass}" '
+        f'fullinertia="{_inertia(bar.mass * length**2 / 12.0, stator, d)}"/>{site}'
+        f'<body name="rotor{i}" pos="{_vec(b / 2)}">'
+        f'<joint name="spin{i}" type="hinge" axis="{_vec(d)}"/>'
+        f'<inertial pos="0 0 0" mass="{w.mass}" fullinertia="{_inertia(J1, J3, d)}"/>'
+        "</body>"
+    )
+
+
+def _connect(body1, body2, anchor):
+    return (
+        f'<connect body1="{body1}" body2="{body2}" anchor="{_vec(anchor)}" '
+        f'solref="{SOLREF_S} 1" solimp="{SOLIMP} {SOLIMP} 0.001"/>'
+    )
+
+
+def _document(name, sc, worldbody, equality, strings):
+    """The MJCF around the bodies: RK4, no contacts, tension-only tendons, one motor per rotor."""
+    tendons = "".join(
+        f'<spatial name="{s.name}" stiffness="{s.stiffness}" '
+        f'springlength="0 {s.rest_length(0.0)}"><site site="{s.start}"/><site site="{s.end}"/>'
+        "</spatial>"
+        for s in strings
+    )
+    actuators = "".join(f'<motor joint="spin{i}" gear="1"/>' for i in range(len(sc.bars)))
+    return (
+        f'<mujoco model="{name}"><compiler angle="radian"/>'
+        f'<option timestep="{DT_S}" integrator="RK4" gravity="{_vec(sc.gravity)}">'
+        '<flag contact="disable"/></option>'
+        f"<worldbody>{worldbody}</worldbody><equality>{equality}</equality>"
+        f"<tendon>{tendons}</tendon><actuator>{actuators}</actuator></mujoco>"
+    )
+
+
 def rig_mjcf(model: Model) -> str:
     """MJCF of a four-bar loop scene whose bars form the cycle of the scene order."""
     sc = model.scene
     pos = {name: sc.positions[:, i] for i, name in enumerate(sc.node_names)}
-    stator = sc.rig.stator_inertia
-    bodies, actuators, parent = "", "", np.zeros(3)
+    bodies, parent = "", np.zeros(3)
     bars = [(pos[b.start], pos[b.end], b) for b in sc.bars]
     for i, (start, end, bar) in enumerate(bars):
         b = end - start
-        length = np.linalg.norm(b)
-        d = b / length
         if i == 0:
             joint = "<freejoint/>"
         else:
             prev = bars[i - 1][1] - bars[i - 1][0]
             axis = np.cross(prev, b)
             joint = f'<joint type="hinge" axis="{_vec(axis / np.linalg.norm(axis))}"/>'
-        w = bar.wheel
-        J1 = w.mass * (3 * w.radius**2 + w.thickness**2) / 12.0
-        J3 = 0.5 * w.mass * w.radius**2
-        bodies += (
-            f'<body name="bar{i}" pos="{_vec(start - parent)}">{joint}'
-            f'<inertial pos="{_vec(b / 2)}" mass="{bar.mass}" '
-            f'fullinertia="{_inertia(bar.mass * length**2 / 12.0, stator, d)}"/>'
-            f'<site name="{bar.start}" pos="0 0 0"/>'
-            f'<body name="rotor{i}" pos="{_vec(b / 2)}">'
-            f'<joint name="spin{i}" type="hinge" axis="{_vec(d)}"/>'
-            f'<inertial pos="0 0 0" mass="{w.mass}" fullinertia="{_inertia(J1, J3, d)}"/>'
-            "</body>"
+        site = f'<site name="{bar.start}" pos="0 0 0"/>'
+        bodies += _bar(
+            i, bar, b, sc.rig.stator_inertia, f'pos="{_vec(start - parent)}"', joint, site
         )
-        actuators += f'<motor joint="spin{i}" gear="1"/>'
         parent = start
-    last = bars[-1][1] - bars[-1][0]
     bodies += "</body>" * len(bars)
-    close = (
-        f'<connect body1="bar{len(bars) - 1}" body2="bar0" anchor="{_vec(last)}" '
-        f'solref="{SOLREF_S} 1" solimp="{SOLIMP} {SOLIMP} 0.001"/>'
-    )
-    tendons = "".join(
-        f'<spatial name="{s.name}" stiffness="{s.stiffness}" '
-        f'springlength="0 {s.rest_length(0.0)}"><site site="{s.start}"/><site site="{s.end}"/>'
-        "</spatial>"
-        for s in sc.strings
-    )
-    return (
-        '<mujoco model="dbar-rig"><compiler angle="radian"/>'
-        f'<option timestep="{DT_S}" integrator="RK4" gravity="{_vec(sc.gravity)}">'
-        '<flag contact="disable"/></option>'
-        f"<worldbody>{bodies}</worldbody><equality>{close}</equality>"
-        f"<tendon>{tendons}</tendon><actuator>{actuators}</actuator></mujoco>"
-    )
+    close = _connect(f"bar{len(bars) - 1}", "bar0", bars[-1][1] - bars[-1][0])
+    return _document("dbar-rig", sc, bodies, close, sc.strings)
 
 
 def frame_mjcf(model: Model, frame_mass_kg: float) -> str:
@@ -99,53 +113,28 @@ def frame_mjcf(model: Model, frame_mass_kg: float) -> str:
     pos = {name: sc.positions[:, i] for i, name in enumerate(sc.node_names)}
     centre = np.mean(list(pos.values()), axis=0)
     normal = np.cross(pos["n3"] - pos["n1"], pos["n2"] - pos["n4"])
-    normal = normal / np.linalg.norm(normal)
-    stator, tiny = sc.rig.stator_inertia, frame_mass_kg * 1e-3
-    sliders, closes, actuators = "", "", ""
+    hinge = f'<joint type="hinge" axis="{_vec(normal / np.linalg.norm(normal))}"/>'
+    f, tiny = frame_mass_kg, frame_mass_kg * 1e-3
+    sliders, closes = "", ""
     for i, bar in enumerate(sc.bars):
         start, end = pos[bar.start], pos[bar.end]
-        b = end - start
-        length = np.linalg.norm(b)
-        d = b / length
         line = (start - centre) / np.linalg.norm(start - centre)
-        w = bar.wheel
-        J1 = w.mass * (3 * w.radius**2 + w.thickness**2) / 12.0
-        J3 = 0.5 * w.mass * w.radius**2
         sliders += (
             f'<body name="slider_{bar.start}" pos="{_vec(start - centre)}">'
             f'<joint type="slide" axis="{_vec(line)}"/>'
             f'<inertial pos="0 0 0" mass="{tiny}" diaginertia="{tiny} {tiny} {tiny}"/>'
             f'<site name="{bar.start}" pos="0 0 0"/>'
-            f'<body name="bar{i}"><joint type="hinge" axis="{_vec(normal)}"/>'
-            f'<inertial pos="{_vec(b / 2)}" mass="{bar.mass}" '
-            f'fullinertia="{_inertia(bar.mass * length**2 / 12.0, stator, d)}"/>'
-            f'<body name="rotor{i}" pos="{_vec(b / 2)}">'
-            f'<joint name="spin{i}" type="hinge" axis="{_vec(d)}"/>'
-            f'<inertial pos="0 0 0" mass="{w.mass}" fullinertia="{_inertia(J1, J3, d)}"/>'
-            "</body></body></body>"
+            + _bar(i, bar, end - start, sc.rig.stator_inertia, "", hinge)
+            + "</body></body>"
         )
-        closes += (
-            f'<connect body1="bar{i}" body2="slider_{bar.end}" anchor="{_vec(b)}" '
-            f'solref="{SOLREF_S} 1" solimp="{SOLIMP} {SOLIMP} 0.001"/>'
-        )
-        actuators += f'<motor joint="spin{i}" gear="1"/>'
-    f = frame_mass_kg
-    tendons = "".join(
-        f'<spatial name="{s.name}" stiffness="{s.stiffness}" '
-        f'springlength="0 {s.rest_length(0.0)}"><site site="{s.start}"/><site site="{s.end}"/>'
-        "</spatial>"
-        for s in sc.strings
-        if s.name != "s24"
-    )
-    return (
-        '<mujoco model="dbar-frame"><compiler angle="radian"/>'
-        f'<option timestep="{DT_S}" integrator="RK4" gravity="{_vec(sc.gravity)}">'
-        '<flag contact="disable"/></option>'
-        f'<worldbody><body name="frame" pos="{_vec(centre)}"><freejoint/>'
+        closes += _connect(f"bar{i}", f"slider_{bar.end}", end - start)
+    frame = (
+        f'<body name="frame" pos="{_vec(centre)}"><freejoint/>'
         f'<inertial pos="0 0 0" mass="{f}" diaginertia="{f * 1e-2} {f * 1e-2} {f * 1e-2}"/>'
-        f"{sliders}</body></worldbody><equality>{closes}</equality>"
-        f"<tendon>{tendons}</tendon><actuator>{actuators}</actuator></mujoco>"
+        f"{sliders}</body>"
     )
+    strings = [s for s in sc.strings if s.name != "s24"]
+    return _document("dbar-frame", sc, frame, closes, strings)
 
 
 def run_mujoco(model: Model, duration_s: float, xml: str | None = None):
