@@ -11,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .errors import SceneError
 from .model import Model
 
 
@@ -63,6 +64,10 @@ def gyroscopic_forces(model: Model, B, B_dot, omega_w):
 def evaluate(t, x, u, params: Model) -> Evaluation:
     """Evaluate the dynamics (Eqs. 53-59, with Eqs. 60-68 when there are constraints)."""
     model = params
+    if model.rig is not None:
+        raise SceneError(
+            f"{model.scene.source}: rig_fidelity: evaluate() is the paper's model only"
+        )
     st = model.structure
     N, N_dot = model.nodes(x)
     B = N[:, st.bar_end] - N[:, st.bar_start]  # B = N C_b^T
@@ -146,6 +151,8 @@ def rhs(t, x, u, params: Model):
     ndarray, shape (layout.size,)
     """
     model = params
+    if model.rig is not None:
+        return model.rig.rhs(t, x, u)
     L = model.layout
     ev = evaluate(t, x, u, model)
     dx = np.empty_like(x)

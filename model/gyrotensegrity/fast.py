@@ -30,7 +30,7 @@ import scipy.sparse.linalg as spla
 from scipy.linalg import solve_banded
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from .errors import SimulationError
+from .errors import SceneError, SimulationError
 from .model import Model
 
 try:  # the optional compiled kernel (setup.py); the numpy path below is the fallback
@@ -90,6 +90,12 @@ class FastDynamics:
     ):
         if coordinates not in ("reduced", "full"):
             raise ValueError(f"coordinates must be 'reduced' or 'full', got {coordinates!r}")
+        if model.rig is not None:
+            raise SceneError(
+                f"{model.scene.source}: rig_fidelity: the fast path does not implement this "
+                "option; use the reference path (simulate(fast=False), gyrotens simulate "
+                "--reference)"
+            )
         st = model.structure
         self.model, self.coordinates = model, coordinates
         self.beta, self.alpha = model.beta, model.alpha

@@ -42,10 +42,11 @@ class StateLayout:
     m: int
     n_wheels: int
     n_torque: int
+    n_rig: int = 0  # states of the rig-fidelity option (docs/rig-fidelity.md)
 
     @property
     def size(self) -> int:
-        return 6 * self.m + self.n_wheels + self.n_torque
+        return 6 * self.m + self.n_wheels + self.n_torque + self.n_rig
 
     @property
     def q(self) -> slice:
@@ -61,7 +62,11 @@ class StateLayout:
 
     @property
     def omega(self) -> slice:
-        return slice(6 * self.m + self.n_wheels, self.size)
+        return slice(6 * self.m + self.n_wheels, self.size - self.n_rig)
+
+    @property
+    def rig(self) -> slice:
+        return slice(self.size - self.n_rig, self.size)
 
 
 class Model:
@@ -83,6 +88,8 @@ class Model:
         Point masses of string-to-string nodes (0 elsewhere).
     W : ndarray, shape (3, n), N
         Constant external node forces (gravity and the scene's forces).
+    rig : RigFidelity or None
+        The scene's rig-fidelity terms (:mod:`gyrotensegrity.rigfidelity`); None: the paper's.
     """
 
     ALL_TERMS = (
@@ -110,7 +117,11 @@ class Model:
         if self.c:
             self._multiplier_system(st)
         self.terms = frozenset(self._which_terms(scene))
-        self.layout = StateLayout(self.m, len(self.wheel_bars), len(self.torque_wheels))
+        from .rigfidelity import rig_fidelity  # imports the dynamics, which import this module
+
+        self.rig = rig_fidelity(self)  # None: the paper's model
+        n_rig = self.rig.size if self.rig else 0
+        self.layout = StateLayout(self.m, len(self.wheel_bars), len(self.torque_wheels), n_rig)
 
     # -- compile steps --------------------------------------------------------------------------
     def _bar_constants(self, scene):
@@ -301,7 +312,8 @@ class Model:
         omega = self.spin0 if omega is None else np.asarray(omega, float)
         q = np.asarray(self.U2.T @ np.asarray(N).T).T
         q_dot = np.asarray(self.U2.T @ np.asarray(N_dot).T).T
-        return np.concatenate([q.ravel(), q_dot.ravel(), theta, omega[self.torque_wheels]])
+        rig = self.rig.initial() if self.rig else []
+        return np.concatenate([q.ravel(), q_dot.ravel(), theta, omega[self.torque_wheels], rig])
 
     def initial_state(self):
         """The scene's initial state; node velocities are projected onto the constraints
@@ -309,8 +321,8 @@ class Model:
         from .projection import project_velocities
 
         st = self.structure
-        x = self.state(st.N0, st.N0_dot)
-        return project_velocities(self, x)
+        x = project_velocities(self, self.state(st.N0, st.N0_dot))
+        return self.rig.project_velocities(x) if self.rig else x
 
     def input_at(self, t: float):
         """The scene's input at time t: rest lengths (m) then wheel inputs, shape (alpha + n_w,)."""

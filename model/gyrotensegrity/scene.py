@@ -65,6 +65,17 @@ class SimulationSettings:
 
 
 @dataclass(frozen=True)
+class RigFidelitySpec:
+    """The rig-fidelity option (``[rig_fidelity]``, docs/rig-fidelity.md): ``joints`` "ball"
+    (the paper's) or "hinge"; ``stator_inertia`` kg m^2, the axial inertia of a bar that carries
+    a wheel's stator; ``motor_reaction``: the motor torque also acts, reversed, on that bar."""
+
+    joints: str = "ball"
+    stator_inertia: float = 0.0
+    motor_reaction: bool = False
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated scene. Node positions and velocities are (3, n_scene) arrays in m and m/s."""
 
@@ -81,6 +92,7 @@ class Scene:
     point_masses: dict[str, float] = field(default_factory=dict)
     forces: dict[str, np.ndarray] = field(default_factory=dict)
     simulation: SimulationSettings = field(default_factory=SimulationSettings)
+    rig: RigFidelitySpec | None = None
 
     def node_index(self, name: str) -> int:
         return self.node_names.index(name)
@@ -133,6 +145,7 @@ class Scene:
             "point_masses": dict(self.point_masses),
             "forces": {k: v.tolist() for k, v in self.forces.items()},
             "simulation": self.simulation.__dict__.copy(),
+            "rig_fidelity": None if self.rig is None else self.rig.__dict__.copy(),
         }
 
     def to_json(self) -> str:
@@ -239,6 +252,7 @@ class _Parser:
             "point_masses",
             "forces",
             "simulation",
+            "rig_fidelity",
         )
         self.table(data, "", top, required=("scene", "nodes"))
         head = self.table(data["scene"], "scene", ("name", "duration", "gravity"))
@@ -267,6 +281,7 @@ class _Parser:
         masses = self.point_masses(data.get("point_masses", {}), names, bars)
         forces = self.forces(data.get("forces", []), names)
         sim = self.simulation(data.get("simulation", {}))
+        rig = self.rig_fidelity(data["rig_fidelity"]) if "rig_fidelity" in data else None
         self.check_supported(names, bars, strings, fixed, masses)
         return Scene(
             name=name,
@@ -282,6 +297,7 @@ class _Parser:
             point_masses=masses,
             forces=forces,
             simulation=sim,
+            rig=rig,
         )
 
     def member_list(self, value, key: str) -> list:
@@ -383,6 +399,19 @@ class _Parser:
             else:
                 kwargs[k] = self.number(v, f"simulation.{k}", positive=True)
         return SimulationSettings(**kwargs)
+
+    def rig_fidelity(self, value) -> RigFidelitySpec:
+        table = self.table(value, "rig_fidelity", tuple(RigFidelitySpec.__dataclass_fields__))
+        joints = table.get("joints", "ball")
+        if joints not in ("ball", "hinge"):
+            self.fail("rig_fidelity.joints", f"must be 'ball' or 'hinge', got {joints!r}")
+        inertia = self.number(
+            table.get("stator_inertia", 0.0), "rig_fidelity.stator_inertia", minimum=0.0
+        )
+        reaction = table.get("motor_reaction", False)
+        if not isinstance(reaction, bool):
+            self.fail("rig_fidelity.motor_reaction", "must be true or false")
+        return RigFidelitySpec(joints, inertia, reaction)
 
     def check_supported(self, names, bars, strings, fixed, masses):
         """Every node must be a bar end, carry a point mass, or be fixed: else it has no inertia."""

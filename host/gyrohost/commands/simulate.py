@@ -79,6 +79,9 @@ def run(args) -> int:
             progress=progress,
             fast=not args.reference,
         )
+    except SceneError as exc:  # an option the chosen path refuses (the fast path: rig_fidelity)
+        progress.close()
+        raise CliError(str(exc)) from None
     except SimulationError as exc:
         progress.close()
         if exc.partial is not None:
