@@ -47,8 +47,17 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
     p.add_argument("--scene", help="scene file or shipped name (default: the configuration's)")
+    p.add_argument(
+        "--rig",
+        type=Path,
+        metavar="PORTSFILE",
+        help="the ports of a running 'gyrotens rig', from the ports file it printed "
+        "(instead of the configuration's ports)",
+    )
     for dev in ("imu", "wheels", "servos"):
-        p.add_argument(f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration)")
+        p.add_argument(
+            f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration and --rig)"
+        )
     p.set_defaults(func=run)
 
 
@@ -129,9 +138,15 @@ class Progress:
 def _wired(config, args):
     from gyrohost.cli import CliError
     from gyrohost.config import EMULATED_PORT
+    from gyrohost.rig.control import PortsFileError, read_ports_file
     from gyrohost.run import with_ports
 
-    config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
+    try:
+        ports = {} if args.rig is None else dict(read_ports_file(args.rig).devices)
+    except PortsFileError as exc:
+        raise CliError(str(exc)) from None
+    given = {"imu": args.imu, "wheels": args.wheels, "servos": args.servos}
+    config = with_ports(config, ports | {name: p for name, p in given.items() if p})
     emulated = [
         name
         for name, port in (
@@ -144,7 +159,8 @@ def _wired(config, args):
     if emulated:
         raise CliError(
             f"{args.config}: port(s) of {', '.join(emulated)} are '{EMULATED_PORT}': add --sim, "
-            "or give the ptys printed by 'gyrotens rig' with --imu/--wheels/--servos"
+            "or --rig PORTSFILE of a running 'gyrotens rig' (or its ptys with "
+            "--imu/--wheels/--servos)"
         )
     return config
 
@@ -181,6 +197,8 @@ def _run(args) -> int:
     except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
     out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{_run_name(schedule)}"
+    if args.sim and args.rig is not None:
+        raise CliError("give --sim (a rig of its own) or --rig PORTSFILE (a running rig), not both")
     try:
         check_new_log_folder(out)
     except LogError as exc:

@@ -1,0 +1,96 @@
+"""``gyrotens rig`` with standard input that is not a terminal (as ``gyrotens rig &`` or under a
+supervisor): it keeps serving, answers on its control socket, writes its ports file, and
+``gyrotens run --rig PORTSFILE`` runs on it; that run has no truth, and its figures and summary
+say "estimate" only."""
+
+import signal
+import subprocess
+import time
+
+import matplotlib.figure
+from rig_host import start_rig
+
+from gyrohost.cli import main
+from gyrohost.config import load_rig_config
+from gyrohost.control.schedule import Schedule
+from gyrohost.resources import shipped
+from gyrohost.rig.control import read_ports_file, send_command
+from gyrohost.run.log import read_meta
+from gyrotensegrity import load_scene
+
+
+def wait_for_file(path, proc, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()[1]
+        assert time.monotonic() < deadline, f"no {path} within {timeout_s} s"
+        time.sleep(0.1)
+
+
+def short_schedule(tmp_path):
+    """s13 1 cm shorter in 0.5 s on the sim-rig scene."""
+    scene = load_scene(load_rig_config(shipped("config", "sim-rig")).scene_path)
+    l0 = next(s.rest_length(0.0) for s in scene.strings if s.name == "s13")
+    s = Schedule(("s13",), [0.0, 0.5], [[l0], [l0 - 0.01]], "short")
+    return s.save(tmp_path / "short.toml")
+
+
+def test_background_rig_serves_a_run_through_its_ports_file(tmp_path, capsys, monkeypatch):
+    ports_file = tmp_path / "ports.toml"
+    # a pipe never written nor closed: the rig must not read it (nor wait on it)
+    proc = start_rig(tmp_path, "--ports-file", str(ports_file), stdin=subprocess.PIPE)
+    try:
+        wait_for_file(ports_file, proc)
+        ports = read_ports_file(ports_file)
+        assert set(ports.devices) == {"imu", "wheels", "servos"}
+        assert ports.control == ports_file.with_suffix(".sock")
+        answer = send_command(ports.control, "fault nothing")
+        assert answer.startswith("error: unknown command 'fault nothing'")
+        assert main(["rig", "--ports-file", str(ports_file), "--send", "stats"]) == 0
+        assert "rates: imu" in capsys.readouterr().out
+        # a second rig on the same ports file is refused: the first one still serves it
+        assert main(["rig", "--ports-file", str(ports_file)]) == 2
+        assert "a rig is already serving there" in capsys.readouterr().err
+
+        log = tmp_path / "log"
+        argv = ["run", "--rig", str(ports_file), "--schedule", str(short_schedule(tmp_path))]
+        titles = []
+        original = matplotlib.figure.Figure.suptitle
+        monkeypatch.setattr(
+            matplotlib.figure.Figure,
+            "suptitle",
+            lambda fig, text, **kw: titles.append(text) or original(fig, text, **kw),
+        )
+        assert main([*argv, "-o", str(log)]) == 0, capsys.readouterr().err
+        out = capsys.readouterr().out
+        assert "tilt at the end of the schedule: estimate" in out and "truth" not in out
+        meta = read_meta(log)
+        assert "truth" not in meta["streams"]
+        assert meta["rig_config"]["imu"]["port"] == ports.devices["imu"]
+        assert main(["plot", str(log)]) == 0
+        assert any("node z, estimate (Fig. 8)" in t for t in titles), titles
+        assert not any("truth" in t for t in titles), titles
+
+        assert send_command(ports.control, "reset").startswith("reset")
+        assert proc.poll() is None  # still serving after all that
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert f"ports file: {ports_file}" in out and "control: reset: reset" in out
+    assert not ports_file.exists() and not ports.control.exists()
+
+
+def test_run_rig_refuses_a_missing_ports_file_and_sim_with_rig(tmp_path, capsys):
+    missing = tmp_path / "none.toml"
+    assert main(["run", "--rig", str(missing), "-o", str(tmp_path / "a")]) == 2
+    assert f"{missing}: no ports file (is 'gyrotens rig' running?" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text('imu = "/dev/pts/1"\n')
+    assert main(["run", "--rig", str(bad), "-o", str(tmp_path / "b")]) == 2
+    assert "key 'wheels' missing" in capsys.readouterr().err
+    assert main(["run", "--sim", "--rig", str(bad), "-o", str(tmp_path / "c")]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert main(["rig", "--ports-file", str(missing), "--send", "stats"]) == 2
+    assert not any((tmp_path / d).exists() for d in "abc")
