@@ -2,7 +2,7 @@
 
 ``make test`` installs them with pip beside an existing editable install, so only what is
 missing gets installed (reinstalling ``.[test,bench]`` would rebuild the package itself).
-Usage: ``python tools/extras.py test bench``.
+Usage: ``python tools/extras.py test bench live``.
 """
 
 import sys

@@ -3,6 +3,7 @@ supervisor): it keeps serving, answers on its control socket, writes its ports f
 ``gyrotens run --rig PORTSFILE`` runs on it; that run has no truth, and its figures and summary
 say "estimate" only."""
 
+import re
 import signal
 import subprocess
 import time
@@ -11,6 +12,7 @@ import matplotlib.figure
 from rig_host import start_rig
 
 from gyrohost.cli import main
+from gyrohost.commands.run import Progress
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.resources import shipped
@@ -54,16 +56,25 @@ def test_background_rig_serves_a_run_through_its_ports_file(tmp_path, capsys, mo
 
         log = tmp_path / "log"
         argv = ["run", "--rig", str(ports_file), "--schedule", str(short_schedule(tmp_path))]
-        titles = []
+        titles, lines = [], []
         original = matplotlib.figure.Figure.suptitle
         monkeypatch.setattr(
             matplotlib.figure.Figure,
             "suptitle",
             lambda fig, text, **kw: titles.append(text) or original(fig, text, **kw),
         )
+        # the progress line as a terminal would show it, every tick
+        monkeypatch.setattr(Progress, "__call__", lambda self, *a: lines.append(self.line(*a)))
         assert main([*argv, "-o", str(log)]) == 0, capsys.readouterr().err
         out = capsys.readouterr().out
         assert "tilt at the end of the schedule: estimate" in out and "truth" not in out
+        schedule = [line for line in lines if "] schedule " in line]
+        assert schedule, lines[-5:]
+        # D-bar tilt, four wheel speeds near the scene's 74.87 rad/s, the estimator's status
+        assert re.search(r"tilt [+-]0\.\d{3} rad \| wheels( [+-]\s*\d+\.\d){4} rad/s \| EKF ",
+                         schedule[-1]), schedule[-1]  # fmt: skip
+        assert "+74.9" in schedule[-1] or "+74.8" in schedule[-1], schedule[-1]
+        assert any(line.endswith("| EKF off") for line in lines if "] spinup " in line)
         meta = read_meta(log)
         assert "truth" not in meta["streams"]
         assert meta["rig_config"]["imu"]["port"] == ports.devices["imu"]

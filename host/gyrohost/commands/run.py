@@ -1,6 +1,7 @@
 """``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
-[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim]``: one run of a schedule or a
-planned tilt maneuver on the rig, from connection to the safe state, logged (docs/run.md,
+[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim | --rig PORTSFILE] [--live]``: one
+run of a schedule or a planned tilt maneuver on the rig, from connection to the safe state,
+logged (CSV streams and an MCAP file), optionally served live to Foxglove (docs/run.md,
 docs/schedule.md)."""
 
 import sys
@@ -58,6 +59,15 @@ def register(sub) -> None:
         p.add_argument(
             f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration and --rig)"
         )
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the run's channels live over a Foxglove WebSocket on localhost "
+        "(needs the extra 'live')",
+    )
+    p.add_argument(
+        "--live-port", type=int, default=8765, metavar="PORT", help="(8765; 0: a free port)"
+    )
     p.set_defaults(func=run)
 
 
@@ -115,20 +125,32 @@ def load_schedule_arg(text: str, scene_path: Path):
 
 
 class Progress:
-    """One status line on a terminal: phase, time, schedule played; silent otherwise."""
+    """One status line on a terminal: phase, time, schedule played, the estimated tilt, the
+    measured wheel speeds and the estimator's status; silent otherwise."""
 
     def __init__(self, label: str = "", stream=None):
         self.label, self.stream = label, stream or sys.stderr
         self.enabled = self.stream.isatty()
         self._last = 0.0
 
-    def __call__(self, phase: str, t_s: float, fraction: float) -> None:
+    def __call__(self, phase: str, t_s: float, fraction: float, readout=None) -> None:
         now = time.monotonic()
         if self.enabled and now - self._last > 0.1:
             self._last = now
-            bar = "#" * int(25 * fraction)
-            self.stream.write(f"\r{self.label}[{bar:<25}] {phase:<9} t = {t_s:6.2f} s")
+            self.stream.write(f"\r{self.line(phase, t_s, fraction, readout)}\033[K")
             self.stream.flush()
+
+    def line(self, phase: str, t_s: float, fraction: float, readout=None) -> str:
+        """The status line (``readout``: :meth:`gyrohost.run.RunLoop.readout`)."""
+        bar = "#" * int(10 * fraction)
+        text = f"{self.label}[{bar:<10}] {phase:<8} t {t_s:6.2f} s"
+        if readout is None:
+            return text
+        if readout.tilt_rad == readout.tilt_rad:  # not NaN: a scene with a tilt, estimated
+            text += f" | tilt {readout.tilt_rad:+.3f} rad"
+        if readout.omega_rad_s is not None:
+            text += " | wheels " + " ".join(f"{w:+5.1f}" for w in readout.omega_rad_s) + " rad/s"
+        return text + f" | EKF {readout.estimator}"
 
     def close(self) -> None:
         if self.enabled:
@@ -206,6 +228,8 @@ def _run(args) -> int:
     progress = Progress()
     options = {"estimator": estimator, "progress": progress, "meta": {"command": sys.argv}}
     try:
+        if args.live:
+            options["live"] = _live_view(config, args.live_port)
         if args.sim:
             result = run_simulated(config, schedule, out, **options)
         else:
@@ -214,7 +238,19 @@ def _run(args) -> int:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
+        if "live" in options:
+            options["live"].close()  # also when the run never started
     return report(result)
+
+
+def _live_view(config, port: int):
+    """Start the live view's server and print where Foxglove connects."""
+    from gyrohost.run.live import LiveView
+    from gyrotensegrity import load_scene
+
+    live = LiveView(load_scene(config.scene_path), port)
+    print(f"live: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
+    return live
 
 
 def _run_name(schedule) -> str:
@@ -235,6 +271,9 @@ def report(result) -> int:
 
     s = result.summary
     print(f"log: {result.log_folder}")
+    mcap = Path(result.log_folder) / "run.mcap"
+    if mcap.exists():
+        print(f"mcap: {mcap} (opens in Foxglove)")
     if "loop" in s:  # none if the summary could not be made
         print(jitter_line(s["loop"]))
     if "tilt_end_estimate_rad" in s:
