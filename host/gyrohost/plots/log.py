@@ -262,7 +262,7 @@ def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Pat
 def plot_compare(folders, labels, path) -> Path:
     """Node z in several runs side by side (Fig. 7(a) against 7(b) for the D-bar), cm."""
     runs = [RunData(f) for f in folders]
-    truth = any(data.has_truth for data in runs)
+    any_truth = any(data.has_truth for data in runs)
     fig, axes = plt.subplots(1, len(runs), sharey=True, figsize=(5 * len(runs), 4), squeeze=False)
     for ax, data, label in zip(axes[0], runs, labels, strict=True):
         est, truth = data.get("nodes"), data.get("truth")
@@ -279,11 +279,11 @@ def plot_compare(folders, labels, path) -> Path:
         ax.grid(True, alpha=0.3)
     axes[0, 0].set_ylabel("node z (cm)")
     axes[0, 0].legend(
-        fontsize="x-small", title="dashed: truth" if truth else None, title_fontsize="x-small"
+        fontsize="x-small", title="dashed: truth" if any_truth else None, title_fontsize="x-small"
     )
     fig.suptitle(
         "node z on the simulated rig: EKF estimate (solid) and truth (dashed)"
-        if truth
+        if any_truth
         else "node z: EKF estimate"
     )
     fig.tight_layout()

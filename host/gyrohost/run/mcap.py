@@ -3,14 +3,16 @@ goes (``run.mcap`` in the log folder), or made from a log folder afterwards
 (``gyrotens export LOG --mcap``).
 
 One channel per stream and one per 3D scene (:mod:`gyrohost.run.foxglove`); one message per
-CSV row. The file is written without chunks or compression, each message written and flushed as
-its row is, so a run stopped at any point leaves every row it logged in the file; the summary
+CSV row. The file is written without chunks or compression, each message as its row is, and
+flushed to the file at least every :data:`FLUSH_PERIOD_S` (a flush per message would double the
+loop's system calls), so a run stopped at any point leaves its rows in the file; the summary
 and footer (message counts, channel index) come when the log closes, which the safe state does
 on every exit a Python process survives (Ctrl-C, SIGTERM, faults). A killed process leaves a file
 without them (``mcap recover`` or Foxglove read it; the ``mcap`` Python reader stops at its end
 with ``EndOfFile``); :func:`export_mcap` makes a whole one from the CSV streams.
 """
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -22,6 +24,8 @@ from gyrohost.run.log import LogError, read_meta, read_stream
 from gyrotensegrity import SceneError, __version__, load_scene
 
 MCAP_NAME = "run.mcap"
+FLUSH_PERIOD_S = 0.05
+"""Longest time a written message waits in the buffer before it goes to the file, s."""
 
 
 class McapSink:
@@ -41,6 +45,7 @@ class McapSink:
         self.name = MCAP_NAME if path is None else self.path.name
         self._file = self._writer = self.channels = None
         self._ids: dict[str, int] = {}
+        self._flushed_s = 0.0
 
     def start(self, folder: Path, meta: dict) -> None:
         """Create the file (it must not exist) for the log in ``folder`` created at
@@ -64,10 +69,14 @@ class McapSink:
         self._file.flush()
 
     def write(self, name: str, values) -> None:
-        """Write one row of stream ``name`` (and its scene update), flushed."""
+        """Write one row of stream ``name`` (and its scene update); flush if the last flush is
+        :data:`FLUSH_PERIOD_S` old."""
         for topic, t_ns, data in self.channels.messages(name, values):
             self._writer.add_message(self._ids[topic], t_ns, data, t_ns)
-        self._file.flush()
+        now = time.monotonic()
+        if now - self._flushed_s >= FLUSH_PERIOD_S:
+            self._file.flush()
+            self._flushed_s = now
 
     def close(self) -> None:
         """Write the summary and footer and close the file (idempotent)."""
