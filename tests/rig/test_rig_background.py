@@ -105,3 +105,8 @@ def test_run_rig_refuses_a_missing_ports_file_and_sim_with_rig(tmp_path, capsys)
     assert "not both" in capsys.readouterr().err
     assert main(["rig", "--ports-file", str(missing), "--send", "stats"]) == 2
     assert not any((tmp_path / d).exists() for d in "abc")
+    capsys.readouterr()
+    deep = tmp_path / ("x" * 110) / "ports.toml"  # its socket path is too long for AF_UNIX
+    assert main(["rig", "--ports-file", str(deep), "--duration", "1"]) == 2
+    assert "cannot open the control socket there" in capsys.readouterr().err
+    assert not deep.exists()

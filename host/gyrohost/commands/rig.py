@@ -83,16 +83,30 @@ def run(args) -> int:
         if args.firmware_build is not None:
             config = with_firmware_build(config, args.firmware_build)
         scene = resolve("scene", args.scene) if args.scene is not None else None
-        rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
-    except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
+    except (ConfigError, ResourceError, HarnessError) as exc:
         raise CliError(str(exc)) from None
-    with rig, _Published(rig.paths, ports_file) as control:
-        _print_header(rig, ports_file, control.path)
+    try:
+        published = _Published(ports_file)  # before the rig starts: a bad path fails at once
+    except OSError as exc:
+        raise CliError(
+            f"{ports_file}: cannot open the control socket there: {exc.strerror or exc}"
+        ) from None
+    with published as control:
         try:
-            _serve(rig, args.duration, control)
-        except KeyboardInterrupt:
-            print("stopped by Ctrl-C", flush=True)
-        stats = rig.stats()
+            rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
+        except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
+            raise CliError(str(exc)) from None
+        with rig:
+            try:
+                control.publish(rig.paths)
+            except OSError as exc:
+                raise CliError(f"{ports_file}: cannot write: {exc.strerror or exc}") from None
+            _print_header(rig, ports_file, control.path)
+            try:
+                _serve(rig, args.duration, control)
+            except KeyboardInterrupt:
+                print("stopped by Ctrl-C", flush=True)
+            stats = rig.stats()
     print(stats.rates_line())
     print(stats.truth_line(), flush=True)
     if rig.wheels_kind == "simavr":  # after close: the harness's FINAL line
@@ -116,17 +130,23 @@ def with_firmware_build(config, build_dir: Path):
 
 
 class _Published:
-    """The ports file and the control socket, for the life of the rig: removed at the end (the
+    """The control socket and the ports file, for the life of the rig: removed at the end (the
     ports file only if it is still this rig's)."""
 
-    def __init__(self, paths: dict, ports_file: Path):
-        from gyrohost.rig.control import ControlServer, control_path, write_ports_file
+    def __init__(self, ports_file: Path):
+        from gyrohost.rig.control import ControlServer, control_path
 
         self.ports_file = ports_file
         self.server = ControlServer(control_path(ports_file))
         self.path = self.server.path
-        write_ports_file(ports_file, paths, self.path)
-        self._text = ports_file.read_text()
+        self._text = None
+
+    def publish(self, paths: dict) -> None:
+        """Write the ports file: the rig's device ``paths`` and the control socket."""
+        from gyrohost.rig.control import write_ports_file
+
+        write_ports_file(self.ports_file, paths, self.path)
+        self._text = self.ports_file.read_text()
 
     def __enter__(self) -> "_Published":
         return self
@@ -134,7 +154,7 @@ class _Published:
     def __exit__(self, *exc) -> None:
         self.server.close()
         try:
-            if self.ports_file.read_text() == self._text:
+            if self._text is not None and self.ports_file.read_text() == self._text:
                 self.ports_file.unlink()
         except OSError:
             pass  # removed or replaced already: not ours to remove
