@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
-from gyrohost.run.log import LogError, read_meta, read_stream  # noqa: E402
+from gyrohost.run.log import read_meta, read_streams  # noqa: E402
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
@@ -38,14 +38,7 @@ class RunData:
     def __init__(self, folder, warn: Callable[[str], None] | None = None):
         self.folder = Path(folder)
         self.meta = read_meta(self.folder)
-        self.streams = {}
-        for name in self.meta.get("streams", {}):
-            try:
-                self.streams[name] = read_stream(self.folder, name, warn)
-            except LogError as exc:
-                if warn is None:
-                    raise
-                warn(f"{exc}; left out")
+        self.streams = read_streams(self.folder, self.meta.get("streams", {}), warn)
         self.has_truth = self.get("truth") is not None
         """The log holds the simulated rig's truth (a run with ``--sim``)."""
         events = self.streams.get("events")

@@ -418,6 +418,29 @@ def read_stream(
     return out
 
 
+def read_streams(
+    folder: Path | str,
+    names,
+    warn: Callable[[str], None] | None = None,
+    without: str = "left out",
+) -> dict[str, np.ndarray]:
+    """The streams ``names`` of a log folder (:func:`read_stream` each), by name.
+
+    Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
+    are skipped and a stream that cannot be read at all is left out, said to ``warn`` as
+    ``<error>; <without>``.
+    """
+    out = {}
+    for name in names:
+        try:
+            out[name] = read_stream(folder, name, warn)
+        except LogError as exc:
+            if warn is None:
+                raise
+            warn(f"{exc}; {without}")
+    return out
+
+
 def _row_problem(fields: list[str], header: list[str], text: set[str]) -> str | None:
     """What makes a row unreadable (``", column 'c': ..."``), or ``None``."""
     if len(fields) < len(header):

@@ -20,7 +20,7 @@ from mcap.writer import CompressionType, Writer
 
 from gyrohost.resources import ResourceError, resolve
 from gyrohost.run.foxglove import LogChannels
-from gyrohost.run.log import LogError, read_meta, read_stream
+from gyrohost.run.log import read_meta, read_streams
 from gyrotensegrity import SceneError, __version__, load_scene
 
 MCAP_NAME = "run.mcap"
@@ -116,14 +116,7 @@ def export_mcap(folder, out=None, warn: Callable[[str], None] | None = None) -> 
     folder = Path(folder)
     meta = read_meta(folder)
     out = Path(out) if out is not None else folder / MCAP_NAME
-    streams = {}
-    for name in meta["streams"]:
-        try:
-            streams[name] = read_stream(folder, name, warn)
-        except LogError as exc:
-            if warn is None:
-                raise
-            warn(f"{exc}; left out")
+    streams = read_streams(folder, meta["streams"], warn)
     order = sorted(
         (_sort_time(rows, i), k, i)
         for k, rows in enumerate(streams.values())
