@@ -4,11 +4,14 @@ supervisor): it keeps serving, answers on its control socket, writes its ports f
 say "estimate" only."""
 
 import re
+import select
 import signal
 import subprocess
+import threading
 import time
 
 import matplotlib.figure
+import pytest
 from rig_host import start_rig
 
 from gyrohost.cli import main
@@ -16,7 +19,14 @@ from gyrohost.commands.run import Progress
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.resources import shipped
-from gyrohost.rig.control import read_ports_file, send_command
+from gyrohost.rig.control import (
+    ControlError,
+    ControlServer,
+    control_path,
+    read_ports_file,
+    send_command,
+    write_ports_file,
+)
 from gyrohost.run.log import read_meta
 from gyrotensegrity import load_scene
 
@@ -110,3 +120,34 @@ def test_run_rig_refuses_a_missing_ports_file_and_sim_with_rig(tmp_path, capsys)
     assert main(["rig", "--ports-file", str(deep), "--duration", "1"]) == 2
     assert "cannot open the control socket there" in capsys.readouterr().err
     assert not deep.exists()
+
+
+def test_ports_file_round_trip_and_control_socket_answers_line_by_line(tmp_path):
+    ports_file = tmp_path / 'we"ird\\dir' / "ports.toml"
+    devices = {"imu": "/dev/pts/5", "wheels": '/tmp/a "b"', "servos": "/dev/pts/7"}
+    server = ControlServer(control_path(ports_file))
+    try:
+        write_ports_file(ports_file, devices, server.path)
+        ports = read_ports_file(ports_file)
+        assert ports.devices == devices and ports.control == server.path
+        stop = threading.Event()
+
+        def serve():
+            while not stop.is_set():
+                ready, _, _ = select.select(server.sockets(), [], [], 0.05)
+                for sock in ready:
+                    server.handle(sock, lambda line: f"{line.upper()}\nsecond line")
+
+        worker = threading.Thread(target=serve)
+        worker.start()
+        try:
+            assert send_command(server.path, "stats") == "STATS\nsecond line"
+            assert send_command(server.path, "  reset  ") == "RESET\nsecond line"
+        finally:
+            stop.set()
+            worker.join()
+    finally:
+        server.close()
+    assert not server.path.exists()
+    with pytest.raises(ControlError, match="rig control socket"):
+        send_command(server.path, "stats", timeout_s=1.0)

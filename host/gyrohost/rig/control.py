@@ -44,8 +44,9 @@ def default_ports_file() -> Path:
     rig-ports.toml`` (a per-user runtime directory), else ``<tmp>/gyrotens-<uid>/
     rig-ports.toml``."""
     runtime = os.environ.get("XDG_RUNTIME_DIR")
-    base = Path(runtime) / "gyrotens" if runtime else Path(tempfile.gettempdir())
-    return (base if runtime else base / f"gyrotens-{os.getuid()}") / "rig-ports.toml"
+    if runtime:
+        return Path(runtime) / "gyrotens" / "rig-ports.toml"
+    return Path(tempfile.gettempdir()) / f"gyrotens-{os.getuid()}" / "rig-ports.toml"
 
 
 def control_path(ports_file: Path) -> Path:
