@@ -5,8 +5,10 @@ say "estimate" only."""
 
 import re
 import select
+import shlex
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -153,3 +155,26 @@ def test_ports_file_round_trip_and_control_socket_answers_line_by_line(tmp_path)
     assert not server.path.exists()
     with pytest.raises(ControlError, match="rig control socket"):
         send_command(server.path, "stats", timeout_s=1.0)
+
+
+def test_rig_as_a_background_job_of_an_interactive_shell_keeps_serving(tmp_path):
+    """``gyrotens rig &`` in a shell with job control on a terminal (``script`` gives bash one):
+    the job's standard input is the terminal, and reading it would stop the job."""
+    ports_file, out = tmp_path / "ports.toml", tmp_path / "rig.out"
+    rig = f"{sys.executable} -m gyrohost rig --ports-file {ports_file}"
+    shell = (
+        f"set -m; {rig} > {out} 2>&1 & "
+        f"for i in $(seq 600); do [ -e {ports_file} ] && break; sleep 0.1; done; sleep 1; "
+        f"jobs -l; {rig} --send stats; kill -INT %1; wait %1; echo rig exit $?"
+    )
+    done = subprocess.run(
+        ["script", "-qfc", f"bash --norc -i -c {shlex.quote(shell)}", "/dev/null"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    text = done.stdout
+    assert re.search(r"\[1\]\+ +\d+ Running", text) and "Stopped" not in text, text
+    assert "rates: imu" in text and "rig exit 0" in text, text
+    assert "stopped by Ctrl-C" in out.read_text()
