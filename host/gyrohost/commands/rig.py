@@ -1,13 +1,13 @@
 """``gyrotens rig``: serve the simulated rig's three devices on pseudo-terminals in real time.
 
 Prints the device paths (one ``name: path`` line each) and writes them to a ports file
-(``gyrohost.rig.control``; ``gyrotens run --rig PORTSFILE`` reads it), serves until Ctrl-C or
-``--duration``, then prints the measured rates per device and the truth step timing. Rig commands
-(``fault imu silence 2``, ``fault wheels reset``, ``fault servos overload 1 0.5``, ``stats``,
-``reset``: the rig back to the scene's initial state, between two runs; docs/rig.md) arrive on
-its control socket (``gyrotens rig --send LINE``) and, while the rig is the foreground job of an
-interactive terminal, as lines typed on standard input. Standard input is never read otherwise,
-so ``gyrotens rig &`` keeps serving in the background.
+(``gyrohost.rig.control``; ``gyrotens run --rig PORTSFILE`` reads it), serves until Ctrl-C (or
+SIGTERM, SIGHUP) or ``--duration``, then prints the measured rates per device and the truth step
+timing. Rig commands (``fault imu silence 2``, ``fault wheels reset``, ``fault servos overload 1
+0.5``, ``stats``, ``reset``: the rig back to the scene's initial state, between two runs;
+docs/rig.md) arrive on its control socket (``gyrotens rig --send LINE``) and, while the rig is
+the foreground job of an interactive terminal, as lines typed on standard input. Standard input
+is never read otherwise, so ``gyrotens rig &`` keeps serving in the background.
 """
 
 import os
@@ -68,6 +68,7 @@ def run(args) -> int:
     from gyrohost.rig.sim import SimulatedRig
     from gyrohost.rig.simavr import HarnessError
     from gyrohost.rig.truth import RigSetupError
+    from gyrohost.sigint import InterruptsRaised, signal_name
 
     ports_file = args.ports_file or default_ports_file()
     if args.send is not None:
@@ -91,7 +92,7 @@ def run(args) -> int:
         raise CliError(
             f"{ports_file}: cannot open the control socket there: {exc.strerror or exc}"
         ) from None
-    with published as control:
+    with InterruptsRaised(), published as control:  # kill (SIGTERM) cleans up as Ctrl-C does
         try:
             rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
         except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
@@ -104,8 +105,8 @@ def run(args) -> int:
             _print_header(rig, ports_file, control.path)
             try:
                 _serve(rig, args.duration, control)
-            except KeyboardInterrupt:
-                print("stopped by Ctrl-C", flush=True)
+            except KeyboardInterrupt as exc:
+                print(f"stopped by {signal_name(exc)}", flush=True)
             stats = rig.stats()
     print(stats.rates_line())
     print(stats.truth_line(), flush=True)
