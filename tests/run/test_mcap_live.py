@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 
+import numpy as np
 import pytest
 import websockets.sync.client as ws_client
 from mcap.exceptions import McapError
@@ -21,6 +22,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.estimator.ekf import Status
 from gyrohost.resources import shipped
+from gyrohost.run.foxglove import z_to
 from gyrohost.run.log import read_meta, read_stream
 from gyrohost.run.ticker import status_words
 from gyrotensegrity import load_scene
@@ -158,3 +160,15 @@ def test_status_words_name_the_estimator_bits():
     assert status_words(Status(0)) == "ok"
     both = Status.WHEELS_TIMEOUT | Status.IMU_RATE_REJECTED
     assert status_words(both) == "WHEELS_TIMEOUT|IMU_RATE_REJECTED"
+
+
+@pytest.mark.parametrize(
+    "direction", [(0, 0, 1), (0, 0, -2), (1, 0, 0), (0.3, -0.4, 0.2), (-1e-3, 2e-3, -1)]
+)
+def test_a_wheel_cylinder_axis_lies_along_its_bar(direction):
+    q = z_to(direction)
+    x, y, z, w = q["x"], q["y"], q["z"], q["w"]
+    # the rotated z axis: third column of the quaternion's rotation matrix
+    axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    assert np.allclose(axis, np.array(direction) / np.linalg.norm(direction), atol=1e-9)
+    assert x * x + y * y + z * z + w * w == pytest.approx(1.0)

@@ -8,7 +8,7 @@ estimate; ``truth``: the simulated rig's truth) also give a 3D scene of the stru
 lines, strings as thin lines, wheels as cylinders about their bars, all in the frame ``world`` of
 the scene (z up), so Foxglove's 3D panel shows the D-bar moving. A scene is sent at most every
 :data:`SCENE_PERIOD_S` of log time (the rows themselves all go out): the 3D view needs no more,
-and each update costs the loop about 0.2 ms.
+and each update costs the loop about 0.3 ms.
 
 A message's log time is the log's creation (``meta.json`` ``created_unix_s``) plus the row's
 ``t_s``, ns since the Unix epoch (a row without a time, ``t_s`` NaN, at the creation).
