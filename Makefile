@@ -3,8 +3,8 @@
 #   make test   every test: lint, Python tests, firmware native tests, AVR build, firmware in the loop
 #   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
-# make demo installs the package with its runtime dependencies only; make test adds the test and
-# bench extras (pyproject.toml) beside it.
+# make demo installs the package with its runtime dependencies only; make test adds the test, bench
+# and live extras (pyproject.toml) beside it.
 
 PYTHON  ?= python3
 VENV    := .venv
@@ -43,7 +43,7 @@ $(RUNTIME): pyproject.toml setup.py model/gyrotensegrity/_fastkernel.c
 	@touch $@
 
 $(EXTRAS): $(RUNTIME) tools/extras.py
-	$(BIN)/pip install -q $$($(BIN)/python tools/extras.py test bench)
+	$(BIN)/pip install -q $$($(BIN)/python tools/extras.py test bench live)
 	@touch $@
 
 lint:

@@ -31,3 +31,10 @@ def terminal_popen():
         return subprocess.Popen(*args, preexec_fn=_default_sigint, **kwargs)
 
     return popen
+
+
+@pytest.fixture(autouse=True)
+def private_runtime_dir(tmp_path_factory, monkeypatch):
+    """A runtime directory of each test's own: ``gyrotens rig`` writes its default ports file and
+    control socket there, so rigs of tests running side by side never meet."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path_factory.mktemp("xdg")))

@@ -4,7 +4,7 @@
 missing gets installed (reinstalling ``.[test,bench]`` would rebuild the package itself). A group
 that names other groups of the project (``gyrotensegrity[sweep]``) is expanded into their
 requirements for the same reason.
-Usage: ``python tools/extras.py test bench``.
+Usage: ``python tools/extras.py test bench live``.
 """
 
 import re

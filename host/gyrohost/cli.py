@@ -19,6 +19,7 @@ COMMANDS = [
     "rig",
     "run",
     "replay",
+    "export",
     "bench",
     "ports",
     "doctor",

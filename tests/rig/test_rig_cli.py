@@ -1,4 +1,5 @@
-"""``gyrotens rig`` in a subprocess with the three drivers on its paths: rates and stdin faults."""
+"""``gyrotens rig`` in a subprocess with the three drivers on its paths: rates and faults sent
+over its control socket."""
 
 import re
 import subprocess
@@ -9,6 +10,7 @@ import pytest
 from rig_host import exercise, start_rig
 
 from gyrohost.cli import main
+from gyrohost.rig.control import default_ports_file, read_ports_file, send_command
 
 DURATION_S = 6.0
 
@@ -36,14 +38,17 @@ def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
         )
         worker.start()
         time.sleep(1.5)  # the host has its ports open by now
-        proc.stdin.write("fault imu corrupt 3\nfault nothing\n")
+        control = read_ports_file(default_ports_file()).control
+        assert send_command(control, "fault imu corrupt 3") == "injected: imu corrupt 3"
+        proc.stdin.write("fault nothing\n")  # not a terminal: never read
         proc.stdin.flush()
         worker.join(timeout=30)
         out, err = proc.communicate(timeout=30)
     finally:
         proc.kill()
     assert proc.returncode == 0, err
-    assert "injected: imu corrupt 3" in out and "error: unknown command 'fault nothing'" in out
+    assert "control: fault imu corrupt 3: injected: imu corrupt 3" in out
+    assert "fault nothing" not in out
     rates = re.search(
         r"rates: imu ([\d.]+) samples/s \(([\d.]+) frames/s\), wheels ([\d.]+) telemetry "
         r"frames/s, servos ([\d.]+) packets/s",
@@ -61,7 +66,7 @@ def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
     # What the host received matches what the rig says it served.
     assert host["telemetry_s"] == pytest.approx(500, rel=0.15)
     assert 75 <= host["imu_samples_s"] <= 105
-    assert host["imu_bad_frames"] >= 1  # the corruption typed on stdin arrived
+    assert host["imu_bad_frames"] >= 1  # the corruption sent to the control socket arrived
 
 
 def test_gyrotens_rig_user_errors(tmp_path, capsys):

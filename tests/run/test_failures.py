@@ -17,6 +17,7 @@ from test_runloop import SHORT, events, run, short_schedule
 
 from gyrohost.cli import main
 from gyrohost.run import log as runlog
+from gyrohost.run import mcap as runmcap
 from gyrohost.run.log import read_meta, read_stream
 
 pytestmark = pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
@@ -54,9 +55,9 @@ def test_the_rig_process_killed_mid_run_still_ends_in_the_safe_state(tmp_path, c
 
 
 class TinyDisk:
-    """``open`` of the log module on a disk of ``size`` bytes: a write that does not fit writes
-    what fits and raises ENOSPC, as a full file system does; deleted files give their space
-    back."""
+    """``open`` of the log modules (CSV, MCAP) on a disk of ``size`` bytes: a write that does not
+    fit writes what fits and raises ENOSPC, as a full file system does; deleted files give their
+    space back."""
 
     def __init__(self, folder: Path, size: int):
         self.folder, self.size, self.used = folder, size, 0
@@ -84,6 +85,12 @@ class _File:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return fits
 
+    def flush(self):
+        self.file.flush()
+
+    def tell(self):
+        return self.file.tell()
+
     def close(self):
         self.file.close()
 
@@ -101,6 +108,7 @@ def test_a_full_disk_ends_the_run_in_the_safe_state_and_says_where_the_log_ends(
     log.mkdir()
     disk = TinyDisk(log, 400_000)
     monkeypatch.setattr(runlog, "open", disk.open, raising=False)
+    monkeypatch.setattr(runmcap, "open", disk.open, raising=False)  # run.mcap on the same disk
     argv = ["run", "--config", str(CONFIG_PATH), "--sim", "-o", str(log)]
     argv += ["--schedule", str(schedule_file(tmp_path, L0 - 0.05, 4.0))]
     assert main(argv) == 1

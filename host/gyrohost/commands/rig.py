@@ -1,12 +1,16 @@
 """``gyrotens rig``: serve the simulated rig's three devices on pseudo-terminals in real time.
 
-Prints the device paths (one ``name: path`` line each), serves until Ctrl-C or ``--duration``,
-then prints the measured rates per device and the truth step timing. While it runs, lines typed
-on standard input are rig commands: ``fault imu silence 2``, ``fault wheels reset``,
-``fault servos overload 1 0.5``, ``stats``, ``reset`` (the rig back to the scene's initial state,
-between two runs; docs/rig.md).
+Prints the device paths (one ``name: path`` line each) and writes them to a ports file
+(``gyrohost.rig.control``; ``gyrotens run --rig PORTSFILE`` reads it), serves until Ctrl-C (or
+SIGTERM, SIGHUP) or ``--duration``, then prints the measured rates per device and the truth step
+timing. Rig commands (``fault imu silence 2``, ``fault wheels reset``, ``fault servos overload 1
+0.5``, ``stats``, ``reset``: the rig back to the scene's initial state, between two runs;
+docs/rig.md) arrive on its control socket (``gyrotens rig --send LINE``) and, while the rig is
+the foreground job of an interactive terminal, as lines typed on standard input. Standard input
+is never read otherwise, so ``gyrotens rig &`` keeps serving in the background.
 """
 
+import os
 import select
 import sys
 import time
@@ -41,6 +45,18 @@ def register(sub) -> None:
         help="firmware build directory for simavr (avr/*.elf, sim/fil_harness; default "
         "$GYROTENS_FIRMWARE_BUILD or the configuration's simavr_elf/simavr_harness)",
     )
+    p.add_argument(
+        "--ports-file",
+        type=Path,
+        metavar="FILE",
+        help="write the device paths and the control socket here (TOML; default "
+        "$XDG_RUNTIME_DIR/gyrotens/rig-ports.toml); the socket is FILE with suffix .sock",
+    )
+    p.add_argument(
+        "--send",
+        metavar="LINE",
+        help="send one command to the rig of --ports-file and print its answer, then exit",
+    )
     p.set_defaults(func=run)
 
 
@@ -48,27 +64,50 @@ def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.resources import ResourceError, resolve
+    from gyrohost.rig.control import control_path, default_ports_file
     from gyrohost.rig.sim import SimulatedRig
     from gyrohost.rig.simavr import HarnessError
     from gyrohost.rig.truth import RigSetupError
+    from gyrohost.sigint import InterruptsRaised, signal_name
 
+    ports_file = args.ports_file or default_ports_file()
+    if args.send is not None:
+        return _send(ports_file, args.send)
     if args.duration is not None and not args.duration > 0:
         raise CliError(f"--duration must be positive, got {args.duration}")
+    if _answers(control_path(ports_file)):
+        raise CliError(
+            f"{ports_file}: a rig is already serving there; stop it or give another --ports-file"
+        )
     try:
         config = load_rig_config(resolve("config", args.config))
         if args.firmware_build is not None:
             config = with_firmware_build(config, args.firmware_build)
         scene = resolve("scene", args.scene) if args.scene is not None else None
-        rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
-    except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
+    except (ConfigError, ResourceError, HarnessError) as exc:
         raise CliError(str(exc)) from None
-    with rig:
-        _print_header(rig)
+    try:
+        published = _Published(ports_file)  # before the rig starts: a bad path fails at once
+    except OSError as exc:
+        raise CliError(
+            f"{ports_file}: cannot open the control socket there: {exc.strerror or exc}"
+        ) from None
+    with InterruptsRaised(), published as control:  # kill (SIGTERM) cleans up as Ctrl-C does
         try:
-            _serve(rig, args.duration)
-        except KeyboardInterrupt:
-            print("stopped by Ctrl-C", flush=True)
-        stats = rig.stats()
+            rig = SimulatedRig(config, clock="real", scene=scene, wheels=args.wheel_board)
+        except (ConfigError, ResourceError, HarnessError, RigSetupError) as exc:
+            raise CliError(str(exc)) from None
+        with rig:
+            try:
+                control.publish(rig.paths)
+            except OSError as exc:
+                raise CliError(f"{ports_file}: cannot write: {exc.strerror or exc}") from None
+            _print_header(rig, ports_file, control.path)
+            try:
+                _serve(rig, args.duration, control)
+            except KeyboardInterrupt as exc:
+                print(f"stopped by {signal_name(exc)}", flush=True)
+            stats = rig.stats()
     print(stats.rates_line())
     print(stats.truth_line(), flush=True)
     if rig.wheels_kind == "simavr":  # after close: the harness's FINAL line
@@ -91,7 +130,62 @@ def with_firmware_build(config, build_dir: Path):
     return replace(config, sim=replace(config.sim, wheels=wheels))
 
 
-def _print_header(rig) -> None:
+class _Published:
+    """The control socket and the ports file, for the life of the rig: removed at the end (the
+    ports file only if it is still this rig's)."""
+
+    def __init__(self, ports_file: Path):
+        from gyrohost.rig.control import ControlServer, control_path
+
+        self.ports_file = ports_file
+        self.server = ControlServer(control_path(ports_file))
+        self.path = self.server.path
+        self._text = None
+
+    def publish(self, paths: dict) -> None:
+        """Write the ports file: the rig's device ``paths`` and the control socket."""
+        from gyrohost.rig.control import write_ports_file
+
+        write_ports_file(self.ports_file, paths, self.path)
+        self._text = self.ports_file.read_text()
+
+    def __enter__(self) -> "_Published":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.server.close()
+        try:
+            if self._text is not None and self.ports_file.read_text() == self._text:
+                self.ports_file.unlink()
+        except OSError:
+            pass  # removed or replaced already: not ours to remove
+
+
+def _answers(path: Path) -> bool:
+    """A rig listens on the control socket ``path``."""
+    import socket
+
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        try:
+            sock.connect(str(path))
+        except OSError:
+            return False
+    return True
+
+
+def _send(ports_file: Path, line: str) -> int:
+    from gyrohost.cli import CliError
+    from gyrohost.rig.control import ControlError, PortsFileError, read_ports_file, send_command
+
+    try:
+        answer = send_command(read_ports_file(ports_file).control, line)
+    except (PortsFileError, ControlError) as exc:
+        raise CliError(str(exc)) from None
+    print(answer)
+    return 1 if answer.startswith("error:") else 0
+
+
+def _print_header(rig, ports_file: Path, control: Path) -> None:
     model = rig.truth.model
     print(
         f"rig: scene {model.scene.name} ({model.describe()}), truth step "
@@ -99,31 +193,36 @@ def _print_header(rig) -> None:
     )
     for name, path in rig.paths.items():
         print(f"{name}: {path}")
+    print(f"ports file: {ports_file}  (gyrotens run --rig {ports_file})")
+    print(f"control: {control}  (gyrotens rig --ports-file {ports_file} --send LINE)")
     print(
-        "type 'fault DEVICE FAULT [ARGS]', 'stats' or 'reset' (back to the scene's initial "
-        "state, between runs); Ctrl-C stops",
+        "commands: 'fault DEVICE FAULT [ARGS]', 'stats' or 'reset' (back to the scene's initial "
+        "state, between runs), typed here while in the foreground or sent with --send; "
+        "Ctrl-C stops",
         flush=True,
     )
 
 
-def _serve(rig, duration_s: float | None) -> None:
+def _serve(rig, duration_s: float | None, control) -> None:
     end = None if duration_s is None else time.monotonic() + duration_s
-    stdin = sys.stdin if _readable(sys.stdin) else None
+    stdin = sys.stdin if _interactive(sys.stdin) else None
     while end is None or time.monotonic() < end:
         if rig.loop_error is not None:
             return
         wait = STDIN_POLL_S if end is None else max(min(STDIN_POLL_S, end - time.monotonic()), 0)
-        if stdin is None:
-            time.sleep(wait)
-            continue
-        ready, _, _ = select.select([stdin], [], [], wait)
-        if not ready:
-            continue
-        line = stdin.readline()
-        if not line:  # end of input: keep serving
-            stdin = None
-        elif line.strip():
-            print(_answer(rig, line), flush=True)
+        # a background job reading its terminal is stopped (SIGTTIN): read only in the foreground
+        typed = [stdin] if stdin is not None and _foreground(stdin) else []
+        ready, _, _ = select.select([*typed, *control.server.sockets()], [], [], wait)
+        for sock in ready:
+            if sock is stdin:
+                line = stdin.readline()
+                if not line:  # end of input: keep serving
+                    stdin = None
+                elif line.strip():
+                    print(_answer(rig, line), flush=True)
+                continue
+            for line, answer in control.server.handle(sock, lambda text: _answer(rig, text)):
+                print(f"control: {line}: {answer}", flush=True)
 
 
 def _answer(rig, line: str) -> str:
@@ -135,9 +234,17 @@ def _answer(rig, line: str) -> str:
         return f"error: {exc}"
 
 
-def _readable(stream) -> bool:
+def _interactive(stream) -> bool:
+    """``stream`` is an open interactive terminal."""
     try:
-        stream.fileno()
+        return not stream.closed and os.isatty(stream.fileno())
     except (AttributeError, OSError, ValueError):
         return False
-    return not stream.closed
+
+
+def _foreground(stream) -> bool:
+    """This process is the foreground job of the terminal ``stream``."""
+    try:
+        return os.tcgetpgrp(stream.fileno()) == os.getpgrp()
+    except OSError:
+        return False

@@ -1,6 +1,7 @@
 """``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
-[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim]``: one run of a schedule or a
-planned tilt maneuver on the rig, from connection to the safe state, logged (docs/run.md,
+[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim | --rig PORTSFILE] [--live]``: one
+run of a schedule or a planned tilt maneuver on the rig, from connection to the safe state,
+logged (CSV streams and an MCAP file), optionally served live to Foxglove (docs/run.md,
 docs/schedule.md)."""
 
 import sys
@@ -47,8 +48,26 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
     p.add_argument("--scene", help="scene file or shipped name (default: the configuration's)")
+    p.add_argument(
+        "--rig",
+        type=Path,
+        metavar="PORTSFILE",
+        help="the ports of a running 'gyrotens rig', from the ports file it printed "
+        "(instead of the configuration's ports)",
+    )
     for dev in ("imu", "wheels", "servos"):
-        p.add_argument(f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration)")
+        p.add_argument(
+            f"--{dev}", metavar="PORT", help=f"{dev} port (overrides the configuration and --rig)"
+        )
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the run's channels live over a Foxglove WebSocket on localhost "
+        "(needs the extra 'live')",
+    )
+    p.add_argument(
+        "--live-port", type=int, default=8765, metavar="PORT", help="(8765; 0: a free port)"
+    )
     p.set_defaults(func=run)
 
 
@@ -106,20 +125,32 @@ def load_schedule_arg(text: str, scene_path: Path):
 
 
 class Progress:
-    """One status line on a terminal: phase, time, schedule played; silent otherwise."""
+    """One status line on a terminal: phase, time, schedule played, the estimated tilt, the
+    measured wheel speeds and the estimator's status; silent otherwise."""
 
     def __init__(self, label: str = "", stream=None):
         self.label, self.stream = label, stream or sys.stderr
         self.enabled = self.stream.isatty()
         self._last = 0.0
 
-    def __call__(self, phase: str, t_s: float, fraction: float) -> None:
+    def __call__(self, phase: str, t_s: float, fraction: float, readout=None) -> None:
         now = time.monotonic()
         if self.enabled and now - self._last > 0.1:
             self._last = now
-            bar = "#" * int(25 * fraction)
-            self.stream.write(f"\r{self.label}[{bar:<25}] {phase:<9} t = {t_s:6.2f} s")
+            self.stream.write(f"\r{self.line(phase, t_s, fraction, readout)}\033[K")
             self.stream.flush()
+
+    def line(self, phase: str, t_s: float, fraction: float, readout=None) -> str:
+        """The status line (``readout``: :meth:`gyrohost.run.RunLoop.readout`)."""
+        bar = "#" * int(10 * fraction)
+        text = f"{self.label}[{bar:<10}] {phase:<8} t {t_s:6.2f} s"
+        if readout is None:
+            return text
+        if readout.tilt_rad == readout.tilt_rad:  # not NaN: a scene with a tilt, estimated
+            text += f" | tilt {readout.tilt_rad:+.3f} rad"
+        if readout.omega_rad_s is not None:
+            text += " | wheels " + " ".join(f"{w:+5.1f}" for w in readout.omega_rad_s) + " rad/s"
+        return text + f" | EKF {readout.estimator}"
 
     def close(self) -> None:
         if self.enabled:
@@ -129,9 +160,15 @@ class Progress:
 def _wired(config, args):
     from gyrohost.cli import CliError
     from gyrohost.config import EMULATED_PORT
+    from gyrohost.rig.control import PortsFileError, read_ports_file
     from gyrohost.run import with_ports
 
-    config = with_ports(config, {"imu": args.imu, "wheels": args.wheels, "servos": args.servos})
+    try:
+        ports = {} if args.rig is None else dict(read_ports_file(args.rig).devices)
+    except PortsFileError as exc:
+        raise CliError(str(exc)) from None
+    given = {"imu": args.imu, "wheels": args.wheels, "servos": args.servos}
+    config = with_ports(config, ports | {name: p for name, p in given.items() if p})
     emulated = [
         name
         for name, port in (
@@ -144,7 +181,8 @@ def _wired(config, args):
     if emulated:
         raise CliError(
             f"{args.config}: port(s) of {', '.join(emulated)} are '{EMULATED_PORT}': add --sim, "
-            "or give the ptys printed by 'gyrotens rig' with --imu/--wheels/--servos"
+            "or --rig PORTSFILE of a running 'gyrotens rig' (or its ptys with "
+            "--imu/--wheels/--servos)"
         )
     from gyrohost.run.devices import check_real_rig
 
@@ -184,6 +222,8 @@ def _run(args) -> int:
     except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
     out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{_run_name(schedule)}"
+    if args.sim and args.rig is not None:
+        raise CliError("give --sim (a rig of its own) or --rig PORTSFILE (a running rig), not both")
     try:
         check_new_log_folder(out)
     except LogError as exc:
@@ -191,6 +231,8 @@ def _run(args) -> int:
     progress = Progress()
     options = {"estimator": estimator, "progress": progress, "meta": {"command": sys.argv}}
     try:
+        if args.live:
+            options["live"] = _live_view(config, args.live_port)
         if args.sim:
             result = run_simulated(config, schedule, out, **options)
         else:
@@ -199,7 +241,19 @@ def _run(args) -> int:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
+        if "live" in options:
+            options["live"].close()  # also when the run never started
     return report(result)
+
+
+def _live_view(config, port: int):
+    """Start the live view's server and print where Foxglove connects."""
+    from gyrohost.run.live import LiveView
+    from gyrotensegrity import load_scene
+
+    live = LiveView(load_scene(config.scene_path), port)
+    print(f"live: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
+    return live
 
 
 def _run_name(schedule) -> str:
@@ -221,6 +275,9 @@ def report(result) -> int:
 
     s = result.summary
     print(f"log: {result.log_folder}")
+    mcap = Path(result.log_folder) / "run.mcap"
+    if mcap.exists():
+        print(f"mcap: {mcap} (opens in Foxglove)")
     if "loop" in s:  # none if the summary could not be made
         print(jitter_line(s["loop"]))
     if "tilt_end_estimate_rad" in s:

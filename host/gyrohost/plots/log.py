@@ -1,7 +1,8 @@
 """Figures of a run log (``gyrotens plot LOGDIR``): the paper's Figs. 7 and 8 and diagnostics.
 
 Every figure has time on the host clock of the run (``t_s``, s) and marks where the schedule
-started; estimate lines are solid, truth lines (simulated rig only) dashed in the same colour.
+started; estimate lines are solid, truth lines (simulated rig only) dashed in the same colour. A log
+without a truth (a separate rig process, real hardware) is titled "estimate" only.
 
 The figures follow the scene, as the log holds it: a D-bar log (its ``nodes`` stream has a
 ``tilt_rad`` column) gets the paper's figures of the plane nodes and the tilt; any other scene
@@ -20,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
-from gyrohost.run.log import LogError, read_meta, read_stream  # noqa: E402
+from gyrohost.run.log import read_meta, read_streams  # noqa: E402
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
@@ -37,14 +38,9 @@ class RunData:
     def __init__(self, folder, warn: Callable[[str], None] | None = None):
         self.folder = Path(folder)
         self.meta = read_meta(self.folder)
-        self.streams = {}
-        for name in self.meta.get("streams", {}):
-            try:
-                self.streams[name] = read_stream(self.folder, name, warn)
-            except LogError as exc:
-                if warn is None:
-                    raise
-                warn(f"{exc}; left out")
+        self.streams = read_streams(self.folder, self.meta.get("streams", {}), warn)
+        self.has_truth = self.get("truth") is not None
+        """The log holds the simulated rig's truth (a run with ``--sim``)."""
         events = self.streams.get("events")
         starts = [] if events is None else events["t_s"][events["message"] == "schedule"]
         self.t_schedule = float(starts[0]) if len(starts) else None
@@ -100,7 +96,8 @@ def plot_nodes(data: RunData, path) -> Path:
 
 
 def plot_node_z(data: RunData, path) -> Path:
-    """Node z of the D-bar's plane nodes, estimate against truth (Fig. 8 on the rig)."""
+    """Node z of the D-bar's plane nodes, estimate and (simulated rig) truth (Fig. 8 on the
+    rig)."""
     est, truth = data.get("nodes"), data.get("truth")
     fig, axes = plt.subplots(2, 2, sharex=True, sharey=True, figsize=(8, 5.5))
     for ax, node in zip(axes.ravel(), PLANE_NODES, strict=True):
@@ -114,7 +111,8 @@ def plot_node_z(data: RunData, path) -> Path:
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
     axes[0, 0].legend(fontsize="small")
-    fig.suptitle(f"{data.title}: node z, estimate against truth (Fig. 8)")
+    compared = "estimate against truth" if data.has_truth else "estimate"
+    fig.suptitle(f"{data.title}: node z, {compared} (Fig. 8)")
     return _finish(fig, axes, data, path)
 
 
@@ -257,6 +255,7 @@ def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Pat
 def plot_compare(folders, labels, path) -> Path:
     """Node z in several runs side by side (Fig. 7(a) against 7(b) for the D-bar), cm."""
     runs = [RunData(f) for f in folders]
+    any_truth = any(data.has_truth for data in runs)
     fig, axes = plt.subplots(1, len(runs), sharey=True, figsize=(5 * len(runs), 4), squeeze=False)
     for ax, data, label in zip(axes[0], runs, labels, strict=True):
         est, truth = data.get("nodes"), data.get("truth")
@@ -272,8 +271,14 @@ def plot_compare(folders, labels, path) -> Path:
             ax.axvline(data.t_schedule, color="0.5", lw=0.8, ls=":")
         ax.grid(True, alpha=0.3)
     axes[0, 0].set_ylabel("node z (cm)")
-    axes[0, 0].legend(fontsize="x-small", title="dashed: truth", title_fontsize="x-small")
-    fig.suptitle("node z on the simulated rig: EKF estimate (solid) and truth (dashed)")
+    axes[0, 0].legend(
+        fontsize="x-small", title="dashed: truth" if any_truth else None, title_fontsize="x-small"
+    )
+    fig.suptitle(
+        "node z on the simulated rig: EKF estimate (solid) and truth (dashed)"
+        if any_truth
+        else "node z: EKF estimate"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)

@@ -12,6 +12,12 @@ crash with at most the row being written lost. Any stream reads in one line::
     np.genfromtxt("imu.csv", delimiter=",", names=True)      # or pandas.read_csv("imu.csv")
 
 Floats are written with 17 significant digits, so a replay reads back bit-identical numbers.
+
+A log hands every row it writes to its *sinks* too (``RunLog(..., sinks=...)``): the MCAP file
+of a run (:mod:`gyrohost.run.mcap`), the live view (:mod:`gyrohost.run.live`). A sink has
+``start(folder, meta)``, ``open(name, columns, text_columns, description)``, ``write(name,
+values)`` (after the CSV row is written whole, so it gets exactly the CSV's rows) and
+``close()``; an ``OSError`` of a sink is the log's failure, as a stream's is.
 """
 
 import json
@@ -50,6 +56,7 @@ class Stream:
 
     def __init__(self, path: Path, columns: Sequence[str], log: "RunLog"):
         self.path = path
+        self.name = path.stem
         self.columns = tuple(columns)
         self.log = log
         self.rows = 0
@@ -80,6 +87,7 @@ class Stream:
         self.rows += 1
         if self.columns[0] == "t_s":
             self.log.wrote_at(values[0])
+        self.log.forward(self.name, values)
 
     def close(self) -> None:
         """Close the file; a failing flush is recorded as the log's failure, not raised."""
@@ -135,7 +143,7 @@ def check_output_folder(folder: Path | str) -> None:
 
 def check_new_log_folder(folder: Path | str) -> None:
     """Refuse a folder that cannot take a new log: :func:`check_output_folder`, and a folder that
-    already holds a log or any of its files (``meta.json``, a stream's ``.csv``).
+    already holds a log or any of its files (``meta.json``, a stream's ``.csv``, an ``.mcap``).
 
     Raises
     ------
@@ -146,7 +154,9 @@ def check_new_log_folder(folder: Path | str) -> None:
     check_output_folder(folder)
     if folder.is_dir():
         found = sorted(
-            p.name for p in folder.iterdir() if p.name == "meta.json" or p.suffix == ".csv"
+            p.name
+            for p in folder.iterdir()
+            if p.name == "meta.json" or p.suffix in (".csv", ".mcap")
         )
         if found:
             listed = ", ".join(found[:3]) + (", ..." if len(found) > 3 else "")
@@ -162,6 +172,8 @@ class RunLog:
         Created if missing; must pass :func:`check_new_log_folder`.
     meta : dict
         JSON-serialisable description of the run (configuration, scene, command line, ...).
+    sinks : sequence, optional
+        Where every row goes too (module docstring), started once the folder exists.
 
     Attributes
     ----------
@@ -172,7 +184,7 @@ class RunLog:
         ``t_s`` of the last row written whole (NaN before any): where the log ends, s.
     """
 
-    def __init__(self, folder: Path | str, meta: dict):
+    def __init__(self, folder: Path | str, meta: dict, sinks: Sequence = ()):
         self.folder = Path(folder)
         check_new_log_folder(self.folder)
         self.folder.mkdir(parents=True, exist_ok=True)
@@ -193,6 +205,10 @@ class RunLog:
                 f.write(bytes(RESERVE_BYTES))
         except OSError as exc:
             self.fail(f"{self._reserve.name}: {exc}")
+        self.sinks: list = []
+        for sink in sinks:
+            if self._sink_call(sink, "start", self.folder, self.meta):
+                self.sinks.append(sink)
 
     def stream(
         self,
@@ -209,6 +225,8 @@ class RunLog:
             raise LogError(f"stream {name!r}: text columns {sorted(unknown)} are not columns")
         s = Stream(self.folder / f"{name}.csv", columns, self)
         self.streams[name] = s
+        for sink in self.sinks:
+            self._sink_call(sink, "open", name, columns, text_columns, description)
         self.meta["streams"][name] = {
             "columns": list(columns),
             "text_columns": list(text_columns),
@@ -239,6 +257,27 @@ class RunLog:
             tmp.unlink(missing_ok=True)
             self.fail(f"meta.json: {exc}")
             self.check()
+
+    def forward(self, name: str, values) -> None:
+        """Hand one row of stream ``name``, written whole, to every sink."""
+        for sink in self.sinks:
+            self._sink_call(sink, "write", name, values)
+
+    def _sink_call(self, sink, method: str, *args) -> bool:
+        """Call a sink; its ``OSError`` (a full disk) is the log's failure, and the sink is
+        dropped (closed as far as it goes). Returns whether the call succeeded."""
+        try:
+            getattr(sink, method)(*args)
+            return True
+        except OSError as exc:
+            self.fail(f"{sink.name}: {exc}")
+        if sink in self.sinks:
+            self.sinks.remove(sink)
+        try:
+            sink.close()
+        except OSError:
+            pass  # the failure is recorded already
+        return False
 
     def fail(self, failure: str) -> None:
         """Record a refused write (the first one is kept); later rows are dropped and the
@@ -273,9 +312,12 @@ class RunLog:
             )
 
     def close(self) -> None:
-        """Close every stream (a failing close is recorded, not raised)."""
+        """Close every stream and sink (a failing close is recorded, not raised)."""
         for s in self.streams.values():
             s.close()
+        for sink in list(self.sinks):
+            self._sink_call(sink, "close")
+        self.sinks = []
         self._release()
 
     def __enter__(self):
@@ -373,6 +415,29 @@ def read_stream(
     out = np.empty(len(good), dtype=dtype)
     for i, fields in enumerate(good):
         out[i] = tuple(f if c in text else float(f) for c, f in zip(header, fields, strict=True))
+    return out
+
+
+def read_streams(
+    folder: Path | str,
+    names,
+    warn: Callable[[str], None] | None = None,
+    without: str = "left out",
+) -> dict[str, np.ndarray]:
+    """The streams ``names`` of a log folder (:func:`read_stream` each), by name.
+
+    Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
+    are skipped and a stream that cannot be read at all is left out, said to ``warn`` as
+    ``<error>; <without>``.
+    """
+    out = {}
+    for name in names:
+        try:
+            out[name] = read_stream(folder, name, warn)
+        except LogError as exc:
+            if warn is None:
+                raise
+            warn(f"{exc}; {without}")
     return out
 
 

@@ -31,7 +31,7 @@ from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
 from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_stream
+from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_streams
 from gyrotensegrity import Model, load_scene
 
 GROUPS = {
@@ -152,15 +152,8 @@ def read_inputs(log: Path, warn: Callable[[str], None] | None = None) -> dict:
     """
     meta = read_meta(log)
     names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND, streams.ESTIMATE)
-    out = {}
-    for name in (n for n in names if n in meta.get("streams", {})):
-        try:
-            out[name] = read_stream(log, name, warn)
-        except LogError as exc:
-            if warn is None:
-                raise
-            warn(f"{exc}; replayed without it")
-    return out
+    present = [n for n in names if n in meta.get("streams", {})]
+    return read_streams(log, present, warn, "replayed without it")
 
 
 def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):

@@ -50,6 +50,7 @@ from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHan
 from gyrohost.run.errors import LimitBreach, RunError
 from gyrohost.run.limits import check_limits, check_schedule
 from gyrohost.run.log import RunLog
+from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import StartStateRefused, check_start_state
@@ -61,7 +62,7 @@ from gyrohost.run.streams import (
     open_run_streams,
 )
 from gyrohost.run.summary import run_meta, run_summary
-from gyrohost.run.ticker import Ticker
+from gyrohost.run.ticker import Readout, Ticker, status_words
 from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
 from gyrotensegrity import Model, load_scene
 
@@ -90,10 +91,14 @@ class RunLoop:
         summary.
     on_tick : callable(loop, phase, t_s), optional
         Called at the end of every tick (tests inject faults or Ctrl-C from here).
-    progress : callable(phase, t_s, fraction), optional
-        Called every tick; ``fraction`` of the schedule played, in [0, 1].
+    progress : callable(phase, t_s, fraction, readout), optional
+        Called every tick; ``fraction`` of the schedule played, in [0, 1]; ``readout`` the
+        estimated tilt, wheel speeds and estimator status (:meth:`readout`).
     meta : dict, optional
         Extra items for ``meta.json`` (command line, ...).
+    live : log sink, optional
+        Every row to a live view too (:class:`gyrohost.run.live.LiveView`), beside the CSV
+        streams and the MCAP file ``run.mcap`` every run writes.
     """
 
     def __init__(
@@ -107,6 +112,7 @@ class RunLoop:
         on_tick=None,
         progress=None,
         meta: dict | None = None,
+        live=None,
     ):
         self.config = config
         self.maneuver = schedule if isinstance(schedule, Maneuver) else None
@@ -128,6 +134,7 @@ class RunLoop:
         self.spins[: len(wheels)] = [w.spin0 for w in wheels]
         self.log_folder = Path(log_folder)
         self.extra_meta = meta or {}
+        self.sinks = [McapSink(self.model.scene), *([live] if live is not None else [])]
         self.phase = "check"
         self.queue: queue.Queue = queue.Queue()
         self.ticker = Ticker(self.settings.rate_hz)
@@ -156,7 +163,7 @@ class RunLoop:
         """
         check_schedule(self.schedule, self.config.servos.servo)
         with InterruptsRaised():  # SIGTERM, SIGHUP: as Ctrl-C
-            self.log = RunLog(self.log_folder, run_meta(self))
+            self.log = RunLog(self.log_folder, run_meta(self), self.sinks)
             try:
                 self._open_streams()
                 self._sequence()
@@ -379,9 +386,18 @@ class RunLoop:
         cpu = time.thread_time() - cpu0
         self.streams.loop.write(start, start - due, self.now() - start, cpu, n, self.phase)
         if self.progress is not None:
-            self.progress(self.phase, start, self._played(start))
+            self.progress(self.phase, start, self._played(start), self.readout())
         if strict and self.on_tick is not None:
             self.on_tick(self, self.phase, start)
+
+    def readout(self) -> Readout:
+        """Estimated tilt, measured wheel speeds and the estimator's status now."""
+        tel = self.wheel_reader.latest if self.wheel_reader is not None else None
+        return Readout(
+            self.latest_tilt,
+            None if tel is None else tuple(tel.omega_rad_s),
+            "off" if self.ekf is None else status_words(self.ekf.status),
+        )
 
     def _follow_estimate(self) -> None:
         """Closed loop: the estimate to the maneuver, its schedule from the next tick on."""

@@ -26,7 +26,7 @@ def run_simulated(
         Scene of the rig and of the estimator (default: the configuration's).
     **kwargs
         Passed on to :class:`RunLoop` (``settings``, ``estimator``, ``on_tick``, ``progress``,
-        ``meta``).
+        ``meta``, ``live``).
     """
     if scene is not None:
         config = replace(config, scene=str(Path(scene).resolve()))

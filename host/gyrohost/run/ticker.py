@@ -1,4 +1,4 @@
-"""The host clock of a run and its fixed grid of ticks.
+"""The host clock of a run, its fixed grid of ticks, and what a tick shows on the progress line.
 
 The run's time ``t_s`` is ``time.monotonic`` since the run's time zero. Ticks are due on a fixed
 grid of the host period; a tick that starts late skips the grid points it missed (the loop
@@ -11,6 +11,33 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Readout:
+    """The state of a run at one tick, for the progress line.
+
+    Attributes
+    ----------
+    tilt_rad : float, rad
+        The estimated tilt of the scene's attitude measure (NaN: none, or no estimate yet).
+    omega_rad_s : tuple of float or None, rad/s
+        The wheel speeds of the latest telemetry (None before the first).
+    estimator : str
+        ``off`` before the estimator starts, ``ok``, or its status bits by name
+        (``WHEELS_TIMEOUT|IMU_RATE_REJECTED``).
+    """
+
+    tilt_rad: float
+    omega_rad_s: tuple | None
+    estimator: str
+
+
+def status_words(status) -> str:
+    """An estimator status (``estimator.Status`` flags) in words: ``ok`` or the set bits' names
+    joined by ``|``."""
+    names = [flag.name for flag in type(status) if flag & status]
+    return "|".join(names) if names else "ok"
 
 
 @dataclass
