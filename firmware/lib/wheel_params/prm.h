@@ -22,7 +22,7 @@ enum prm_id : uint8_t {
 #undef PRM
 };
 
-#define PRM_COUNT 19
+#define PRM_COUNT 22
 #define PRM_LAYOUT_VERSION 3
 #define PRM_HEADER_SIZE 6
 #define PRM_IMAGE_SIZE (PRM_HEADER_SIZE + 4 * PRM_COUNT + 2)

@@ -50,7 +50,10 @@ class AppTest : public ::testing::Test {
         FakeEeprom::busy_polls = 0;
         TxCapture::reset();
         app_init(&app, &FakeEeprom::iface, TxCapture::tx, 0);
-        app.flt.faults = 0;  // blank EEPROM set PARAMS_DEFAULTED; tests start clean
+        // A blank EEPROM set PARAMS_DEFAULTED and left the offsets uncalibrated: tests start
+        // clean (the tests of that rule set it up again).
+        app.flt.faults = 0;
+        app.uncal_mask = 0;
         TxCapture::frames.clear();
     }
     void send_wire(const Bytes& wire) {
@@ -75,6 +78,11 @@ class AppTest : public ::testing::Test {
         Bytes x = i32s({v});
         p.insert(p.end(), x.begin(), x.end());
         send(PROTO_ID_PARAM_SET, p);
+    }
+    void clear_faults(uint16_t mask = 0xFFFF) {
+        uint8_t p[2];
+        proto_put_u16(p, mask);
+        send(PROTO_ID_CLEAR_FAULTS, Bytes(p, p + 2));
     }
     void step(int n = 1) {
         const uint16_t zero[4] = {enc_make_reply(0, false), enc_make_reply(0, false),
@@ -172,7 +180,7 @@ TEST_F(AppTest, HeartbeatLossAtConfiguredTimeThenRampToZero) {
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
     EXPECT_EQ(app.w[0].target_mrad_s, 0);
-    send(PROTO_ID_CLEAR_FAULTS);
+    clear_faults();
     EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_CLEAR_FAULTS);
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     EXPECT_EQ(app.w[0].target_mrad_s, 1000);
@@ -355,7 +363,8 @@ TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
     auto tick = [&](int n) {
         for (int k = 0; k < n; k++) {
             angle = static_cast<uint16_t>((angle + 3) & 0x3FFF);
-            uint16_t words[4] = {enc_make_reply(0, false), chip.word(angle),
+            // Wheel 0 runs (its word turns: a word stuck at 0 while driven latches ENC_STUCK).
+            uint16_t words[4] = {enc_make_reply(angle, false), chip.word(angle),
                                  enc_make_reply(0, false), enc_make_reply(0, false)};
             app_control_step(&app, words);
             chip.after_step((app.enc_clear >> 1) & 1);
@@ -409,7 +418,7 @@ TEST_F(AppTest, PersistentErrorFlagFaultsAfterTheLimitThenRecoversAfterClear) {
     tick();
     EXPECT_FALSE(chip.flag);
     EXPECT_EQ(app.enc_clear, 0);
-    send(PROTO_ID_CLEAR_FAULTS);
+    clear_faults();
     send(PROTO_ID_SET_SPEEDS, i32s({0, 5000, 0, 0}));
     tick();
     EXPECT_EQ(app.flt.faults, 0);
