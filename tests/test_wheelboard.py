@@ -244,5 +244,5 @@ def test_telemetry_queue_and_fault_events(fake):
         assert samples[0].omega_rad_s == pytest.approx((1.0, 2.0, 3.0, 4.0))
         with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST: no valid frame"):
             board.check_faults()
-        board.clear_faults()
+        board.clear_faults(board.faults)
         board.check_faults()

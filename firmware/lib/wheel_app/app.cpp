@@ -351,8 +351,8 @@ static void app_guard(app_state* a, uint8_t i) {
     const bool fresh = w->spd.primed && !w->spd.missed;
     const uint16_t sensor = grd_sensor(&w->grd, g, w->spd.last_angle, fresh, driven);
     if (sensor) flt_set(&a->flt, static_cast<uint16_t>(sensor | (PROTO_FAULT_ENCODER_M0 << i)));
-    const uint16_t motion = grd_motion(&w->grd, g, looping, w->pi.saturated, drive,
-                                       spd_q8(&w->spd), w->sp_q8);
+    const uint16_t motion =
+        grd_motion(&w->grd, g, looping, w->pi.saturated, drive, spd_q8(&w->spd), w->sp_q8);
     if (motion) flt_set(&a->flt, motion);
 }
 
@@ -368,7 +368,7 @@ static void app_cal_tick(app_state* a, bool failsafe) {
         outcome = cal_tick(&a->cal, a->w[i].spd.last_angle, &offset16);
     }
     if (outcome == CAL_RUNNING) {
-        a->w[i].ol_phase = static_cast<uint32_t>(a->cal.field) << 16;
+        a->w[i].ol_phase = static_cast<uint32_t>(a->cal.out) << 16;
     } else {
         app_cal_end(a, outcome, offset16);
     }

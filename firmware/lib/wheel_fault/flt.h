@@ -49,8 +49,8 @@ bool flt_blocks_setpoints(const flt_state* f);
 // bit (1 << w; its fault bit PROTO_FAULT_ENCODER_Mw is the next one up); limit >= 1
 // (params.def). Returns true if the wheel is disabled by a latched fault. Inline: it runs for
 // every wheel in every control step, where a good word costs one store and one bit test.
-PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t* bad_count, uint8_t wheel_bit,
-                                    bool good, uint8_t limit) {
+PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t* bad_count, uint8_t wheel_bit, bool good,
+                                    uint8_t limit) {
     if (good) {
         *bad_count = 0;  // 0 < limit: nothing latches
     } else {

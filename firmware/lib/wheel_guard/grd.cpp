@@ -29,10 +29,12 @@ void grd_reset(grd_wheel* g) {
 
 uint16_t grd_sensor(grd_wheel* g, const grd_limits* l, uint16_t angle, bool fresh, bool driven) {
     if (!fresh) return 0;  // a bad word: counted by the encoder's bad-word limit instead
-    const bool same = driven && angle == g->prev_angle;
+    const bool dead = angle == 0 || angle == ENC_MASK;
+    const bool same = driven && dead && angle == g->prev_angle;
     g->prev_angle = angle;
-    const uint16_t limit = (angle == 0 || angle == ENC_MASK) ? l->dead_ticks : l->fault_ticks;
-    return grd_count(&g->same_ticks, same, limit) ? static_cast<uint16_t>(PROTO_FAULT_ENC_STUCK) : 0u;
+    return grd_count(&g->same_ticks, same, l->dead_ticks)
+               ? static_cast<uint16_t>(PROTO_FAULT_ENC_STUCK)
+               : 0u;
 }
 
 // An episode of a motion condition: counted while it holds and the speed has not moved (stall)
@@ -49,8 +51,8 @@ static uint16_t grd_episode(uint16_t* ticks, int32_t* from_q8, bool condition, b
 uint16_t grd_motion(grd_wheel* g, const grd_limits* l, bool looping, bool saturated,
                     int16_t drive_q15, int32_t speed_q8, int32_t sp_q8) {
     const int32_t speed_abs = grd_abs(speed_q8);
-    const bool stall = looping && saturated && grd_abs(drive_q15) >= l->drive_min_q15 &&
-                       speed_abs < l->stall_q8;
+    const bool stall =
+        looping && saturated && grd_abs(drive_q15) >= l->drive_min_q15 && speed_abs < l->stall_q8;
     const bool moved = grd_abs(speed_q8 - g->stall_from_q8) >= l->stall_q8;
     const bool against =
         (sp_q8 > 0 && speed_q8 < -l->margin_q8) || (sp_q8 < 0 && speed_q8 > l->margin_q8);
@@ -71,8 +73,8 @@ uint16_t grd_motion(grd_wheel* g, const grd_limits* l, bool looping, bool satura
 
 uint16_t grd_diag(grd_wheel* g, uint16_t word) {
     uint16_t data = 0;
-    const bool good = enc_parse(word, &data) == ENC_OK && (data & GRD_DIAG_OCF) &&
-                      !(data & GRD_DIAG_BAD);
+    const bool good =
+        enc_parse(word, &data) == ENC_OK && (data & GRD_DIAG_OCF) && !(data & GRD_DIAG_BAD);
     if (good) {
         g->diag_bad = 0;
         return 0;

@@ -1,8 +1,10 @@
 // grd.h - sensor and motion supervision of one wheel, run once per control tick after the step
 // (out of the control law's latency) and once per diagnostics read:
-//   stuck word: the encoder angle unchanged while the wheel is driven at half DRIVE_MAX or more,
-//     for dead_ticks (ENC_FAULT_LIMIT) ticks if it reads 0x0000 or 0x3FFF (MISO stuck low or
-//     high with a valid-looking word), else for fault_ticks (MOTION_FAULT_MS): ENC_STUCK;
+//   stuck word: the encoder reads 0x0000 or 0x3FFF (MISO stuck low or high with a valid-looking
+//     word) unchanged for dead_ticks (ENC_FAULT_LIMIT) ticks while the wheel is driven at half
+//     DRIVE_MAX or more: ENC_STUCK. Any other word frozen under drive reads as a stopped rotor:
+//     the stall below (the board cannot tell a frozen sensor from a blocked rotor; a real
+//     AS5048A's noise of about 2 counts rms moves the word of a rotor at rest);
 //   diagnostics: the AS5048A's diagnostics register (0x3FFD) bad in GRD_DIAG_LIMIT consecutive
 //     reads: offset compensation not finished, CORDIC overflow, magnet too strong or too weak,
 //     or the reply itself broken (parity, error flag): ENC_DIAG;
