@@ -12,7 +12,7 @@ import sys
 
 from gyrohost.errors import GyrohostError
 
-COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench"]
+COMMANDS = ["demo", "simulate", "plot", "rig", "run", "replay", "bench", "wheels"]
 
 
 class CliError(GyrohostError, ValueError):

@@ -92,7 +92,7 @@ def test_heartbeat_loss_ramps_down_and_latches(board):
     assert err.value.name == "FAULT_ACTIVE"
     client.heartbeat_period_s = 0.02
     time.sleep(1.05)  # the beater wakes from its 1 s wait and beats every 20 ms again
-    client.clear_faults()
+    assert client.clear_faults(["HEARTBEAT_LOST"]) == ["HEARTBEAT_LOST"]
     client.set_speeds([1.0, 0.0, 0.0, 0.0])
     assert wait_for(lambda: abs(device.wheel_speeds_rad_s()[0] - 1.0) < 0.01)
     # telemetry carries the 14-bit encoder's quantisation: +-0.024 rad/s measured at 1 rad/s
@@ -148,7 +148,7 @@ def test_receiver_rules_reply_like_the_firmware():
             device.handle_rx(wp.encode_raw(0x03, b"\x00" * 3), 0.0)  # SET_SPEEDS, 3 bytes
             device.handle_rx(wp.encode_raw(0x82, b"\x00" * 33), 0.0)  # a device-to-host id
             device.handle_rx(wp.encode_raw(0x42, b""), 0.0)  # not in the table
-            device.handle_rx(wp.encode("PARAM_GET", param_id=19), 0.0)
+            device.handle_rx(wp.encode("PARAM_GET", param_id=len(wp.PARAMS)), 0.0)
             device.handle_rx(wp.encode("PARAM_SET", param_id=9, value=5), 0.0)  # below 20 ms
             time.sleep(0.05)
             replies = decoder.feed(os.read(host, 4096))
@@ -161,7 +161,7 @@ def test_receiver_rules_reply_like_the_firmware():
         ("SET_SPEEDS", "BAD_LENGTH", 3),
         ("TELEMETRY", "UNKNOWN_MESSAGE", 0x82),
         (0x42, "UNKNOWN_MESSAGE", 0x42),
-        ("PARAM_GET", "UNKNOWN_PARAM", 19),
+        ("PARAM_GET", "UNKNOWN_PARAM", len(wp.PARAMS)),
         ("PARAM_SET", "PARAM_OUT_OF_RANGE", 9),
     ]
     assert device.stats["bad_length"] == 1 and device.stats["unknown_id"] == 2
