@@ -74,10 +74,12 @@ int main() {
         BOARD_CYCLE_MARK = 0;
         pwm_apply(g_app.pwm, g_app.enable_mask);
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
-        const uint8_t diag = app_diag_wheel(&g_app);  // one encoder per tick, round robin
-        if (diag < BOARD_WHEELS) app_diag_result(&g_app, diag, enc_read_diag(diag));
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
+        // Supervision and one encoder's diagnostics register, outside step_max_us.
+        app_supervise(&g_app);
+        const uint8_t diag = app_diag_wheel(&g_app);  // one encoder per tick, round robin
+        if (diag < BOARD_WHEELS) app_diag_result(&g_app, diag, enc_read_diag(diag));
         BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TELEM_MARK = 0;

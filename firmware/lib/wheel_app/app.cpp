@@ -376,9 +376,6 @@ static void app_cal_tick(app_state* a, bool failsafe) {
 
 void app_setpoints_tick(app_state* a) {
     const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
-    if (a->ctl.closed) {
-        for (uint8_t i = 0; i < APP_WHEELS; i++) app_guard(a, i);
-    }
     if (a->cal_wheel != APP_NO_WHEEL) app_cal_tick(a, failsafe);
     const int32_t step = (failsafe || a->stopping) ? a->ctl.decel : a->ctl.accel;
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
@@ -428,6 +425,12 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     app_words_io io = {enc_words};
     app_control_step_io(a, io);
     app_setpoints_tick(a);
+    app_supervise(a);
+}
+
+void app_supervise(app_state* a) {
+    if (!a->ctl.closed) return;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) app_guard(a, i);
 }
 
 int32_t app_speed_mrad_s(const app_state* a, uint8_t i) {

@@ -121,12 +121,17 @@ void app_rx_byte(app_state* a, uint8_t byte);
 void app_poll(app_state* a);
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
-// Runs the step (app_step.h) and then app_setpoints_tick, as the board does every tick.
+// Runs the step (app_step.h), app_setpoints_tick and app_supervise, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 
 // Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
 // supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
 void app_setpoints_tick(app_state* a);
+
+// Sensor and motion supervision of the tick's step (grd.h), in closed loop: faults latch for the
+// next step. The board runs it after the step's time is taken (about 1,500 cycles for four
+// wheels: not part of step_max_us), before the next tick.
+void app_supervise(app_state* a);
 
 // Diagnostics registers, read round robin in the tick's spare time after the step: the wheel
 // whose register to read now (APP_WHEELS: none, open loop), then its reply word.
