@@ -14,15 +14,7 @@ static int16_t cal_tolerance(const cal_state* c) {
 }
 
 void cal_begin(cal_state* c, uint8_t pole_pairs) {
-    c->field = 0;
-    c->out = 0;
-    c->prev_angle = 0;
-    c->ticks = 0;
-    c->sum = 0;
-    c->ref = 0;
-    c->a0 = 0;
-    c->a1 = 0;
-    c->phase = CAL_ALIGN;
+    *c = cal_state();  // CAL_ALIGN, field 0, nothing measured
     c->pole_pairs = pole_pairs;
 }
 

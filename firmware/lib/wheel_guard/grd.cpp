@@ -17,14 +17,7 @@ static int32_t grd_abs(int32_t x) {
 }
 
 void grd_reset(grd_wheel* g) {
-    g->prev_angle = 0;
-    g->same_ticks = 0;
-    g->stall_ticks = 0;
-    g->runaway_ticks = 0;
-    g->over_ticks = 0;
-    g->stall_from_q8 = 0;
-    g->runaway_from_q8 = 0;
-    g->diag_bad = 0;
+    *g = grd_wheel();  // all counters and speeds 0
 }
 
 uint16_t grd_sensor(grd_wheel* g, const grd_limits* l, uint16_t angle, bool fresh, bool driven) {
