@@ -297,7 +297,7 @@ def test_run_reports_each_latched_fault_before_clearing_only_those(fake):
     assert cleared == ["HEARTBEAT_LOST", "PARAMS_DEFAULTED"]
     assert fake.cleared == [latched]
     assert lines == [
-        "wheel board: HEARTBEAT_LOST latched before the run: " + wp.FAULTS[0][1],
-        "wheel board: PARAMS_DEFAULTED latched before the run: " + wp.FAULTS[6][1],
+        "wheel board: HEARTBEAT_LOST latched at connect: " + wp.FAULTS[0][1],
+        "wheel board: PARAMS_DEFAULTED latched at connect: " + wp.FAULTS[6][1],
         "wheel board: cleared HEARTBEAT_LOST, PARAMS_DEFAULTED",
     ]

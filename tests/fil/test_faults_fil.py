@@ -164,7 +164,7 @@ def test_defaulted_offsets_block_setpoints_until_calibrated_then_the_loop_works(
             with pytest.raises(DeviceError) as err:
                 board.set_speeds([20.0, 0.0, 0.0, 0.0])
             assert (err.value.name, err.value.detail) == ("OFFSET_UNCALIBRATED", 0)
-            offset = board.calibrate(0, save=False)
+            offset = board.calibrate(0, save=False, timeout_s=20.0)  # 2.8 s simulated
             # 150 degrees electrical at encoder zero: cmt_elec_angle = mech * 4 pp - offset reads
             # 0 where the rotor's electrical angle is 0, i.e. offset = -150 deg = 210 deg.
             expected = round(210 / 360 * 65536)

@@ -199,3 +199,27 @@ def test_ripple_and_lag_on_the_emulator_clock():
     steady = np.array(trace[500:])  # ramp done at 0.2 s, lag settled well before 0.5 s
     assert steady.max() == pytest.approx(21.0, abs=0.05)
     assert steady.min() == pytest.approx(19.0, abs=0.05)
+
+
+def test_gyrotens_wheels_calibrate_reports_and_clears_the_boot_fault_then_saves(capsys):
+    """The command against the emulated board: the boot's HEARTBEAT_LOST printed before it is
+    cleared, one line per calibrated wheel, then the save (the emulated board is calibrated: its
+    offsets stay 0)."""
+    from gyrohost.cli import main
+
+    device = WheelBoardEmulator().start()
+    try:
+        time.sleep(0.4)  # no host yet: HEARTBEAT_LOST latches after HEARTBEAT_MS (250 ms)
+        assert main(["wheels", "calibrate", device.slave_path, "--wheel", "1", "--wheel", "3"]) == 0
+    finally:
+        device.close()
+    out, err = capsys.readouterr()
+    assert err.splitlines() == [
+        "wheel board: HEARTBEAT_LOST latched at connect: " + wp.FAULTS[0][1],
+        "wheel board: cleared HEARTBEAT_LOST",
+    ]
+    assert out.splitlines() == [
+        "wheel 1: ENC_OFFSET_M1 = 0 (0.0 deg)",
+        "wheel 3: ENC_OFFSET_M3 = 0 (0.0 deg)",
+        "saved to EEPROM",
+    ]

@@ -29,7 +29,7 @@ def clear_reported_faults(board, report: Callable[[str], None]) -> list[str]:
     """
     latched = board.latched_faults()
     for name in latched:
-        report(f"wheel board: {name} latched before the run: {wp.fault_text(name)}")
+        report(f"wheel board: {name} latched at connect: {wp.fault_text(name)}")
     cleared = board.clear_faults(latched)
     if cleared:
         report(f"wheel board: cleared {', '.join(cleared)}")
