@@ -87,6 +87,7 @@ class FakeBoard(threading.Thread):
         self.proto_version, self.silent = proto_version, silent
         self.params = {p.id: p.default for p in wp.PARAMS}
         self.speeds = [0, 0, 0, 0]
+        self.cleared: list[int] = []  # CLEAR_FAULTS masks received
         self.heartbeats: list[float] = []
         self.received: list[str] = []
         self.stop = threading.Event()
@@ -135,7 +136,16 @@ class FakeBoard(threading.Thread):
                 self.send("ERROR", req_id=msg.id, code=3, detail=bad[0])
             else:
                 self.speeds = sp
-        elif msg.name in ("STOP_ALL", "CLEAR_FAULTS", "PARAM_SAVE", "PARAM_DEFAULTS"):
+        elif msg.name == "CLEAR_FAULTS":
+            self.cleared.append(f["mask"])
+            self.send("ACK", req_id=msg.id)
+        elif msg.name == "CALIBRATE_ENC":  # wheel 3 counts backwards: REVERSED
+            if f["wheel"] == 3:
+                self.send("ERROR", req_id=msg.id, code=9, detail=3)
+            else:
+                self.params[wp.PARAM_BY_NAME[f"ENC_OFFSET_M{f['wheel']}"].id] = 1000 + f["wheel"]
+                self.send("ACK", req_id=msg.id)
+        elif msg.name in ("STOP_ALL", "PARAM_SAVE", "PARAM_DEFAULTS"):
             self.send("ACK", req_id=msg.id)
         elif msg.name == "PARAM_GET":
             self.send("PARAM_VALUE", param_id=f["param_id"], value=self.params[f["param_id"]])
@@ -244,5 +254,50 @@ def test_telemetry_queue_and_fault_events(fake):
         assert samples[0].omega_rad_s == pytest.approx((1.0, 2.0, 3.0, 4.0))
         with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST: no valid frame"):
             board.check_faults()
-        board.clear_faults()
+        board.clear_faults(board.faults)
         board.check_faults()
+
+
+def test_clear_faults_sends_only_the_named_bits(fake):
+    with wb.WheelBoard(fake.path) as board:
+        assert board.clear_faults([]) == []
+        assert board.clear_faults(["HEARTBEAT_LOST", "ENC_DIAG", "HEARTBEAT_LOST"]) == [
+            "HEARTBEAT_LOST",
+            "ENC_DIAG",
+        ]
+        with pytest.raises(wp.ProtocolError, match="unknown wheel-board fault names"):
+            board.clear_faults(["ENCODER_M9"])
+        board.get_param("MODE")  # a round trip: every earlier frame has been handled
+    assert fake.cleared == [1 | 1 << 10]
+
+
+def test_calibrate_returns_the_offset_saves_and_names_a_failure(fake):
+    with wb.WheelBoard(fake.path) as board:
+        assert board.calibrate(2) == 1002
+        assert fake.received[-1] == "PARAM_SAVE"
+        with pytest.raises(
+            wb.CalibrationError, match=r"wheel 3 failed: REVERSED \(the encoder counts down"
+        ):
+            board.calibrate(3)
+        with pytest.raises(ValueError, match="wheel 4 is not one of 0..3"):
+            board.calibrate(4)
+
+
+def test_run_reports_each_latched_fault_before_clearing_only_those(fake):
+    from gyrohost.run.wheel_faults import clear_reported_faults
+
+    lines: list[str] = []
+    latched = 1 << 0 | 1 << 6  # HEARTBEAT_LOST, PARAMS_DEFAULTED
+    with wb.WheelBoard(fake.path) as board:
+        threading.Timer(0.1, fake.send_telemetry, (0,), {"faults": latched}).start()
+        cleared = clear_reported_faults(board, lines.append)
+        # a fault latching after the report (RUNAWAY) is not in the mask: it stays latched
+        fake.send_telemetry(1, faults=latched | 1 << 12)
+        board.get_param("MODE")
+    assert cleared == ["HEARTBEAT_LOST", "PARAMS_DEFAULTED"]
+    assert fake.cleared == [latched]
+    assert lines == [
+        "wheel board: HEARTBEAT_LOST latched at connect: " + wp.FAULTS[0][1],
+        "wheel board: PARAMS_DEFAULTED latched at connect: " + wp.FAULTS[6][1],
+        "wheel board: cleared HEARTBEAT_LOST, PARAMS_DEFAULTED",
+    ]

@@ -36,7 +36,12 @@ def test_message_table_matches_firmware():
 
 @pytest.mark.parametrize(
     ("macro", "table"),
-    [("PROTO_FAULT", wp.FAULTS), ("PROTO_STATUS", wp.STATUS), ("PROTO_ERROR", wp.ERRORS)],
+    [
+        ("PROTO_FAULT", wp.FAULTS),
+        ("PROTO_STATUS", wp.STATUS),
+        ("PROTO_ERROR", wp.ERRORS),
+        ("PROTO_CAL", wp.CAL_FAILURES),
+    ],
 )
 def test_code_tables_match_firmware(macro, table):
     rows = def_rows(FW / "wheel_proto" / "proto_codes.def", macro)

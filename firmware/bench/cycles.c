@@ -142,15 +142,20 @@ static uint16_t enc_word(uint16_t angle) {
     return (ones & 1) ? (uint16_t)(w | 0x8000) : w;
 }
 
-/* The encoder's reply byte to the byte the firmware just sent (the command itself is ignored). */
+/* The encoder's reply byte to the byte the firmware just sent: the angle, or after a read of the
+ * diagnostics register (0x7FFD) that register (OCF set: a healthy sensor). */
 static uint8_t encoder_byte(uint8_t mosi) {
-    (void)mosi;
+    static uint16_t last_cmd[4], cmd;
+    static int enc;
     if (g_byte_index == 0) {
         uint8_t cs = g_avr->data[ADDR_PORTA] >> 4; /* active low, bit i = encoder i */
-        int odd = !(cs & 0x1) ? 0 : !(cs & 0x2) ? 1 : !(cs & 0x4) ? 0 : 1;
+        enc = !(cs & 0x1) ? 0 : !(cs & 0x2) ? 1 : !(cs & 0x4) ? 2 : 3;
         g_angle = (uint16_t)((g_avr->cycle / TICK_CYCLES) * 195u); /* 195 counts per ms */
-        if (odd) g_angle = (uint16_t)(0u - g_angle); /* wheels 1 and 3 turn backwards */
-        g_word = enc_word(g_angle);
+        if (enc & 1) g_angle = (uint16_t)(0u - g_angle); /* wheels 1 and 3 turn backwards */
+        g_word = enc_word(last_cmd[enc] == 0x7FFD ? 0x0100 : g_angle);
+        cmd = (uint16_t)(mosi << 8);
+    } else {
+        last_cmd[enc] = (uint16_t)(cmd | mosi);
     }
     uint8_t miso = g_byte_index == 0 ? (uint8_t)(g_word >> 8) : (uint8_t)g_word;
     g_byte_index ^= 1;
@@ -235,6 +240,11 @@ int main(int argc, char** argv) {
     p[0] = 9;                           /* HEARTBEAT_MS = 60000 */
     put_i32(p + 1, 60000);
     ntx += frame(0x06, p, 5, tx + ntx);
+    for (int i = 0; i < 4; i++) { /* ENC_OFFSET_Mi = 0: a blank EEPROM refuses closed loop */
+        p[0] = (uint8_t)(15 + i);
+        put_i32(p + 1, 0);
+        ntx += frame(0x06, p, 5, tx + ntx);
+    }
     for (int i = 0; i < 4; i++) put_i32(p + 4 * i, (i & 1) ? -74870 : 74870);
     ntx += frame(0x03, p, 16, tx + ntx); /* SET_SPEEDS 715 rpm */
 

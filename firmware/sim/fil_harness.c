@@ -21,11 +21,11 @@
  *     rotor speeds (rad/s) for a consumer such as the simulated rig's truth model.
  *
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
- * (one per line): "fault <motor> <mode>", "clear <motor>", "load <motor> <N*m>", "stats", "pwm",
- * "tick-stop" (Timer2's clock off: the firmware's control tick stops), "rx HEX" (bytes queued for
- * UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the same every PERIOD_US
- * of simulated time, COUNT times), "quit".
- * The harness never calls uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
+ * (one per line): "fault <motor> <mode>" (modes as --enc-fault), "clear <motor>", "load <motor>
+ * <N*m>", "stats", "pwm", "tick-stop" (Timer2's clock off: the firmware's control tick stops), "rx
+ * HEX" (bytes queued for UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the
+ * same every PERIOD_US of simulated time, COUNT times), "quit". The harness never calls
+ * uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
  */
 #include <errno.h>
 #include <getopt.h>
@@ -96,9 +96,12 @@ typedef enum {
     ENC_FAULT_HIGH,    /* no answer, MISO pulled high: reads 0xFFFF */
     ENC_FAULT_LOW,     /* no answer, MISO stuck low: reads 0x0000 */
     ENC_FAULT_PARITY,  /* angle with a wrong parity bit */
+    ENC_FAULT_FROZEN,  /* valid words, the angle frozen where the rotor was when injected */
+    ENC_FAULT_WEAK,    /* diagnostics register: magnet too weak (COMP_HIGH, AGC 255) */
 } enc_fault_t;
 
-static const char* const k_fault_names[] = {"none", "error", "high", "low", "parity"};
+static const char* const k_fault_names[] = {"none",   "error",  "high", "low",
+                                            "parity", "frozen", "weak"};
 
 typedef struct {
     /* motor model */
@@ -116,6 +119,7 @@ typedef struct {
     uint16_t last_cmd;  /* command latched at the last complete frame */
     int error_flag;     /* sticky error flag as in the chip's error register */
     volatile int fault; /* enc_fault_t, may be changed from the stdin thread */
+    uint16_t frozen;    /* the angle code of ENC_FAULT_FROZEN */
 } motor_t;
 
 typedef struct {
@@ -238,12 +242,13 @@ static uint16_t encoder_answer(motor_t* m) {
     if (cmd == 0x0000) {
         data = 0; /* NOP */
     } else if ((cmd & 0x3FFF) == 0x3FFF && (cmd & 0x4000)) {
-        data = encoder_angle_code(m);
+        data = m->fault == ENC_FAULT_FROZEN ? m->frozen : encoder_angle_code(m);
     } else if ((cmd & 0x3FFF) == 0x0001 && (cmd & 0x4000)) {
         data = m->error_flag ? 0x0001 : 0; /* clear error flag register: reading clears it */
         m->error_flag = 0;
     } else if ((cmd & 0x3FFF) == 0x3FFD && (cmd & 0x4000)) {
-        data = 0x0100; /* diagnostics: OCF (offset compensation finished), no COF/COMP */
+        /* diagnostics: OCF (offset compensation finished), no COF/COMP; or weak: COMP_HIGH */
+        data = m->fault == ENC_FAULT_WEAK ? 0x09FF : 0x0100;
     } else {
         data = 0;
         m->error_flag = 1; /* invalid command */
@@ -713,6 +718,7 @@ static void* stdin_thread(void* arg) {
         } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
             g_stats_request = 1;
         } else if (n == 3 && strcmp(cmd, "fault") == 0 && motor_ok && parse_fault(mode) >= 0) {
+            g_mot[motor].frozen = encoder_angle_code(&g_mot[motor]);
             g_mot[motor].fault = parse_fault(mode);
             printf("OK fault %d %s\n", motor, mode);
         } else if (n == 2 && strcmp(cmd, "clear") == 0 && motor_ok) {
@@ -760,7 +766,7 @@ static void usage(const char* prog) {
             "      --uart-wait-max S  longest wall wait for the pty reader when the UART FIFO is\n"
             "                         full; then output is lost until it drains (default 2)\n"
             "  -e, --enc-fault M:MODE encoder M (0..3) fault from start: "
-            "error|high|low|parity\n"
+            "error|high|low|parity|frozen|weak\n"
             "      --kt NM_PER_V      torque per volt of applied vector (default %g)\n"
             "      --ke V_S_PER_RAD   back-EMF per rad/s, active while enabled (default %g)\n"
             "      --inertia KGM2     rotor + wheel inertia (default %g)\n"
@@ -821,7 +827,9 @@ static void parse_enc_fault(const char* s) {
     char mode[16] = "";
     if (sscanf(s, "%d:%15s", &motor, mode) != 2 || motor < 0 || motor >= N_MOTORS ||
         parse_fault(mode) < 0) {
-        fprintf(stderr, "fil_harness: bad --enc-fault '%s' (want M:error|high|low|parity)\n", s);
+        fprintf(stderr,
+                "fil_harness: bad --enc-fault '%s' (want M:error|high|low|parity|frozen|weak)\n",
+                s);
         exit(2);
     }
     g_mot[motor].fault = parse_fault(mode);

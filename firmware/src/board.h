@@ -59,6 +59,10 @@
 // PB2 MOSI (D51), PB3 MISO (D50). Chip selects M0..M3: PA4..PA7 (D26..D29), active low.
 #define BOARD_SPI_DDR DDRB
 #define BOARD_SPI_OUT_PINS (_BV(PB0) | _BV(PB1) | _BV(PB2))
+// MISO pulled up: a line no sensor drives (cable off, sensor dead) reads 0xFFFF, whose error
+// flag the step counts as a bad word, instead of a floating level.
+#define BOARD_SPI_PORT PORTB
+#define BOARD_SPI_MISO_PULLUP _BV(PB3)
 #define BOARD_SPI_SPCR (_BV(SPE) | _BV(MSTR) | _BV(CPHA))
 #define BOARD_SPI_SPSR _BV(SPI2X)
 #define BOARD_CS_PORT PORTA

@@ -12,6 +12,11 @@
 
 #define BOARD_INLINE inline __attribute__((always_inline))
 
+// The diagnostics register (0x3FFD) of one encoder, 0..3: a read command frame, then a read-angle
+// frame whose reply is the register (about 10 us; after the step, in the tick's spare time). The
+// next step's command frame is answered with the angle as usual.
+uint16_t enc_read_diag(uint8_t wheel);
+
 // Six NOPs: 375 ns at 16 MHz (AS5048A: >= 350 ns).
 static BOARD_INLINE void board_wait_350ns() {
     __asm__ __volatile__("nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop" ::);

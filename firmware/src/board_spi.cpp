@@ -3,6 +3,7 @@
 #include "board.h"
 #include "board_io.h"
 #include "enc.h"
+#include "grd.h"
 
 // AS5048A timing: CSn high >= 350 ns between frames, CSn low to first clock >= 350 ns.
 // Six NOPs are 375 ns at 16 MHz.
@@ -14,6 +15,7 @@ void spi_init() {
     BOARD_CS_PORT |= BOARD_CS_MASK;  // all chip selects high (inactive)
     BOARD_CS_DDR |= BOARD_CS_MASK;
     BOARD_SPI_DDR |= BOARD_SPI_OUT_PINS;
+    BOARD_SPI_PORT |= BOARD_SPI_MISO_PULLUP;
     SPCR = BOARD_SPI_SPCR;
     SPSR = BOARD_SPI_SPSR;
 }
@@ -45,4 +47,10 @@ void enc_clear_errors(uint8_t mask) {
     for (uint8_t cs = static_cast<uint8_t>(1u << BOARD_CS_SHIFT); mask; cs <<= 1, mask >>= 1) {
         if (mask & 1u) (void)enc_frame(cs, ENC_CMD_CLEAR_ERROR);
     }
+}
+
+uint16_t enc_read_diag(uint8_t wheel) {
+    const uint8_t cs = static_cast<uint8_t>(1u << (BOARD_CS_SHIFT + wheel));
+    (void)enc_frame(cs, GRD_CMD_READ_DIAG);
+    return enc_frame(cs, ENC_CMD_READ_ANGLE);  // the reply to the read: the register
 }

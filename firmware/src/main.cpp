@@ -125,6 +125,10 @@ int main() {
         // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.
         if (uart_take_stop_request()) app_stop_all_early(&g_app);
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
+        // Supervision and one encoder's diagnostics register, outside step_max_us.
+        app_supervise(&g_app);
+        const uint8_t diag = app_diag_wheel(&g_app);  // one encoder per tick, round robin
+        if (diag < BOARD_WHEELS) app_diag_result(&g_app, diag, enc_read_diag(diag));
         BOARD_TELEM_MARK = 1;
         app_telemetry(&g_app, t_ms * 1000u);
         BOARD_TELEM_MARK = 0;

@@ -26,6 +26,7 @@ COMMANDS = [
     "servo-setup",
     "sil",
     "sweep",
+    "wheels",
 ]
 
 

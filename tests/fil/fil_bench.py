@@ -17,7 +17,7 @@ import math
 import sys
 import time
 
-from filharness import Harness, firmware_elf, parse_kv, stats_rpm
+from filharness import Harness, firmware_elf, parse_kv, set_offsets, stats_rpm
 
 from gyrohost.drivers.wheelboard import WheelBoard
 
@@ -34,6 +34,7 @@ def bench_cycles(seconds: float) -> None:
         board = WheelBoard(h.pty)
         try:
             board.connect()
+            set_offsets(board)
             board.set_speeds([TARGET_RAD_S] * 4)
             while float(h.latest_stats()["t_s"]) < 3.0:  # ramp and settle first
                 pass
@@ -91,6 +92,7 @@ def bench_step(accel: int | None, duration_s: float) -> None:
         board = WheelBoard(h.pty, on_telemetry=tel.append)
         try:
             board.connect()
+            set_offsets(board)
             if accel is not None:
                 board.set_param("ACCEL_RAD_S2", accel)
             used_accel = board.get_param("ACCEL_RAD_S2")

@@ -34,6 +34,14 @@ AVR_BUILD = BUILD / "avr"
 os.environ.setdefault(simavr.FIRMWARE_BUILD_ENV, str(BUILD))
 
 
+def set_offsets(board) -> None:
+    """Set every wheel's ENC_OFFSET to 0, the harness's electrical zero with its default
+    ``--elec-offset 0``: a blank EEPROM leaves the offsets unset, which refuses closed-loop
+    setpoints (OFFSET_UNCALIBRATED)."""
+    for w in range(4):
+        board.set_param(f"ENC_OFFSET_M{w}", 0)
+
+
 def firmware_elf() -> Path:
     """The wheel-board firmware ELF in :data:`AVR_BUILD` (exactly one ``*.elf`` expected)."""
     return simavr.firmware_elf(AVR_BUILD)
@@ -47,6 +55,7 @@ __all__ = [
     "ROOT",
     "SELFTEST_ELF",
     "Harness",
+    "set_offsets",
     "HarnessError",
     "firmware_elf",
     "parse_kv",

@@ -13,7 +13,7 @@ import time
 
 import pytest
 import serial
-from filharness import Harness, firmware_elf, stats_rpm
+from filharness import Harness, firmware_elf, set_offsets, stats_rpm
 
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import DeviceError, WheelBoard
@@ -38,6 +38,7 @@ def rig(harness):
     board = WheelBoard(harness.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
+        set_offsets(board)
         yield harness, board
     finally:
         board.close()
@@ -154,6 +155,7 @@ def test_heartbeat_loss_ramps_down_and_reports(harness):
     board = WheelBoard(h.pty, heartbeat_period_s=3600, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
+        set_offsets(board)
         board.set_speeds([TARGET_RAD_S] * 4)
         # any valid frame counts as a heartbeat: GET_STATS between the checks
         wait_true_rpm(h, lambda rpm: all(r > 700 for r in rpm), ping=board.stats)
@@ -242,7 +244,7 @@ def test_encoder_fault_cleared_after_the_line_recovers(rig):
     keep_alive(board, 0.3)
     assert "ENCODER_M2" in board.last_telemetry.fault_names
     assert h.command("clear 2") == "OK clear 2"
-    board.clear_faults()
+    board.clear_faults(board.faults)
     board.set_speeds([TARGET_RAD_S] * 4)
     keep_alive(board, 0.3)
     assert "ENCODER_M2" not in board.last_telemetry.fault_names
@@ -278,7 +280,7 @@ def test_encoder_error_flag_fault_recovers_after_clear(rig):
     assert "ENCODER_M1" in board.last_telemetry.fault_names
     assert h.command("clear 1") == "OK clear 1"
     keep_alive(board, 0.1)
-    board.clear_faults()
+    board.clear_faults(board.faults)
     board.set_speeds([TARGET_RAD_S] * 4)
     keep_alive(board, 0.3)
     assert "ENCODER_M1" not in board.last_telemetry.fault_names
@@ -316,6 +318,7 @@ def test_stop_all_from_715_rpm_ends_without_reversing():
         board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
         try:
             board.connect()
+            set_offsets(board)
             board.set_speeds([s * TARGET_RAD_S for s in signs])
             wait_true_rpm(h, lambda rpm: all(abs(abs(r) - 715) < 0.02 * 715 for r in rpm))
             board.stop_all()

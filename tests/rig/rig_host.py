@@ -44,7 +44,8 @@ def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict
     samples = reads = servo_errors = 0
     try:
         wheels.connect()
-        wheels.clear_faults()  # HEARTBEAT_LOST latches at boot when no host was there yet
+        # HEARTBEAT_LOST latches at boot when no host was there yet
+        wheels.clear_faults(wheels.latched_faults())
         wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
         bus.configure()
         start = next_s = time.monotonic()

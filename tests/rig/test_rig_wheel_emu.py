@@ -92,7 +92,7 @@ def test_heartbeat_loss_ramps_down_and_latches(board):
     assert err.value.name == "FAULT_ACTIVE"
     client.heartbeat_period_s = 0.02
     time.sleep(1.05)  # the beater wakes from its 1 s wait and beats every 20 ms again
-    client.clear_faults()
+    assert client.clear_faults(["HEARTBEAT_LOST"]) == ["HEARTBEAT_LOST"]
     client.set_speeds([1.0, 0.0, 0.0, 0.0])
     assert wait_for(lambda: abs(device.wheel_speeds_rad_s()[0] - 1.0) < 0.01)
     # telemetry carries the 14-bit encoder's quantisation: +-0.024 rad/s measured at 1 rad/s
@@ -148,7 +148,7 @@ def test_receiver_rules_reply_like_the_firmware():
             device.handle_rx(wp.encode_raw(0x03, b"\x00" * 3), 0.0)  # SET_SPEEDS, 3 bytes
             device.handle_rx(wp.encode_raw(0x82, b"\x00" * 33), 0.0)  # a device-to-host id
             device.handle_rx(wp.encode_raw(0x42, b""), 0.0)  # not in the table
-            device.handle_rx(wp.encode("PARAM_GET", param_id=19), 0.0)
+            device.handle_rx(wp.encode("PARAM_GET", param_id=len(wp.PARAMS)), 0.0)
             device.handle_rx(wp.encode("PARAM_SET", param_id=9, value=5), 0.0)  # below 20 ms
             time.sleep(0.05)
             replies = decoder.feed(os.read(host, 4096))
@@ -161,7 +161,7 @@ def test_receiver_rules_reply_like_the_firmware():
         ("SET_SPEEDS", "BAD_LENGTH", 3),
         ("TELEMETRY", "UNKNOWN_MESSAGE", 0x82),
         (0x42, "UNKNOWN_MESSAGE", 0x42),
-        ("PARAM_GET", "UNKNOWN_PARAM", 19),
+        ("PARAM_GET", "UNKNOWN_PARAM", len(wp.PARAMS)),
         ("PARAM_SET", "PARAM_OUT_OF_RANGE", 9),
     ]
     assert device.stats["bad_length"] == 1 and device.stats["unknown_id"] == 2
@@ -199,3 +199,27 @@ def test_ripple_and_lag_on_the_emulator_clock():
     steady = np.array(trace[500:])  # ramp done at 0.2 s, lag settled well before 0.5 s
     assert steady.max() == pytest.approx(21.0, abs=0.05)
     assert steady.min() == pytest.approx(19.0, abs=0.05)
+
+
+def test_gyrotens_wheels_calibrate_reports_and_clears_the_boot_fault_then_saves(capsys):
+    """The command against the emulated board: the boot's HEARTBEAT_LOST printed before it is
+    cleared, one line per calibrated wheel, then the save (the emulated board is calibrated: its
+    offsets stay 0)."""
+    from gyrohost.cli import main
+
+    device = WheelBoardEmulator().start()
+    try:
+        time.sleep(0.4)  # no host yet: HEARTBEAT_LOST latches after HEARTBEAT_MS (250 ms)
+        assert main(["wheels", "calibrate", device.slave_path, "--wheel", "1", "--wheel", "3"]) == 0
+    finally:
+        device.close()
+    out, err = capsys.readouterr()
+    assert err.splitlines() == [
+        "wheel board: HEARTBEAT_LOST latched at connect: " + wp.FAULTS[0][1],
+        "wheel board: cleared HEARTBEAT_LOST",
+    ]
+    assert out.splitlines() == [
+        "wheel 1: ENC_OFFSET_M1 = 0 (0.0 deg)",
+        "wheel 3: ENC_OFFSET_M3 = 0 (0.0 deg)",
+        "saved to EEPROM",
+    ]

@@ -30,8 +30,13 @@ static void app_send_param(app_state* a, uint8_t id) {
     app_send(a, PROTO_ID_PARAM_VALUE, p, sizeof p);
 }
 
+static uint8_t app_cal_bit(const app_state* a) {
+    return a->cal_wheel < APP_WHEELS ? static_cast<uint8_t>(1u << a->cal_wheel) : 0;
+}
+
+// The calibrated wheel runs open loop at the calibration's field angle (run, not looping).
 static void app_update_run_mask(app_state* a) {
-    uint8_t m = 0;
+    uint8_t m = app_cal_bit(a);
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
         if (a->w[i].sp_mrad_s != 0 || a->w[i].target_mrad_s != 0)
             m |= static_cast<uint8_t>(1u << i);
@@ -48,6 +53,7 @@ static void app_reset_wheel(app_wheel* w) {
     w->ol_phase = 0;
     w->drive_q15 = 0;
     w->stop_ticks = 0;
+    grd_reset(&w->grd);
 }
 
 static void app_load_ctl(app_state* a) {
@@ -68,6 +74,14 @@ static void app_load_ctl(app_state* a) {
     c->heartbeat_ms = static_cast<uint16_t>(v[PRM_HEARTBEAT_MS]);
     c->open_loop_drive = static_cast<int16_t>(v[PRM_OPEN_LOOP_DRIVE_Q15]);
     c->closed = v[PRM_MODE] == 0 ? 1 : 0;
+    c->loop_mask = c->closed ? static_cast<uint8_t>(FLT_ALL_WHEELS & ~app_cal_bit(a)) : 0;
+    grd_limits* g = &c->grd;
+    g->drive_min_q15 = static_cast<int16_t>(c->gains.out_max / 2);
+    g->fault_ticks = static_cast<uint16_t>(v[PRM_MOTION_FAULT_MS]);
+    g->dead_ticks = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
+    g->stall_q8 = spd_mrad_s_to_q8(v[PRM_STALL_SPEED_MRAD_S]);
+    g->margin_q8 = spd_mrad_s_to_q8(v[PRM_RUNAWAY_MARGIN_MRAD_S]);
+    g->over_q8 = spd_mrad_s_to_q8(v[PRM_SPEED_MAX_MRAD_S] + v[PRM_RUNAWAY_MARGIN_MRAD_S]);
     c->spd_k = spd_gain(static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
     c->enc_fault_limit = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
 }
@@ -88,7 +102,13 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->enc_clear = 0;
     a->run_mask = 0;
     a->stops_ahead = 0;
-    if (!prm_init(&a->prm, ee)) boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
+    a->cal_wheel = APP_NO_WHEEL;
+    a->diag_next = 0;
+    a->uncal_mask = 0;
+    if (!prm_init(&a->prm, ee)) {
+        boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
+        a->uncal_mask = FLT_ALL_WHEELS;
+    }
     app_load_ctl(a);
     flt_set(&a->flt, boot_faults);
 }
@@ -101,12 +121,20 @@ static void app_on_set_speeds(app_state* a, const uint8_t* p) {
         app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
         return;
     }
+    if (a->cal_wheel != APP_NO_WHEEL) {
+        app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_BUSY, a->cal_wheel);
+        return;
+    }
     int32_t vmax = a->prm.v[PRM_SPEED_MAX_MRAD_S];
     int32_t sp[APP_WHEELS];
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
         sp[i] = proto_get_i32(&p[4 * i]);
         if (sp[i] > vmax || sp[i] < -vmax) {  // whole message refused, nothing changes
             app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_SETPOINT_ABOVE_MAX, i);
+            return;
+        }
+        if (sp[i] != 0 && a->ctl.closed && (a->uncal_mask & (1u << i))) {
+            app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_OFFSET_UNCALIBRATED, i);
             return;
         }
     }
@@ -130,6 +158,9 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
         app_send_error(a, PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, id);
     } else {
         app_load_ctl(a);
+        if (id >= PRM_ENC_OFFSET_M0 && id <= PRM_ENC_OFFSET_M3) {
+            a->uncal_mask &= static_cast<uint8_t>(~(1u << (id - PRM_ENC_OFFSET_M0)));
+        }
         if (structural) {
             for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
             app_update_run_mask(a);
@@ -138,7 +169,43 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
     }
 }
 
+// End the calibration: store the offset (CAL_DONE) and ACK, or answer the failure's reason.
+static void app_cal_end(app_state* a, uint8_t outcome, uint16_t offset16) {
+    const uint8_t i = a->cal_wheel;
+    a->cal_wheel = APP_NO_WHEEL;
+    app_reset_wheel(&a->w[i]);
+    if (outcome == CAL_DONE) {
+        (void)prm_set(&a->prm, static_cast<uint8_t>(PRM_ENC_OFFSET_M0 + i), offset16);
+        a->uncal_mask &= static_cast<uint8_t>(~(1u << i));
+    }
+    app_load_ctl(a);
+    app_update_run_mask(a);
+    if (outcome == CAL_DONE) {
+        app_send_ack(a, PROTO_ID_CALIBRATE_ENC);
+    } else {
+        app_send_error(a, PROTO_ID_CALIBRATE_ENC, PROTO_ERR_CALIBRATION_FAILED, outcome);
+    }
+}
+
+static void app_on_calibrate(app_state* a, uint8_t wheel) {
+    if (wheel >= APP_WHEELS) {
+        app_send_error(a, PROTO_ID_CALIBRATE_ENC, PROTO_ERR_CALIBRATION_FAILED,
+                       PROTO_CAL_BAD_WHEEL);
+    } else if (flt_blocks_setpoints(&a->flt)) {
+        app_send_error(a, PROTO_ID_CALIBRATE_ENC, PROTO_ERR_FAULT_ACTIVE, wheel);
+    } else if (!a->ctl.closed || a->enable_mask || a->run_mask || a->prm.saving) {
+        app_send_error(a, PROTO_ID_CALIBRATE_ENC, PROTO_ERR_BUSY, wheel);
+    } else {
+        a->cal_wheel = wheel;  // ACK or ERROR when it ends (app_setpoints_tick)
+        cal_begin(&a->cal, a->ctl.pole_pairs);
+        app_reset_wheel(&a->w[wheel]);
+        app_load_ctl(a);
+        app_update_run_mask(a);
+    }
+}
+
 void app_stop_all(app_state* a) {
+    if (a->cal_wheel != APP_NO_WHEEL) app_cal_end(a, PROTO_CAL_INTERRUPTED, 0);
     for (uint8_t i = 0; i < APP_WHEELS; i++) a->w[i].target_mrad_s = 0;
     a->stopping = 1;
     app_update_run_mask(a);
@@ -168,15 +235,12 @@ static void app_on_simple(app_state* a, uint8_t id) {
                 app_send_error(a, id, PROTO_ERR_BUSY, 0);
             } else {
                 prm_defaults(&a->prm);
+                a->uncal_mask = FLT_ALL_WHEELS;
                 app_load_ctl(a);
                 for (uint8_t i = 0; i < APP_WHEELS; i++) app_reset_wheel(&a->w[i]);
                 app_update_run_mask(a);
                 app_send_ack(a, id);
             }
-            break;
-        case PROTO_ID_CLEAR_FAULTS:
-            flt_clear(&a->flt);
-            app_send_ack(a, id);
             break;
         default:
             break;
@@ -227,8 +291,15 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
         case PROTO_ID_STOP_ALL:
         case PROTO_ID_PARAM_SAVE:
         case PROTO_ID_PARAM_DEFAULTS:
-        case PROTO_ID_CLEAR_FAULTS:
             app_on_simple(a, f->id);
+            break;
+        case PROTO_ID_CLEAR_FAULTS:
+            flt_clear(&a->flt, proto_get_u16(f->payload));
+            for (uint8_t i = 0; i < APP_WHEELS; i++) grd_reset(&a->w[i].grd);
+            app_send_ack(a, f->id);
+            break;
+        case PROTO_ID_CALIBRATE_ENC:
+            app_on_calibrate(a, f->payload[0]);
             break;
         default:  // a device-to-host id sent to the device
             a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
@@ -281,8 +352,43 @@ void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
+// Supervision of wheel i after its step (grd.h): the faults latch for the next step.
+static void app_guard(app_state* a, uint8_t i) {
+    app_wheel* w = &a->w[i];
+    const uint8_t bit = static_cast<uint8_t>(1u << i);
+    const grd_limits* g = &a->ctl.grd;
+    const bool looping = (a->enable_mask & a->ctl.loop_mask & bit) != 0;
+    const int16_t drive = w->drive_q15;
+    const bool driven = looping && (drive >= g->drive_min_q15 || drive <= -g->drive_min_q15);
+    const bool fresh = w->spd.primed && !w->spd.missed;
+    const uint16_t sensor = grd_sensor(&w->grd, g, w->spd.last_angle, fresh, driven);
+    if (sensor) flt_set(&a->flt, static_cast<uint16_t>(sensor | (PROTO_FAULT_ENCODER_M0 << i)));
+    const uint16_t motion =
+        grd_motion(&w->grd, g, looping, w->pi.saturated, drive, spd_q8(&w->spd), w->sp_q8);
+    if (motion) flt_set(&a->flt, motion);
+}
+
+static void app_cal_tick(app_state* a, bool failsafe) {
+    const uint8_t i = a->cal_wheel;
+    uint16_t offset16 = 0;
+    uint8_t outcome;
+    if (flt_wheel_disabled(&a->flt, i)) {
+        outcome = PROTO_CAL_ENCODER;
+    } else if (failsafe) {
+        outcome = PROTO_CAL_INTERRUPTED;
+    } else {
+        outcome = cal_tick(&a->cal, a->w[i].spd.last_angle, &offset16);
+    }
+    if (outcome == CAL_RUNNING) {
+        a->w[i].ol_phase = static_cast<uint32_t>(a->cal.out) << 16;
+    } else {
+        app_cal_end(a, outcome, offset16);
+    }
+}
+
 void app_setpoints_tick(app_state* a) {
     const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
+    if (a->cal_wheel != APP_NO_WHEEL) app_cal_tick(a, failsafe);
     const int32_t step = (failsafe || a->stopping) ? a->ctl.decel : a->ctl.accel;
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
         app_wheel* w = &a->w[i];
@@ -331,11 +437,29 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     app_words_io io = {enc_words};
     app_control_step_io(a, io);
     app_setpoints_tick(a);
+    app_supervise(a);
+}
+
+void app_supervise(app_state* a) {
+    if (!a->ctl.closed) return;
+    for (uint8_t i = 0; i < APP_WHEELS; i++) app_guard(a, i);
 }
 
 int32_t app_speed_mrad_s(const app_state* a, uint8_t i) {
     if (!a->ctl.closed) return a->w[i].sp_mrad_s;
     return spd_q8_to_mrad_s(spd_q8(&a->w[i].spd));
+}
+
+uint8_t app_diag_wheel(app_state* a) {
+    if (!a->ctl.closed) return APP_WHEELS;
+    const uint8_t i = a->diag_next;
+    a->diag_next = static_cast<uint8_t>((i + 1) & (APP_WHEELS - 1));
+    return i;
+}
+
+void app_diag_result(app_state* a, uint8_t wheel, uint16_t word) {
+    const uint16_t bits = grd_diag(&a->w[wheel].grd, word);
+    if (bits) flt_set(&a->flt, static_cast<uint16_t>(bits | (PROTO_FAULT_ENCODER_M0 << wheel)));
 }
 
 uint8_t app_status(const app_state* a) {

@@ -6,8 +6,10 @@
 
 #include <stdint.h>
 
+#include "cal.h"
 #include "cmt.h"
 #include "flt.h"
+#include "grd.h"
 #include "pi.h"
 #include "prm.h"
 #include "proto.h"
@@ -30,6 +32,7 @@
 #define APP_STOP_Q8 334L
 #define APP_STOP_TICKS 500u
 #define APP_NO_ANGLE 0xFFFFu  // brake_angle not yet taken (angles are 14 bits)
+#define APP_NO_WHEEL 0xFFu    // cal_wheel: no calibration running
 
 // Enqueue one whole frame for transmission; false if it does not fit (the frame is dropped).
 typedef bool (*app_tx_fn)(const uint8_t* data, uint8_t len);
@@ -59,6 +62,7 @@ struct app_wheel {
     int16_t drive_q15;      // signed drive level
     uint16_t stop_ticks;    // ticks braking at setpoint 0 (APP_STOP_TICKS)
     uint16_t brake_angle;   // encoder angle at the last braking tick, or APP_NO_ANGLE
+    grd_wheel grd;          // sensor and motion supervision
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change
@@ -71,7 +75,9 @@ struct app_ctl {
     uint16_t enc_offset[APP_WHEELS];
     uint16_t heartbeat_ms;
     int16_t open_loop_drive;
-    uint8_t closed;  // 1 closed loop on the encoders, 0 open loop
+    grd_limits grd;
+    uint8_t closed;     // 1 closed loop on the encoders, 0 open loop
+    uint8_t loop_mask;  // bit w: the speed loop drives wheel w (closed loop, not calibrating)
     uint8_t pole_pairs;
     uint8_t spd_k;  // speed filter gain, spd_gain(SPEED_FILTER_SHIFT)
     uint8_t enc_fault_limit;
@@ -98,6 +104,12 @@ struct app_state {
     // ENC_CMD_CLEAR_ERROR after the step, whose reply (the error register) comes in the next
     // step's command frame and is not used.
     uint8_t enc_clear;
+    // Bit w: wheel w's ENC_OFFSET is a default (PARAMS_DEFAULTED at boot, PARAM_DEFAULTS) and was
+    // neither set nor calibrated since: closed-loop setpoints other than 0 are refused.
+    uint8_t uncal_mask;
+    uint8_t cal_wheel;  // wheel being calibrated (CALIBRATE_ENC), or APP_NO_WHEEL
+    uint8_t diag_next;  // wheel whose diagnostics register is read next
+    cal_state cal;
 };
 
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
@@ -124,12 +136,22 @@ void app_stop_all_early(app_state* a);
 void app_poll(app_state* a);
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
-// Runs the step (app_step.h) and then app_setpoints_tick, as the board does every tick.
+// Runs the step (app_step.h), app_setpoints_tick and app_supervise, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 
 // Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
 // supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
 void app_setpoints_tick(app_state* a);
+
+// Sensor and motion supervision of the tick's step (grd.h), in closed loop: faults latch for the
+// next step. The board runs it after the step's time is taken (about 1,500 cycles for four
+// wheels: not part of step_max_us), before the next tick.
+void app_supervise(app_state* a);
+
+// Diagnostics registers, read round robin in the tick's spare time after the step: the wheel
+// whose register to read now (APP_WHEELS: none, open loop), then its reply word.
+uint8_t app_diag_wheel(app_state* a);
+void app_diag_result(app_state* a, uint8_t wheel, uint16_t word);
 
 // Send telemetry if this tick is due (TELEMETRY_DIV); t_us: time stamp of the step.
 void app_telemetry(app_state* a, uint32_t t_us);

@@ -49,8 +49,7 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
     if (closed) {
         // Error flag first (one bit test of the high byte), then the parity.
         const bool good = !(static_cast<uint8_t>(word >> 8) & 0x40u) && enc_even_parity(word);
-        const uint8_t fbit = static_cast<uint8_t>(PROTO_FAULT_ENCODER_M0 * bit);
-        disabled = flt_encoder_sample(&a->flt, &a->flt.enc_bad[I], fbit, good, c->enc_fault_limit);
+        disabled = flt_encoder_sample(&a->flt, &a->flt.enc_bad[I], bit, good, c->enc_fault_limit);
         if (good) {
             spd_update(&w->spd, word, c->spd_k);
         } else {
@@ -61,8 +60,9 @@ PORT_INLINE void app_wheel_step(app_state* a, Io& io, uint8_t& enable, uint16_t&
     io.next(1);
     uint16_t* pwm = a->pwm[I];
     const bool run = a->run_mask & bit;
-    if (disabled || !closed || (!run && !app_brake_on(w, a->enable_mask & bit))) {
-        if (!disabled && !closed && run) {
+    const bool loop = c->loop_mask & bit;  // 0 in open loop and while calibrating (cal.h)
+    if (disabled || !loop || (!run && !app_brake_on(w, a->enable_mask & bit))) {
+        if (!disabled && !loop && run) {
             app_wheel_open(c, w, pwm);
             enable |= bit;
         } else {

@@ -65,7 +65,10 @@ void prm_image_build(const prm_store* s, uint16_t seq, uint8_t* image) {
 }
 
 bool prm_image_parse(prm_store* s, const uint8_t* image, uint16_t* seq) {
-    if (image[0] != 'G' || image[1] != 'W' || image[3] != PRM_COUNT) return false;
+    const uint8_t count = image[3];
+    if (image[0] != 'G' || image[1] != 'W' || count < PRM_MIN_COUNT || count > PRM_COUNT) {
+        return false;
+    }
     uint8_t header;
     if (image[2] == PRM_LAYOUT_VERSION) {
         header = PRM_HEADER_SIZE;
@@ -74,14 +77,14 @@ bool prm_image_parse(prm_store* s, const uint8_t* image, uint16_t* seq) {
     } else {
         return false;
     }
-    const uint8_t body = static_cast<uint8_t>(header + 4 * PRM_COUNT);
+    const uint8_t body = static_cast<uint8_t>(header + 4 * count);
     if (crc16_ccitt(image, body) != proto_get_u16(&image[body])) return false;
     const uint8_t* values = &image[header];
-    for (uint8_t i = 0; i < PRM_COUNT; i++) {
+    for (uint8_t i = 0; i < count; i++) {
         if (!prm_in_range(i, proto_get_i32(&values[4 * i]))) return false;
     }
-    if (s) {
-        for (uint8_t i = 0; i < PRM_COUNT; i++) s->v[i] = proto_get_i32(&values[4 * i]);
+    if (s) {  // parameters the image predates keep their defaults
+        for (uint8_t i = 0; i < count; i++) s->v[i] = proto_get_i32(&values[4 * i]);
     }
     *seq = header == PRM_HEADER_SIZE ? proto_get_u16(&image[4]) : 0;
     return true;

@@ -3,7 +3,8 @@
 // Two EEPROM slots of one image each, at PRM_SLOT_ADDR(0) = 0 and PRM_SLOT_ADDR(1) = 128:
 //   0..1 magic 'G' 'W' | 2 layout version | 3 parameter count | 4..5 sequence number LE |
 //   6.. int32 values LE, id order | CRC-16/CCITT-FALSE of all preceding bytes, LE.
-// A slot with a wrong magic, version, count, CRC or any value out of range is ignored. At boot the
+// A slot with a wrong magic, version, count (PRM_MIN_COUNT..PRM_COUNT), CRC or any value out of
+// range is ignored. At boot the
 // valid slot with the newer sequence number (serial-number order, 16 bits) is loaded; with none
 // valid the defaults are used. A save writes the other slot with the next sequence number, so a
 // power cut at any byte of it leaves the slot loaded before intact: the next boot loads either
@@ -22,7 +23,10 @@ enum prm_id : uint8_t {
 #undef PRM
 };
 
-#define PRM_COUNT 19
+#define PRM_COUNT 22
+// Images of earlier firmware hold the first 19 parameters (up to ENC_OFFSET_M3): still loaded, the
+// parameters after them at their defaults, so an update keeps the calibrated offsets.
+#define PRM_MIN_COUNT 19
 #define PRM_LAYOUT_VERSION 3
 #define PRM_HEADER_SIZE 6
 #define PRM_IMAGE_SIZE (PRM_HEADER_SIZE + 4 * PRM_COUNT + 2)

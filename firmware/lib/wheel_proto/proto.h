@@ -42,6 +42,11 @@ enum proto_error_code : uint8_t {
 #include "proto_codes.def"
 };
 
+enum proto_cal_reason : uint8_t {
+#define PROTO_CAL(name, code, text) PROTO_CAL_##name = code,
+#include "proto_codes.def"
+};
+
 enum proto_rx_result : uint8_t {
     PROTO_RX_NONE = 0,    // byte consumed, no frame complete (or an empty frame: 0x00 0x00)
     PROTO_RX_FRAME,       // a valid frame is in *out

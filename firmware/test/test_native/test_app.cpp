@@ -16,32 +16,6 @@ namespace {
 
 using Bytes = std::vector<uint8_t>;
 
-// A GB54-1-like gimbal motor on a 12 V bus, voltage mode, resistance-dominated.
-struct Motor {
-    double theta = 0.3, omega = 0;
-    double j = 2e-4, b = 1e-5, kt = 0.05, r = 10.0, vbus = 12.0;
-    int pp = 7;
-    uint16_t word() const {
-        double turns = theta / (2 * M_PI);
-        long counts = static_cast<long>(floor((turns - floor(turns)) * 16384.0)) & 0x3FFF;
-        return enc_make_reply(static_cast<uint16_t>(counts), false);
-    }
-    void run(const uint16_t d[3], bool enabled, double dt) {
-        const int sub = 20;
-        double a = d[0] - 400.0, bb = d[1] - 400.0, c = d[2] - 400.0;
-        double alpha = (2.0 / 3.0) * (a - 0.5 * (bb + c)) * vbus / 800.0;
-        double beta = (bb - c) / sqrt(3.0) * vbus / 800.0;
-        for (int i = 0; i < sub; i++) {
-            double th_e = pp * theta;
-            double vq = enabled ? (-alpha * sin(th_e) + beta * cos(th_e)) : 0.0;
-            double iq = enabled ? (vq - kt * omega) / r : 0.0;
-            double tau = kt * iq - b * omega;
-            omega += tau / j * dt / sub;
-            theta += omega * dt / sub;
-        }
-    }
-};
-
 class AppTest : public ::testing::Test {
    protected:
     app_state app;
@@ -50,7 +24,10 @@ class AppTest : public ::testing::Test {
         FakeEeprom::busy_polls = 0;
         TxCapture::reset();
         app_init(&app, &FakeEeprom::iface, TxCapture::tx, 0);
-        app.flt.faults = 0;  // blank EEPROM set PARAMS_DEFAULTED; tests start clean
+        // A blank EEPROM set PARAMS_DEFAULTED and left the offsets uncalibrated: tests start
+        // clean (the tests of that rule set it up again).
+        app.flt.faults = 0;
+        app.uncal_mask = 0;
         TxCapture::frames.clear();
     }
     void send_wire(const Bytes& wire) {
@@ -75,6 +52,11 @@ class AppTest : public ::testing::Test {
         Bytes x = i32s({v});
         p.insert(p.end(), x.begin(), x.end());
         send(PROTO_ID_PARAM_SET, p);
+    }
+    void clear_faults(uint16_t mask = 0xFFFF) {
+        uint8_t p[2];
+        proto_put_u16(p, mask);
+        send(PROTO_ID_CLEAR_FAULTS, Bytes(p, p + 2));
     }
     void step(int n = 1) {
         const uint16_t zero[4] = {enc_make_reply(0, false), enc_make_reply(0, false),
@@ -172,7 +154,7 @@ TEST_F(AppTest, HeartbeatLossAtConfiguredTimeThenRampToZero) {
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
     EXPECT_EQ(app.w[0].target_mrad_s, 0);
-    send(PROTO_ID_CLEAR_FAULTS);
+    clear_faults();
     EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_CLEAR_FAULTS);
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     EXPECT_EQ(app.w[0].target_mrad_s, 1000);
@@ -355,7 +337,8 @@ TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
     auto tick = [&](int n) {
         for (int k = 0; k < n; k++) {
             angle = static_cast<uint16_t>((angle + 3) & 0x3FFF);
-            uint16_t words[4] = {enc_make_reply(0, false), chip.word(angle),
+            // Wheel 0 runs (its word turns: a word stuck at 0 while driven latches ENC_STUCK).
+            uint16_t words[4] = {enc_make_reply(angle, false), chip.word(angle),
                                  enc_make_reply(0, false), enc_make_reply(0, false)};
             app_control_step(&app, words);
             chip.after_step((app.enc_clear >> 1) & 1);
@@ -409,7 +392,7 @@ TEST_F(AppTest, PersistentErrorFlagFaultsAfterTheLimitThenRecoversAfterClear) {
     tick();
     EXPECT_FALSE(chip.flag);
     EXPECT_EQ(app.enc_clear, 0);
-    send(PROTO_ID_CLEAR_FAULTS);
+    clear_faults();
     send(PROTO_ID_SET_SPEEDS, i32s({0, 5000, 0, 0}));
     tick();
     EXPECT_EQ(app.flt.faults, 0);

@@ -220,28 +220,37 @@ TEST(PrmSlots, SequenceNumberWrapsInSerialOrder) {
     EXPECT_TRUE(ok);
 }
 
-TEST(PrmSlots, LayoutTwoImageAtSlotZeroLoadsAndIsKeptUntilReplaced) {
+// An image written by earlier firmware: layout version, PRM_MIN_COUNT values (up to ENC_OFFSET_M3),
+// sequence number or not. Written at slot 0; returns the set it holds with the later parameters at
+// their defaults.
+Set write_earlier_image(std::mt19937& rng, uint8_t version) {
     std::memset(g_mem, 0xFF, sizeof g_mem);
+    Set old = random_set(rng);
+    const int header = version == PRM_LEGACY_VERSION ? PRM_LEGACY_HEADER_SIZE : PRM_HEADER_SIZE;
+    uint8_t img[PRM_HEADER_SIZE + 4 * PRM_MIN_COUNT + 2] = {'G', 'W', version, PRM_MIN_COUNT};
+    if (header == PRM_HEADER_SIZE) proto_put_u16(&img[4], 7);
+    for (int i = 0; i < PRM_MIN_COUNT; i++) proto_put_i32(&img[header + 4 * i], old.v[i]);
+    const uint8_t body = static_cast<uint8_t>(header + 4 * PRM_MIN_COUNT);
+    proto_put_u16(&img[body], crc16_ccitt(img, body));
+    for (int i = 0; i < body + 2; i++) g_mem[i] = img[i];
+    for (int i = PRM_MIN_COUNT; i < PRM_COUNT; i++) old.v[i] = prm_default(static_cast<uint8_t>(i));
+    return old;
+}
+
+TEST(PrmSlots, EarlierImagesLoadWithTheNewParametersAtDefaultsAndAreKeptUntilReplaced) {
     g_cut = -1;
     std::mt19937 rng(5);
-    const Set old = random_set(rng);
-    // Layout 2: 'G' 'W' 2 count | values | CRC (82 bytes), as written by earlier firmware.
-    uint8_t img[PRM_LEGACY_HEADER_SIZE + 4 * PRM_COUNT + 2] = {'G', 'W', PRM_LEGACY_VERSION,
-                                                               PRM_COUNT};
-    for (int i = 0; i < PRM_COUNT; i++) {
-        proto_put_i32(&img[PRM_LEGACY_HEADER_SIZE + 4 * i], old.v[i]);
+    for (uint8_t version : {PRM_LEGACY_VERSION, PRM_LAYOUT_VERSION}) {
+        const Set old = write_earlier_image(rng, version);
+        bool ok = false;
+        EXPECT_TRUE(boot(&ok) == old) << int(version);  // the calibrated offsets kept
+        EXPECT_TRUE(ok);
+        const Set next = random_set(rng);
+        save(next);  // goes to slot 1: the earlier image stays as the previous set
+        EXPECT_EQ(g_mem[0], 'G');
+        EXPECT_EQ(g_mem[2], version);
+        EXPECT_TRUE(boot(&ok) == next);
     }
-    const uint8_t body = PRM_LEGACY_HEADER_SIZE + 4 * PRM_COUNT;
-    proto_put_u16(&img[body], crc16_ccitt(img, body));
-    for (unsigned i = 0; i < sizeof img; i++) g_mem[i] = img[i];
-    bool ok = false;
-    EXPECT_TRUE(boot(&ok) == old);
-    EXPECT_TRUE(ok);
-    const Set next = random_set(rng);
-    save(next);  // goes to slot 1, sequence 1: the layout-2 image stays as the previous set
-    EXPECT_EQ(g_mem[0], 'G');
-    EXPECT_EQ(g_mem[2], PRM_LEGACY_VERSION);
-    EXPECT_TRUE(boot(&ok) == next);
 }
 
 // The acceptance test of the two slots: a save interrupted at every one of its writes, with the

@@ -2,8 +2,11 @@
 #ifndef TEST_SUPPORT_H
 #define TEST_SUPPORT_H
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
+
+#include "enc.h"
 
 #include "prm.h"
 #include "proto.h"
@@ -49,6 +52,33 @@ struct TxCapture {
         frames.clear();
         full = false;
         proto_rx_init(&rx);
+    }
+};
+
+// A GB54-1-like gimbal motor on a 12 V bus, voltage mode, resistance-dominated.
+struct Motor {
+    double theta = 0.3, omega = 0;
+    double j = 2e-4, b = 1e-5, kt = 0.05, r = 10.0, vbus = 12.0;
+    int pp = 7;
+    double elec = 0;  // electrical angle at encoder zero, rad
+    uint16_t word() const {
+        double turns = theta / (2 * M_PI);
+        long counts = static_cast<long>(floor((turns - floor(turns)) * 16384.0)) & 0x3FFF;
+        return enc_make_reply(static_cast<uint16_t>(counts), false);
+    }
+    void run(const uint16_t d[3], bool enabled, double dt) {
+        const int sub = 20;
+        double a = d[0] - 400.0, bb = d[1] - 400.0, c = d[2] - 400.0;
+        double alpha = (2.0 / 3.0) * (a - 0.5 * (bb + c)) * vbus / 800.0;
+        double beta = (bb - c) / sqrt(3.0) * vbus / 800.0;
+        for (int i = 0; i < sub; i++) {
+            double th_e = pp * theta + elec;
+            double vq = enabled ? (-alpha * sin(th_e) + beta * cos(th_e)) : 0.0;
+            double iq = enabled ? (vq - kt * omega) / r : 0.0;
+            double tau = kt * iq - b * omega;
+            omega += tau / j * dt / sub;
+            theta += omega * dt / sub;
+        }
     }
 };
 

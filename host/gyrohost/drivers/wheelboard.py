@@ -54,12 +54,17 @@ class WheelFaultError(WheelBoardError):
 
     def __init__(self, faults: list[str]):
         self.faults = faults
-        texts = "; ".join(f"{n}: {_fault_text(n)}" for n in faults)
+        texts = "; ".join(f"{n}: {wp.fault_text(n)}" for n in faults)
         super().__init__(f"wheel board faults latched: {texts}")
 
 
-def _fault_text(name: str) -> str:
-    return next((t for n, t in wp.FAULTS.values() if n == name), "unknown fault")
+class CalibrationError(WheelBoardError):
+    """CALIBRATE_ENC failed; ``wheel``, ``reason`` (name) and ``text`` say why."""
+
+    def __init__(self, wheel: int, detail: int):
+        self.wheel = wheel
+        self.reason, self.text = wp.cal_failure(detail)
+        super().__init__(f"calibration of wheel {wheel} failed: {self.reason} ({self.text})")
 
 
 class WheelBoard:
@@ -186,9 +191,52 @@ class WheelBoard:
         """Ramp all wheels to zero at DECEL_RAD_S2."""
         self._request("STOP_ALL", {}, ("ACK",))
 
-    def clear_faults(self) -> None:
-        self._request("CLEAR_FAULTS", {}, ("ACK",))
-        self.faults = []
+    def clear_faults(self, names: Sequence[str]) -> list[str]:
+        """Clear the latched faults ``names``, and only those; returns them.
+
+        The caller names each fault it clears, after it has reported them to the user (a fault
+        that latched since stays latched and shows in the next telemetry). An empty list sends
+        nothing.
+        """
+        names = list(dict.fromkeys(names))
+        if not names:
+            return []
+        self._request("CLEAR_FAULTS", {"mask": wp.fault_mask(names)}, ("ACK",))
+        self.faults = [n for n in self.faults if n not in names]
+        return names
+
+    def latched_faults(self, timeout_s: float | None = None) -> list[str]:
+        """The faults of the next telemetry frame (not one received before this call)."""
+        timeout_s = timeout_s or self.reply_timeout_s
+        while not self.telemetry.empty():
+            self.telemetry.get_nowait()
+        try:
+            return self.telemetry.get(timeout=timeout_s).fault_names
+        except queue.Empty:
+            raise WheelBoardTimeout(
+                f"no wheel-board telemetry within {timeout_s:.3f} s (TELEMETRY_DIV 0?)"
+            ) from None
+
+    def calibrate(self, wheel: int, save: bool = True, timeout_s: float = 5.0) -> int:
+        """Find wheel ``wheel``'s electrical zero with its motor (CALIBRATE_ENC, about 1.8 s with
+        the wheel turning back and forth by one electrical turn); returns the new ENC_OFFSET.
+
+        With ``save`` the parameters are written to EEPROM afterwards. Raises
+        :class:`CalibrationError` naming the reason when the board finds the rotor did not
+        move, moved the wrong amount or the wrong way.
+        """
+        if not 0 <= wheel < wp.N_WHEELS:
+            raise ValueError(f"calibrate: wheel {wheel} is not one of 0..{wp.N_WHEELS - 1}")
+        try:
+            self._request("CALIBRATE_ENC", {"wheel": wheel}, ("ACK",), timeout_s=timeout_s)
+        except DeviceError as exc:
+            if exc.name != "CALIBRATION_FAILED":
+                raise
+            raise CalibrationError(wheel, exc.detail) from None
+        offset = self.get_param(f"ENC_OFFSET_M{wheel}")
+        if save:
+            self.save_params()
+        return offset
 
     def get_param(self, name: str) -> int:
         spec = self._param(name)

@@ -14,7 +14,7 @@ from typing import Any
 
 from gyrohost.errors import GyrohostError
 
-PROTO_VERSION = 2
+PROTO_VERSION = 3
 MAX_PAYLOAD = 40
 MAX_RAW = 1 + MAX_PAYLOAD + 2
 MAX_ENCODED = MAX_RAW + 1
@@ -64,8 +64,9 @@ MESSAGES: tuple[MessageSpec, ...] = (
     _msg("PARAM_SET", 0x06, "H2D", "<Bi", "param_id value"),
     _msg("PARAM_SAVE", 0x07, "H2D", "<", ""),
     _msg("PARAM_DEFAULTS", 0x08, "H2D", "<", ""),
-    _msg("CLEAR_FAULTS", 0x09, "H2D", "<", ""),
+    _msg("CLEAR_FAULTS", 0x09, "H2D", "<H", "mask"),
     _msg("GET_STATS", 0x0A, "H2D", "<", ""),
+    _msg("CALIBRATE_ENC", 0x0B, "H2D", "<B", "wheel"),
     _msg(
         "HELLO_REPLY",
         0x81,
@@ -105,8 +106,8 @@ FAULTS: dict[int, tuple[str, str]] = {
     **{
         1 + w: (
             f"ENCODER_M{w}",
-            f"encoder of wheel {w} gave bad words (parity or error flag) too often: "
-            f"wheel {w} disabled",
+            f"encoder of wheel {w} faulted (bad words; ENC_STUCK or ENC_DIAG when set name "
+            f"the cause): wheel {w} disabled",
         )
         for w in range(4)
     },
@@ -114,10 +115,31 @@ FAULTS: dict[int, tuple[str, str]] = {
     6: ("PARAMS_DEFAULTED", "EEPROM parameter image invalid at boot: defaults in use"),
     7: ("WATCHDOG_RESET", "the last reset was caused by the watchdog"),
     8: ("RX_OVERFLOW", "UART receive buffer overflowed: bytes were lost"),
+    9: (
+        "ENC_STUCK",
+        "an encoder read 0x0000 or 0x3FFF unchanged (MISO stuck low or high) while its wheel "
+        "was driven at half DRIVE_MAX or more: the ENCODER_Mw bit names the wheel",
+    ),
+    10: (
+        "ENC_DIAG",
+        "an encoder's diagnostics register reported offset compensation unfinished, CORDIC "
+        "overflow or a magnet too strong or too weak: the ENCODER_Mw bit names the wheel",
+    ),
+    11: (
+        "STALL",
+        "a wheel's drive was saturated with its speed below STALL_SPEED for MOTION_FAULT_MS: "
+        "all wheels disabled",
+    ),
+    12: (
+        "RUNAWAY",
+        "a wheel turned against its setpoint or above SPEED_MAX by more than RUNAWAY_MARGIN for "
+        "MOTION_FAULT_MS (a wrong ENC_OFFSET?): all wheels disabled",
+    ),
 }
-# Faults that make the device refuse setpoints until CLEAR_FAULTS.
+# Faults that make the device refuse setpoints until CLEAR_FAULTS (ENC_STUCK and ENC_DIAG come
+# with the ENCODER_Mw bit of their wheel).
 BLOCKING_FAULTS = frozenset(
-    {"HEARTBEAT_LOST", "ENCODER_M0", "ENCODER_M1", "ENCODER_M2", "ENCODER_M3"}
+    {"HEARTBEAT_LOST", "ENCODER_M0", "ENCODER_M1", "ENCODER_M2", "ENCODER_M3", "STALL", "RUNAWAY"}
 )
 
 # bit -> (name, text): live status byte of TELEMETRY.
@@ -151,8 +173,35 @@ ERRORS: dict[int, tuple[str, str]] = {
     ),
     7: (
         "BUSY",
-        "not possible now: outputs enabled (mode, pole pairs) or a save in progress",
+        "not possible now: outputs enabled (mode, pole pairs, calibration), open loop "
+        "(calibration) or a save or calibration in progress",
     ),
+    8: (
+        "OFFSET_UNCALIBRATED",
+        "closed-loop setpoint refused: the wheel's ENC_OFFSET is a default; run CALIBRATE_ENC "
+        "or set it (detail: wheel index)",
+    ),
+    9: ("CALIBRATION_FAILED", "CALIBRATE_ENC failed (detail: the reason)"),
+}
+
+# detail -> (name, text): reasons of a CALIBRATION_FAILED error.
+CAL_FAILURES: dict[int, tuple[str, str]] = {
+    1: (
+        "NOT_MOVED",
+        "the rotor did not follow the turning field: motor, driver stage or encoder not "
+        "connected, or OPEN_LOOP_DRIVE too low",
+    ),
+    2: (
+        "POLE_PAIRS",
+        "the rotor moved by an angle that does not match POLE_PAIRS, or did not come back",
+    ),
+    3: (
+        "REVERSED",
+        "the encoder counts down while the field turns forwards: swap two motor phases",
+    ),
+    4: ("ENCODER", "an encoder fault latched during the calibration"),
+    5: ("INTERRUPTED", "interrupted by STOP_ALL or the heartbeat fail-safe"),
+    6: ("BAD_WHEEL", "no such wheel (0..3)"),
 }
 
 
@@ -187,6 +236,9 @@ PARAMS: tuple[ParamSpec, ...] = (
     _p("LEAD_Q8", 13, 128, 0, 512, "tick/256"),
     _p("ENC_FAULT_LIMIT", 14, 5, 1, 255, "ticks"),
     *(_p(f"ENC_OFFSET_M{w}", 15 + w, 0, 0, 65535, "turn/65536") for w in range(4)),
+    _p("MOTION_FAULT_MS", 19, 50, 1, 5000, "ms"),
+    _p("STALL_SPEED_MRAD_S", 20, 2000, 0, 100000, "mrad/s"),
+    _p("RUNAWAY_MARGIN_MRAD_S", 21, 10000, 0, 400000, "mrad/s"),
 )
 PARAM_BY_NAME = {p.name: p for p in PARAMS}
 PARAM_BY_ID = {p.id: p for p in PARAMS}
@@ -353,6 +405,25 @@ def bit_names(word: int, table: dict[int, tuple[str, str]]) -> list[str]:
 
 def fault_names(faults: int) -> list[str]:
     return bit_names(faults, FAULTS)
+
+
+def fault_mask(names: list[str] | tuple[str, ...] | frozenset[str]) -> int:
+    """The fault word with the bits of ``names`` set; raises ProtocolError on an unknown name."""
+    bits = {name: bit for bit, (name, _) in FAULTS.items()}
+    unknown = sorted(set(names) - set(bits))
+    if unknown:
+        raise ProtocolError(f"unknown wheel-board fault names {unknown}; known: {sorted(bits)}")
+    return sum(1 << bits[n] for n in set(names))
+
+
+def fault_text(name: str) -> str:
+    """The text of a fault name (``BIT<n>`` for bits this host does not know)."""
+    return next((t for n, t in FAULTS.values() if n == name), "unknown fault bit")
+
+
+def cal_failure(detail: int) -> tuple[str, str]:
+    """(name, text) of a CALIBRATION_FAILED detail."""
+    return CAL_FAILURES.get(detail, (f"CAL_{detail}", f"unknown calibration failure {detail}"))
 
 
 def status_names(status: int) -> list[str]:

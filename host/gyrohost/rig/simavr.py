@@ -319,6 +319,11 @@ class SimavrWheelBoard:
         ]
         self.harness = Harness(elf, args, harness=harness)
         self._frames0: int | None = None
+        try:
+            set_factory_offsets(self.harness.pty, elec_offset_deg(options))
+        except BaseException:
+            self.harness.stop()
+            raise
 
     @property
     def slave_path(self) -> str:
@@ -382,6 +387,36 @@ class SimavrWheelBoard:
     def close(self) -> None:
         """Stop the harness (idempotent)."""
         self.harness.stop()
+
+
+def elec_offset_deg(options: tuple[str, ...]) -> float:
+    """The harness's ``--elec-offset`` in ``options``, degrees (0 if absent)."""
+    for i, opt in enumerate(options):
+        if opt == "--elec-offset" and i + 1 < len(options):
+            return float(options[i + 1])
+        if opt.startswith("--elec-offset="):
+            return float(opt.split("=", 1)[1])
+    return 0.0
+
+
+def set_factory_offsets(port: str, elec_offset_deg: float) -> None:
+    """Set the four ENC_OFFSETs of the harness's motors, as a calibrated board holds them.
+
+    The harness starts with a blank EEPROM (PARAMS_DEFAULTED), and the firmware refuses
+    closed-loop setpoints until the offsets are calibrated or set; the simulated rig's board
+    comes calibrated. A motor whose electrical angle is ``elec_offset_deg`` at encoder zero needs
+    ENC_OFFSET = -elec_offset (turn/65536).
+    """
+    from gyrohost.drivers.wheelboard import WheelBoard
+
+    value = round(-elec_offset_deg / 360.0 * 65536) % 65536
+    board = WheelBoard(port, reply_timeout_s=3.0)
+    try:
+        board.connect()
+        for w in range(4):
+            board.set_param(f"ENC_OFFSET_M{w}", value)
+    finally:
+        board.close()
 
 
 def simavr_wheel_board(elf: str, harness: str, options: tuple[str, ...], base: Path):

@@ -9,7 +9,9 @@ from boot on the emulator's clock, so simulated-time runs are exact:
   only a frame with a good CRC restarts the heartbeat timer;
 - HELLO, SET_SPEEDS (whole message refused above SPEED_MAX or while a blocking fault is latched),
   STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
-  after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS, GET_STATS;
+  after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS (the bits of its mask),
+  GET_STATS; CALIBRATE_ENC is answered with an ACK at once, the offset unchanged (the emulated
+  board comes calibrated: no electrical model, no PARAMS_DEFAULTED);
 - fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
   setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
   ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
@@ -319,10 +321,20 @@ class WheelBoardEmulator(PtyDevice):
         self._reset_wheels()
         self._ack("PARAM_DEFAULTS")
 
-    def _on_clear_faults(self, _fields: dict) -> None:
-        self.fault_word = 0
-        self._since_host_ms = 0
+    def _on_clear_faults(self, fields: dict) -> None:
+        self.fault_word &= ~fields["mask"]
+        if fields["mask"] & _FAULT_BIT["HEARTBEAT_LOST"]:
+            self._since_host_ms = 0
         self._ack("CLEAR_FAULTS")
+
+    def _on_calibrate_enc(self, fields: dict) -> None:
+        req = wp.BY_NAME["CALIBRATE_ENC"].id
+        if fields["wheel"] >= wp.N_WHEELS:
+            self._error(req, "CALIBRATION_FAILED", 6)  # BAD_WHEEL
+        elif any(self.enabled) or any(self.targets) or self._save_done_tick is not None:
+            self._error(req, "BUSY", fields["wheel"])
+        else:
+            self._ack("CALIBRATE_ENC")
 
     def _on_get_stats(self, _fields: dict) -> None:
         self._send_msg("STATS", **self.stats)

@@ -27,6 +27,7 @@ their queue (:mod:`gyrohost.run.dispatch`), fuses, commands and logs
 
 import math
 import queue
+import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -63,6 +64,7 @@ from gyrohost.run.streams import (
 )
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Readout, Ticker, status_words
+from gyrohost.run.wheel_faults import clear_reported_faults
 from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
 from gyrotensegrity import Model, load_scene
 
@@ -94,6 +96,9 @@ class RunLoop:
     progress : callable(phase, t_s, fraction, readout), optional
         Called every tick; ``fraction`` of the schedule played, in [0, 1]; ``readout`` the
         estimated tilt, wheel speeds and estimator status (:meth:`readout`).
+    notify : callable(str), optional
+        Shows a line the user must see during the run (wheel-board faults found latched before
+        it and cleared); default: printed on stderr.
     meta : dict, optional
         Extra items for ``meta.json`` (command line, ...).
     live : log sink, optional
@@ -111,6 +116,7 @@ class RunLoop:
         rig=None,
         on_tick=None,
         progress=None,
+        notify=None,
         meta: dict | None = None,
         live=None,
     ):
@@ -122,6 +128,7 @@ class RunLoop:
         self.rig = rig
         self.on_tick = on_tick
         self.progress = progress
+        self.notify = notify
         self.model = Model(load_scene(config.scene_path))
         self.schedule.bind(self.model)
         self.tilt = attitude_of(self.model)
@@ -265,10 +272,7 @@ class RunLoop:
         self.wheel_reader = WheelTelemetry(self.queue, s.wheel_silence_s)
         self.wheels = WheelBoard(cfg.wheelboard.port, on_telemetry=self.wheel_reader.on_telemetry)
         hello = self.wheels.connect()
-        before = self.wheels.faults
-        self.wheels.clear_faults()  # e.g. HEARTBEAT_LOST latched while no host was connected
-        if before:
-            self.event("cleared", f"wheel-board faults latched before the run: {before}")
+        self.final["wheel_faults_cleared"] = clear_reported_faults(self.wheels, self._notice)
         self.wheel_reader.arm()
         self.wheels.set_param("TELEMETRY_DIV", s.telemetry_div)
         self.wheels.set_param("HEARTBEAT_MS", s.heartbeat_ms)
@@ -457,8 +461,17 @@ class RunLoop:
             self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
             self.replans.write(self.maneuver.records)  # the first plan, made before the run
 
+    def _notice(self, message: str) -> None:
+        """A line the user must see now: to ``notify`` (else stderr) and the events stream."""
+        (self.notify or _stderr_line)(message)
+        self.event("cleared", message)
+
     def event(self, kind: str, message: str) -> None:
         """Append one row to the ``events`` stream (commas become semicolons)."""
         text = " ".join(str(message).replace(",", ";").split())
         if self.streams is not None:  # none before the log is open
             self.streams.events.write(self.now(), kind, text)
+
+
+def _stderr_line(message: str) -> None:
+    print(message, file=sys.stderr)
