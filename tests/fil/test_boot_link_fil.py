@@ -21,7 +21,8 @@ from gyrohost.drivers import wheelproto as wp
 
 pytestmark = pytest.mark.fil
 
-WATCHDOG_RESET = 1 << 7
+WATCHDOG_RESET = wp.fault_mask(["WATCHDOG_RESET"])
+ALL_FAULTS = wp.fault_mask([name for name, _ in wp.FAULTS.values()])
 OUTPUTS_ENABLED = 1 << 0
 SPEED_MRAD_S = [75000, -75000, 75000, -75000]  # about 716 rpm
 ENC_OFFSETS = [f"ENC_OFFSET_M{i}" for i in range(4)]
@@ -97,7 +98,7 @@ def spin_up(h: Harness, link: Link, beat: threading.Event) -> None:
     """
     for name in ENC_OFFSETS:
         link.set_param(name, 0)
-    link.request("CLEAR_FAULTS", "ACK")
+    link.request("CLEAR_FAULTS", "ACK", mask=ALL_FAULTS)
     fields = {f"w{i}_mrad_s": v for i, v in enumerate(SPEED_MRAD_S)}
     link.send("SET_SPEEDS", **fields)
     beat.set()
@@ -167,7 +168,7 @@ def test_stopped_tick_trips_the_watchdog_and_the_next_boot_reports_it(beat_link)
     pwm = h.command("pwm")
     assert all(f"m{i}=0/" in pwm for i in range(4)), pwm
     # the mark is spent: a CLEAR_FAULTS clears the bit for good
-    link.request("CLEAR_FAULTS", "ACK")
+    link.request("CLEAR_FAULTS", "ACK", mask=WATCHDOG_RESET)
     later = telemetry(link, lambda m: not m.fields["faults"] & WATCHDOG_RESET, "cleared faults")
     assert later["t_us"] >= after["t_us"]
 
