@@ -6,6 +6,7 @@ from bringup_rig import config_text
 from gyrohost.bringup.doctor import Windows, run_checks
 from gyrohost.cli import main
 from gyrohost.config import load_rig_config
+from gyrohost.drivers import wheelproto as wp
 
 FAST = Windows(imu_s=0.5, hello_s=1.0, imu_rate_tolerance=0.9)
 """Short waits; any IMU rate from 10 to 190 Hz passes for 100 Hz: the emulators share a loaded
@@ -28,7 +29,7 @@ def test_doctor_passes_a_configuration_of_the_simulated_rig(tmp_path, rig_ports,
     out = capsys.readouterr().out.splitlines()
     assert status == 0 and all(line.startswith("PASS") for line in out), out
     text = "\n".join(out)
-    assert "wheel board firmware 1.0, protocol v2, 4 wheels" in text
+    assert f"wheel board firmware 1.0, protocol v{wp.PROTO_VERSION}, 4 wheels" in text
     assert "answered at 1000000 baud: ID 1 MX-12W, ID 2 MX-12W" in text
     assert "PASS  imu: BWT61CL frames at" in text
 

@@ -14,7 +14,7 @@ def test_ports_identifies_the_three_devices_and_prints_config_lines(rig_ports, c
     assert main(["ports", "--hello-timeout", "1.0", "--reply-timeout", "0.2", *paths]) == 0
     out = capsys.readouterr().out
     assert "BWT61CL, " in out and " Hz" in out
-    assert "wheel board firmware 1.0, protocol v2, 4 wheels" in out
+    assert f"wheel board firmware 1.0, protocol v{wp.PROTO_VERSION}, 4 wheels" in out
     assert "ID 1 MX-12W, ID 2 MX-12W at 1000000 baud" in out
     pasted = out.split("configuration lines to paste (docs/rig-config.md):\n")[1]
     assert f'[imu]\nport = "{rig_ports["imu"]}"\nbaud = 115200' in pasted

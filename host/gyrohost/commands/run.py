@@ -184,9 +184,6 @@ def _wired(config, args):
             "or --rig PORTSFILE of a running 'gyrotens rig' (or its ptys with "
             "--imu/--wheels/--servos)"
         )
-    from gyrohost.run.devices import check_real_rig
-
-    check_real_rig(config)
     return config
 
 
@@ -210,6 +207,7 @@ def _run(args) -> int:
     from gyrohost.estimator.config import for_rig
     from gyrohost.resources import resolve
     from gyrohost.run import RunLoop, run_simulated
+    from gyrohost.run.devices import check_real_rig
     from gyrohost.run.log import LogError, check_new_log_folder
     from gyrotensegrity import SceneError
 
@@ -236,7 +234,9 @@ def _run(args) -> int:
         if args.sim:
             result = run_simulated(config, schedule, out, **options)
         else:
-            result = RunLoop(_wired(config, args), schedule, out, **options).run()
+            loop = RunLoop(_wired(config, args), schedule, out, **options)
+            check_real_rig(loop.config)  # after the loop checked the scene, schedule, estimator
+            result = loop.run()
     except (GyrohostError, SceneError) as exc:
         raise CliError(str(exc)) from None
     finally:
