@@ -61,12 +61,13 @@ static inline bool uart_rx_peek(uint8_t* byte) {
 static inline void uart_rx_next() {
     board_rx_tail = static_cast<uint8_t>(board_rx_tail + 1);
 }
-// The TX interrupt held off (the bytes wait in the ring) and let go again: around the control
-// step, so that only the RX interrupts stretch it during a full-duplex burst.
-static inline void uart_tx_hold() {
-    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
-}
+// The TX interrupt is held off (the bytes wait in the ring) from the tick (the tick interrupt
+// clears UDRIE0 and sets board_tx_held; uart_tx_frame leaves it off) to the end of the control
+// step, so that only the RX interrupts stretch the tick-to-step time during a full-duplex burst:
+// the end of a dispatch running when the tick comes, then the step.
+extern "C" volatile uint8_t board_tx_held;
 static inline void uart_tx_release() {
+    board_tx_held = 0;
     UCSR0B |= _BV(UDRIE0);  // an empty ring: the interrupt clears it again at once
 }
 bool uart_rx_take_overflow();  // true once after the RX ring overflowed

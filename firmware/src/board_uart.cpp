@@ -20,6 +20,7 @@ volatile uint8_t board_rx_tail;  // written by the main loop
 volatile uint8_t board_rx_overflow;
 volatile uint8_t board_tx_head;  // written by the main loop
 volatile uint8_t board_tx_tail;  // written by the UDRE ISR
+volatile uint8_t board_tx_held;  // set by the tick ISR, cleared by uart_tx_release
 // STOP_ALL as a real-time command (as grbl's feed hold): the receive interrupt compares the bytes
 // since the last delimiter with the STOP_ALL wire frame, so a stop does not wait behind the
 // frames queued in the ring. board_stop_match: bytes of the frame matched so far (0..4), 5 when
@@ -154,8 +155,12 @@ bool uart_tx_frame(const uint8_t* data, uint8_t len) {
     for (uint8_t i = 0; i < len; i++) board_tx_buf[static_cast<uint8_t>(h + i)] = data[i];
     board_tx_head = static_cast<uint8_t>(h + len);
     // Read-modify-write of a memory-mapped register: the UDRE ISR may clear UDRIE0 in between,
-    // which is harmless because this write sets it again and the ring is not empty.
-    UCSR0B |= _BV(UDRIE0);
+    // which is harmless because this write sets it again and the ring is not empty. Interrupts
+    // off so that a tick between the test and the write cannot leave the TX interrupt on.
+    const uint8_t sreg = SREG;
+    cli();
+    if (!board_tx_held) UCSR0B |= _BV(UDRIE0);
+    SREG = sreg;
     return true;
 }
 

@@ -10,13 +10,15 @@
 
 // Maximum received bytes handled per loop pass, so that a burst cannot delay the tick much: at
 // 1 Mbaud with 32 a connect's burst of requests delayed a step by up to 920 us (step_max_us).
-// main_handle_rx also stops at a pending tick, so at most one frame's dispatch (its reply
-// built) lies between a tick and its step.
+// main_handle_rx also stops at a pending tick, so at most one frame's dispatch (its reply built)
+// lies between a tick and its step.
 #define MAIN_RX_BYTES_PER_PASS 8
-// Received bytes wait here between the interrupt's 256-byte ring and the decoder: the main loop
-// moves every byte of the ring here on each pass (about 12 cycles a byte), then decodes and
-// dispatches at most MAIN_RX_BYTES_PER_PASS. A burst at the line rate comes in faster than its
-// frames are dispatched (a PARAM_SET with its reply takes about 2,500 cycles, the time of 15
+// Received bytes wait here between the interrupt's 256-byte ring and the decoder: while no tick is
+// pending the main loop moves every byte of the ring here (about 12 cycles a byte), then decodes
+// and dispatches at most MAIN_RX_BYTES_PER_PASS. The move also stops at a pending tick: after a
+// pass stretched by a line-rate burst the ring can hold 256 bytes, whose move under the burst's
+// interrupts would delay the step by about 490 us. A burst at the line rate comes in faster than
+// its frames are dispatched (a PARAM_SET with its reply takes about 1,800 cycles, the time of 11
 // received bytes); together the two hold 768 bytes, three of the documented bursts.
 #define MAIN_RX_FIFO_SIZE 512u  // power of two
 
@@ -71,7 +73,8 @@ static void main_watchdog_start() {
 // (then shorter) interval, a transient of about 1 % per 80 us of delay after its filter.
 static void main_handle_rx(uint8_t tick_seen) {
     uint8_t b;
-    while (static_cast<uint16_t>(g_rx_in - g_rx_out) < MAIN_RX_FIFO_SIZE && uart_rx_peek(&b)) {
+    while (g_tick_count == tick_seen &&
+           static_cast<uint16_t>(g_rx_in - g_rx_out) < MAIN_RX_FIFO_SIZE && uart_rx_peek(&b)) {
         uart_rx_next();
         g_rx_fifo[g_rx_in++ & (MAIN_RX_FIFO_SIZE - 1)] = b;
     }
@@ -111,7 +114,6 @@ int main() {
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
         // included): docs/hardware.md, "Control-step cycles", has the figures and how each
         // change to the step moved them.
-        uart_tx_hold();
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

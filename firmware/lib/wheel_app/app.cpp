@@ -84,6 +84,7 @@ static void app_load_ctl(app_state* a) {
     g->over_q8 = spd_mrad_s_to_q8(v[PRM_SPEED_MAX_MRAD_S] + v[PRM_RUNAWAY_MARGIN_MRAD_S]);
     c->spd_k = spd_gain(static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
     c->enc_fault_limit = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
+    a->ctl_stale = 0;
 }
 
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults) {
@@ -157,7 +158,13 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
     } else if (r == PRM_OUT_OF_RANGE) {
         app_send_error(a, PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, id);
     } else {
-        app_load_ctl(a);
+        // A structural change resets the wheels (drivers off) and changes what the dispatcher
+        // checks (ctl.closed): derived now. Any other waits for the slot after the next step.
+        if (structural) {
+            app_load_ctl(a);
+        } else {
+            a->ctl_stale = 1;
+        }
         if (id >= PRM_ENC_OFFSET_M0 && id <= PRM_ENC_OFFSET_M3) {
             a->uncal_mask &= static_cast<uint8_t>(~(1u << (id - PRM_ENC_OFFSET_M0)));
         }
@@ -387,6 +394,7 @@ static void app_cal_tick(app_state* a, bool failsafe) {
 }
 
 void app_setpoints_tick(app_state* a) {
+    if (a->ctl_stale) app_load_ctl(a);
     const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
     if (a->cal_wheel != APP_NO_WHEEL) app_cal_tick(a, failsafe);
     const int32_t step = (failsafe || a->stopping) ? a->ctl.decel : a->ctl.accel;

@@ -65,8 +65,14 @@ struct app_wheel {
     grd_wheel grd;          // sensor and motion supervision
 };
 
-// Parameters in the form the control step uses them, derived from prm.v once per change
-// (app_init, PARAM_SET, PARAM_DEFAULTS) so that the 1 kHz step converts nothing.
+// Parameters in the form the control step uses them, derived from prm.v once per change so that
+// the 1 kHz step converts nothing. A PARAM_SET only marks them stale (ctl_stale): they are derived
+// at the start of app_setpoints_tick, right after the next step and outside step_max_us, so a
+// PARAM_SET's dispatch (which may be running when the tick comes) skips the derivation (about
+// 1,500 cycles: a 32-bit division, four speed conversions), and a burst of them derives once. The
+// new value takes effect in that tick's ramp and supervision and in the next step. MODE and
+// POLE_PAIRS (accepted only with the drivers off), app_init, PARAM_DEFAULTS and the calibration
+// derive at once.
 struct app_ctl {
     pi_gains gains;
     cmt_lead lead;
@@ -109,6 +115,7 @@ struct app_state {
     uint8_t uncal_mask;
     uint8_t cal_wheel;  // wheel being calibrated (CALIBRATE_ENC), or APP_NO_WHEEL
     uint8_t diag_next;  // wheel whose diagnostics register is read next
+    uint8_t ctl_stale;  // prm.v changed since ctl was derived (app_ctl)
     cal_state cal;
 };
 
@@ -139,8 +146,9 @@ void app_poll(app_state* a);
 // Runs the step (app_step.h), app_setpoints_tick and app_supervise, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 
-// Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
-// supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
+// Setpoint work of a tick, after its control step (not in the control law's latency): the
+// parameters a PARAM_SET left stale derived (app_ctl), heartbeat supervision, targets to 0 on the
+// fail-safe or an encoder fault, the ramp (DECEL while stopping).
 void app_setpoints_tick(app_state* a);
 
 // Sensor and motion supervision of the tick's step (grd.h), in closed loop: faults latch for the
