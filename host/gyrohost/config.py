@@ -176,7 +176,12 @@ class WheelEmuConfig:
 
 @dataclass(frozen=True)
 class TruthConfig:
-    """The rig's truth model: step, IMU attachment and deliberate model mismatch."""
+    """The rig's truth model: step, IMU attachment and deliberate model mismatch.
+
+    ``scene``, ``imu_rotation_deg`` and ``servo_zero_offset_rad`` make the truth differ from what
+    the host knows (its scene, ``imu.mounting_rpy_rad``, the servos' ``zero_position``), as a real
+    rig differs from its model; ``gyrohost.rig.truth`` applies them.
+    """
 
     dt_s: float = field(default=0.005, metadata=_spec(lo=1e-4, hi=0.02))
     imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
@@ -184,6 +189,13 @@ class TruthConfig:
     wheel_inertia_scale: float = field(default=1.0, metadata=_spec(lo=0.1, hi=10.0))
     servo_lag_s: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))
     imu_latency_s: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
+    scene: str = field(default="", metadata=_spec(doc="scene the truth runs; '' = the config's"))
+    imu_rotation_deg: tuple[float, float, float] = field(
+        default=(0.0, 0.0, 0.0), metadata=_spec(lo=-180.0, hi=180.0)
+    )
+    servo_zero_offset_rad: tuple[float, ...] = field(
+        default=(), metadata=_spec(lo=-math.pi, hi=math.pi, doc="per [[servos.servo]]; [] = 0")
+    )
 
 
 @dataclass(frozen=True)
@@ -267,6 +279,12 @@ class RigConfig:
                  f"attitude_rad {self.start_check.attitude_rad:g} rad (a run allowed to start "
                  "would break the limit at once)")
             ]  # fmt: skip
+        offsets, servos = self.sim.truth.servo_zero_offset_rad, self.servos.servo
+        if offsets and len(offsets) != len(servos):
+            return [
+                ("sim.truth.servo_zero_offset_rad", f"has {len(offsets)} values for "
+                 f"{len(servos)} [[servos.servo]] entries (give one per servo, or none)")
+            ]  # fmt: skip
         return []
 
     @property
@@ -284,10 +302,34 @@ class RigConfig:
         ConfigError
             ``scene`` is neither (the message names the file, the key and the shipped scenes).
         """
+        return self._resolve_scene("scene", self.scene)
+
+    @property
+    def truth_scene_path(self) -> Path:
+        """Scene the simulated rig's truth runs: ``[sim.truth] scene``, resolved as ``scene``
+        is, else :attr:`scene_path` (truth and model share the scene).
+
+        Raises
+        ------
+        ConfigError
+            The truth's ``scene`` names no file and no shipped scene.
+        """
+        if not self.sim.truth.scene:
+            return self.scene_path
+        return self._resolve_scene("sim.truth.scene", self.sim.truth.scene)
+
+    def _resolve_scene(self, key: str, value: str) -> Path:
         try:
-            return resolve("scene", self.scene, self.base_dir)
+            return resolve("scene", value, self.base_dir)
         except ResourceError as exc:
-            raise ConfigError(f"{self.source}: key 'scene': {exc}") from None
+            raise ConfigError(f"{self.source}: key '{key}': {exc}") from None
+
+
+def with_truth_scene(config: RigConfig, scene: str | Path) -> RigConfig:
+    """``config`` with ``[sim.truth] scene`` set to the file ``scene`` (an absolute path, as
+    ``--truth-scene`` gives it: it no longer depends on the configuration's folder)."""
+    truth = replace(config.sim.truth, scene=str(Path(scene).resolve()))
+    return replace(config, sim=replace(config.sim, truth=truth))
 
 
 def load_rig_config(path: str | Path) -> RigConfig:
@@ -408,4 +450,5 @@ __all__ = [
     "WheelboardConfig",
     "load_rig_config",
     "rig_config_from_dict",
+    "with_truth_scene",
 ]

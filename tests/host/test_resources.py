@@ -14,7 +14,7 @@ def test_every_kind_ships_its_files():
         "prism-string-mass"
     ]  # fmt: skip
     assert shipped_names("config") == ["lab-rig", "prism-sim-rig", "sim-rig"]
-    assert shipped_names("schedule") == ["paper", "prism-s7", "tilt-0.3rad-4s"]
+    assert shipped_names("schedule") == ["identify", "paper", "prism-s7", "tilt-0.3rad-4s"]
     assert shipped("scene", "dbar-gyro.toml") == shipped("scene", "dbar-gyro")
 
 

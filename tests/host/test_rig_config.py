@@ -20,6 +20,7 @@ from gyrohost.config import (
     WheelboardConfig,
     load_rig_config,
     rig_config_from_dict,
+    with_truth_scene,
 )
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.resources import shipped
@@ -104,12 +105,33 @@ def test_empty_file_gives_the_defaults(tmp_path):
         ({"start_check": {"length_m": -0.001}}, "'start_check.length_m' is -0.001, below"),
         ({"start_check": {"attitude_rad": 4.0}}, "'start_check.attitude_rad' is 4.0, above"),
         ({"start_check": {"rate_rad_s": "1"}}, "'start_check.rate_rad_s' must be a number"),
+        ({"sim": {"truth": {"scene": "nowhere"}}}, "key 'sim.truth.scene': nowhere"),
+        ({"sim": {"truth": {"imu_rotation_deg": [0, 200, 0]}}}, "imu_rotation_deg' is 200.0"),
+        (
+            {"servos": {"servo": [SERVO]}, "sim": {"truth": {"servo_zero_offset_rad": [0, 0]}}},
+            r"sim.truth.servo_zero_offset_rad': has 2 values for 1 \[\[servos.servo\]\]",
+        ),
     ],
 )
 def test_errors_name_the_file_and_key(data, message):
     with pytest.raises(ConfigError, match=message) as info:
-        rig_config_from_dict(data, "my-rig.toml")
+        assert rig_config_from_dict(data, "my-rig.toml").truth_scene_path
     assert str(info.value).startswith("my-rig.toml: ")
+
+
+def test_truth_scene_resolves_as_the_scene_does(tmp_path):
+    path = tmp_path / "rig.toml"
+    (tmp_path / "heavier.toml").write_text("")
+    path.write_text('scene = "dbar-gyro"\n[sim.truth]\nscene = "heavier.toml"\n')
+    cfg = load_rig_config(path)
+    assert cfg.truth_scene_path == tmp_path / "heavier.toml"  # relative to the config
+    assert cfg.scene_path == shipped("scene", "dbar-gyro")  # the host keeps its own
+    path.write_text('[sim.truth]\nscene = "prism-gyro"\n')
+    assert load_rig_config(path).truth_scene_path == shipped("scene", "prism-gyro")
+    path.write_text("")
+    assert load_rig_config(path).truth_scene_path == load_rig_config(path).scene_path
+    flagged = with_truth_scene(load_rig_config(path), tmp_path / "heavier.toml")
+    assert flagged.truth_scene_path == tmp_path / "heavier.toml"
 
 
 def test_unreadable_and_invalid_files(tmp_path):

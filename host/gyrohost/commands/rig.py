@@ -31,6 +31,12 @@ def register(sub) -> None:
     p.add_argument(
         "--scene", help="scene file or shipped scene name (default: the configuration's)"
     )
+    p.add_argument(
+        "--truth-scene",
+        metavar="FILE",
+        help="scene the truth runs instead (same members, other parameters; default: the "
+        "configuration's [sim.truth] scene, else the model's)",
+    )
     p.add_argument("--duration", type=float, help="serve this long, s (default: until Ctrl-C)")
     p.add_argument(
         "--wheel-board",
@@ -62,7 +68,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from gyrohost.cli import CliError
-    from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.config import ConfigError, load_rig_config, with_truth_scene
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.rig.control import control_path, default_ports_file
     from gyrohost.rig.sim import SimulatedRig
@@ -84,6 +90,8 @@ def run(args) -> int:
         if args.firmware_build is not None:
             config = with_firmware_build(config, args.firmware_build)
         scene = resolve("scene", args.scene) if args.scene is not None else None
+        if args.truth_scene is not None:
+            config = with_truth_scene(config, resolve("scene", args.truth_scene))
     except (ConfigError, ResourceError, HarnessError) as exc:
         raise CliError(str(exc)) from None
     try:

@@ -1,7 +1,7 @@
 """``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
-[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim | --rig PORTSFILE] [--live]``: one
-run of a schedule or a planned tilt maneuver on the rig, from connection to the safe state,
-logged (CSV streams and an MCAP file), optionally served live to Foxglove (docs/run.md,
+[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim [--truth-scene FILE] | --rig PORTSFILE]
+[--live]``: one run of a schedule or a planned tilt maneuver on the rig, from connection to the
+safe state, logged (CSV streams and an MCAP file), optionally served live to Foxglove (docs/run.md,
 docs/schedule.md)."""
 
 import sys
@@ -48,6 +48,12 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
     p.add_argument("--scene", help="scene file or shipped name (default: the configuration's)")
+    p.add_argument(
+        "--truth-scene",
+        metavar="FILE",
+        help="with --sim: scene the simulated rig's truth runs (the host keeps --scene or the "
+        "configuration's; default: [sim.truth] scene)",
+    )
     p.add_argument(
         "--rig",
         type=Path,
@@ -202,7 +208,7 @@ def _run(args) -> int:
     from dataclasses import replace
 
     from gyrohost.cli import CliError
-    from gyrohost.config import load_rig_config
+    from gyrohost.config import load_rig_config, with_truth_scene
     from gyrohost.errors import GyrohostError
     from gyrohost.estimator.config import for_rig
     from gyrohost.resources import resolve
@@ -215,6 +221,10 @@ def _run(args) -> int:
         config = load_rig_config(resolve("config", args.config))
         if args.scene is not None:
             config = replace(config, scene=str(resolve("scene", args.scene)))
+        if args.truth_scene is not None:
+            if not args.sim:
+                raise CliError("--truth-scene is for the simulated rig: add --sim")
+            config = with_truth_scene(config, resolve("scene", args.truth_scene))
         estimator = for_rig(config, args.estimator)
         schedule = _what_to_run(config, args)
     except (GyrohostError, SceneError, OSError) as exc:

@@ -2,8 +2,9 @@
 
 The truth arrives through :class:`ImuTruth` (body angular rate, specific force, attitude), either
 pushed with :meth:`Bwt61Emulator.set_truth` or pulled from ``truth_source(t_s)`` at every output
-sample. The emulator rotates it into the sensor axes (mounting rotation ``mounting_rpy_rad``, then
-the device's horizontal/vertical mode), adds MPU6050-like white noise (noise density times the
+sample. The emulator rotates it into the sensor axes (mounting rotation ``mounting_rpy_rad``, turned
+further by ``rotation_deg`` when the true mounting differs, then the device's horizontal/vertical
+mode), adds MPU6050-like white noise (noise density times the
 square root of half the output rate) and a constant bias drawn once, quantises to the int16 scales
 of the wire format and sends 0x51, 0x52, 0x53 frames at 100 Hz or 20 Hz.
 
@@ -13,7 +14,7 @@ ignores baud), ``65``/``66`` (horizontal/vertical mode). Modelling choice, not f
 vertical mode turns the output axes by -90 deg about the sensor x axis.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -78,6 +79,9 @@ class Bwt61Emulator(PtyDevice):
     truth_source : callable, optional
         ``truth_source(t_s) -> ImuTruth`` called at each output sample; when absent the last
         :meth:`set_truth` value (level and still at first) is used.
+    rotation_deg : sequence of 3 float, deg
+        The sensor turned further by this roll, pitch, yaw (Z-Y-X, about the body axes) from
+        where ``imu.mounting_rpy_rad`` puts it: a mounting the host's calibration does not know.
     """
 
     def __init__(
@@ -85,6 +89,7 @@ class Bwt61Emulator(PtyDevice):
         emu: ImuEmuConfig | None = None,
         imu: ImuConfig | None = None,
         truth_source: Callable[[float], ImuTruth] | None = None,
+        rotation_deg: Sequence[float] = (0.0, 0.0, 0.0),
     ) -> None:
         emu = emu if emu is not None else ImuEmuConfig()
         imu = imu if imu is not None else ImuConfig()
@@ -94,7 +99,8 @@ class Bwt61Emulator(PtyDevice):
         self.rate_hz = imu.rate_hz
         self.baud = _BAUDS[imu.rate_hz]
         self.vertical = imu.mounting == "vertical"
-        self.R_bs = rotation_zyx(*imu.mounting_rpy_rad)
+        # Sensor axes in body axes: the calibrated mounting, then turned about the body axes.
+        self.R_bs = rotation_zyx(*np.radians(rotation_deg)) @ rotation_zyx(*imu.mounting_rpy_rad)
         self.yaw_offset_rad = 0.0
         self.samples_sent = 0
         self.commands_seen: list[int] = []

@@ -37,9 +37,8 @@ from gyrohost.errors import GyrohostError
 from gyrohost.rig import simavr
 from gyrohost.rig.imu_emu import Bwt61Emulator
 from gyrohost.rig.servo_emu import Mx12Bus
-from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord
+from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord, truth_scene
 from gyrohost.rig.wheel_emu import WheelBoardEmulator
-from gyrotensegrity import SceneError, load_scene
 
 DEVICES = ("imu", "wheels", "servos")
 IDLE_WAIT_S = 0.001
@@ -130,7 +129,8 @@ class SimulatedRig:
     clock : {"real", "sim"}
         Rig time source (see the module docstring).
     scene : str or Path, optional
-        Scene file; the configuration's ``scene`` when omitted.
+        Scene file; the configuration's ``scene`` when omitted. The truth runs
+        ``[sim.truth] scene`` instead when the configuration sets one (checked against this).
     wheels : {"emulator", "simavr"}, optional
         Wheel board: the Python emulator, or the real firmware in the simavr harness (its own
         pty, paced to wall time; :mod:`gyrohost.rig.simavr`). The configuration's
@@ -156,15 +156,15 @@ class SimulatedRig:
         self.wheels_kind = wheels or config.sim.wheels.kind
         if self.wheels_kind not in WHEEL_KINDS:
             raise ValueError(f"wheels must be one of {WHEEL_KINDS}, got {wheels!r}")
-        path = Path(scene) if scene is not None else config.scene_path
-        try:
-            scene_obj = load_scene(path)
-        except (SceneError, OSError) as exc:
-            raise RigSetupError(f"rig scene {path}: {exc}") from exc
         self.config = config
         self.clock = clock
-        self.truth = Truth(scene_obj, config.sim.truth, config.servos.servo)
-        self.imu = Bwt61Emulator(config.sim.imu, config.imu, truth_source=self.truth.imu_truth)
+        self.truth = Truth(truth_scene(config, scene), config.sim.truth, config.servos.servo)
+        self.imu = Bwt61Emulator(
+            config.sim.imu,
+            config.imu,
+            truth_source=self.truth.imu_truth,
+            rotation_deg=config.sim.truth.imu_rotation_deg,
+        )
         self.servos = Mx12Bus(config.servos.servo, config.sim.servos)
         self.wheels = self._wheel_board(config)
         self._spin_sign = np.asarray(config.sim.wheels.spin_sign, dtype=float)

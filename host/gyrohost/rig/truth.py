@@ -15,12 +15,21 @@ Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
 - **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
   about +b of its bar); board wheels beyond the scene's wheels spin nothing.
 
+**Truth against model.** The truth runs ``[sim.truth] scene`` when set (:func:`truth_scene`),
+the host's model, estimator and planner keep the configuration's scene: any parameter may differ
+(masses, inertias, stiffness, damping, rig fidelity, node positions), the members may not (same
+nodes, bars, strings and wheels, by name, joining the same nodes), so the devices map onto both.
+``servo_zero_offset_rad[i]`` puts the true zero of the ``i``-th servo that far (rad of the horn,
+positive towards increasing position steps) from its calibrated ``zero_position``: the truth's
+string is ``length_sign * pulley_radius_m * offset`` shorter than the calibration says.
+
 The IMU frame (body axes of :class:`~gyrohost.rig.imu_emu.ImuTruth`) is attached to the structure
 by three scene nodes ``imu_frame_nodes = [a, b, c]``: x along a -> b, z along x cross (c - a) (the
 normal of the plane of a, b, c), y = z cross x; its origin, where the specific force is taken, is
 the midpoint of a and b. For the D-bar (``["n1", "n3", "n2"]``) that is the centre of the rhombus,
 x along n1 -> n3, z normal to the plane of the D-bar, so the frame starts aligned with the world.
-The IMU's own mounting rotation (``imu.mounting_rpy_rad``) applies on top, in the emulator.
+The IMU's own mounting rotation (``imu.mounting_rpy_rad``, turned further by the truth's
+``imu_rotation_deg``) applies on top, in the emulator.
 Gravity felt by the IMU is ``imu_gravity_m_s2`` (world frame), independent of the scene's
 gravity: the D-bar scenes leave gravity out because the supports cancel it, the sensor still
 feels it. Sensor latency: :meth:`Truth.imu_truth` returns the truth ``imu_latency_s`` ago.
@@ -30,13 +39,14 @@ import math
 from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
-from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.config import RigConfig, ServoConfig, TruthConfig
 from gyrohost.errors import GyrohostError
 from gyrohost.rig.imu_emu import ImuTruth
-from gyrotensegrity import Model, Scene, Stepper
+from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
 from gyrotensegrity.schedule import constant
 
@@ -46,6 +56,76 @@ FD_STEP_S = 1e-6
 
 class RigSetupError(GyrohostError, ValueError):
     """The rig configuration does not fit the scene (unknown string or node, bad geometry)."""
+
+
+def truth_scene(config: RigConfig, scene: str | Path | None = None) -> Scene:
+    """The scene the rig's truth runs, checked against the model's scene.
+
+    Parameters
+    ----------
+    config : RigConfig
+        ``[sim.truth] scene`` (when set) is the truth's; ``scene`` is the model's.
+    scene : str or Path, optional
+        The model's scene file instead of the configuration's (and the truth's, when the
+        configuration sets none).
+
+    Raises
+    ------
+    RigSetupError
+        A scene does not load, or the two do not have the same members (:func:`check_members`).
+    """
+    model_path = Path(scene) if scene is not None else config.scene_path
+    truth_path = config.truth_scene_path if config.sim.truth.scene else model_path
+    model = _load(model_path, "rig scene")
+    if truth_path == model_path:
+        return model
+    truth = _load(truth_path, "truth scene")
+    check_members(model, truth)
+    return truth
+
+
+def _load(path: Path, what: str) -> Scene:
+    try:
+        return load_scene(path)
+    except (SceneError, OSError) as exc:
+        raise RigSetupError(f"{what} {path}: {exc}") from exc
+
+
+def check_members(model: Scene, truth: Scene) -> None:
+    """Refuse a truth scene whose nodes, bars, strings or wheels are not the model's.
+
+    Names and order must agree, and each bar and string must join the same nodes and each wheel
+    sit on the same bar; parameters may differ.
+
+    Raises
+    ------
+    RigSetupError
+        Names the first member that differs and both scenes.
+    """
+    kinds = {
+        "nodes": lambda sc: [(n, ()) for n in sc.node_names],
+        "bars": lambda sc: [(b.name, (b.start, b.end)) for b in sc.bars],
+        "strings": lambda sc: [(st.name, (st.start, st.end)) for st in sc.strings],
+        "wheels": lambda sc: [(b.name, ()) for b in sc.bars if b.wheel is not None],
+    }
+    for kind, members in kinds.items():
+        want, have = members(model), members(truth)
+        for i in range(max(len(want), len(have))):
+            w = want[i] if i < len(want) else None
+            h = have[i] if i < len(have) else None
+            if w != h:
+                raise RigSetupError(
+                    f"truth scene {truth.source} does not fit the model's scene {model.source}: "
+                    f"{kind}[{i}] is {_member(h)} in the truth, {_member(w)} in the model "
+                    f"({len(have)} {kind} against {len(want)})"
+                )
+
+
+def _member(member) -> str:
+    if member is None:
+        return "missing"
+    name, nodes = member
+    return f"'{name}'" + (f" on {list(nodes)}" if nodes else "")
 
 
 def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
@@ -119,11 +199,12 @@ class Truth:
     Parameters
     ----------
     scene : Scene
-        The scene as the estimator knows it (the truth derives its plant from it).
+        The truth's scene (:func:`truth_scene`; the truth derives its plant from it).
     config : TruthConfig
         Step, IMU frame, gravity felt by the IMU, mismatch options.
     servos : sequence of ServoConfig
-        Servos whose ``string`` names a scene string drive that string's rest length.
+        Servos whose ``string`` names a scene string drive that string's rest length (their
+        true zero off by ``config.servo_zero_offset_rad``, in this order).
     """
 
     def __init__(
@@ -137,6 +218,11 @@ class Truth:
         self.dt_s = config.dt_s
         names = [s.name for s in scene.strings]
         self.servo_strings: dict[int, int] = {}
+        offsets_rad = config.servo_zero_offset_rad or (0.0,) * len(servos)
+        self.servo_offset_m = {
+            s.id: s.length_sign * s.pulley_radius_m * off
+            for s, off in zip(servos, offsets_rad, strict=True)
+        }
         for servo in servos:
             if not servo.string:
                 continue
@@ -212,7 +298,7 @@ class Truth:
         lag = self.config.servo_lag_s
         gain = 1.0 if lag <= 0 else 1.0 - math.exp(-self.dt_s / lag)
         for servo_id, index in self.servo_strings.items():
-            target = string_lengths_m[servo_id]
+            target = string_lengths_m[servo_id] - self.servo_offset_m[servo_id]
             self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
         n_w = len(self.wheel_input_rad_s)
         self.wheel_input_rad_s[:] = 0.0

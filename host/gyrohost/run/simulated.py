@@ -23,7 +23,8 @@ def run_simulated(
     schedule : Schedule or Maneuver
     log_folder : path
     scene : path, optional
-        Scene of the rig and of the estimator (default: the configuration's).
+        Scene of the estimator, and of the rig's truth unless ``[sim.truth] scene`` sets another
+        (default: the configuration's).
     **kwargs
         Passed on to :class:`RunLoop` (``settings``, ``estimator``, ``on_tick``, ``progress``,
         ``meta``, ``live``).
