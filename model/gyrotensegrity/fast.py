@@ -219,6 +219,9 @@ class FastDynamics:
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
+        if self.model.omitted:
+            spin = np.abs(np.reshape(omega_w, (-1, self.n_wheels))).max(axis=0, initial=0.0)
+            self.model.check_omitted(spin[self.torque_wheels], spin * self.speed_mask)
         if self.kernel is not None and not any(
             np.iscomplexobj(a) for a in (q, q_dot, omega_w, rest)
         ):
@@ -325,8 +328,11 @@ class FastDynamics:
         ------
         SimulationError
             When the constraint system is singular (compiled kernel), naming the bar.
+        PrunedTermError
+            When a wheel spins or is driven on a model built with ``omit=("gyroscopic",)``.
         """
         if self.kernel is not None:
+            self._check_omitted(x, u)
             out = np.empty(self.state_size)
             status = self.kernel.rhs(
                 self._consts,
@@ -355,11 +361,18 @@ class FastDynamics:
 
     def rhs_numpy(self, t, x, u):
         """dx/dt by the numpy path (the compiled kernel's reference and fallback)."""
+        self._check_omitted(x, u)
         q, q_dot, omega_w = self.split(x, u)
         z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
         k = 3 * self.size
         spin = u[self.alpha + self.torque_wheels] * self.inv_J3
         return np.concatenate([x[k : 2 * k], z_ddot.ravel(), omega_w, spin])
+
+    def _check_omitted(self, x, u):
+        """The model's omitted-term check on a state of this object's layout."""
+        if self.model.omitted:
+            spin = x[self.state_size - len(self.torque_wheels) :]
+            self.model.check_omitted(spin, u[self.alpha :])
 
     def project(self, x, rtol=1e-15, iterations=6):
         """``projection.project`` (min-norm Gauss-Newton onto the bar lengths, then the
