@@ -8,6 +8,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.integrate import DOP853
 
 from gyrohost.bench.extremes import (
     near_flat_dbar,
@@ -16,6 +17,8 @@ from gyrohost.bench.extremes import (
     zero_length_crossing,
 )
 from gyrotensegrity import Model, SimulationError, Stepper, scene_from_dict, simulate
+from gyrotensegrity.fast import FastDynamics
+from gyrotensegrity.simulate import explicit_steps
 
 
 def model_of(data):
@@ -41,6 +44,36 @@ def test_explicit_adaptive_refused_when_it_would_take_millions_of_steps():
     model = model_of(prism(stiffness=1e13))
     with pytest.raises(SimulationError, match=r"dop853 needs about .* steps; use an implicit"):
         simulate(model, duration=10.0, integrator="dop853", fast=True)
+
+
+def tiny_masses():
+    """The prism with bars and wheels of 1e-9 kg: the strings' oscillation is the motion."""
+    data = prism()
+    for bar in data["bars"]:
+        bar["mass"] = bar["wheel"]["mass"] = 1e-9
+    return model_of(data)
+
+
+def test_step_estimate_for_tiny_masses_matches_the_steps_taken():
+    """The stability bound alone (3 rad of the string's oscillation per step) estimated 44
+    steps here; resolving the motion to rtol takes about 800."""
+    model = tiny_masses()
+    fd, x0, u0 = FastDynamics(model), model.initial_state(), model.input_at(0.0)
+    solver = DOP853(lambda t, x: fd.rhs(t, x, u0), 0.0, x0, 5e-4, rtol=1e-8, atol=1e-14)
+    steps = 0
+    while solver.status == "running":
+        solver.step()
+        steps += 1
+    estimate, why, member = explicit_steps(model, "dop853", 5e-4, 1e-8, x0, u0)
+    assert 0.5 < estimate / steps < 2.0
+    assert member in model.structure.node_names and f"node {member} accelerates" in why
+
+
+def test_tiny_masses_refused_naming_the_node():
+    model = tiny_masses()
+    with pytest.raises(SimulationError, match=r"node \w+ accelerates .* needs about") as exc:
+        simulate(model, duration=1.0, integrator="dop853", rtol=1e-12, fast=True)
+    assert exc.value.t_s == 0.0 and exc.value.member in model.structure.node_names
 
 
 @pytest.mark.parametrize("integrator", ["radau", "dop853"])
