@@ -2,8 +2,8 @@
 
 ``python -m gyrotensegrity.sensitivity`` prints the table of docs/dbar-parameters.md: the tilt
 of the plane at 1.5 s and 3 s of the shipped dbar-gyro maneuver with J_3, the bar mass, the
-wheel mass and the spin each scaled by 0.5 ... 2 (fast path, about ten seconds), next to the
-tilt the momentum balance predicts.
+wheel mass and the spin each scaled by 0.5 ... 2 (fast path, about ten seconds of CPU), next
+to the tilt the momentum balance predicts.
 
 The balance (derived in docs/dbar-parameters.md): the plane turns about the n2-n4 axis (y) at
 
@@ -146,15 +146,15 @@ def paper_couplings(base: dict) -> dict:
 
 
 def table(rows) -> list[str]:
-    """Markdown lines of the sensitivity table."""
+    """Markdown lines of the sensitivity table: the turns about -y (n3 rises), degrees."""
     out = [
         "| parameter | factor | tilt 1.5 s deg | tilt 3 s deg | balance 3 s deg | n1 z at 3 s cm |",
         "|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(
-            f"| {r['parameter']} | {r['factor']:g} | {r['tilt_deg'][0]:.1f} | "
-            f"{r['tilt_deg'][1]:.1f} | {r['balance_deg'][1]:.1f} | {100 * r['z1_m'][1]:.2f} |"
+            f"| {r['parameter']} | {r['factor']:g} | {-r['tilt_deg'][0]:.1f} | "
+            f"{-r['tilt_deg'][1]:.1f} | {-r['balance_deg'][1]:.1f} | {100 * r['z1_m'][1]:.2f} |"
         )
     return out
 
