@@ -11,8 +11,11 @@ import pytest
 from scipy.integrate import DOP853
 
 from gyrohost.bench.extremes import (
+    extent,
     near_flat_dbar,
     prism,
+    reference,
+    run_cell,
     with_spin,
     zero_length_crossing,
 )
@@ -98,6 +101,31 @@ def test_wheels_at_3000_rad_s_hold(integrator, opts):
     assert np.max(np.abs(run["bar_length_error"])) < 1e-9
     assert np.max(run["joint_error"]) < 1e-12
     assert drift(run["angular_momentum"]) < 1e-7
+
+
+def test_fold_instability_is_sensitive_not_holds():
+    """Wheels at 1e4 rad/s: the D-bar's fold instability grows from round-off, so DOP853 at
+    rtol 1e-11 and 1e-13 part by micrometres at 0.8 s (metres soon after); each run alone
+    keeps its constraints, which made the cell "hold" before."""
+    data = with_spin(1e4)
+    ref = reference(data, 0.8, budget_s=120.0)
+    assert ref["spread"] > 1e-6
+    cell = run_cell(data, 0.8, "dop853", 120.0, ref)
+    assert cell["status"] == "sensitive" and "amplifies round-off" in cell["message"]
+    assert cell["bar_length_error"] < 1e-9
+
+
+def test_cell_holds_only_within_its_accuracy_class():
+    data = with_spin(0.0)
+    ref = reference(data, 0.1, budget_s=60.0)
+    assert ref["spread"] < 1e-12
+    cell = run_cell(data, 0.1, "rk4", 60.0, ref)
+    assert cell["status"] == "holds" and cell["node_error"] < 1e-3
+    size = extent(model_of(data))
+    shifted = dict(ref, N=ref["N"] + 2e-3 * size)  # a reference 2e-3 x extent away
+    assert run_cell(data, 0.1, "rk4", 60.0, shifted)["status"] == "inaccurate"
+    assert run_cell(data, 0.1, "rk4", 60.0, dict(shifted, spread=1.0))["status"] == "sensitive"
+    assert run_cell(data, 0.1, "rk4", 60.0, None)["status"] == "unverified"
 
 
 @pytest.mark.parametrize("ratio", [1e-4, 1e4])

@@ -1,9 +1,15 @@
 """Stability at the extremes: every integrator on scenes pushed to the edges of the range.
 
-Each cell runs :func:`gyrotensegrity.simulate` (the user's path, fast dynamics) and reports
-``holds`` with its constraint error and drift, ``fails`` with the library's error message
-(stiffness detected, non-finite state with time and member, singular geometry), or
-``budget`` when the wall-time budget ran out first (slow, not broken).
+Each cell runs :func:`gyrotensegrity.simulate` (the user's path, fast dynamics) and compares
+its node positions with a tight reference of the same scene (DOP853 at two tolerances,
+:data:`REFERENCE`). A cell ``holds`` only when it agrees with the reference within its
+integrator's accuracy class (:data:`ACCURACY_CLASS`, relative to the structure's extent). It
+is ``sensitive`` when the two reference runs themselves differ by more than that class (the
+motion amplifies round-off, e.g. a fold instability: no integrator settles it),
+``inaccurate`` when the references agree and the cell does not (its setting is too loose
+there), ``unverified`` when the references did not finish. ``fails`` carries the library's
+error message (stiffness detected, non-finite state with time and member, singular geometry),
+``budget`` says the wall-time budget ran out first (slow, not broken).
 """
 
 import time
@@ -24,6 +30,17 @@ SETTINGS = {
     "radau": {"rtol": 1e-6, "atol": 1e-9},
     "bdf": {"rtol": 1e-6, "atol": 1e-9},
 }
+ACCURACY_CLASS = {
+    "rk4": 1e-3,
+    "rk4-projected": 1e-3,
+    "dop853": 1e-6,
+    "rk45": 1e-3,
+    "radau": 1e-3,
+    "bdf": 1e-3,
+}
+"""Largest node difference from the reference, relative to the structure's extent, for which
+a cell of the integrator (at its :data:`SETTINGS`) holds."""
+REFERENCE = ("dop853", (1e-11, 1e-13))  # integrator, the two rtol (atol rtol / 1000 x extent)
 
 
 def scene_data(name: str) -> dict:
@@ -103,6 +120,7 @@ def cells(quick: bool):
     short = 0.1 if quick else 0.5
     yield "wheel speed", "0 rad/s", with_spin(0.0), short
     yield "wheel speed", "3,000 rad/s", with_spin(3000.0), short
+    yield "wheel speed", "10,000 rad/s", with_spin(1e4), 1.0
     yield "string stiffness", "1 N/m", prism(stiffness=1.0), short
     yield "string stiffness", "1e7 N/m", prism(stiffness=1e7), short
     yield "mass ratio wheel/bar", "1e-4", prism(mass_ratio=1e-4), short
@@ -120,58 +138,125 @@ def cells(quick: bool):
     )
 
 
-def run_cell(data: dict, duration: float, integrator: str, budget_s: float) -> dict:
-    """One cell: ``status`` holds / fails / budget, with figures or the error message."""
+def _simulate(model, duration: float, integrator: str, settings: dict, budget_s: float):
+    """A fast-path run sampled as every run of the cell, stopped at the wall-time budget."""
     from gyrotensegrity import simulate
 
-    model = Model(scene_from_dict(data, source=data.get("scene", {}).get("name", "cell")))
     start = time.perf_counter()
 
     def progress(t, total):
         if time.perf_counter() - start > budget_s:
             raise RunStopped(f"{t:.3g} of {total:g} s in {budget_s:g} s")
 
-    sample = min(0.01 * max(duration, 1.0), duration / 10)
+    return simulate(
+        model,
+        duration=duration,
+        sample_dt=min(0.01 * max(duration, 1.0), duration / 10),
+        integrator=integrator,
+        constraint_tolerance=1e-3 * max(model.l.max(), 1e-3),
+        progress=progress,
+        fast=True,
+        **settings,
+    )
+
+
+def extent(model) -> float:
+    """The structure's size at the start, m: the largest spread of its node coordinates."""
+    return float(np.max(np.ptp(model.structure.N0, axis=1)))
+
+
+def reference(data: dict, duration: float, budget_s: float) -> dict | None:
+    """The cell's reference: DOP853 at the two :data:`REFERENCE` tolerances.
+
+    Returns
+    -------
+    dict or None (a reference run failed or ran out of budget)
+        ``N`` (K, 3, n) m of the tighter run; ``spread``: the largest node difference between
+        the two, relative to the extent; ``spread_t_s``: when it is largest.
+    """
+    model = model_of(data)
+    size = extent(model)
+    integrator, tolerances = REFERENCE
     try:
-        run = simulate(
-            model,
-            duration=duration,
-            integrator=integrator,
-            sample_dt=sample,
-            constraint_tolerance=1e-3 * max(model.l.max(), 1e-3),
-            progress=progress,
-            fast=True,
-            **SETTINGS[integrator],
-        )
+        runs = [
+            _simulate(model, duration, integrator, {"rtol": r, "atol": 1e-3 * r * size}, budget_s)
+            for r in tolerances
+        ]
+    except (SimulationError, RunStopped):
+        return None
+    diff = np.max(np.abs(runs[0]["N"] - runs[1]["N"]), axis=(1, 2)) / size
+    k = int(np.argmax(diff))
+    return {"N": runs[1]["N"], "spread": float(diff[k]), "spread_t_s": float(runs[1]["t"][k])}
+
+
+def model_of(data: dict) -> Model:
+    return Model(scene_from_dict(data, source=data.get("scene", {}).get("name", "cell")))
+
+
+def run_cell(data: dict, duration: float, integrator: str, budget_s: float, ref=None) -> dict:
+    """One cell: ``status`` (see the module docstring) with figures or the error message.
+
+    Parameters
+    ----------
+    ref : dict or None
+        The cell's :func:`reference`; None: the status of a finished run is ``unverified``.
+    """
+    model = model_of(data)
+    start = time.perf_counter()
+    try:
+        run = _simulate(model, duration, integrator, SETTINGS[integrator], budget_s)
     except SimulationError as exc:
         return {"status": "fails", "message": str(exc), "wall_s": time.perf_counter() - start}
     except RunStopped as exc:
         return {"status": "budget", "message": str(exc), "wall_s": time.perf_counter() - start}
+    wall = time.perf_counter() - start
     bar = float(np.max(np.abs(run["bar_length_error"]) / model.l))
     joint = float(np.max(run["joint_error"], initial=0.0))
     H = run["angular_momentum"]
     wheels = run["omega_w"][:, model.wheel_bars]  # the run file holds one column per bar
     states = zip(run["N"], run["N_dot"], wheels, strict=True)
     scale = max(max(diagnostics.momentum_scale(model, N, Nd, w) for N, Nd, w in states), 1e-300)
-    finite = all(np.all(np.isfinite(run[k])) for k in ("N", "N_dot", "energy"))
-    return {
-        "status": "holds" if finite else "NaN",
+    figures = {
         "bar_length_error": bar,
         "joint_error_m": joint,
         "momentum_drift": float(np.max(np.linalg.norm(H - H[0], axis=1)) / scale),
-        "wall_s": time.perf_counter() - start,
+        "wall_s": wall,
     }
+    if not all(np.all(np.isfinite(run[k])) for k in ("N", "N_dot", "energy")):
+        return {"status": "NaN", **figures}
+    return {**figures, **_agreement(model, run["N"], integrator, ref)}
+
+
+def _agreement(model, N, integrator: str, ref) -> dict:
+    """Status and message of a finished run from its node difference to the reference."""
+    if ref is None:
+        return {"status": "unverified", "message": "the reference runs did not finish"}
+    size, bound = extent(model), ACCURACY_CLASS[integrator]
+    error = float(np.max(np.abs(N - ref["N"]))) / size
+    out = {"node_error": error, "reference_spread": ref["spread"]}
+    if error <= bound:
+        return {**out, "status": "holds"}
+    rtols = " and ".join(f"{r:g}" for r in REFERENCE[1])
+    if ref["spread"] > bound:
+        why = (
+            f"{REFERENCE[0]} runs at rtol {rtols} differ by {ref['spread'] * size:.2g} m "
+            f"(at {ref['spread_t_s']:.3g} s): the motion amplifies round-off"
+        )
+        return {**out, "status": "sensitive", "message": why}
+    why = f"node error {error * size:.2g} m against the reference, class {bound:g} x extent"
+    return {**out, "status": "inaccurate", "message": why}
 
 
 def sweep(quick: bool, log=print) -> list:
     rows = []
     budget = 3.0 if quick else 60.0
     for group, label, data, duration in cells(quick):
+        long = group == "long horizon" and not quick
+        ref = reference(data, duration, 300.0 if long else 4 * budget)
         for integrator in SETTINGS:
             if quick and integrator in ("rk45", "bdf"):
                 continue
-            long = group == "long horizon" and not quick
-            cell = run_cell(data, duration, integrator, 150.0 if long else budget)
+            cell = run_cell(data, duration, integrator, 150.0 if long else budget, ref)
             rows.append(
                 {
                     "group": group,
@@ -182,11 +267,11 @@ def sweep(quick: bool, log=print) -> list:
                 }
             )
             log(
-                f"  {group:22s} {label:30s} {integrator:13s} {cell['status']:6s} "
+                f"  {group:22s} {label:30s} {integrator:13s} {cell['status']:10s} "
                 + (
                     cell.get("message", "")[:70]
                     if cell["status"] != "holds"
-                    else f"bar {cell['bar_length_error']:.1e}"
+                    else f"node {cell['node_error']:.1e} bar {cell['bar_length_error']:.1e}"
                 )
             )
     return rows
