@@ -170,20 +170,21 @@ def reference(data: dict, duration: float, budget_s: float) -> dict | None:
 
     Returns
     -------
-    dict or None (a reference run failed or ran out of budget)
+    dict
         ``N`` (K, 3, n) m of the tighter run; ``spread``: the largest node difference between
-        the two, relative to the extent; ``spread_t_s``: when it is largest.
+        the two, relative to the extent; ``spread_t_s``: when it is largest. Only ``message``
+        when a reference run failed or ran out of budget.
     """
     model = model_of(data)
     size = extent(model)
     integrator, tolerances = REFERENCE
-    try:
-        runs = [
-            _simulate(model, duration, integrator, {"rtol": r, "atol": 1e-3 * r * size}, budget_s)
-            for r in tolerances
-        ]
-    except (SimulationError, RunStopped):
-        return None
+    runs = []
+    for r in tolerances:
+        try:
+            settings = {"rtol": r, "atol": 1e-3 * r * size}
+            runs.append(_simulate(model, duration, integrator, settings, budget_s))
+        except (SimulationError, RunStopped) as exc:
+            return {"message": f"reference {integrator} at rtol {r:g} did not finish: {exc}"}
     diff = np.max(np.abs(runs[0]["N"] - runs[1]["N"]), axis=(1, 2)) / size
     k = int(np.argmax(diff))
     return {"N": runs[1]["N"], "spread": float(diff[k]), "spread_t_s": float(runs[1]["t"][k])}
@@ -199,7 +200,8 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float, ref=
     Parameters
     ----------
     ref : dict or None
-        The cell's :func:`reference`; None: the status of a finished run is ``unverified``.
+        The cell's :func:`reference`; without its nodes (None, or a reference that did not
+        finish) the status of a finished run is ``unverified``.
     """
     model = model_of(data)
     start = time.perf_counter()
@@ -229,8 +231,8 @@ def run_cell(data: dict, duration: float, integrator: str, budget_s: float, ref=
 
 def _agreement(model, N, integrator: str, ref) -> dict:
     """Status and message of a finished run from its node difference to the reference."""
-    if ref is None:
-        return {"status": "unverified", "message": "the reference runs did not finish"}
+    if ref is None or "N" not in ref:
+        return {"status": "unverified", "message": ref["message"] if ref else "no reference"}
     size, bound = extent(model), ACCURACY_CLASS[integrator]
     error = float(np.max(np.abs(N - ref["N"]))) / size
     out = {"node_error": error, "reference_spread": ref["spread"]}
