@@ -369,7 +369,8 @@ class FastDynamics:
     def _check_omitted(self, x, u):
         """The model's omitted-term check on a state of this object's layout."""
         if self.model.omitted:
-            spin = x[self.state_size - len(self.torque_wheels) :]
+            start = 6 * self.size + self.n_wheels  # after q, q_dot and the wheel angles
+            spin = x[start : start + len(self.torque_wheels)]
             self.model.check_omitted(spin, u[self.alpha :])
 
     def project(self, x, rtol=1e-15, iterations=6):
