@@ -13,7 +13,7 @@ See docs/model.md for the equations-to-code map and the API.
 __version__ = "0.1.0"
 
 from .dynamics import evaluate, rhs  # noqa: E402
-from .errors import SceneError, SimulationError  # noqa: E402
+from .errors import PrunedTermError, SceneError, SimulationError  # noqa: E402
 from .model import Model  # noqa: E402
 from .runfile import Run, load_run  # noqa: E402
 from .scene import Scene, load_scene, scene_from_dict  # noqa: E402
@@ -21,6 +21,7 @@ from .simulate import Stepper, simulate  # noqa: E402
 
 __all__ = [
     "Model",
+    "PrunedTermError",
     "Run",
     "Scene",
     "SceneError",

@@ -62,13 +62,20 @@ def gyroscopic_forces(model: Model, B, B_dot, omega_w):
 
 
 def evaluate(t, x, u, params: Model) -> Evaluation:
-    """Evaluate the dynamics (Eqs. 53-59, with Eqs. 60-68 when there are constraints)."""
+    """Evaluate the dynamics (Eqs. 53-59, with Eqs. 60-68 when there are constraints).
+
+    Raises
+    ------
+    PrunedTermError
+        When a wheel spins or is driven on a model built with ``omit=("gyroscopic",)``.
+    """
     model = params
     if model.rig is not None:
         raise SceneError(
             f"{model.scene.source}: rig_fidelity: evaluate() is the paper's model only"
         )
     st = model.structure
+    model.check_omitted(x[model.layout.omega], u[model.alpha :])
     N, N_dot = model.nodes(x)
     B = N[:, st.bar_end] - N[:, st.bar_start]  # B = N C_b^T
     B_dot = N_dot[:, st.bar_end] - N_dot[:, st.bar_start]

@@ -23,3 +23,23 @@ class SimulationError(ValueError):
         self.t_s = t_s
         self.member = member
         self.partial = partial
+
+
+class PrunedTermError(ValueError):
+    """A call needs a model term that the model was built without.
+
+    Raised instead of silently evaluating without the term, e.g. a wheel input or spin on a
+    model built with ``Model(scene, omit=("gyroscopic",))``.
+
+    Attributes
+    ----------
+    term : str
+        The omitted term (one of :data:`gyrotensegrity.model.Model.ALL_TERMS`).
+    member : str
+        The bar whose wheel needs it.
+    """
+
+    def __init__(self, message: str, term: str, member: str):
+        super().__init__(message)
+        self.term = term
+        self.member = member

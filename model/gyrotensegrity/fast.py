@@ -26,12 +26,10 @@ import bisect
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.linalg import solve_banded
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .errors import SceneError, SimulationError
 from .model import Model
+from .sparse_constraints import SparseConstraints
 
 try:  # the optional compiled kernel (setup.py); the numpy path below is the fallback
     from . import _fastkernel
@@ -175,7 +173,7 @@ class FastDynamics:
     def _sparse_mass(self, model, U, E, P_u):
         """Large structures. Without constraints ``M^-1 = U^T M_s^-1 U`` is sparse (Eq. 47)
         and ``Y`` diagonal: everything stays sparse and linear in size. With joints:
-        the saddle-point system (:class:`_SparseConstraints`)."""
+        the saddle-point system (:class:`.sparse_constraints.SparseConstraints`)."""
         self.c_u = P_u.shape[1]
         if self.c_u:
             raise ValueError(
@@ -191,7 +189,7 @@ class FastDynamics:
             self.Minv_ET, self.E_Minv = _Right(E_Minv.T, False), _Right(E_Minv, False)
             self.sparse = None
         else:
-            self.sparse = _SparseConstraints(sp.csc_matrix(U.T @ model.M_s @ U), E)
+            self.sparse = SparseConstraints(sp.csc_matrix(U.T @ model.M_s @ U), E)
 
     def _kernel_constants(self):
         """Pack the dense constants for the compiled kernel (order of ``layout`` in C)."""
@@ -225,6 +223,9 @@ class FastDynamics:
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
+        if self.model.omitted:
+            spin = np.abs(np.reshape(omega_w, (-1, self.n_wheels))).max(axis=0, initial=0.0)
+            self.model.check_omitted(spin[self.torque_wheels], spin * self.speed_mask)
         if self.kernel is not None and not any(
             np.iscomplexobj(a) for a in (q, q_dot, omega_w, rest)
         ):
@@ -331,8 +332,11 @@ class FastDynamics:
         ------
         SimulationError
             When the constraint system is singular (compiled kernel), naming the bar.
+        PrunedTermError
+            When a wheel spins or is driven on a model built with ``omit=("gyroscopic",)``.
         """
         if self.kernel is not None:
+            self._check_omitted(x, u)
             out = np.empty(self.state_size)
             status = self.kernel.rhs(
                 self._consts,
@@ -361,11 +365,19 @@ class FastDynamics:
 
     def rhs_numpy(self, t, x, u):
         """dx/dt by the numpy path (the compiled kernel's reference and fallback)."""
+        self._check_omitted(x, u)
         q, q_dot, omega_w = self.split(x, u)
         z_ddot = self._accelerations(q, q_dot, omega_w, u[: self.alpha])
         k = 3 * self.size
         spin = u[self.alpha + self.torque_wheels] * self.inv_J3
         return np.concatenate([x[k : 2 * k], z_ddot.ravel(), omega_w, spin])
+
+    def _check_omitted(self, x, u):
+        """The model's omitted-term check on a state of this object's layout."""
+        if self.model.omitted:
+            start = 6 * self.size + self.n_wheels  # after q, q_dot and the wheel angles
+            spin = x[start : start + len(self.torque_wheels)]
+            self.model.check_omitted(spin, u[self.alpha :])
 
     def project(self, x, rtol=1e-15, iterations=6):
         """``projection.project`` (min-norm Gauss-Newton onto the bar lengths, then the
@@ -439,65 +451,6 @@ def _cross(a, b):
         ],
         axis=-2,
     )
-
-
-class _SparseConstraints:
-    """Large reduced-order structures with joints: ``E M^-1 E^T`` is dense, so the bar
-    multipliers come from the sparse saddle-point system ``[[kron(I3, M), G^T], [G, 0]]``
-    with the bar rows ``G[i, (r, k)] = b_ir E_ik``. Its pattern is fixed: a reverse
-    Cuthill-McKee order computed once makes it banded for chain-like structures (bandwidth 8
-    for prism chains), solved by banded LU in linear time; wider bands use sparse LU.
-    Single states; batches are looped."""
-
-    BAND_LIMIT = 64
-
-    def __init__(self, M, E):
-        Ec = sp.csr_matrix(E).tocoo()
-        m, beta = M.shape[0], E.shape[0]
-        n3, r = 3 * m, np.arange(3)
-        self.m, self.size = m, n3 + beta
-        self.g_rows = np.repeat(Ec.row, 3)
-        self.g_cols = (r[None, :] * m + Ec.col[:, None]).ravel()  # coordinate (r, k) -> r m + k
-        self.g_e = np.repeat(Ec.data, 3)
-        self.g_r = np.tile(r, len(Ec.data))
-        Mc = sp.kron(sp.identity(3), M).tocoo()
-        self.m_rows, self.m_cols, self.m_vals = Mc.row, Mc.col, Mc.data
-        rows = np.concatenate([Mc.row, n3 + self.g_rows, self.g_cols])
-        cols = np.concatenate([Mc.col, self.g_cols, n3 + self.g_rows])
-        pattern = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(self.size,) * 2)
-        self.perm = reverse_cuthill_mckee(pattern, symmetric_mode=True)
-        where = np.empty(self.size, dtype=int)
-        where[self.perm] = np.arange(self.size)
-        i, j = where[rows], where[cols]
-        self.band = int(np.abs(i - j).max())
-        if self.band <= self.BAND_LIMIT:
-            w = self.band
-            self.ab_const = np.zeros((2 * w + 1, self.size))
-            nm = len(Mc.row)
-            np.add.at(self.ab_const, (w + i[:nm] - j[:nm], j[:nm]), Mc.data)
-            self.g_pos = (w + i[nm:] - j[nm:], j[nm:])
-
-    def solve(self, f0, B, b2, bd2):
-        """Accelerations (..., 3, m) from the reduced forces f0 without bar forces."""
-        if B.ndim != 2:
-            flat = [self.solve(f0[k], B[k], b2[k], bd2[k]) for k in np.ndindex(B.shape[:-2])]
-            return np.reshape(flat, f0.shape)
-        n3 = 3 * self.m
-        g = B[self.g_r, self.g_rows] * self.g_e
-        rhs = np.concatenate([f0.ravel(), -bd2])
-        if self.band <= self.BAND_LIMIT:
-            ab = self.ab_const.copy()
-            ab[self.g_pos] = np.concatenate([g, g])
-            w = self.band
-            sol = np.empty(self.size)
-            sol[self.perm] = solve_banded((w, w), ab, rhs[self.perm], check_finite=False)
-        else:
-            rows = np.concatenate([self.m_rows, n3 + self.g_rows, self.g_cols])
-            cols = np.concatenate([self.m_cols, self.g_cols, n3 + self.g_rows])
-            vals = np.concatenate([self.m_vals, g, g])
-            K = sp.csc_matrix((vals, (rows, cols)), shape=(self.size, self.size))
-            sol = spla.spsolve(K, rhs)
-        return sol[:n3].reshape(3, self.m)
 
 
 class InputTable:

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .errors import PrunedTermError
 from .scene import Scene
 from .structure import Structure, compile_structure
 
@@ -72,15 +73,33 @@ class StateLayout:
 class Model:
     """Compiled gyroscopic tensegrity model of a scene.
 
+    A term is left out only when nothing can make it act: not the scene, not its inputs, not
+    a controller, an initial state or :meth:`Stepper.step <gyrotensegrity.Stepper.step>`
+    inputs. Every wheel has an input (speed or torque), so the gyroscopic term is built for
+    every scene with wheels, whatever their initial spin and schedules. ``omit`` leaves it
+    out on the caller's word; then every evaluation whose wheels spin or are driven raises
+    :class:`~gyrotensegrity.errors.PrunedTermError` instead of dropping the term.
+
     Parameters
     ----------
     scene : Scene
+    omit : iterable of str, optional
+        Terms the caller declares unused (only ``"gyroscopic"``: wheels that never spin).
+
+    Raises
+    ------
+    ValueError
+        An ``omit`` entry is not an omittable term.
+    PrunedTermError
+        The scene itself spins or drives a wheel while ``"gyroscopic"`` is omitted.
 
     Attributes
     ----------
     structure : Structure
     terms : frozenset of str
         The model terms built for this scene (see :data:`ALL_TERMS`).
+    omitted : frozenset of str
+        The terms left out on the caller's word (``omit``).
     layout : StateLayout
     l, m_t, J_t, J_a : ndarray, shape (beta,)
         Bar lengths (m), bar + wheel masses (kg), J_t and J_a (kg, Eq. 16).
@@ -101,8 +120,9 @@ class Model:
         "external_forces",
         "string_damping",
     )
+    OMITTABLE = ("gyroscopic",)
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, omit=()):
         self.scene = scene
         st = self.structure = compile_structure(scene)
         self.n, self.beta, self.alpha, self.c = st.n, len(scene.bars), len(scene.strings), st.c
@@ -116,12 +136,18 @@ class Model:
         self._external_forces(scene, st)
         if self.c:
             self._multiplier_system(st)
-        self.terms = frozenset(self._which_terms(scene))
+        self.omitted = self._omitted(omit)
+        self.terms = frozenset(self._which_terms(scene)) - self.omitted
         from .rigfidelity import rig_fidelity  # imports the dynamics, which import this module
 
         self.rig = rig_fidelity(self)  # None: the paper's model
         n_rig = self.rig.size if self.rig else 0
         self.layout = StateLayout(self.m, len(self.wheel_bars), len(self.torque_wheels), n_rig)
+        if self.omitted:  # the scene's own spins and schedules
+            self.check_omitted(self.spin0[self.torque_wheels], np.zeros(len(self.wheel_bars)))
+            for k, schedule in enumerate(self.wheel_schedules):
+                peak = schedule.value[np.argmax(np.abs(schedule.value))]
+                self._check_wheel(k, peak, "has a scheduled input of", self._unit(k))
 
     # -- compile steps --------------------------------------------------------------------------
     def _bar_constants(self, scene):
@@ -252,10 +278,17 @@ class Model:
         self.omega_pairs_rows = (3 * np.array(rows, dtype=int)[:, None] + rr.ravel()).ravel()
         self.omega_pairs_cols = (3 * np.array(cols, dtype=int)[:, None] + ss.ravel()).ravel()
 
+    def _omitted(self, omit):
+        omitted = frozenset(omit)
+        for term in omitted - set(self.OMITTABLE):
+            raise ValueError(
+                f"omit: {term!r} cannot be omitted (omittable: {', '.join(self.OMITTABLE)})"
+            )
+        return omitted
+
     def _which_terms(self, scene):
-        wheels = [scene.bars[i].wheel for i in self.wheel_bars]
-        if any(w.mode == "speed" or w.spin0 or np.any(w.torque.value) for w in wheels):
-            yield "gyroscopic"  # a wheel that never spins has mass and J_1 but no J_a terms
+        if np.any(self.J_a[self.wheel_bars] > 0.0):
+            yield "gyroscopic"  # any wheel can be spun by its input (control, Stepper.step)
         if len(self.torque_wheels):
             yield "wheel_torque"
         if self.c:
@@ -268,6 +301,42 @@ class Model:
             yield "external_forces"
         if np.any(self.c_s > 0.0):
             yield "string_damping"
+
+    # -- omitted terms ------------------------------------------------------------------------
+    def check_omitted(self, omega_torque, wheel_input):
+        """Raise when an evaluation needs an omitted term (no-op when nothing is omitted).
+
+        Parameters
+        ----------
+        omega_torque : ndarray, shape (n_tq,), rad/s
+            Spins of the torque-driven wheels (the state's last entries).
+        wheel_input : ndarray, shape (n_w,)
+            Wheel inputs: speeds (rad/s) or motor torques (N m).
+
+        Raises
+        ------
+        PrunedTermError
+            Naming the term and the bar of the first wheel that spins or is driven.
+        """
+        if "gyroscopic" not in self.omitted:
+            return
+        for k, value in zip(self.torque_wheels, omega_torque, strict=True):
+            self._check_wheel(k, value, "spins at")
+        for k, value in enumerate(wheel_input):
+            self._check_wheel(k, value, "has an input of", self._unit(k))
+
+    def _unit(self, k):
+        return "rad/s" if self.wheel_modes[k] == "speed" else "N m"
+
+    def _check_wheel(self, k, value, what, unit="rad/s"):
+        if value != 0.0:
+            bar = self.scene.bars[self.wheel_bars[k]].name
+            raise PrunedTermError(
+                f"wheel of bar {bar} {what} {float(np.real(value)):.6g} {unit}, but the model "
+                "was built with omit=('gyroscopic',): build it without omit",
+                "gyroscopic",
+                bar,
+            )
 
     # -- state and inputs ---------------------------------------------------------------------
     def describe(self) -> str:
@@ -310,6 +379,7 @@ class Model:
         nw = len(self.wheel_bars)
         theta = np.zeros(nw) if theta is None else np.asarray(theta, float)
         omega = self.spin0 if omega is None else np.asarray(omega, float)
+        self.check_omitted(omega[self.torque_wheels], np.zeros(nw))
         q = np.asarray(self.U2.T @ np.asarray(N).T).T
         q_dot = np.asarray(self.U2.T @ np.asarray(N_dot).T).T
         rig = self.rig.initial() if self.rig else []

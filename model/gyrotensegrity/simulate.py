@@ -12,14 +12,11 @@ import numpy as np
 import scipy
 
 from . import __version__, diagnostics
-from .dynamics import rhs
+from .dynamics import evaluate, rhs
 from .errors import SimulationError
 from .integrators import ADAPTIVE, FIXED_STEP, adaptive_solver, check_name, fixed_step
 from .model import Model
 from .runfile import Run
-
-RK4_STABLE = 2.5  # |omega dt| below the RK4 stability limit on the imaginary axis (2.83)
-MAX_STEPS = 2_000_000  # explicit adaptive runs that would need more steps are refused
 
 
 def dynamics_of(model: Model, fast: bool):
@@ -33,29 +30,104 @@ def dynamics_of(model: Model, fast: bool):
     return (lambda t, x, u: rhs(t, x, u, model)), None
 
 
-def check_step(model: Model, integrator: str, dt: float, duration: float) -> None:
+RK4_STABLE = 2.5  # |omega dt| below the RK4 stability limit on the imaginary axis (2.83)
+EXPLICIT_STABLE = 3.0  # |omega h| an explicit adaptive step reaches on a mode it need not resolve
+# Steps per unit of the motion's own time scale tau for an explicit adaptive method at rtol:
+# h = C tau rtol^(1/p), p the order of its error control. C measured on the prism with bar and
+# wheel masses of 1 kg ... 1e-9 kg, rtol 1e-4 ... 1e-12 (docs/performance.md): the estimate is
+# within a factor of 2 of the steps taken.
+EXPLICIT_ACCURACY = {"dop853": (8, 0.25), "rk45": (5, 0.5)}
+MAX_STEPS = 2_000_000  # explicit adaptive runs that would need more steps are refused
+
+
+def explicit_steps(model: Model, integrator: str, duration: float, rtol: float, x0, u0):
+    """Estimated steps of an explicit adaptive integrator over ``duration``.
+
+    Two bounds, the larger wins. Stability: a step covers at most ``EXPLICIT_STABLE`` radians
+    of the fastest oscillation ``omega`` (:func:`diagnostics.highest_frequency`), enough when
+    that mode is stiff and barely excited. Accuracy: the motion itself must be resolved to
+    ``rtol``; its time scale ``tau = sqrt(L / a)``, with ``L`` the structure's extent and ``a``
+    the largest node acceleration at the start. When the stiffest string carries the motion
+    (node masses tiny for the string stiffness), ``1 / tau`` approaches ``omega`` and accuracy
+    costs far more steps than stability.
+
+    Parameters
+    ----------
+    integrator : {"dop853", "rk45"}
+    duration : float, s
+    rtol : float
+    x0 : ndarray, shape (layout.size,)
+    u0 : ndarray, shape (alpha + n_w,)
+
+    Returns
+    -------
+    steps : float
+    why : str
+        The bound that sets it, naming its member (the string or wheel bar for stability, the
+        node for accuracy).
+    member : str
+    """
+    omega, stiff = diagnostics.highest_frequency(model)
+    with np.errstate(all="ignore"):  # a singular start is the run's to report, with its member
+        N_ddot = evaluate(0.0, x0, u0, model).N_ddot
+    N, _ = model.nodes(x0)
+    accel = np.nan_to_num(np.linalg.norm(N_ddot, axis=0), nan=0.0, posinf=0.0)
+    node = int(np.argmax(accel))
+    extent = float(np.max(np.ptp(N, axis=1)))
+    order, c = EXPLICIT_ACCURACY[integrator]
+    rate = np.sqrt(accel[node] / extent) / (c * rtol ** (1.0 / order)) if extent > 0 else 0.0
+    if omega / EXPLICIT_STABLE >= rate:
+        why = f"stiff: {stiff} oscillates at up to {omega:.3g} rad/s"
+        return omega * duration / EXPLICIT_STABLE, why, stiff
+    name = model.structure.node_names[node]
+    why = (
+        f"node {name} accelerates at {accel[node]:.3g} m/s^2, so the motion changes within "
+        f"{1.0 / np.sqrt(accel[node] / extent):.3g} s and rtol {rtol:g} needs short steps"
+        + (f" ({stiff} oscillates at up to {omega:.3g} rad/s)" if stiff else "")
+    )
+    return rate * duration, why, name
+
+
+def check_step(
+    model: Model, integrator: str, dt: float, duration: float, rtol=None, x0=None, u0=None
+) -> None:
     """Refuse an explicit integrator that cannot resolve the model's fastest motion.
+
+    Parameters
+    ----------
+    dt : float, s
+        Step of a fixed-step integrator.
+    rtol : float, optional
+        Tolerance of an explicit adaptive integrator; with ``x0`` (state) and ``u0`` (input at
+        t = 0) it enables the step estimate of :func:`explicit_steps`.
 
     Raises
     ------
     SimulationError
-        At t = 0, naming the string or wheel bar that makes the model stiff and suggesting
-        the implicit integrators.
+        At t = 0, naming the string, wheel bar or node that makes the run too costly and
+        suggesting the remedies.
     """
-    omega, member = diagnostics.highest_frequency(model)
-    if integrator in FIXED_STEP and omega * dt > RK4_STABLE:
-        need = f"dt <= {RK4_STABLE / omega:.3g} s"
-    elif integrator in ("dop853", "rk45") and omega * duration / 3.0 > MAX_STEPS:
-        need = f"about {omega * duration / 3.0:.3g} steps"
-    else:
+    if integrator in FIXED_STEP:
+        omega, member = diagnostics.highest_frequency(model)
+        if omega * dt <= RK4_STABLE:
+            return
+        raise SimulationError(
+            f"t = 0 s: stiff: {member} oscillates at up to {omega:.3g} rad/s; {integrator} "
+            f"needs dt <= {RK4_STABLE / omega:.3g} s; use an implicit integrator (radau or "
+            "bdf) or a smaller dt",
+            0.0,
+            member,
+        )
+    if integrator not in EXPLICIT_ACCURACY or x0 is None:
         return
-    raise SimulationError(
-        f"t = 0 s: stiff: {member} oscillates at up to {omega:.3g} rad/s; {integrator} needs "
-        f"{need}; use an implicit integrator (radau or bdf)"
-        + (" or a smaller dt" if integrator in FIXED_STEP else ""),
-        0.0,
-        member,
-    )
+    steps, why, member = explicit_steps(model, integrator, duration, rtol, x0, u0)
+    if steps > MAX_STEPS:
+        raise SimulationError(
+            f"t = 0 s: {why}; {integrator} needs about {steps:.3g} steps; use an implicit "
+            "integrator (radau or bdf), a looser rtol or a shorter run",
+            0.0,
+            member,
+        )
 
 
 def nonfinite_member(model: Model, x) -> str | None:
@@ -260,8 +332,9 @@ def simulate(
 
     start = time.perf_counter()
     try:
-        check_step(model, integrator, dt if integrator in FIXED_STEP else 0.0, duration)
-        rec.add(0.0, x, u_of(0.0, x))
+        u0 = u_of(0.0, x)
+        check_step(model, integrator, dt, duration, rtol, x, u0)
+        rec.add(0.0, x, u0)
         if integrator in FIXED_STEP:
             steps = max(1, int(np.ceil(sample_dt / dt - 1e-9)))
             meta["dt"] = h = sample_dt / steps

@@ -8,14 +8,20 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.integrate import DOP853
 
 from gyrohost.bench.extremes import (
+    extent,
     near_flat_dbar,
     prism,
+    reference,
+    run_cell,
     with_spin,
     zero_length_crossing,
 )
 from gyrotensegrity import Model, SimulationError, Stepper, scene_from_dict, simulate
+from gyrotensegrity.fast import FastDynamics
+from gyrotensegrity.simulate import explicit_steps
 
 
 def model_of(data):
@@ -43,6 +49,36 @@ def test_explicit_adaptive_refused_when_it_would_take_millions_of_steps():
         simulate(model, duration=10.0, integrator="dop853", fast=True)
 
 
+def tiny_masses():
+    """The prism with bars and wheels of 1e-9 kg: the strings' oscillation is the motion."""
+    data = prism()
+    for bar in data["bars"]:
+        bar["mass"] = bar["wheel"]["mass"] = 1e-9
+    return model_of(data)
+
+
+def test_step_estimate_for_tiny_masses_matches_the_steps_taken():
+    """The stability bound alone (3 rad of the string's oscillation per step) estimated 44
+    steps here; resolving the motion to rtol takes about 800."""
+    model = tiny_masses()
+    fd, x0, u0 = FastDynamics(model), model.initial_state(), model.input_at(0.0)
+    solver = DOP853(lambda t, x: fd.rhs(t, x, u0), 0.0, x0, 5e-4, rtol=1e-8, atol=1e-14)
+    steps = 0
+    while solver.status == "running":
+        solver.step()
+        steps += 1
+    estimate, why, member = explicit_steps(model, "dop853", 5e-4, 1e-8, x0, u0)
+    assert 0.5 < estimate / steps < 2.0
+    assert member in model.structure.node_names and f"node {member} accelerates" in why
+
+
+def test_tiny_masses_refused_naming_the_node():
+    model = tiny_masses()
+    with pytest.raises(SimulationError, match=r"node \w+ accelerates .* needs about") as exc:
+        simulate(model, duration=1.0, integrator="dop853", rtol=1e-12, fast=True)
+    assert exc.value.t_s == 0.0 and exc.value.member in model.structure.node_names
+
+
 @pytest.mark.parametrize("integrator", ["radau", "dop853"])
 def test_stiff_string_holds_with_adaptive_integrators(integrator):
     model = model_of(prism(stiffness=1e7))
@@ -65,6 +101,33 @@ def test_wheels_at_3000_rad_s_hold(integrator, opts):
     assert np.max(np.abs(run["bar_length_error"])) < 1e-9
     assert np.max(run["joint_error"]) < 1e-12
     assert drift(run["angular_momentum"]) < 1e-7
+
+
+def test_fold_instability_is_sensitive_not_holds():
+    """Wheels at 1e4 rad/s: the D-bar's fold instability grows from round-off, so DOP853 at
+    rtol 1e-11 and 1e-13 part by micrometres at 0.8 s (metres soon after); each run alone
+    keeps its constraints, which made the cell "hold" before."""
+    data = with_spin(1e4)
+    ref = reference(data, 0.8, budget_s=120.0)
+    assert ref["spread"] > 1e-6
+    cell = run_cell(data, 0.8, "dop853", 120.0, ref)
+    assert cell["status"] == "sensitive" and "amplifies round-off" in cell["message"]
+    assert cell["bar_length_error"] < 1e-9
+
+
+def test_cell_holds_only_within_its_accuracy_class():
+    data = with_spin(0.0)
+    ref = reference(data, 0.1, budget_s=60.0)
+    assert ref["spread"] < 1e-12
+    cell = run_cell(data, 0.1, "rk4", 60.0, ref)
+    assert cell["status"] == "holds" and cell["node_error"] < 1e-3
+    size = extent(model_of(data))
+    shifted = dict(ref, N=ref["N"] + 2e-3 * size)  # a reference 2e-3 x extent away
+    assert run_cell(data, 0.1, "rk4", 60.0, shifted)["status"] == "inaccurate"
+    assert run_cell(data, 0.1, "rk4", 60.0, dict(shifted, spread=1.0))["status"] == "sensitive"
+    unfinished = {"message": "reference dop853 at rtol 1e-13 did not finish: budget"}
+    cell = run_cell(data, 0.1, "rk4", 60.0, unfinished)
+    assert cell["status"] == "unverified" and cell["message"] == unfinished["message"]
 
 
 @pytest.mark.parametrize("ratio", [1e-4, 1e4])

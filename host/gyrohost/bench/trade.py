@@ -52,9 +52,14 @@ def dbar_model(damping=None) -> Model:
     return Model(scene_from_dict(data, source="dbar-gyro.toml (no string damping)"))
 
 
+def _spinless(kw) -> tuple:
+    """The gyroscopic term left out for the no-spin variant (its wheels never turn)."""
+    return () if kw["spin_rad_s"] else ("gyroscopic",)
+
+
 def cases(quick: bool) -> list:
     dbar = dbar_model()
-    nospin = Model(load_scene(SCENES / "dbar-nospin.toml"))
+    nospin = Model(load_scene(SCENES / "dbar-nospin.toml"), omit=("gyroscopic",))
     prisms = 2 if quick else 4
     chain = [
         ("class-1 chain, wheels spinning", dict(spin_rad_s=50.0)),
@@ -63,7 +68,8 @@ def cases(quick: bool) -> list:
         ("joined (class-2 chain, reduced)", dict(spin_rad_s=50.0, joined=True)),
     ]
     chain_variants = [
-        Variant(name, Model(prism_chain(prisms, duration_s=1.0, **kw))) for name, kw in chain
+        Variant(name, Model(prism_chain(prisms, duration_s=1.0, **kw), omit=_spinless(kw)))
+        for name, kw in chain
     ]
     chain_variants.append(Variant("joined, full coordinates", chain_variants[-1].model, "full"))
     return [
