@@ -71,9 +71,9 @@ static inline void uart_tx_release() {
     UCSR0B |= _BV(UDRIE0);  // an empty ring: the interrupt clears it again at once
 }
 bool uart_rx_take_overflow();  // true once after the RX ring overflowed
-// True once after the receive interrupt saw a whole STOP_ALL frame (board_uart.cpp); the frame
+// STOP_ALL frames the receive interrupt has seen whole (board_uart.cpp), free-running; each frame
 // also goes through the ring and is dispatched (and acknowledged) in order.
-bool uart_take_stop_request();
+uint8_t uart_stops_seen();
 
 void tick_init();
 extern volatile uint8_t g_tick_count;  // incremented by the Timer2 compare ISR

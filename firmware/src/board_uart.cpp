@@ -26,7 +26,7 @@ volatile uint8_t board_tx_held;  // set by the tick ISR, cleared by uart_tx_rele
 // frames queued in the ring. board_stop_match: bytes of the frame matched so far (0..4), 5 when
 // this frame is something else (until the next 0x00).
 volatile uint8_t board_stop_match;
-volatile uint8_t board_stop_request;
+volatile uint8_t board_stops_seen;
 }
 
 static constexpr uint8_t k_stop_wire[PROTO_STOP_ALL_WIRE_LEN] = PROTO_STOP_ALL_WIRE;
@@ -43,9 +43,9 @@ void uart_init() {
 // STOP_ALL match in assembly. Budget, measured (make -C firmware cycles): 49 cycles from the first
 // instruction to reti on the common path (a byte of any frame but STOP_ALL: prologue 11, ring 17,
 // match 6, epilogue 15), 57 with the 8 of response and vector jump, up to 64 + 8 while a STOP_ALL
-// matches (gcc's C for the same work took 83-92). With the 40 of the UDRE interrupt, a full-duplex
-// burst (a byte each way every 160 cycles) leaves the main loop 39 % of the CPU
-// (docs/hardware.md, "ISR costs").
+// matches and 3 more on its delimiter (the count; gcc's C for the same work took 83-92). With the
+// 40 of the UDRE interrupt, a full-duplex burst (a byte each way every 160 cycles) leaves the main
+// loop 39 % of the CPU (docs/hardware.md, "ISR costs").
 ISR(USART0_RX_vect, ISR_NAKED) {
     __asm__ __volatile__(
         "push r30\n\t"
@@ -99,7 +99,9 @@ ISR(USART0_RX_vect, ISR_NAKED) {
         "5:\n\t"  // delimiter: a STOP_ALL if exactly its 4 bytes came since the last one
         "cpi r25, 4\n\t"
         "brne 6f\n\t"
-        "sts board_stop_request, r25\n"
+        "lds r25, board_stops_seen\n\t"  // +5 cycles, on a STOP_ALL's delimiter only
+        "inc r25\n\t"
+        "sts board_stops_seen, r25\n"
         "6:\n\t"
         "sts board_stop_match, r24\n"  // r24 = 0
         "9:\n\t"
@@ -170,8 +172,6 @@ bool uart_rx_take_overflow() {
     return true;
 }
 
-bool uart_take_stop_request() {
-    if (!board_stop_request) return false;
-    board_stop_request = 0;
-    return true;
-}
+uint8_t uart_stops_seen() {
+    return board_stops_seen;
+}  // one byte: read atomically

@@ -78,7 +78,7 @@ static void main_handle_rx(uint8_t tick_seen) {
         uart_rx_next();
         g_rx_fifo[g_rx_in++ & (MAIN_RX_FIFO_SIZE - 1)] = b;
     }
-    if (uart_rx_take_overflow()) app_note_rx_overflow(&g_app);
+    if (uart_rx_take_overflow()) app_note_rx_overflow(&g_app, uart_stops_seen());
     for (uint8_t i = 0;
          i < MAIN_RX_BYTES_PER_PASS && g_tick_count == tick_seen && g_rx_out != g_rx_in; i++) {
         app_rx_byte(&g_app, g_rx_fifo[g_rx_out++ & (MAIN_RX_FIFO_SIZE - 1)]);
@@ -125,7 +125,7 @@ int main() {
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         // A STOP_ALL the receive interrupt saw since the last tick: taken right before the ramp,
         // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.
-        if (uart_take_stop_request()) app_stop_all_early(&g_app);
+        app_note_stops_seen(&g_app, uart_stops_seen());
         app_setpoints_tick(&g_app);  // heartbeat, fail-safe, ramp: used by the next step
         // Supervision and one encoder's diagnostics register, outside step_max_us.
         app_supervise(&g_app);

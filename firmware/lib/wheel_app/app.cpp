@@ -102,7 +102,8 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->enable_mask = 0;
     a->enc_clear = 0;
     a->run_mask = 0;
-    a->stops_ahead = 0;
+    a->stops_seen = 0;
+    a->stops_dispatched = 0;
     a->cal_wheel = APP_NO_WHEEL;
     a->diag_next = 0;
     a->uncal_mask = 0;
@@ -116,8 +117,14 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
 
 // ---------------------------------------------------------------- dispatcher
 
+// A STOP_ALL the receive interrupt saw and the dispatcher has not reached yet (counts modulo 256;
+// fewer than 128 outstanding).
+static bool app_stops_ahead(const app_state* a) {
+    return static_cast<int8_t>(a->stops_seen - a->stops_dispatched) > 0;
+}
+
 static void app_on_set_speeds(app_state* a, const uint8_t* p) {
-    if (a->stops_ahead) return;  // sent before a STOP_ALL that has already stopped the wheels
+    if (app_stops_ahead(a)) return;  // sent before a STOP_ALL that has already stopped the wheels
     if (flt_blocks_setpoints(&a->flt)) {
         app_send_error(a, PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
         return;
@@ -218,15 +225,16 @@ void app_stop_all(app_state* a) {
     app_update_run_mask(a);
 }
 
-void app_stop_all_early(app_state* a) {
-    app_stop_all(a);
-    if (a->stops_ahead < 0xFFu) a->stops_ahead++;
+void app_note_stops_seen(app_state* a, uint8_t stops_seen) {
+    if (stops_seen == a->stops_seen) return;
+    a->stops_seen = stops_seen;
+    if (app_stops_ahead(a)) app_stop_all(a);
 }
 
 static void app_on_simple(app_state* a, uint8_t id) {
     switch (id) {
         case PROTO_ID_STOP_ALL:
-            if (a->stops_ahead) a->stops_ahead--;
+            a->stops_dispatched++;
             app_stop_all(a);
             app_send_ack(a, id);
             break;
@@ -508,8 +516,9 @@ void app_note_overrun(app_state* a, uint8_t missed_ticks) {
     flt_set(&a->flt, PROTO_FAULT_TICK_OVERRUN);
 }
 
-void app_note_rx_overflow(app_state* a) {
-    a->stops_ahead = 0;  // a STOP_ALL seen early may have lost bytes in the ring: not dispatched
+void app_note_rx_overflow(app_state* a, uint8_t stops_seen) {
+    app_note_stops_seen(a, stops_seen);
+    a->stops_dispatched = a->stops_seen;  // the frames behind the count may be lost: not awaited
     a->cnt.rx_overflow = sat_inc(a->cnt.rx_overflow);
     flt_set(&a->flt, PROTO_FAULT_RX_OVERFLOW);
 }

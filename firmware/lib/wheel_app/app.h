@@ -100,7 +100,8 @@ struct app_state {
     uint16_t seq;
     uint8_t telem_count;
     uint8_t stopping;             // STOP_ALL in progress: ramp with DECEL
-    uint8_t stops_ahead;          // STOP_ALL frames acted on early, not yet dispatched
+    uint8_t stops_seen;           // STOP_ALL frames the receive interrupt saw (free-running)
+    uint8_t stops_dispatched;     // STOP_ALL frames dispatched (free-running)
     uint16_t pwm[APP_WHEELS][3];  // compare values 0..CMT_PWM_TOP
     uint8_t enable_mask;          // bit w: driver stage of wheel w enabled
     // Bit w: ramped setpoint or target of wheel w nonzero (app_update_run_mask, wherever either
@@ -133,11 +134,14 @@ inline void app_rx_byte(app_state* a, uint8_t byte) {
 // acknowledges the frame).
 void app_stop_all(app_state* a);
 
-// STOP_ALL acted on before its turn: the board's receive interrupt recognised the frame, so the
-// stop does not wait behind the frames queued before it in the ring. Those frames are still
-// dispatched in order, except SET_SPEEDS: sent before the stop, they are dropped until the
-// STOP_ALL itself is dispatched (and acknowledged).
-void app_stop_all_early(app_state* a);
+// STOP_ALL acted on before its turn: the board's receive interrupt counts the STOP_ALL frames it
+// recognises (free-running), and the main loop passes the count here once per tick. A count
+// ahead of the STOP_ALLs dispatched stops the wheels now, not behind the frames queued before it.
+// Those frames are still dispatched in order, except SET_SPEEDS: sent before the stop, they are
+// dropped until the STOP_ALL itself is dispatched (and acknowledged). Counts, not a flag: a
+// STOP_ALL dispatched before the main loop read the count is not acted on again (that would
+// cancel a SET_SPEEDS sent after it) and never leaves setpoints dropped.
+void app_note_stops_seen(app_state* a, uint8_t stops_seen);
 
 // Background work of the main loop (EEPROM save progress).
 void app_poll(app_state* a);
@@ -167,7 +171,9 @@ void app_telemetry(app_state* a, uint32_t t_us);
 // Board events. app_note_overrun: missed_ticks control ticks passed without a step (the tick
 // ISR counts them); call it before the step that follows them.
 void app_note_overrun(app_state* a, uint8_t missed_ticks);
-void app_note_rx_overflow(app_state* a);
+// app_note_rx_overflow: bytes were lost; stops_seen as for app_note_stops_seen (a STOP_ALL seen in
+// the lost bytes still stops; setpoints are not held off waiting for a frame that may be gone).
+void app_note_rx_overflow(app_state* a, uint8_t stops_seen);
 void app_note_step_time(app_state* a, uint16_t us);
 
 uint8_t app_status(const app_state* a);

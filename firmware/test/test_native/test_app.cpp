@@ -401,7 +401,7 @@ TEST_F(AppTest, PersistentErrorFlagFaultsAfterTheLimitThenRecoversAfterClear) {
 
 TEST_F(AppTest, OverrunAndRxOverflowSetFaults) {
     app_note_overrun(&app, 3);
-    app_note_rx_overflow(&app);
+    app_note_rx_overflow(&app, 0);
     EXPECT_EQ(app.cnt.tick_overruns, 3);
     EXPECT_NE(app.flt.faults & PROTO_FAULT_TICK_OVERRUN, 0);
     EXPECT_NE(app.flt.faults & PROTO_FAULT_RX_OVERFLOW, 0);
@@ -678,7 +678,7 @@ TEST_F(AppTest, EarlyStopAllDropsTheSetpointsQueuedBeforeIt) {
     set_param(PRM_MODE, 1);
     send(PROTO_ID_SET_SPEEDS, i32s({10000, 10000, 10000, 10000}));
     step(5);
-    app_stop_all_early(&app);
+    app_note_stops_seen(&app, 1);
     EXPECT_EQ(app.w[0].target_mrad_s, 0);
     send(PROTO_ID_SET_SPEEDS, i32s({20000, 20000, 20000, 20000}));  // queued before the stop
     EXPECT_EQ(app.w[0].target_mrad_s, 0);
@@ -694,11 +694,24 @@ TEST_F(AppTest, EarlyStopAllDropsTheSetpointsQueuedBeforeIt) {
 // An RX overflow may have cut the STOP_ALL seen early out of the ring: setpoints are not held off
 // waiting for a frame that will never be dispatched.
 TEST_F(AppTest, RxOverflowEndsTheWaitForAnEarlyStopAll) {
-    app_stop_all_early(&app);
-    app_note_rx_overflow(&app);
+    app_note_stops_seen(&app, 1);
+    app_note_rx_overflow(&app, 1);
     app.flt.faults = 0;
     send(PROTO_ID_SET_SPEEDS, i32s({1000, 0, 0, 0}));
     EXPECT_EQ(app.w[0].target_mrad_s, 1000);
+}
+
+// The main loop reads the interrupt's count once per tick: a STOP_ALL dispatched before that is
+// not acted on again (it would cancel the SET_SPEEDS sent after it), and setpoints are not held
+// off waiting for it; the count wraps modulo 256.
+TEST_F(AppTest, StopAllDispatchedBeforeTheCountIsReadIsNotActedOnTwice) {
+    set_param(PRM_MODE, 1);
+    for (int k = 0; k < 300; k++) {
+        send(PROTO_ID_STOP_ALL);
+        send(PROTO_ID_SET_SPEEDS, i32s({1000 + k, 0, 0, 0}));  // sent after the stop
+        app_note_stops_seen(&app, static_cast<uint8_t>(k + 1));
+        ASSERT_EQ(app.w[0].target_mrad_s, 1000 + k) << k;
+    }
 }
 
 }  // namespace
