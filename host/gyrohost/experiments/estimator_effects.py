@@ -99,7 +99,8 @@ def ticked_feed(arrival, ticks, effects: Effects):
     """A ``feed`` for :func:`.montecarlo.score_run`: each tick drains what has arrived since
     the last and fuses the newest ``MAX_FUSED_PER_TICK`` of each stream (the newest wheel frame
     only with ``wheel_clock``) in the order of their stamps, as ``gyrohost.run.dispatch`` does;
-    then the tick's command (``command_at_last_sample``: at the filter's time by then)."""
+    then the tick's command (``command_at_last_sample``: at the filter's time by then), and
+    predicts to the tick (the loop writes its estimate there)."""
 
     def feed(ekf, data, on_step):
         prev = -np.inf
@@ -119,6 +120,7 @@ def ticked_feed(arrival, ticks, effects: Effects):
                 if effects.command_at_last_sample:
                     command = _with_times(command, np.full(len(command), max(ekf.t, 0.0)))
                 driver.run(ekf, {streams.COMMAND: command}, on_step)
+            ekf.advance(max(tick, ekf.t))  # the loop's estimate at every tick
 
     return feed
 
@@ -133,6 +135,8 @@ def score_with_effects(
     model, data, truth_x, truth_R, frames, dt_s = rig_model_run(config, seed, duration_s, ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
     keys = {**noise_from_rig(config), **({} if effects.rig_noise else RIG_MODEL_KEYS)}
+    if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
+        keys["imu_latency_s"] = MIN_DELAY_S
     keys.update(overrides or {})
     est_cfg = config_from_dict(keys)
     ekf = TensegrityEKF(model, est_cfg)
@@ -165,6 +169,13 @@ CASES = {
 CASES["loop-fixed-rig-noise"] = replace(CASES["loop-fixed"], rig_noise=True)
 
 
+def _value(text):
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def main(argv=None) -> int:
     from gyrohost.config import load_rig_config
 
@@ -177,7 +188,7 @@ def main(argv=None) -> int:
     parser.add_argument("--key", action="append", default=[], help="estimator KEY=VALUE")
     args = parser.parse_args(argv)
     config = load_rig_config(DEFAULT_CONFIG)
-    overrides = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.key)}
+    overrides = {k: _value(v) for k, v in (kv.split("=", 1) for kv in args.key)}
     for name in args.case or CASES:
         effects = CASES[name]
         results = [
