@@ -79,9 +79,10 @@ class ProcessModel:
         q = X[:, L.q].reshape(K, 3, m)
         q_dot = X[:, L.q_dot].reshape(K, 3, m)
         rest = X[:, L.rest]
+        pulling = rest  # the rest lengths the string forces see
         if self.config.kink_model == "mean":
-            rest = self.mean_force_rest(q, q_dot, rest)
-        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], rest)
+            pulling = self.mean_force_rest(q, q_dot, rest)
+        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], pulling)
         dx = np.empty_like(X)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
