@@ -5,9 +5,9 @@ must lie inside the 95 % chi-square bounds of a 6-run average. The 20-run figure
 
 import numpy as np
 import pytest
+from run_average import inside_bounds
 
 from gyrohost.config import load_rig_config
-from gyrohost.estimator.consistency import average_bounds
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
 from gyrohost.resources import shipped
 
@@ -23,23 +23,17 @@ def results():
     return [score_rig_model_run(config, s, DURATION_S, RIG_MODEL_KEYS) for s in SEEDS]
 
 
-def _inside(values, dof, runs):
-    lo, hi = average_bounds(dof, runs)
-    mean = float(np.mean(values))
-    return lo <= mean <= hi, f"{mean:.2f} not in [{lo:.2f}, {hi:.2f}] (dof {dof}, {runs} runs)"
-
-
 def test_nees_inside_its_bounds(results):
     dof = results[0].nees_dof
     assert dof == 25  # the D-bar's 33 states less the 8 bar-length constraints
-    ok, why = _inside([r.nees for r in results], dof, len(results))
+    ok, why = inside_bounds([r.nees for r in results], dof, len(results))
     assert ok, why
 
 
 @pytest.mark.parametrize("source", SOURCES)
 def test_nis_inside_its_bounds(results, source):
     dof = int(results[0].nis[source][2][0])
-    ok, why = _inside([np.mean(r.nis[source][1]) for r in results], dof, len(results))
+    ok, why = inside_bounds([np.mean(r.nis[source][1]) for r in results], dof, len(results))
     assert ok, f"{source}: {why}"
 
 
