@@ -38,3 +38,4 @@ def test_gyrotens_sil_prints_the_consistency_table(capsys):
         assert f"[sil] {name}: mean " in out and "95 % bounds of a 1-run average" in out, name
     assert "time steps inside" in out and "tilt error RMS" in out and "filter CPU" in out
     assert main(["sil", "--runs", "0"]) == 2
+    assert main(["sil", "--realtime", "--workers", "2"]) == 2  # real time runs one at a time

@@ -1,13 +1,18 @@
 """Reduced software-in-the-loop Monte Carlo on the simulated rig (in process, simulated clock):
 6 noise seeds over the whole 3 s manoeuvre; the run-averaged NEES and the NIS of every source
-must lie inside the 95 % chi-square bounds of a 6-run average. The 20-run figures:
-``python -m gyrohost.experiments.estimator_sil`` (docs/estimator.md)."""
+must lie inside the 95 % chi-square bounds of a 6-run average. Twice: the SIL (every sample at
+its true time) and the filter as the run loop drives it (IMU samples stamped on arrival and put
+back on the IMU's grid, every wheel telemetry frame on arrival, ticks late by Exp(1 ms) with the
+commands sent then, the filter predicting to every tick: ``estimator_effects`` case
+``loop-fixed``). The 20-run figures: ``python -m gyrohost.experiments.estimator_sil``, the
+effects one at a time: ``python -m gyrohost.experiments.estimator_effects`` (docs/estimator.md)."""
 
 import numpy as np
 import pytest
+from run_average import inside_bounds
 
 from gyrohost.config import load_rig_config
-from gyrohost.estimator.consistency import average_bounds
+from gyrohost.experiments.estimator_effects import CASES, score_with_effects
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
 from gyrohost.resources import shipped
 
@@ -18,33 +23,38 @@ SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 
 
 @pytest.fixture(scope="module")
-def results():
+def sil():
     config = load_rig_config(CONFIG)
     return [score_rig_model_run(config, s, DURATION_S, RIG_MODEL_KEYS) for s in SEEDS]
 
 
-def _inside(values, dof, runs):
-    lo, hi = average_bounds(dof, runs)
-    mean = float(np.mean(values))
-    return lo <= mean <= hi, f"{mean:.2f} not in [{lo:.2f}, {hi:.2f}] (dof {dof}, {runs} runs)"
+@pytest.fixture(scope="module")
+def loop():
+    config = load_rig_config(CONFIG)
+    return [score_with_effects(config, s, CASES["loop-fixed"], DURATION_S) for s in SEEDS]
+
+
+@pytest.fixture(params=["sil", "loop"])
+def results(request):
+    return request.getfixturevalue(request.param)
 
 
 def test_nees_inside_its_bounds(results):
     dof = results[0].nees_dof
     assert dof == 25  # the D-bar's 33 states less the 8 bar-length constraints
-    ok, why = _inside([r.nees for r in results], dof, len(results))
+    ok, why = inside_bounds([r.nees for r in results], dof, len(results))
     assert ok, why
 
 
 @pytest.mark.parametrize("source", SOURCES)
 def test_nis_inside_its_bounds(results, source):
     dof = int(results[0].nis[source][2][0])
-    ok, why = _inside([np.mean(r.nis[source][1]) for r in results], dof, len(results))
+    ok, why = inside_bounds([np.mean(r.nis[source][1]) for r in results], dof, len(results))
     assert ok, f"{source}: {why}"
 
 
-def test_tilt_error_is_small(results):
-    tilt_deg = np.degrees(np.concatenate([r.tilt_rad for r in results]))
+def test_tilt_error_is_small(sil):
+    tilt_deg = np.degrees(np.concatenate([r.tilt_rad for r in sil]))
     assert np.sqrt(np.mean(tilt_deg**2)) < 0.05
     assert tilt_deg.max() < 0.3
 

@@ -1,9 +1,11 @@
-"""``gyrotens sil [--runs N] [--realtime] [--config C]``: the estimator's consistency.
+"""``gyrotens sil [--runs N] [--realtime] [--config C] [--workers N]``: the estimator's
+consistency.
 
 Runs the paper's schedule ``N`` times on the simulated rig (in process on a simulated clock, or
 ``--realtime`` through the run loop) and prints NEES and the NIS of every source against the
 95 % bounds of an N-run average, the share of time steps inside them, tilt and node errors and
-the filter's CPU time (:mod:`gyrohost.experiments.estimator_sil`, docs/estimator.md).
+the filter's CPU time (:mod:`gyrohost.experiments.estimator_sil`, docs/estimator.md). The
+simulated clock's runs go through :mod:`gyrohost.parallel` with ``--workers`` or ``--scheduler``.
 """
 
 
@@ -21,6 +23,9 @@ def run(args) -> int:
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
+    if args.realtime and (args.workers is not None or args.scheduler is not None):
+        raise CliError("--realtime runs one after the other: --workers/--scheduler are for the "
+                       "simulated clock")  # fmt: skip
     try:
         report(args)
     except SilError as exc:

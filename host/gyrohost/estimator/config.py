@@ -57,11 +57,18 @@ class EstimatorConfig:
     # how far a sample's reconstructed time may be off its true one (latency, the grid's
     # residual jitter): adds (dh/dt)^2 imu_time_std_s^2 to each IMU source's noise, s
     imu_time_std_s: float = field(default=0.0, metadata=_pos("IMU sample time std", 0.0, 0.1))
+    # the IMU's smallest delay from sampling to the host's stamp (transfer, the reader's
+    # wake-up): a reconstructed grid time is that much after the sample was taken, s
+    imu_latency_s: float = field(default=0.0, metadata=_pos("IMU latency", 0.0, 0.1))
     # process model
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
+    # the string kink the prediction uses: "sharp" (tension-only, as the model) or "mean" (the
+    # expected force under the rest-length jitter, rest_jitter_psd_m2_s; the jitter noise then
+    # carries only its variance about that mean)
+    kink_model: str = field(default="sharp", metadata={"choices": ("sharp", "mean")})
     # IMU attachment (as the rig's truth, gyrohost.rig.truth): body frame from three scene
     # nodes (the rig's default: the D-bar's), sensor axes turned by mounting_rpy, gravity the
     # sensor feels (world frame)

@@ -100,6 +100,7 @@ class TensegrityEKF:
         self.dynamic_columns = np.arange(L.n_dynamic)
         self.t = float(t0_s)
         self.t_start = self.t
+        self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
         self.u = model.input_at(self.t)
         self.log = log
         self.monitors = {s: SourceMonitor(s, self._timeout(s)) for s in SOURCES}
@@ -245,11 +246,17 @@ class TensegrityEKF:
         The three are linearised once (:func:`.imu_prediction.predict_imu`), gated each on its
         own NIS and the accepted ones fused in one update.
 
+        ``t_s`` is the sample's stamp; it was taken ``imu_latency_s`` before. A sample taken
+        before the filter's time (the run loop predicts to every tick) is compared with the
+        prediction taken back to its time along the dynamics (``h - lag dh/dt``).
+
         Returns
         -------
         list of Innovation (empty when the sample was stale)
         """
-        if not self._arrive(t_s, fuse_imu_rate.SOURCE):
+        taken_s = t_s - self.config.imu_latency_s
+        self.imu_lag_s = max(self.t - taken_s, 0.0)
+        if not self._arrive(taken_s, fuse_imu_rate.SOURCE):
             return []
         pred = predict_imu(self, self.x, self.u)
         self._A = pred.A  # the lean process model's next linearisation

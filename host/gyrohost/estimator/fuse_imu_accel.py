@@ -7,7 +7,7 @@ Jacobian comes from the batched complex-step evaluation of :mod:`.imu_prediction
 import numpy as np
 
 from .fusion import Measurement
-from .imu_prediction import ImuPrediction, full_jacobian, timing_noise
+from .imu_prediction import ImuPrediction, at_sample_time, full_jacobian, timing_noise
 
 SOURCE = "imu_accel"
 LABELS = ("x", "y", "z")
@@ -17,4 +17,5 @@ def measurement(ekf, pred: ImuPrediction, accel_m_s2) -> Measurement:
     """The specific-force sample (3,) m/s^2 with its prediction and Jacobian (3, n)."""
     H = full_jacobian(ekf, pred.d_specific_force)
     R = timing_noise(ekf, pred, pred.d_specific_force, ekf.config.imu_accel_std_m_s2)
-    return Measurement(SOURCE, np.asarray(accel_m_s2, float), pred.specific_force, H, R)
+    hx = at_sample_time(ekf, pred, pred.d_specific_force, pred.specific_force)
+    return Measurement(SOURCE, np.asarray(accel_m_s2, float), hx, H, R)

@@ -9,7 +9,7 @@ import numpy as np
 from gyrohost.geometry import wrap_angle
 
 from .fusion import Measurement
-from .imu_prediction import ImuPrediction, full_jacobian, timing_noise
+from .imu_prediction import ImuPrediction, at_sample_time, full_jacobian, timing_noise
 
 SOURCE = "imu_angle"
 LABELS = ("roll", "pitch", "yaw")
@@ -44,6 +44,7 @@ def angle_residual(z, hx):
 def measurement(ekf, pred: ImuPrediction, euler_rad) -> Measurement:
     """The angle sample (3,) rad with its prediction and Jacobian (3, n)."""
     hx, J = angles_and_jacobian(pred.R_ws, pred.dR_ws)
+    hx = at_sample_time(ekf, pred, J, hx)
     R = timing_noise(ekf, pred, J, ekf.config.imu_angle_std_rad)
     z = np.asarray(euler_rad, float)
     return Measurement(SOURCE, z, hx, full_jacobian(ekf, J), R, angle_residual)

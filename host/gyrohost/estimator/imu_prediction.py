@@ -47,6 +47,13 @@ def predict_imu(ekf, x, u) -> ImuPrediction:
     return ImuPrediction(R.reshape(3, 3), dR, w, dw, fv, df, A, x_dot)
 
 
+def at_sample_time(ekf, pred: ImuPrediction, J, h):
+    """The prediction ``h`` (k,) taken back to the sample's time when the filter is
+    ``ekf.imu_lag_s`` ahead of it: ``h - lag dh/dt``, ``dh/dt = J x_dot`` (J over the dynamic
+    states)."""
+    return h - ekf.imu_lag_s * (J @ pred.x_dot)
+
+
 def timing_noise(ekf, pred: ImuPrediction, J, std):
     """Measurement covariance (k, k) of white noise ``std`` per component plus the IMU's
     sample-time uncertainty (``imu_time_std_s``): a sample taken ``dt`` off the time it is

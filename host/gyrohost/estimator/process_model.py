@@ -27,7 +27,7 @@ response); the gyro bias is constant. Process noise is white: node accelerations
 """
 
 import numpy as np
-from scipy.special import ndtr
+from scipy.special import erfc, ndtr
 
 from gyrotensegrity.fast import FastDynamics
 
@@ -79,13 +79,38 @@ class ProcessModel:
         q = X[:, L.q].reshape(K, 3, m)
         q_dot = X[:, L.q_dot].reshape(K, 3, m)
         rest = X[:, L.rest]
-        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], rest)
+        pulling = rest  # the rest lengths the string forces see
+        if self.config.kink_model == "mean":
+            pulling = self.mean_force_rest(q, q_dot, rest)
+        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], pulling)
         dx = np.empty_like(X)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
         dx[:, L.omega] = self.dyn.wheel_acceleration(u)
         dx[:, L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
         return (dx, N_ddot) if with_node_accelerations else dx
+
+    def mean_force_rest(self, q, q_dot, rest):
+        """Rest lengths (K, alpha) m at which every string pulls with its expected force under
+        the rest-length jitter (per step ``N(0, s^2)``, ``s^2 = rest_jitter_psd_m2_s /
+        process_dt_s``): ``k s g(mu / s)``, ``g(a) = E max(a - Z, 0) = a Phi(a) + phi(a)``, with
+        ``mu = stretch + (c/k) d(length)/dt`` the tension margin as a length; a smooth kink (a
+        softplus of width ``s``) that equals the sharp one a few ``s`` away from it.
+
+        Parameters
+        ----------
+        q, q_dot : ndarray, shape (K, 3, m), m and m/s (real or complex: complex-step safe)
+        rest : ndarray, shape (K, alpha), m
+        """
+        dyn = self.dyn
+        s_j = np.sqrt(self.config.rest_jitter_psd_m2_s / self.config.process_dt_s)
+        if s_j == 0.0:
+            return rest
+        Y = (dyn.EE_T(q) + dyn.off)[..., dyn.beta :]
+        Y_dot = dyn.EE_T(q_dot)[..., dyn.beta :]
+        length = np.sqrt((Y * Y).sum(axis=-2))
+        margin = length - rest + dyn.c_s / dyn.k_s * (Y * Y_dot).sum(axis=-2) / length
+        return rest + margin - s_j * expected_positive_part(margin / s_j)
 
     def linearise(self, x, u):
         """``f(x)`` (n_dynamic,) and ``A = df/dx`` (n_dynamic, n_dynamic) by the complex step."""
@@ -178,7 +203,10 @@ class ProcessModel:
         """
         q = self.config.rest_jitter_psd_m2_s
         G, margin = self.taut_columns(dt, F, x)
-        w = kink_weight(margin / np.sqrt(q / dt))
+        a = margin / np.sqrt(q / dt)
+        w = kink_weight(a)
+        if self.config.kink_model == "mean":  # the prediction carries the mean already
+            w = w - (expected_positive_part(a) - np.maximum(a, 0.0)) ** 2
         return (q / dt) * (G * w) @ G.T
 
     def taut_columns(self, dt, F, x):
@@ -244,6 +272,14 @@ class ProcessModel:
         if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
             self._noise[dt] = Q
         return Q
+
+
+def expected_positive_part(a):
+    """``E max(a - Z, 0) = a Phi(a) + phi(a)``, Z standard normal (shape of ``a``; complex-step
+    safe): the mean force of a tension-only string, in units of the jitter's std, whose tension
+    margin is ``a`` of them."""
+    Phi = 0.5 * erfc(-a / np.sqrt(2.0))
+    return a * Phi + np.exp(-0.5 * a * a) / np.sqrt(2.0 * np.pi)
 
 
 def kink_weight(a):
