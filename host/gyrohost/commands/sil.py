@@ -10,7 +10,7 @@ simulated clock's runs go through :mod:`gyrohost.parallel` with ``--workers`` or
 
 
 def register(sub) -> None:
-    from gyrohost.experiments.estimator_sil import add_arguments
+    from gyrohost.experiments.sil_options import add_arguments
 
     p = sub.add_parser("sil", help="estimator consistency on the simulated rig (NEES, NIS)")
     add_arguments(p)

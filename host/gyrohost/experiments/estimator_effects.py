@@ -21,8 +21,9 @@ from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import config_from_dict, noise_from_rig
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
-from gyrohost.experiments.estimator_sil import DEFAULT_CONFIG, RIG_MODEL_KEYS, rig_model_run
+from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, rig_model_run
 from gyrohost.experiments.montecarlo import sampled_truth, score_run, summarise
+from gyrohost.experiments.sil_options import DEFAULT_CONFIG
 
 TICK_S = 0.01  # the run loop's period, s
 MIN_DELAY_S = 5e-4  # the smallest arrival delay, s

@@ -40,7 +40,7 @@ from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
 from gyrohost.estimator.consistency import observed_nees, sample_initial, state_of_truth
 from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
-from gyrohost.resources import shipped
+from gyrohost.experiments.sil_options import add_arguments
 from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
 
@@ -68,7 +68,6 @@ RIG_MODEL_KEYS = {
     "rest_psd_m2_s": 1e-10,
     "rest_jitter_psd_m2_s": 2e-10,
 }
-DEFAULT_CONFIG = shipped("config", "sim-rig")
 
 
 class SilError(GyrohostError, ValueError):
@@ -315,17 +314,6 @@ def sil_results(
         results.append(score_log(folder))
         print(f"run {seed}: {len(results[-1].t_s)} IMU samples scored", file=sys.stderr)
     return results
-
-
-def add_arguments(parser) -> None:
-    """The options of ``gyrotens sil`` and of this module's command line."""
-    parser.add_argument("--runs", type=int, default=20)
-    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
-    parser.add_argument("--duration", type=float, default=3.0, help="schedule length, s")
-    parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
-    parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
-    parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
-    parallel.add_arguments(parser, serial_default=True)  # simulated clock only
 
 
 def report(args) -> dict:

@@ -1,0 +1,23 @@
+"""The options of ``gyrotens sil`` and ``python -m gyrohost.experiments.estimator_sil``.
+
+A module of its own that imports neither numpy nor the model, so that registering ``sil`` keeps
+``gyrotens --help`` fast.
+"""
+
+from pathlib import Path
+
+from gyrohost import parallel
+from gyrohost.resources import shipped
+
+DEFAULT_CONFIG = shipped("config", "sim-rig")
+
+
+def add_arguments(parser) -> None:
+    """The options of ``gyrotens sil`` and of the experiment's command line."""
+    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
+    parser.add_argument("--duration", type=float, default=3.0, help="schedule length, s")
+    parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
+    parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
+    parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
+    parallel.add_arguments(parser, serial_default=True)  # simulated clock only
