@@ -20,6 +20,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.experiments.estimator_sil import SilError, report
+    from gyrohost.run import ScheduleRefused
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
@@ -28,6 +29,6 @@ def run(args) -> int:
                        "simulated clock")  # fmt: skip
     try:
         report(args)
-    except SilError as exc:
+    except (SilError, ScheduleRefused) as exc:  # bad input: a message, exit 2
         raise CliError(str(exc)) from None
     return 0
