@@ -11,7 +11,7 @@ from gyrohost.resources import ResourceError, resolve, shipped, shipped_names
 def test_every_kind_ships_its_files():
     assert shipped_names("scene") == [
         "dbar-gyro", "dbar-nospin", "dbar-rig", "double-pendulum", "prism-gyro",
-        "prism-string-mass"
+        "prism-rig", "prism-string-mass"
     ]  # fmt: skip
     assert shipped_names("config") == ["lab-rig", "prism-sim-rig", "sim-rig"]
     assert shipped_names("schedule") == ["identify", "paper", "prism-s7", "tilt-0.3rad-4s"]
