@@ -66,6 +66,8 @@ def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
             wheel = replace(
                 wheel,
                 radius=wheel.radius * radius_scale,
+                J3=None if wheel.J3 is None else wheel.J3 * wheel_inertia_scale,
+                J1=None if wheel.J1 is None else wheel.J1 * wheel_inertia_scale,
                 mode="speed",
                 spin0=0.0,
                 speed=constant(0.0),
