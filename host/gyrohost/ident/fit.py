@@ -53,6 +53,10 @@ class FitResult:
     rms : dict
         Stream -> (RMS at the nominal, RMS at the optimum), over all recordings.
     cost, nfev, status : float, int, str
+    scene : Scene
+        The nominal scene the parameters act on.
+    servo_lag_s : float
+        The lag the parameters start from (s).
     """
 
     params: list
@@ -67,6 +71,8 @@ class FitResult:
     cost: float
     nfev: int
     status: str
+    scene: Scene
+    servo_lag_s: float
 
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
@@ -174,7 +180,7 @@ def fit(
     rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, final, initial, rms,
-        float(sol.cost), int(sol.nfev), str(sol.message),
+        float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s,
     )  # fmt: skip
 
 
