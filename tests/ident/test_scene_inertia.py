@@ -12,7 +12,7 @@ from gyrotensegrity import Model, SceneError, load_scene, simulate
 BASE = """
 [scene]
 name = "{name}"
-duration = 0.2
+duration = 0.1
 [nodes]
 n1 = [-0.2, 0.0, 0.0]
 n2 = [0.0, 0.2, 0.0]
@@ -47,7 +47,7 @@ def _scene(tmp_path, name="s", bar_extra="", wheel_extra=""):
 
 
 def _nodes(scene, fast):
-    """Node positions and wheel spins of a 0.2 s run, shapes (k, 3, n) and (k, n_w)."""
+    """Node positions and wheel spins of a 0.1 s run, shapes (k, 3, n) and (k, n_w)."""
     run = simulate(Model(scene), fast=fast)
     return np.concatenate([run["N"].ravel(), run["omega_w"].ravel()])
 

@@ -41,15 +41,19 @@ GROUPS = (
     "accel-bias",
     "servo-lag",
 )
+WEIGHED_GROUPS = tuple(g for g in GROUPS if g != "bar-mass")
 
 
 def _vec(v) -> str:
     return "[" + ", ".join(repr(float(x)) for x in v) + "]"
 
 
-def write_rigs(folder: Path, duration_s: float | None = None) -> tuple[Path, Path]:
+def write_rigs(
+    folder: Path, duration_s: float | None = None, weighed: bool = False
+) -> tuple[Path, Path]:
     """The nominal and the truth rig configurations (and their scenes) in ``folder``;
-    ``duration_s`` cuts the excitation short. Returns (nominal config, truth config)."""
+    ``duration_s`` cuts the excitation short; ``weighed``: the nominal scene has the truth's
+    bar mass (the bars weighed). Returns (nominal config, truth config)."""
     text = Path(shipped("scene", "dbar-gyro")).read_text()
     head = text.partition("[[strings]]")[0]
     L0 = 0.43105229381822
@@ -75,7 +79,8 @@ def write_rigs(folder: Path, duration_s: float | None = None) -> tuple[Path, Pat
         return body.replace("spin = ", f"J3 = {j3!r}, spin = ") + strings
 
     f = FACTORS
-    (folder / "nominal.toml").write_text(scene(200.0, 2.0, 0.1, J3))
+    nominal_mass = 0.1 * f["bar_mass"] if weighed else 0.1
+    (folder / "nominal.toml").write_text(scene(200.0, 2.0, nominal_mass, J3))
     (folder / "truth.toml").write_text(
         scene(200.0 * f["stiffness"], 2.0 * f["damping"], 0.1 * f["bar_mass"], J3 * f["J3"])
     )
@@ -132,10 +137,11 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS):
     return fit(scene, config, est, params, recs)
 
 
-def errors(result) -> dict[str, tuple[float, float]]:
+def errors(result, weighed=False) -> dict[str, tuple[float, float]]:
     """Parameter -> (error against the truth, reported 1-sigma), log factors for the scaled
     parameters (about relative), rad for the mounting."""
     truth = {k: np.log(v) for k, v in FACTORS.items()}
+    truth["bar_mass"] = 0.0 if weighed else truth["bar_mass"]
     axes = ("roll", "pitch", "yaw")
     truth.update({f"mounting.{a}": m for a, m in zip(axes, MOUNTING_RPY_RAD, strict=True)})
     truth["servo_lag"] = 0.0  # the rig models' servos: the estimator's lag (its nominal)
@@ -150,18 +156,23 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_check")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--out", type=Path, help="keep the logs here (default: a temporary folder)")
+    parser.add_argument(
+        "--weighed",
+        action="store_true",
+        help="the nominal scene has the true bar mass (weighed) and the fit leaves it",
+    )
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         root.mkdir(parents=True, exist_ok=True)
-        nominal, truth = write_rigs(root)
+        nominal, truth = write_rigs(root, weighed=args.weighed)
         rows = []
         for seed in range(1, args.seeds + 1):
             t0 = time.perf_counter()
             log = record_log(truth, seed, root / f"run{seed:02d}")
             t1 = time.perf_counter()
-            result = identify_log(nominal, [log])
-            rows.append(errors(result))
+            result = identify_log(nominal, [log], WEIGHED_GROUPS if args.weighed else GROUPS)
+            rows.append(errors(result, args.weighed))
             line = "  ".join(f"{k} {100 * e:+.2f}({100 * s:.2f})" for k, (e, s) in rows[-1].items())
             fit_s = time.perf_counter() - t1
             print(f"seed {seed}: record {t1 - t0:.1f} s, fit {fit_s:.1f} s ({result.nfev} "
