@@ -172,6 +172,7 @@ def fit(
     initial = [-e for e in problem.errors(theta0)]
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
+
     sol = least_squares(
         residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, max_nfev=max_nfev
     )

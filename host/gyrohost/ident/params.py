@@ -33,6 +33,10 @@ DEFAULT_GROUPS = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-
 """Without ``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar
 mass; the absolute scale rests on the wheels' mass alone and is not resolved in practice
 (docs/identification.md): weigh the bars and give their mass in the scene."""
+STRING_STEP = 0.1
+"""Finite-difference step of the strings' stiffness and damping (log factor): their effect is
+small beside the jumps of the cost where a string goes slack a step earlier or later, so the
+Jacobian takes their secant over +-10 %."""
 OUTPUT_GROUPS = ("mounting", "gyro-bias", "accel-bias")
 """Groups that act on the sensor's outputs only: changing them needs no new simulation."""
 
@@ -127,7 +131,7 @@ def parameters(scene: Scene, config: RigConfig, groups, servo_lag_s: float) -> l
             out.append(Param("bar_inertia", g, True, nominal, "kg m^2"))
         elif g in ("stiffness", "damping"):
             values = [getattr(s, g) for s in scene.strings]
-            out.append(Param(g, g, True, float(np.mean(values)), _UNITS[g]))
+            out.append(Param(g, g, True, float(np.mean(values)), _UNITS[g], step=STRING_STEP))
         elif g == "mounting":
             rpy = config.imu.mounting_rpy_rad
             out += [
