@@ -11,7 +11,7 @@ servos, IMU emulator and wheel-board emulator; seed = IMU noise and biases) and 
 log; :func:`identify_log` then fits it from the nominal configuration, string lengths from the
 host's commands. Per seed: every parameter's error against the truth, in its reported 1-sigma;
 the coverage table counts how often ``|error| <= 1 sigma`` (68 % expected) and ``<= 2 sigma``.
-``--with-lag`` fits the servo lag too.
+``--with-lag`` fits the servo lag too; ``--duration S`` cuts the excitation short.
 """
 
 import argparse
@@ -155,13 +155,14 @@ def main(argv=None) -> int:
         help="the nominal scene has the true bar mass (weighed) and the fit leaves it",
     )
     parser.add_argument("--with-lag", action="store_true", help="fit the servo lag too")
+    parser.add_argument("--duration", type=float, help="s of the excitation (default: all 5.05)")
     args = parser.parse_args(argv)
     groups = [g for g in GROUPS if g != "bar-mass" or not args.weighed]
     groups += ["servo-lag"] if args.with_lag else []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         root.mkdir(parents=True, exist_ok=True)
-        nominal, truth = write_rigs(root, weighed=args.weighed)
+        nominal, truth = write_rigs(root, args.duration, weighed=args.weighed)
         rows = []
         for seed in range(1, args.seeds + 1):
             t0 = time.perf_counter()
