@@ -25,6 +25,7 @@ ALLOWED = {
     "bringup": BASE | {"drivers", "bringup"},
     "run": BASE | {"drivers", "estimator", "control", "rig", "bringup", "run"},
     "plots": BASE | {"run", "control", "plots"},
+    "ident": BASE | {"estimator", "rig", "run", "ident"},
     "bench": BASE | {"bench"},
     "sweep": BASE | {"control", "bench", "sweep"},
 }

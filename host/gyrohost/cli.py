@@ -27,6 +27,7 @@ COMMANDS = [
     "sil",
     "sweep",
     "wheels",
+    "identify",
 ]
 
 

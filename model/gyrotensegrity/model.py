@@ -159,9 +159,18 @@ class Model:
         self.m_w = np.array([0.0 if x is None else x.mass for x in w])
         r = np.array([0.0 if x is None else x.radius for x in w])
         lw = np.array([0.0 if x is None else x.thickness for x in w])
-        self.J1 = self.m_w * (3.0 * r**2 + lw**2) / 12.0  # Eq. 12
-        self.J3 = 0.5 * self.m_w * r**2
-        self.J_t = self.m_b / 12.0 + self.J1 / self.l**2  # Eq. 16
+        # a scene's identified inertias override the disc's and the uniform bar's formulas
+        J1 = self.m_w * (3.0 * r**2 + lw**2) / 12.0  # Eq. 12
+        J3 = 0.5 * self.m_w * r**2
+        self.J1 = np.array(
+            [J if x is None or x.J1 is None else x.J1 for J, x in zip(J1, w, strict=True)]
+        )
+        self.J3 = np.array(
+            [J if x is None or x.J3 is None else x.J3 for J, x in zip(J3, w, strict=True)]
+        )
+        bars = zip(scene.bars, self.l, strict=True)
+        I_b = np.array([b.mass / 12.0 if b.inertia is None else b.inertia / L**2 for b, L in bars])
+        self.J_t = I_b + self.J1 / self.l**2  # Eq. 16
         self.J_a = self.J3 / self.l**2
         self.m_t = self.m_b + self.m_w
 

@@ -22,7 +22,9 @@ INTEGRATORS = ("rk4", "rk4-projected", "dop853", "rk45", "radau", "bdf")
 @dataclass(frozen=True)
 class WheelSpec:
     """A wheel on a bar. ``mode`` is ``"torque"`` (spin in the state, motor torque as the input,
-    ``spin0`` the initial spin) or ``"speed"`` (spin prescribed by ``speed``, the input)."""
+    ``spin0`` the initial spin) or ``"speed"`` (spin prescribed by ``speed``, the input).
+    ``J3``, ``J1`` (kg m^2): axial and transverse inertia given directly (identified), overriding
+    the disc's formulas; ``None``: from mass, radius and thickness."""
 
     mass: float
     radius: float
@@ -31,15 +33,21 @@ class WheelSpec:
     spin0: float
     speed: Schedule | None
     torque: Schedule | None
+    J3: float | None = None
+    J1: float | None = None
 
 
 @dataclass(frozen=True)
 class BarSpec:
+    """A bar; ``inertia`` (kg m^2): its transverse inertia about its centre given directly
+    (identified), overriding the uniform bar's ``mass l^2 / 12``; ``None``: the formula."""
+
     name: str
     start: str
     end: str
     mass: float
     wheel: WheelSpec | None
+    inertia: float | None = None
 
 
 @dataclass(frozen=True)
@@ -117,12 +125,15 @@ class Scene:
                     "name": b.name,
                     "nodes": [b.start, b.end],
                     "mass": b.mass,
+                    "inertia": b.inertia,
                     "wheel": None
                     if b.wheel is None
                     else {
                         "mass": b.wheel.mass,
                         "radius": b.wheel.radius,
                         "thickness": b.wheel.thickness,
+                        "J3": b.wheel.J3,
+                        "J1": b.wheel.J1,
                         "mode": b.wheel.mode,
                         "spin0": b.wheel.spin0,
                         "speed": sched(b.wheel.speed),
@@ -318,7 +329,8 @@ class _Parser:
         out, seen = [], set()
         for i, entry in enumerate(self.member_list(value, "bars")):
             key = f"bars[{i}]"
-            self.table(entry, key, ("name", "nodes", "mass", "wheel"), required=("nodes", "mass"))
+            allowed = ("name", "nodes", "mass", "inertia", "wheel")
+            self.table(entry, key, allowed, required=("nodes", "mass"))
             start, end = self.name_list(entry["nodes"], f"{key}.nodes", names, length=2)
             length = np.linalg.norm(
                 positions[:, names.index(end)] - positions[:, names.index(start)]
@@ -327,16 +339,18 @@ class _Parser:
                 self.fail(f"{key}.nodes", f"zero-length bar ({start} and {end} coincide)")
             mass = self.number(entry["mass"], f"{key}.mass", positive=True)
             wheel = self.wheel(entry["wheel"], f"{key}.wheel") if "wheel" in entry else None
+            inertia = self.optional_positive(entry, "inertia", key)
             name = self.member_name(entry, key, f"b{i + 1}", seen)
-            out.append(BarSpec(name, start, end, mass, wheel))
+            out.append(BarSpec(name, start, end, mass, wheel, inertia))
         return out
 
     def wheel(self, value, key: str) -> WheelSpec:
-        allowed = ("mass", "radius", "thickness", "spin", "torque")
+        allowed = ("mass", "radius", "thickness", "J3", "J1", "spin", "torque")
         self.table(value, key, allowed, required=("mass", "radius", "thickness"))
         mass = self.number(value["mass"], f"{key}.mass", positive=True)
         radius = self.number(value["radius"], f"{key}.radius", positive=True)
         thickness = self.number(value["thickness"], f"{key}.thickness", minimum=0.0)
+        inertia = {k: self.optional_positive(value, k, key) for k in ("J3", "J1")}
         spin = value.get("spin", 0.0)
         if isinstance(spin, dict):
             if "torque" in value:
@@ -344,10 +358,16 @@ class _Parser:
                     f"{key}.torque", "a speed-controlled wheel (spin schedule) takes no torque"
                 )
             speed = self.schedule(spin, f"{key}.spin")
-            return WheelSpec(mass, radius, thickness, "speed", speed(0.0), speed, None)
+            return WheelSpec(mass, radius, thickness, "speed", speed(0.0), speed, None, **inertia)
         spin0 = self.number(spin, f"{key}.spin")
         torque = self.schedule(value.get("torque", 0.0), f"{key}.torque")
-        return WheelSpec(mass, radius, thickness, "torque", spin0, None, torque)
+        return WheelSpec(mass, radius, thickness, "torque", spin0, None, torque, **inertia)
+
+    def optional_positive(self, table: dict, name: str, key: str) -> float | None:
+        """``table[name]`` as a positive finite number, or ``None`` when absent."""
+        if name not in table:
+            return None
+        return self.number(table[name], f"{key}.{name}", positive=True)
 
     def strings(self, value, names, positions) -> list[StringSpec]:
         out, seen = [], set()

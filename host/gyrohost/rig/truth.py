@@ -146,6 +146,8 @@ def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
             wheel = replace(
                 wheel,
                 radius=wheel.radius * radius_scale,
+                J3=None if wheel.J3 is None else wheel.J3 * wheel_inertia_scale,
+                J1=None if wheel.J1 is None else wheel.J1 * wheel_inertia_scale,
                 mode="speed",
                 spin0=0.0,
                 speed=constant(0.0),
@@ -325,14 +327,28 @@ class Truth:
         return N[:, self.scene_nodes]
 
     def attitude(self, N: np.ndarray | None = None) -> np.ndarray:
-        """IMU frame axes in the world frame, shape (3, 3), of model nodes ``N`` (3, n)."""
+        """IMU frame axes in the world frame, shape (3, 3), of model nodes ``N`` (3, n); for
+        ``N`` of shape (3, n, k) (k samples) shape (3, 3, k)."""
         if N is None:
             N, _ = self.model.nodes(self.stepper.x)
         a, b, c = (N[:, i] for i in self._frame)
-        x = (b - a) / np.linalg.norm(b - a)
-        z = np.cross(x, c - a)
-        z /= np.linalg.norm(z)
-        return np.column_stack((x, np.cross(z, x), z))
+        x = (b - a) / np.linalg.norm(b - a, axis=0)
+        z = np.cross(x, c - a, axis=0)
+        z /= np.linalg.norm(z, axis=0)
+        return np.stack((x, np.cross(z, x, axis=0), z), axis=1)
+
+    def frame_motion(self, N, N_dot, N_ddot):
+        """Rate (body axes, rad/s), specific force (body axes, m/s^2) and attitude of the IMU
+        frame for model nodes, velocities and accelerations (3, n, k): shapes (k, 3), (k, 3)
+        and (k, 3, 3)."""
+        R = np.moveaxis(self.attitude(N), -1, 0)
+        R_ahead = np.moveaxis(self.attitude(N + FD_STEP_S * N_dot), -1, 0)
+        W = np.einsum("kji,kjl->kil", R, R_ahead - R) / FD_STEP_S  # R^T R_dot: skew to O(h)
+        omega = 0.5 * np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0],
+                                W[:, 1, 0] - W[:, 0, 1]], axis=1)  # fmt: skip
+        a, b = self._frame[0], self._frame[1]
+        accel = 0.5 * (N_ddot[:, a] + N_ddot[:, b]).T - self.gravity_m_s2
+        return omega, np.einsum("kji,kj->ki", R, accel), R
 
     def tensions_N(self) -> np.ndarray:
         """String tensions now, shape (alpha,), N."""
@@ -357,13 +373,8 @@ class Truth:
                 break
             t, x, u = entry
         ev = evaluate(t, x, u, self.model)
-        R = self.attitude(ev.N)
-        R_ahead = self.attitude(ev.N + FD_STEP_S * ev.N_dot)
-        W = R.T @ (R_ahead - R) / FD_STEP_S  # R^T R_dot: skew-symmetric up to O(h)
-        omega = 0.5 * np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]])
-        a, b = self._frame[0], self._frame[1]
-        accel = 0.5 * (ev.N_ddot[:, a] + ev.N_ddot[:, b])
-        return ImuTruth(omega, R.T @ (accel - self.gravity_m_s2), R)
+        omega, force, R = self.frame_motion(*(v[..., None] for v in (ev.N, ev.N_dot, ev.N_ddot)))
+        return ImuTruth(omega[0], force[0], R[0])
 
     # --- recording ----------------------------------------------------------------------------
     def start_recording(self) -> None:

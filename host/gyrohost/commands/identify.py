@@ -1,0 +1,99 @@
+"""``gyrotens identify LOG [LOG...] -o IDENT.toml [--config C] [--params ...]``: fit the rig's
+parameters to recorded runs (docs/identification.md)."""
+
+import sys
+from pathlib import Path
+
+
+def register(sub) -> None:
+    from gyrohost.ident.params import DEFAULT_GROUPS, GROUPS
+
+    p = sub.add_parser("identify", help="estimate the rig's parameters from run logs")
+    p.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="run log folders")
+    p.add_argument("-o", "--out", type=Path, required=True, help="identified scene file (.toml)")
+    p.add_argument("--config", default="sim-rig", help="rig configuration (file or shipped name)")
+    p.add_argument(
+        "--params",
+        default=",".join(DEFAULT_GROUPS),
+        help="comma-separated parameter groups: "
+        + "; ".join(f"{k}: {v}" for k, v in GROUPS.items()),
+    )
+    p.add_argument(
+        "--lengths",
+        choices=("servos", "command"),
+        default="servos",
+        help="string lengths from the servos' reported positions (default) or from the host's "
+        "commands through the servos' lag",
+    )
+    p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
+    p.set_defaults(func=run)
+
+
+class FitProgress:
+    """A one-line progress bar on a terminal (evaluations of the budget, cost); silent
+    otherwise."""
+
+    def __init__(self, budget: int, stream=None):
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty()
+        self.budget, self.calls = budget, 0
+
+    def __call__(self, simulations: int, cost: float) -> None:
+        self.calls += 1
+        if self.enabled:
+            frac = min(self.calls / self.budget, 1.0)
+            bar = "#" * int(25 * frac)
+            self.stream.write(
+                f"\r[{bar:<25}] {self.calls:4d} evaluations, {simulations:4d} simulations, "
+                f"cost {cost:.6g}  "
+            )
+            self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+
+
+def run(args) -> int:
+    from gyrohost.cli import CliError
+    from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.ident import report
+    from gyrohost.ident.fit import fit, nominal_lag
+    from gyrohost.ident.forward import IdentDataError
+    from gyrohost.ident.logs import load_recording
+    from gyrohost.ident.params import ParamsError, parameters
+    from gyrohost.resources import ResourceError, resolve
+    from gyrotensegrity import Model, SceneError, load_scene
+
+    out = args.out
+    if out.suffix != ".toml":
+        raise CliError(f"-o {out}: the identified scene must be a .toml file")
+    try:
+        config = load_rig_config(resolve("config", args.config))
+        scene = load_scene(config.scene_path)
+        est = for_rig(config)
+        n_wheels = len(Model(scene).wheel_bars)
+        commanded = args.lengths == "command"
+        recs = [load_recording(log, config, n_wheels, commanded) for log in args.logs]
+        groups = [g.strip() for g in args.params.split(",") if g.strip()]
+        params = parameters(scene, config, groups, nominal_lag(config, est, recs))
+    except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
+        raise CliError(str(exc)) from None
+    total = sum(len(r.t_imu_s) for r in recs)
+    print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
+    progress = FitProgress(args.max_evaluations * (len(params) + 1))
+    try:
+        result = fit(scene, config, est, params, recs, progress, args.max_evaluations)
+    finally:
+        progress.close()
+    print("\n".join(report.report_lines(result)))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(report.identified_scene(result, config, args.logs))
+    overlay = out.with_name(out.stem + "-config.toml")
+    overlay.write_text(report.overlay_toml(result, config))
+    plot = out.with_name(out.stem + "-residuals.png")
+    report.plot_residuals(result, plot)
+    print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
+    print(f"run with it: gyrotens run --config {args.config} --scene {out}")
+    return 0

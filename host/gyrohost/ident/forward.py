@@ -1,0 +1,242 @@
+"""The forward model of identification: the rig's truth model driven by a log's inputs.
+
+A recording's servo positions (``servos`` stream, plus each servo's zero offset) become the
+wound strings' rest lengths (through the string lag ``servo_lag_s``), its wheel speeds
+(``wheels`` stream) the wheels' spins; the model (:class:`gyrohost.rig.truth.Truth`: the fast
+path, speed-controlled wheels) is stepped from the scene's initial state at the log's first IMU
+sample, and the IMU frame's rate, specific force and attitude are read at every step and
+interpolated to the IMU's time stamps. :func:`sensor_outputs` turns them into what the IMU
+reports: rotated into the sensor's axes by the mounting rotation, plus the biases.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gyrohost.config import RigConfig
+from gyrohost.errors import GyrohostError
+from gyrohost.estimator import streams
+from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
+from gyrohost.rig.truth import Truth
+from gyrotensegrity import Scene
+
+WHEEL_SMOOTHING_S = 0.3
+"""Width of the moving average on the reported wheel speeds, s. The board holds its speeds; the
+reports carry the encoder's quantisation noise, which as a model input would be a random
+reaction torque on the bars (J3 times its rate of change) that the rig never felt."""
+WHEEL_SETTLED_RAD_S = 0.5
+"""Where the smoothed report is this close to the commanded speed, the wheel is taken to run at
+the command: the board's speed loop holds it there, while the reports' mean is off by their
+quantisation (about 1e-3 rad/s), and a momentum imbalance that small already grows, over a
+few seconds, in the D-bar's unstable roll mode."""
+
+
+class IdentDataError(GyrohostError, ValueError):
+    """A recording cannot be fitted (a stream missing, too short, or a servo not in it)."""
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The streams of one run that the fit uses, from its first IMU sample on (t = 0 there).
+
+    Attributes
+    ----------
+    name : str
+        Where it came from (a log folder), for messages.
+    imu : ndarray, shape (k, 9)
+        Rate (rad/s), specific force (m/s^2), roll, pitch, yaw (rad) at ``t_imu_s``.
+    t_imu_s : ndarray, shape (k,), s
+    t_wheels_s, wheels_rad_s : ndarray, shapes (kw,) and (kw, n_w)
+        Reported wheel speeds, scene wheel order.
+    t_servos_s, servos_m : ndarray, shapes (ks,) and (ks, n_servos)
+        String lengths of the servos that wind a string, configuration order: reported, or
+        with ``commanded`` the host's commands.
+    t_command_s, command_rad_s : ndarray, shapes (kc,) and (kc, n_w)
+        Commanded wheel speeds (empty without a ``command`` stream).
+    """
+
+    name: str
+    t_imu_s: np.ndarray
+    imu: np.ndarray
+    t_wheels_s: np.ndarray
+    wheels_rad_s: np.ndarray
+    t_servos_s: np.ndarray
+    servos_m: np.ndarray
+    t_command_s: np.ndarray
+    command_rad_s: np.ndarray
+    commanded: bool = False
+
+
+def recording(
+    name: str, data: dict, config: RigConfig, n_wheels: int, t0_s=None, commanded=False
+) -> Recording:
+    """The :class:`Recording` of the streams ``data`` (name -> structured array), from ``t0_s``
+    (default: the first IMU sample), when the rig is at the scene's initial state.
+
+    ``commanded``: the string lengths are the host's commands (``command`` stream, every tick)
+    rather than the servos' reported positions (``servos`` stream, read less often); the fit's
+    ``servo_lag_s`` is then the servos' own first-order response to their commands."""
+    for stream in (streams.IMU, streams.WHEELS, streams.SERVOS):
+        if stream not in data or len(data[stream]) < 2:
+            raise IdentDataError(f"{name}: stream '{stream}' missing or shorter than two rows")
+    imu = data[streams.IMU]
+    t0 = float(imu["t_s"][0]) if t0_s is None else float(t0_s)
+    keep = imu["t_s"] >= t0 - 1e-9
+    cols = [*streams.IMU_RATE, *streams.IMU_ACCEL, *streams.IMU_ANGLE]
+    wheels = data[streams.WHEELS]
+    strings = [s.string for s in config.servos.servo if s.string]
+    if commanded:
+        if streams.COMMAND not in data:
+            raise IdentDataError(f"{name}: stream '{streams.COMMAND}' missing")
+        servos, servo_cols = data[streams.COMMAND], [streams.rest_column(s) for s in strings]
+    else:
+        servos, servo_cols = data[streams.SERVOS], [streams.servo_length_column(s) for s in strings]
+    missing = [c for c in servo_cols if c not in servos.dtype.names]
+    missing += [c for c in streams.wheel_speed_columns(n_wheels) if c not in wheels.dtype.names]
+    if missing:
+        raise IdentDataError(f"{name}: columns {missing} missing (a log of another rig?)")
+    command = data.get(streams.COMMAND)
+    cmd_cols = [f"omega_cmd_{i}_rad_s" for i in range(n_wheels)]
+    if command is None or len(command) < 1 or any(c not in command.dtype.names for c in cmd_cols):
+        t_cmd, cmd = np.zeros(0), np.zeros((0, n_wheels))
+    else:
+        t_cmd, cmd = command["t_s"] - t0, np.column_stack([command[c] for c in cmd_cols])
+    return Recording(
+        name,
+        imu["t_s"][keep] - t0,
+        np.column_stack([imu[c][keep] for c in cols]),
+        wheels["t_s"] - t0,
+        np.column_stack([wheels[c] for c in streams.wheel_speed_columns(n_wheels)]),
+        servos["t_s"] - t0,
+        np.column_stack([servos[c] for c in servo_cols]),
+        t_cmd,
+        cmd,
+        commanded,
+    )
+
+
+@dataclass(frozen=True)
+class FrameMotion:
+    """The IMU frame's motion at the IMU time stamps (body axes of the model's IMU frame).
+
+    Attributes
+    ----------
+    omega_rad_s, force_m_s2 : ndarray, shape (k, 3)
+        Angular rate and specific force (gravity felt by the IMU included), body axes.
+    R_wb : ndarray, shape (k, 3, 3)
+        The frame's axes in the world frame.
+    """
+
+    omega_rad_s: np.ndarray
+    force_m_s2: np.ndarray
+    R_wb: np.ndarray
+
+
+def simulate(
+    scene: Scene, config: RigConfig, rec: Recording, offsets_m=None, servo_lag_s=0.0
+) -> FrameMotion:
+    """Drive the rig's model of ``scene`` with the inputs of ``rec``.
+
+    Parameters
+    ----------
+    offsets_m : array_like, shape (n_servos,), m, optional
+        Added to every reported servo length (zero offsets of the servos' calibration).
+    servo_lag_s : float, s
+        First-order lag from the servo's position to the string's rest length.
+    """
+    servos = [s for s in config.servos.servo if s.string]
+    string_lag_s = 0.0 if rec.commanded else servo_lag_s
+    truth = Truth(scene, replace(config.sim.truth, servo_lag_s=string_lag_s), servos)
+    offsets = np.zeros(len(servos)) if offsets_m is None else np.asarray(offsets_m, float)
+    dt = truth.dt_s
+    n = int(np.ceil(rec.t_imu_s[-1] / dt)) + 1
+    t_steps = dt * np.arange(n + 1)
+    if rec.commanded:
+        lengths = _servo_response(rec, t_steps, servo_lag_s) + offsets
+    else:
+        t_held = t_steps + 0.5 * dt  # a step holds its inputs: their mean over the step
+        lengths = np.column_stack([np.interp(t_held, rec.t_servos_s, v) for v in rec.servos_m.T])
+        lengths += offsets
+    speeds = np.column_stack([np.interp(t_steps, rec.t_wheels_s, w) for w in rec.wheels_rad_s.T])
+    speeds = _smooth(speeds, int(round(WHEEL_SMOOTHING_S / dt)))
+    if len(rec.t_command_s):
+        cmd = rec.command_rad_s[
+            np.clip(np.searchsorted(rec.t_command_s, t_steps, "right") - 1, 0, None)
+        ]
+        settled = np.abs(speeds - cmd) < WHEEL_SETTLED_RAD_S
+        speeds[settled] = cmd[settled]
+    ids = [s.id for s in servos]
+    # the rig starts at rest in the scene's shape with the wheels already spinning
+    truth.wheel_input_rad_s[:] = speeds[0]
+    truth.rest_length_m[list(truth.servo_strings.values())] = lengths[0]
+    model, stepper = truth.model, truth.stepper
+    truth.u = model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
+    # the state at t_k with the input held over the step that led to it (as the rig's IMU sees
+    # its truth, Truth.imu_truth)
+    xs, us = np.empty((n + 1, len(stepper.x))), []
+    for k in range(n + 1):
+        xs[k] = stepper.x
+        us.append(truth.u)
+        truth.step(dict(zip(ids, lengths[k], strict=True)), speeds[k])
+    x_dot = np.array([stepper.dynamics(t, x, u) for t, x, u in zip(t_steps, xs, us, strict=True)])
+    L = model.layout
+    q, q_dot, q_ddot = (
+        v.reshape(n + 1, 3, model.m) for v in (xs[:, L.q], xs[:, L.q_dot], x_dot[:, L.q_dot])
+    )
+    U2 = model.U2.toarray()  # (n, m): a few nodes
+    N = np.einsum("ij,kdj->dik", U2, q) + model.N_fixed_T.T[..., None]
+    N_dot, N_ddot = (np.einsum("ij,kdj->dik", U2, v) for v in (q_dot, q_ddot))
+    omega, force, R = truth.frame_motion(N, N_dot, N_ddot)
+    return FrameMotion(
+        _interp(rec.t_imu_s, t_steps, omega),
+        _interp(rec.t_imu_s, t_steps, force),
+        _interp(rec.t_imu_s, t_steps, R.reshape(n + 1, 9)).reshape(-1, 3, 3),
+    )
+
+
+def _servo_response(rec: Recording, t_steps: np.ndarray, lag_s: float) -> np.ndarray:
+    """The servos' positions under the commands of ``rec`` (each held until the next), through
+    a first-order lag ``lag_s``, as the mean over each step from ``t_steps``: shape (k, n)."""
+    idx = np.clip(np.searchsorted(rec.t_servos_s, t_steps, "right") - 1, 0, None)
+    command = rec.servos_m[idx]
+    if lag_s <= 0.0:
+        return command
+    dt = t_steps[1] - t_steps[0]
+    gain = 1.0 - np.exp(-dt / lag_s)
+    out, position = np.empty_like(command), command[0].copy()
+    for k, target in enumerate(command):
+        # the mean of the exponential approach over the step
+        out[k] = target + (position - target) * gain * lag_s / dt
+        position += gain * (target - position)
+    return out
+
+
+def _smooth(values, width):
+    """Centred moving average over ``width`` rows (edges: the mean of the rows there)."""
+    if width < 2:
+        return values
+    kernel = np.ones(width) / width
+    ones = np.convolve(np.ones(len(values)), kernel, mode="same")
+    return np.column_stack([np.convolve(v, kernel, mode="same") / ones for v in values.T])
+
+
+def _interp(t, tp, values):
+    return np.column_stack([np.interp(t, tp, v) for v in values.T])
+
+
+def sensor_outputs(motion: FrameMotion, mounting_rpy_rad, gyro_bias_rad_s, accel_bias_m_s2):
+    """What the IMU reports for ``motion``: rate, specific force (sensor axes, biased), roll
+    and pitch (of the sensor axes), shape (k, 8)."""
+    R_bs = rotation_zyx(*mounting_rpy_rad)
+    omega = motion.omega_rad_s @ R_bs + np.asarray(gyro_bias_rad_s)
+    force = motion.force_m_s2 @ R_bs + np.asarray(accel_bias_m_s2)
+    angles = np.array([euler_zyx(R @ R_bs)[:2] for R in motion.R_wb])
+    return np.column_stack([omega, force, angles])
+
+
+def output_error(predicted: np.ndarray, rec: Recording) -> np.ndarray:
+    """Predicted less measured, shape (k, 8): rate, force, roll and pitch (wrapped; yaw is
+    relative on the sensor and not compared)."""
+    err = predicted - rec.imu[:, :8]
+    err[:, 6:] = wrap_angle(err[:, 6:])
+    return err

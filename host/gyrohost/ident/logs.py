@@ -1,0 +1,53 @@
+"""Run logs (docs/run.md) as :class:`.forward.Recording`: the part of the run where the rig
+starts from the scene's initial state with its wheels spun up (from the ``lead_in`` phase) up to
+the safe state (the ``rampdown`` phase), else the whole log."""
+
+from pathlib import Path
+
+import numpy as np
+
+from gyrohost.config import RigConfig
+from gyrohost.estimator import streams
+from gyrohost.ident.forward import IdentDataError, Recording, recording
+from gyrohost.run.log import LogError, read_stream, read_streams
+
+FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
+
+
+def phase_window(folder: Path) -> tuple[float | None, float | None]:
+    """Host times (s) where ``lead_in`` and ``rampdown`` begin (``None`` if not logged)."""
+    try:
+        events = read_stream(folder, "events")
+    except LogError:
+        return None, None
+    times = {}
+    for row in events:
+        if row["kind"] == "phase":
+            times.setdefault(str(row["message"]), float(row["t_s"]))
+    return times.get(FIRST_PHASE), times.get(LAST_PHASE)
+
+
+def load_recording(folder, config: RigConfig, n_wheels: int, commanded=False) -> Recording:
+    """The :class:`Recording` of the log folder ``folder``.
+
+    Raises
+    ------
+    IdentDataError
+        A stream is missing or unreadable, or the window is shorter than two IMU samples.
+    """
+    folder = Path(folder)
+    names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND)
+    try:
+        data = read_streams(folder, names)
+    except LogError as exc:
+        raise IdentDataError(str(exc)) from None
+    start, end = phase_window(folder)
+    if end is not None:
+        data = {k: v[v["t_s"] < end] for k, v in data.items()}
+    if start is not None:
+        # commands and wheel reports from just before the window hold over its start
+        data = {
+            k: v if k == streams.IMU else v[max(np.searchsorted(v["t_s"], start) - 1, 0) :]
+            for k, v in data.items()
+        }
+    return recording(str(folder), data, config, n_wheels, start, commanded)

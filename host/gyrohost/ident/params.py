@@ -1,0 +1,219 @@
+"""The parameters identification can estimate, and how a parameter vector changes the rig.
+
+Physical parameters are estimated as logarithms of their factor on the configuration's scene
+(``theta = 0``: the nominal value, ``theta = 0.1``: about 10 % more), so their sigmas and the
+combinations the data cannot separate read as fractions, and a ratio the data determine (say J3
+over the bar mass) is a straight line in ``theta``; the IMU and servo parameters are
+absolute (rad, rad/s, m/s^2, m, s). A parameter *group* (``--params``) is one of :data:`GROUPS`.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gyrohost.config import RigConfig
+from gyrohost.errors import GyrohostError
+from gyrotensegrity import Scene
+
+GROUPS = {
+    "J3": "one shared factor on every wheel's axial inertia J3",
+    "J3-each": "each wheel's J3 on its own",
+    "bar-mass": "one factor on every bar's mass (its transverse inertia follows, m l^2 / 12)",
+    "bar-inertia": "one factor on every bar's transverse inertia, apart from its mass",
+    "stiffness": "one factor on every string's stiffness",
+    "damping": "one factor on every string's damping",
+    "mounting": "the IMU's mounting rotation (roll, pitch, yaw of the sensor axes, rad)",
+    "gyro-bias": "the gyro's bias (x, y, z, rad/s)",
+    "accel-bias": "the accelerometer's bias (x, y, z, m/s^2)",
+    "servo-offsets": "each string servo's zero offset (m added to its reported length)",
+    "servo-lag": "the first-order lag to a string's rest length (s) from its servo's reported "
+    "position, or with commanded lengths from the command",
+}
+DEFAULT_GROUPS = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")
+"""Without ``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar
+mass; the absolute scale rests on the wheels' mass alone and is not resolved in practice
+(docs/identification.md): weigh the bars and give their mass in the scene."""
+STRING_STEP = 0.1
+"""Finite-difference step of the strings' stiffness and damping (log factor): their effect is
+small beside the jumps of the cost where a string goes slack a step earlier or later, so the
+Jacobian takes their secant over +-10 %."""
+OUTPUT_GROUPS = ("mounting", "gyro-bias", "accel-bias")
+"""Groups that act on the sensor's outputs only: changing them needs no new simulation."""
+
+
+class ParamsError(GyrohostError, ValueError):
+    """An unknown or conflicting parameter group."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One estimated number.
+
+    Attributes
+    ----------
+    name : str
+        e.g. ``J3``, ``J3[b12]``, ``mounting.roll``, ``servo_offset[s13]``.
+    group : str
+        Its entry of :data:`GROUPS`.
+    relative : bool
+        ``True``: the logarithm of a factor on ``nominal``; ``False``: an absolute value in
+        ``unit`` (``nominal`` plus ``theta``).
+    nominal : float
+        The configuration's value (physical unit), reported beside the estimate.
+    unit : str
+    lower : float
+        Lower bound of ``theta``.
+    step : float
+        Finite-difference step of ``theta`` for the Jacobian: wide enough to step over the
+        small jumps of the fixed-step simulation where a string goes slack (its damping stops).
+    """
+
+    name: str
+    group: str
+    relative: bool
+    nominal: float
+    unit: str
+    lower: float = -np.inf
+    step: float = 3e-2
+
+    def value(self, theta: float) -> float:
+        """The physical value of ``theta``."""
+        return self.nominal * np.exp(theta) if self.relative else self.nominal + theta
+
+
+def wheel_J3(scene: Scene) -> dict[str, float]:
+    """Axial inertia of each wheel by bar name, kg m^2 (given, else the disc's)."""
+    return {
+        b.name: b.wheel.J3 if b.wheel.J3 is not None else 0.5 * b.wheel.mass * b.wheel.radius**2
+        for b in scene.bars
+        if b.wheel is not None
+    }
+
+
+def bar_inertia(scene: Scene) -> dict[str, float]:
+    """Transverse inertia of each bar about its centre by name, kg m^2 (given, else m l^2/12)."""
+    out = {}
+    for b in scene.bars:
+        i, j = scene.node_index(b.start), scene.node_index(b.end)
+        length = np.linalg.norm(scene.positions[:, j] - scene.positions[:, i])
+        out[b.name] = b.inertia if b.inertia is not None else b.mass * length**2 / 12.0
+    return out
+
+
+def parameters(scene: Scene, config: RigConfig, groups, servo_lag_s: float) -> list[Param]:
+    """The :class:`Param` list of ``groups`` (names of :data:`GROUPS`) for this rig;
+    ``servo_lag_s``: the nominal lag (s), the start of its fit.
+
+    Raises
+    ------
+    ParamsError
+        An unknown group, or ``J3`` with ``J3-each``.
+    """
+    unknown = [g for g in groups if g not in GROUPS]
+    if unknown:
+        raise ParamsError(f"unknown parameter group(s) {unknown} (known: {', '.join(GROUPS)})")
+    if "J3" in groups and "J3-each" in groups:
+        raise ParamsError("J3 and J3-each are alternatives: give one")
+    J3 = wheel_J3(scene)
+    if not J3 and ("J3" in groups or "J3-each" in groups):
+        raise ParamsError(f"scene {scene.name} has no wheel: J3 cannot be identified")
+    mean = float(np.mean([b.mass for b in scene.bars]))
+    out: list[Param] = []
+    for g in groups:
+        if g == "J3":
+            out.append(Param("J3", g, True, float(np.mean(list(J3.values()))), "kg m^2"))
+        elif g == "J3-each":
+            out += [Param(f"J3[{n}]", g, True, v, "kg m^2") for n, v in J3.items()]
+        elif g == "bar-mass":
+            out.append(Param("bar_mass", g, True, mean, "kg"))
+        elif g == "bar-inertia":
+            nominal = float(np.mean(list(bar_inertia(scene).values())))
+            out.append(Param("bar_inertia", g, True, nominal, "kg m^2"))
+        elif g in ("stiffness", "damping"):
+            values = [getattr(s, g) for s in scene.strings]
+            out.append(Param(g, g, True, float(np.mean(values)), _UNITS[g], step=STRING_STEP))
+        elif g == "mounting":
+            rpy = config.imu.mounting_rpy_rad
+            out += [
+                Param(f"mounting.{a}", g, False, rpy[i], "rad", step=1e-3)
+                for i, a in enumerate(_RPY)
+            ]
+        elif g in ("gyro-bias", "accel-bias"):
+            unit = _UNITS[g]
+            out += [
+                Param(f"{g.replace('-', '_')}.{a}", g, False, 0.0, unit, step=1e-3) for a in "xyz"
+            ]
+        elif g == "servo-offsets":
+            out += [
+                Param(f"servo_offset[{s.string}]", g, False, 0.0, "m", step=1e-3)
+                for s in config.servos.servo
+                if s.string
+            ]
+        else:
+            out.append(Param("servo_lag", g, False, servo_lag_s, "s", -servo_lag_s, 5e-3))
+    return out
+
+
+_RPY = ("roll", "pitch", "yaw")
+_UNITS = {"stiffness": "N/m", "damping": "N s/m", "gyro-bias": "rad/s", "accel-bias": "m/s^2"}
+
+
+@dataclass(frozen=True)
+class Applied:
+    """What a parameter vector means for the rig.
+
+    Attributes
+    ----------
+    scene : Scene
+        The configuration's scene with the physical parameters applied.
+    offsets_m : ndarray, shape (n_servos,), m
+    servo_lag_s : float, s
+    mounting_rpy_rad : ndarray, shape (3,), rad
+    gyro_bias_rad_s : ndarray, shape (3,), rad/s
+    accel_bias_m_s2 : ndarray, shape (3,), m/s^2
+    """
+
+    scene: Scene
+    offsets_m: np.ndarray
+    servo_lag_s: float
+    mounting_rpy_rad: np.ndarray
+    gyro_bias_rad_s: np.ndarray
+    accel_bias_m_s2: np.ndarray
+
+
+def apply(scene: Scene, config: RigConfig, params: list[Param], theta, servo_lag_s) -> Applied:
+    """The rig of parameter vector ``theta`` (shape (len(params),)); groups not estimated keep
+    the configuration's values (biases zero, the lag ``servo_lag_s``)."""
+    by = {p.name: (p, float(t)) for p, t in zip(params, theta, strict=True)}
+
+    def factor(name):
+        return np.exp(by[name][1]) if name in by else 1.0
+
+    def absolute(name, default):
+        return by[name][0].value(by[name][1]) if name in by else default
+
+    J3, inertia = wheel_J3(scene), bar_inertia(scene)
+    bars = []
+    for b in scene.bars:
+        wheel = b.wheel
+        if wheel is not None and ("J3" in by or f"J3[{b.name}]" in by):
+            wheel = replace(wheel, J3=J3[b.name] * factor("J3") * factor(f"J3[{b.name}]"))
+        mass = b.mass * factor("bar_mass")
+        given = b.inertia if "bar_inertia" not in by else inertia[b.name] * factor("bar_inertia")
+        bars.append(replace(b, mass=mass, wheel=wheel, inertia=given))
+    strings = [
+        replace(
+            s, stiffness=s.stiffness * factor("stiffness"), damping=s.damping * factor("damping")
+        )
+        for s in scene.strings
+    ]
+    servos = [s for s in config.servos.servo if s.string]
+    rpy = config.imu.mounting_rpy_rad
+    return Applied(
+        replace(scene, bars=bars, strings=strings),
+        np.array([absolute(f"servo_offset[{s.string}]", 0.0) for s in servos]),
+        absolute("servo_lag", servo_lag_s),
+        np.array([absolute(f"mounting.{a}", rpy[i]) for i, a in enumerate(_RPY)]),
+        np.array([absolute(f"gyro_bias.{a}", 0.0) for a in "xyz"]),
+        np.array([absolute(f"accel_bias.{a}", 0.0) for a in "xyz"]),
+    )

@@ -1,0 +1,106 @@
+"""What ``gyrotens identify`` writes: the identified scene, the configuration overlay, the text
+report and the residual plot."""
+
+from pathlib import Path
+
+import numpy as np
+
+from gyrohost.ident.fit import CHANNELS, STREAMS, FitResult, determined_combinations
+from gyrohost.ident.params import apply
+from gyrohost.ident.scenefile import scene_toml
+
+
+def report_lines(result: FitResult) -> list[str]:
+    """The fit as text: every parameter with its 1-sigma, the strong correlations, the
+    combinations the data do not separate, the residual RMS per stream."""
+    lines = [f"{'parameter':<22}{'nominal':>14}{'identified':>14}{'1-sigma':>12}  unit"]
+    for i, p in enumerate(result.params):
+        if result.separable[i]:
+            est, sig = f"{result.value(i):14.6g}", f"{result.value_sigma(i):12.3g}"
+        else:
+            est, sig = f"{'not separable':>14}", f"{'':>12}"
+        rel = (
+            f" ({100 * (np.exp(result.theta[i]) - 1):+.1f} %)"
+            if p.relative and result.separable[i]
+            else ""
+        )
+        lines.append(f"{p.name:<22}{p.nominal:14.6g}{est}{sig}  {p.unit}{rel}")
+    names = [p.name for p in result.params]
+    for a, b, r in result.strong_correlations():
+        lines.append(f"correlation {a} / {b}: {r:+.3f}")
+    for v in result.unresolved:
+        lines.append("not determined by the data: " + _combination(v, names))
+    for c, value in determined_combinations(result):
+        lines.append(f"determined: {_combination(c, names)} = {value:+.4g}")
+    if result.unresolved:
+        lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
+    for name, (before, after) in result.rms.items():
+        lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
+    lines.append(f"{result.nfev} evaluations: {result.status}")
+    return lines
+
+
+def _combination(v: np.ndarray, names: list[str]) -> str:
+    terms = [f"{c:+.3f} {n}" for c, n in zip(v, names, strict=True) if abs(c) > 0.05]
+    return " ".join(terms)
+
+
+def overlay_toml(result: FitResult, config) -> str:
+    """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
+    ``length_at_zero_m`` (its zero offset added). Separable parameters only."""
+    a = apply_result(result, config)
+    fitted = {p.group for p, ok in zip(result.params, result.separable, strict=True) if ok}
+    out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
+    if "mounting" in fitted:
+        out += [
+            "[imu]",
+            f"mounting_rpy_rad = [{', '.join(repr(float(x)) for x in a.mounting_rpy_rad)}]",
+        ]
+    if "servo-offsets" in fitted:
+        servos = [s for s in config.servos.servo if s.string]
+        for s, offset in zip(servos, a.offsets_m, strict=True):
+            out += ["", "[[servos.servo]]", f'name = "{s.name}"']
+            out.append(f"length_at_zero_m = {float(s.length_at_zero_m + offset)!r}")
+    return "\n".join(out) + "\n"
+
+
+def apply_result(result: FitResult, config):
+    """:func:`.params.apply` of the estimate, non-separable parameters at their nominal."""
+    theta = np.where(result.separable, result.theta, 0.0)
+    return apply(result.scene, config, result.params, theta, result.servo_lag_s)
+
+
+def identified_scene(result: FitResult, config, logs) -> str:
+    """The complete scene file of the estimate (non-separable parameters left nominal)."""
+    scene = apply_result(result, config).scene
+    header = "\n".join(
+        [f"Identified by gyrotens identify from {', '.join(map(str, logs))}", *report_lines(result)]
+    )
+    return scene_toml(scene, header)
+
+
+def plot_residuals(result: FitResult, path: Path) -> None:
+    """One panel per stream: measured less predicted, nominal (grey) and identified, every
+    channel, all recordings one after the other."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(STREAMS), 1, figsize=(9, 7), sharex=True)
+    units = {"gyro": "rad/s", "accel": "m/s^2", "angle": "rad"}
+    for ax, (name, cols) in zip(axes, STREAMS.items(), strict=True):
+        before = np.concatenate(result.initial_residuals)[:, cols]
+        after = np.concatenate(result.residuals)[:, cols]
+        k = np.arange(len(after)) * 0.01
+        for j in range(after.shape[1]):
+            ax.plot(k, before[:, j], color="0.8", lw=0.6)
+        for j, label in enumerate(CHANNELS[cols]):
+            ax.plot(k, after[:, j], lw=0.8, label=label)
+        ax.set_ylabel(f"{name}, {units[name]}")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+    axes[-1].set_xlabel("IMU sample x 10 ms (recordings one after the other)")
+    axes[0].set_title("residuals, measured less predicted: nominal (grey), identified")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,120 @@
+"""Identification on the simulated rig's models: a short recorded run of a truth that differs
+from the nominal scene (J3 x 1.3, bar mass x 0.8, stiffness x 1.25, damping x 0.7, IMU 3 deg
+off), fitted from the nominal configuration. Each test records its own log (nothing cached)."""
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from gyrohost.cli import main
+from gyrohost.experiments.identify_check import (
+    FACTORS,
+    MOUNTING_RPY_RAD,
+    identify_log,
+    record_log,
+    write_rigs,
+)
+from gyrohost.ident.fit import determined_combinations, uncertainty
+from gyrohost.ident.params import ParamsError, parameters
+from gyrotensegrity import Model, load_scene
+
+SHORT_S = 2.5  # s of the excitation: the first pulls
+ACCEPTANCE_S = 3.5  # s: three pulls
+
+
+def test_truth_parameters_predict_the_log_to_its_noise(tmp_path):
+    """The forward model with the truth's values reproduces the recording (rate and angles to
+    the sensor's noise and bias), the nominal one does not: the fit has something to find."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.ident import forward
+    from gyrohost.ident.logs import load_recording
+
+    nominal, truth = write_rigs(tmp_path, SHORT_S)
+    log = record_log(truth, 3, tmp_path / "log")
+    config = load_rig_config(nominal)
+    rec = load_recording(log, config, 4, commanded=True)
+    rms = {}
+    for name, rpy in (("truth", MOUNTING_RPY_RAD), ("nominal", (0.0, 0.0, 0.0))):
+        motion = forward.simulate(load_scene(tmp_path / f"{name}.toml"), config, rec, None, 0.05)
+        err = forward.output_error(forward.sensor_outputs(motion, rpy, 0, 0), rec)
+        rms[name] = np.sqrt(np.mean(err**2, axis=0))
+    assert np.all(rms["truth"][6:] < 0.003)  # roll, pitch: rad
+    assert np.all(rms["truth"][:3] < 0.04)  # gyro: its bias (0.5 deg/s std) and noise
+    assert np.all(rms["nominal"][6:] > 5 * rms["truth"][6:])
+
+
+def test_weighed_bars_j3_and_mounting_within_the_acceptance(tmp_path):
+    """Bars weighed (the nominal scene has their true mass), 3.5 s of log: J3 within 3 % and the
+    mounting within 0.3 degrees (10 seeds of 10 in identify_check); stiffness and damping closer
+    to the truth than the nominal (their 10 % target holds for 5 of 10 seeds at 3.5 s, so it is
+    not asserted here: docs/identification.md)."""
+    nominal, truth = write_rigs(tmp_path, ACCEPTANCE_S, weighed=True)
+    log = record_log(truth, 1, tmp_path / "log")
+    groups = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")
+    result = identify_log(nominal, [log], groups)
+    by = {p.name: i for i, p in enumerate(result.params)}
+    assert np.exp(result.theta[by["J3"]]) == pytest.approx(FACTORS["J3"], rel=0.03)
+    for name in ("stiffness", "damping"):
+        error = abs(result.theta[by[name]] - np.log(FACTORS[name]))
+        assert error < abs(np.log(FACTORS[name])), name
+    for axis, true in zip(("roll", "pitch", "yaw"), MOUNTING_RPY_RAD, strict=True):
+        assert result.value(by[f"mounting.{axis}"]) == pytest.approx(true, abs=np.radians(0.3))
+    assert all(result.separable) and np.all(np.isfinite(result.sigma))
+    assert result.rms["gyro"][1] < 0.2 * result.rms["gyro"][0]  # to the noise
+
+
+def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
+    nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
+    log = record_log(truth, 2, tmp_path / "log")
+    out = tmp_path / "ident" / "rig.toml"
+    argv = ["identify", str(log), "-o", str(out), "--config", str(nominal)]
+    argv += ["--params", "J3,mounting", "--lengths", "command", "--max-evaluations", "8"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "J3" in text and "mounting.roll" in text and "residual RMS gyro" in text
+    scene = load_scene(out)  # a complete scene: the nominal one with the identified J3
+    J3 = Model(scene).J3
+    assert np.all(J3 == J3[0]) and J3[0] != pytest.approx(0.5 * 0.05 * 0.031**2, rel=0.05)
+    overlay = tomllib.loads((out.parent / "rig-config.toml").read_text())
+    assert len(overlay["imu"]["mounting_rpy_rad"]) == 3
+    assert (out.parent / "rig-residuals.png").stat().st_size > 10_000
+
+
+def test_cli_refuses_a_log_without_streams(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    argv = ["identify", str(tmp_path / "empty"), "-o", str(tmp_path / "x.toml")]
+    assert main(argv) == 2
+    assert "empty" in capsys.readouterr().err
+
+
+def test_parameters_the_data_cannot_separate_are_reported_as_such():
+    """Two parameters with the same effect: only their sum is determined."""
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(200, 3))
+    J[:, 2] = J[:, 1]
+    sigma, corr, unresolved, separable = uncertainty(J, rng.normal(size=200), 3)
+    assert list(separable) == [True, False, False]
+    assert np.isfinite(sigma[0]) and np.all(np.isinf(sigma[1:]))
+    assert len(unresolved) == 1 and abs(unresolved[0][1]) == pytest.approx(2**-0.5)
+
+    class Result:
+        params = [None] * 3
+        theta = np.array([0.0, 0.1, 0.3])
+
+    Result.separable, Result.unresolved = separable, unresolved
+    ((c, value),) = determined_combinations(Result)
+    assert abs(c[1]) == pytest.approx(2**-0.5) and c[1] == pytest.approx(c[2])
+    assert abs(value) == pytest.approx(0.4 * 2**-0.5)
+
+
+def test_unknown_or_conflicting_groups_are_refused(tmp_path):
+    from gyrohost.config import load_rig_config
+
+    nominal, _ = write_rigs(tmp_path)
+    config = load_rig_config(nominal)
+    scene = load_scene(config.scene_path)
+    with pytest.raises(ParamsError, match="unknown parameter group.*'mass'"):
+        parameters(scene, config, ["mass"], 0.05)
+    with pytest.raises(ParamsError, match="alternatives"):
+        parameters(scene, config, ["J3", "J3-each"], 0.05)
