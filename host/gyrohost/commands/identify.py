@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from gyrohost.ident.params import DEFAULT_GROUPS, GROUPS
+    from gyrohost.ident.groups import DEFAULT_GROUPS, GROUPS
 
     p = sub.add_parser("identify", help="estimate the rig's parameters from run logs")
     p.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="run log folders")

@@ -13,26 +13,9 @@ import numpy as np
 
 from gyrohost.config import RigConfig
 from gyrohost.errors import GyrohostError
+from gyrohost.ident.groups import GROUPS
 from gyrotensegrity import Scene
 
-GROUPS = {
-    "J3": "one shared factor on every wheel's axial inertia J3",
-    "J3-each": "each wheel's J3 on its own",
-    "bar-mass": "one factor on every bar's mass (its transverse inertia follows, m l^2 / 12)",
-    "bar-inertia": "one factor on every bar's transverse inertia, apart from its mass",
-    "stiffness": "one factor on every string's stiffness",
-    "damping": "one factor on every string's damping",
-    "mounting": "the IMU's mounting rotation (roll, pitch, yaw of the sensor axes, rad)",
-    "gyro-bias": "the gyro's bias (x, y, z, rad/s)",
-    "accel-bias": "the accelerometer's bias (x, y, z, m/s^2)",
-    "servo-offsets": "each string servo's zero offset (m added to its reported length)",
-    "servo-lag": "the first-order lag to a string's rest length (s) from its servo's reported "
-    "position, or with commanded lengths from the command",
-}
-DEFAULT_GROUPS = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")
-"""Without ``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar
-mass; the absolute scale rests on the wheels' mass alone and is not resolved in practice
-(docs/identification.md): weigh the bars and give their mass in the scene."""
 STRING_STEP = 0.1
 """Finite-difference step of the strings' stiffness and damping (log factor): their effect is
 small beside the jumps of the cost where a string goes slack a step earlier or later, so the
