@@ -34,12 +34,9 @@ AVR_BUILD = BUILD / "avr"
 os.environ.setdefault(simavr.FIRMWARE_BUILD_ENV, str(BUILD))
 
 
-def set_offsets(board) -> None:
-    """Set every wheel's ENC_OFFSET to 0, the harness's electrical zero with its default
-    ``--elec-offset 0``: a blank EEPROM leaves the offsets unset, which refuses closed-loop
-    setpoints (OFFSET_UNCALIBRATED)."""
-    for w in range(4):
-        board.set_param(f"ENC_OFFSET_M{w}", 0)
+set_offsets = simavr.set_enc_offsets
+"""Every wheel's ENC_OFFSET for the harness's default ``--elec-offset 0``: a blank EEPROM leaves
+the offsets unset, which refuses closed-loop setpoints (OFFSET_UNCALIBRATED)."""
 
 
 def firmware_elf() -> Path:

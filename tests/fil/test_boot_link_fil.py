@@ -15,7 +15,7 @@ import time
 
 import pytest
 import serial
-from filharness import Harness, HarnessError, firmware_elf, parse_kv, stats_rpm
+from filharness import Harness, HarnessError, firmware_elf, parse_kv, set_offsets, stats_rpm
 
 from gyrohost.drivers import wheelproto as wp
 
@@ -25,7 +25,6 @@ WATCHDOG_RESET = wp.fault_mask(["WATCHDOG_RESET"])
 ALL_FAULTS = wp.fault_mask([name for name, _ in wp.FAULTS.values()])
 OUTPUTS_ENABLED = 1 << 0
 SPEED_MRAD_S = [75000, -75000, 75000, -75000]  # about 716 rpm
-ENC_OFFSETS = [f"ENC_OFFSET_M{i}" for i in range(4)]
 WAIT_S = 20.0  # wall-clock limit of every wait: generous for a loaded 2-core host
 STATS_PERIOD_S = 0.0005
 
@@ -96,8 +95,7 @@ def spin_up(h: Harness, link: Link, beat: threading.Event) -> None:
 
     ``beat`` is set while a heartbeat thread keeps the link alive.
     """
-    for name in ENC_OFFSETS:
-        link.set_param(name, 0)
+    set_offsets(link)
     link.request("CLEAR_FAULTS", "ACK", mask=ALL_FAULTS)
     fields = {f"w{i}_mrad_s": v for i, v in enumerate(SPEED_MRAD_S)}
     link.send("SET_SPEEDS", **fields)

@@ -399,22 +399,32 @@ def elec_offset_deg(options: tuple[str, ...]) -> float:
     return 0.0
 
 
-def set_factory_offsets(port: str, elec_offset_deg: float) -> None:
+def set_enc_offsets(board, elec_offset_deg: float = 0.0) -> None:
     """Set the four ENC_OFFSETs of the harness's motors, as a calibrated board holds them.
 
     The harness starts with a blank EEPROM (PARAMS_DEFAULTED), and the firmware refuses
-    closed-loop setpoints until the offsets are calibrated or set; the simulated rig's board
-    comes calibrated. A motor whose electrical angle is ``elec_offset_deg`` at encoder zero needs
+    closed-loop setpoints until the offsets are calibrated or set. A motor whose electrical angle
+    is ``elec_offset_deg`` at encoder zero (the harness's ``--elec-offset``) needs
     ENC_OFFSET = -elec_offset (turn/65536).
+
+    Parameters
+    ----------
+    board : anything with ``set_param(name, value)`` (a connected wheel-board client)
     """
+    value = round(-elec_offset_deg / 360.0 * 65536) % 65536
+    for w in range(4):
+        board.set_param(f"ENC_OFFSET_M{w}", value)
+
+
+def set_factory_offsets(port: str, elec_offset_deg: float) -> None:
+    """:func:`set_enc_offsets` through a connection of its own: the simulated rig's board comes
+    calibrated."""
     from gyrohost.drivers.wheelboard import WheelBoard
 
-    value = round(-elec_offset_deg / 360.0 * 65536) % 65536
     board = WheelBoard(port, reply_timeout_s=3.0)
     try:
         board.connect()
-        for w in range(4):
-            board.set_param(f"ENC_OFFSET_M{w}", value)
+        set_enc_offsets(board, elec_offset_deg)
     finally:
         board.close()
 
