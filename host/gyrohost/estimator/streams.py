@@ -38,6 +38,10 @@ def wheel_speed_columns(n: int = BOARD_WHEELS) -> list[str]:
     return [f"omega_{i}_rad_s" for i in range(n)]
 
 
+def wheel_command_columns(n: int = BOARD_WHEELS) -> list[str]:
+    return [f"omega_cmd_{i}_rad_s" for i in range(n)]
+
+
 def wheels_columns(n: int = BOARD_WHEELS) -> list[str]:
     return ["t_s", *wheel_speed_columns(n)]
 
@@ -57,8 +61,7 @@ def rest_column(string: str) -> str:
 
 def command_columns(strings, n_wheels: int = BOARD_WHEELS) -> list[str]:
     """``strings``: all scene strings, scene order."""
-    cmd = [f"omega_cmd_{i}_rad_s" for i in range(n_wheels)]
-    return ["t_s", *(rest_column(s) for s in strings), *cmd]
+    return ["t_s", *(rest_column(s) for s in strings), *wheel_command_columns(n_wheels)]
 
 
 def estimate_columns(state_labels) -> list[str]:

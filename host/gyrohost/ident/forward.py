@@ -96,7 +96,7 @@ def recording(
     if missing:
         raise IdentDataError(f"{name}: columns {missing} missing (a log of another rig?)")
     command = data.get(streams.COMMAND)
-    cmd_cols = [f"omega_cmd_{i}_rad_s" for i in range(n_wheels)]
+    cmd_cols = streams.wheel_command_columns(n_wheels)
     if command is None or len(command) < 1 or any(c not in command.dtype.names for c in cmd_cols):
         t_cmd, cmd = np.zeros(0), np.zeros((0, n_wheels))
     else:
