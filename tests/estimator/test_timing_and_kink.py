@@ -1,4 +1,5 @@
-"""The IMU's latency and late samples (the run loop's timing), and the mean-force kink."""
+"""The IMU's latency, late IMU and servo samples (the run loop's timing), and the mean-force
+kink."""
 
 from dataclasses import replace
 
@@ -45,6 +46,25 @@ def test_a_sample_the_filter_has_passed_is_compared_at_its_own_time(model, movin
         as_now = np.linalg.norm(sample[k] - now[k])  # the sample against the state at 0.804 s
         taken_back = np.linalg.norm(innovations[source])
         assert taken_back < 0.1 * as_now, (source, taken_back, as_now)
+
+
+def test_a_servo_read_the_filter_has_passed_is_compared_at_its_own_time(model, moving_state):
+    x, _, _ = moving_state
+    ekf = TensegrityEKF(model, EstimatorConfig(), x0=x, t0_s=0.8)
+    L = ekf.layout
+    rest = ekf.u[: L.n_strings].copy()
+    rest[0] += 0.01  # the servo 1 cm behind its command: its length moves at 0.2 m/s
+    ekf.set_input(rest, 0.8)
+    strings = np.arange(L.n_strings)
+    sample = ekf.x[L.rest].copy()  # read at 0.8 s, reaching the filter after it passed 0.808 s
+    ekf.advance(0.808)
+    as_now = np.linalg.norm(sample - ekf.x[L.rest])
+    innovations = {}
+    ekf.log = lambda r: innovations.setdefault(r.source, r.innovation)
+    ekf.fuse_servos(0.8, sample, strings)
+    taken_back = np.linalg.norm(innovations["servos"])
+    assert as_now > 1e-3  # 8 ms at 0.2 m/s: far outside the servos' noise
+    assert taken_back < 1e-3 * as_now, (taken_back, as_now)
 
 
 def test_expected_positive_part_and_its_variance_by_sampling():

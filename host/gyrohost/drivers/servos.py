@@ -53,7 +53,8 @@ class ServoState:
     faults : tuple of str
         Fault names from the status error byte (empty when healthy).
     t_ns : int
-        ``time.monotonic_ns`` when the reply was read, ns.
+        ``time.monotonic_ns`` when the servo sampled it (the midpoint of request and reply; a
+        bulk read's request), ns.
     """
 
     name: str
@@ -371,11 +372,13 @@ class StringServoBus:
         else:
             raw = {}
             for servo in self.config.servo:
+                sent_ns = time.monotonic_ns()
                 data, result, error = self.packets.readTxRx(
                     self.port, servo.id, mx12.Addr.PRESENT_POSITION, n
                 )
                 self._check(servo, result, 0, "read present position/speed/load")
-                raw[servo.name] = (data, error, time.monotonic_ns())
+                # the servo samples between our request and its reply
+                raw[servo.name] = (data, error, (sent_ns + time.monotonic_ns()) // 2)
         return [self._state(self.servos[name], *raw[name]) for name in raw]
 
     def _bulk_read(self, addr: int, n: int) -> dict[str, tuple[list[int], int, int]]:
@@ -386,11 +389,12 @@ class StringServoBus:
         result = self.packets.bulkReadTx(self.port, group.param, 3 * len(self.config.servo))
         if result != sdk.COMM_SUCCESS:
             self._check(self.config.servo[0], result, 0, "bulk read request")
+        sent_ns = time.monotonic_ns()  # every servo samples on the one request
         raw = {}
         for servo in self.config.servo:
             data, result, error = self.packets.readRx(self.port, servo.id, n)
             self._check(servo, result, 0, "bulk read reply")
-            raw[servo.name] = (data, error, time.monotonic_ns())
+            raw[servo.name] = (data, error, sent_ns)
         return raw
 
     def _state(self, servo: ServoConfig, data: list[int], error: int, t_ns: int) -> ServoState:

@@ -274,7 +274,10 @@ class TensegrityEKF:
         return [fuse_wheels.fuse_wheels(self, omega_rad_s)]
 
     def fuse_servos(self, t_s, lengths_m, strings):
-        """Predict to ``t_s`` and fuse string lengths (k,) m of model strings ``strings``."""
+        """Predict to ``t_s`` and fuse string lengths (k,) m of model strings ``strings``
+        (sampled at ``t_s``: a read behind the filter's time is compared with the rest lengths
+        then)."""
+        lag_s = max(self.t - t_s, 0.0)
         if not self._arrive(t_s, fuse_servos.SOURCE):
             return []
-        return [fuse_servos.fuse_servos(self, lengths_m, strings)]
+        return [fuse_servos.fuse_servos(self, lengths_m, strings, lag_s)]

@@ -12,18 +12,32 @@ from .fusion import Innovation, Measurement, fuse
 SOURCE = "servos"
 
 
-def predict(ekf, x, strings):
-    """Predicted lengths (k,) m of the strings with indices ``strings`` and the (linear)
-    Jacobian (k, n)."""
+def predict(ekf, x, strings, lag_s=0.0):
+    """Predicted lengths (k,) m of the strings with indices ``strings`` ``lag_s`` before the
+    filter's time, and the (linear) Jacobian (k, n).
+
+    A read sampled before the filter's time (the run loop predicts to every tick) is compared
+    with the rest lengths taken back along their first-order lag towards the command ``c``:
+    ``rest(t - lag) = c + (rest(t) - c) exp(lag / servo_lag_s)`` (the command held over the
+    lag).
+    """
     L = ekf.layout
+    gain = np.exp(lag_s / ekf.config.servo_lag_s)
+    command = np.asarray(ekf.u[: L.n_strings], float)[strings]
     H = np.zeros((len(strings), L.size))
-    H[np.arange(len(strings)), L.rest.start + strings] = 1.0
-    return x[L.rest][strings].copy(), H
+    H[np.arange(len(strings)), L.rest.start + strings] = gain
+    return command + (x[L.rest][strings] - command) * gain, H
 
 
-def fuse_servos(ekf, lengths_m, strings) -> Innovation:
-    """Fuse one read of string lengths (k,) m; ``strings`` (k,) are model string indices."""
+def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
+    """Fuse one read of string lengths (k,) m sampled ``lag_s`` (s) before the filter's time;
+    ``strings`` (k,) are model string indices.
+
+    Taken back over the lag, the rest lengths miss the random walk they made since the read
+    (``rest_psd_m2_s lag_s``, the walk's variance over the lag): it adds to the read's noise.
+    """
     strings = np.asarray(strings, dtype=int)
-    hx, H = predict(ekf, ekf.x, strings)
-    R = np.eye(len(hx)) * ekf.config.servo_length_std_m**2
+    hx, H = predict(ekf, ekf.x, strings, lag_s)
+    c = ekf.config
+    R = np.eye(len(hx)) * (c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s)
     return fuse(ekf, Measurement(SOURCE, np.asarray(lengths_m, float), hx, H, R))[0]

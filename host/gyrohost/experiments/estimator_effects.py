@@ -32,6 +32,10 @@ MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
 # filter cannot know: a rest-length walk of the default density covers it (the SIL's 1e-10,
 # made for commands on the exact 10 ms grid, gave NEES 57 539, servo NIS 7583)
 LATE_COMMAND_REST_PSD_M2_S = 1e-6
+SERVO_PERIOD_S = 0.04  # the servo worker's read period (gyrohost.run.settings: 25 Hz), s
+# how long after the servos sampled a read used to be stamped (the end of the bulk read, its
+# arrival): the servo stream against the real-time rig's truth lines up best 6-10 ms earlier
+SERVO_READ_DELAY_S = 8e-3
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,9 @@ class Effects:
     late_ticks: bool = False  # ticks late as the loop's: commands sent then, the filter told
     command_at_last_sample: bool = False  # ...told at the newest sample fused before it
     rig_noise: bool = False  # the filter's noise keys of the real-time rig (no RIG_MODEL_KEYS)
+    servo_cycle: bool = False  # goals reach the servos at the worker's next read, not at once
+    servo_read_late: bool = False  # servo reads reach the host SERVO_READ_DELAY_S after sampling
+    servo_read_arrival: bool = False  # ...and are stamped then (else when sampled)
 
     def label(self) -> str:
         on = [f.name for f in fields(self) if getattr(self, f.name)]
@@ -97,7 +104,30 @@ def loop_streams(data, frames, effects: Effects, rng, delay_s: float):
         if effects.wheel_clock:  # the board's clock on the host's: the smallest delay so far
             stamps = board_t + np.minimum.accumulate(stamps - board_t)
         out[streams.WHEELS] = _with_times(w, stamps)
+    if effects.servo_read_late:
+        arrival[streams.SERVOS] = data[streams.SERVOS]["t_s"] + SERVO_READ_DELAY_S
+        if effects.servo_read_arrival:
+            out[streams.SERVOS] = _with_times(data[streams.SERVOS], arrival[streams.SERVOS])
     return out, arrival
+
+
+def servo_cycle_sends(ticks, duration_s: float, rng):
+    """When the servo worker's reads (every ``SERVO_PERIOD_S``, phase from ``rng``) send the
+    newest goal, s, and the tick that made each goal, s."""
+    sends = np.arange(rng.uniform(0.0, SERVO_PERIOD_S), duration_s + SERVO_PERIOD_S, SERVO_PERIOD_S)
+    made = np.searchsorted(ticks, sends, side="right") - 1
+    return sends, ticks[np.maximum(made, 0)]
+
+
+def commands_at(model, template, times_s):
+    """Command stream rows (``template``'s columns) of the schedule at ``times_s``: what the
+    loop tells the filter at its ticks."""
+    out = np.repeat(template[:1], len(times_s))
+    out["t_s"] = times_s
+    rest = np.array([model.input_at(t)[: model.alpha] for t in times_s])
+    for j, name in enumerate(template.dtype.names[1 : 1 + model.alpha]):
+        out[name] = rest[:, j]
+    return out
 
 
 def ticked_feed(arrival, ticks, effects: Effects):
@@ -137,7 +167,14 @@ def score_with_effects(
     ``overrides``: estimator keys on top of the case's."""
     rng = np.random.default_rng(seed + 9_000_011)
     ticks = loop_ticks(duration_s, effects, rng, late_s)
-    model, data, truth_x, truth_R, frames, dt_s = rig_model_run(config, seed, duration_s, ticks)
+    sends, made = (
+        servo_cycle_sends(ticks, duration_s, rng) if effects.servo_cycle else (ticks, None)
+    )
+    model, data, truth_x, truth_R, frames, dt_s = rig_model_run(
+        config, seed, duration_s, sends, made
+    )
+    if effects.servo_cycle:  # the filter is told each command at its tick
+        data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
     keys = {**noise_from_rig(config), **({} if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
@@ -174,6 +211,10 @@ CASES = {
     ),
 }
 CASES["loop-fixed-rig-noise"] = replace(CASES["loop-fixed"], rig_noise=True)
+CASES["servo-cycle"] = replace(CASES["loop-fixed"], servo_cycle=True)
+CASES["servo-read-late"] = replace(CASES["loop-fixed"], servo_read_late=True)
+CASES["servo-read-arrival"] = replace(CASES["servo-read-late"], servo_read_arrival=True)
+CASES["servo-before"] = replace(CASES["servo-read-arrival"], servo_cycle=True)
 
 
 def _value(text):

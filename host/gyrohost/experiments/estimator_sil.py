@@ -118,11 +118,12 @@ def score_log(folder) -> RunResult:
     return score_run(ekf, data, truth_at, partial_nees)
 
 
-def rig_model_run(config, seed, duration_s=3.0, command_times_s=None):
+def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_times_s=None):
     """One in-process run on the rig's truth model and sensor emulators (see module docstring).
 
-    ``command_times_s`` (increasing, s): when the host sends its commands, each the schedule at
-    its time, reaching the servos at the first truth step from then on (default: every 10 ms).
+    ``command_times_s`` (increasing, s): when the commands reach the servos (at the first truth
+    step from then on; default: every 10 ms), each the schedule at its time or at its entry of
+    ``schedule_times_s`` (the tick that made it, when the servos get it later).
 
     Returns
     -------
@@ -146,7 +147,7 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None):
     board = _WheelBoard(config, model.spin0, np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
-            model, truth, emu, board, servos, duration_s, command_times_s
+            model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s
         )
     finally:
         board.close()
@@ -167,7 +168,9 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None):
     return model, data, np.array(truth_x), np.array(truth_R), frames, truth.dt_s
 
 
-def _rig_model_rows(model, truth, emu, board, servos, duration_s, command_times_s=None):
+def _rig_model_rows(
+    model, truth, emu, board, servos, duration_s, command_times_s=None, schedule_times_s=None
+):
     """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
     from gyrohost.drivers.imu import Bwt61Parser
     from gyrohost.drivers.mx12 import length_to_steps, steps_to_length
@@ -186,12 +189,13 @@ def _rig_model_rows(model, truth, emu, board, servos, duration_s, command_times_
     rows = {streams.IMU: [], streams.WHEELS: [], streams.SERVOS: [], streams.COMMAND: []}
     truth_x, truth_R = [], []
     sends = np.arange(0.0, duration_s + dt, 0.01) if command_times_s is None else command_times_s
+    made = sends if schedule_times_s is None else schedule_times_s
     sent, command = 0, model.input_at(0.0)[: model.alpha]
     for k in range(int(round(duration_s / dt)) + 1):
         t = k * dt
         wheels = board.advance(t)
         while sent < len(sends) and sends[sent] <= t + 1e-9:  # held until the next one
-            command = model.input_at(sends[sent])[: model.alpha]
+            command = model.input_at(made[sent])[: model.alpha]
             rows[streams.COMMAND].append([sends[sent], *command, *spins])
             sent += 1
         reported = {  # the servo's position now, quantised to its steps

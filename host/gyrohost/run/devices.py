@@ -9,7 +9,8 @@ time plus the parsed values) on one shared queue; a reader that fails (whatever 
   every TELEMETRY on arrival, notices a board reboot (device time running backwards), latched
   faults and silence.
 - :class:`ServoWorker`: owns the Dynamixel bus while the loop runs (the SDK is not thread-safe):
-  sends the newest length goals, reads the states back at ``rate_hz``.
+  sends the newest length goals as soon as the loop gives them, reads the states back at
+  ``rate_hz``.
 
 Before any of them, :func:`check_real_rig` refuses a configuration of real ports that cannot
 run: calibration keys left at the template's values, ports missing or not permitted.
@@ -239,7 +240,7 @@ class ServoWorker(_Reader):
     bus : StringServoBus
     out : queue.Queue
     rate_hz : float, Hz
-        Read-back rate (each cycle: the pending goals, if any, then one read of all servos).
+        Read-back rate; goals go out between reads, as they come.
     max_comm_errors : int
     """
 
@@ -254,20 +255,34 @@ class ServoWorker(_Reader):
         self.comm_errors_total = 0
         self._goal_lock = threading.Lock()
         self._goals: dict[str, float] | None = None
+        self._wake = threading.Event()
+        self._next_read_s = 0.0
 
     def command(self, lengths_m: dict[str, float]) -> None:
-        """Queue string length goals (name -> m); only the newest is sent."""
+        """Queue string length goals (name -> m); only the newest is sent, at once: the
+        estimator takes a command from the tick that made it, so a goal held back to the next
+        read (up to a read period) would lead the filter's rest lengths by that much."""
         with self._goal_lock:
             self._goals = dict(lengths_m)
+        self._wake.set()
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        self._stop.set()
+        self._wake.set()
+        super().stop(timeout_s)
 
     def _cycle(self) -> None:
-        start = time.monotonic()
+        self._wake.clear()  # before taking the goals: a command after this wakes the next wait
         with self._goal_lock:
             goals, self._goals = self._goals, None
+        now = time.monotonic()
+        read = now >= self._next_read_s
         try:
             if goals:
                 self.bus.command_lengths(goals)
-            states = self.bus.read_states()
+            if read:
+                self._next_read_s = max(self._next_read_s, now) + self.period_s
+                states = self.bus.read_states()
         except ServoCommError:
             self.comm_errors += 1
             self.comm_errors_total += 1
@@ -276,6 +291,9 @@ class ServoWorker(_Reader):
             with self._goal_lock:
                 self._goals = self._goals or goals  # resend them next cycle
         else:
-            self.comm_errors = 0
-            self.out.put(Sample("servos", time.monotonic_ns(), states))
-        self._stop.wait(max(self.period_s - (time.monotonic() - start), 0.0))
+            if read:
+                self.comm_errors = 0
+                # stamped when the servos sampled their positions, not when the loop got them
+                t_ns = sum(s.t_ns for s in states) // max(len(states), 1)
+                self.out.put(Sample("servos", t_ns, states))
+        self._wake.wait(max(self._next_read_s - time.monotonic(), 0.0))
