@@ -199,21 +199,28 @@ CASES = {
     "late-ticks": Effects(late_ticks=True),
     "command-at-last-sample": Effects(late_ticks=True, command_at_last_sample=True),
     "rig-noise": Effects(rig_noise=True),
-    "loop-today": Effects(
+    "loop-before": Effects(  # the run loop before the fixes of docs/estimator.md
         imu_arrival=True,
         wheel_frames=True,
         late_ticks=True,
         command_at_last_sample=True,
         rig_noise=True,
+        servo_cycle=True,
+        servo_read_late=True,
+        servo_read_arrival=True,
     ),
     "loop-fixed": Effects(
-        imu_arrival=True, imu_regrid=True, wheel_frames=True, wheel_clock=True, late_ticks=True
+        imu_arrival=True,
+        imu_regrid=True,
+        wheel_frames=True,
+        wheel_clock=True,
+        late_ticks=True,
+        servo_read_late=True,
     ),
 }
 CASES["loop-fixed-rig-noise"] = replace(CASES["loop-fixed"], rig_noise=True)
 CASES["servo-cycle"] = replace(CASES["loop-fixed"], servo_cycle=True)
-CASES["servo-read-late"] = replace(CASES["loop-fixed"], servo_read_late=True)
-CASES["servo-read-arrival"] = replace(CASES["servo-read-late"], servo_read_arrival=True)
+CASES["servo-read-arrival"] = replace(CASES["loop-fixed"], servo_read_arrival=True)
 CASES["servo-before"] = replace(CASES["servo-read-arrival"], servo_cycle=True)
 
 
