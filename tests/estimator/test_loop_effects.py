@@ -1,6 +1,8 @@
 """The run loop's effects injected one at a time into the in-process SIL (simulated clock,
 deterministic): IMU samples stamped on arrival break the filter's consistency, the IMU's
-reconstructed grid (what the run loop fuses at) restores most of it. The figures per effect:
+reconstructed grid (what the run loop fuses at) restores most of it; servo goals held back to
+the servo worker's next read break it, sent at once they do not, and late servo reads stamped
+when sampled are as good as reads on time. The figures per effect:
 ``python -m gyrohost.experiments.estimator_effects`` (docs/estimator.md)."""
 
 import numpy as np
@@ -14,18 +16,40 @@ CONFIG = load_rig_config(shipped("config", "sim-rig"))
 
 
 @pytest.fixture(scope="module")
-def nees():
-    def mean_nees(case):
-        r = score_with_effects(CONFIG, 2, CASES[case], duration_s=1.0, delay_s=2e-3)
-        return float(np.mean(r.nees[r.t_s >= 0.2]))
+def runs():
+    cases = ("sil", "imu-arrival", "imu-regrid", "loop-fixed", "servo-cycle", "servo-read-arrival")
+    return {
+        case: score_with_effects(CONFIG, 2, CASES[case], duration_s=1.0, delay_s=2e-3)
+        for case in cases
+    }
 
-    return {case: mean_nees(case) for case in ("sil", "imu-arrival", "imu-regrid")}
+
+@pytest.fixture(scope="module")
+def nees(runs):
+    return {case: float(np.mean(r.nees[r.t_s >= 0.2])) for case, r in runs.items()}
+
+
+@pytest.fixture(scope="module")
+def servo_nis(runs):
+    return {case: float(np.mean(r.nis["servos"][1])) for case, r in runs.items()}
 
 
 def test_arrival_stamps_break_consistency_and_the_grid_restores_it(nees):
     # over 0.2-1 s string s24 crosses its kink: the SIL itself is above its dof (25) there
     assert nees["imu-arrival"] > 5.0 * nees["sil"], nees
     assert nees["imu-regrid"] < 0.25 * nees["imu-arrival"], nees
+
+
+def test_servo_goals_must_go_out_at_the_tick_the_filter_is_told(nees):
+    assert nees["servo-cycle"] > 5.0 * nees["loop-fixed"], nees
+
+
+def test_late_servo_reads_are_stamped_when_sampled(nees, servo_nis):
+    # loop-fixed reads the servos 8 ms late, stamps them when sampled and takes the filter's
+    # rest lengths back to then; stamped on arrival, they disagree with the rest lengths
+    assert servo_nis["servo-read-arrival"] > 5.0 * servo_nis["loop-fixed"], servo_nis
+    assert servo_nis["loop-fixed"] < 2.0 * 2, servo_nis  # dof 2
+    assert nees["loop-fixed"] < 1.5 * nees["sil"], nees
 
 
 def test_gyrotens_sil_prints_the_consistency_table(capsys):

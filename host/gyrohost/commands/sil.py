@@ -24,6 +24,9 @@ def run(args) -> int:
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
+    if args.estimator is not None and not args.realtime:
+        raise CliError("--estimator is for --realtime (the simulated clock's keys are the "
+                       "experiment's own)")  # fmt: skip
     if args.realtime and (args.workers is not None or args.scheduler is not None):
         raise CliError("--realtime runs one after the other: --workers/--scheduler are for the "
                        "simulated clock")  # fmt: skip

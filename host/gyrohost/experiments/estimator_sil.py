@@ -74,29 +74,44 @@ class SilError(GyrohostError, ValueError):
     """A SIL run cannot start (its log folder exists)."""
 
 
-def record_run(config, seed, folder, duration_s=3.0):
-    """One run of the paper's schedule on the simulated rig with IMU seed ``seed``."""
+def record_run(config, seed, folder, duration_s=3.0, estimator=None):
+    """One run of the paper's schedule on the simulated rig with IMU seed ``seed``;
+    ``estimator``: a TOML file whose ``[estimator]`` keys override the configuration's."""
     from gyrohost.control.presets import paper
+    from gyrohost.estimator.config import for_rig
     from gyrohost.run import run_simulated
     from gyrotensegrity import Model, load_scene
 
     cfg = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
     schedule = paper(Model(load_scene(cfg.scene_path)), duration_s=duration_s)
-    result = run_simulated(cfg, schedule, folder)
+    result = run_simulated(cfg, schedule, folder, estimator=for_rig(cfg, estimator))
     if result.exit_status:
         raise RuntimeError(f"{folder}: the run stopped: {result.reason}")
     return folder
+
+
+def replayed_config(folder, estimator=None):
+    """The estimator configuration a log ran with, its keys overridden by the ``[estimator]``
+    table of the file ``estimator`` (None: the log's own, as :func:`prepare` takes it)."""
+    if estimator is None:
+        return None
+    from gyrohost.estimator.config import config_from_dict, read_table
+    from gyrohost.run.log import read_meta
+
+    keys = {**read_meta(folder).get("estimator", {}), **read_table(estimator)}
+    return config_from_dict(keys, str(estimator))
 
 
 def _truth_at(truth, t, columns):
     return np.array([np.interp(t, truth["t_s"], truth[c]) for c in columns])
 
 
-def score_log(folder) -> RunResult:
+def score_log(folder, estimator=None) -> RunResult:
     """Replay a simulated-rig log and score it against its ``truth`` stream (positions, wheel
     speeds and rest lengths: NEES over those, the positions in the tangent space of the bar
-    lengths; the velocity entries of ``x_true`` are the estimate's own)."""
-    ekf, data = prepare(folder)
+    lengths; the velocity entries of ``x_true`` are the estimate's own); ``estimator``: a TOML
+    file whose ``[estimator]`` keys override the log's."""
+    ekf, data = prepare(folder, config=replayed_config(folder, estimator))
     model, L = ekf.model, ekf.layout
     truth = read_stream(folder, "truth")
     scene_nodes = list(model.scene.node_names)
@@ -298,13 +313,21 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
 
 
 def sil_results(
-    config, runs, duration_s=3.0, realtime=False, out=None, score_only=False, executor=None
+    config,
+    runs,
+    duration_s=3.0,
+    realtime=False,
+    out=None,
+    score_only=False,
+    executor=None,
+    estimator=None,
 ):
     """``runs`` SIL runs (seeds 1, 2, ...): in process on the simulated clock, each a case of
     ``executor`` (:class:`gyrohost.parallel.Executor`; default serial), or with ``realtime``
     recorded one after the other on the real-time simulated rig into ``out``/runNN
-    (``score_only``: score logs already there) and scored from their logs. Returns the
-    :class:`RunResult` list."""
+    (``score_only``: score logs already there) and scored from their logs; ``estimator``: a
+    TOML file whose ``[estimator]`` keys the recorded runs use (``score_only``: the replays).
+    Returns the :class:`RunResult` list."""
     if not realtime:
         task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=RIG_MODEL_KEYS)
         return (executor or parallel.Executor(serial=True)).map(task, range(1, runs + 1))
@@ -314,8 +337,8 @@ def sil_results(
         if not score_only:
             if (folder / "meta.json").exists():
                 raise SilError(f"{folder} exists; remove it or score it (--score-only)")
-            record_run(config, seed, folder, duration_s)
-        results.append(score_log(folder))
+            record_run(config, seed, folder, duration_s, estimator)
+        results.append(score_log(folder, estimator if score_only else None))
         print(f"run {seed}: {len(results[-1].t_s)} IMU samples scored", file=sys.stderr)
     return results
 
@@ -327,7 +350,14 @@ def report(args) -> dict:
     config = load_rig_config(args.config)
     with parallel.from_args(args) as executor:
         results = sil_results(
-            config, args.runs, args.duration, args.realtime, args.out, args.score_only, executor
+            config,
+            args.runs,
+            args.duration,
+            args.realtime,
+            args.out,
+            args.score_only,
+            executor,
+            args.estimator,
         )
     clock = "real-time rig through the run loop" if args.realtime else "simulated clock"
     print(f"--- SIL ({clock}): {len(results)} runs of the paper's schedule")

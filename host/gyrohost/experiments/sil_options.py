@@ -20,4 +20,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
     parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
     parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
+    parser.add_argument(
+        "--estimator",
+        type=Path,
+        metavar="FILE",
+        help="with --realtime: TOML with an [estimator] table whose keys override the rig "
+        "configuration's (recording) or the logs' (--score-only: replayed with them)",
+    )
     parallel.add_arguments(parser, serial_default=True)  # simulated clock only
