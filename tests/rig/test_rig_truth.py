@@ -85,6 +85,36 @@ def test_imu_latency_returns_the_older_truth_and_recording():
     assert not np.allclose(delayed.R_wb, record.R_wb[-1], atol=1e-3)
 
 
+def test_imu_truth_between_steps_is_the_motion_then():
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005), [])
+    rigidly_rotating(truth, np.array([0.0, 0.0, 0.5]))  # about a principal axis: steady
+    for _ in range(4):
+        truth.step({}, [0.0] * 4)
+    for t in (0.0162, 0.0189, 0.02):  # between the last two steps, 1 ms before one, on one
+        yaw = truth.imu_truth(t).R_wb
+        np.testing.assert_allclose(yaw, rotation_zyx(0.0, 0.0, 0.5 * t), atol=2e-6)
+    assert truth.has_imu_truth(0.02) and not truth.has_imu_truth(0.0201)
+
+
+def test_the_imu_emulator_samples_its_own_grid_once_the_truth_knows_it():
+    from gyrohost.rig.imu_emu import Bwt61Emulator
+
+    asked, known = [], {"until": 0.005}
+    emu = Bwt61Emulator(
+        truth_source=lambda t: asked.append(t) or Truth(SCENE, TruthConfig(), []).imu_truth(0.0),
+        truth_ready=lambda t: t <= known["until"],
+    )
+    try:
+        emu.tick(0.0031)  # the grid starts here
+        emu.tick(0.0134)  # due at 0.0131, the truth not there yet: the sample waits
+        known["until"] = 0.015
+        emu.tick(0.0152)  # sent now, showing 0.0131
+    finally:
+        emu.close()
+    assert asked == pytest.approx([0.0031, 0.0131])
+    assert emu.samples_sent == 2
+
+
 def test_setup_errors_name_the_key():
     with pytest.raises(RigSetupError, match="string 's99' is not in scene dbar-gyro"):
         Truth(SCENE, TruthConfig(), [ServoConfig(name="x", id=3, pulley_radius_m=0.01,

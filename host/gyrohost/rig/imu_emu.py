@@ -77,8 +77,12 @@ class Bwt61Emulator(PtyDevice):
     imu : ImuConfig, optional
         Output rate and mounting (rotation and mode).
     truth_source : callable, optional
-        ``truth_source(t_s) -> ImuTruth`` called at each output sample; when absent the last
-        :meth:`set_truth` value (level and still at first) is used.
+        ``truth_source(t_s) -> ImuTruth`` called at each output sample with its time on the
+        output grid; when absent the last :meth:`set_truth` value (level and still at first)
+        is used.
+    truth_ready : callable, optional
+        ``truth_ready(t_s) -> bool``: ``truth_source`` knows time ``t_s`` (a sample waits for
+        it, as the sensor's own clock never waits on a simulation).
     rotation_deg : sequence of 3 float, deg
         The sensor turned further by this roll, pitch, yaw (Z-Y-X, about the body axes) from
         where ``imu.mounting_rpy_rad`` puts it: a mounting the host's calibration does not know.
@@ -90,12 +94,14 @@ class Bwt61Emulator(PtyDevice):
         imu: ImuConfig | None = None,
         truth_source: Callable[[float], ImuTruth] | None = None,
         rotation_deg: Sequence[float] = (0.0, 0.0, 0.0),
+        truth_ready: Callable[[float], bool] | None = None,
     ) -> None:
         emu = emu if emu is not None else ImuEmuConfig()
         imu = imu if imu is not None else ImuConfig()
         super().__init__(FaultFilter(emu.faults))
         self.emu = emu
         self.truth_source = truth_source
+        self.truth_ready = truth_ready
         self.rate_hz = imu.rate_hz
         self.baud = _BAUDS[imu.rate_hz]
         self.vertical = imu.mounting == "vertical"
@@ -164,7 +170,10 @@ class Bwt61Emulator(PtyDevice):
             self._next_emit_s = now_s  # start, or the loop fell behind: do not send a backlog
         if now_s < self._next_emit_s:
             return
-        self.send(self.encode_sample(self._current_truth(now_s)), now_s)
+        # the device samples on its own grid: the truth at the grid time, sent once it is known
+        if self.truth_ready is not None and not self.truth_ready(self._next_emit_s):
+            return
+        self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
         self.samples_sent += 1
         self._next_emit_s += self.period_s
 

@@ -162,8 +162,9 @@ class SimulatedRig:
         self.imu = Bwt61Emulator(
             config.sim.imu,
             config.imu,
-            truth_source=self.truth.imu_truth,
+            truth_source=self._imu_truth,
             rotation_deg=config.sim.truth.imu_rotation_deg,
+            truth_ready=self._has_imu_truth,
         )
         self.servos = Mx12Bus(config.servos.servo, config.sim.servos)
         self.wheels = self._wheel_board(config)
@@ -327,6 +328,13 @@ class SimulatedRig:
                 dev.poll(now_s=t_s, timeout_s=0.0)
 
     # --- truth read-outs ----------------------------------------------------------------------
+    def _imu_truth(self, rig_t_s: float):
+        """The IMU's truth at rig time ``rig_t_s`` (on the truth's clock: less the slip)."""
+        return self.truth.imu_truth(rig_t_s - self._slip_s)
+
+    def _has_imu_truth(self, rig_t_s: float) -> bool:
+        return self.truth.has_imu_truth(rig_t_s - self._slip_s)
+
     def truth_nodes(self) -> np.ndarray:
         """True scene node positions now, shape (3, n), m."""
         with self._lock:

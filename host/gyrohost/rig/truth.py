@@ -365,16 +365,27 @@ class Truth:
         return {sid: float(tensions[i]) for sid, i in self.servo_strings.items()}
 
     def imu_truth(self, t_s: float) -> ImuTruth:
-        """What the IMU frame does at ``t_s - imu_latency_s`` (latest truth step not after it)."""
+        """What the IMU frame does at ``t_s - imu_latency_s``: the state interpolated between
+        the truth's steps around that time (a sensor samples on its own clock, not on the
+        truth's 5 ms steps; the linear interpolation's error, ``a dt^2 / 8``, is far below the
+        IMU's noise); after the newest step, the newest."""
         when = t_s - self.config.imu_latency_s
-        t, x, u = self._history[0]
-        for entry in self._history:
-            if entry[0] > when + 1e-12:
-                break
-            t, x, u = entry
+        entries = list(self._history)
+        later = next((i for i, e in enumerate(entries) if e[0] >= when - 1e-12), None)
+        if later is None:
+            t, x, u = entries[-1]
+        elif later == 0:
+            t, x, u = entries[0]
+        else:
+            (t_a, x_a, _), (t_b, x_b, u) = entries[later - 1], entries[later]
+            t, x = when, x_a + (when - t_a) / (t_b - t_a) * (x_b - x_a)
         ev = evaluate(t, x, u, self.model)
         omega, force, R = self.frame_motion(*(v[..., None] for v in (ev.N, ev.N_dot, ev.N_ddot)))
         return ImuTruth(omega[0], force[0], R[0])
+
+    def has_imu_truth(self, t_s: float) -> bool:
+        """The truth has stepped up to what the IMU shows at ``t_s`` (see :meth:`imu_truth`)."""
+        return self.t_s >= t_s - self.config.imu_latency_s - 1e-12
 
     # --- recording ----------------------------------------------------------------------------
     def start_recording(self) -> None:
