@@ -96,7 +96,7 @@ def test_imu_truth_between_steps_is_the_motion_then():
     assert truth.has_imu_truth(0.02) and not truth.has_imu_truth(0.0201)
 
 
-def test_the_imu_emulator_samples_its_own_grid_once_the_truth_knows_it():
+def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth_half_a_period():
     from gyrohost.rig.imu_emu import Bwt61Emulator
 
     asked, known = [], {"until": 0.005}
@@ -109,10 +109,12 @@ def test_the_imu_emulator_samples_its_own_grid_once_the_truth_knows_it():
         emu.tick(0.0134)  # due at 0.0131, the truth not there yet: the sample waits
         known["until"] = 0.015
         emu.tick(0.0152)  # sent now, showing 0.0131
+        emu.tick(0.0233)  # due at 0.0231, the truth not there: waits
+        emu.tick(0.0282)  # half a period late: sent with what the truth has
     finally:
         emu.close()
-    assert asked == pytest.approx([0.0031, 0.0131])
-    assert emu.samples_sent == 2
+    assert asked == pytest.approx([0.0031, 0.0131, 0.0231])
+    assert emu.samples_sent == 3
 
 
 def test_setup_errors_name_the_key():

@@ -81,8 +81,8 @@ class Bwt61Emulator(PtyDevice):
         output grid; when absent the last :meth:`set_truth` value (level and still at first)
         is used.
     truth_ready : callable, optional
-        ``truth_ready(t_s) -> bool``: ``truth_source`` knows time ``t_s`` (a sample waits for
-        it, as the sensor's own clock never waits on a simulation).
+        ``truth_ready(t_s) -> bool``: ``truth_source`` knows time ``t_s``; a sample waits for
+        it up to half a period past its time, then goes with what the source has.
     rotation_deg : sequence of 3 float, deg
         The sensor turned further by this roll, pitch, yaw (Z-Y-X, about the body axes) from
         where ``imu.mounting_rpy_rad`` puts it: a mounting the host's calibration does not know.
@@ -161,6 +161,9 @@ class Bwt61Emulator(PtyDevice):
             )
         )
 
+    def _truth_known(self, t_s: float) -> bool:
+        return self.truth_ready is None or self.truth_ready(t_s)
+
     def _current_truth(self, now_s: float) -> ImuTruth:
         return self.truth_source(now_s) if self.truth_source is not None else self._truth
 
@@ -171,7 +174,9 @@ class Bwt61Emulator(PtyDevice):
         if now_s < self._next_emit_s:
             return
         # the device samples on its own grid: the truth at the grid time, sent once it is known
-        if self.truth_ready is not None and not self.truth_ready(self._next_emit_s):
+        # (one truth step later at most); a truth lagging further (a loaded CPU) is sent as is
+        waited_s = now_s - self._next_emit_s
+        if waited_s < 0.5 * self.period_s and not self._truth_known(self._next_emit_s):
             return
         self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
         self.samples_sent += 1

@@ -48,6 +48,9 @@ class TruthSample:
         Rig (device) time, s.
     truth_t_s : float
         Time of the truth's latest step, s: behind ``rig_t_s`` when the truth lags or slips.
+    state_rig_t_s : float
+        Rig time the truth's state belongs to (its step's time plus the slip), s: what the
+        devices showed of it then.
     N : ndarray, shape (3, n), m
         Scene node positions.
     omega_w_rad_s : ndarray, shape (n_w,), rad/s
@@ -59,6 +62,7 @@ class TruthSample:
     t_ns: int
     rig_t_s: float
     truth_t_s: float
+    state_rig_t_s: float
     N: np.ndarray
     omega_w_rad_s: np.ndarray
     rest_length_m: np.ndarray
@@ -243,6 +247,7 @@ def _serve(conn, config, period_s: float) -> None:
                 time.monotonic_ns(),
                 rig.t_s,
                 truth.t_s,
+                truth.t_s + rig.slip_s,
                 rig.truth_nodes(),
                 rig.truth_wheel_speeds(),
                 rig.truth_rest_lengths(),

@@ -240,6 +240,11 @@ class SimulatedRig:
         """Rig (device) time, s."""
         return self._dev_t_s
 
+    @property
+    def slip_s(self) -> float:
+        """How far the truth's clock has fallen behind the rig's for good (a loaded CPU), s."""
+        return self._slip_s
+
     def advance(self, dt_s: float, timeout_s: float = 600.0) -> None:
         """Move simulated time on by ``dt_s`` s and return when the rig has caught up.
 

@@ -199,10 +199,11 @@ class InnovationWriter:
 class TruthProbe:
     """Writes the simulated rig's truth samples into the ``truth`` stream as they arrive.
 
-    A sample's ``t_s`` is its rig time on the host clock (rig time zero is known in
-    ``time.monotonic_ns``), so the truth lines up with the device samples the rig made at that
-    rig time even when the rig slips behind the wall clock under load; ``wall_t_s`` is when it
-    was sampled.
+    A sample's ``t_s`` is the rig time its state belongs to (its step's, plus the slip) on the
+    host clock (rig time zero is known in ``time.monotonic_ns``), so the truth lines up with
+    the device samples the rig made of that state, between its 5 ms steps and when the rig
+    slips behind the wall clock under load; ``rig_t_s`` is the rig's time when it was sampled,
+    ``wall_t_s`` the host's.
 
     Parameters
     ----------
@@ -239,7 +240,7 @@ class TruthProbe:
         (``score``: the estimate writer's, None before the estimator starts)."""
         for s in self.rig.truth():
             self.latest_tilt = tilt_of(self.tilt, s.N)
-            t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.rig_t_s
+            t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.state_rig_t_s
             if score is not None:
                 score.truth(t_s, s.N, s.omega_w_rad_s, s.rest_length_m)
             self.stream.write(
