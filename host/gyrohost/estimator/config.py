@@ -180,9 +180,11 @@ def noise_from_rig(rig) -> dict:
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
-        # an MX-12W under string load is not the filter's first-order lag: on the real-time
-        # simulated rig its position differs from that model by about 1 mm (NIS 41 at 0.2 mm)
-        "servo_length_std_m": 1.0e-3,
+        # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
+        # paper's pulls (up to 0.1 m/s) that is a 4-5 ms first-order lag of the tick's command
+        # to 0.1 mm RMS (docs/estimator.md; the default 50 ms was 3.6 mm RMS off)
+        "servo_lag_s": 0.005,
+        "servo_length_std_m": 1.0e-4,
         # the wheel board emulator's telemetry: the encoder's quantisation through the
         # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds its speeds, so
         # they walk only slowly (the default 0.5 rad/s gave a wheel NIS of 0.003)

@@ -21,7 +21,7 @@ from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import config_from_dict, noise_from_rig
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
-from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, rig_model_run
+from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
 from gyrohost.experiments.montecarlo import sampled_truth, score_run, summarise
 from gyrohost.experiments.sil_options import DEFAULT_CONFIG
 
@@ -176,7 +176,8 @@ def score_with_effects(
     if effects.servo_cycle:  # the filter is told each command at its tick
         data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
-    keys = {**noise_from_rig(config), **({} if effects.rig_noise else RIG_MODEL_KEYS)}
+    rig_keys = {"servo_lag_s": SERVO_LAG_S}  # the real-time rig's noise, these servos' lag
+    keys = {**noise_from_rig(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
         keys["imu_latency_s"] = MIN_DELAY_S
     if effects.late_ticks:

@@ -63,6 +63,7 @@ SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order
 # conservative it lowers the full NEES below the 6-run bound for seeds 7-12 (18.7; sharp 21.57)
 # (docs/estimator.md).
 RIG_MODEL_KEYS = {
+    "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "rest_psd_m2_s": 1e-10,

@@ -18,6 +18,7 @@ import argparse
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -116,6 +117,7 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS):
     """Fit ``groups`` to the logs from the nominal configuration (commanded string lengths)."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
+    from gyrohost.experiments.estimator_sil import SERVO_LAG_S
     from gyrohost.ident.fit import fit, nominal_lag
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import parameters
@@ -123,7 +125,7 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS):
 
     config = load_rig_config(nominal_config)
     scene = load_scene(config.scene_path)
-    est = for_rig(config)
+    est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S)  # the rig models' servos
     n_w = len(Model(scene).wheel_bars)
     recs = [load_recording(log, config, n_w, commanded=True) for log in logs]
     params = parameters(scene, config, list(groups), nominal_lag(config, est, recs))
