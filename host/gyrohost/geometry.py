@@ -39,27 +39,29 @@ def plane_frame(N, cols):
 
     Parameters
     ----------
-    N : ndarray, shape (3, n), m
-        Node positions.
+    N : ndarray, shape (..., 3, n), m
+        Node positions (a batch of them: any leading dimensions).
     cols : sequence of 4 int
         Columns of the four nodes in ``N`` (for the D-bar: n1, n2, n3, n4).
 
     Returns
     -------
-    R : ndarray, shape (3, 3)
+    R : ndarray, shape (..., 3, 3)
         Columns ``e_x, e_y, e_z`` (unit vectors, world frame).
     """
-    n1, n2, n3, n4 = (N[:, c] for c in cols)
+    n1, n2, n3, n4 = (N[..., :, c] for c in cols)
     ex = n3 - n1
-    ex = ex / np.linalg.norm(ex)
+    ex = ex / np.linalg.norm(ex, axis=-1, keepdims=True)
     ey = n2 - n4
-    ey = ey - (ey @ ex) * ex
-    ey = ey / np.linalg.norm(ey)
-    return np.column_stack([ex, ey, np.cross(ex, ey)])
+    ey = ey - np.sum(ey * ex, axis=-1, keepdims=True) * ex
+    ey = ey / np.linalg.norm(ey, axis=-1, keepdims=True)
+    return np.stack([ex, ey, np.cross(ex, ey)], axis=-1)
 
 
-def tilt_angle(normal, axis, normal0) -> float:
-    """Signed rotation (rad) of ``normal`` about ``axis`` away from ``normal0`` (all (3,))."""
+def tilt_angle(normal, axis, normal0):
+    """Signed rotation (rad) of ``normal`` (..., 3) about ``axis`` away from ``normal0`` (both
+    (3,)): a float for one normal, an array of the leading shape for a batch."""
     axis = axis / np.linalg.norm(axis)
-    p = normal - (normal @ axis) * axis
-    return float(np.arctan2(np.cross(normal0, p) @ axis, normal0 @ p))
+    p = normal - (normal @ axis)[..., None] * axis
+    angle = np.arctan2(np.cross(normal0, p) @ axis, p @ normal0)
+    return float(angle) if np.ndim(angle) == 0 else angle
