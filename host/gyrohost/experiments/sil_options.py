@@ -20,4 +20,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
     parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
     parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        metavar="FILE",
+        help="the step-by-step NEES/NIS figure (PNG; default OUT/consistency.png)",
+    )
     parallel.add_arguments(parser, serial_default=True)  # simulated clock only
