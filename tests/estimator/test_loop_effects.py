@@ -28,11 +28,14 @@ def test_arrival_stamps_break_consistency_and_the_grid_restores_it(nees):
     assert nees["imu-regrid"] < 0.25 * nees["imu-arrival"], nees
 
 
-def test_gyrotens_sil_prints_the_consistency_table(capsys):
+def test_gyrotens_sil_prints_the_consistency_table(capsys, tmp_path):
     from gyrohost.cli import main
 
-    assert main(["sil", "--runs", "1", "--duration", "0.3"]) == 0
+    figure = tmp_path / "sil.png"
+    assert main(["sil", "--runs", "1", "--duration", "0.3", "--plot", str(figure)]) == 0
     out = capsys.readouterr().out
+    assert f"[sil] step-by-step NEES and NIS with their bounds: {figure}" in out
+    assert figure.read_bytes()[:4] == b"\x89PNG"
     assert "SIL (simulated clock): 1 runs" in out
     for name in ("NEES", "NIS imu_rate", "NIS imu_accel", "NIS imu_angle", "NIS wheels"):
         assert f"[sil] {name}: mean " in out and "95 % bounds of a 1-run average" in out, name

@@ -29,11 +29,9 @@ from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
 from gyrohost.plots.run_data import (  # noqa: E402
     INNOVATION_BAND,
     RunData,
+    attitude_lines,
     band,
-    euler_tilt_heading,
     normalised_innovations,
-    tilt_heading,
-    truth_axes,
 )
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
@@ -164,22 +162,6 @@ def _plane_tilt(ax, data) -> bool:
     ax.set_ylabel("plane tilt about\nn2-n4 (deg)")
     ax.legend(fontsize="small")
     return banded
-
-
-def attitude_lines(data: RunData) -> dict:
-    """Sensor tilt from the vertical and unwrapped heading (:func:`.run_data.tilt_heading`),
-    rad: label -> (t_s, tilt, heading) for the IMU's own angles, the estimate and the truth's
-    sensor axes, those the log has."""
-    lines = {}
-    imu, est, truth = data.get("imu"), data.get("estimate"), data.get("truth")
-    if imu is not None:
-        lines["IMU (measured)"] = (imu["t_s"], *euler_tilt_heading(imu))
-    if est is not None:
-        lines["estimate"] = (est["t_s"], *euler_tilt_heading(est))
-    R_true = truth_axes(data)
-    if R_true is not None:
-        lines["truth"] = (truth["t_s"], *tilt_heading(R_true))
-    return lines
 
 
 ATTITUDE_STYLES = {

@@ -114,6 +114,22 @@ def truth_axes(data: RunData):
     return sensor_axes(a, b, c, est.get("imu_mounting_rpy_rad", (0.0, 0.0, 0.0)))
 
 
+def attitude_lines(data: RunData) -> dict:
+    """Sensor tilt from the vertical and unwrapped heading (:func:`.run_data.tilt_heading`),
+    rad: label -> (t_s, tilt, heading) for the IMU's own angles, the estimate and the truth's
+    sensor axes, those the log has."""
+    lines = {}
+    imu, est, truth = data.get("imu"), data.get("estimate"), data.get("truth")
+    if imu is not None:
+        lines["IMU (measured)"] = (imu["t_s"], *euler_tilt_heading(imu))
+    if est is not None:
+        lines["estimate"] = (est["t_s"], *euler_tilt_heading(est))
+    R_true = truth_axes(data)
+    if R_true is not None:
+        lines["truth"] = (truth["t_s"], *tilt_heading(R_true))
+    return lines
+
+
 @dataclass
 class Normalised:
     """The innovations of one source, each component divided by its standard deviation."""
