@@ -40,7 +40,12 @@ import numpy as np
 from gyrohost import parallel
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
-from gyrohost.estimator.consistency import observed_nees, sample_initial, state_of_truth
+from gyrohost.estimator.consistency import (
+    average_bounds,
+    observed_nees,
+    sample_initial,
+    state_of_truth,
+)
 from gyrohost.experiments.montecarlo import (
     RunResult,
     nees_average,
@@ -350,8 +355,11 @@ def consistency_series(results):
     :class:`~gyrohost.plots.consistency.Series` of the figure."""
     from gyrohost.plots.consistency import Series
 
-    nees = Series("NEES", *nees_average(results))
-    return nees, [Series(f"NIS {s}", *nis_average(results, s)) for s in results[0].nis]
+    def series(name, t_s, values, dof):
+        return Series(name, t_s, values, dof, average_bounds(dof, len(results)))
+
+    nees = series("NEES", *nees_average(results))
+    return nees, [series(f"NIS {s}", *nis_average(results, s)) for s in results[0].nis]
 
 
 def main(argv=None) -> int:

@@ -2,8 +2,9 @@
 
 One panel of the N-run average NEES at every scored step and one of the N-run average NIS of
 each source at every sample, on a log scale, each with the two-sided 95 % chi-square bounds
-of an N-run average (:func:`gyrohost.estimator.consistency.average_bounds`) shaded, its dof
-dashed and, in the legend, its mean and the share of steps inside the bounds.
+of an N-run average shaded (the caller gives them:
+:func:`gyrohost.estimator.consistency.average_bounds`), its dof dashed and, in the legend, its
+mean and the share of steps inside the bounds.
 """
 
 from dataclasses import dataclass
@@ -16,23 +17,23 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
-from gyrohost.estimator.consistency import average_bounds  # noqa: E402
-
 DPI = 110
 
 
 @dataclass
 class Series:
-    """A run-averaged NEES or NIS: ``values`` (k,) at ``t_s`` (k,), s, with ``dof``."""
+    """A run-averaged NEES or NIS: ``values`` (k,) at ``t_s`` (k,), s, with ``dof`` and the
+    95 % ``bounds`` (lower, upper) of the average."""
 
     name: str
     t_s: np.ndarray
     values: np.ndarray
     dof: int
+    bounds: tuple
 
 
-def _panel(ax, series: Series, runs: int) -> None:
-    lo, hi = average_bounds(series.dof, runs)
+def _panel(ax, series: Series) -> None:
+    lo, hi = series.bounds
     inside = float(np.mean((series.values >= lo) & (series.values <= hi)))
     ax.axhspan(lo, hi, color="0.85", label=f"95 % bounds [{lo:.2f}, {hi:.2f}]")
     ax.axhline(series.dof, color="0.4", ls="--", lw=0.8, label=f"dof {series.dof}")
@@ -56,10 +57,10 @@ def figure_consistency(nees: Series, nis: list[Series], runs: int, title: str):
         n, 1, figsize=(10, 2.8 + 1.5 * n), gridspec_kw={"height_ratios": [2] + [1] * len(nis)}
     )
     axes = np.atleast_1d(axes)
-    _panel(axes[0], nees, runs)
+    _panel(axes[0], nees)
     axes[0].set_xlabel("t from the first IMU sample (s)")
     for ax, series in zip(axes[1:], nis, strict=True):
-        _panel(ax, series, runs)
+        _panel(ax, series)
     if nis:
         axes[-1].set_xlabel("t from the source's first sample (s)")
     fig.suptitle(f"{title}: {runs}-run average, step by step")

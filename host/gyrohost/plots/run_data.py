@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.control.attitude import PLANE_NODES
-from gyrohost.estimator.consistency import average_bounds
-from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.geometry import rotation_zyx
+from gyrohost.run.health import nis_row
 from gyrohost.run.log import read_meta, read_streams
 
 BAND_SIGMAS = 2.0
@@ -83,7 +82,7 @@ def tilt_heading(R):
     at ±180°.
     """
     heading = np.arctan2(R[:, 1, 0] - R[:, 0, 1], R[:, 0, 0] + R[:, 1, 1])
-    return sensor_tilt(R), np.unwrap(heading)
+    return np.arccos(np.clip(R[:, 2, 2], -1.0, 1.0)), np.unwrap(heading)
 
 
 def euler_tilt_heading(stream):
@@ -146,15 +145,16 @@ class Normalised:
 
 def normalised_innovations(stream) -> Normalised:
     """:class:`Normalised` of an ``innov_<source>`` stream (``y_<c>``, ``var_<c>`` columns); the
-    mean NIS over every attempt, rejected ones included, as the run's summary gives it."""
+    mean NIS over every attempt, rejected ones included, as the run's summary gives it
+    (:func:`gyrohost.run.health.nis_row`)."""
     names = [c[2:] for c in stream.dtype.names if c.startswith("y_")]
     comps = {c: stream[f"y_{c}"] / np.sqrt(stream[f"var_{c}"]) for c in names}
-    dof = len(names)
+    row = nis_row(stream["nis"], len(names))
     return Normalised(
         stream["t_s"],
         comps,
         stream["accepted"] > 0.5,
-        float(np.mean(stream["nis"])),
-        dof,
-        average_bounds(dof, len(stream)),
+        row["mean"],
+        row["dof"],
+        tuple(row["bounds95"]),
     )
