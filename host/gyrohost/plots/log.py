@@ -111,12 +111,12 @@ def _node_lines(ax, data, axis, scale=1.0) -> bool:
 def figure_nodes(data: RunData):
     """Node x, y, z against time (Fig. 7 for the D-bar): estimate with its ±2σ band, truth
     dashed."""
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 7.5))
     banded = all([_node_lines(ax, data, axis) for ax, axis in zip(axes, "xyz", strict=True)])
     for ax, axis in zip(axes, "xyz", strict=True):
         ax.set_ylabel(f"{axis} (m)")
-    axes[0].legend(ncol=4, fontsize="x-small", title="shaded: estimate ±2σ",
-                   title_fontsize="x-small")  # fmt: skip
+    axes[0].legend(fontsize="x-small", title="shaded: estimate ±2σ", title_fontsize="x-small",
+                   loc="upper left", bbox_to_anchor=(1.01, 1.0))  # fmt: skip
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(f"{data.title}: node coordinates" + (" (Fig. 7)" if data.dbar else ""))
     _note(fig, banded, data.get("nodes"))
