@@ -21,9 +21,9 @@ from gyrohost.plots.log import (
     figure_nodes,
     figure_wheels,
     plot_log,
-    style,
 )
 from gyrohost.plots.run_data import RunData, attitude_lines, sensor_axes
+from gyrohost.plots.styles import style
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta
 from gyrotensegrity import Model, load_scene

@@ -33,29 +33,11 @@ from gyrohost.plots.run_data import (  # noqa: E402
     band,
     normalised_innovations,
 )
+from gyrohost.plots.styles import MARKERS, style  # noqa: E402
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
-DASHES = ("-", (0, (6, 2)), (0, (1.5, 1.5)), (0, (6, 2, 1.5, 2)), (0, (3, 3)), (0, (8, 3, 2, 3)))
-MARKERS = ("o", "s", "^", "D", "v", "P")
-MARKS_PER_LINE = 12
 NO_BAND = "no ±2σ band: this log has no std_ columns (written before they were logged)"
-
-
-def style(i: int, n_points: int, truth: bool = False) -> dict:
-    """Line style of the ``i``-th of several lines that may coincide (nodes, wheels): colour,
-    dash pattern and marker its own, the markers staggered so that coinciding lines show both;
-    a truth line thin and dashed with hollow markers."""
-    every = max(n_points // MARKS_PER_LINE, 1)
-    kw = {
-        "color": _colors()[i % len(_colors())],
-        "marker": MARKERS[i % len(MARKERS)],
-        "markevery": (min(i * every // 4, n_points - 1) if n_points else 0, every),
-        "ms": 3.5,
-    }
-    if truth:
-        return {**kw, "ls": (0, (4, 2)), "lw": 0.8, "mfc": "none"}
-    return {**kw, "ls": DASHES[i % len(DASHES)], "lw": 1.1}
 
 
 def _band(ax, stream, column, color, scale=1.0) -> bool:
@@ -85,10 +67,6 @@ def save(fig, path) -> Path:
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return Path(path)
-
-
-def _colors():
-    return plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
 
 def _node_lines(ax, data, axis, scale=1.0) -> bool:
