@@ -31,6 +31,19 @@ def wrap_angle(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def _cross(a, b):
+    """Cross product along the last axis (np.cross's argument checks cost more than the product
+    on the small batches here)."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
 def plane_frame(N, cols):
     """Frame of a plane spanned by four nodes (the D-bar's rhombus).
 
@@ -55,7 +68,7 @@ def plane_frame(N, cols):
     ey = n2 - n4
     ey = ey - np.sum(ey * ex, axis=-1, keepdims=True) * ex
     ey = ey / np.linalg.norm(ey, axis=-1, keepdims=True)
-    return np.stack([ex, ey, np.cross(ex, ey)], axis=-1)
+    return np.stack([ex, ey, _cross(ex, ey)], axis=-1)
 
 
 def tilt_angle(normal, axis, normal0):
@@ -63,5 +76,5 @@ def tilt_angle(normal, axis, normal0):
     (3,)): a float for one normal, an array of the leading shape for a batch."""
     axis = axis / np.linalg.norm(axis)
     p = normal - (normal @ axis)[..., None] * axis
-    angle = np.arctan2(np.cross(normal0, p) @ axis, p @ normal0)
+    angle = np.arctan2(_cross(normal0, p) @ axis, p @ normal0)
     return float(angle) if np.ndim(angle) == 0 else angle

@@ -44,3 +44,22 @@ def test_logged_sigmas_match_the_spread_of_states_drawn_from_the_covariance(scen
     # about a millimetre of node error: the tilt is close to linear over the spread
     (value,) = tilt_std
     assert value == pytest.approx(float(np.std(tilt.tilt(drawn))), rel=0.02)
+
+
+def test_batched_plane_tilt_is_the_documented_formula_per_sample():
+    model = Model(load_scene(shipped("scene", "dbar-gyro")))
+    meter = attitude_of(model)
+    names = list(model.scene.node_names)
+    rng = np.random.default_rng(4)
+    N0 = model.structure.N0[:, node_columns(model, names)]
+    batch = N0 + 0.1 * rng.normal(size=(30, *N0.shape))
+    axis, n0 = meter.attitude.axis, meter.attitude.normal0
+    expected = []
+    for N in batch:  # control.attitude's docstring, with numpy's own cross products
+        n1, n2, n3, n4 = (N[:, names.index(n)] for n in ("n1", "n2", "n3", "n4"))
+        normal = np.cross(n3 - n1, n2 - n4)
+        p = normal / np.linalg.norm(normal)
+        p = p - (p @ axis) * axis
+        expected.append(np.arctan2(np.cross(n0, p) @ axis, n0 @ p))
+    assert np.allclose(meter.tilt(batch), expected, atol=1e-12)
+    assert meter.tilt(batch[0]) == pytest.approx(expected[0], abs=1e-12)

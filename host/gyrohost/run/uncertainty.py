@@ -37,7 +37,8 @@ class NodeSigma:
         # rows: scene node i, axis a at i * 3 + a (the nodes stream's column order)
         self.J = (N[1:] - N[0]).transpose(0, 2, 1).reshape(n_q, -1).T
         n = N.shape[2]
-        self._steps = TILT_STEP_M * np.eye(3 * n).reshape(3 * n, n, 3).transpose(0, 2, 1)
+        steps = TILT_STEP_M * np.eye(3 * n).reshape(3 * n, n, 3).transpose(0, 2, 1)
+        self._steps = np.concatenate([steps, -steps])  # ahead, then behind: one batch
 
     def node_covariance(self, P):
         """Covariance (3 n, 3 n), m^2, of the scene node coordinates (node-major, x y z)."""
@@ -46,8 +47,7 @@ class NodeSigma:
 
     def tilt_gradient(self, N):
         """Gradient (3 n,), rad/m, of the plane tilt in the scene node coordinates ``N`` (3, n)."""
-        ahead = self.tilt.tilt(N + self._steps)
-        behind = self.tilt.tilt(N - self._steps)
+        ahead, behind = np.split(self.tilt.tilt(N + self._steps), 2)
         return (ahead - behind) / (2.0 * TILT_STEP_M)
 
     def std(self, N, P) -> tuple[np.ndarray, tuple]:
