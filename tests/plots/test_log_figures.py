@@ -202,3 +202,20 @@ def test_truth_sensor_axes_are_attached_as_the_estimator_attaches_them():
     expected, _ = ImuGeometry(model, config).frame(N, np.zeros_like(N))
     a, b, c = (N[:, :, model.structure.primary[n]] for n in config.imu_frame_nodes)
     assert np.allclose(sensor_axes(a, b, c, config.imu_mounting_rpy_rad), expected, atol=1e-12)
+
+
+def test_plane_tilt_and_its_band_are_unwrapped_across_180_degrees(tmp_path):
+    t = np.linspace(0.0, 1.0, 101)
+    turned = np.linspace(np.radians(170.0), np.radians(190.0), len(t))  # through +-180 deg
+    rows = np.empty(len(t), dtype=[(c, "f8") for c in ("t_s", "tilt_rad", "std_tilt_rad")])
+    rows["t_s"], rows["std_tilt_rad"] = t, 0.01
+    rows["tilt_rad"] = np.angle(np.exp(1j * turned))  # as logged: in (-pi, pi]
+    assert np.max(np.abs(np.diff(rows["tilt_rad"]))) > np.pi
+    write_log(tmp_path / "log", {"nodes": rows}, shipped("scene", "dbar-gyro"))
+    ax = figure_attitude(RunData(tmp_path / "log")).axes[0]
+    (line,) = [ln for ln in ax.get_lines() if ln.get_label() == "estimate ±2σ"]
+    assert np.allclose(line.get_ydata(), np.degrees(turned))
+    lower, upper = drawn_band(ax.collections[0], t)
+    assert np.allclose(lower, np.degrees(turned - 0.02)) and np.allclose(
+        upper, np.degrees(turned + 0.02)
+    )

@@ -40,9 +40,9 @@ DPI = 110
 NO_BAND = "no ±2σ band: this log has no std_ columns (written before they were logged)"
 
 
-def _band(ax, stream, column, color, scale=1.0) -> bool:
+def _band(ax, stream, column, color, scale=1.0, unwrap=False) -> bool:
     """Fill the ±2σ band of ``column`` (:func:`band`); False when the log has none."""
-    limits = band(stream, column, scale)
+    limits = band(stream, column, scale, unwrap)
     if limits is not None:
         ax.fill_between(stream["t_s"], *limits, color=color, alpha=0.2, lw=0)
     return limits is not None
@@ -131,7 +131,7 @@ def _plane_tilt(ax, data) -> bool:
     nodes, truth = data.get("nodes"), data.get("truth")
     banded = True
     if nodes is not None:
-        banded = _band(ax, nodes, "tilt_rad", "C0", np.degrees(1.0))
+        banded = _band(ax, nodes, "tilt_rad", "C0", np.degrees(1.0), unwrap=True)
         label = "estimate ±2σ" if banded else "estimate"
         ax.plot(nodes["t_s"], np.degrees(np.unwrap(nodes["tilt_rad"])), label=label)
     if truth is not None:
@@ -156,12 +156,14 @@ def figure_attitude(data: RunData):
     n = 3 if data.dbar else 2
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(7.5, 2.2 + 1.9 * n))
     banded = _plane_tilt(axes[0], data) if data.dbar else True
-    for label, (t, tilt, heading) in attitude_lines(data).items():
+    lines = attitude_lines(data)
+    for label, (t, tilt, heading) in lines.items():
         axes[-2].plot(t, np.degrees(tilt), label=label, **ATTITUDE_STYLES[label])
         axes[-1].plot(t, np.degrees(heading), label=label, **ATTITUDE_STYLES[label])
     axes[-2].set_ylabel("sensor z from\nvertical (deg)")
     axes[-1].set_ylabel("heading: twist about\nsensor z (deg)")
-    axes[-2].legend(fontsize="small", ncol=3)
+    if lines:
+        axes[-2].legend(fontsize="small", ncol=3)
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(f"{data.title}: attitude")
     if data.dbar:

@@ -56,14 +56,16 @@ class RunData:
         return s if s is not None and len(s) else None
 
 
-def band(stream, column, scale=1.0):
+def band(stream, column, scale=1.0, unwrap=False):
     """The ±2σ band of ``column`` of ``stream`` from its ``std_<column>``, times ``scale``:
     (lower, upper) arrays, or None when the stream has no such column (a log written before
-    the estimate logged it)."""
+    the estimate logged it). ``unwrap``: about the angle unwrapped over time, as drawn."""
     std = f"std_{column}"
     if std not in stream.dtype.names:
         return None
     value, half = stream[column], BAND_SIGMAS * stream[std]
+    if unwrap:
+        value = np.unwrap(value)
     return scale * (value - half), scale * (value + half)
 
 
