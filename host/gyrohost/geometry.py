@@ -31,6 +31,19 @@ def wrap_angle(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def _cross(a, b):
+    """Cross product along the last axis (np.cross's argument checks cost more than the product
+    on the small batches here)."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
 def plane_frame(N, cols):
     """Frame of a plane spanned by four nodes (the D-bar's rhombus).
 
@@ -39,27 +52,29 @@ def plane_frame(N, cols):
 
     Parameters
     ----------
-    N : ndarray, shape (3, n), m
-        Node positions.
+    N : ndarray, shape (..., 3, n), m
+        Node positions (a batch of them: any leading dimensions).
     cols : sequence of 4 int
         Columns of the four nodes in ``N`` (for the D-bar: n1, n2, n3, n4).
 
     Returns
     -------
-    R : ndarray, shape (3, 3)
+    R : ndarray, shape (..., 3, 3)
         Columns ``e_x, e_y, e_z`` (unit vectors, world frame).
     """
-    n1, n2, n3, n4 = (N[:, c] for c in cols)
+    n1, n2, n3, n4 = (N[..., :, c] for c in cols)
     ex = n3 - n1
-    ex = ex / np.linalg.norm(ex)
+    ex = ex / np.linalg.norm(ex, axis=-1, keepdims=True)
     ey = n2 - n4
-    ey = ey - (ey @ ex) * ex
-    ey = ey / np.linalg.norm(ey)
-    return np.column_stack([ex, ey, np.cross(ex, ey)])
+    ey = ey - np.sum(ey * ex, axis=-1, keepdims=True) * ex
+    ey = ey / np.linalg.norm(ey, axis=-1, keepdims=True)
+    return np.stack([ex, ey, _cross(ex, ey)], axis=-1)
 
 
-def tilt_angle(normal, axis, normal0) -> float:
-    """Signed rotation (rad) of ``normal`` about ``axis`` away from ``normal0`` (all (3,))."""
+def tilt_angle(normal, axis, normal0):
+    """Signed rotation (rad) of ``normal`` (..., 3) about ``axis`` away from ``normal0`` (both
+    (3,)): a float for one normal, an array of the leading shape for a batch."""
     axis = axis / np.linalg.norm(axis)
-    p = normal - (normal @ axis) * axis
-    return float(np.arctan2(np.cross(normal0, p) @ axis, normal0 @ p))
+    p = normal - (normal @ axis)[..., None] * axis
+    angle = np.arctan2(_cross(normal0, p) @ axis, p @ normal0)
+    return float(angle) if np.ndim(angle) == 0 else angle

@@ -52,11 +52,18 @@ def test_late_servo_reads_are_stamped_when_sampled(nees, servo_nis):
     assert nees["loop-fixed"] < 1.5 * nees["sil"], nees
 
 
-def test_gyrotens_sil_prints_the_consistency_table(capsys):
+def test_gyrotens_sil_prints_the_consistency_table(capsys, tmp_path):
     from gyrohost.cli import main
 
-    assert main(["sil", "--runs", "1", "--duration", "0.3"]) == 0
+    figure = tmp_path / "sil.png"
+    assert main(["sil", "--runs", "1", "--duration", "0.3", "--plot", str(figure)]) == 0
     out = capsys.readouterr().out
+    assert f"[sil] step-by-step NEES and NIS with their bounds: {figure}" in out
+    assert figure.read_bytes()[:4] == b"\x89PNG"
+    # without --plot the figure goes into the output folder (--out), for either clock
+    assert main(["sil", "--runs", "1", "--duration", "0.3", "--out", str(tmp_path / "o")]) == 0
+    assert (tmp_path / "o" / "consistency.png").read_bytes()[:4] == b"\x89PNG"
+    assert str(tmp_path / "o" / "consistency.png") in capsys.readouterr().out
     assert "SIL (simulated clock): 1 runs" in out
     for name in ("NEES", "NIS imu_rate", "NIS imu_accel", "NIS imu_angle", "NIS wheels"):
         assert f"[sil] {name}: mean " in out and "95 % bounds of a 1-run average" in out, name

@@ -103,9 +103,10 @@ class TiltMeter:
         names = list(model.scene.node_names)
         self.cols = [names.index(n) for n in PLANE_NODES]
 
-    def tilt(self, N_scene) -> float:
-        """Tilt, rad, of scene node positions ``N_scene`` (3, n_scene), m."""
-        normal = plane_frame(N_scene, self.cols)[:, 2]
+    def tilt(self, N_scene):
+        """Tilt, rad, of scene node positions ``N_scene`` (3, n_scene), m: a float; of a batch
+        (..., 3, n_scene) an array of the leading shape."""
+        normal = plane_frame(N_scene, self.cols)[..., :, 2]
         return tilt_angle(normal, self.attitude.axis, self.attitude.normal0)
 
 

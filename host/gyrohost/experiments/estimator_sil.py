@@ -1,9 +1,11 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
 ``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE] [--realtime]
-[--serial | --workers N | --scheduler ADDRESS]``, or ``gyrotens sil`` (same options; the
-simulated clock's runs go through :mod:`gyrohost.parallel` when ``--workers`` or
-``--scheduler`` is given, the real-time ones always one after the other).
+[--plot FILE] [--serial | --workers N | --scheduler ADDRESS]``, or ``gyrotens sil`` (same
+options; the simulated clock's runs go through :mod:`gyrohost.parallel` when ``--workers`` or
+``--scheduler`` is given, the real-time ones always one after the other). Besides the printed
+table, the step-by-step figure of NEES and NIS with their bounds
+(:mod:`gyrohost.plots.consistency`) goes to ``--plot``, by default ``OUT/consistency.png``.
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
@@ -38,8 +40,20 @@ import numpy as np
 from gyrohost import parallel
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
-from gyrohost.estimator.consistency import observed_nees, sample_initial, state_of_truth
-from gyrohost.experiments.montecarlo import RunResult, sampled_truth, score_run, summarise
+from gyrohost.estimator.consistency import (
+    average_bounds,
+    observed_nees,
+    sample_initial,
+    state_of_truth,
+)
+from gyrohost.experiments.montecarlo import (
+    RunResult,
+    nees_average,
+    nis_average,
+    sampled_truth,
+    score_run,
+    summarise,
+)
 from gyrohost.experiments.sil_options import add_arguments
 from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
@@ -362,7 +376,25 @@ def report(args) -> dict:
         )
     clock = "real-time rig through the run loop" if args.realtime else "simulated clock"
     print(f"--- SIL ({clock}): {len(results)} runs of the paper's schedule")
-    return summarise(results, "[sil] ")
+    figures = summarise(results, "[sil] ")
+    from gyrohost.plots.consistency import plot_consistency  # matplotlib: not on the workers
+
+    path = args.plot or Path(args.out) / "consistency.png"
+    plot_consistency(*consistency_series(results), len(results), f"SIL ({clock})", path)
+    print(f"[sil] step-by-step NEES and NIS with their bounds: {path}")
+    return figures
+
+
+def consistency_series(results):
+    """The run-averaged NEES and the NIS of every source as
+    :class:`~gyrohost.plots.consistency.Series` of the figure."""
+    from gyrohost.plots.consistency import Series
+
+    def series(name, t_s, values, dof):
+        return Series(name, t_s, values, dof, average_bounds(dof, len(results)))
+
+    nees = series("NEES", *nees_average(results))
+    return nees, [series(f"NIS {s}", *nis_average(results, s)) for s in results[0].nis]
 
 
 def main(argv=None) -> int:

@@ -104,6 +104,22 @@ def one_run(model, config, seed, duration_s, truth_psd_m2_s3=TRUTH_PSD_M2_S3):
     return score_run(ekf, data, sampled_truth(truth.x, truth.R_ws))
 
 
+def nees_average(results):
+    """The NEES averaged over the runs at each step: times (k,) s from the first IMU sample,
+    average (k,), dof; ``k`` the shortest run's steps."""
+    k = min(len(r.t_s) for r in results)
+    return results[0].t_s[:k], np.mean([r.nees[:k] for r in results], axis=0), results[0].nees_dof
+
+
+def nis_average(results, source):
+    """The NIS of ``source`` averaged over the runs at each of its samples: times (k,) s from
+    the source's first sample, average (k,), dof; ``k`` the shortest run's samples."""
+    k = min(len(r.nis[source][0]) for r in results)
+    t = results[0].nis[source][0][:k]
+    avg = np.mean([r.nis[source][1][:k] for r in results], axis=0)
+    return t - t[0], avg, int(results[0].nis[source][2][0])
+
+
 def summarise(results, label="", burn_in_s=0.2):
     """Print NEES/NIS against their bounds, tilt and position errors; return the figures.
 
@@ -112,20 +128,17 @@ def summarise(results, label="", burn_in_s=0.2):
     of a tension-only string, which a linearisation cannot represent).
     """
     n = len(results)
-    k = min(len(r.t_s) for r in results)
+    t, nees_avg, nees_dof = nees_average(results)
+    k = len(t)
     out = {"runs": n}
-    nees_avg = np.mean([r.nees[:k] for r in results], axis=0)
-    out["nees"] = _report(f"{label}NEES", nees_avg, results[0].nees_dof, n)
-    late = results[0].t_s[:k] >= burn_in_s
+    out["nees"] = _report(f"{label}NEES", nees_avg, nees_dof, n)
+    late = t >= burn_in_s
     out["nees_after_burn_in"] = _report(
-        f"{label}NEES after {burn_in_s} s", nees_avg[late], results[0].nees_dof, n
+        f"{label}NEES after {burn_in_s} s", nees_avg[late], nees_dof, n
     )
     for source in results[0].nis:
-        kk = min(len(r.nis[source][0]) for r in results)
-        avg = np.mean([r.nis[source][1][:kk] for r in results], axis=0)
-        out[f"nis_{source}"] = _report(
-            f"{label}NIS {source}", avg, int(results[0].nis[source][2][0]), n
-        )
+        _, avg, dof = nis_average(results, source)
+        out[f"nis_{source}"] = _report(f"{label}NIS {source}", avg, dof, n)
     tilt = np.array([r.tilt_rad[:k] for r in results])
     pos = np.array([r.position_m[:k] for r in results])
     out["tilt_rms_deg"] = float(np.degrees(np.sqrt(np.mean(tilt**2))))

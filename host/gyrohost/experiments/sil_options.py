@@ -27,4 +27,10 @@ def add_arguments(parser) -> None:
         help="with --realtime: TOML with an [estimator] table whose keys override the rig "
         "configuration's (recording) or the logs' (--score-only: replayed with them)",
     )
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        metavar="FILE",
+        help="the step-by-step NEES/NIS figure (PNG; default OUT/consistency.png)",
+    )
     parallel.add_arguments(parser, serial_default=True)  # simulated clock only

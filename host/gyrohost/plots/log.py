@@ -1,14 +1,19 @@
 """Figures of a run log (``gyrotens plot LOGDIR``): the paper's Figs. 7 and 8 and diagnostics.
 
 Every figure has time on the host clock of the run (``t_s``, s) and marks where the schedule
-started; estimate lines are solid, truth lines (simulated rig only) dashed in the same colour. A log
-without a truth (a separate rig process, real hardware) is titled "estimate" only.
+started. Estimates are drawn with their ±2σ band where the log has the standard deviations
+(``std_`` columns; an older log gets the lines alone and a note saying so), truth lines
+(simulated rig only) thin and dashed in the same colour. Lines that can lie on top of each other
+(nodes, wheels) differ in dash pattern and marker as well as colour. A log without a truth (a
+separate rig process, real hardware) is titled "estimate" only.
 
 The figures follow the scene, as the log holds it: a D-bar log (its ``nodes`` stream has a
 ``tilt_rad`` column) gets the paper's figures of the plane nodes and the tilt; any other scene
-gets every node's coordinates, the IMU's angles, wheels, innovations and loop timing
+gets every node's coordinates, the IMU's attitude, wheels, innovations and loop timing
 (:func:`plots_for`). A figure whose streams are all missing or empty (a replay's log, a damaged
-log) is left out and said so: no figure is written empty.
+log) is left out and said so: no figure is written empty. Each ``figure_*`` function returns the
+figure unsaved (what the tests inspect); :func:`plot_log` saves them. What they draw is computed
+in :mod:`.run_data`.
 """
 
 from collections.abc import Callable
@@ -21,89 +26,94 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gyrohost.control.attitude import PLANE_NODES  # noqa: E402
-from gyrohost.run.log import read_meta, read_streams  # noqa: E402
+from gyrohost.plots.run_data import (  # noqa: E402
+    INNOVATION_BAND,
+    RunData,
+    attitude_lines,
+    band,
+    normalised_innovations,
+)
+from gyrohost.plots.styles import MARKERS, style  # noqa: E402
 
 INNOVATION_SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
 DPI = 110
+NO_BAND = "no ±2σ band: this log has no std_ columns (written before they were logged)"
 
 
-class RunData:
-    """The streams of one log folder, read once (missing streams are ``None``).
-
-    Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
-    are skipped and a stream whose file is missing or empty is left out, each told to ``warn``
-    (:func:`gyrohost.run.log.read_stream`).
-    """
-
-    def __init__(self, folder, warn: Callable[[str], None] | None = None):
-        self.folder = Path(folder)
-        self.meta = read_meta(self.folder)
-        self.streams = read_streams(self.folder, self.meta.get("streams", {}), warn)
-        self.has_truth = self.get("truth") is not None
-        """The log holds the simulated rig's truth (a run with ``--sim``)."""
-        events = self.streams.get("events")
-        starts = [] if events is None else events["t_s"][events["message"] == "schedule"]
-        self.t_schedule = float(starts[0]) if len(starts) else None
-        self.title = Path(str(self.meta.get("scene", self.folder.name))).stem
-        nodes = self.streams.get("nodes")
-        if nodes is None:
-            nodes = self.streams.get("truth")
-        columns = () if nodes is None else nodes.dtype.names
-        self.dbar = "tilt_rad" in columns
-        """The log is of a D-bar scene (it has the plane's tilt)."""
-        scene_nodes = [c[: -len("_x_m")] for c in columns if c.endswith("_x_m")]
-        self.nodes = PLANE_NODES if self.dbar else tuple(scene_nodes)
-        """The nodes the figures show: the D-bar's plane nodes, else every scene node."""
-
-    def get(self, name):
-        s = self.streams.get(name)
-        return s if s is not None and len(s) else None
+def _band(ax, stream, column, color, scale=1.0, unwrap=False) -> bool:
+    """Fill the ±2σ band of ``column`` (:func:`band`); False when the log has none."""
+    limits = band(stream, column, scale, unwrap)
+    if limits is not None:
+        ax.fill_between(stream["t_s"], *limits, color=color, alpha=0.2, lw=0)
+    return limits is not None
 
 
-def _finish(fig, axes, data, path) -> Path:
+def _note(fig, drawn_all: bool, est) -> None:
+    if est is not None and not drawn_all:
+        fig.text(0.01, 0.005, NO_BAND, fontsize="x-small", color="0.3")
+
+
+def _finish(fig, axes, data):
     for ax in np.ravel(axes):
         if data.t_schedule is not None:
             ax.axvline(data.t_schedule, color="0.5", lw=0.8, ls=":")
         ax.grid(True, alpha=0.3)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    return fig
+
+
+def save(fig, path) -> Path:
+    """Write ``fig`` to ``path`` (PNG) and close it."""
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
-    return path
+    return Path(path)
 
 
-def _colors():
-    return plt.rcParams["axes.prop_cycle"].by_key()["color"]
-
-
-def plot_nodes(data: RunData, path) -> Path:
-    """Node x, y, z against time (Fig. 7 for the D-bar): estimate solid, truth dashed."""
+def _node_lines(ax, data, axis, scale=1.0) -> bool:
+    """Every node's coordinate ``axis`` (estimate, band, truth) on ``ax``; False when a band is
+    missing."""
     est, truth = data.get("nodes"), data.get("truth")
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+    banded = True
+    for i, node in enumerate(data.nodes):
+        col = f"{node}_{axis}_m"
+        if est is not None:
+            st = style(i, len(est))
+            banded &= _band(ax, est, col, st["color"], scale)
+            ax.plot(est["t_s"], scale * est[col], label=f"{node} estimate", **st)
+        if truth is not None:
+            st = style(i, len(truth), truth=True)
+            ax.plot(truth["t_s"], scale * truth[col], label=f"{node} truth", **st)
+    return banded
+
+
+def figure_nodes(data: RunData):
+    """Node x, y, z against time (Fig. 7 for the D-bar): estimate with its ±2σ band, truth
+    dashed."""
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 7.5))
+    banded = all([_node_lines(ax, data, axis) for ax, axis in zip(axes, "xyz", strict=True)])
     for ax, axis in zip(axes, "xyz", strict=True):
-        for node, color in zip(data.nodes, _colors(), strict=False):
-            col = f"{node}_{axis}_m"
-            if est is not None:
-                ax.plot(est["t_s"], est[col], color=color, label=f"{node} estimate")
-            if truth is not None:
-                ax.plot(
-                    truth["t_s"], truth[col], color=color, ls="--", lw=0.9, label=f"{node} truth"
-                )
         ax.set_ylabel(f"{axis} (m)")
-    axes[0].legend(ncol=4, fontsize="x-small")
+    axes[0].legend(fontsize="x-small", title="shaded: estimate ±2σ", title_fontsize="x-small",
+                   loc="upper left", bbox_to_anchor=(1.01, 1.0))  # fmt: skip
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(f"{data.title}: node coordinates" + (" (Fig. 7)" if data.dbar else ""))
-    return _finish(fig, axes, data, path)
+    _note(fig, banded, data.get("nodes"))
+    return _finish(fig, axes, data)
 
 
-def plot_node_z(data: RunData, path) -> Path:
-    """Node z of the D-bar's plane nodes, estimate and (simulated rig) truth (Fig. 8 on the
-    rig)."""
+def figure_node_z(data: RunData):
+    """Node z of the D-bar's plane nodes, estimate with its ±2σ band and (simulated rig)
+    truth, cm (Fig. 8 on the rig)."""
     est, truth = data.get("nodes"), data.get("truth")
     fig, axes = plt.subplots(2, 2, sharex=True, sharey=True, figsize=(8, 5.5))
+    banded = True
     for ax, node in zip(axes.ravel(), PLANE_NODES, strict=True):
         col = f"{node}_z_m"
         if est is not None:
-            ax.plot(est["t_s"], 100 * est[col], label="estimate (EKF)")
+            has_band = _band(ax, est, col, "C0", 100.0)
+            banded &= has_band
+            label = "estimate (EKF) ±2σ" if has_band else "estimate (EKF)"
+            ax.plot(est["t_s"], 100 * est[col], label=label)
         if truth is not None:
             ax.plot(truth["t_s"], 100 * truth[col], "k--", lw=0.9, label="truth (rig)")
         ax.set_title(node)
@@ -113,76 +123,105 @@ def plot_node_z(data: RunData, path) -> Path:
     axes[0, 0].legend(fontsize="small")
     compared = "estimate against truth" if data.has_truth else "estimate"
     fig.suptitle(f"{data.title}: node z, {compared} (Fig. 8)")
-    return _finish(fig, axes, data, path)
+    _note(fig, banded, est)
+    return _finish(fig, axes, data)
 
 
-def plot_attitude(data: RunData, path) -> Path:
-    """The IMU's roll and pitch (measured, EKF); for the D-bar above them the tilt of its plane
-    (estimate, truth)."""
-    est, truth, imu = data.get("estimate"), data.get("truth"), data.get("imu")
-    nodes = data.get("nodes")
-    fig, axes = plt.subplots(
-        2 if data.dbar else 1, 1, sharex=True, figsize=(7.5, 5.5 if data.dbar else 3.5)
-    )
-    axes = np.atleast_1d(axes)
-    if data.dbar:
-        if nodes is not None:
-            axes[0].plot(nodes["t_s"], np.degrees(nodes["tilt_rad"]), label="estimate")
-        if truth is not None:
-            axes[0].plot(truth["t_s"], np.degrees(truth["tilt_rad"]), "k--", lw=0.9, label="truth")
-        axes[0].set_ylabel("plane tilt about n2-n4 (deg)")
-        axes[0].legend(fontsize="small")
-    if imu is not None:
-        for col in ("roll_rad", "pitch_rad"):
-            axes[-1].plot(imu["t_s"], np.degrees(imu[col]), lw=0.8, label=f"IMU {col[:-4]}")
-    if est is not None:
-        for col in ("roll_rad", "pitch_rad"):
-            axes[-1].plot(est["t_s"], np.degrees(est[col]), "--", lw=0.8, label=f"EKF {col[:-4]}")
-    axes[-1].set_ylabel("angle (deg)")
+def _plane_tilt(ax, data) -> bool:
+    nodes, truth = data.get("nodes"), data.get("truth")
+    banded = True
+    if nodes is not None:
+        banded = _band(ax, nodes, "tilt_rad", "C0", np.degrees(1.0), unwrap=True)
+        label = "estimate ±2σ" if banded else "estimate"
+        ax.plot(nodes["t_s"], np.degrees(np.unwrap(nodes["tilt_rad"])), label=label)
+    if truth is not None:
+        ax.plot(truth["t_s"], np.degrees(np.unwrap(truth["tilt_rad"])), "k--", lw=0.9,
+                label="truth")  # fmt: skip
+    ax.set_ylabel("plane tilt about\nn2-n4 (deg)")
+    ax.legend(fontsize="small")
+    return banded
+
+
+ATTITUDE_STYLES = {
+    "IMU (measured)": {"color": "0.6", "lw": 1.6},
+    "estimate": {"color": "C0", "lw": 1.0},
+    "truth": {"color": "k", "ls": "--", "lw": 0.9},
+}
+
+
+def figure_attitude(data: RunData):
+    """For the D-bar the tilt of its plane (estimate ±2σ, truth); the sensor's tilt from the
+    vertical and its heading (quaternion-derived, unwrapped: no jumps at ±180° nor at a pitch
+    of -90°), measured, estimated and true."""
+    n = 3 if data.dbar else 2
+    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(7.5, 2.2 + 1.9 * n))
+    banded = _plane_tilt(axes[0], data) if data.dbar else True
+    lines = attitude_lines(data)
+    for label, (t, tilt, heading) in lines.items():
+        axes[-2].plot(t, np.degrees(tilt), label=label, **ATTITUDE_STYLES[label])
+        axes[-1].plot(t, np.degrees(heading), label=label, **ATTITUDE_STYLES[label])
+    axes[-2].set_ylabel("sensor z from\nvertical (deg)")
+    axes[-1].set_ylabel("heading: twist about\nsensor z (deg)")
+    if lines:
+        axes[-2].legend(fontsize="small", ncol=3)
     axes[-1].set_xlabel("t (s)")
-    axes[-1].legend(fontsize="small", ncol=2)
     fig.suptitle(f"{data.title}: attitude")
-    return _finish(fig, axes, data, path)
+    if data.dbar:
+        _note(fig, banded, data.get("nodes"))
+    return _finish(fig, axes, data)
 
 
-def plot_wheels(data: RunData, path) -> Path:
-    """Wheel speeds: commanded (dashed) and measured by the board (solid)."""
+def figure_wheels(data: RunData):
+    """Wheel speeds: measured by the board (a dash pattern and marker per wheel), commanded
+    (thin dotted)."""
     cmd, tel = data.get("command"), data.get("wheels")
     fig, ax = plt.subplots(figsize=(7.5, 4))
-    for i, color in zip(range(4), _colors(), strict=False):
+    for i in range(4):
         if tel is not None:
-            ax.plot(tel["t_s"], tel[f"omega_{i}_rad_s"], color=color, label=f"wheel {i} measured")
+            st = style(i, len(tel))
+            ax.plot(tel["t_s"], tel[f"omega_{i}_rad_s"], label=f"wheel {i} measured", **st)
         if cmd is not None:
-            ax.plot(cmd["t_s"], cmd[f"omega_cmd_{i}_rad_s"], color=color, ls="--", lw=0.9)
+            ax.plot(cmd["t_s"], cmd[f"omega_cmd_{i}_rad_s"], color=style(i, 0)["color"],
+                    ls=":", lw=0.9)  # fmt: skip
     ax.set_xlabel("t (s)")
     ax.set_ylabel("speed (rad/s)")
-    ax.legend(fontsize="x-small", ncol=2, title="dashed: commanded", title_fontsize="x-small")
+    ax.legend(fontsize="x-small", ncol=2, title="dotted: commanded", title_fontsize="x-small")
     ax.set_title(f"{data.title}: wheel speeds")
-    return _finish(fig, ax, data, path)
+    return _finish(fig, ax, data)
 
 
-def plot_innovations(data: RunData, path) -> Path:
-    """NIS test ratio (NIS / gate) per source, log scale; above 1 the sample was rejected."""
+def figure_innovations(data: RunData):
+    """Innovations per source, each component divided by its standard deviation (sqrt of the
+    diagonal of S): inside ±1.96 95 % of the time when the filter is consistent; the source's
+    mean NIS and its 95 % bounds in the legend; rejected samples as crosses."""
     present = [s for s in INNOVATION_SOURCES if data.get(f"innov_{s}") is not None]
     fig, axes = plt.subplots(
-        max(len(present), 1), 1, sharex=True, figsize=(7.5, 1.6 + 1.5 * len(present))
+        max(len(present), 1), 1, sharex=True, figsize=(9.5, 1.6 + 1.7 * len(present))
     )
     axes = np.atleast_1d(axes)
     for ax, source in zip(axes, present, strict=False):
-        s = data.get(f"innov_{source}")
-        ok = s["accepted"] > 0.5
-        ratio = np.maximum(s["test_ratio"], 1e-6)
-        ax.semilogy(s["t_s"][ok], ratio[ok], ".", ms=2, label="accepted")
-        ax.semilogy(s["t_s"][~ok], ratio[~ok], "rx", ms=4, label=f"rejected ({np.sum(~ok)})")
-        ax.axhline(1.0, color="r", lw=0.8)
-        ax.set_ylabel(f"{source}\nNIS/gate")
-        ax.legend(fontsize="x-small", loc="lower right")
+        inn = normalised_innovations(data.get(f"innov_{source}"))
+        ax.axhspan(-INNOVATION_BAND, INNOVATION_BAND, color="0.85", label="95 % (±1.96)")
+        for i, (comp, values) in enumerate(inn.components.items()):
+            ax.plot(inn.t_s[inn.accepted], values[inn.accepted], MARKERS[i % len(MARKERS)],
+                    ms=2, alpha=0.7, label=comp)  # fmt: skip
+        rejected = ~inn.accepted
+        for values in inn.components.values():
+            ax.plot(inn.t_s[rejected], values[rejected], "rx", ms=4)
+        lo, hi = inn.bounds
+        ax.set_ylabel(f"{source}\ny / sqrt(S)")
+        ax.legend(
+            fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0),
+            title=f"mean NIS {inn.nis_mean:.2f} (dof {inn.dof})\n95 % [{lo:.2f}, {hi:.2f}]\n"
+            f"{len(inn.t_s)} samples\n{int(np.sum(rejected))} rejected (red x)",
+            title_fontsize="x-small",
+        )  # fmt: skip
     axes[-1].set_xlabel("t (s)")
-    fig.suptitle(f"{data.title}: innovation test ratios (gate = 1)")
-    return _finish(fig, axes, data, path)
+    fig.suptitle(f"{data.title}: normalised innovations")
+    return _finish(fig, axes, data)
 
 
-def plot_jitter(data: RunData, path) -> Path:
+def figure_jitter(data: RunData):
     """Histogram of the host loop's tick periods, ms (log counts)."""
     loop = data.get("loop")
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -197,18 +236,21 @@ def plot_jitter(data: RunData, path) -> Path:
     ax.set_title(f"{data.title}: host loop periods")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
+    return fig
+
+
+def plot_node_z(data: RunData, path) -> Path:
+    """:func:`figure_node_z` written to ``path``."""
+    return save(figure_node_z(data), path)
 
 
 PLOTS = {
-    "fig7-nodes.png": plot_nodes,
-    "fig8-node-z.png": plot_node_z,
-    "attitude.png": plot_attitude,
-    "wheels.png": plot_wheels,
-    "innovations.png": plot_innovations,
-    "loop-jitter.png": plot_jitter,
+    "fig7-nodes.png": figure_nodes,
+    "fig8-node-z.png": figure_node_z,
+    "attitude.png": figure_attitude,
+    "wheels.png": figure_wheels,
+    "innovations.png": figure_innovations,
+    "loop-jitter.png": figure_jitter,
 }
 
 NEEDS = {
@@ -229,7 +271,7 @@ DBAR_ONLY = ("fig8-node-z.png",)
 def plots_for(data: RunData) -> dict:
     """The figures (file name -> function) of a log: all of :data:`PLOTS` for a D-bar, all but
     :data:`DBAR_ONLY` for any other scene."""
-    return {name: plot for name, plot in PLOTS.items() if data.dbar or name not in DBAR_ONLY}
+    return {name: fig for name, fig in PLOTS.items() if data.dbar or name not in DBAR_ONLY}
 
 
 def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Path]:
@@ -242,44 +284,35 @@ def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Pat
     """
     data = RunData(folder, warn)
     made = {}
-    for name, plot in plots_for(data).items():
+    for name, figure in plots_for(data).items():
         if any(data.get(s) is not None for s in NEEDS[name]):
-            made[name] = plot
+            made[name] = figure
         elif warn is not None:
             warn(f"{name} left out: no rows in {data.folder} of {', '.join(NEEDS[name])}")
     if made:
         Path(out).mkdir(parents=True, exist_ok=True)
-    return [plot(data, Path(out) / name) for name, plot in made.items()]
+    return [save(figure(data), Path(out) / name) for name, figure in made.items()]
 
 
 def plot_compare(folders, labels, path) -> Path:
-    """Node z in several runs side by side (Fig. 7(a) against 7(b) for the D-bar), cm."""
+    """Node z in several runs side by side (Fig. 7(a) against 7(b) for the D-bar), cm,
+    estimates with their ±2σ bands."""
     runs = [RunData(f) for f in folders]
     any_truth = any(data.has_truth for data in runs)
     fig, axes = plt.subplots(1, len(runs), sharey=True, figsize=(5 * len(runs), 4), squeeze=False)
+    banded = True
     for ax, data, label in zip(axes[0], runs, labels, strict=True):
-        est, truth = data.get("nodes"), data.get("truth")
-        for node, color in zip(data.nodes, _colors(), strict=False):
-            col = f"{node}_z_m"
-            if est is not None:
-                ax.plot(est["t_s"], 100 * est[col], color=color, label=f"{node} estimate")
-            if truth is not None:
-                ax.plot(truth["t_s"], 100 * truth[col], color=color, ls="--", lw=0.9)
+        banded &= _node_lines(ax, data, "z", 100.0)
         ax.set_title(label)
         ax.set_xlabel("t (s)")
-        if data.t_schedule is not None:
-            ax.axvline(data.t_schedule, color="0.5", lw=0.8, ls=":")
-        ax.grid(True, alpha=0.3)
+        _finish(fig, ax, data)
     axes[0, 0].set_ylabel("node z (cm)")
-    axes[0, 0].legend(
-        fontsize="x-small", title="dashed: truth" if any_truth else None, title_fontsize="x-small"
-    )
+    axes[0, 0].legend(fontsize="x-small", title="shaded: estimate ±2σ", title_fontsize="x-small")
     fig.suptitle(
-        "node z on the simulated rig: EKF estimate (solid) and truth (dashed)"
+        "node z on the simulated rig: EKF estimate and truth (dashed)"
         if any_truth
         else "node z: EKF estimate"
     )
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return Path(path)
+    _note(fig, banded, runs[0].get("nodes"))
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    return save(fig, path)

@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from gyrohost.plots.styles import style  # noqa: E402
 from gyrohost.resources import safe_name  # noqa: E402
 
 
@@ -26,8 +27,8 @@ def plot_nodes(run, path):
     t, N = run["t"], run["N"]
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 7))
     for k, (ax, label) in enumerate(zip(axes, "xyz", strict=True)):
-        for name, i in _scene_nodes(run):
-            ax.plot(t, N[:, k, i], label=name)
+        for j, (name, i) in enumerate(_scene_nodes(run)):
+            ax.plot(t, N[:, k, i], label=name, **style(j, len(t)))
         ax.set_ylabel(f"{label} (m)")
         ax.grid(True, alpha=0.3)
     axes[0].legend(ncol=4, fontsize="small")
@@ -38,8 +39,8 @@ def plot_nodes(run, path):
     plt.close(fig)
 
 
-def _log_abs(ax, t, y, label):
-    ax.semilogy(t, np.maximum(np.abs(y), 1e-18), label=label)
+def _log_abs(ax, t, y, label, **kw):
+    ax.semilogy(t, np.maximum(np.abs(y), 1e-18), label=label, **kw)
 
 
 def plot_constraints(run, path):
@@ -47,9 +48,10 @@ def plot_constraints(run, path):
     t = run["t"]
     fig, ax = plt.subplots(figsize=(7, 4))
     for i in range(run["bar_length_error"].shape[1]):
-        _log_abs(ax, t, run["bar_length_error"][:, i], f"bar {i + 1}")
+        _log_abs(ax, t, run["bar_length_error"][:, i], f"bar {i + 1}", **style(i, len(t)))
     if run["joint_error"].shape[1]:
-        _log_abs(ax, t, run["joint_error"].max(axis=1), "joints (max)")
+        n_bars = run["bar_length_error"].shape[1]
+        _log_abs(ax, t, run["joint_error"].max(axis=1), "joints (max)", **style(n_bars, len(t)))
     ax.set_xlabel("t (s)")
     ax.set_ylabel("|error| (m)")
     ax.legend(fontsize="small")

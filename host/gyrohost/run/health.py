@@ -31,6 +31,12 @@ def _mean_row(total: float, samples: int, dof: int) -> dict:
     return {"mean": mean, "dof": dof, "samples": samples, "bounds95": [lo, hi]}
 
 
+def nis_row(nis, dof: int) -> dict:
+    """The summary's row of a source's NIS values ``nis`` (k,) of ``dof`` each: mean, dof,
+    samples and the 95 % bounds of a mean over that many samples (as :class:`NisTally`)."""
+    return _mean_row(float(np.sum(nis)), len(nis), dof)
+
+
 class NisTally:
     """Fusion attempts per source: samples, rejected, rejected in a row, NIS sum."""
 

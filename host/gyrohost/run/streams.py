@@ -17,6 +17,7 @@ from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.run.health import NisTally, TruthScore
+from gyrohost.run.uncertainty import NodeSigma
 
 INNOVATION_COMPONENTS = {
     "imu_rate": ("x", "y", "z"),
@@ -30,9 +31,9 @@ def node_columns_of(names, prefix: str = "") -> list[str]:
     return [f"{prefix}{n}_{a}_m" for n in names for a in "xyz"]
 
 
-def tilt_column(tilt: TiltMeter | None) -> list[str]:
-    """The ``tilt_rad`` column given an attitude measure, none without."""
-    return [] if tilt is None else ["tilt_rad"]
+def tilt_column(tilt: TiltMeter | None, prefix: str = "") -> list[str]:
+    """The ``<prefix>tilt_rad`` column given an attitude measure, none without."""
+    return [] if tilt is None else [f"{prefix}tilt_rad"]
 
 
 def tilt_of(tilt: TiltMeter | None, N_scene) -> float:
@@ -117,7 +118,8 @@ class EstimateWriter:
     ``estimate`` is the estimator's own row (as ``gyrotens replay`` writes it; its ``tilt_rad``
     is the angle of the sensor z axis from the vertical, unsigned). ``nodes`` holds the scene
     node positions and, given an attitude measure, the signed tilt of the D-bar plane about the
-    n2-n4 axis (as in the ``truth`` stream).
+    n2-n4 axis (as in the ``truth`` stream), then the standard deviation of each (``std_``
+    prefix, :class:`~gyrohost.run.uncertainty.NodeSigma`).
 
     Parameters
     ----------
@@ -140,9 +142,17 @@ class EstimateWriter:
         )
         self.nodes = log.stream(
             "nodes",
-            ["t_s", *node_columns_of(self.names), *tilt_column(tilt)],
-            description="scene node positions of the estimate, m; plane tilt, rad",
+            [
+                "t_s",
+                *node_columns_of(self.names),
+                *tilt_column(tilt),
+                *node_columns_of(self.names, "std_"),
+                *tilt_column(tilt, "std_"),
+            ],
+            description="scene node positions of the estimate, m; plane tilt, rad; the standard "
+            "deviation of each (std_)",
         )
+        self.sigma = NodeSigma(ekf, self.scene_cols, tilt)
 
     def write(self, t_s: float) -> tuple[np.ndarray, float]:
         """Write one row of each stream at host time ``t_s``; returns (N (3, n) m, plane tilt rad,
@@ -156,7 +166,8 @@ class EstimateWriter:
         std = np.sqrt(np.clip(np.diag(ekf.P), 0.0, None))
         self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, sensor_tilt(R))
         self.score.estimate()
-        self.nodes.write(t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt))
+        node_std, tilt_std = self.sigma.std(N, ekf.P)
+        self.nodes.write(t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt), *node_std, *tilt_std)
         return N, tilt
 
 
