@@ -10,7 +10,7 @@ Clocks:
 - ``"real"``: rig time is wall time since :meth:`SimulatedRig.start`; the truth steps when due.
   A step that starts more than one step period after its due time counts as late. The devices
   always run on wall time, so their rates hold on a loaded CPU; the truth then lags (the IMU
-  reports the latest truth step), by at most ``MAX_LAG_S``: beyond that it slips, i.e. runs
+  waits for it half a sample period at most), by at most ``MAX_LAG_S``: beyond that it slips, i.e. runs
   slower than wall time. Lateness and slip are reported (:class:`RigStats`).
 - ``"sim"``: rig time stands still until :meth:`SimulatedRig.advance` moves it; the loop then
   steps and ticks through the interval as fast as it can and returns. In between, the loop still
@@ -23,11 +23,9 @@ form (``"fault imu silence 2"``) used by ``gyrotens rig`` on its standard input,
 (:meth:`SimulatedRig.reset`, between two runs against one rig); see docs/rig.md.
 """
 
-import math
 import select
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +35,7 @@ from gyrohost.errors import GyrohostError
 from gyrohost.rig import simavr
 from gyrohost.rig.imu_emu import Bwt61Emulator
 from gyrohost.rig.servo_emu import Mx12Bus
+from gyrohost.rig.stats import RigStats
 from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord, truth_scene
 from gyrohost.rig.wheel_emu import WheelBoardEmulator
 
@@ -56,67 +55,6 @@ class RigError(GyrohostError, RuntimeError):
 
 class FaultCommandError(GyrohostError, ValueError):
     """A fault request or command line that the rig does not understand."""
-
-
-@dataclass(frozen=True)
-class RigStats:
-    """Counts and timing of a rig run, for the rates report.
-
-    Attributes
-    ----------
-    elapsed_s : float, s
-        Rig time since start (wall time on the real clock).
-    imu_samples, telemetry_frames, servo_packets : int
-        IMU samples sent (3 frames each), wheel-board TELEMETRY frames sent, instruction
-        packets the servo bus received.
-    truth_steps, late_steps : int
-    truth_dt_s, step_wall_s, max_lag_s, slipped_s : float, s
-        Truth step, wall time spent stepping the truth, largest lateness of a step, and how far
-        the truth fell behind wall time in total beyond ``MAX_LAG_S`` (real clock).
-    cpu_s : float, s
-        CPU time of this process since start (all threads).
-    """
-
-    elapsed_s: float
-    imu_samples: int
-    telemetry_frames: int
-    servo_packets: int
-    truth_steps: int
-    late_steps: int
-    truth_dt_s: float
-    step_wall_s: float
-    max_lag_s: float
-    slipped_s: float
-    cpu_s: float
-
-    def rate(self, count: int) -> float:
-        """``count`` per second of rig time."""
-        return count / self.elapsed_s if self.elapsed_s > 0 else 0.0
-
-    @property
-    def real_time_factor(self) -> float:
-        """Simulated seconds the truth advances per wall second of stepping."""
-        sim_s = self.truth_steps * self.truth_dt_s
-        return sim_s / self.step_wall_s if self.step_wall_s > 0 else math.inf
-
-    def rates_line(self) -> str:
-        """One line: measured rates per device."""
-        return (
-            f"rates: imu {self.rate(self.imu_samples):.1f} samples/s "
-            f"({3 * self.rate(self.imu_samples):.1f} frames/s), "
-            f"wheels {self.rate(self.telemetry_frames):.1f} telemetry frames/s, "
-            f"servos {self.rate(self.servo_packets):.1f} packets/s"
-        )
-
-    def truth_line(self) -> str:
-        """One line: truth step timing."""
-        per_step_ms = 1e3 * self.step_wall_s / max(self.truth_steps, 1)
-        return (
-            f"truth: {self.truth_steps} steps of {1e3 * self.truth_dt_s:g} ms, "
-            f"{per_step_ms:.2f} ms wall per step, real-time factor {self.real_time_factor:.1f}, "
-            f"{self.late_steps} late steps (max lag {1e3 * self.max_lag_s:.1f} ms), "
-            f"slipped {self.slipped_s:.2f} s; process CPU {100 * self.rate(self.cpu_s):.0f} %"
-        )
 
 
 class SimulatedRig:
