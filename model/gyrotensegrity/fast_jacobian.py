@@ -100,9 +100,12 @@ class FastJacobian:
     ----------
     dyn : gyrotensegrity.fast.FastDynamics
         On its dense path without joints (:func:`check_supported`).
+    kernel : bool
+        Evaluate in the compiled kernel (``_fastkernel.jacobian``, the same formulas in C)
+        when ``dyn`` uses it; else, and as its reference, in numpy.
     """
 
-    def __init__(self, dyn):
+    def __init__(self, dyn, kernel: bool = True):
         check_supported(dyn)
         self.dyn = dyn
         n, beta, alpha, nw = dyn.size, dyn.beta, dyn.alpha, dyn.n_wheels
@@ -117,6 +120,9 @@ class FastJacobian:
         self.c_s = np.broadcast_to(dyn.c_s, (alpha,)).astype(float)
         wb = dyn.wheel_bars
         self.wheel_bars, self.gyro_coef, self.E_wheels_T = wb, dyn.gyro_coef, self.E[wb].T
+        self.kernel = dyn.kernel if kernel else None
+        if self.kernel is not None:
+            self._work = np.empty(self.kernel.jacobian_work(dyn._dims))
 
     def __call__(self, q, q_dot, omega_w, rest):
         """Accelerations and their Jacobian at one real state.
@@ -136,8 +142,23 @@ class FastJacobian:
             ``d vec(z_ddot) / d [vec(q), vec(q_dot), omega_w, rest]`` (vec row by row, as the
             state vectors of :mod:`.fast`).
         """
-        n, beta, nw, dyn = self.n, self.beta, self.nw, self.dyn
-        dyn.check_spins(omega_w)
+        self.dyn.check_spins(omega_w)
+        if self.kernel is not None:
+            return self._compiled(q, q_dot, omega_w, rest)
+        return self._numpy(q, q_dot, omega_w, rest)
+
+    def _compiled(self, q, q_dot, omega_w, rest):
+        dyn = self.dyn
+        state = np.concatenate([np.ravel(q), np.ravel(q_dot), omega_w, rest]).astype(float)
+        z_ddot = np.empty((3, self.n))
+        J = np.empty((3 * self.n, self.size))
+        status = self.kernel.jacobian(dyn._consts, dyn._dims, state, z_ddot, J, self._work)
+        if status:
+            dyn._singular(float("nan"), status - 1)
+        return z_ddot, J
+
+    def _numpy(self, q, q_dot, omega_w, rest):
+        n, beta, dyn = self.n, self.beta, self.dyn
         pos, vel = q @ self.EE_T + dyn.off, q_dot @ self.EE_T
         B, B_dot, S, S_dot = pos[:, :beta], vel[:, :beta], pos[:, beta:], vel[:, beta:]
         F, dF_dS, dF_dSd, dF_dr = string_tangents(S, S_dot, rest, self.k_s, self.c_s)

@@ -2,10 +2,11 @@
 
 ``python -m gyrohost.experiments.estimator_benchmark`` prints the median and the 90th percentile
 over a run of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference
-model), for the lean and the rk4 process models, with the rest-length jitter through the
-strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it out), next to
-one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as the baseline
-measured in the same run."""
+model), for the lean and the rk4 process models, each with the dynamics' Jacobian by the
+complex step and in closed form (``--jacobian``, default both), with the rest-length jitter
+through the strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it
+out), next to one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as
+the baseline measured in the same run."""
 
 import argparse
 import time
@@ -22,6 +23,7 @@ from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene, rhs
 
 DEFAULT_SCENE = shipped("scene", "dbar-gyro")
+JACOBIANS = ("complex-step", "analytic")
 
 
 def cycle_times(model, config, cycles=200, start_s=0.5):
@@ -75,22 +77,32 @@ def main(argv=None) -> int:
         default=2e-10,
         help="rest_jitter_psd_m2_s, m^2 s (default: the SIL's; 0 leaves the kink noise out)",
     )
+    parser.add_argument(
+        "--jacobian",
+        choices=JACOBIANS,
+        action="append",
+        help="the estimator's jacobian key (repeat for several; default: both)",
+    )
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     base = rhs_time(model)
     print(f"{args.scene.name}: reference rhs evaluation {base * 1e6:.0f} us (baseline)")
     for method in ("lean", "rk4"):
-        cfg = replace(
-            EstimatorConfig(), process_method=method, rest_jitter_psd_m2_s=args.rest_jitter_psd
-        )
-        n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
-        wall, cpu, accepted = cycle_times(model, cfg, n)
-        print(
-            f"EKF cycle ({method:4s}): CPU median {np.median(cpu) * 1e3:.3f} ms "
-            f"(p90 {np.percentile(cpu, 90) * 1e3:.3f} ms), wall median "
-            f"{np.median(wall) * 1e3:.3f} ms = {np.median(wall) / base:.1f} rhs evaluations; "
-            f"{100 * accepted:.0f} % of the IMU measurements fused"
-        )
+        for jacobian in args.jacobian or JACOBIANS:
+            cfg = replace(
+                EstimatorConfig(),
+                process_method=method,
+                jacobian=jacobian,
+                rest_jitter_psd_m2_s=args.rest_jitter_psd,
+            )
+            n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
+            wall, cpu, accepted = cycle_times(model, cfg, n)
+            print(
+                f"EKF cycle ({method:4s}, {jacobian:12s}): CPU median "
+                f"{np.median(cpu) * 1e3:.3f} ms (p90 {np.percentile(cpu, 90) * 1e3:.3f} ms), "
+                f"wall median {np.median(wall) * 1e3:.3f} ms = {np.median(wall) / base:.1f} rhs "
+                f"evaluations; {100 * accepted:.0f} % of the IMU measurements fused"
+            )
     return 0
 
 
