@@ -166,3 +166,14 @@ def test_closed_form_A_matches_finite_differences_of_reference_rhs(model, config
 def test_jacobian_key_is_checked():
     with pytest.raises(EstimatorConfigError, match="'jacobian'"):
         config_from_dict({"jacobian": "finite-differences"}, "x.toml")
+
+
+def test_closed_form_jitter_columns_equal_complex_step(model, config, moving_state):
+    x, _, u = moving_state
+    cfg = replace(config, rest_jitter_psd_m2_s=2e-10)
+    cs, cf = TensegrityEKF(model, cfg), TensegrityEKF(model, replace(cfg, jacobian="analytic"))
+    _, F = cs.process.step(x, u, 0.01)
+    G_cs, margin_cs = cs.process.taut_columns(0.01, F, x)
+    G_cf, margin_cf = cf.process.taut_columns(0.01, F, x)
+    assert np.array_equal(margin_cs, margin_cf)
+    assert np.max(np.abs(G_cf - G_cs)) <= 1e-8 * np.max(np.abs(G_cs))

@@ -323,15 +323,29 @@ class ProcessModel:
             Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
         """
         L, dyn = self.layout, self.dyn
-        m, alpha = L.m, L.n_strings
         s, s_dot = self.string_lengths(x)
         rest = x[L.rest]
         margin = np.minimum(s - rest, s - rest + dyn.c_s / dyn.k_s * s_dot)
         # the string force is affine in its rest length while taut (slope -k along the string)
         # and the accelerations are affine in the string forces: any taut point gives the
         # column; 1 mm of margin keeps every string taut whatever its state
+        taut_rest = rest - np.maximum(-margin, 0.0) - 1e-3
+        a = self._rest_columns(x, taut_rest)
+        n = L.q_dot.stop
+        G = F[:n, L.q_dot] @ a
+        G[L.q_dot] += a
+        return 0.5 * dt * G, margin
+
+    def _rest_columns(self, x, rest):
+        """``d eta2_ddot / d rest`` (3 m, alpha) at the state ``x`` with rest lengths ``rest``:
+        in closed form (one evaluation: a column depends on its own string only) or by the
+        complex step."""
+        L, m, alpha = self.layout, self.layout.m, self.layout.n_strings
+        if self.jac is not None:
+            q, q_dot = x[L.q].reshape(3, m), x[L.q_dot].reshape(3, m)
+            return self.jac(q, q_dot, x[L.omega], rest)[1][:, L.rest]
         X = np.tile(x[: L.n_dynamic].astype(complex), (alpha, 1))
-        X[:, L.rest] = rest - np.maximum(-margin, 0.0) - 1e-3
+        X[:, L.rest] = rest
         X[np.arange(alpha), L.rest.start + np.arange(alpha)] += 1j * complex_step.STEP
         a, _ = self.dyn.accelerations(
             X[:, L.q].reshape(alpha, 3, m),
@@ -339,11 +353,7 @@ class ProcessModel:
             X[:, L.omega],
             X[:, L.rest],
         )
-        a = a.reshape(alpha, 3 * m).imag.T / complex_step.STEP  # (3 m, alpha)
-        n = L.q_dot.stop
-        G = F[:n, L.q_dot] @ a
-        G[L.q_dot] += a
-        return 0.5 * dt * G, margin
+        return a.reshape(alpha, 3 * m).imag.T / complex_step.STEP
 
     def string_lengths(self, x):
         """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""
