@@ -98,15 +98,10 @@ static int64_t cholesky_solve(double* A, double* b, int64_t n) {
     return status;
 }
 
-static int64_t evaluate(const Consts* k, const int64_t* d, const double* x, const double* u,
-                        double* out, double* w) {
-    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
-    int64_t diagonal = d[6], K = beta + alpha, nb = beta + 3 * cu;
-    const double *q = x, *qd = x + 3 * m, *uw = u + alpha;
-    double *pos = w, *vel = pos + 3 * K, *cols = vel + 3 * K, *f0 = cols + 3 * K;
-    double *a = f0 + 3 * m, *b2 = a + 3 * m, *bd2 = b2 + beta, *gfac = bd2 + beta;
-    double *omega = gfac + beta, *sol = omega + nw, *A = sol + nb;
-
+/* Bar and string vectors (pos, 3 x K) and their rates (vel) of coordinates q, qd (3 x m). */
+static void member_vectors(const Consts* k, const int64_t* d, const double* q, const double* qd,
+                           double* pos, double* vel) {
+    int64_t m = d[0], K = d[1] + d[2];
     for (int64_t r = 0; r < 3; r++) {
         for (int64_t j = 0; j < K; j++) {
             double p = k->off[r * K + j], v = 0.0;
@@ -118,6 +113,30 @@ static int64_t evaluate(const Consts* k, const int64_t* d, const double* x, cons
             vel[r * K + j] = v;
         }
     }
+}
+
+/* f0 = W U + cols Ef (3 x m): the reduced forces of the member force columns (3 x K). */
+static void reduced_forces(const Consts* k, const int64_t* d, const double* cols, double* f0) {
+    int64_t m = d[0], K = d[1] + d[2];
+    for (int64_t r = 0; r < 3; r++) {
+        for (int64_t i = 0; i < m; i++) {
+            double s = k->WU[r * m + i];
+            for (int64_t j = 0; j < K; j++) s += cols[r * K + j] * k->Ef[j * m + i];
+            f0[r * m + i] = s;
+        }
+    }
+}
+
+static int64_t evaluate(const Consts* k, const int64_t* d, const double* x, const double* u,
+                        double* out, double* w) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
+    int64_t diagonal = d[6], K = beta + alpha, nb = beta + 3 * cu;
+    const double *q = x, *qd = x + 3 * m, *uw = u + alpha;
+    double *pos = w, *vel = pos + 3 * K, *cols = vel + 3 * K, *f0 = cols + 3 * K;
+    double *a = f0 + 3 * m, *b2 = a + 3 * m, *bd2 = b2 + beta, *gfac = bd2 + beta;
+    double *omega = gfac + beta, *sol = omega + nw, *A = sol + nb;
+
+    member_vectors(k, d, q, qd, pos, vel);
     for (int64_t i = 0; i < nw; i++) {
         double s = k->smask[i] * uw[i];
         for (int64_t t = 0; t < ntq; t++) s += x[6 * m + nw + t] * k->tsel[t * nw + i];
@@ -145,12 +164,8 @@ static int64_t evaluate(const Consts* k, const int64_t* d, const double* x, cons
         cols[K + j] = s1 * gamma;
         cols[2 * K + j] = s2 * gamma;
     }
+    reduced_forces(k, d, cols, f0);
     for (int64_t r = 0; r < 3; r++) {
-        for (int64_t i = 0; i < m; i++) {
-            double s = k->WU[r * m + i];
-            for (int64_t j = 0; j < K; j++) s += cols[r * K + j] * k->Ef[j * m + i];
-            f0[r * m + i] = s;
-        }
         for (int64_t i = 0; i < m; i++) {
             double s = 0.0;
             for (int64_t j = 0; j < m; j++) s += f0[r * m + j] * k->Minv[j * m + i];
@@ -317,26 +332,10 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
     double *P = Z + beta * beta, *YmuE = P + 3 * beta, *Jf = YmuE + beta * m;
     double* Jr = Jf + 3 * m * D;
 
-    for (int64_t r = 0; r < 3; r++) {
-        for (int64_t j = 0; j < K; j++) {
-            double p = k->off[r * K + j], v = 0.0;
-            for (int64_t i = 0; i < m; i++) {
-                p += q[r * m + i] * k->EE_T[i * K + j];
-                v += qd[r * m + i] * k->EE_T[i * K + j];
-            }
-            pos[r * K + j] = p;
-            vel[r * K + j] = v;
-        }
-    }
+    member_vectors(k, d, q, qd, pos, vel);
     member_tangents(k, d, om, rest, pos, vel, cols, gxb, Dq, Dd, Dr);
     force_jacobian(k, d, gxb, Dq, Dd, Dr, Jf);
-    for (int64_t r = 0; r < 3; r++) {
-        for (int64_t i = 0; i < m; i++) {
-            double s = k->WU[r * m + i];
-            for (int64_t j = 0; j < K; j++) s += cols[r * K + j] * k->Ef[j * m + i];
-            f0[r * m + i] = s;
-        }
-    }
+    reduced_forces(k, d, cols, f0);
     /* a0 = f0 M^-1 (into acc, J) and V = f0 M^-1 E^T */
     for (int64_t r = 0; r < 3; r++) {
         for (int64_t j = 0; j < m; j++) {
