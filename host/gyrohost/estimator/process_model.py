@@ -7,18 +7,20 @@ Two variants (``process_method``):
     the RK4 step of the linearised dynamics, ``F = I + A dt + (A dt)^2/2 + (A dt)^3/6 +
     (A dt)^4/24`` (equal to ``exp(A dt)`` to 1e-3 here: the eigenvalues of ``A dt`` stay below
     0.6 although ``|A dt|`` ~ 30; scipy's ``expm`` gave the same F at 50 times the cost), with
-    ``A = df/dx`` from one batched complex-step evaluation
-    (:class:`gyrotensegrity.fast.FastDynamics`) -- the one the accelerometer fusion has just
-    made at the prior when there is one (the posterior differs from it by the update only),
-    else a fresh one. Where a string turns taut or slack within the step the true Jacobian
-    jumps and this F is only an average.
+    ``A = df/dx`` (below) -- the one the accelerometer fusion has just made at the prior when
+    there is one (the posterior differs from it by the update only), else a fresh one. Where a
+    string turns taut or slack within the step the true Jacobian jumps and this F is only an
+    average.
 ``rk4``
     RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator), differentiated
-    exactly by pushing the complex-step batch through every stage; about 40 times the cost.
+    exactly through every stage (the complex-step batch pushed through, or the stages' closed-form
+    Jacobians chained).
 
-``A = df/dx`` comes from the complex step or in closed form (``jacobian = "analytic"``:
+``A = df/dx`` comes in closed form (``jacobian = "analytic"``, the default:
 :class:`gyrotensegrity.fast_jacobian.FastJacobian`; the rk4 variant then chains the stages'
-Jacobians); the two agree to round-off (tests/estimator/test_jacobians.py).
+Jacobians) or from one batched complex-step evaluation through
+:class:`gyrotensegrity.fast.FastDynamics` (``"complex-step"``); the two agree to round-off
+(tests/estimator/test_jacobians.py).
 
 The lean model steps with RK4, not exponential Euler (``x + dt phi1(A dt) f``): at 10 ms the
 latter's velocity error per step is twenty times RK4's (docs/estimator.md).
