@@ -18,45 +18,32 @@ typedef struct {
         *EMinv, *Y, *Pu, *PuMinv, *X, *A3;
 } Consts;
 
-static void layout(const double* c, const int64_t* d, Consts* k) {
+/* one member per line: its pointer and the size it takes */
+// clang-format off
+static void layout(const double *c, const int64_t *d, Consts *k)
+{
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
     int64_t K = beta + alpha;
-    k->EE_T = c;
-    c += m * K;
-    k->off = c;
-    c += 3 * K;
-    k->k_s = c;
-    c += alpha;
-    k->c_s = c;
-    c += alpha;
-    k->w2b = c;
-    c += nw * beta;
-    k->tsel = c;
-    c += ntq * nw;
-    k->smask = c;
-    c += nw;
-    k->tgain = c;
-    c += nw * ntq;
-    k->WU = c;
-    c += 3 * m;
-    k->Ef = c;
-    c += K * m;
-    k->Minv = c;
-    c += m * m;
-    k->MinvET = c;
-    c += m * beta;
-    k->EMinv = c;
-    c += beta * m;
-    k->Y = c;
-    c += beta * beta;
-    k->Pu = c;
-    c += m * cu;
-    k->PuMinv = c;
-    c += cu * m;
-    k->X = c;
-    c += cu * beta;
+    k->EE_T = c; c += m * K;
+    k->off = c; c += 3 * K;
+    k->k_s = c; c += alpha;
+    k->c_s = c; c += alpha;
+    k->w2b = c; c += nw * beta;
+    k->tsel = c; c += ntq * nw;
+    k->smask = c; c += nw;
+    k->tgain = c; c += nw * ntq;
+    k->WU = c; c += 3 * m;
+    k->Ef = c; c += K * m;
+    k->Minv = c; c += m * m;
+    k->MinvET = c; c += m * beta;
+    k->EMinv = c; c += beta * m;
+    k->Y = c; c += beta * beta;
+    k->Pu = c; c += m * cu;
+    k->PuMinv = c; c += cu * m;
+    k->X = c; c += cu * beta;
     k->A3 = c;
 }
+// clang-format on
 
 /* In-place Cholesky factor of the SPD matrix A (n x n, row-major; lower triangle). A pivot
  * that falls below PIVOT_RTOL times its diagonal entry (or is not finite) means the
