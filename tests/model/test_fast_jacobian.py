@@ -99,3 +99,24 @@ def test_unsupported_variants_are_refused(options):
     assert model.c > 0
     with pytest.raises(JacobianUnsupported, match="complex step"):
         FastJacobian(FastDynamics(model, **options))
+
+
+@pytest.mark.parametrize(
+    "scene", [p for p in SCENES if Model(load_scene(p)).c == 0], ids=lambda p: p.stem
+)
+def test_full_coordinates_of_a_joint_free_structure(scene):
+    model = Model(load_scene(scene))
+    dyn = FastDynamics(model, coordinates="full")
+    jac = FastJacobian(dyn)
+    rng = np.random.default_rng(5)
+    L, n = model.layout, model.n
+    for q, q_dot, omega, rest in manoeuvre_points(model, count=4):
+        x = model.initial_state()
+        x[L.q], x[L.q_dot] = q.ravel(), q_dot.ravel()
+        N = dyn.from_reduced(x)
+        Q, Q_dot = N[: 3 * n].reshape(3, n), N[3 * n : 6 * n].reshape(3, n)
+        Q_dot = Q_dot + rng.normal(scale=0.1, size=Q_dot.shape)
+        _, J_ref = complex_step(dyn, Q, Q_dot, omega, rest)
+        _, J = jac(Q, Q_dot, omega, rest)
+        assert J.shape == (3 * n, 6 * n + len(omega) + model.alpha)
+        assert np.abs(J - J_ref).max() <= TOL * np.abs(J_ref).max()
