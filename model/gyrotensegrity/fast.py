@@ -223,9 +223,7 @@ class FastDynamics:
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
-        if self.model.omitted:
-            spin = np.abs(np.reshape(omega_w, (-1, self.n_wheels))).max(axis=0, initial=0.0)
-            self.model.check_omitted(spin[self.torque_wheels], spin * self.speed_mask)
+        self.check_spins(omega_w)
         if self.kernel is not None and not any(
             np.iscomplexobj(a) for a in (q, q_dot, omega_w, rest)
         ):
@@ -233,6 +231,13 @@ class FastDynamics:
         else:
             z_ddot = self._accelerations(q, q_dot, omega_w, rest)
         return z_ddot, self.node_values(z_ddot)
+
+    def check_spins(self, omega_w):
+        """The model's omitted-term check on wheel spins (..., n_w), rad/s (no-op when the
+        model omits nothing)."""
+        if self.model.omitted:
+            spin = np.abs(np.reshape(omega_w, (-1, self.n_wheels))).max(axis=0, initial=0.0)
+            self.model.check_omitted(spin[self.torque_wheels], spin * self.speed_mask)
 
     def _kernel_accelerations(self, q, q_dot, omega_w, rest):
         """Real states through the compiled kernel, one call per state of the batch."""

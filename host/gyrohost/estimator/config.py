@@ -63,6 +63,10 @@ class EstimatorConfig:
     # process model
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})
+    # A = df/dx of the dynamics (and the IMU fusion's Jacobians through it): "analytic" (closed
+    # form, compiled: gyrotensegrity.fast_jacobian) or "complex-step" (one batched complex
+    # evaluation); the same to round-off, the closed form cheaper (docs/estimator.md)
+    jacobian: str = field(default="analytic", metadata={"choices": ("analytic", "complex-step")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
     # the string kink the prediction uses: "sharp" (tension-only, as the model) or "mean" (the

@@ -2,7 +2,9 @@
 
 A single batched complex-step evaluation of the dynamics over all dynamic states at the prior
 gives the sensor axes, the angular rate, the specific force, and ``A = df/dx`` (kept for the
-next prediction of the lean process model).
+next prediction of the lean process model). With ``jacobian = "analytic"`` the dynamics'
+part is in closed form (:meth:`.process_model.ProcessModel.closed_form`) and only the frame
+(a function of the node positions and velocities alone) goes through the complex step.
 """
 
 from dataclasses import dataclass
@@ -33,6 +35,8 @@ class ImuPrediction:
 
 def predict_imu(ekf, x, u) -> ImuPrediction:
     """Linearise the IMU measurements (and the dynamics) at filter state ``x`` under ``u``."""
+    if ekf.process.jac is not None:
+        return _closed_form(ekf, x, u)
     cols = ekf.dynamic_columns
     X = complex_step.perturbed(x[: len(cols)], cols)
     dx, N_ddot = ekf.process.derivative(X, u, with_node_accelerations=True)
@@ -45,6 +49,34 @@ def predict_imu(ekf, x, u) -> ImuPrediction:
     fv, df = complex_step.split(f)
     x_dot, A = complex_step.split(dx)
     return ImuPrediction(R.reshape(3, 3), dR, w, dw, fv, df, A, x_dot)
+
+
+def _closed_form(ekf, x, u) -> ImuPrediction:
+    """:func:`predict_imu` with the dynamics' Jacobian in closed form: the node accelerations'
+    Jacobian is ``U`` times the reduced one; ``f = R^T a`` gives ``df = dR^T a + R^T da``."""
+    nd, motion = ekf.layout.n_dynamic, ekf.motion_columns
+    x_dot, A, _, J = ekf.process.closed_form(x, u)
+    dyn, m = ekf.process.dyn, ekf.layout.m
+    N_ddot = dyn.node_values(x_dot[ekf.layout.q_dot].reshape(3, m))  # (3, n)
+    dN_ddot = dyn.node_values(J.T.reshape(nd, 3, m))  # (nd, 3, n)
+    X = complex_step.perturbed(x[: len(motion)], motion)
+    N, N_dot = ekf.batch_nodes(X)
+    R_ws, omega = ekf.imu.frame(N, N_dot)
+    R, dR = _padded(*complex_step.split(R_ws.reshape(len(motion), 9)), nd)
+    w, dw = _padded(*complex_step.split(omega), nd)
+    imu = ekf.imu
+    a = 0.5 * (N_ddot[:, imu.a] + N_ddot[:, imu.b]) - imu.gravity
+    da = 0.5 * (dN_ddot[:, :, imu.a] + dN_ddot[:, :, imu.b]).T  # (3, nd)
+    R = R.reshape(3, 3)
+    df = R.T @ da + np.einsum("jik,j->ik", dR.reshape(3, 3, nd), a)
+    return ImuPrediction(R, dR, w, dw, R.T @ a, df, A, x_dot)
+
+
+def _padded(value, jacobian, nd):
+    """A value and its Jacobian over the motion columns, the latter padded to nd columns."""
+    out = np.zeros((jacobian.shape[0], nd))
+    out[:, : jacobian.shape[1]] = jacobian
+    return value, out
 
 
 def at_sample_time(ekf, pred: ImuPrediction, J, h):

@@ -7,14 +7,20 @@ Two variants (``process_method``):
     the RK4 step of the linearised dynamics, ``F = I + A dt + (A dt)^2/2 + (A dt)^3/6 +
     (A dt)^4/24`` (equal to ``exp(A dt)`` to 1e-3 here: the eigenvalues of ``A dt`` stay below
     0.6 although ``|A dt|`` ~ 30; scipy's ``expm`` gave the same F at 50 times the cost), with
-    ``A = df/dx`` from one batched complex-step evaluation
-    (:class:`gyrotensegrity.fast.FastDynamics`) -- the one the accelerometer fusion has just
-    made at the prior when there is one (the posterior differs from it by the update only),
-    else a fresh one. Where a string turns taut or slack within the step the true Jacobian
-    jumps and this F is only an average.
+    ``A = df/dx`` (below) -- the one the accelerometer fusion has just made at the prior when
+    there is one (the posterior differs from it by the update only), else a fresh one. Where a
+    string turns taut or slack within the step the true Jacobian jumps and this F is only an
+    average.
 ``rk4``
     RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator), differentiated
-    exactly by pushing the complex-step batch through every stage; about 40 times the cost.
+    exactly through every stage (the complex-step batch pushed through, or the stages' closed-form
+    Jacobians chained).
+
+``A = df/dx`` comes in closed form (``jacobian = "analytic"``, the default:
+:class:`gyrotensegrity.fast_jacobian.FastJacobian`; the rk4 variant then chains the stages'
+Jacobians) or from one batched complex-step evaluation through
+:class:`gyrotensegrity.fast.FastDynamics` (``"complex-step"``); the two agree to round-off
+(tests/estimator/test_jacobians.py).
 
 The lean model steps with RK4, not exponential Euler (``x + dt phi1(A dt) f``): at 10 ms the
 latter's velocity error per step is twenty times RK4's (docs/estimator.md).
@@ -30,6 +36,7 @@ import numpy as np
 from scipy.special import erfc, ndtr
 
 from gyrotensegrity.fast import FastDynamics
+from gyrotensegrity.fast_jacobian import FastJacobian, JacobianUnsupported, outer_rows
 
 from . import complex_step
 from .errors import EstimatorConfigError
@@ -60,6 +67,13 @@ class ProcessModel:
         self.layout = layout_of(model)
         self.columns = np.arange(self.layout.n_dynamic)
         self._noise: dict[float, np.ndarray] = {}
+        self.jac = self._closed_form() if config.jacobian == "analytic" else None
+
+    def _closed_form(self):
+        try:
+            return FastJacobian(self.dyn)
+        except JacobianUnsupported as exc:
+            raise EstimatorConfigError(f"estimator key 'jacobian' is 'analytic': {exc}") from None
 
     def derivative(self, X, u, with_node_accelerations=False):
         """dx/dt of the dynamic part of a batch of filter states (and N_ddot (K, 3, n) if asked).
@@ -112,8 +126,78 @@ class ProcessModel:
         margin = length - rest + dyn.c_s / dyn.k_s * (Y * Y_dot).sum(axis=-2) / length
         return rest + margin - s_j * expected_positive_part(margin / s_j)
 
+    def mean_force_rest_jacobian(self, q, q_dot, rest):
+        """:meth:`mean_force_rest` of one real state (alpha,) m and its Jacobian (alpha,
+        n_dynamic) with respect to the filter's dynamic state.
+
+        With ``margin = t / k`` (the tension at ``rest`` as a length) and ``g' = Phi``:
+        ``d pulling = Phi(a) d rest + (1 - Phi(a)) (d margin + d rest)``, ``d margin + d rest =
+        u . dS + (c/k) ((S_dot - s_dot u) . dS / s + u . dS_dot)`` (string vector ``S``, length
+        ``s``, direction ``u``).
+        """
+        L, dyn = self.layout, self.dyn
+        D = np.zeros((L.n_strings, L.n_dynamic))
+        s_j = np.sqrt(self.config.rest_jitter_psd_m2_s / self.config.process_dt_s)
+        D[:, L.rest] = np.eye(L.n_strings)
+        if s_j == 0.0:
+            return rest, D
+        S = (q @ self.jac.EE_T + dyn.off)[:, dyn.beta :]
+        S_dot = q_dot @ self.jac.EE_T[:, dyn.beta :]
+        s = np.sqrt((S * S).sum(axis=0))
+        u = S / s
+        s_dot = (u * S_dot).sum(axis=0)
+        ratio = dyn.c_s / dyn.k_s
+        margin = s - rest + ratio * s_dot
+        a = margin / s_j
+        open_ = 1.0 - ndtr(a)  # d pulling / d margin
+        Es = self.jac.Es
+        D[:, L.q] = outer_rows(open_ * (u + ratio * (S_dot - s_dot * u) / s), Es)
+        D[:, L.q_dot] = outer_rows(open_ * ratio * u, Es)
+        D[:, L.rest] = np.diag(1.0 - open_)
+        return rest + margin - s_j * expected_positive_part(a), D
+
+    def closed_form(self, x, u):
+        """The dynamics and their Jacobian in closed form (``jacobian = "analytic"``).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n_dynamic,) or longer (the bias is ignored)
+        u : ndarray, shape (alpha + n_w,)
+
+        Returns
+        -------
+        f : ndarray, shape (n_dynamic,)
+        A : ndarray, shape (n_dynamic, n_dynamic)
+        z_ddot : ndarray, shape (3, m), m/s^2: the reduced accelerations
+        J : ndarray, shape (3 m, n_dynamic): their Jacobian (the rows of ``A`` for ``q_dot``)
+        """
+        L, m = self.layout, self.layout.m
+        q, q_dot, rest = x[L.q].reshape(3, m), x[L.q_dot].reshape(3, m), x[L.rest]
+        if self.config.kink_model == "mean":
+            pulling, d_pulling = self.mean_force_rest_jacobian(q, q_dot, rest)
+            z_ddot, J = self.jac(q, q_dot, x[L.omega], pulling)
+            through_pulling = J[:, L.rest] @ d_pulling  # the forces see the pulling lengths
+            J[:, L.rest] = 0.0
+            J += through_pulling
+        else:
+            z_ddot, J = self.jac(q, q_dot, x[L.omega], rest)
+        nd = L.n_dynamic
+        A = np.zeros((nd, nd))
+        A[L.q, L.q_dot] = np.eye(3 * m)
+        A[L.q_dot] = J
+        A[L.rest, L.rest] = -np.eye(L.n_strings) / self.config.servo_lag_s
+        f = np.empty(nd)
+        f[L.q] = x[L.q_dot]
+        f[L.q_dot] = z_ddot.ravel()
+        f[L.omega] = self.dyn.wheel_acceleration(u)
+        f[L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
+        return f, A, z_ddot, J
+
     def linearise(self, x, u):
-        """``f(x)`` (n_dynamic,) and ``A = df/dx`` (n_dynamic, n_dynamic) by the complex step."""
+        """``f(x)`` (n_dynamic,) and ``A = df/dx`` (n_dynamic, n_dynamic): by the complex step
+        or in closed form (``jacobian``)."""
+        if self.jac is not None:
+            return self.closed_form(x, u)[:2]
         X = complex_step.perturbed(x[: self.layout.n_dynamic], self.columns)
         return complex_step.split(self.derivative(X, u))
 
@@ -161,6 +245,8 @@ class ProcessModel:
     def _rk4(self, xd, u, dt):
         n = max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
         h = dt / n
+        if self.jac is not None:
+            return self._rk4_closed_form(xd, u, h, n)
         X = complex_step.perturbed(xd, self.columns)
         for _ in range(n):
             k1 = self.derivative(X, u)
@@ -169,6 +255,23 @@ class ProcessModel:
             k4 = self.derivative(X + h * k3, u)
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return complex_step.split(X)
+
+    def _rk4_closed_form(self, x, u, h, n):
+        """``n`` RK4 substeps of ``h`` s with the step's Jacobian by the chain rule through the
+        stages (``d k_i = A(x_i) d x_i``)."""
+        eye = np.eye(len(x))
+        F = eye
+        for _ in range(n):
+            k1, A1 = self.linearise(x, u)
+            k2, A2 = self.linearise(x + 0.5 * h * k1, u)
+            D2 = A2 @ (eye + 0.5 * h * A1)
+            k3, A3 = self.linearise(x + 0.5 * h * k2, u)
+            D3 = A3 @ (eye + 0.5 * h * D2)
+            k4, A4 = self.linearise(x + h * k3, u)
+            D4 = A4 @ (eye + h * D3)
+            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            F = (eye + (h / 6.0) * (A1 + 2.0 * D2 + 2.0 * D3 + D4)) @ F
+        return x, F
 
     def noise(self, dt, F=None, x=None):
         """Discrete process noise covariance over ``dt`` s, shape (n, n).
@@ -222,15 +325,29 @@ class ProcessModel:
             Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
         """
         L, dyn = self.layout, self.dyn
-        m, alpha = L.m, L.n_strings
         s, s_dot = self.string_lengths(x)
         rest = x[L.rest]
         margin = np.minimum(s - rest, s - rest + dyn.c_s / dyn.k_s * s_dot)
         # the string force is affine in its rest length while taut (slope -k along the string)
         # and the accelerations are affine in the string forces: any taut point gives the
         # column; 1 mm of margin keeps every string taut whatever its state
+        taut_rest = rest - np.maximum(-margin, 0.0) - 1e-3
+        a = self._rest_columns(x, taut_rest)
+        n = L.q_dot.stop
+        G = F[:n, L.q_dot] @ a
+        G[L.q_dot] += a
+        return 0.5 * dt * G, margin
+
+    def _rest_columns(self, x, rest):
+        """``d eta2_ddot / d rest`` (3 m, alpha) at the state ``x`` with rest lengths ``rest``:
+        in closed form (one evaluation: a column depends on its own string only) or by the
+        complex step."""
+        L, m, alpha = self.layout, self.layout.m, self.layout.n_strings
+        if self.jac is not None:
+            q, q_dot = x[L.q].reshape(3, m), x[L.q_dot].reshape(3, m)
+            return self.jac(q, q_dot, x[L.omega], rest)[1][:, L.rest]
         X = np.tile(x[: L.n_dynamic].astype(complex), (alpha, 1))
-        X[:, L.rest] = rest - np.maximum(-margin, 0.0) - 1e-3
+        X[:, L.rest] = rest
         X[np.arange(alpha), L.rest.start + np.arange(alpha)] += 1j * complex_step.STEP
         a, _ = self.dyn.accelerations(
             X[:, L.q].reshape(alpha, 3, m),
@@ -238,11 +355,7 @@ class ProcessModel:
             X[:, L.omega],
             X[:, L.rest],
         )
-        a = a.reshape(alpha, 3 * m).imag.T / complex_step.STEP  # (3 m, alpha)
-        n = L.q_dot.stop
-        G = F[:n, L.q_dot] @ a
-        G[L.q_dot] += a
-        return 0.5 * dt * G, margin
+        return a.reshape(alpha, 3 * m).imag.T / complex_step.STEP
 
     def string_lengths(self, x):
         """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""

@@ -2,10 +2,11 @@
 
 ``python -m gyrohost.experiments.estimator_benchmark`` prints the median and the 90th percentile
 over a run of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference
-model), for the lean and the rk4 process models, with the rest-length jitter through the
-strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it out), next to
-one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as the baseline
-measured in the same run."""
+model), for the lean and the rk4 process models, each with the dynamics' Jacobian by the
+complex step and in closed form (``--jacobian``, default both), with the rest-length jitter
+through the strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it
+out), next to one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as
+the baseline measured in the same run."""
 
 import argparse
 import time
@@ -22,36 +23,41 @@ from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene, rhs
 
 DEFAULT_SCENE = shipped("scene", "dbar-gyro")
+JACOBIANS = ("complex-step", "analytic")
 
 
-def cycle_times(model, config, cycles=200, start_s=0.5):
-    """Times of ``cycles`` EKF cycles on noise-free IMU samples of the scene's manoeuvre.
+def cycle_times(model, configs, cycles=200, start_s=0.5):
+    """Times of ``cycles`` EKF cycles on noise-free IMU samples of the scene's manoeuvre, one
+    filter per configuration, their cycles interleaved (so that a change of the machine's
+    load during the run falls on all of them alike).
 
     Returns
     -------
-    wall, cpu : ndarray, shape (cycles,), s
+    wall, cpu : ndarray, shape (len(configs), cycles), s
         Wall-clock and thread CPU time per cycle (the CPU time is what the cycle costs when
         other processes share the cores).
-    accepted : float
+    accepted : ndarray, shape (len(configs),)
         Share of the IMU measurements the gates let through (the cycles timed did fuse).
     """
     truth = simulate_truth(
-        model, config, start_s + cycles * 0.01, seed=0, dt_s=0.01, accel_psd_m2_s3=0.0
+        model, configs[0], start_s + cycles * 0.01, seed=0, dt_s=0.01, accel_psd_m2_s3=0.0
     )
     k0 = int(round(start_s / 0.01))
-    ekf = TensegrityEKF(model, config, x0=truth.x[k0], t0_s=truth.t_s[k0])
-    results = []
-    ekf.log = results.append
+    ekfs = [TensegrityEKF(model, c, x0=truth.x[k0], t0_s=truth.t_s[k0]) for c in configs]
+    logs = [[] for _ in configs]
+    for ekf, log in zip(ekfs, logs, strict=True):
+        ekf.log = log.append
     angles = euler_zyx(truth.R_ws)
-    rate = truth.omega_s + truth.x[:, ekf.layout.bias]
-    wall, cpu = np.empty(cycles), np.empty(cycles)
+    rate = truth.omega_s + truth.x[:, ekfs[0].layout.bias]
+    wall, cpu = np.empty((len(configs), cycles)), np.empty((len(configs), cycles))
     for j in range(cycles):
         k = k0 + 1 + j
-        ekf.set_input(truth.command[k - 1], truth.t_s[k - 1])
-        t0, c0 = time.perf_counter(), time.thread_time()
-        ekf.fuse_imu(truth.t_s[k], rate[k], truth.specific_force[k], angles[k])
-        wall[j], cpu[j] = time.perf_counter() - t0, time.thread_time() - c0
-    return wall, cpu, float(np.mean([r.accepted for r in results]))
+        for i, ekf in enumerate(ekfs):
+            ekf.set_input(truth.command[k - 1], truth.t_s[k - 1])
+            t0, c0 = time.perf_counter(), time.thread_time()
+            ekf.fuse_imu(truth.t_s[k], rate[k], truth.specific_force[k], angles[k])
+            wall[i, j], cpu[i, j] = time.perf_counter() - t0, time.thread_time() - c0
+    return wall, cpu, np.array([np.mean([r.accepted for r in log]) for log in logs])
 
 
 def rhs_time(model, repeats=200):
@@ -75,22 +81,41 @@ def main(argv=None) -> int:
         default=2e-10,
         help="rest_jitter_psd_m2_s, m^2 s (default: the SIL's; 0 leaves the kink noise out)",
     )
+    parser.add_argument(
+        "--jacobian",
+        choices=JACOBIANS,
+        action="append",
+        help="the estimator's jacobian key (repeat for several; default: both)",
+    )
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     base = rhs_time(model)
     print(f"{args.scene.name}: reference rhs evaluation {base * 1e6:.0f} us (baseline)")
     for method in ("lean", "rk4"):
-        cfg = replace(
-            EstimatorConfig(), process_method=method, rest_jitter_psd_m2_s=args.rest_jitter_psd
-        )
+        jacobians = args.jacobian or JACOBIANS
+        configs = [
+            replace(
+                EstimatorConfig(),
+                process_method=method,
+                jacobian=jacobian,
+                rest_jitter_psd_m2_s=args.rest_jitter_psd,
+            )
+            for jacobian in jacobians
+        ]
         n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
-        wall, cpu, accepted = cycle_times(model, cfg, n)
-        print(
-            f"EKF cycle ({method:4s}): CPU median {np.median(cpu) * 1e3:.3f} ms "
-            f"(p90 {np.percentile(cpu, 90) * 1e3:.3f} ms), wall median "
-            f"{np.median(wall) * 1e3:.3f} ms = {np.median(wall) / base:.1f} rhs evaluations; "
-            f"{100 * accepted:.0f} % of the IMU measurements fused"
-        )
+        wall, cpu, accepted = cycle_times(model, configs, n)
+        for i, jacobian in enumerate(jacobians):
+            print(
+                f"EKF cycle ({method:4s}, {jacobian:12s}): CPU median "
+                f"{np.median(cpu[i]) * 1e3:.3f} ms (p90 {np.percentile(cpu[i], 90) * 1e3:.3f} "
+                f"ms), wall median {np.median(wall[i]) * 1e3:.3f} ms = "
+                f"{np.median(wall[i]) / base:.1f} rhs evaluations; "
+                f"{100 * accepted[i]:.0f} % of the IMU measurements fused"
+            )
+        if len(jacobians) > 1:
+            ratios = np.median(cpu[1:] / cpu[0], axis=1)
+            pairs = ", ".join(f"{j} {r:.2f}" for j, r in zip(jacobians[1:], ratios, strict=True))
+            print(f"  CPU per cycle against {jacobians[0]} (median of the cycles' ratios): {pairs}")
     return 0
 
 
