@@ -1,7 +1,7 @@
 """An identified scene on another manoeuvre than the one it was identified from (simulated rig).
 
 ``python -m gyrohost.experiments.identify_transfer [--seed 1] [--runs 6] [--duration 3]
-[--out DIR]``
+[--out DIR] [--yaw-offsets RAD ...]``
 
 The truth of :mod:`.identify_check` (J3 x 1.3, bar mass x 0.8, string stiffness x 1.25, damping
 x 0.7, the IMU mounted (3, -1.7, 1.1) degrees off) is identified from its excitation, the bars
@@ -19,7 +19,8 @@ play the paper's schedule (:func:`gyrohost.control.presets.paper`, ``--duration`
   against the 95 % bounds of a ``--runs``-run average. Three more filters tell the shares
   apart: the nominal scene with the identified mounting, the identified scene with the true
   mounting, and the truth's own scene and mounting (the reference: the filter's consistency on
-  this truth when nothing is mis-identified).
+  this truth when nothing is mis-identified); ``--yaw-offsets``: the truth's with the mounting's
+  yaw off by each of these (rad), the filter's tolerance of a mis-identified yaw.
 """
 
 import argparse
@@ -164,6 +165,11 @@ def filter_figures(base, truth: Rig, host: Rig, runs: int, duration_s: float) ->
     return summarise(results, f"[{host.name}] ")
 
 
+def _yawed(rig: Rig, offset_rad: float) -> tuple[float, float, float]:
+    roll, pitch, yaw = rig.mounting_rpy_rad
+    return (roll, pitch, yaw + offset_rad)
+
+
 def print_tables(prediction: dict, filters: dict) -> None:
     """The prediction errors, then every filter's NEES and NIS against their bounds."""
     print(f"\n{'prediction (mm)':<36}{'max |z| error':>14}{'max |error|':>13}{'RMS error':>11}")
@@ -188,6 +194,14 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=int, default=6, help="SIL runs per filter (seeds 1...)")
     parser.add_argument("--duration", type=float, default=3.0, help="of the paper's schedule, s")
     parser.add_argument("--out", type=Path, help="keep scenes and log here (default: temporary)")
+    parser.add_argument(
+        "--yaw-offsets",
+        type=float,
+        nargs="*",
+        default=[],
+        metavar="RAD",
+        help="more filters: the truth's scene and mounting but the yaw off by these, rad",
+    )
     args = parser.parse_args(argv)
     from gyrohost.config import load_rig_config
     from gyrohost.ident.report import report_lines
@@ -213,6 +227,10 @@ def main(argv=None) -> int:
             identified,
             Rig("identified scene, true mounting", identified.scene_path, truth.mounting_rpy_rad),
             truth,
+            *(
+                Rig(f"truth, mounting yaw {d:+.1e} rad", truth.scene_path, _yawed(truth, d))
+                for d in args.yaw_offsets
+            ),
         )
         filters = {h.name: filter_figures(base, truth, h, args.runs, args.duration) for h in hosts}
     print_tables(prediction, filters)
