@@ -136,6 +136,7 @@ def node_tracks(base, host: Rig, scene_path: Path, seed: int, duration_s: float)
 
     config = sil_config(base, host, Rig("prediction", scene_path, host.mounting_rpy_rad))
     model, _, truth_x, *_ = rig_model_run(config, seed, duration_s)
+    # a filter state leads with the model state's node coordinates and velocities
     return np.array([model.nodes(x)[0] for x in truth_x])
 
 
