@@ -21,3 +21,33 @@ def test_filter_tracks_the_rig_truth_model():
     for source in ("imu_rate", "imu_angle", "servos"):
         _, nis, dof = result.nis[source]
         assert 0.3 * dof[0] < np.mean(nis) < 2.0 * dof[0], source
+
+
+def test_truth_runs_its_own_scene_and_mounting(tmp_path):
+    """``[sim.truth] scene`` and ``imu_rotation_deg``: the truth (wheels 30 % heavier) moves
+    otherwise than under the host's scene, which the host's commands and model keep; the true
+    sensor axes are the frame's turned by the rotation."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from gyrohost.config import with_truth_scene
+    from gyrohost.experiments.estimator_sil import rig_model_run
+    from gyrohost.geometry import rotation_zyx
+
+    scene = Path(shipped("scene", "dbar-gyro")).read_text()
+    J3 = 1.3 * 0.5 * 0.05 * 0.031**2
+    (tmp_path / "heavy.toml").write_text(scene.replace("spin = ", f"J3 = {J3!r}, spin = "))
+    config = load_rig_config(CONFIG)
+    other = with_truth_scene(config, tmp_path / "heavy.toml")
+    rotation_deg = (1.0, -2.0, 3.0)
+    other = replace(
+        other, sim=replace(other.sim, truth=replace(other.sim.truth, imu_rotation_deg=rotation_deg))
+    )
+    model, data, x, R, *_ = rig_model_run(config, 1, 0.5)
+    model_o, data_o, x_o, R_o, *_ = rig_model_run(other, 1, 0.5)
+    assert model_o.J3[0] == model.J3[0]  # the host's scene
+    assert np.array_equal(data_o["command"], data["command"])
+    L = model.layout
+    assert np.abs(x_o[-1, L.q] - x[-1, L.q]).max() > 1e-5  # m
+    turn = rotation_zyx(*np.radians(rotation_deg))
+    np.testing.assert_allclose(R_o[0], R[0] @ turn, atol=1e-12)  # at the same initial state

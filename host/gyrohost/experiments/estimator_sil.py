@@ -151,6 +151,10 @@ def score_log(folder, estimator=None) -> RunResult:
 def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_times_s=None):
     """One in-process run on the rig's truth model and sensor emulators (see module docstring).
 
+    The truth runs ``[sim.truth] scene`` when set and the IMU is turned by ``[sim.truth]
+    imu_rotation_deg`` beyond the configuration's mounting, as on the real-time simulated rig;
+    the host's commands and the returned model are the configuration's scene's.
+
     ``command_times_s`` (increasing, s): when the commands reach the servos (at the first truth
     step from then on; default: every 10 ms), each the schedule at its time or at its entry of
     ``schedule_times_s`` (the tick that made it, when the servos get it later).
@@ -165,15 +169,16 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_t
     dt_s : float, the truth's step, s
     """
     from gyrohost.rig.imu_emu import Bwt61Emulator
-    from gyrohost.rig.truth import Truth
+    from gyrohost.rig.truth import Truth, truth_scene
     from gyrotensegrity import Model, load_scene
 
-    scene = load_scene(config.scene_path)
-    model = Model(scene)
-    truth = Truth(scene, replace(config.sim.truth, servo_lag_s=0.0), config.servos.servo)
-    emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu)
+    model = Model(load_scene(config.scene_path))
+    sim = replace(config.sim.truth, servo_lag_s=0.0)
+    truth = Truth(truth_scene(config), sim, config.servos.servo)
+    rotation_deg = config.sim.truth.imu_rotation_deg
+    emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu, rotation_deg=rotation_deg)
     servos = [s for s in config.servos.servo if s.string]
-    strings = [s.name for s in scene.strings]
+    strings = [s.name for s in model.scene.strings]
     board = _WheelBoard(config, model.spin0, np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
@@ -247,7 +252,7 @@ def _rig_model_rows(
         rest[servo_strings] = [position[s.id] for s in servos]
         u = truth.model.pack_input(rest, board.true_speeds())
         truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
-        truth_R.append(imu.R_wb)
+        truth_R.append(imu.R_wb @ emu.R_bs)  # the sensor axes, as the filter's attitude
         held = {}
         for s, i in zip(servos, servo_strings, strict=True):
             start = position[s.id]
