@@ -149,8 +149,9 @@ def test_scale_rise_is_zero_along_an_exact_symmetry():
     sol = least_squares(problem, np.zeros(5), diff_step=0.03)
     members = np.array([1, 0, 2, 3])
     direction = np.array([1.0, 1.0, 1.0, 1.0, 0.0])
-    rise, valley = profile.scale_rise(
+    rise, valley, bend = profile.scale_rise(
         problem, sol.x, direction, members, [0.03] * 5, [-np.inf] * 5, float(sol.cost)
     )
     assert rise == pytest.approx(0.0, abs=1e-3)
     np.testing.assert_allclose(np.abs(valley[:4]), 0.5, atol=1e-3)
+    np.testing.assert_allclose(bend, 0.0, atol=1e-3)  # a straight valley

@@ -215,12 +215,14 @@ def statistics(problem: Problem, sol, lower, steps):
     cov, unresolved, separable = uncertainty(J, r, p)
     sigma, roughness = secant_sigmas(problem, theta, cov, separable, s2, cost0)
     members = scale_members(problem.params)
-    valley = None
+    valley, bend = None, np.zeros(p)
     if len(members):
         direction = scale_direction(problem, theta, members)
-        rise, valley = profile.scale_rise(problem, theta, direction, members, steps, lower, cost0)
+        rise, valley, bend = profile.scale_rise(
+            problem, theta, direction, members, steps, lower, cost0
+        )
         if 2.0 * rise >= profile.CHI2_95 * (s2 + 2.0 * roughness):
-            valley = None
+            valley, bend = None, np.zeros(p)
     if valley is None:
         cs = [c for c, _ in _determined(theta, unresolved, separable)]
     else:
@@ -233,8 +235,9 @@ def statistics(problem: Problem, sol, lower, steps):
             c[i], c[members[0]] = 1.0, -valley[i] / valley[members[0]]
             cs.append(c)
     combos = [
-        (c, float(c @ theta), profile.secant_sigma(problem, theta, cov, c, s2, cost0)[0])
+        (c, float(c @ theta), float(np.hypot(secant, c @ bend)))
         for c in cs
+        for secant in [profile.secant_sigma(problem, theta, cov, c, s2, cost0)[0]]
     ]
     return (*_scaled(cov, sigma, separable), unresolved, separable, combos, valley)
 

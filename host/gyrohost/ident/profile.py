@@ -22,7 +22,8 @@ at every lag, docs/identification.md), so a sandwich or effective-sample-size co
   bar and wheel together scale by it); if it rises by less than the chi-square
   significance (:data:`CHI2_95`, in units of ``s^2 + 2 eps``) on either side, the scale is not
   determined by the data, and the line through the two re-fitted optima is the direction that
-  is not.
+  is not. A combination across that line still changes along the bent valley: its change
+  ``c . bend`` within the scale tested is added to its sigma (in quadrature).
 """
 
 import numpy as np
@@ -98,8 +99,10 @@ def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
     """The smaller rise of the cost with the common scale moved ``SCALE_STEP`` along
     ``direction`` (shape (p,): log factors per unit of scale) below and above the optimum and
     the other combinations of ``members`` (indices) and parameters re-fitted, in cost units;
-    and the unit direction from the one re-fitted optimum to the other (the valley the scale
-    moves along).
+    the unit direction from the one re-fitted optimum to the other (the valley the scale
+    moves along); and the bend of the valley, shape (p,): the re-fitted optima's mean less
+    ``theta`` (a combination across the straight valley still changes by ``c . bend``
+    within the scale tested).
 
     ``steps``, ``lower`` (p,): the parameters' finite-difference steps and lower bounds."""
     p, k = len(theta), len(members)
@@ -121,4 +124,4 @@ def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
         rises.append(float(sol.cost) - cost0)
         ends.append(start + B @ sol.x)
     valley = ends[1] - ends[0]
-    return min(rises), valley / np.linalg.norm(valley)
+    return min(rises), valley / np.linalg.norm(valley), 0.5 * (ends[0] + ends[1]) - theta
