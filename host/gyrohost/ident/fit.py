@@ -47,7 +47,9 @@ class FitResult:
     ----------
     params : list of Param
     theta, sigma : ndarray, shape (p,)
-        Estimate and its 1-sigma (units of ``theta``: relative or absolute, see :class:`Param`).
+        Estimate and its 1-sigma (units of ``theta``: relative or absolute, see :class:`Param`):
+        read off the cost for the parameters that need a simulation, linearised for the
+        others; ``inf`` for a parameter that is not separable or whose cost is not convex.
     correlation : ndarray, shape (p, p)
     unresolved : list of ndarray, shape (p,) each
         Unit vectors of parameter combinations the data do not determine.
