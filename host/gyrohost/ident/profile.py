@@ -5,9 +5,9 @@ later it jumps by about 1 (cost units, half the weighted sum of squares) between
 parameter values, which is as much as the statistical rise over one or two sigmas of the
 strings' stiffness and damping. The Jacobian at the optimum then reads the curvature of one
 jump rather than of the cost, and the optimum lands anywhere in a band where the cost's smooth
-rise is below its jumps; the residuals themselves stay white (their autocorrelation is below 0.1
-at every lag, docs/identification.md), so a sandwich or effective-sample-size correction of
-``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
+rise is below its jumps; the residuals themselves stay white (their autocorrelation is at most
+about 0.1 at every lag, docs/identification.md), so a sandwich or effective-sample-size
+correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
 
 * :func:`secant_sigma`: the cost sampled along a parameter's linearised profile direction (the
   other parameters following their regression on it) at :data:`PROFILE_STEPS` of its
