@@ -134,17 +134,27 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS):
 
 def errors(result, weighed=False) -> dict[str, tuple[float, float]]:
     """Parameter -> (error against the truth, reported 1-sigma), log factors for the scaled
-    parameters (about relative), rad for the mounting."""
+    parameters (about relative), rad for the mounting; a parameter the fit reports as not
+    separable is left out, and each determined combination of such parameters is in, named
+    after its first parameter (``J3 | scale``: J3 against the bars' mass along the scale)."""
     truth = {k: np.log(v) for k, v in FACTORS.items()}
     truth["bar_mass"] = 0.0 if weighed else truth["bar_mass"]
     truth["servo_lag"] = 0.0  # the rig models' servos: the estimator's lag (its nominal)
     axes = ("roll", "pitch", "yaw")
     truth.update({f"mounting.{a}": m for a, m in zip(axes, MOUNTING_RPY_RAD, strict=True)})
-    return {
+    true_theta = np.array([truth.get(p.name, np.nan) for p in result.params])
+    out = {
         p.name: (float(result.theta[i] - truth[p.name]), float(result.sigma[i]))
         for i, p in enumerate(result.params)
-        if p.name in truth
+        if p.name in truth and result.separable[i]
     }
+    for c, value, sigma in result.combinations:
+        used = np.flatnonzero(c)
+        if not np.all(np.isfinite(true_theta[used])):
+            continue
+        name = result.params[int(np.flatnonzero(c > 0)[0])].name
+        out[f"{name} | scale"] = (float(value - c[used] @ true_theta[used]), float(sigma))
+    return out
 
 
 def main(argv=None) -> int:
@@ -176,14 +186,16 @@ def main(argv=None) -> int:
             fit_s = time.perf_counter() - t1
             print(f"seed {seed}: record {t1 - t0:.1f} s, fit {fit_s:.1f} s ({result.nfev} "
                   f"evaluations); error(1-sigma) x 100: {line}", flush=True)  # fmt: skip
-    print(f"\n{'parameter':<16}{'mean |error|':>14}{'max |error|':>13}{'mean sigma':>12}"
+    print(f"\n{'parameter':<18}{'mean |error|':>14}{'max |error|':>13}{'mean sigma':>12}"
           f"{'<= 1 sigma':>12}{'<= 2 sigma':>12}")  # fmt: skip
-    for name in rows[0]:
-        e = np.array([abs(r[name][0]) for r in rows])
-        s = np.array([r[name][1] for r in rows])
-        print(f"{name:<16}{e.mean():14.4f}{e.max():13.4f}{s.mean():12.4f}"
+    for name in dict.fromkeys(k for r in rows for k in r):
+        e = np.array([abs(r[name][0]) for r in rows if name in r])
+        s = np.array([r[name][1] for r in rows if name in r])
+        print(f"{name:<18}{e.mean():14.4f}{e.max():13.4f}{s.mean():12.4f}"
               f"{np.mean(e <= s):12.0%}{np.mean(e <= 2 * s):12.0%}")  # fmt: skip
     print("(log factors: 0.01 = 1 %; mounting in rad; expected coverage 68 % and 95 %)")
+    flagged = sum(any(k.endswith("| scale") for k in r) for r in rows)
+    print(f"common scale not determined in {flagged} of {len(rows)} seeds")
     return 0
 
 

@@ -4,12 +4,14 @@ Every recording's inputs (servo positions, wheel speeds) drive the rig's model
 (:mod:`.forward`) under a parameter vector; the residual is what the IMU reported less what the
 model predicts (rate, specific force, roll, pitch), each divided by its noise standard deviation
 (the rig's estimator settings, ``imu_*_std``). At the optimum the Jacobian ``J`` of these
-residuals gives the covariance ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance per degree of
-freedom (the fit's own scatter, so a model that misses some of the motion widens its sigmas).
-Directions the data cannot resolve are found from the singular values of ``J`` with unit
-columns: a singular value below ``rcond`` times the largest marks a combination of parameters
-the data do not determine; the parameters it involves are reported as not separable, with the
-combinations of them that are determined, instead of numbers.
+residuals gives the linearised covariance ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance
+per degree of freedom. Directions the data cannot resolve are found from the singular values of
+``J`` with unit columns (below ``rcond`` times the largest), and, for the D-bar's common scale of
+masses, inertias, stiffness and damping, from the cost re-minimised with that scale held
+(:func:`.profile.scale_rise`); the parameters they involve are reported as not separable, with
+the combinations of them that are determined. The sigmas of the parameters that need a
+simulation are then read off the cost along their profile directions
+(:func:`.profile.secant_sigma`), which counts the roughness of the fixed-step model's cost.
 """
 
 from collections.abc import Callable
@@ -20,7 +22,7 @@ from scipy.optimize import least_squares
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.ident import forward
+from gyrohost.ident import forward, profile
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 
@@ -30,6 +32,11 @@ RCOND = 1e-3
 """Singular values of the unit-column Jacobian below this fraction of the largest: not resolved."""
 INVOLVED = 0.2
 """A parameter whose weight in an unresolved direction exceeds this is not separable."""
+SCALE_GROUPS = ("J3", "J3-each", "bar-mass", "bar-inertia", "stiffness", "damping")
+"""Groups that scale together without changing the D-bar's motion much (every mass, inertia,
+stiffness and damping; the wheels' mass and transverse inertia, which are kept, break it)."""
+BAR_GROUPS = ("bar-mass", "bar-inertia")
+"""The scale is only free, and tested, with one of these fitted: weighed bars pin it."""
 
 
 @dataclass
@@ -40,12 +47,21 @@ class FitResult:
     ----------
     params : list of Param
     theta, sigma : ndarray, shape (p,)
-        Estimate and its 1-sigma (units of ``theta``: relative or absolute, see :class:`Param`).
+        Estimate and its 1-sigma (units of ``theta``: relative or absolute, see :class:`Param`):
+        read off the cost for the parameters that need a simulation, linearised for the
+        others; ``inf`` for a parameter that is not separable or whose cost is not convex.
     correlation : ndarray, shape (p, p)
     unresolved : list of ndarray, shape (p,) each
         Unit vectors of parameter combinations the data do not determine.
     separable : ndarray of bool, shape (p,)
         ``False`` for a parameter involved in an unresolved combination.
+    combinations : list of (ndarray shape (p,), float, float)
+        Combinations ``c`` of the non-separable parameters that the data determine, with
+        ``c . theta`` and its 1-sigma.
+    scale_valley : ndarray, shape (p,), or None
+        The direction of the common scale of masses, inertias, stiffness and damping when the
+        data do not determine it (else ``None``); the identified scene moves the estimate along
+        it until the bars' parameter is at its nominal.
     residuals : list of ndarray, shape (k_i, 8)
         Measured less predicted at the optimum per recording, physical units.
     initial_residuals : list of ndarray, shape (k_i, 8)
@@ -65,6 +81,8 @@ class FitResult:
     correlation: np.ndarray
     unresolved: list
     separable: np.ndarray
+    combinations: list
+    scale_valley: np.ndarray | None
     residuals: list
     initial_residuals: list
     rms: dict
@@ -177,10 +195,10 @@ def fit(
         residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, max_nfev=max_nfev
     )
     final = [-e for e in problem.errors(sol.x)]
-    sigma, corr, unresolved, separable = uncertainty(sol.jac, sol.fun, len(params))
+    sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
     rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
     return FitResult(
-        params, sol.x, sigma, corr, unresolved, separable, final, initial, rms,
+        params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s,
     )  # fmt: skip
 
@@ -189,40 +207,125 @@ def _rms(errors, cols) -> float:
     return float(np.sqrt(np.mean(np.concatenate([e[:, cols] for e in errors]) ** 2)))
 
 
-def uncertainty(J: np.ndarray, r: np.ndarray, p: int):
-    """1-sigma, correlation, unresolved directions and separability from the Jacobian ``J``
-    (n, p) of the weighted residuals ``r`` (n,) at the optimum (see the module docstring)."""
+def statistics(problem: Problem, sol, lower, steps):
+    """Sigmas, correlation, unresolved directions, separability, determined combinations and
+    the direction of an undetermined common scale (or ``None``), at the optimum ``sol``
+    (module docstring)."""
+    J, r, theta, cost0 = sol.jac, sol.fun, sol.x, float(sol.cost)
+    p = len(theta)
+    s2 = float(r @ r) / max(len(r) - p, 1)
+    cov, unresolved, separable = uncertainty(J, r, p)
+    sigma, roughness = secant_sigmas(problem, theta, cov, separable, s2, cost0)
+    members = scale_members(problem.params)
+    valley, bend = None, np.zeros(p)
+    if len(members):
+        direction = scale_direction(problem, theta, members)
+        rise, valley, bend = profile.scale_rise(
+            problem, theta, direction, members, steps, lower, cost0
+        )
+        if 2.0 * rise >= profile.CHI2_95 * (s2 + 2.0 * roughness):
+            valley, bend = None, np.zeros(p)
+    if valley is None:
+        cs = [c for c, _ in _determined(theta, unresolved, separable)]
+    else:
+        cov, unresolved, separable = uncertainty(J, r, p, held=valley)
+        sigma, _ = secant_sigmas(problem, theta, cov, separable, s2, cost0)
+        cs = []
+        for i in members[1:]:
+            # the member against the bar's, in the proportion the valley moves them
+            c = np.zeros(p)
+            c[i], c[members[0]] = 1.0, -valley[i] / valley[members[0]]
+            cs.append(c)
+    combos = [
+        (c, float(c @ theta), float(np.hypot(secant, c @ bend)))
+        for c in cs
+        for secant in [profile.secant_sigma(problem, theta, cov, c, s2, cost0)[0]]
+    ]
+    return (*_scaled(cov, sigma, separable), unresolved, separable, combos, valley)
+
+
+def scale_members(params) -> np.ndarray:
+    """Indices of the parameters of :data:`SCALE_GROUPS`, a bar's first, when a group of
+    :data:`BAR_GROUPS` is among them (else empty)."""
+    groups = [p.group for p in params]
+    if not any(g in BAR_GROUPS for g in groups):
+        return np.zeros(0, int)
+    idx = [i for i, g in enumerate(groups) if g in SCALE_GROUPS]
+    return np.array(sorted(idx, key=lambda i: groups[i] not in BAR_GROUPS))
+
+
+def scale_direction(problem: Problem, theta, members) -> np.ndarray:
+    """Log factors, shape (p,), that scale every bar with its wheel by one unit: the bars'
+    mass moves by ``(m_bar + m_wheel) / m_bar`` (the wheels' mass is kept), the other members
+    (inertias, stiffness, damping) by one."""
+    u = np.zeros(len(theta))
+    u[members] = 1.0
+    for i in members:
+        if problem.params[i].group == "bar-mass":
+            m = np.array([b.mass for b in problem.scene.bars]) * np.exp(theta[i])
+            wheel = np.array([0.0 if b.wheel is None else b.wheel.mass for b in problem.scene.bars])
+            u[i] = float(np.mean((m + wheel) / m))
+    return u
+
+
+def secant_sigmas(problem: Problem, theta, cov, separable, s2: float, cost0: float):
+    """Linearised sigmas, with those of the separable parameters that need a simulation
+    replaced by :func:`.profile.secant_sigma`; and the largest roughness met (cost units)."""
+    sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    roughness = 0.0
+    for i in np.flatnonzero(separable & problem.dynamic):
+        e = np.zeros(len(theta))
+        e[i] = 1.0
+        sigma[i], rough = profile.secant_sigma(problem, theta, cov, e, s2, cost0)
+        roughness = max(roughness, rough)
+    return sigma, roughness
+
+
+def _scaled(cov, sigma, separable):
+    """Sigmas (``inf`` where not separable) and correlation of ``cov`` with ``sigma``."""
+    lin = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.nan_to_num(cov / np.outer(lin, lin))
+    sigma = np.where(separable, sigma, np.inf)
+    return sigma, corr
+
+
+def uncertainty(J: np.ndarray, r: np.ndarray, p: int, held=None):
+    """Linearised covariance ``s^2 (J^T J)^+`` (shape (p, p)), unresolved directions and
+    separability from the Jacobian ``J`` (n, p) of the weighted residuals ``r`` (n,) at the
+    optimum; ``held`` (unit vector, shape (p,)): a direction known to be unresolved, left out
+    of the covariance (the others given it) and added to the unresolved ones."""
     dof = max(len(r) - p, 1)
     s2 = float(r @ r) / dof
-    norms = np.linalg.norm(J, axis=0)
+    B = np.eye(p) if held is None else np.linalg.svd(held[None, :])[2][1:].T
+    JB = J @ B
+    norms = np.linalg.norm(JB, axis=0)
     norms[norms == 0.0] = 1.0
-    _, sv, Vt = np.linalg.svd(J / norms, full_matrices=False)
+    _, sv, Vt = np.linalg.svd(JB / norms, full_matrices=False)
     resolved = sv > RCOND * sv[0]
-    unresolved = [Vt[i] for i in np.flatnonzero(~resolved)]
+    unresolved = [B @ Vt[i] for i in np.flatnonzero(~resolved)]
+    unresolved += [] if held is None else [held]
     separable = np.ones(p, bool)
     for v in unresolved:
         separable &= np.abs(v) <= INVOLVED
     # pseudo-inverse over the resolved directions: the unresolved ones would swamp the rest
     inv = (Vt[resolved].T / sv[resolved] ** 2) @ Vt[resolved]
-    cov = s2 * inv / np.outer(norms, norms)
-    sigma = np.sqrt(np.diag(cov))
-    corr = cov / np.outer(sigma, sigma)
-    sigma[~separable] = np.inf
-    return sigma, corr, unresolved, separable
+    cov = B @ (s2 * inv / np.outer(norms, norms)) @ B.T
+    return cov, unresolved, separable
 
 
-def determined_combinations(result: FitResult) -> list[tuple[np.ndarray, float]]:
+def _determined(theta, unresolved, separable) -> list[tuple[np.ndarray, float]]:
     """Unit combinations ``c`` of the non-separable parameters that the data do determine, with
     their values ``c . theta`` (relative/absolute units of the parameters involved)."""
-    idx = np.flatnonzero(~result.separable)
+    idx = np.flatnonzero(~separable)
     if not len(idx):
         return []
-    null = np.array([v[idx] for v in result.unresolved])
+    null = np.array([v[idx] for v in unresolved])
     _, sv, Vt = np.linalg.svd(null, full_matrices=True)
     rank = int(np.sum(sv > 1e-9))
     out = []
     for c_sub in Vt[rank:]:
-        c = np.zeros(len(result.params))
+        c = np.zeros(len(theta))
         c[idx] = c_sub
-        out.append((c, float(c @ result.theta)))
+        out.append((c, float(c @ theta)))
     return out

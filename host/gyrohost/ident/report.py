@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.ident.fit import CHANNELS, STREAMS, FitResult, determined_combinations
+from gyrohost.ident.fit import BAR_GROUPS, CHANNELS, INVOLVED, STREAMS, FitResult
 from gyrohost.ident.params import apply
 from gyrohost.ident.scenefile import scene_toml
 
@@ -30,8 +30,13 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append(f"correlation {a} / {b}: {r:+.3f}")
     for v in result.unresolved:
         lines.append("not determined by the data: " + _combination(v, names))
-    for c, value in determined_combinations(result):
-        lines.append(f"determined: {_combination(c, names)} = {value:+.4g}")
+    for c, value, sigma in result.combinations:
+        lines.append(f"determined: {_combination(c, names)} = {value:+.4g} (1-sigma {sigma:.2g})")
+    if result.scale_valley is not None:
+        lines.append(
+            "the common scale of the masses, inertias, stiffness and damping is not determined "
+            "(weigh the bars): the scene keeps the bars' nominal and moves the others with it"
+        )
     if result.unresolved:
         lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
     for name, (before, after) in result.rms.items():
@@ -65,8 +70,18 @@ def overlay_toml(result: FitResult, config) -> str:
 
 
 def apply_result(result: FitResult, config):
-    """:func:`.params.apply` of the estimate, non-separable parameters at their nominal."""
-    theta = np.where(result.separable, result.theta, 0.0)
+    """:func:`.params.apply` of the estimate, non-separable parameters at their nominal; with
+    an undetermined common scale, the estimate moved along it until the bars' parameter is at
+    its nominal (the same motion), the others where that leaves them."""
+    theta = result.theta
+    valley = result.scale_valley
+    if valley is not None:
+        ref = next(i for i, p in enumerate(result.params) if p.group in BAR_GROUPS)
+        theta = theta - theta[ref] / valley[ref] * valley
+        keep = result.separable | (np.abs(valley) > INVOLVED)
+    else:
+        keep = result.separable
+    theta = np.where(keep, theta, 0.0)
     return apply(result.scene, config, result.params, theta, result.servo_lag_s)
 
 

@@ -1,0 +1,127 @@
+"""Sigmas and separability read off the cost itself, not only its Jacobian.
+
+On the rig's fixed-step model the cost is rough: where a string goes slack a step earlier or
+later it jumps by about 1 (cost units, half the weighted sum of squares) between neighbouring
+parameter values, which is as much as the statistical rise over one or two sigmas of the
+strings' stiffness and damping. The Jacobian at the optimum then reads the curvature of one
+jump rather than of the cost, and the optimum lands anywhere in a band where the cost's smooth
+rise is below its jumps; the residuals themselves stay white (their autocorrelation is at most
+about 0.1 at every lag, docs/identification.md), so a sandwich or effective-sample-size
+correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
+
+* :func:`secant_sigma`: the cost sampled along a parameter's linearised profile direction (the
+  other parameters following their regression on it) at :data:`PROFILE_STEPS` of its
+  linearised sigma, fitted with a parabola: its curvature ``a`` (cost units per unit squared)
+  and the scatter ``eps`` of the samples about it (the roughness). The 1-sigma is
+  ``sqrt((s^2 + 2 eps) / a)``: one sigma is where the smooth cost has risen by the noise's
+  ``s^2 / 2`` plus the roughness ``eps``.
+* :func:`scale_rise`: scaling every mass, inertia, stiffness and damping by one factor leaves the
+  D-bar's motion almost unchanged; the Jacobian does not show it (the valley is narrow and bent
+  by the wheels' mass, which is kept). The cost is re-minimised with that common factor held
+  :data:`SCALE_STEP` below and above the optimum (starting where the bars' mass moves so that
+  bar and wheel together scale by it); if it rises by less than the chi-square
+  significance (:data:`CHI2_95`, in units of ``s^2 + 2 eps``) on either side, the scale is not
+  determined by the data, and the line through the two re-fitted optima is the direction that
+  is not. A combination across that line still changes along the bent valley: its change
+  ``c . bend`` within the scale tested is added to its sigma (in quadrature).
+"""
+
+import numpy as np
+from scipy.optimize import least_squares
+
+PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
+"""Where the cost is sampled along a profile direction, in linearised sigmas."""
+SCALE_STEP = 0.2
+"""Log factor of the common scale tested: +-20 % (the spread of the unmeasured parameters)."""
+CHI2_95 = 3.841
+"""Chi-square, one degree of freedom, 95 %: the rise of ``2 cost / s^2`` that is significant."""
+SCALE_EVALUATIONS = 12
+"""Residual evaluations of each re-minimisation with the scale held."""
+
+
+def cost(problem, theta) -> float:
+    """Half the weighted sum of squares at ``theta``."""
+    r = problem(theta)
+    return 0.5 * float(r @ r)
+
+
+def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float, float]:
+    """1-sigma of the combination ``c . theta`` from the cost along its profile direction.
+
+    Parameters
+    ----------
+    problem : callable
+        Weighted residual of a parameter vector (:class:`.fit.Problem`).
+    theta : ndarray, shape (p,)
+        The optimum.
+    cov : ndarray, shape (p, p)
+        Linearised covariance (``s^2`` included).
+    c : ndarray, shape (p,)
+        The combination (a unit vector for one parameter).
+    s2 : float
+        Residual variance per degree of freedom (weighted units).
+    cost0 : float
+        Cost at ``theta``.
+
+    Returns
+    -------
+    sigma : float
+        ``inf`` where the sampled cost is not convex.
+    roughness : float
+        Standard deviation of the samples about their parabola (cost units).
+    """
+    sd = float(np.sqrt(c @ cov @ c))
+    direction = cov @ c / sd  # moves c . theta by one linearised sigma per unit
+    t = np.append(PROFILE_STEPS, 0.0)
+    rise = np.array([cost(problem, theta + k * direction) - cost0 for k in t[:-1]] + [0.0])
+    x = t * sd
+    A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
+    coef = np.linalg.lstsq(A, rise, rcond=None)[0]
+    roughness = float(np.sqrt(np.sum((rise - A @ coef) ** 2) / (len(x) - 3)))
+    if coef[2] <= 0.0:
+        return np.inf, roughness
+    return float(np.sqrt((s2 + 2.0 * roughness) / coef[2])), roughness
+
+
+def held_basis(p: int, members: np.ndarray) -> np.ndarray:
+    """Orthonormal basis, shape (p, p - 1), of the parameter vectors that keep the sum over
+    ``members`` (indices) fixed: the members' mixed axes first, then every other parameter as
+    its own axis (moving a sensor parameter alone needs no new simulation)."""
+    k = len(members)
+    _, _, Vt = np.linalg.svd(np.ones((1, k)))
+    B = np.zeros((p, p - 1))
+    B[np.ix_(members, np.arange(k - 1))] = Vt[1:].T
+    B[np.setdiff1d(np.arange(p), members), np.arange(k - 1, p - 1)] = 1.0
+    return B
+
+
+def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
+    """The smaller rise of the cost with the common scale moved ``SCALE_STEP`` along
+    ``direction`` (shape (p,): log factors per unit of scale) below and above the optimum and
+    the other combinations of ``members`` (indices) and parameters re-fitted, in cost units;
+    the unit direction from the one re-fitted optimum to the other (the valley the scale
+    moves along); and the bend of the valley, shape (p,): the re-fitted optima's mean less
+    ``theta`` (a combination across the straight valley still changes by ``c . bend``
+    within the scale tested).
+
+    ``steps``, ``lower`` (p,): the parameters' finite-difference steps and lower bounds."""
+    p, k = len(theta), len(members)
+    B = held_basis(p, members)
+    others = np.setdiff1d(np.arange(p), members)
+    steps, lower = np.asarray(steps, float), np.asarray(lower, float)
+    z_steps = np.append(np.full(k - 1, steps[members].max()), steps[others])
+    rises, ends = [], []
+    for h in (-SCALE_STEP, SCALE_STEP):
+        start = theta + h * np.asarray(direction)
+        z_lower = np.append(np.full(k - 1, -np.inf), lower[others] - start[others])
+        sol = least_squares(
+            lambda z, s=start: problem(s + B @ z),
+            np.maximum(np.zeros(p - 1), z_lower + 1e-9),
+            bounds=(z_lower, np.inf),
+            diff_step=z_steps,
+            max_nfev=SCALE_EVALUATIONS,
+        )
+        rises.append(float(sol.cost) - cost0)
+        ends.append(start + B @ sol.x)
+    valley = ends[1] - ends[0]
+    return min(rises), valley / np.linalg.norm(valley), 0.5 * (ends[0] + ends[1]) - theta

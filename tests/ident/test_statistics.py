@@ -1,0 +1,157 @@
+"""The fit's statistics on residual functions whose answer is known in closed form: sigmas read
+off the cost (roughness counted), the common scale of masses and stiffnesses tested by
+re-minimising, and the report printing what the data cannot separate."""
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from gyrohost.ident import profile
+from gyrohost.ident.fit import FitResult, statistics, uncertainty
+from gyrohost.ident.params import Param
+from gyrohost.ident.report import apply_result, report_lines
+
+RNG = np.random.default_rng(7)
+T = np.linspace(0.0, 1.0, 400)
+NOISE = RNG.normal(size=(2, len(T)))
+
+
+class Problem:
+    """Weighted residuals of the four log factors J3, bar mass, stiffness, damping and one
+    sensor parameter: the motion depends on J3, stiffness and damping relative to the bar mass
+    (the scale symmetry) plus ``pin`` times the bar mass on its own (the wheels' mass, or a
+    weighed bar), with unit noise; ``rough`` adds a cost jump pattern (the slack crossings)."""
+
+    def __init__(self, truth, pin=0.0, rough=0.0):
+        self.truth, self.pin, self.rough = np.asarray(truth), pin, rough
+        names = (("J3", "J3"), ("bar_mass", "bar-mass"), ("stiffness", "stiffness"))
+        self.params = [Param(n, g, True, 1.0, "-") for n, g in names]
+        self.params += [Param("damping", "damping", True, 1.0, "-")]
+        self.params += [Param("mounting.roll", "mounting", False, 0.0, "rad")]
+        self.dynamic = np.array([True] * 4 + [False])
+        self.scene = SimpleNamespace(bars=[SimpleNamespace(mass=1.0, wheel=None)])
+
+    def signals(self, theta):
+        j, m, k, c, roll = theta
+        a, b, d = j - m, k - m, c - m
+        return np.concatenate(
+            [
+                30 * a * np.sin(9 * T) + 5 * b * np.cos(4 * T) + 3 * d * T,
+                20 * roll * np.ones_like(T) + self.pin * m * T**2,
+            ]
+        )
+
+    def __call__(self, theta):
+        theta = np.asarray(theta, float)
+        r = self.signals(theta) - self.signals(self.truth) - NOISE.ravel()
+        if self.rough:
+            # a residual oscillating faster than any step in the stiffness: a rough cost
+            r = np.append(r, self.rough * np.sin(5000 * theta[2]))
+        return r
+
+
+def solve(problem):
+    steps = [0.03] * 5
+    sol = least_squares(problem, np.zeros(5), diff_step=steps, xtol=1e-12)
+    lower = [-np.inf] * 5
+    return sol, statistics(problem, sol, lower, steps)
+
+
+def linear_sigma(problem, sol):
+    r, J = sol.fun, sol.jac
+    s2 = r @ r / (len(r) - 5)
+    return np.sqrt(np.diag(s2 * np.linalg.pinv(J.T @ J)))
+
+
+def test_a_pinned_scale_gives_every_parameter_with_its_linear_sigma():
+    """Weighed bars (a strong pin): everything separable; on a smooth, linear residual the
+    sigmas read off the cost equal the closed form s^2 (J^T J)^-1."""
+    problem = Problem([0.2, -0.2, 0.1, -0.3, 0.01], pin=200.0)
+    sol, (sigma, corr, unresolved, separable, combos, valley) = solve(problem)
+    assert valley is None and all(separable) and not unresolved and not combos
+    np.testing.assert_allclose(sigma, linear_sigma(problem, sol), rtol=0.02)
+    assert sol.x[1] == pytest.approx(-0.2, abs=4 * sigma[1])
+
+
+def test_roughness_widens_the_sigma_of_the_parameter_it_hits():
+    smooth = Problem([0.2, -0.2, 0.1, -0.3, 0.01], pin=200.0)
+    rough = Problem([0.2, -0.2, 0.1, -0.3, 0.01], pin=200.0, rough=1.5)
+    sigma_smooth = solve(smooth)[1][0]
+    sigma_rough = solve(rough)[1][0]
+    assert sigma_rough[2] > 1.5 * sigma_smooth[2]  # stiffness: the rough one
+    assert sigma_rough[0] == pytest.approx(sigma_smooth[0], rel=0.1)  # J3: untouched
+
+
+def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined():
+    """Bars not weighed (a pin within the noise over +-20 %): the scale is flagged, the four factors
+    are not separable, their combinations along the valley are determined and within their
+    sigmas of the truth's; the report prints no number for the bar mass."""
+    truth = np.array([0.26, -0.22, 0.22, -0.36, 0.01])
+    problem = Problem(truth, pin=0.5)
+    sol, (sigma, corr, unresolved, separable, combos, valley) = solve(problem)
+    assert all(uncertainty(sol.jac, sol.fun, 5)[2])  # the singular values alone miss it
+    assert valley is not None
+    np.testing.assert_allclose(np.abs(valley[:4]), 0.5, atol=0.05)  # about the common factor
+    assert list(separable) == [False] * 4 + [True]
+    assert np.all(np.isinf(sigma[:4])) and np.isfinite(sigma[4])
+    assert len(combos) == 3
+    for c, value, s in combos:
+        assert abs(value - c @ truth) < 3 * s
+    result = FitResult(
+        problem.params, sol.x, sigma, corr, unresolved, separable, combos, valley,
+        [], [], {}, float(sol.cost), int(sol.nfev), "", None, 0.0,
+    )  # fmt: skip
+    lines = report_lines(result)
+    bar = next(line for line in lines if line.startswith("bar_mass"))
+    assert "not separable" in bar
+    assert sum(line.startswith("determined:") for line in lines) == 3
+    assert any("common scale" in line for line in lines)
+
+
+def test_the_identified_scene_keeps_the_bars_nominal_along_an_undetermined_scale():
+    """The estimate moved along the valley to the nominal bar mass: the factors' ratios (the
+    motion) are kept."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.resources import resolve
+    from gyrotensegrity import load_scene
+
+    config = load_rig_config(resolve("config", "sim-rig"))
+    scene = load_scene(config.scene_path)
+    problem = Problem(np.zeros(5))
+    params = [replace(p, nominal=1.0) for p in problem.params]
+    theta = np.array([0.3, 0.1, 0.2, -0.1, 0.0])
+    valley = np.array([0.5, 0.5, 0.5, 0.5, 0.0])
+    separable = np.array([False] * 4 + [True])
+    result = FitResult(
+        params, theta, np.zeros(5), np.eye(5), [valley], separable, [], valley,
+        [], [], {}, 0.0, 0, "", scene, 0.05,
+    )  # fmt: skip
+    applied = apply_result(result, config).scene
+    assert [b.mass for b in applied.bars] == pytest.approx([b.mass for b in scene.bars])
+    k = applied.strings[0].stiffness / scene.strings[0].stiffness
+    assert k == pytest.approx(np.exp(0.2 - 0.1))
+
+
+def test_held_direction_leaves_the_covariance():
+    J = RNG.normal(size=(300, 3))
+    u = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    cov, unresolved, separable = uncertainty(J, RNG.normal(size=300), 3, held=u)
+    assert u @ cov @ u == pytest.approx(0.0, abs=1e-12)
+    assert list(separable) == [False, False, True]
+    assert cov[2, 2] > 0 and len(unresolved) == 1
+
+
+def test_scale_rise_is_zero_along_an_exact_symmetry():
+    problem = Problem([0.2, -0.2, 0.1, -0.3, 0.01], pin=0.0)
+    sol = least_squares(problem, np.zeros(5), diff_step=0.03)
+    members = np.array([1, 0, 2, 3])
+    direction = np.array([1.0, 1.0, 1.0, 1.0, 0.0])
+    rise, valley, bend = profile.scale_rise(
+        problem, sol.x, direction, members, [0.03] * 5, [-np.inf] * 5, float(sol.cost)
+    )
+    assert rise == pytest.approx(0.0, abs=1e-3)
+    np.testing.assert_allclose(np.abs(valley[:4]), 0.5, atol=1e-3)
+    np.testing.assert_allclose(bend, 0.0, atol=1e-3)  # a straight valley
