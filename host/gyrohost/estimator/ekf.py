@@ -171,13 +171,17 @@ class TensegrityEKF:
         return word
 
     # -- time update ----------------------------------------------------------------------------
-    def set_input(self, rest_length_m, t_s=None):
+    def set_input(self, rest_length_m, t_s=None, wheel_speed_rad_s=None):
         """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now), held until the next
-        command; the filter first predicts to ``t_s`` with the previous command."""
+        command; the filter first predicts to ``t_s`` with the previous command. With
+        ``wheel_speed_rad_s`` (n_w,), scene wheel order, the wheels' commanded spins too (the
+        wheel states follow them with ``wheel_lag_s``; none given: the previous ones)."""
         if t_s is not None and t_s > self.t:
             self.advance(t_s)
         self.u = self.u.copy()
         self.u[: self.model.alpha] = rest_length_m
+        if wheel_speed_rad_s is not None:
+            self.process.command_wheels(wheel_speed_rad_s)
 
     def advance(self, t_s: float) -> None:
         """Predict to ``t_s`` in steps of at most ``process_dt_s``; check the time-outs."""

@@ -27,8 +27,11 @@ def phase_window(folder: Path) -> tuple[float | None, float | None]:
     return times.get(FIRST_PHASE), times.get(LAST_PHASE)
 
 
-def load_recording(folder, config: RigConfig, n_wheels: int, commanded=False) -> Recording:
-    """The :class:`Recording` of the log folder ``folder``.
+def load_recording(
+    folder, config: RigConfig, n_wheels: int, commanded=False, until_s=None
+) -> Recording:
+    """The :class:`Recording` of the log folder ``folder``; with ``until_s``, only its first
+    ``until_s`` seconds (from the start of ``lead_in``, else of the log).
 
     Raises
     ------
@@ -42,6 +45,9 @@ def load_recording(folder, config: RigConfig, n_wheels: int, commanded=False) ->
     except LogError as exc:
         raise IdentDataError(str(exc)) from None
     start, end = phase_window(folder)
+    if until_s is not None:
+        first = start if start is not None else float(data[streams.IMU]["t_s"][0])
+        end = first + until_s if end is None else min(end, first + until_s)
     if end is not None:
         data = {k: v[v["t_s"] < end] for k, v in data.items()}
     if start is not None:

@@ -5,21 +5,25 @@ import math
 
 import numpy as np
 
+from gyrohost.config import RunTable
 from gyrohost.control.schedule import Limits, Schedule
 from gyrohost.estimator.ekf import Status
 from gyrohost.run.errors import LimitBreach, RunError, ScheduleRefused
 
 
-def check_schedule(schedule: Schedule, servos) -> None:
-    """Refuse a schedule that breaks any servo's limits (before anything moves).
+def check_schedule(schedule: Schedule, servos, run=None) -> None:
+    """Refuse a schedule that breaks any servo's or wheel limit (before anything moves).
 
     Each scheduled string must be wound by a configured servo; its rest lengths must lie in
     that servo's ``[min_length_m, max_length_m]`` and change no faster than ``max_speed_m_s``.
+    Each scheduled wheel speed must stay within ``run.max_wheel_speed_rad_s`` (the rig
+    configuration's ``[run]`` table, a :class:`gyrohost.config.RunTable`; default: its
+    defaults).
 
     Raises
     ------
     ScheduleRefused
-        Naming the string, the value and the limit.
+        Naming the string or wheel, the value and the limit.
     """
     by_string = {s.string or s.name: s for s in servos}
     problems = []
@@ -30,10 +34,40 @@ def check_schedule(schedule: Schedule, servos) -> None:
             continue
         one = Schedule((name,), schedule.t, schedule.rest_length[:, [i]], schedule.name)
         problems += one.problems(Limits.from_servos([servo]))
+    problems += wheel_problems(schedule, run or RunTable())
     if problems:
         raise ScheduleRefused(
             f"schedule {schedule.name} refused, nothing moved: " + "; ".join(problems)
         )
+
+
+def wheel_problems(schedule: Schedule, run) -> list[str]:
+    """The scheduled wheel speeds beyond ``run.max_wheel_speed_rad_s``, as messages."""
+    limit = run.max_wheel_speed_rad_s
+    out = []
+    for name, col in zip(schedule.wheels, schedule.wheel_speed.T, strict=True):
+        k = int(np.argmax(np.abs(col)))
+        if abs(col[k]) > limit:
+            out.append(
+                f"wheel on {name}: speed {col[k]:.4g} rad/s at t = {schedule.t[k]:g} s beyond "
+                f"[run] max_wheel_speed_rad_s = {limit:g} rad/s"
+            )
+    return out
+
+
+class RecentPeak:
+    """The largest value given over the last ``memory_s`` seconds (the wheel-speed limit's
+    reference: the largest recent command)."""
+
+    def __init__(self, memory_s: float):
+        self.memory_s = memory_s
+        self.items: list[tuple[float, float]] = []
+
+    def add(self, t_s: float, value: float) -> float:
+        """Add ``value`` at ``t_s``; returns the peak of the last ``memory_s``."""
+        self.items = [(t, v) for t, v in self.items if t > t_s - self.memory_s and v > value]
+        self.items.append((t_s, value))
+        return max(v for _, v in self.items)
 
 
 def check_limits(settings, omega_cmd, wheel_telemetry, servo_states, tilt_rad, ekf) -> None:
@@ -43,7 +77,7 @@ def check_limits(settings, omega_cmd, wheel_telemetry, servo_states, tilt_rad, e
     ----------
     settings : RunSettings
     omega_cmd : ndarray, rad/s
-        Commanded wheel speeds.
+        Commanded wheel speeds (the largest recent command: :class:`RecentPeak`).
     wheel_telemetry : WheelTelemetry sample or None
         The newest wheel-board telemetry.
     servo_states : list of ServoState
