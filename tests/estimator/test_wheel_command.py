@@ -43,3 +43,21 @@ def test_without_a_lag_the_wheels_are_held_as_the_model_says(model):
     ekf.set_input(model.input_at(0.0)[: model.alpha], 0.0, s0 + 10.0)
     ekf.advance(0.2)
     np.testing.assert_allclose(ekf.x[omega], s0, atol=1e-9)
+
+
+def test_a_wheel_delay_shifts_the_response_by_that_much(model):
+    """With ``wheel_delay_s`` the response is the undelayed one, that much later."""
+    delay = 0.02
+    config = EstimatorConfig(wheel_lag_s=TAU_S, wheel_accel_rad_s2=ACCEL, wheel_delay_s=delay)
+    ekf = TensegrityEKF(model, config)
+    omega = layout_of(model).omega
+    rest = model.input_at(0.0)[: model.alpha]
+    s0 = ekf.x[omega].copy()
+    ekf.set_input(rest, 0.0, s0)
+    ekf.set_input(rest, 0.0, s0 + STEP * np.sign(s0))
+    ekf.advance(delay)
+    np.testing.assert_allclose(ekf.x[omega], s0, atol=1e-9)  # nothing yet
+    for t in (0.035, 0.13, 0.3):
+        ekf.advance(t)
+        want = [np.sign(s) * (closed_form(t - delay, abs(s)) - abs(s)) + s for s in s0]
+        np.testing.assert_allclose(ekf.x[omega], want, atol=2e-3)
