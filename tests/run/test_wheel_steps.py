@@ -11,7 +11,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.resources import shipped
 from gyrohost.run import RunSettings, ScheduleRefused, run_simulated
-from gyrohost.run.limits import RecentPeak, check_schedule
+from gyrohost.run.limits import CommandHistory, check_schedule
 from gyrohost.run.log import read_stream
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
@@ -39,12 +39,16 @@ def test_wheel_speeds_beyond_the_run_limit_are_refused_naming_wheel_and_limit():
         check_schedule(stepped([1.15]), CONFIG.servos.servo, run)
 
 
-def test_recent_peak_remembers_the_largest_value_for_its_memory():
-    peak = RecentPeak(1.0)
-    assert peak.add(0.0, 80.0) == 80.0
-    assert peak.add(0.5, 60.0) == 80.0  # a step down: the wheel still runs down from 80
-    assert peak.add(1.2, 60.0) == 60.0  # forgotten after a second
-    assert peak.add(1.3, 70.0) == 70.0
+def test_the_limit_takes_the_largest_command_of_the_second_before_the_frame():
+    history = CommandHistory(1.0)
+    history.add(0.0, 80.0)
+    history.add(0.5, 60.0)  # a step down: the wheel still runs down from 80
+    assert history.peak_before(0.6) == 80.0
+    assert history.peak_before(1.4) == 80.0  # in force until 0.5: within the second before
+    assert history.peak_before(1.6) == 60.0
+    history.add(3.0, 60.0)  # an unchanged command is not a new item
+    assert history.peak_before(3.0) == 60.0 and len(history.items) == 2
+    assert history.peak_before(1.2) == 80.0  # a frame received late still finds its commands
 
 
 def test_a_run_steps_the_wheels_and_the_estimator_follows(tmp_path):

@@ -55,19 +55,34 @@ def wheel_problems(schedule: Schedule, run) -> list[str]:
     return out
 
 
-class RecentPeak:
-    """The largest value given over the last ``memory_s`` seconds (the wheel-speed limit's
-    reference: the largest recent command)."""
+class CommandHistory:
+    """The largest wheel command in force over a stretch of time (the wheel-speed limit's
+    reference: after a step down the board ramps and the wheels follow with their lag, so a
+    telemetry frame is compared with what was commanded over the ``memory_s`` before it).
 
-    def __init__(self, memory_s: float):
-        self.memory_s = memory_s
+    Parameters
+    ----------
+    memory_s : float, s
+    keep_s : float, s
+        History kept (a frame received late by a starved loop still finds its commands).
+    """
+
+    def __init__(self, memory_s: float, keep_s: float = 60.0):
+        self.memory_s, self.keep_s = memory_s, keep_s
         self.items: list[tuple[float, float]] = []
 
-    def add(self, t_s: float, value: float) -> float:
-        """Add ``value`` at ``t_s``; returns the peak of the last ``memory_s``."""
-        self.items = [(t, v) for t, v in self.items if t > t_s - self.memory_s and v > value]
-        self.items.append((t_s, value))
-        return max(v for _, v in self.items)
+    def add(self, t_s: float, value: float) -> None:
+        """``value`` is commanded from ``t_s`` on."""
+        if not self.items or self.items[-1][1] != value:
+            self.items.append((t_s, value))
+        while len(self.items) > 1 and self.items[1][0] < t_s - self.keep_s:
+            self.items.pop(0)
+
+    def peak_before(self, t_s: float) -> float:
+        """The largest command in force between ``t_s - memory_s`` and now."""
+        since = t_s - self.memory_s
+        first = max([k for k, (t, _) in enumerate(self.items) if t <= since], default=0)
+        return max(v for _, v in self.items[first:])
 
 
 def check_limits(settings, omega_cmd, wheel_telemetry, servo_states, tilt_rad, ekf) -> None:
@@ -76,8 +91,9 @@ def check_limits(settings, omega_cmd, wheel_telemetry, servo_states, tilt_rad, e
     Parameters
     ----------
     settings : RunSettings
-    omega_cmd : ndarray, rad/s
-        Commanded wheel speeds (the largest recent command: :class:`RecentPeak`).
+    omega_cmd : float or ndarray, rad/s
+        Commanded wheel speeds (the largest command in force over the telemetry's last
+        second: :meth:`CommandHistory.peak_before`).
     wheel_telemetry : WheelTelemetry sample or None
         The newest wheel-board telemetry.
     servo_states : list of ServoState

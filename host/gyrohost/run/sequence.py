@@ -49,7 +49,7 @@ from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import LimitBreach, RunError
-from gyrohost.run.limits import RecentPeak, check_limits, check_schedule
+from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
@@ -141,7 +141,7 @@ class RunLoop:
         wheels = [self.model.scene.bars[b].wheel for b in self.model.wheel_bars]
         self.spins[: len(wheels)] = [w.spin0 for w in wheels]
         self.n_wheels = len(wheels)
-        self.wheel_peak = RecentPeak(self.settings.wheel_command_memory_s)
+        self.wheel_commands = CommandHistory(self.settings.wheel_command_memory_s)
         self.log_folder = Path(log_folder)
         self.extra_meta = meta or {}
         self.sinks = [McapSink(self.model.scene), *([live] if live is not None else [])]
@@ -397,7 +397,8 @@ class RunLoop:
         if strict:
             self.log.check()  # a refused write ends the run here, wherever it happened
             tel = self.wheel_reader.latest if self.wheels is not None else None
-            peak = self.wheel_peak.add(start, float(np.max(np.abs(self.omega_cmd))))
+            self.wheel_commands.add(start, float(np.max(np.abs(self.omega_cmd))))
+            peak = self.wheel_commands.peak_before(self._arrival_s(start))
             check_limits(self.settings, peak, tel, self.latest_servos,
                          self.latest_tilt, self.ekf)  # fmt: skip
         cpu = time.thread_time() - cpu0
@@ -406,6 +407,11 @@ class RunLoop:
             self.progress(self.phase, start, self._played(start), self.readout())
         if strict and self.on_tick is not None:
             self.on_tick(self, self.phase, start)
+
+    def _arrival_s(self, default_s: float) -> float:
+        """Host time (s) the newest telemetry frame arrived (``default_s`` without one)."""
+        ns = self.wheel_reader.latest_ns if self.wheel_reader is not None else None
+        return default_s if ns is None else (ns - self.ticker.t0_ns) * 1e-9
 
     def readout(self) -> Readout:
         """Estimated tilt, measured wheel speeds and the estimator's status now."""
