@@ -8,6 +8,8 @@ import numpy as np
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator import streams
+from gyrohost.estimator.config import for_rig
+from gyrohost.estimator.driver import regular_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
 from gyrohost.run.log import LogError, read_stream, read_streams
 
@@ -44,6 +46,12 @@ def load_recording(
         data = read_streams(folder, names)
     except LogError as exc:
         raise IdentDataError(str(exc)) from None
+    if streams.IMU in data:
+        # sampled on the IMU's grid, arrival-stamped in bursts: the grid back, as the run loop
+        # and gyrotens replay fuse them (estimator.driver.RegularClock)
+        imu, est = data[streams.IMU].copy(), for_rig(config)
+        imu["t_s"] = regular_times(imu["t_s"], est.imu_period_s, est.imu_max_delay_s)
+        data[streams.IMU] = imu
     start, end = phase_window(folder)
     if until_s is not None:
         first = start if start is not None else float(data[streams.IMU]["t_s"][0])
