@@ -171,7 +171,7 @@ def test_wheels_bind_to_the_scene_wheels_by_bar(dbar):
     s = with_wheels()
     assert s.bind_wheels(dbar) == [0]
     other = Schedule(s.names, s.t, s.rest_length, "w", ("s13",), s.wheel_speed)
-    with pytest.raises(ScheduleError, match="s13, not a bar with a wheel .*b12, b23, b34, b41"):
+    with pytest.raises(ScheduleError, match="on s13 not in scene .* wheels on b12, b23, b34, b41"):
         other.bind_wheels(dbar)
     # the shipped D-bar's wheels are torque-driven: a speed is no input of that model
     with pytest.raises(ScheduleError, match="b12 are torque-driven"):

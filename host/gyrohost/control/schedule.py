@@ -202,14 +202,8 @@ class Schedule:
         ScheduleError
             A scheduled string is not in the model's scene.
         """
-        scene_names = [s.name for s in model.scene.strings]
-        missing = [n for n in self.names if n not in scene_names]
-        if missing:
-            raise ScheduleError(
-                f"schedule {self.name}: string(s) {', '.join(missing)} not in scene "
-                f"{model.scene.name} (it has {', '.join(scene_names)})"
-            )
-        return [scene_names.index(n) for n in self.names]
+        strings = [s.name for s in model.scene.strings]
+        return self._positions(self.names, strings, "string(s)", "", model)
 
     def bind_wheels(self, model):
         """Index of each scheduled wheel in the model's wheel order (scene bar order), list of
@@ -221,13 +215,16 @@ class Schedule:
             A scheduled wheel's bar is not a bar with a wheel in the model's scene.
         """
         bars = [model.scene.bars[b].name for b in model.wheel_bars]
-        missing = [n for n in self.wheels if n not in bars]
+        return self._positions(self.wheels, bars, "wheel(s) on", "wheels on ", model)
+
+    def _positions(self, wanted, available, what, has, model) -> list[int]:
+        missing = [n for n in wanted if n not in available]
         if missing:
             raise ScheduleError(
-                f"schedule {self.name}: wheel_speed_rad_s names {', '.join(missing)}, not a bar "
-                f"with a wheel in scene {model.scene.name} (wheels on: {', '.join(bars) or 'none'})"
+                f"schedule {self.name}: {what} {', '.join(missing)} not in scene "
+                f"{model.scene.name} (it has {has}{', '.join(available) or 'none'})"
             )
-        return [bars.index(n) for n in self.wheels]
+        return [available.index(n) for n in wanted]
 
     def input_at(self, model, t: float) -> np.ndarray:
         """The model's input ``u`` at ``t`` (s): the scene's input with the scheduled rest
