@@ -14,7 +14,7 @@ from gyrohost.control.schedule import Schedule, load_schedule
 from gyrohost.experiments.identify_rig import IMU_ROTATION_DEG, identified_errors, write_rig_files
 from gyrohost.resources import resolve
 
-FIRST_S = 10.5  # s of the identify schedule: its pulls at 0.10 and 0.14 m/s, two wheel steps
+FIRST_S = 10.7  # s of the identify schedule: pulls at 0.02 and 0.10 m/s, a wheel step, rests
 
 
 def first_part(path):

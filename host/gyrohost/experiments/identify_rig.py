@@ -10,7 +10,7 @@ Per seed (the simulated IMU's noise and biases):
    truth's bar mass) and the truth's IMU turned (3, -1.7, 1.1) degrees from where ``C`` says
    it is (``[sim.truth] imu_rotation_deg``);
 2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --until 16`` (the
-   first 16 s: the lead-in and the fast pulls; output error over the whole run loses the
+   first 16 s: the lead-in, three pulls, two wheel steps; output error over the whole run loses the
    D-bar's unstable roll mode);
 3. ``gyrotens run --sim --config C --overlay OVERLAY.toml --scene IDENT.toml
    --truth-scene T``.
