@@ -185,9 +185,11 @@ class TensegrityEKF:
         if wheel_speed_rad_s is None:
             return
         speeds = np.array(wheel_speed_rad_s, float)
+        last = self._wheel_commands[-1][1] if self._wheel_commands else None
         if self.process.wheel_command_rad_s is None:
             self.process.command_wheels(speeds)
-        else:
+        elif not np.array_equal(speeds, self.process.wheel_command_rad_s if last is None else last):
+            # only changes: each queued command splits the prediction step at its due time
             stamp = self.t if t_s is None else t_s
             self._wheel_commands.append((stamp + self.config.wheel_delay_s, speeds))
             self._apply_due_wheel_commands()
