@@ -19,7 +19,7 @@ from gyrohost.experiments.identify_rig import (
 )
 from gyrohost.resources import resolve
 
-FIRST_S = 15.5  # s of the identify schedule (what identify_rig fits): three pulls, two wheel steps
+FIRST_S = 10.7  # s of the identify schedule: pulls at 0.02 and 0.10 m/s, a wheel step, rests
 
 
 def first_part(path):
