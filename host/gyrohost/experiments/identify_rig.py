@@ -9,9 +9,9 @@ Per seed (the simulated IMU's noise and biases):
    x 0.7; ``C`` is ``sim-rig`` with the bars weighed (its scene: the shipped D-bar with the
    truth's bar mass) and the truth's IMU turned (3, -1.7, 1.1) degrees from where ``C`` says
    it is (``[sim.truth] imu_rotation_deg``);
-2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --until 16`` (the
-   first 16 s: the lead-in, three pulls, two wheel steps; output error over the whole run loses the
-   D-bar's unstable roll mode);
+2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --until 11.5``
+   (the lead-in, the first pulls and a wheel step: output error loses the D-bar's unstable
+   roll mode once it takes over, 12 to 16.5 s into the logs seen);
 3. ``gyrotens run --sim --config C --overlay OVERLAY.toml --scene IDENT.toml
    --truth-scene T``.
 
@@ -125,7 +125,7 @@ def main(argv=None) -> int:
     parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--out", type=Path, help="keep everything here (default: temporary)")
     parser.add_argument("--lengths", choices=("servos", "command"), default="servos")
-    parser.add_argument("--until", type=float, default=16.0, help="s of each log fitted (16)")
+    parser.add_argument("--until", type=float, default=11.5, help="s of each log fitted (11.5)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
