@@ -243,6 +243,9 @@ class RunTable:
     imu_silence_s: float = field(default=0.5, metadata=_spec(lo=0.01, hi=10.0))
     wheel_silence_s: float = field(default=0.5, metadata=_spec(lo=0.01, hi=10.0))
     wheel_speed_margin_rad_s: float = field(default=15.0, metadata=_spec(lo=0.1, hi=1000.0))
+    max_wheel_speed_rad_s: float = field(
+        default=150.0, metadata=_spec(lo=0.1, hi=1000.0, doc="largest |spin| a schedule commands")
+    )
     max_servo_load: float = field(default=0.95, metadata=_spec(lo=0.01, hi=1.0))
     spinup_timeout_s: float = field(default=10.0, metadata=_spec(lo=0.1, hi=600.0))
     steady_tolerance_rad_s: float = field(default=1.5, metadata=_spec(lo=0.01, hi=100.0))
@@ -332,15 +335,75 @@ def with_truth_scene(config: RigConfig, scene: str | Path) -> RigConfig:
     return replace(config, sim=replace(config.sim, truth=truth))
 
 
-def load_rig_config(path: str | Path) -> RigConfig:
-    """Read and validate a rig configuration TOML file.
+def load_rig_config(path: str | Path, overlays=()) -> RigConfig:
+    """Read and validate a rig configuration TOML file, with ``overlays`` (files, in order)
+    merged into it (:func:`merge_overlay`); relative paths stay relative to ``path``.
 
     Raises
     ------
     ConfigError
-        The file is missing or not TOML, or a key is unknown, mistyped, out of range or missing.
+        A file is missing or not TOML, an overlay does not fit the configuration, or a key is
+        unknown, mistyped, out of range or missing (naming the overlays that were merged).
     """
-    return rig_config_from_dict(read_toml(path, ConfigError), str(path))
+    data = read_toml(path, ConfigError)
+    for overlay in overlays:
+        data = merge_overlay(data, read_toml(overlay, ConfigError), str(overlay))
+    if not overlays:
+        return rig_config_from_dict(data, str(path))
+    try:
+        return rig_config_from_dict(data, str(path))
+    except ConfigError as exc:
+        merged = ", ".join(map(str, overlays))
+        raise ConfigError(f"{exc} (with the overlay {merged} merged)") from None
+
+
+def merge_overlay(base: dict, overlay: dict, source: str, where: str = "") -> dict:
+    """``base`` (a configuration's TOML data) with ``overlay``'s keys set in it.
+
+    Tables merge key by key; an array of tables (``[[servos.servo]]``) merges entry by entry,
+    each overlay entry into the base's entry of the same ``name``; any other value replaces the
+    base's. ``source`` (the overlay file) is named in errors.
+
+    Raises
+    ------
+    ConfigError
+        An overlay table where the base has a value (or the reverse), or an array-of-tables
+        entry without a ``name`` or with a name the base does not have.
+    """
+    out = dict(base)
+    for key, value in overlay.items():
+        here = f"{where}{key}"
+        old = base.get(key)
+        if isinstance(value, dict) or isinstance(old, dict):
+            if old is not None and not (isinstance(value, dict) and isinstance(old, dict)):
+                raise ConfigError(f"{source}: key '{here}': a table against a value or the reverse")
+            out[key] = merge_overlay(old or {}, value, source, here + ".")
+        elif _tables(value) and old is not None:
+            out[key] = _merge_entries(old, value, source, here)
+        else:
+            out[key] = value
+    return out
+
+
+def _tables(value) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _merge_entries(base: list, overlay: list, source: str, where: str) -> list:
+    if not _tables(base):
+        raise ConfigError(f"{source}: key '{where}': an array of tables against a value")
+    names = [entry.get("name") for entry in base]
+    out = list(base)
+    for i, entry in enumerate(overlay):
+        name = entry.get("name")
+        if name not in names:
+            raise ConfigError(
+                f"{source}: key '{where}[{i}].name': {name!r} names no entry of the "
+                f"configuration (it has {', '.join(map(repr, names))})"
+            )
+        k = names.index(name)
+        out[k] = merge_overlay(out[k], entry, source, f"{where}[{k}].")
+    return out
 
 
 def rig_config_from_dict(data: dict, source: str = "<dict>") -> RigConfig:

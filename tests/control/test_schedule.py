@@ -1,6 +1,7 @@
 """Schedule files, limits and the paper preset."""
 
 import json
+import math
 import tomllib
 
 import numpy as np
@@ -126,3 +127,52 @@ def test_limits_from_servo_config():
     assert (lim.max_speed_m_s, lim.min_length_m, lim.max_length_m) == (0.04, 0.1, 0.7)
     with pytest.raises(ScheduleError, match="no servos"):
         Limits.from_servos(())
+
+
+def with_wheels():
+    """``simple`` with the wheel on b12 stepped from 74.9 to 86.1 rad/s between 1 and 2 s."""
+    s = simple()
+    return Schedule(s.names, s.t, s.rest_length, "w", ("b12",), [[74.9], [74.9], [86.1]])
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_wheel_speeds_round_trip_and_interpolate(tmp_path, suffix):
+    s = with_wheels()
+    back = load_schedule(s.save(tmp_path / f"w{suffix}"))
+    assert back.wheels == ("b12",)
+    np.testing.assert_array_equal(back.wheel_speed, s.wheel_speed)
+    np.testing.assert_allclose(back.wheel_speeds(1.5), [80.5])
+    np.testing.assert_allclose(back.wheel_speeds(9.0), [86.1])  # held after the last sample
+    assert simple().wheels == () and simple().wheel_speeds(1.0).shape == (0,)
+
+
+def test_a_schedule_of_wheel_speeds_alone_is_a_schedule():
+    data = {"schedule": {"t_s": [0.0, 1.0]}, "wheel_speed_rad_s": {"b23": [-74.9, -60.0]}}
+    s = schedule_from_dict(data, "w.toml")
+    assert s.names == () and s.rest_length.shape == (2, 0) and s.wheels == ("b23",)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d["wheel_speed_rad_s"].update(b12=[1.0, 2.0]), r"w\.toml: wheel_speed_rad_s\.b"),
+        (lambda d: d["wheel_speed_rad_s"].update(b12=[1.0, math.nan, 2.0]), r"b12\[1\]: must be"),
+        (lambda d: d.update(wheel_speed_rad_s=3.0), r"wheel_speed_rad_s: must be a table"),
+    ],
+)
+def test_wheel_speed_errors_name_file_and_key(edit, message):
+    data = with_wheels().to_dict()
+    edit(data)
+    with pytest.raises(ScheduleError, match=message):
+        schedule_from_dict(data, "w.toml")
+
+
+def test_wheels_bind_to_the_scene_wheels_by_bar(dbar):
+    s = with_wheels()
+    assert s.bind_wheels(dbar) == [0]
+    other = Schedule(s.names, s.t, s.rest_length, "w", ("s13",), s.wheel_speed)
+    with pytest.raises(ScheduleError, match="on s13 not in scene .* wheels on b12, b23, b34, b41"):
+        other.bind_wheels(dbar)
+    # the shipped D-bar's wheels are torque-driven: a speed is no input of that model
+    with pytest.raises(ScheduleError, match="b12 are torque-driven"):
+        s.input_at(dbar, 0.0)

@@ -147,7 +147,14 @@ def test_identify_schedule_is_inside_every_shipped_dbar_rigs_limits():
     schedule = load_schedule(resolve("schedule", "identify"))
     assert schedule.t[-1] <= 60.0 and sorted(schedule.names) == ["s13", "s24"]
     for name in ("sim-rig", "lab-rig"):
-        check_schedule(schedule, load_rig_config(shipped("config", name)).servos.servo)
+        config = load_rig_config(shipped("config", name))
+        check_schedule(schedule, config.servos.servo, config.run)
+    # wheel speed steps: every wheel at three speeds, the pattern kept, the start the scene's
+    assert schedule.wheels == ("b12", "b23", "b34", "b41")
+    spins = schedule.wheel_speed
+    np.testing.assert_allclose(spins[0], [74.87462492, -74.87462492, -74.87462492, 74.87462492])
+    assert len(np.unique(np.round(np.abs(spins[:, 0]), 3))) == 3
+    np.testing.assert_allclose(spins * np.sign(spins[0]), np.abs(spins))
     s13 = schedule.rest_length[:, schedule.names.index("s13")]
     dt = np.diff(schedule.t)
     held = np.isclose(np.diff(s13), 0.0)

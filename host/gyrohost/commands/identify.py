@@ -1,5 +1,5 @@
-"""``gyrotens identify LOG [LOG...] -o IDENT.toml [--config C] [--params ...]``: fit the rig's
-parameters to recorded runs (docs/identification.md)."""
+"""``gyrotens identify LOG [LOG...] -o IDENT.toml [--config C] [--overlay FILE] [--params ...]``:
+fit the rig's parameters to recorded runs (docs/identification.md)."""
 
 import sys
 from pathlib import Path
@@ -13,6 +13,12 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="identified scene file (.toml)")
     p.add_argument("--config", default="sim-rig", help="rig configuration (file or shipped name)")
     p.add_argument(
+        "--overlay",
+        type=Path,
+        help="configuration overlay to write: the fitted IMU mounting and servo zeros, for "
+        "'gyrotens run --config C --overlay FILE' (default: IDENT-config.toml beside -o)",
+    )
+    p.add_argument(
         "--params",
         default=",".join(DEFAULT_GROUPS),
         help="comma-separated parameter groups: "
@@ -24,6 +30,13 @@ def register(sub) -> None:
         default="servos",
         help="string lengths from the servos' reported positions (default) or from the host's "
         "commands through the servos' lag",
+    )
+    p.add_argument(
+        "--until",
+        type=float,
+        metavar="S",
+        help="fit only the first S seconds of each log (from its lead-in): output error over a "
+        "long run loses the D-bar's unstable roll mode (docs/identification.md)",
     )
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
     p.set_defaults(func=run)
@@ -75,7 +88,7 @@ def run(args) -> int:
         est = for_rig(config)
         n_wheels = len(Model(scene).wheel_bars)
         commanded = args.lengths == "command"
-        recs = [load_recording(log, config, n_wheels, commanded) for log in args.logs]
+        recs = [load_recording(log, config, n_wheels, commanded, args.until) for log in args.logs]
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
         params = parameters(scene, config, groups, nominal_lag(config, est, recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
@@ -90,10 +103,11 @@ def run(args) -> int:
     print("\n".join(report.report_lines(result)))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(report.identified_scene(result, config, args.logs))
-    overlay = out.with_name(out.stem + "-config.toml")
+    overlay = args.overlay or out.with_name(out.stem + "-config.toml")
+    overlay.parent.mkdir(parents=True, exist_ok=True)
     overlay.write_text(report.overlay_toml(result, config))
     plot = out.with_name(out.stem + "-residuals.png")
     report.plot_residuals(result, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
-    print(f"run with it: gyrotens run --config {args.config} --scene {out}")
+    print(f"run with it: gyrotens run --config {args.config} --overlay {overlay} --scene {out}")
     return 0

@@ -1,8 +1,8 @@
-"""``gyrotens run --config RIG.toml [--schedule FILE|PRESET | --target-tilt RAD [--duration S]
-[--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim [--truth-scene FILE] | --rig PORTSFILE]
-[--live]``: one run of a schedule or a planned tilt maneuver on the rig, from connection to the
-safe state, logged (CSV streams and an MCAP file), optionally served live to Foxglove (docs/run.md,
-docs/schedule.md)."""
+"""``gyrotens run --config RIG.toml [--overlay FILE] [--schedule FILE|PRESET | --target-tilt RAD
+[--duration S] [--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim [--truth-scene FILE] |
+--rig PORTSFILE] [--live]``: one run of a schedule or a planned tilt maneuver on the rig, from
+connection to the safe state, logged (CSV streams and an MCAP file), optionally served live to
+Foxglove (docs/run.md, docs/schedule.md)."""
 
 import sys
 import time
@@ -15,6 +15,15 @@ def register(sub) -> None:
         "--config",
         default="sim-rig",
         help="rig configuration: a TOML file or a shipped name (default sim-rig, for --sim)",
+    )
+    p.add_argument(
+        "--overlay",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="TOML keys merged into the configuration (as gyrotens identify writes them: the "
+        "IMU mounting, servo zeros); may be repeated",
     )
     p.add_argument(
         "--schedule",
@@ -218,7 +227,7 @@ def _run(args) -> int:
     from gyrotensegrity import SceneError
 
     try:
-        config = load_rig_config(resolve("config", args.config))
+        config = load_rig_config(resolve("config", args.config), args.overlay)
         if args.scene is not None:
             config = replace(config, scene=str(resolve("scene", args.scene)))
         if args.truth_scene is not None:

@@ -1,9 +1,10 @@
-"""String schedules: piecewise-linear rest lengths of the actuated strings over time.
+"""Schedules: piecewise-linear rest lengths of the actuated strings and wheel speeds over time.
 
 A :class:`Schedule` holds one time grid ``t`` (k,) s and, for each actuated string (by its
-scene name), the rest lengths (k,) m at those times. Between samples the rest length is linear;
-before the first and after the last sample it is held. Strings of the scene that a schedule
-does not name keep the scene's own schedule.
+scene name), the rest lengths (k,) m at those times; optionally, for wheels (by the scene name
+of their bar), the commanded spin (k,) rad/s. Between samples values are linear; before the
+first and after the last sample they are held. Strings of the scene that a schedule does not
+name keep the scene's own schedule; wheels it does not name keep the scene's spin.
 
 File format (TOML, or the same keys in JSON; ``docs/schedule.md``)::
 
@@ -14,6 +15,9 @@ File format (TOML, or the same keys in JSON; ``docs/schedule.md``)::
     [rest_length_m]                  # one array per actuated string, same length as t_s, m
     s13 = [0.431, 0.421, ...]
     s24 = [0.431, 0.440, ...]
+
+    [wheel_speed_rad_s]              # optional: the wheel on each named bar, rad/s about +b
+    b12 = [74.9, 74.9, 86.1, ...]
 """
 
 import json
@@ -112,12 +116,18 @@ class Schedule:
     rest_length : ndarray, shape (k, s), m
         Rest length of each string (column) at each time (row).
     name : str
+    wheels : tuple of str, (w,)
+        Scene names of the bars whose wheels the schedule spins (none: the scene's spins).
+    wheel_speed : ndarray, shape (k, w), rad/s
+        Commanded spin of each of those wheels, about +b of its bar.
     """
 
     names: tuple
     t: np.ndarray
     rest_length: np.ndarray
     name: str = "schedule"
+    wheels: tuple = ()
+    wheel_speed: np.ndarray | None = None
 
     def __post_init__(self):
         t = np.asarray(self.t, float)
@@ -125,6 +135,9 @@ class Schedule:
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "rest_length", v)
         object.__setattr__(self, "names", tuple(self.names))
+        object.__setattr__(self, "wheels", tuple(self.wheels))
+        w = np.zeros((t.size, 0)) if self.wheel_speed is None else self.wheel_speed
+        object.__setattr__(self, "wheel_speed", np.asarray(w, float))
         where = f"schedule {self.name}"
         if t.ndim != 1 or t.size == 0:
             raise ScheduleError(f"{where}: t must be a non-empty 1-D array")
@@ -132,8 +145,15 @@ class Schedule:
             raise ScheduleError(
                 f"{where}: rest_length has shape {v.shape}, expected {(t.size, len(self.names))}"
             )
+        if self.wheel_speed.shape != (t.size, len(self.wheels)):
+            raise ScheduleError(
+                f"{where}: wheel_speed has shape {self.wheel_speed.shape}, expected "
+                f"{(t.size, len(self.wheels))}"
+            )
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
             raise ScheduleError(f"{where}: times and rest lengths must be finite")
+        if not np.all(np.isfinite(self.wheel_speed)):
+            raise ScheduleError(f"{where}: wheel speeds must be finite")
         bad = np.flatnonzero(np.diff(t) <= 0.0)
         if bad.size:
             raise ScheduleError(f"{where}: t[{bad[0] + 1}] does not increase")
@@ -149,6 +169,10 @@ class Schedule:
     def __call__(self, t: float) -> np.ndarray:
         """Rest lengths (s,) m at time ``t`` (s)."""
         return np.array([np.interp(t, self.t, col) for col in self.rest_length.T])
+
+    def wheel_speeds(self, t: float) -> np.ndarray:
+        """Commanded spins (w,) rad/s of the scheduled wheels at time ``t`` (s)."""
+        return np.array([np.interp(t, self.t, col) for col in self.wheel_speed.T])
 
     def max_speeds(self) -> np.ndarray:
         """Largest |d rest_length / dt| of each string, shape (s,), m/s."""
@@ -178,20 +202,51 @@ class Schedule:
         ScheduleError
             A scheduled string is not in the model's scene.
         """
-        scene_names = [s.name for s in model.scene.strings]
-        missing = [n for n in self.names if n not in scene_names]
+        strings = [s.name for s in model.scene.strings]
+        return self._positions(self.names, strings, "string(s)", "", model)
+
+    def bind_wheels(self, model):
+        """Index of each scheduled wheel in the model's wheel order (scene bar order), list of
+        int.
+
+        Raises
+        ------
+        ScheduleError
+            A scheduled wheel's bar is not a bar with a wheel in the model's scene.
+        """
+        bars = [model.scene.bars[b].name for b in model.wheel_bars]
+        return self._positions(self.wheels, bars, "wheel(s) on", "wheels on ", model)
+
+    def _positions(self, wanted, available, what, has, model) -> list[int]:
+        missing = [n for n in wanted if n not in available]
         if missing:
             raise ScheduleError(
-                f"schedule {self.name}: string(s) {', '.join(missing)} not in scene "
-                f"{model.scene.name} (it has {', '.join(scene_names)})"
+                f"schedule {self.name}: {what} {', '.join(missing)} not in scene "
+                f"{model.scene.name} (it has {has}{', '.join(available) or 'none'})"
             )
-        return [scene_names.index(n) for n in self.names]
+        return [available.index(n) for n in wanted]
 
     def input_at(self, model, t: float) -> np.ndarray:
         """The model's input ``u`` at ``t`` (s): the scene's input with the scheduled rest
-        lengths replaced; shape (alpha + n_w,)."""
+        lengths and wheel speeds replaced; shape (alpha + n_w,).
+
+        Raises
+        ------
+        ScheduleError
+            A scheduled wheel is torque-driven in the model (its spin is a state, not an input).
+        """
         u = model.input_at(t)
         u[self.bind(model)] = self(t)
+        wheels = self.bind_wheels(model)
+        bars = model.scene.bars
+        torque = [n for n, i in zip(self.wheels, wheels, strict=True)
+                  if bars[model.wheel_bars[i]].wheel.mode != "speed"]  # fmt: skip
+        if torque:
+            raise ScheduleError(
+                f"schedule {self.name}: the wheel(s) on {', '.join(torque)} are torque-driven in "
+                f"scene {model.scene.name}: their spin is no input of the model"
+            )
+        u[[model.alpha + i for i in wheels]] = self.wheel_speeds(t)
         return u
 
     def splice(self, other: "Schedule", t_s: float) -> "Schedule":
@@ -204,8 +259,11 @@ class Schedule:
             0.1 mm (a re-planned follower string starts on the exact rhombus geometry, the running
             schedule between its samples on a chord of it: tens of micrometres apart).
         """
-        if other.names != self.names:
-            raise ScheduleError(f"splice: strings {other.names} differ from {self.names}")
+        if other.names != self.names or other.wheels != self.wheels:
+            raise ScheduleError(
+                f"splice: strings {other.names} and wheels {other.wheels} differ from "
+                f"{self.names} and {self.wheels}"
+            )
         here = self(t_s)
         jump = np.max(np.abs(other(t_s) - here))
         if jump > 1e-4:
@@ -214,14 +272,20 @@ class Schedule:
         tail = other.t > t_s
         t = np.concatenate([self.t[head], [t_s], other.t[tail]])
         v = np.vstack([self.rest_length[head], here, other.rest_length[tail]])
-        return Schedule(self.names, t, v, self.name)
+        w = np.vstack([self.wheel_speed[head], self.wheel_speeds(t_s), other.wheel_speed[tail]])
+        return Schedule(self.names, t, v, self.name, self.wheels, w)
 
     def to_dict(self) -> dict:
         """Plain data in the file layout (see the module docstring)."""
-        return {
+        out = {
             "schedule": {"name": self.name, "t_s": self.t.tolist()},
             "rest_length_m": {n: self.rest_length[:, i].tolist() for i, n in enumerate(self.names)},
         }
+        if self.wheels:
+            out["wheel_speed_rad_s"] = {
+                n: self.wheel_speed[:, i].tolist() for i, n in enumerate(self.wheels)
+            }
+        return out
 
     def save(self, path) -> Path:
         """Write ``.toml`` or ``.json`` (by suffix); returns the path."""
@@ -243,6 +307,9 @@ class Schedule:
         lines = ["[schedule]", f"name = {json.dumps(self.name)}", f"t_s = {arr(self.t)}", ""]
         lines.append("[rest_length_m]")
         lines += [f"{n} = {arr(self.rest_length[:, i])}" for i, n in enumerate(self.names)]
+        if self.wheels:
+            lines += ["", "[wheel_speed_rad_s]"]
+            lines += [f"{n} = {arr(self.wheel_speed[:, i])}" for i, n in enumerate(self.wheels)]
         return "\n".join(lines) + "\n"
 
 
@@ -255,8 +322,8 @@ def schedule_from_dict(data: dict, source: str = "<schedule>") -> Schedule:
     if not isinstance(data, dict):
         fail("<root>", "must be a table")
     for key in data:
-        if key not in ("schedule", "rest_length_m"):
-            fail(key, "unknown key (allowed: schedule, rest_length_m)")
+        if key not in ("schedule", "rest_length_m", "wheel_speed_rad_s"):
+            fail(key, "unknown key (allowed: schedule, rest_length_m, wheel_speed_rad_s)")
     head = data.get("schedule")
     if not isinstance(head, dict):
         fail("schedule", "missing table")
@@ -267,21 +334,38 @@ def schedule_from_dict(data: dict, source: str = "<schedule>") -> Schedule:
     if not isinstance(name, str):
         fail("schedule.name", "must be a string")
     t = _numbers(head.get("t_s"), "schedule.t_s", fail)
-    strings = data.get("rest_length_m")
-    if not isinstance(strings, dict) or not strings:
+    wheels = data.get("wheel_speed_rad_s", {})
+    if not isinstance(wheels, dict):
+        fail("wheel_speed_rad_s", "must be a table of wheel-speed arrays")
+    strings = data.get("rest_length_m", {} if wheels else None)
+    if not isinstance(strings, dict) or not (strings or wheels):
         fail("rest_length_m", "missing table of rest-length arrays")
-    cols = []
-    for key, values in strings.items():
-        col = _numbers(values, f"rest_length_m.{key}", fail)
-        if col.size != t.size:
-            fail(f"rest_length_m.{key}", f"has {col.size} values, t_s has {t.size}")
+    cols = _columns(strings, "rest_length_m", t.size, fail)
+    for key, col in zip(strings, cols, strict=True):
         if np.any(col < 0.0):
             fail(f"rest_length_m.{key}[{int(np.argmax(col < 0.0))}]", "negative rest length")
-        cols.append(col)
+    speeds = _columns(wheels, "wheel_speed_rad_s", t.size, fail)
     bad = np.flatnonzero(np.diff(t) <= 0.0)
     if bad.size:
         fail(f"schedule.t_s[{bad[0] + 1}]", "times must increase strictly")
-    return Schedule(tuple(strings), t, np.column_stack(cols), name)
+    return Schedule(
+        tuple(strings), t, _stack(cols, t.size), name, tuple(wheels), _stack(speeds, t.size)
+    )
+
+
+def _stack(cols: list[np.ndarray], size: int) -> np.ndarray:
+    return np.column_stack(cols) if cols else np.zeros((size, 0))
+
+
+def _columns(table: dict, key: str, size: int, fail) -> list[np.ndarray]:
+    """The arrays of ``table`` (one per member), each checked to have ``size`` numbers."""
+    cols = []
+    for member, values in table.items():
+        col = _numbers(values, f"{key}.{member}", fail)
+        if col.size != size:
+            fail(f"{key}.{member}", f"has {col.size} values, t_s has {size}")
+        cols.append(col)
+    return cols
 
 
 def _numbers(value, key, fail) -> np.ndarray:

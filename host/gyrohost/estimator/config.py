@@ -15,6 +15,8 @@ from gyrotensegrity.textfile import read_toml
 from .errors import EstimatorConfigError
 
 _DEG = math.pi / 180.0
+SPEED_FILTER_S = 0.008
+"""Time constant of the wheel firmware's speed low-pass (1 ms ticks, SPEED_FILTER_SHIFT 3), s."""
 
 
 def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:
@@ -69,6 +71,16 @@ class EstimatorConfig:
     jacobian: str = field(default="analytic", metadata={"choices": ("analytic", "complex-step")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
+    # the wheels follow the commanded speeds (set_input's wheel_speed_rad_s) through this lag,
+    # at most at the board's ramp rate (ACCEL_RAD_S2); 0: the speeds are held (the model's input)
+    wheel_lag_s: float = field(default=0.0, metadata=_pos("wheel response time", 0.0, 10.0))
+    wheel_accel_rad_s2: float = field(default=100.0, metadata=_pos("wheel ramp rate", 1e-3))
+    # from a wheel command's time stamp to when the wheels are seen to follow it (the command's
+    # way to the board, the telemetry's way back), s
+    wheel_delay_s: float = field(default=0.0, metadata=_pos("wheel command delay", 0.0, 1.0))
+    # how far a telemetry frame's arrival stamp may be off its sample time: adds
+    # (d omega/dt)^2 wheel_time_std_s^2 to the wheel noise while the wheels change speed, s
+    wheel_time_std_s: float = field(default=0.0, metadata=_pos("wheel stamp std", 0.0, 0.1))
     # the string kink the prediction uses: "sharp" (tension-only, as the model) or "mean" (the
     # expected force under the rest-length jitter, rest_jitter_psd_m2_s; the jitter noise then
     # carries only its variance about that mean)
@@ -194,6 +206,15 @@ def noise_from_rig(rig) -> dict:
         # they walk only slowly (the default 0.5 rad/s gave a wheel NIS of 0.003)
         "wheel_speed_std_rad_s": 0.0146,
         "wheel_accel_psd_rad2_s3": 1.0e-4,
+        # the emulated motors follow the board's ramped setpoint with their lag, and the
+        # reported speed trails the true one by the firmware's low-pass (1 ms x
+        # 2^SPEED_FILTER_SHIFT = 8 ms): in a ramp the two lags add
+        "wheel_lag_s": rig.sim.wheels.time_constant_s + SPEED_FILTER_S,
+        # the telemetry of a speed step on the real-time simulated rig starts 20 ms later than
+        # the lags alone say (docs/estimator.md, "Wheel commands")
+        "wheel_delay_s": 0.02,
+        # ... and its frames arrive with a jitter of about 10 ms (stamped on arrival)
+        "wheel_time_std_s": 0.01,
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
     }

@@ -93,6 +93,10 @@ def run(ekf, data, on_step=None):
     )
     n_w = len(model.wheel_bars)
     wheel_cols = cols.wheel_speed_columns(n_w)
+    command = data.get(cols.COMMAND)
+    cmd_cols = cols.wheel_command_columns(n_w)
+    if command is None or any(c not in command.dtype.names for c in cmd_cols):
+        cmd_cols = None  # a log without wheel commands: the wheels held
     dt = ekf.config.process_dt_s
     for t, name, i in events(data):
         while t - ekf.t > dt * (1.0 + 1e-9):
@@ -101,7 +105,8 @@ def run(ekf, data, on_step=None):
                 on_step(ekf, "predict")
         row = data[name][i]
         if name == cols.COMMAND:
-            ekf.set_input([row[c] for c in rest_cols], t)
+            wheels = None if cmd_cols is None else [row[c] for c in cmd_cols]
+            ekf.set_input([row[c] for c in rest_cols], t, wheels)
             continue
         if name == cols.IMU:
             ekf.fuse_imu(

@@ -25,7 +25,12 @@ Jacobians) or from one batched complex-step evaluation through
 The lean model steps with RK4, not exponential Euler (``x + dt phi1(A dt) f``): at 10 ms the
 latter's velocity error per step is twenty times RK4's (docs/estimator.md).
 
-The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held); the rest
+The wheel speeds follow the model (torque wheels: ``torque / J_3``; speed wheels: held), or,
+given the wheel board's commands (:attr:`ProcessModel.wheel_command_rad_s`) and
+``wheel_lag_s > 0``, those commands as the board does: its setpoint ramps to the command at
+``wheel_accel_rad_s2`` (deterministic, kept here outside the filter state, a known function of
+time in each Runge-Kutta stage) and the measured speed follows the setpoint with the lag
+``wheel_lag_s``; the rest
 lengths follow the commanded ones through a first-order lag ``servo_lag_s`` (the servos'
 response); the gyro bias is constant. Process noise is white: node accelerations
 (``accel_psd_m2_s3``), random walks of wheel speeds, rest lengths and bias;
@@ -67,6 +72,13 @@ class ProcessModel:
         self.layout = layout_of(model)
         self.columns = np.arange(self.layout.n_dynamic)
         self._noise: dict[float, np.ndarray] = {}
+        self.wheel_command_rad_s: np.ndarray | None = None
+        """Commanded spins (n_w,) rad/s the wheels follow (``wheel_lag_s`` > 0); None: the
+        model's wheel input."""
+        self.wheel_setpoint_rad_s: np.ndarray | None = None
+        """The board's ramped setpoints (n_w,) rad/s at the filter's time."""
+        self.wheel_target_rad_s: np.ndarray | None = None
+        """The setpoints the wheels are pulled towards in this derivative evaluation, rad/s."""
         self.jac = self._closed_form() if config.jacobian == "analytic" else None
 
     def _closed_form(self):
@@ -100,9 +112,32 @@ class ProcessModel:
         dx = np.empty_like(X)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
-        dx[:, L.omega] = self.dyn.wheel_acceleration(u)
+        dx[:, L.omega] = self.wheel_acceleration(X[:, L.omega], u)
         dx[:, L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
         return (dx, N_ddot) if with_node_accelerations else dx
+
+    def command_wheels(self, omega_rad_s) -> None:
+        """The wheel board's commanded spins (n_w,) rad/s from now on; the first command is
+        taken as the setpoint reached (the run starts the filter with the wheels steady)."""
+        self.wheel_command_rad_s = np.array(omega_rad_s, float)
+        if self.wheel_setpoint_rad_s is None:
+            self.wheel_setpoint_rad_s = self.wheel_command_rad_s.copy()
+            self.wheel_target_rad_s = self.wheel_command_rad_s.copy()
+
+    def _aim(self, sp0, tau_s: float) -> None:
+        """Point the wheels at the setpoints ``tau_s`` s after they were ``sp0`` (the stage's
+        time within the step)."""
+        if sp0 is not None:
+            a = self.config.wheel_accel_rad_s2 * tau_s
+            self.wheel_target_rad_s = sp0 + np.clip(self.wheel_command_rad_s - sp0, -a, a)
+
+    def wheel_acceleration(self, omega, u):
+        """Spin accelerations (K, n_w) rad/s^2 of the wheel states ``omega`` (K, n_w), real or
+        complex: the lag behind the board's setpoints when commanded, else the model's."""
+        target, lag = self.wheel_target_rad_s, self.config.wheel_lag_s
+        if target is None or lag == 0.0:
+            return np.broadcast_to(self.dyn.wheel_acceleration(u), omega.shape)
+        return (target - omega) / lag
 
     def mean_force_rest(self, q, q_dot, rest):
         """Rest lengths (K, alpha) m at which every string pulls with its expected force under
@@ -186,10 +221,12 @@ class ProcessModel:
         A[L.q, L.q_dot] = np.eye(3 * m)
         A[L.q_dot] = J
         A[L.rest, L.rest] = -np.eye(L.n_strings) / self.config.servo_lag_s
+        if self.wheel_target_rad_s is not None and self.config.wheel_lag_s > 0.0:
+            A[L.omega, L.omega] = -np.eye(L.n_wheels) / self.config.wheel_lag_s
         f = np.empty(nd)
         f[L.q] = x[L.q_dot]
         f[L.q_dot] = z_ddot.ravel()
-        f[L.omega] = self.dyn.wheel_acceleration(u)
+        f[L.omega] = self.wheel_acceleration(x[None, L.omega], u)[0]
         f[L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
         return f, A, z_ddot, J
 
@@ -219,22 +256,23 @@ class ProcessModel:
             Jacobian of ``x_next`` with respect to ``x``.
         """
         nd = self.layout.n_dynamic
+        sp0 = self.wheel_setpoint_rad_s
         if self.config.process_method == "rk4":
-            xd, Fd = self._rk4(x[:nd], u, dt)
+            xd, Fd = self._rk4(x[:nd], u, dt, sp0)
         else:
-            xd, Fd = self._lean(x[:nd], u, dt, A)
+            xd, Fd = self._lean(x[:nd], u, dt, A, sp0)
+        self._aim(sp0, dt)
+        self.wheel_setpoint_rad_s = self.wheel_target_rad_s
         F = np.eye(x.size)
         F[:nd, :nd] = Fd
         return np.concatenate([xd, x[nd:]]), F
 
-    def _lean(self, xd, u, dt, A):
+    def _lean(self, xd, u, dt, A, sp0):
         if A is None:
+            self._aim(sp0, 0.0)
             _, A = self.linearise(xd, u)
         X = xd[None, :]
-        k1 = self.derivative(X, u)
-        k2 = self.derivative(X + 0.5 * dt * k1, u)
-        k3 = self.derivative(X + 0.5 * dt * k2, u)
-        k4 = self.derivative(X + dt * k3, u)
+        k1, k2, k3, k4 = self._rk4_stages(X, u, dt, sp0, 0.0)
         x_next = xd + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)[0]
         Ad = A * dt
         Ad2 = Ad @ Ad
@@ -242,36 +280,48 @@ class ProcessModel:
         F = np.eye(len(xd)) + Ad + Ad2 / 2.0 + Ad3 / 6.0 + Ad3 @ Ad / 24.0
         return x_next, F
 
-    def _rk4(self, xd, u, dt):
+    def _rk4(self, xd, u, dt, sp0):
         n = max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
         h = dt / n
         if self.jac is not None:
-            return self._rk4_closed_form(xd, u, h, n)
+            return self._rk4_closed_form(xd, u, h, n, sp0)
         X = complex_step.perturbed(xd, self.columns)
-        for _ in range(n):
-            k1 = self.derivative(X, u)
-            k2 = self.derivative(X + 0.5 * h * k1, u)
-            k3 = self.derivative(X + 0.5 * h * k2, u)
-            k4 = self.derivative(X + h * k3, u)
+        for j in range(n):
+            k1, k2, k3, k4 = self._rk4_stages(X, u, h, sp0, j * h)
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return complex_step.split(X)
 
-    def _rk4_closed_form(self, x, u, h, n):
+    def _rk4_closed_form(self, x, u, h, n, sp0):
         """``n`` RK4 substeps of ``h`` s with the step's Jacobian by the chain rule through the
-        stages (``d k_i = A(x_i) d x_i``)."""
+        stages (``d k_i = A(x_i) d x_i``; the wheels' setpoints at each stage's time)."""
         eye = np.eye(len(x))
         F = eye
-        for _ in range(n):
+        for j in range(n):
+            self._aim(sp0, j * h)
             k1, A1 = self.linearise(x, u)
+            self._aim(sp0, (j + 0.5) * h)
             k2, A2 = self.linearise(x + 0.5 * h * k1, u)
             D2 = A2 @ (eye + 0.5 * h * A1)
             k3, A3 = self.linearise(x + 0.5 * h * k2, u)
             D3 = A3 @ (eye + 0.5 * h * D2)
+            self._aim(sp0, (j + 1) * h)
             k4, A4 = self.linearise(x + h * k3, u)
             D4 = A4 @ (eye + h * D3)
             x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
             F = (eye + (h / 6.0) * (A1 + 2.0 * D2 + 2.0 * D3 + D4)) @ F
         return x, F
+
+    def _rk4_stages(self, X, u, h, sp0, t_s):
+        """The four RK4 slopes over ``h`` from ``X``, ``t_s`` s into the step (the wheels'
+        setpoints at each stage's time)."""
+        self._aim(sp0, t_s)
+        k1 = self.derivative(X, u)
+        self._aim(sp0, t_s + 0.5 * h)
+        k2 = self.derivative(X + 0.5 * h * k1, u)
+        k3 = self.derivative(X + 0.5 * h * k2, u)
+        self._aim(sp0, t_s + h)
+        k4 = self.derivative(X + h * k3, u)
+        return k1, k2, k3, k4
 
     def noise(self, dt, F=None, x=None):
         """Discrete process noise covariance over ``dt`` s, shape (n, n).

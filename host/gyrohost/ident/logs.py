@@ -8,6 +8,8 @@ import numpy as np
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator import streams
+from gyrohost.estimator.config import for_rig
+from gyrohost.estimator.driver import regular_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
 from gyrohost.run.log import LogError, read_stream, read_streams
 
@@ -27,8 +29,11 @@ def phase_window(folder: Path) -> tuple[float | None, float | None]:
     return times.get(FIRST_PHASE), times.get(LAST_PHASE)
 
 
-def load_recording(folder, config: RigConfig, n_wheels: int, commanded=False) -> Recording:
-    """The :class:`Recording` of the log folder ``folder``.
+def load_recording(
+    folder, config: RigConfig, n_wheels: int, commanded=False, until_s=None
+) -> Recording:
+    """The :class:`Recording` of the log folder ``folder``; with ``until_s``, only its first
+    ``until_s`` seconds (from the start of ``lead_in``, else of the log).
 
     Raises
     ------
@@ -41,7 +46,16 @@ def load_recording(folder, config: RigConfig, n_wheels: int, commanded=False) ->
         data = read_streams(folder, names)
     except LogError as exc:
         raise IdentDataError(str(exc)) from None
+    if streams.IMU in data:
+        # sampled on the IMU's grid, arrival-stamped in bursts: the grid back, as the run loop
+        # and gyrotens replay fuse them (estimator.driver.RegularClock)
+        imu, est = data[streams.IMU].copy(), for_rig(config)
+        imu["t_s"] = regular_times(imu["t_s"], est.imu_period_s, est.imu_max_delay_s)
+        data[streams.IMU] = imu
     start, end = phase_window(folder)
+    if until_s is not None:
+        first = start if start is not None else float(data[streams.IMU]["t_s"][0])
+        end = first + until_s if end is None else min(end, first + until_s)
     if end is not None:
         data = {k: v[v["t_s"] < end] for k, v in data.items()}
     if start is not None:

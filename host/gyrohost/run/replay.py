@@ -203,7 +203,12 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0)
     if len(before.get(streams.COMMAND, ())):
         last = before[streams.COMMAND][-1]
-        ekf.set_input([last[streams.rest_column(s.name)] for s in model.scene.strings])
+        cmd = [c for c in streams.wheel_command_columns(layout_of(model).n_wheels)
+               if c in last.dtype.names]  # fmt: skip
+        ekf.set_input(
+            [last[streams.rest_column(s.name)] for s in model.scene.strings],
+            wheel_speed_rad_s=[last[c] for c in cmd] if cmd else None,
+        )
     after = {k: d[(d["t_s"] >= t0 if k == streams.IMU else d["t_s"] > t0) & (d["t_s"] <= t1)]
              for k, d in data.items()}  # fmt: skip
     # fused at the IMU's grid reconstructed from every arrival, as the run loop fused them

@@ -49,7 +49,7 @@ from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import LimitBreach, RunError
-from gyrohost.run.limits import check_limits, check_schedule
+from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
@@ -131,6 +131,7 @@ class RunLoop:
         self.notify = notify
         self.model = Model(load_scene(config.scene_path))
         self.schedule.bind(self.model)
+        self.wheel_index = self.schedule.bind_wheels(self.model)  # board wheel i = scene wheel i
         self.tilt = attitude_of(self.model)
         ImuGeometry(self.model, self.estimator_config)  # attached to nodes of this scene?
         self.strings = [s.name for s in self.model.scene.strings]
@@ -139,6 +140,8 @@ class RunLoop:
         self.spins = np.zeros(wp.N_WHEELS)
         wheels = [self.model.scene.bars[b].wheel for b in self.model.wheel_bars]
         self.spins[: len(wheels)] = [w.spin0 for w in wheels]
+        self.n_wheels = len(wheels)
+        self.wheel_commands = CommandHistory(self.settings.wheel_command_memory_s)
         self.log_folder = Path(log_folder)
         self.extra_meta = meta or {}
         self.sinks = [McapSink(self.model.scene), *([live] if live is not None else [])]
@@ -168,7 +171,7 @@ class RunLoop:
         ScheduleRefused
             Before anything is opened or moved.
         """
-        check_schedule(self.schedule, self.config.servos.servo)
+        check_schedule(self.schedule, self.config.servos.servo, self.config.run)
         with InterruptsRaised():  # SIGTERM, SIGHUP: as Ctrl-C
             self.log = RunLog(self.log_folder, run_meta(self), self.sinks)
             try:
@@ -277,9 +280,11 @@ class RunLoop:
         self.wheels.set_param("TELEMETRY_DIV", s.telemetry_div)
         self.wheels.set_param("HEARTBEAT_MS", s.heartbeat_ms)
         speed_max = self.wheels.get_param("SPEED_MAX_MRAD_S") / 1000.0
-        if np.max(np.abs(self.spins)) > speed_max:
+        scheduled = np.abs(self.schedule.wheel_speed)
+        fastest = max(np.max(np.abs(self.spins)), np.max(scheduled, initial=0.0))
+        if fastest > speed_max:
             raise LimitBreach(
-                f"scene spins up to {np.max(np.abs(self.spins)):.2f} rad/s exceed the wheel "
+                f"scene and schedule spins up to {fastest:.2f} rad/s exceed the wheel "
                 f"board's SPEED_MAX {speed_max:.2f} rad/s"
             )
         self.servos = StringServoBus(cfg.servos).open()
@@ -305,9 +310,16 @@ class RunLoop:
             r.start()
         self.ticker.regrid()
 
+    def _wheel_command(self, t_rel_s: float) -> np.ndarray:
+        """Board wheel speeds (4,) rad/s at schedule time ``t_rel_s``: the scene's spins, the
+        scheduled wheels' speeds in their place."""
+        omega = self.spins.copy()
+        omega[self.wheel_index] = self.schedule.wheel_speeds(t_rel_s)
+        return omega
+
     def _spin_up(self) -> None:
         s = self.settings
-        self.omega_cmd = self.spins.copy()
+        self.omega_cmd = self._wheel_command(0.0)
         self.wheels.set_speeds(list(self.omega_cmd))
         deadline = self.now() + s.spinup_timeout_s
         steady_since = None
@@ -342,7 +354,7 @@ class RunLoop:
         t0 = self.now()
         self.ekf = TensegrityEKF(model, est_cfg, x0=x0, t0_s=t0, log=innovations)
         self.log.update_meta(estimator=asdict(est_cfg))  # what gyrotens replay reads
-        self.ekf.set_input(self.rest_cmd)
+        self.ekf.set_input(self.rest_cmd, wheel_speed_rad_s=self.omega_cmd[: self.n_wheels])
         self.estimates = EstimateWriter(self.log, self.ekf, self.tilt)
         self.estimate = ekf_estimate(self.ekf)
 
@@ -385,7 +397,9 @@ class RunLoop:
         if strict:
             self.log.check()  # a refused write ends the run here, wherever it happened
             tel = self.wheel_reader.latest if self.wheels is not None else None
-            check_limits(self.settings, self.omega_cmd, tel, self.latest_servos,
+            self.wheel_commands.add(start, float(np.max(np.abs(self.omega_cmd))))
+            peak = self.wheel_commands.peak_before(self._arrival_s(start))
+            check_limits(self.settings, peak, tel, self.latest_servos,
                          self.latest_tilt, self.ekf)  # fmt: skip
         cpu = time.thread_time() - cpu0
         self.streams.loop.write(start, start - due, self.now() - start, cpu, n, self.phase)
@@ -393,6 +407,11 @@ class RunLoop:
             self.progress(self.phase, start, self._played(start), self.readout())
         if strict and self.on_tick is not None:
             self.on_tick(self, self.phase, start)
+
+    def _arrival_s(self, default_s: float) -> float:
+        """Host time (s) the newest telemetry frame arrived (``default_s`` without one)."""
+        ns = self.wheel_reader.latest_ns if self.wheel_reader is not None else None
+        return default_s if ns is None else (ns - self.ticker.t0_ns) * 1e-9
 
     def readout(self) -> Readout:
         """Estimated tilt, measured wheel speeds and the estimator's status now."""
@@ -439,8 +458,12 @@ class RunLoop:
                 if name in self.schedule.names
             }
             self.servo_worker.command(goals)
-            if self.ekf is not None:  # from the tick's time on, when the servos get it
-                self.ekf.set_input(rest, t_s)
+            omega = self._wheel_command(t_rel)
+            if not np.array_equal(omega, self.omega_cmd):  # one frame, no reply awaited
+                self.wheels.set_speeds(list(omega), confirm=False)
+                self.omega_cmd = omega
+            if self.ekf is not None:  # from the tick's time on, when the devices get it
+                self.ekf.set_input(rest, t_s, self.omega_cmd[: self.n_wheels])
         self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
 
     # --- the log ------------------------------------------------------------------------------

@@ -31,6 +31,10 @@ class RunSettings:
     """Largest |tilt| of the estimate, rad; off by default: the simulated D-bar floats free and
     keeps turning after the maneuver (set it on a rig whose supports bound the tilt)."""
     wheel_speed_margin_rad_s: float = RunTable.wheel_speed_margin_rad_s
+    wheel_command_memory_s: float = 1.0
+    """The wheel-speed limit is the largest command of this last stretch plus the margin: after
+    a step down the board ramps (ACCEL_RAD_S2) and the wheel follows with its lag."""
+    max_wheel_speed_rad_s: float = RunTable.max_wheel_speed_rad_s
     max_servo_load: float = RunTable.max_servo_load
     max_fused_per_tick: int = 4
     """Samples of one device fused per tick at most (the newest); older ones are only logged."""
