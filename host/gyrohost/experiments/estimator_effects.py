@@ -188,6 +188,7 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_effects")
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--duration", type=float, default=3.0, help="s")
     parser.add_argument("--delay-ms", type=float, default=2.0, help="mean arrival delay, ms")
     parser.add_argument("--late-ms", type=float, default=1.0, help="mean tick lateness, ms")
@@ -208,7 +209,7 @@ def main(argv=None) -> int:
                 1e-3 * args.late_ms,
                 overrides,
             )
-            for s in range(1, args.runs + 1)
+            for s in range(args.first_seed, args.first_seed + args.runs)
         ]
         print(f"--- {name}: {effects.label()}; {args.runs} runs")
         summarise(results, f"[{name}] ")

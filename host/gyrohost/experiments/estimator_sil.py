@@ -115,7 +115,7 @@ def score_log(folder) -> RunResult:
     def partial_nees(e, x_true):
         return observed_nees(e, e.x, e.P, x_true)
 
-    return score_run(ekf, data, truth_at, partial_nees)
+    return score_run(ekf, data, truth_at, partial_nees, blocks_of=None)
 
 
 def rig_model_run(config, seed, duration_s=3.0, command_times_s=None):
