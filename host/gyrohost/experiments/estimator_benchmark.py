@@ -75,13 +75,22 @@ def main(argv=None) -> int:
         default=2e-10,
         help="rest_jitter_psd_m2_s, m^2 s (default: the SIL's; 0 leaves the kink noise out)",
     )
+    parser.add_argument(
+        "--wheel-noise-ma1",
+        type=float,
+        default=0.0,
+        help="wheel_noise_ma1 (nonzero: the wheel noise states, 4 more on the D-bar)",
+    )
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     base = rhs_time(model)
     print(f"{args.scene.name}: reference rhs evaluation {base * 1e6:.0f} us (baseline)")
     for method in ("lean", "rk4"):
         cfg = replace(
-            EstimatorConfig(), process_method=method, rest_jitter_psd_m2_s=args.rest_jitter_psd
+            EstimatorConfig(),
+            process_method=method,
+            rest_jitter_psd_m2_s=args.rest_jitter_psd,
+            wheel_noise_ma1=args.wheel_noise_ma1,
         )
         n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
         wall, cpu, accepted = cycle_times(model, cfg, n)
