@@ -32,6 +32,10 @@ MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
 # filter cannot know: a rest-length walk of the default density covers it (the SIL's 1e-10,
 # made for commands on the exact 10 ms grid, gave NEES 57 539, servo NIS 7583)
 LATE_COMMAND_REST_PSD_M2_S = 1e-6
+# The newest telemetry frame at each late tick is 8 to 12 ms after the last (500 Hz frames):
+# the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (the SIL's
+# MA(1) gave the wheel block 8.7 for 4 dof and NIS 5.84): white, the noise's measured std
+WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0, "wheel_speed_std_rad_s": 0.0146}
 
 
 @dataclass(frozen=True)
@@ -144,6 +148,8 @@ def score_with_effects(
         keys["imu_latency_s"] = MIN_DELAY_S
     if effects.late_ticks:
         keys["rest_psd_m2_s"] = LATE_COMMAND_REST_PSD_M2_S
+    if effects.wheel_frames:  # frames taken at the ticks' jittered times: no MA(1) left
+        keys.update(WHITE_WHEEL_KEYS)
     keys.update(overrides or {})
     est_cfg = config_from_dict(keys)
     ekf = TensegrityEKF(model, est_cfg)
