@@ -33,9 +33,9 @@ MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
 # made for commands on the exact 10 ms grid, gave NEES 57 539, servo NIS 7583)
 LATE_COMMAND_REST_PSD_M2_S = 1e-6
 # The newest telemetry frame at each late tick is 8 to 12 ms after the last (500 Hz frames):
-# the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (the SIL's
-# MA(1) gave the wheel block 8.7 for 4 dof and NIS 5.84): white, the noise's measured std
-WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0, "wheel_speed_std_rad_s": 0.0146}
+# the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (an MA(1) of
+# -0.63 gave the wheel block 8.7 for 4 dof and NIS 5.84): white, with noise_from_rig's walk
+WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0, "wheel_accel_psd_rad2_s3": 1e-4}
 
 
 @dataclass(frozen=True)

@@ -165,13 +165,17 @@ def _blocks(results, k, label):
     t = results[0].t_s[:k]
     for name, (_, dof) in results[0].blocks.items():
         avg = np.mean([r.blocks[name][0][:k] for r in results], axis=0)
-        windows = [float(np.mean(avg[(t >= a) & (t < b)])) for a, b in BLOCK_WINDOWS_S]
+        windows = [_mean(avg[(t >= a) & (t < b)]) for a, b in BLOCK_WINDOWS_S]
         out[name] = {"mean": float(np.mean(avg)), "dof": dof, "windows": windows}
         spans = ", ".join(
             f"{a:g}-{b:g} s {w:.2f}" for (a, b), w in zip(BLOCK_WINDOWS_S, windows, strict=True)
         )
         print(f"{label}block {name} (dof {dof}): mean {np.mean(avg):.2f}; {spans}")
     return out
+
+
+def _mean(values):
+    return float(np.mean(values)) if values.size else float("nan")
 
 
 def _report(name, avg, dof, runs):
