@@ -34,8 +34,9 @@ MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
 LATE_COMMAND_REST_PSD_M2_S = 1e-6
 # The newest telemetry frame at each late tick is 8 to 12 ms after the last (500 Hz frames):
 # the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (an MA(1) of
-# -0.63 gave the wheel block 8.7 for 4 dof and NIS 5.84): white, with noise_from_rig's walk
-WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0, "wheel_accel_psd_rad2_s3": 1e-4}
+# -0.63 gave the wheel block 8.7 for 4 dof and NIS 5.84): white, with the SIL's walk (1e-6;
+# noise_from_rig's 1e-4 left the wheel block at 1.8)
+WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0}
 
 
 @dataclass(frozen=True)
