@@ -32,6 +32,9 @@ class EstimatorConfig:
     imu_accel_std_m_s2: float = field(default=0.03, metadata=_pos("accelerometer noise"))
     imu_angle_std_rad: float = field(default=0.06 * _DEG, metadata=_pos("Euler angle noise"))
     wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
+    # the wheel telemetry's noise from one sample to the next as MA(1), v_k = a_k + theta a_{k-1}
+    # (a_k white; the a of the last sample is a state, one per wheel); 0: white
+    wheel_noise_ma1: float = field(default=0.0, metadata=_pos("wheel noise MA(1)", -0.99, 0.99))
     servo_length_std_m: float = field(default=2.0e-4, metadata=_pos("servo length noise"))
     # process noise (white, spectral densities)
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))

@@ -10,16 +10,45 @@ def nees(ekf, x_true):
 
     The covariance has rank ``n - 2 beta`` (it lives in the tangent space of the constraint
     manifold), so the error and the covariance are taken in an orthonormal basis of that
-    tangent space at the estimate.
+    tangent space at the estimate. ``x_true`` may leave out the wheel noise states (the
+    marginal NEES of the rest).
 
     Returns
     -------
     value : float
     dof : int
     """
-    T = null_space(ekf.manifold.jacobian(ekf.x))
-    e = T.T @ (x_true - ekf.x)
-    P = T.T @ ekf.P @ T
+    n = len(x_true)  # without the wheel noise states, which no truth has
+    T = null_space(ekf.manifold.jacobian(ekf.x)[:, :n])
+    e = T.T @ (x_true - ekf.x[:n])
+    P = T.T @ ekf.P[:n, :n] @ T
+    return float(e @ np.linalg.solve(P, e)), T.shape[1]
+
+
+def block_nees(ekf, x_true):
+    """Marginal NEES of every block of the state against ``x_true``: the node motion in the
+    tangent space of the bar constraints, the wheel speeds, the rest lengths, the gyro bias.
+
+    A block whose NEES sits far below its dof is conservative, far above overconfident; the
+    full NEES mixes them.
+
+    Returns
+    -------
+    dict, block name -> (value, dof)
+    """
+    L = ekf.layout
+    motion = np.arange(L.q.start, L.q_dot.stop)
+    T = null_space(ekf.manifold.jacobian(ekf.x)[:, motion])
+    out = {"motion": _marginal(ekf, x_true, motion, T)}
+    for name, part in (("wheels", L.omega), ("rest", L.rest), ("bias", L.bias)):
+        idx = np.arange(part.start, part.stop)
+        out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
+    return out
+
+
+def _marginal(ekf, x_true, idx, T):
+    e = T.T @ (x_true[idx] - ekf.x[idx])
+    P = T.T @ ekf.P[np.ix_(idx, idx)] @ T
     return float(e @ np.linalg.solve(P, e)), T.shape[1]
 
 
@@ -35,9 +64,11 @@ def tilt_error(R_est, R_true):
 
 
 def sample_initial(ekf, x_true, rng):
-    """An initial estimate drawn around ``x_true`` with the filter's initial covariance."""
-    P0 = ekf.initial_covariance()
-    T = null_space(ekf.manifold.jacobian(x_true))
+    """An initial estimate drawn around ``x_true`` (its entries only) with the filter's initial
+    covariance."""
+    n = len(x_true)
+    P0 = ekf.initial_covariance()[:n, :n]
+    T = null_space(ekf.manifold.jacobian(x_true)[:, :n])
     Pt = T.T @ P0 @ T
     e = T @ (np.linalg.cholesky(Pt) @ rng.standard_normal(Pt.shape[0]))
     return ekf.manifold.project_state(x_true + e)

@@ -78,9 +78,9 @@ class TensegrityEKF:
     ----------
     model : gyrotensegrity.Model
     config : EstimatorConfig
-    x0 : ndarray, shape (n,), optional
+    x0 : ndarray, shape (n,) or (layout.n_base,), optional
         Initial estimate (default: the scene's initial state, zero bias); projected onto the
-        constraints.
+        constraints; without wheel noise states they start at 0.
     P0 : ndarray, shape (n, n), optional
         Initial covariance (default: diagonal from the ``init_*_std`` keys).
     t0_s : float, s
@@ -91,10 +91,10 @@ class TensegrityEKF:
     def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None):
         check_model(model)
         self.model, self.config = model, config
-        self.layout = L = layout_of(model)
+        self.layout = L = layout_of(model, config)
         self.process = ProcessModel(model, config)
         self.imu = ImuGeometry(model, config)
-        self.manifold = Manifold(model)
+        self.manifold = Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
         self.dynamic_columns = np.arange(L.n_dynamic)
@@ -110,6 +110,7 @@ class TensegrityEKF:
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
+        x0 = np.concatenate([x0, np.zeros(L.size - len(x0))])  # wheel noise states: mean 0
         P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
         x, P = self.manifold.condition(np.asarray(x0, float), P0)
         self.kf.x, self.kf.P = x.reshape(-1, 1), P
@@ -129,6 +130,7 @@ class TensegrityEKF:
         std[L.omega] = c.init_wheel_std_rad_s
         std[L.rest] = c.init_rest_std_m
         std[L.bias] = c.init_gyro_bias_std_rad_s
+        std[L.wheel_noise] = fuse_wheels.white_std(c)
         return np.diag(std**2)
 
     # -- state access ---------------------------------------------------------------------------
@@ -225,7 +227,9 @@ class TensegrityEKF:
         self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
-        self.kf.Q = self.process.noise(dt, F, self.x)
+        Q = self.process.noise(dt, F, self.x)
+        self.kf.Q = np.zeros_like(F)  # the wheel noise states change at wheel samples only
+        self.kf.Q[: len(Q), : len(Q)] = Q
         self.kf.predict()
         self.t += dt
         self._check_finite("prediction")

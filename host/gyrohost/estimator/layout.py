@@ -1,14 +1,17 @@
 """The filter's state vector and its relation to the model's state.
 
-Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3``)::
+Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3`` and ``n_w`` more with the
+wheel telemetry's noise as a state)::
 
     x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
-          | rest (alpha, m) | b_g (3, rad/s) ]
+          | rest (alpha, m) | b_g (3, rad/s) | a_w (n_w, rad/s, optional) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
 :mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
 string rest lengths the servos have actually reached (they lag the command), ``b_g`` the gyro
-bias in sensor axes. Wheel angles are left out (nothing observes them, nothing depends on them).
+bias in sensor axes, ``a_w`` the white term of the last wheel sample's noise, which the next
+sample's noise shares (``wheel_noise_ma1``, :mod:`.fuse_wheels`). Wheel angles are left out
+(nothing observes them, nothing depends on them).
 """
 
 from dataclasses import dataclass
@@ -23,9 +26,15 @@ class FilterLayout:
     m: int
     n_wheels: int
     n_strings: int
+    n_wheel_noise: int = 0  # n_wheels with the wheel noise as a state, else 0
 
     @property
     def size(self) -> int:
+        return self.n_base + self.n_wheel_noise
+
+    @property
+    def n_base(self) -> int:
+        """Entries of the model's state and the gyro bias (all but the wheel noise states)."""
         return self.n_dynamic + 3
 
     @property
@@ -51,7 +60,11 @@ class FilterLayout:
 
     @property
     def bias(self) -> slice:
-        return slice(self.n_dynamic, self.size)
+        return slice(self.n_dynamic, self.n_base)
+
+    @property
+    def wheel_noise(self) -> slice:
+        return slice(self.n_base, self.size)
 
     def labels(self) -> list[str]:
         """Column names of the state entries, with units."""
@@ -59,11 +72,16 @@ class FilterLayout:
         names += [f"qdot_{a}{j}_m_s" for a in "xyz" for j in range(self.m)]
         names += [f"omega_w{k}_rad_s" for k in range(self.n_wheels)]
         names += [f"rest{k}_m" for k in range(self.n_strings)]
-        return names + [f"gyro_bias_{a}_rad_s" for a in "xyz"]
+        names += [f"gyro_bias_{a}_rad_s" for a in "xyz"]
+        return names + [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
 
 
-def layout_of(model) -> FilterLayout:
-    return FilterLayout(model.m, len(model.wheel_bars), model.alpha)
+def layout_of(model, config=None) -> FilterLayout:
+    """The filter state's layout for ``model``; with ``config`` (EstimatorConfig) the wheel
+    noise states it asks for."""
+    n_w = len(model.wheel_bars)
+    noise = n_w if config is not None and config.wheel_noise_ma1 != 0.0 else 0
+    return FilterLayout(model.m, n_w, model.alpha, noise)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

@@ -22,11 +22,13 @@ class Manifold:
     Parameters
     ----------
     model : gyrotensegrity.Model
+    layout : FilterLayout, optional
+        The filter state's layout (default: the model's, without wheel noise states).
     """
 
-    def __init__(self, model):
+    def __init__(self, model, layout=None):
         st = model.structure
-        self.layout = layout_of(model)
+        self.layout = layout_of(model) if layout is None else layout
         self.E = (st.C_b @ model.U2).toarray()  # (beta, m)
         self.B0 = np.asarray(model.N_fixed_T).T @ st.C_b.toarray().T  # (3, beta)
         self.l2 = model.l**2

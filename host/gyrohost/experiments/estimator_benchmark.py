@@ -87,6 +87,12 @@ def main(argv=None) -> int:
         action="append",
         help="the estimator's jacobian key (repeat for several; default: both)",
     )
+    parser.add_argument(
+        "--wheel-noise-ma1",
+        type=float,
+        default=0.0,
+        help="wheel_noise_ma1 (nonzero: the wheel noise states, 4 more on the D-bar)",
+    )
     args = parser.parse_args(argv)
     model = Model(load_scene(args.scene))
     base = rhs_time(model)
@@ -99,6 +105,7 @@ def main(argv=None) -> int:
                 process_method=method,
                 jacobian=jacobian,
                 rest_jitter_psd_m2_s=args.rest_jitter_psd,
+                wheel_noise_ma1=args.wheel_noise_ma1,
             )
             for jacobian in jacobians
         ]

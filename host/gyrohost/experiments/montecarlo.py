@@ -15,7 +15,7 @@ time.
 
 import argparse
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
@@ -24,7 +24,13 @@ import numpy as np
 from gyrohost import parallel
 from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.estimator.consistency import average_bounds, nees, sample_initial, tilt_error
+from gyrohost.estimator.consistency import (
+    average_bounds,
+    block_nees,
+    nees,
+    sample_initial,
+    tilt_error,
+)
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrohost.resources import shipped
@@ -37,7 +43,10 @@ TRUTH_PSD_M2_S3 = 1e-4  # density of the disturbance the synthetic truth carries
 @dataclass
 class RunResult:
     """Per IMU sample of one run: t_s, nees (with nees_dof), tilt_rad, position_m (RMS node
-    error of the eta2 coordinates); nis: source -> (times, values, dof); cpu_s: filter CPU time."""
+    error of the eta2 coordinates); nis: source -> (times, values, dof); cpu_s: filter CPU time;
+    blocks: block -> (values, dof), the marginal NEES of every block of the state
+    (:func:`gyrohost.estimator.consistency.block_nees`; empty where the truth has no
+    velocities)."""
 
     t_s: np.ndarray
     nees: np.ndarray
@@ -46,9 +55,10 @@ class RunResult:
     position_m: np.ndarray
     nis: dict
     cpu_s: float
+    blocks: dict = field(default_factory=dict)
 
 
-def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run) -> RunResult:
+def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run, blocks_of=block_nees):
     """Run ``ekf`` over the streams ``data`` and score every IMU sample.
 
     Parameters
@@ -59,10 +69,12 @@ def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run) -> RunResult:
     feed : callable(ekf, data, on_step)
         What hands the samples to the filter (:func:`gyrohost.estimator.driver.run`: all in
         time order).
+    blocks_of : callable(ekf, x_true) -> dict of (value, dof), or None
+        The marginal NEES of the state's blocks (None: not scored).
     """
     nis: dict = {}
     ekf.log = lambda r: nis.setdefault(r.source, []).append((r.t_s, r.nis, len(r.innovation)))
-    rows = []
+    rows, blocks = [], {}
     q = ekf.layout.q
 
     def score(e, stream):
@@ -72,13 +84,16 @@ def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run) -> RunResult:
             R, _ = e.attitude()
             pos = np.sqrt(np.mean((e.x[q] - x_true[q]) ** 2))
             rows.append((e.t, value, dof, tilt_error(R, R_true), pos))
+            for name, (v, d) in ({} if blocks_of is None else blocks_of(e, x_true)).items():
+                blocks.setdefault(name, ([], d))[0].append(v)
 
     c0 = time.process_time()
     feed(ekf, data, score)
     cpu = time.process_time() - c0
     t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
     nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
-    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, cpu)
+    blocks = {name: (np.array(v), d) for name, (v, d) in blocks.items()}
+    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, cpu, blocks)
 
 
 def sampled_truth(x, R, dt_s=0.01):
@@ -139,6 +154,7 @@ def summarise(results, label="", burn_in_s=0.2):
     for source in results[0].nis:
         _, avg, dof = nis_average(results, source)
         out[f"nis_{source}"] = _report(f"{label}NIS {source}", avg, dof, n)
+    out["blocks"] = _blocks(results, k, label)
     tilt = np.array([r.tilt_rad[:k] for r in results])
     pos = np.array([r.position_m[:k] for r in results])
     out["tilt_rms_deg"] = float(np.degrees(np.sqrt(np.mean(tilt**2))))
@@ -151,6 +167,28 @@ def summarise(results, label="", burn_in_s=0.2):
         f"filter CPU {out['cpu_per_run_s']:.2f} s per run ({k} IMU samples)"
     )
     return out
+
+
+BLOCK_WINDOWS_S = ((0.0, 0.2), (0.2, 1.0), (1.0, 2.0), (2.0, np.inf))
+
+
+def _blocks(results, k, label):
+    """Print the run-averaged marginal NEES of every block over :data:`BLOCK_WINDOWS_S`."""
+    out = {}
+    t = results[0].t_s[:k]
+    for name, (_, dof) in results[0].blocks.items():
+        avg = np.mean([r.blocks[name][0][:k] for r in results], axis=0)
+        windows = [_mean(avg[(t >= a) & (t < b)]) for a, b in BLOCK_WINDOWS_S]
+        out[name] = {"mean": float(np.mean(avg)), "dof": dof, "windows": windows}
+        spans = ", ".join(
+            f"{a:g}-{b:g} s {w:.2f}" for (a, b), w in zip(BLOCK_WINDOWS_S, windows, strict=True)
+        )
+        print(f"{label}block {name} (dof {dof}): mean {np.mean(avg):.2f}; {spans}")
+    return out
+
+
+def _mean(values):
+    return float(np.mean(values)) if values.size else float("nan")
 
 
 def _report(name, avg, dof, runs):
