@@ -10,14 +10,15 @@ from pathlib import Path
 import gyrohost
 
 ROOT = Path(gyrohost.__file__).parent
-BASE = {"errors", "geometry", "config", "resources", "sigint", "parallel"}
+BASE = {"errors", "geometry", "config", "overlay", "resources", "sigint", "parallel"}
 ALLOWED = {
     "errors": set(),
     "geometry": set(),
     "sigint": set(),
     "parallel": {"errors"},
     "resources": {"errors"},
-    "config": {"errors", "resources"},
+    "overlay": {"errors"},
+    "config": {"errors", "resources", "overlay"},
     "drivers": BASE | {"drivers"},
     "estimator": BASE | {"drivers", "estimator"},
     "control": BASE | {"estimator", "control"},

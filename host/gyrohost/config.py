@@ -13,7 +13,8 @@ import typing
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
-from gyrohost.errors import GyrohostError
+from gyrohost.errors import ConfigError
+from gyrohost.overlay import merge_overlay
 from gyrohost.resources import ResourceError, resolve
 from gyrotensegrity.textfile import read_toml
 
@@ -22,10 +23,6 @@ EMULATED_PORT = "emulator"
 
 MX_POSITION_LIMIT = 28672
 """Largest magnitude of an MX-12W multi-turn position, steps (7 turns at divider 1)."""
-
-
-class ConfigError(GyrohostError, ValueError):
-    """A rig configuration file or value is invalid; the message names the file and key."""
 
 
 def _spec(*, lo=None, hi=None, choices=None, doc: str = "") -> dict:
@@ -337,7 +334,8 @@ def with_truth_scene(config: RigConfig, scene: str | Path) -> RigConfig:
 
 def load_rig_config(path: str | Path, overlays=()) -> RigConfig:
     """Read and validate a rig configuration TOML file, with ``overlays`` (files, in order)
-    merged into it (:func:`merge_overlay`); relative paths stay relative to ``path``.
+    merged into it (:func:`gyrohost.overlay.merge_overlay`); relative paths stay relative to
+    ``path``.
 
     Raises
     ------
@@ -355,55 +353,6 @@ def load_rig_config(path: str | Path, overlays=()) -> RigConfig:
     except ConfigError as exc:
         merged = ", ".join(map(str, overlays))
         raise ConfigError(f"{exc} (with the overlay {merged} merged)") from None
-
-
-def merge_overlay(base: dict, overlay: dict, source: str, where: str = "") -> dict:
-    """``base`` (a configuration's TOML data) with ``overlay``'s keys set in it.
-
-    Tables merge key by key; an array of tables (``[[servos.servo]]``) merges entry by entry,
-    each overlay entry into the base's entry of the same ``name``; any other value replaces the
-    base's. ``source`` (the overlay file) is named in errors.
-
-    Raises
-    ------
-    ConfigError
-        An overlay table where the base has a value (or the reverse), or an array-of-tables
-        entry without a ``name`` or with a name the base does not have.
-    """
-    out = dict(base)
-    for key, value in overlay.items():
-        here = f"{where}{key}"
-        old = base.get(key)
-        if isinstance(value, dict) or isinstance(old, dict):
-            if old is not None and not (isinstance(value, dict) and isinstance(old, dict)):
-                raise ConfigError(f"{source}: key '{here}': a table against a value or the reverse")
-            out[key] = merge_overlay(old or {}, value, source, here + ".")
-        elif _tables(value) and old is not None:
-            out[key] = _merge_entries(old, value, source, here)
-        else:
-            out[key] = value
-    return out
-
-
-def _tables(value) -> bool:
-    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
-
-
-def _merge_entries(base: list, overlay: list, source: str, where: str) -> list:
-    if not _tables(base):
-        raise ConfigError(f"{source}: key '{where}': an array of tables against a value")
-    names = [entry.get("name") for entry in base]
-    out = list(base)
-    for i, entry in enumerate(overlay):
-        name = entry.get("name")
-        if name not in names:
-            raise ConfigError(
-                f"{source}: key '{where}[{i}].name': {name!r} names no entry of the "
-                f"configuration (it has {', '.join(map(repr, names))})"
-            )
-        k = names.index(name)
-        out[k] = merge_overlay(out[k], entry, source, f"{where}[{k}].")
-    return out
 
 
 def rig_config_from_dict(data: dict, source: str = "<dict>") -> RigConfig:

@@ -9,3 +9,7 @@ while running: a device, the rig, the estimator), so a caller catches all of the
 
 class GyrohostError(Exception):
     """Base of every exception the ``gyrohost`` package raises on purpose."""
+
+
+class ConfigError(GyrohostError, ValueError):
+    """A rig configuration file or value is invalid; the message names the file and key."""
