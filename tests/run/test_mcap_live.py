@@ -39,7 +39,9 @@ def short_schedule(tmp_path):
 
 def watch(url: str, got: dict) -> None:
     """Subscribe to every channel the server advertises; keep the first payload per topic and
-    count messages, until the server closes."""
+    count messages, until the server closes. A channel created while the run opens its streams
+    can be advertised a moment before the server takes subscriptions to it (foxglove-sdk 0.30:
+    status "Unknown channel ID"): that subscription is sent again."""
     topics = {}
     with ws_client.connect(url, subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
         try:
@@ -51,6 +53,10 @@ def watch(url: str, got: dict) -> None:
                         subs = [{"id": c["id"], "channelId": c["id"]} for c in op["channels"]]
                         topics.update({c["id"]: c for c in op["channels"]})
                         ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                    unknown = re.fullmatch(r"Unknown channel ID: (\d+)", op.get("message", ""))
+                    if unknown:  # advertised before the server could take a subscription: again
+                        sub = {"id": int(unknown[1]), "channelId": int(unknown[1])}
+                        ws.send(json.dumps({"op": "subscribe", "subscriptions": [sub]}))
                     continue
                 assert msg[0] == 1  # message data: opcode, subscription id, log time, payload
                 channel = topics[int.from_bytes(msg[1:5], "little")]
