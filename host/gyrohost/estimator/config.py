@@ -200,10 +200,9 @@ def noise_from_rig(rig) -> dict:
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5-10 ms of the tick's command (the default 50 ms
-        # was 3.6 mm RMS off); its reads against the truth's 5 ms rest-length steps scatter
-        # 0.15-0.3 mm and the rig's servo lags its lag model by up to 2 mm now and then: tuned
-        # on 8 real-time runs on an idle machine (docs/estimator.md, "The servos' keys")
+        # paper's pulls a first-order lag of 5-10 ms of the tick's command; its reads scatter
+        # about the truth's 5 ms rest-length steps and it strays from the lag model now and
+        # then, which the noise and the walk cover (docs/estimator.md, "The servos' keys")
         "servo_lag_s": 0.01,
         "servo_length_std_m": 2.0e-4,
         "rest_psd_m2_s": 3.0e-5,

@@ -33,8 +33,8 @@ MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
 # made for commands on the exact 10 ms grid, gave NEES 57 539, servo NIS 7583)
 LATE_COMMAND_REST_PSD_M2_S = 1e-6
 SERVO_PERIOD_S = 0.04  # the servo worker's read period (gyrohost.run.settings: 25 Hz), s
-# how long after the servos sampled a read used to be stamped (the end of the bulk read, its
-# arrival): the servo stream against the real-time rig's truth lines up best 6-10 ms earlier
+# how long after the servos sample a read it reaches the host (the end of the bulk read): a
+# read stamped on arrival lines up with the real-time rig's truth best 6-10 ms earlier
 SERVO_READ_DELAY_S = 8e-3
 # The newest telemetry frame at each late tick is 8 to 12 ms after the last (500 Hz frames):
 # the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (an MA(1) of

@@ -90,8 +90,8 @@ RIG_MODEL_KEYS = {
     "kink_model": "mean",
     "wheel_noise_ma1": -0.75,
     "wheel_accel_psd_rad2_s3": 1e-6,
-    # the board holds one setpoint all run: the spins walk about it (pulled to the command with
-    # noise_from_rig's lag, they were overconfident: NEES 39.4 for 25 over 3 runs)
+    # the board holds one setpoint all run: the spins walk about it rather than follow the
+    # command with noise_from_rig's lag, which would make them overconfident
     "wheel_lag_s": 0.0,
 }
 
