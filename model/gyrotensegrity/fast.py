@@ -204,6 +204,9 @@ class FastDynamics:
         )
         k, nb = self.beta + self.alpha, self.beta + 3 * self.c_u
         self._work = np.empty(9 * k + 6 * self.size + 3 * self.beta + nw + nb + nb * nb)
+        self._x = np.zeros(self.state_size)  # wheel angles stay 0: no force depends on them
+        self._u = np.empty(self.alpha + nw)
+        self._dx = np.empty(self.state_size)
         self.kernel = _fastkernel
 
     # -- evaluation -------------------------------------------------------------------------
@@ -223,14 +226,16 @@ class FastDynamics:
         z_ddot : ndarray, shape (..., 3, m'), m/s^2
         N_ddot : ndarray, shape (..., 3, n), m/s^2
         """
-        self.check_spins(omega_w)
-        if self.kernel is not None and not any(
-            np.iscomplexobj(a) for a in (q, q_dot, omega_w, rest)
-        ):
-            z_ddot = self._kernel_accelerations(q, q_dot, omega_w, rest)
-        else:
-            z_ddot = self._accelerations(q, q_dot, omega_w, rest)
+        z_ddot = self.reduced_accelerations(q, q_dot, omega_w, rest)
         return z_ddot, self.node_values(z_ddot)
+
+    def reduced_accelerations(self, q, q_dot, omega_w, rest):
+        """:meth:`accelerations` without the node accelerations: ``z_ddot`` (..., 3, m'),
+        m/s^2 (a filter's prediction needs no more)."""
+        self.check_spins(omega_w)
+        if self.kernel is not None and _all_real(q, q_dot, omega_w, rest):
+            return self._kernel_accelerations(q, q_dot, omega_w, rest)
+        return self._accelerations(q, q_dot, omega_w, rest)
 
     def check_spins(self, omega_w):
         """The model's omitted-term check on wheel spins (..., n_w), rad/s (no-op when the
@@ -242,15 +247,19 @@ class FastDynamics:
     def _kernel_accelerations(self, q, q_dot, omega_w, rest):
         """Real states through the compiled kernel, one call per state of the batch."""
         lead = q.shape[:-2]
-        count, k, nw = int(np.prod(lead)), 3 * self.size, self.n_wheels
-        q, q_dot = q.reshape(count, k), q_dot.reshape(count, k)
-        omega_w = np.broadcast_to(omega_w, lead + (nw,)).reshape(count, nw)
-        rest = np.broadcast_to(rest, lead + (self.alpha,)).reshape(count, self.alpha)
+        k, nw, alpha = 3 * self.size, self.n_wheels, self.alpha
+        q, q_dot = q.reshape(-1, k), q_dot.reshape(-1, k)
+        count = len(q)
+        omega_w, rest = _rows(omega_w, lead, nw), _rows(rest, lead, alpha)
         out = np.empty((count, k))
-        dx = np.empty(self.state_size)
-        for i in range(len(q)):
-            x = np.concatenate([q[i], q_dot[i], np.zeros(nw), omega_w[i, self.torque_wheels]])
-            u = np.concatenate([rest[i], omega_w[i]])  # speed wheels read their spin from u
+        # the kernel's state and input, filled in place: a batch of one is the filter's
+        # prediction, called four times per step, where allocations cost more than the kernel
+        x, u, dx = self._x, self._u, self._dx
+        for i in range(count):
+            w, r = omega_w[min(i, len(omega_w) - 1)], rest[min(i, len(rest) - 1)]
+            x[:k], x[k : 2 * k] = q[i], q_dot[i]
+            x[2 * k + nw :] = w[self.torque_wheels]
+            u[:alpha], u[alpha:] = r, w  # speed wheels read their spin from u
             status = self.kernel.rhs(self._consts, self._dims, x, u, dx, self._work)
             if status:
                 self._singular(float("nan"), status - 1)
@@ -439,6 +448,23 @@ def fast_rhs(t, x, u, params: FastDynamics):
     """dx/dt with the common callback signature ``f(t, x, u, params)``; ``params`` is a
     :class:`FastDynamics` (drop-in for ``rhs(t, x, u, model)``)."""
     return params.rhs(t, x, u)
+
+
+def _rows(a, lead: tuple, width: int):
+    """Per-state rows of an input: (1, width) when one serves the whole batch ``lead``, else
+    (count, width)."""
+    a = np.asarray(a)
+    count = int(np.prod(lead))
+    if a.ndim == 1:
+        return a.reshape(1, width)
+    if a.shape[:-1] != lead:
+        a = np.broadcast_to(a, lead + (width,))
+    return a.reshape(count, width)
+
+
+def _all_real(*arrays) -> bool:
+    """No complex array among ``arrays`` (the complex step takes the numpy path)."""
+    return not any(np.iscomplexobj(a) for a in arrays)
 
 
 def _colsum(X):

@@ -22,8 +22,8 @@ from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.estimator.ekf import Status
 from gyrohost.resources import shipped
-from gyrohost.run.foxglove import z_to
-from gyrohost.run.log import read_meta, read_stream
+from gyrohost.run.foxglove import RowJson, z_to
+from gyrohost.run.log import format_value, read_meta, read_stream
 from gyrohost.run.ticker import status_words
 from gyrotensegrity import load_scene
 
@@ -178,3 +178,16 @@ def test_a_wheel_cylinder_axis_lies_along_its_bar(direction):
     axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
     assert np.allclose(axis, np.array(direction) / np.linalg.norm(direction), atol=1e-9)
     assert x * x + y * y + z * z + w * w == pytest.approx(1.0)
+
+
+def test_a_row_message_is_the_csv_row_as_json():
+    columns = ("t_s", "x_m", "gap_m", "far_m", "seq", "ok", "phase")
+    values = (np.float64(0.1), -1.0 / 3.0, np.nan, -np.inf, np.int64(7), True, "schedule")
+    rows = RowJson(columns, ("phase",))
+    made_here = json.loads(rows.json(values))
+    from_csv = json.loads(rows.json(values, [format_value(v) for v in values]))
+    assert made_here == from_csv == {
+        "t_s": 0.1, "x_m": -1.0 / 3.0, "gap_m": None, "far_m": None, "seq": 7, "ok": 1,
+        "phase": "schedule",
+    }  # fmt: skip
+    assert from_csv["x_m"] == -1.0 / 3.0  # bit for bit: the shortest exact text

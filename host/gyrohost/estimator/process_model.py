@@ -108,11 +108,15 @@ class ProcessModel:
         pulling = rest  # the rest lengths the string forces see
         if self.config.kink_model == "mean":
             pulling = self.mean_force_rest(q, q_dot, rest)
-        eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, X[:, L.omega], pulling)
+        omega = X[:, L.omega]
+        if with_node_accelerations:
+            eta2_ddot, N_ddot = self.dyn.accelerations(q, q_dot, omega, pulling)
+        else:
+            eta2_ddot = self.dyn.reduced_accelerations(q, q_dot, omega, pulling)
         dx = np.empty_like(X)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
-        dx[:, L.omega] = self.wheel_acceleration(X[:, L.omega], u)
+        dx[:, L.omega] = self.wheel_acceleration(omega, u)
         dx[:, L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
         return (dx, N_ddot) if with_node_accelerations else dx
 

@@ -78,9 +78,10 @@ class LiveView:
                 spec.topic, schema=schema, message_encoding="json", context=self._context
             )
 
-    def write(self, name: str, values) -> None:
-        """Send one row of stream ``name`` (and its scene update) to every subscriber."""
-        for topic, t_ns, data in self.channels.messages(name, values):
+    def write(self, name: str, values, texts=None) -> None:
+        """Send one row of stream ``name`` (and its scene update) to every subscriber;
+        ``texts``: the row as the CSV has it, if formatted."""
+        for topic, t_ns, data in self.channels.messages(name, values, texts):
             self._channels[topic].log(data, log_time=t_ns)
 
     def close(self) -> None:

@@ -16,7 +16,8 @@ Floats are written with 17 significant digits, so a replay reads back bit-identi
 A log hands every row it writes to its *sinks* too (``RunLog(..., sinks=...)``): the MCAP file
 of a run (:mod:`gyrohost.run.mcap`), the live view (:mod:`gyrohost.run.live`). A sink has
 ``start(folder, meta)``, ``open(name, columns, text_columns, description)``, ``write(name,
-values)`` (after the CSV row is written whole, so it gets exactly the CSV's rows) and
+values, texts)`` (after the CSV row is written whole, so it gets exactly the CSV's rows;
+``texts`` the row's values as the CSV has them, or None) and
 ``close()``; an ``OSError`` of a sink is the log's failure, as a stream's is.
 """
 
@@ -76,7 +77,8 @@ class Stream:
                 f"{self.path.name}: row has {len(values)} values, "
                 f"columns are {len(self.columns)}: {', '.join(self.columns)}"
             )
-        line = ",".join(_format(v) for v in values) + "\n"
+        texts = [format_value(v) for v in values]
+        line = ",".join(texts) + "\n"
         if self._file is None or self.log.failure is not None:
             return
         try:
@@ -87,7 +89,7 @@ class Stream:
         self.rows += 1
         if self.columns[0] == "t_s":
             self.log.wrote_at(values[0])
-        self.log.forward(self.name, values)
+        self.log.forward(self.name, values, texts)
 
     def close(self) -> None:
         """Close the file; a failing flush is recorded as the log's failure, not raised."""
@@ -100,7 +102,9 @@ class Stream:
             self.log.fail(f"{self.path.name}: {exc}")
 
 
-def _format(value) -> str:
+def format_value(value) -> str:
+    """A row value as the CSV writes it: a number in its shortest exact form (``nan``, ``inf``
+    as such), an integer or bool as an integer, a string as it is (no commas or newlines)."""
     if isinstance(value, str):
         if "," in value or "\n" in value:
             raise LogError(f"string value {value!r} contains a comma or newline")
@@ -258,10 +262,11 @@ class RunLog:
             self.fail(f"meta.json: {exc}")
             self.check()
 
-    def forward(self, name: str, values) -> None:
-        """Hand one row of stream ``name``, written whole, to every sink."""
+    def forward(self, name: str, values, texts=None) -> None:
+        """Hand one row of stream ``name``, written whole, to every sink (``texts``: the
+        values as the CSV has them, :func:`format_value`, so a sink need not format again)."""
         for sink in self.sinks:
-            self._sink_call(sink, "write", name, values)
+            self._sink_call(sink, "write", name, values, texts)
 
     def _sink_call(self, sink, method: str, *args) -> bool:
         """Call a sink; its ``OSError`` (a full disk) is the log's failure, and the sink is

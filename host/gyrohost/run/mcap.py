@@ -68,10 +68,10 @@ class McapSink:
             )
         self._file.flush()
 
-    def write(self, name: str, values) -> None:
+    def write(self, name: str, values, texts=None) -> None:
         """Write one row of stream ``name`` (and its scene update); flush if the last flush is
-        :data:`FLUSH_PERIOD_S` old."""
-        for topic, t_ns, data in self.channels.messages(name, values):
+        :data:`FLUSH_PERIOD_S` old. ``texts``: the row as the CSV has it, if formatted."""
+        for topic, t_ns, data in self.channels.messages(name, values, texts):
             self._writer.add_message(self._ids[topic], t_ns, data, t_ns)
         now = time.monotonic()
         if now - self._flushed_s >= FLUSH_PERIOD_S:
