@@ -62,7 +62,10 @@ def test_doctor_names_placeholders_missing_ports_and_the_latency_timer(tmp_path,
     missing = dict(rig_ports, wheels=str(tmp_path / "ttyACM9"))
     found = checks(tmp_path, config_text("lab-rig", missing))
     assert not found["placeholders"].ok
-    assert "servos.servo[0].zero_position = 0 (CALIBRATE" in found["placeholders"].detail
+    detail = found["placeholders"].detail
+    assert "servos.servo[0].zero_position = 0 (CALIBRATE" in detail
+    for key in ("wheel_lag_s", "servo_lag_s"):  # the simulated rig's figures
+        assert f"estimator.{key} = 0.05 (CALIBRATE: emulator value" in detail
     port_check = found[f"wheelboard.port {tmp_path / 'ttyACM9'}"]
     assert not port_check.ok and port_check.detail.startswith("no such device")
     assert "wheel board" not in found  # nothing to identify

@@ -19,6 +19,7 @@ def test_run_refuses_the_template_naming_each_calibration_key(tmp_path, capsys):
         assert f"servos.servo[{i}].zero_position = 0 (CALIBRATE" in err
         assert f"servos.servo[{i}].length_at_zero_m = 0.43105229381822 (CALIBRATE" in err
     assert "imu_rate_std_rad_s" not in err  # a datasheet figure is no calibration
+    assert "wheel_lag_s" not in err and "servo_lag_s" not in err  # nor is the emulator's
     assert not log.exists()
 
 
@@ -35,6 +36,18 @@ def test_a_calibrated_value_or_a_removed_marker_is_no_placeholder(tmp_path):
     dropped = tmp_path / "dropped.toml"  # a required key left out is at its default: the same
     dropped.write_text(text.replace("zero_position = 0 ", "# zero_position = 0 ", 1))
     assert "servos.servo[0].zero_position" in {p.key for p in find_placeholders(dropped)}
+
+
+def test_only_the_servos_calibration_keys_are_required():
+    """The estimator's lags are marked (the simulated rig's figures) but a run starts with
+    them: only the servos' zeros are required."""
+    found = {p.key: p for p in find_placeholders(TEMPLATE)}
+    for key in ("estimator.wheel_lag_s", "estimator.servo_lag_s"):
+        assert found[key].marker == "CALIBRATE" and found[key].note.startswith("emulator value")
+    required = {key for key, p in found.items() if p.required}
+    assert required == {
+        f"servos.servo[{i}].{k}" for i in (0, 1) for k in ("zero_position", "length_at_zero_m")
+    }
 
 
 def test_marked_keys_follow_tables_and_arrays_of_tables():

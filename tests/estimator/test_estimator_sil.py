@@ -2,7 +2,10 @@
 short software-in-the-loop check; the 20-run Monte Carlo is
 ``python -m gyrohost.experiments.estimator_sil``."""
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
@@ -28,7 +31,6 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     otherwise than under the host's scene, which the host's commands and model keep; the true
     sensor axes are the frame's turned by the rotation."""
     from dataclasses import replace
-    from pathlib import Path
 
     from gyrohost.config import with_truth_scene
     from gyrohost.experiments.estimator_sil import rig_model_run
@@ -51,3 +53,42 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     assert np.abs(x_o[-1, L.q] - x[-1, L.q]).max() > 1e-5  # m
     turn = rotation_zyx(*np.radians(rotation_deg))
     np.testing.assert_allclose(R_o[0], R[0] @ turn, atol=1e-12)  # at the same initial state
+
+
+def _config_with_keys(tmp_path, keys):
+    """The shipped simulated rig's configuration with ``keys`` (TOML lines) in ``[estimator]``."""
+    text = Path(CONFIG).read_text()
+    line = "noise_from_sim = true"
+    assert line in text
+    path = tmp_path / "rig.toml"
+    path.write_text(text.replace(line, f"{line}\n{keys}"))
+    return load_rig_config(path)
+
+
+def test_config_and_file_keys_reach_the_simulated_clock_filter(tmp_path):
+    """A configuration's ``[estimator]`` keys override the SIL's own, ``--estimator``'s override
+    both: a servo noise of 10 mm (the SIL's: 4.4 um) and an angle noise of 1 rad make their NIS
+    vanish in the filter that runs."""
+    from gyrohost.experiments.estimator_sil import sil_keys, sil_results
+
+    config = _config_with_keys(tmp_path, "servo_length_std_m = 0.01\nimu_angle_std_rad = 0.5")
+    extra = tmp_path / "estimator.toml"
+    extra.write_text("[estimator]\nimu_angle_std_rad = 1.0\n")
+    keys = sil_keys(config, extra)
+    assert keys["servo_length_std_m"] == 0.01 and keys["imu_angle_std_rad"] == 1.0
+    assert keys["accel_psd_m2_s3"] == RIG_MODEL_KEYS["accel_psd_m2_s3"]  # not overridden
+    (result,) = sil_results(config, runs=1, duration_s=0.3, estimator=extra)
+    for source in ("servos", "imu_angle"):
+        _, nis, dof = result.nis[source]
+        assert len(nis) > 0 and np.mean(nis) < 1e-3 * dof[0], source
+    _, nis, dof = result.nis["imu_rate"]  # the SIL's own figure
+    assert np.mean(nis) > 0.1 * dof[0]
+
+
+def test_a_bad_config_key_names_the_file(tmp_path):
+    from gyrohost.estimator.errors import EstimatorConfigError
+    from gyrohost.experiments.estimator_sil import sil_keys
+
+    config = _config_with_keys(tmp_path, "servo_length_sd_m = 0.01")
+    with pytest.raises(EstimatorConfigError, match=r"rig\.toml.*servo_length_sd_m"):
+        sil_keys(config)

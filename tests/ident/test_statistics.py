@@ -155,3 +155,45 @@ def test_scale_rise_is_zero_along_an_exact_symmetry():
     assert rise == pytest.approx(0.0, abs=1e-3)
     np.testing.assert_allclose(np.abs(valley[:4]), 0.5, atol=1e-3)
     np.testing.assert_allclose(bend, 0.0, atol=1e-3)  # a straight valley
+
+
+def test_the_statistics_report_every_cost_evaluation_as_progress():
+    """The sigmas' profiles and the scale test call the observer after every evaluation of the
+    cost (none during the fit itself): four single-parameter profiles, the scale refits below
+    and above, three combinations' profiles, each profile sampled at every step."""
+    problem = Problem(np.array([0.26, -0.22, 0.22, -0.36, 0.01]), pin=0.5)
+    sol = least_squares(problem, np.zeros(5), diff_step=[0.03] * 5, xtol=1e-12)
+    calls = []
+    with profile.observing(lambda *step: calls.append(step)):
+        statistics(problem, sol, [-np.inf] * 5, [0.03] * 5)
+    n = len(profile.PROFILE_STEPS)
+    profiles = [c for c in calls if c[0] == "profile"]
+    assert [done for _, done, _ in profiles] == list(range(1, n + 1)) * 7
+    assert {total for *_, total in profiles} == {n}
+    for side in ("scale below", "scale above"):
+        refit = [done for step, done, total in calls if step == side and total is None]
+        assert len(refit) >= profile.SCALE_EVALUATIONS and refit == list(range(1, len(refit) + 1))
+    assert [c[0] for c in calls].index("scale below") == 4 * n  # after the four profiles
+    seen = len(calls)
+    statistics(problem, sol, [-np.inf] * 5, [0.03] * 5)  # outside the block: not observed
+    assert len(calls) == seen
+
+
+def test_the_identify_progress_line_shows_the_statistics_step():
+    from io import StringIO
+
+    from gyrohost.commands.identify import FitProgress
+
+    stream = StringIO()
+    stream.isatty = lambda: True
+    bar = FitProgress(10, stream)
+    bar(1, 2.5)
+    for done in (1, 2):
+        bar.statistics("profile", done, 8)
+    bar.statistics("profile", 1, 8)
+    bar.statistics("scale below", 5, None)
+    bar.close()
+    text = stream.getvalue()
+    assert "cost 2.5" in text and "statistics: cost profile 1, evaluation 2/8" in text
+    assert "cost profile 2, evaluation 1/8" in text
+    assert "scale below refit, evaluation 5;    4 in all" in text

@@ -4,7 +4,8 @@ The template (``gyrohost/configs/lab-rig.toml``, package data) marks the keys a 
 with a comment on their line: ``# MEASURE`` (a dimension of the rig) or ``# CALIBRATE`` (a figure
 found with the devices). A copy's key is a placeholder while its value equals the template's and
 its line still carries the marker; deleting the marker says "measured, and it is this value".
-A ``CALIBRATE`` key without ``datasheet value`` in its comment (the servos' zeros) is required:
+A ``CALIBRATE`` key whose comment starts with neither ``datasheet value`` nor ``emulator value``
+(the simulated rig's figure: the estimator's lags) is required, as the servos' zeros are:
 ``gyrotens run`` on real ports refuses a configuration that still has one.
 """
 
@@ -22,6 +23,8 @@ TEMPLATE = "lab-rig"
 _TABLE = re.compile(r"^\s*(\[\[?)\s*([A-Za-z0-9_.]+)\s*\]\]?")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_]+)\s*=")
 _MARKER = re.compile(r"#\s*(MEASURE|CALIBRATE)\b:?\s*(.*)$")
+_STAND_IN = ("datasheet value", "emulator value")
+"""How a ``CALIBRATE`` note starts when the figure can stand in until measured."""
 
 
 @dataclass(frozen=True)
@@ -47,8 +50,9 @@ class Placeholder:
 
     @property
     def required(self) -> bool:
-        """A run on real ports needs it filled in (a calibration, not a datasheet figure)."""
-        return self.marker == "CALIBRATE" and not self.note.startswith("datasheet value")
+        """A run on real ports needs it filled in (a calibration, not a datasheet's or the
+        emulator's figure)."""
+        return self.marker == "CALIBRATE" and not self.note.startswith(_STAND_IN)
 
     def describe(self) -> str:
         """``key = value (MARKER: note)``."""

@@ -43,13 +43,14 @@ def register(sub) -> None:
 
 
 class FitProgress:
-    """A one-line progress bar on a terminal (evaluations of the budget, cost); silent
-    otherwise."""
+    """A one-line progress bar on a terminal (evaluations of the budget, cost), then a line of
+    the statistics' counted steps (:meth:`statistics`); silent otherwise."""
 
     def __init__(self, budget: int, stream=None):
         self.stream = stream or sys.stderr
         self.enabled = self.stream.isatty()
         self.budget, self.calls = budget, 0
+        self.profiles, self.stats_calls = 0, 0
 
     def __call__(self, simulations: int, cost: float) -> None:
         self.calls += 1
@@ -62,6 +63,22 @@ class FitProgress:
             )
             self.stream.flush()
 
+    def statistics(self, step: str, done: int, total: int | None) -> None:
+        """After every cost evaluation of the sigmas' profiles and the scale test
+        (:func:`gyrohost.ident.profile.observing`): which step, how far."""
+        if self.stats_calls == 0 and self.enabled:
+            self.stream.write("\n")  # the fit's bar stays as it ended
+        self.stats_calls += 1
+        if step == "profile" and done == 1:
+            self.profiles += 1
+        if self.enabled:
+            what = f"cost profile {self.profiles}" if step == "profile" else f"{step} refit"
+            of = "" if total is None else f"/{total}"
+            self.stream.write(
+                f"\rstatistics: {what}, evaluation {done}{of}; {self.stats_calls:4d} in all  "
+            )
+            self.stream.flush()
+
     def close(self) -> None:
         if self.enabled:
             self.stream.write("\n")
@@ -71,7 +88,7 @@ def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
-    from gyrohost.ident import report
+    from gyrohost.ident import profile, report
     from gyrohost.ident.fit import fit, nominal_lag
     from gyrohost.ident.forward import IdentDataError
     from gyrohost.ident.logs import load_recording
@@ -97,7 +114,8 @@ def run(args) -> int:
     print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
     progress = FitProgress(args.max_evaluations * (len(params) + 1))
     try:
-        result = fit(scene, config, est, params, recs, progress, args.max_evaluations)
+        with profile.observing(progress.statistics):
+            result = fit(scene, config, est, params, recs, progress, args.max_evaluations)
     finally:
         progress.close()
     print("\n".join(report.report_lines(result)))

@@ -19,19 +19,17 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from gyrohost.cli import CliError
+    from gyrohost.estimator.errors import EstimatorConfigError
     from gyrohost.experiments.estimator_sil import SilError, report
     from gyrohost.run import ScheduleRefused
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
-    if args.estimator is not None and not args.realtime:
-        raise CliError("--estimator is for --realtime (the simulated clock's keys are the "
-                       "experiment's own)")  # fmt: skip
     if args.realtime and (args.workers is not None or args.scheduler is not None):
         raise CliError("--realtime runs one after the other: --workers/--scheduler are for the "
                        "simulated clock")  # fmt: skip
     try:
         report(args)
-    except (SilError, ScheduleRefused) as exc:  # bad input: a message, exit 2
+    except (SilError, ScheduleRefused, EstimatorConfigError) as exc:  # bad input: a message, exit 2
         raise CliError(str(exc)) from None
     return 0

@@ -134,15 +134,27 @@ def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    table = rig.estimator
-    keys = noise_from_rig(rig) if table.noise_from_sim else imu_keys(rig)
-    config_from_dict(table.keys, f"{rig.source}: [estimator]")
-    keys.update(table.keys)
+    keys = noise_from_rig(rig) if rig.estimator.noise_from_sim else imu_keys(rig)
+    return config_from_dict({**keys, **rig_overrides(rig, path)}, rig.source)
+
+
+def rig_overrides(rig, path: str | Path | None = None) -> dict:
+    """The keys of the rig's ``[estimator]`` table, then those of the ``[estimator]`` table of
+    the file ``path`` over them: the last layers of :func:`for_rig` (and of the in-process SIL,
+    over its own keys). Each table is checked on its own, so that an error names its file.
+
+    Raises
+    ------
+    EstimatorConfigError
+        An unknown key or bad value, naming the file and the key.
+    """
+    keys = dict(rig.estimator.keys)
+    config_from_dict(keys, f"{rig.source}: [estimator]")
     if path is not None:
         extra = read_table(path)
         config_from_dict(extra, str(path))
         keys.update(extra)
-    return config_from_dict(keys, rig.source)
+    return keys
 
 
 def _check(f, value, where: str):

@@ -19,7 +19,9 @@ seed), whose TELEMETRY frames are read off its pty and decoded with the protocol
 speeds carry the encoder's quantisation noise through the firmware's low-pass. The filter takes
 the latest frame at every IMU sample (decimated from 500 Hz to its 100 Hz: the low-pass's 8 ms
 would correlate frames 2 ms apart). Scored at every IMU sample against the truth state: NEES
-(full state, on the constraint manifold), NIS per source, tilt error.
+(full state, on the constraint manifold), NIS per source, tilt error. The filter's keys: the
+simulated rig's noise (``noise_from_rig``), :data:`RIG_MODEL_KEYS` over them, then the rig
+configuration's ``[estimator]`` keys and ``--estimator FILE``'s (:func:`sil_keys`).
 
 ``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
 (``run_simulated``: ptys, drivers, arrival time stamps, the IMU's fused at its reconstructed
@@ -348,6 +350,15 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
+def sil_keys(config, estimator=None) -> dict:
+    """The simulated clock's filter keys on top of :func:`.config.noise_from_rig`, each layer
+    overriding the keys it names: :data:`RIG_MODEL_KEYS`, the configuration's ``[estimator]``
+    keys, the ``[estimator]`` table of the file ``estimator`` (docs/estimator.md)."""
+    from gyrohost.estimator.config import rig_overrides
+
+    return {**RIG_MODEL_KEYS, **rig_overrides(config, estimator)}
+
+
 def sil_results(
     config,
     runs,
@@ -362,10 +373,11 @@ def sil_results(
     ``executor`` (:class:`gyrohost.parallel.Executor`; default serial), or with ``realtime``
     recorded one after the other on the real-time simulated rig into ``out``/runNN
     (``score_only``: score logs already there) and scored from their logs; ``estimator``: a
-    TOML file whose ``[estimator]`` keys the recorded runs use (``score_only``: the replays).
-    Returns the :class:`RunResult` list."""
+    TOML file whose ``[estimator]`` keys the runs use (simulated clock: over :func:`sil_keys`;
+    ``score_only``: the replays). Returns the :class:`RunResult` list."""
     if not realtime:
-        task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=RIG_MODEL_KEYS)
+        keys = sil_keys(config, estimator)
+        task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=keys)
         return (executor or parallel.Executor(serial=True)).map(task, range(1, runs + 1))
     results = []
     for seed in range(1, runs + 1):

@@ -24,8 +24,8 @@ def add_arguments(parser) -> None:
         "--estimator",
         type=Path,
         metavar="FILE",
-        help="with --realtime: TOML with an [estimator] table whose keys override the rig "
-        "configuration's (recording) or the logs' (--score-only: replayed with them)",
+        help="TOML with an [estimator] table whose keys override the rig configuration's "
+        "(simulated clock; --realtime: recording) or the logs' (--score-only: replayed with them)",
     )
     parser.add_argument(
         "--plot",

@@ -26,6 +26,11 @@ correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
   ``c . bend`` within the scale tested is added to its sigma (in quadrature).
 """
 
+from collections.abc import Callable
+from contextlib import contextmanager
+from contextvars import ContextVar
+from itertools import count
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -37,6 +42,31 @@ CHI2_95 = 3.841
 """Chi-square, one degree of freedom, 95 %: the rise of ``2 cost / s^2`` that is significant."""
 SCALE_EVALUATIONS = 12
 """Residual evaluations of each re-minimisation with the scale held."""
+
+
+_observer: ContextVar[Callable[[str, int, int | None], None] | None] = ContextVar(
+    "profile_observer", default=None
+)
+
+
+@contextmanager
+def observing(callback: Callable[[str, int, int | None], None]):
+    """Within the block, ``callback(step, done, total)`` is called after every evaluation of
+    the cost by :func:`secant_sigma` and :func:`scale_rise` (the statistics after a fit, which
+    take about as long as the fit): ``step`` is ``"profile"`` or ``"scale below"`` / ``"scale
+    above"``, ``done`` the evaluations of that step so far (1 starts a new one), ``total`` its
+    number of evaluations (``None``: open-ended, a re-minimisation)."""
+    token = _observer.set(callback)
+    try:
+        yield
+    finally:
+        _observer.reset(token)
+
+
+def _notify(step: str, done: int, total: int | None) -> None:
+    callback = _observer.get()
+    if callback is not None:
+        callback(step, done, total)
 
 
 def cost(problem, theta) -> float:
@@ -73,7 +103,10 @@ def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float
     sd = float(np.sqrt(c @ cov @ c))
     direction = cov @ c / sd  # moves c . theta by one linearised sigma per unit
     t = np.append(PROFILE_STEPS, 0.0)
-    rise = np.array([cost(problem, theta + k * direction) - cost0 for k in t[:-1]] + [0.0])
+    rise = np.zeros(len(t))
+    for j, k in enumerate(PROFILE_STEPS):
+        rise[j] = cost(problem, theta + k * direction) - cost0
+        _notify("profile", j + 1, len(PROFILE_STEPS))
     x = t * sd
     A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
     coef = np.linalg.lstsq(A, rise, rcond=None)[0]
@@ -111,11 +144,18 @@ def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
     steps, lower = np.asarray(steps, float), np.asarray(lower, float)
     z_steps = np.append(np.full(k - 1, steps[members].max()), steps[others])
     rises, ends = [], []
-    for h in (-SCALE_STEP, SCALE_STEP):
+    for h, label in ((-SCALE_STEP, "scale below"), (SCALE_STEP, "scale above")):
         start = theta + h * np.asarray(direction)
         z_lower = np.append(np.full(k - 1, -np.inf), lower[others] - start[others])
+        calls = count(1)
+
+        def held(z, s=start, label=label, calls=calls):
+            r = problem(s + B @ z)
+            _notify(label, next(calls), None)  # the Jacobian's evaluations count too
+            return r
+
         sol = least_squares(
-            lambda z, s=start: problem(s + B @ z),
+            held,
             np.maximum(np.zeros(p - 1), z_lower + 1e-9),
             bounds=(z_lower, np.inf),
             diff_step=z_steps,
