@@ -61,3 +61,27 @@ def test_a_wheel_delay_shifts_the_response_by_that_much(model):
         ekf.advance(t)
         want = [np.sign(s) * (closed_form(t - delay, abs(s)) - abs(s)) + s for s in s0]
         np.testing.assert_allclose(ekf.x[omega], want, atol=2e-3)
+
+
+def test_a_command_ahead_of_the_filter_waits_for_the_prediction(model):
+    """A command stamped ahead of the filter (the run loop's, sent after the tick's fusion) is
+    held until the prediction reaches it: a sample taken before it is predicted under the
+    previous input, and the result equals predicting to the command's time first."""
+    config = EstimatorConfig(servo_lag_s=0.01)
+    rest = model.input_at(0.0)[: model.alpha]
+    pulled = rest - 0.02
+    held, first = TensegrityEKF(model, config), TensegrityEKF(model, config)
+    held.set_input(pulled, 0.05)
+    assert held.t == 0.0
+    held.advance(0.03)  # a sample taken before the command
+    np.testing.assert_array_equal(held.u[: model.alpha], rest)
+    first.advance(0.03)
+    np.testing.assert_array_equal(held.x, first.x)
+    held.advance(0.08)
+    first.advance(0.05)
+    first.set_input(pulled, 0.05)
+    first.advance(0.08)
+    np.testing.assert_array_equal(held.u[: model.alpha], pulled)
+    np.testing.assert_allclose(held.x, first.x, rtol=0, atol=1e-15)
+    rest_states = held.x[layout_of(model).rest]
+    assert np.all(rest_states < rest - 0.01)  # the rest lengths followed the pull

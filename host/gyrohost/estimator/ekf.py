@@ -13,6 +13,7 @@ Typical use (the run loop and ``gyrotens replay``)::
     ekf.advance(t)                        # prediction only (between samples, during outages)
 """
 
+import bisect
 from enum import IntFlag
 
 import numpy as np
@@ -106,7 +107,9 @@ class TensegrityEKF:
         self.monitors = {s: SourceMonitor(s, self._timeout(s)) for s in SOURCES}
         self.stale_last = False
         self._A = None  # linearisation of the dynamics at the current prior, if made
-        self._wheel_commands: list[tuple[float, np.ndarray]] = []  # (due time s, speeds)
+        # inputs not in effect yet, by due time: (s, "rest" or "wheels", values)
+        self._commands: list[tuple[float, str, np.ndarray]] = []
+        self._last_wheels: np.ndarray | None = None  # the newest wheel command, queued or not
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
@@ -176,41 +179,51 @@ class TensegrityEKF:
     # -- time update ----------------------------------------------------------------------------
     def set_input(self, rest_length_m, t_s=None, wheel_speed_rad_s=None):
         """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now), held until the next
-        command; the filter first predicts to ``t_s`` with the previous command. With
-        ``wheel_speed_rad_s`` (n_w,), scene wheel order, the wheels' commanded spins too, in
-        effect ``wheel_delay_s`` after ``t_s`` (the wheel states follow them with
-        ``wheel_lag_s``; none given: the previous ones; the first in effect at once)."""
-        if t_s is not None and t_s > self.t:
-            self.advance(t_s)
-        self.u = self.u.copy()
-        self.u[: self.model.alpha] = rest_length_m
-        if wheel_speed_rad_s is None:
-            return
-        speeds = np.array(wheel_speed_rad_s, float)
-        last = self._wheel_commands[-1][1] if self._wheel_commands else None
-        if self.process.wheel_command_rad_s is None:
-            self.process.command_wheels(speeds)
-        elif not np.array_equal(speeds, self.process.wheel_command_rad_s if last is None else last):
-            # only changes: each queued command splits the prediction step at its due time
-            stamp = self.t if t_s is None else t_s
-            self._wheel_commands.append((stamp + self.config.wheel_delay_s, speeds))
-            self._apply_due_wheel_commands()
+        command. A command ahead of the filter waits for the prediction to reach ``t_s`` (the
+        run loop sends its command before it fuses the samples taken before it), so samples
+        fused meanwhile see the input they were taken under. With ``wheel_speed_rad_s``
+        (n_w,), scene wheel order, the wheels' commanded spins too, in effect
+        ``wheel_delay_s`` after ``t_s`` (the wheel states follow them with ``wheel_lag_s``;
+        none given: the previous ones; the first in effect at once)."""
+        stamp = self.t if t_s is None else max(float(t_s), self.t)
+        self._queue(stamp, "rest", np.array(rest_length_m, float))
+        if wheel_speed_rad_s is not None:
+            speeds = np.array(wheel_speed_rad_s, float)
+            if self.process.wheel_command_rad_s is None:
+                self.process.command_wheels(speeds)
+                self._last_wheels = speeds
+            elif not np.array_equal(speeds, self._newest_wheel_command()):
+                # only changes: each queued command splits the prediction step at its due time
+                self._queue(stamp + self.config.wheel_delay_s, "wheels", speeds)
+                self._last_wheels = speeds
+        self._apply_due_commands()
 
-    def _apply_due_wheel_commands(self) -> float:
-        """Hand the wheel commands due by now to the process model; the next one's due time
-        (inf: none pending)."""
-        while self._wheel_commands and self._wheel_commands[0][0] <= self.t + 1e-12:
-            self.process.command_wheels(self._wheel_commands.pop(0)[1])
-        return self._wheel_commands[0][0] if self._wheel_commands else np.inf
+    def _newest_wheel_command(self) -> np.ndarray:
+        return self.process.wheel_command_rad_s if self._last_wheels is None else self._last_wheels
+
+    def _queue(self, due_s: float, kind: str, values: np.ndarray) -> None:
+        bisect.insort(self._commands, (due_s, kind, values), key=lambda c: c[0])
+
+    def _apply_due_commands(self) -> float:
+        """Put the commands due by now in effect; the next one's due time (inf: none
+        pending)."""
+        while self._commands and self._commands[0][0] <= self.t + 1e-12:
+            _, kind, values = self._commands.pop(0)
+            if kind == "wheels":
+                self.process.command_wheels(values)
+            else:
+                self.u = self.u.copy()
+                self.u[: self.model.alpha] = values
+        return self._commands[0][0] if self._commands else np.inf
 
     def advance(self, t_s: float) -> None:
         """Predict to ``t_s`` in steps of at most ``process_dt_s``; check the time-outs."""
         dt_max = self.config.process_dt_s
         while t_s - self.t > 1e-12:
-            due = self._apply_due_wheel_commands()
+            due = self._apply_due_commands()
             dt = min(dt_max, t_s - self.t, max(due - self.t, 1e-9))
             self.predict(dt)
-        self._apply_due_wheel_commands()
+        self._apply_due_commands()
         for mon in self.monitors.values():
             mon.check(self.t, self.t_start)
 
