@@ -92,3 +92,12 @@ def test_a_bad_config_key_names_the_file(tmp_path):
     config = _config_with_keys(tmp_path, "servo_length_sd_m = 0.01")
     with pytest.raises(EstimatorConfigError, match=r"rig\.toml.*servo_length_sd_m"):
         sil_keys(config)
+
+
+def test_score_only_without_recorded_runs_says_what_it_reads(tmp_path, capsys):
+    from gyrohost.cli import main
+
+    code = main(["sil", "--realtime", "--score-only", "--runs", "2", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "run01: not a log folder" in err and "--score-only scores the runs" in err

@@ -22,6 +22,7 @@ def run(args) -> int:
     from gyrohost.estimator.errors import EstimatorConfigError
     from gyrohost.experiments.estimator_sil import SilError, report
     from gyrohost.run import ScheduleRefused
+    from gyrohost.run.log import LogError
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
@@ -32,4 +33,6 @@ def run(args) -> int:
         report(args)
     except (SilError, ScheduleRefused, EstimatorConfigError) as exc:  # bad input: a message, exit 2
         raise CliError(str(exc)) from None
+    except LogError as exc:  # --score-only: a run folder missing or damaged
+        raise CliError(f"{exc} (--score-only scores the runs --realtime recorded there)") from None
     return 0
