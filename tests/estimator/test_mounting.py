@@ -58,6 +58,17 @@ def test_bad_mounting_keys_name_file_and_key(keys, message):
     assert str(err.value).startswith("rig.toml: estimator key")
 
 
+def test_mounting_covariance_round_trips_through_a_logs_json():
+    """A run stores its configuration in meta.json (``asdict``), which the replay reads back."""
+    import json
+    from dataclasses import asdict
+
+    cov = ((1e-8, 0.0, 2e-9), (0.0, 1e-8, 0.0), (2e-9, 0.0, 4e-8))
+    config = config_from_dict({"imu_mounting_cov_rad2": [list(row) for row in cov]}, "rig.toml")
+    assert config_from_dict(json.loads(json.dumps(asdict(config))), "meta.json") == config
+    assert np.array_equal(mounting_covariance(config), cov)
+
+
 def test_mounting_jacobians_match_complex_step(model, config, moving_state):
     """The rate, specific-force and angle Jacobians' mounting columns (closed form) against a
     complex step of the three measurements through ``rotation_zyx`` of the corrected angles, at
