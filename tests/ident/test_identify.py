@@ -88,6 +88,9 @@ def test_bars_not_weighed_the_scale_is_reported_not_separable(tmp_path):
 
 
 def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+
     nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
     log = record_log(truth, 2, tmp_path / "log")
     out = tmp_path / "ident" / "rig.toml"
@@ -101,6 +104,12 @@ def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
     assert np.all(J3 == J3[0]) and J3[0] != pytest.approx(0.5 * 0.05 * 0.031**2, rel=0.05)
     overlay = tomllib.loads((out.parent / "rig-config.toml").read_text())
     assert len(overlay["imu"]["mounting_rpy_rad"]) == 3
+    # the mounting's covariance for the estimator: symmetric, its diagonal the report's sigmas
+    cov = np.array(overlay["estimator"]["imu_mounting_cov_rad2"])
+    sigmas = [float(line.split()[3]) for line in text.splitlines() if line.startswith("mounting.")]
+    assert np.allclose(cov, cov.T) and np.sqrt(np.diag(cov)) == pytest.approx(sigmas, rel=1e-2)
+    merged = for_rig(load_rig_config(nominal, [out.parent / "rig-config.toml"]))
+    assert np.array_equal(merged.imu_mounting_cov_rad2, cov)
     assert (out.parent / "rig-residuals.png").stat().st_size > 10_000
 
 

@@ -93,6 +93,11 @@ class EstimatorConfig:
     # sensor feels (world frame)
     imu_frame_nodes: tuple[str, str, str] = TruthConfig.imu_frame_nodes
     imu_mounting_rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # how well imu_mounting_rpy_rad is known (1-sigma of roll, pitch, yaw, or their full
+    # covariance, e.g. from gyrotens identify): nonzero makes the error of the three angles a
+    # state (:func:`mounting_covariance`); zero takes the mounting as exact
+    imu_mounting_std_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    imu_mounting_cov_rad2: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 3
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
 
 
@@ -106,7 +111,42 @@ def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
                 f"{source}: unknown estimator key '{key}' (known: {', '.join(sorted(known))})"
             )
         values[key] = _check(known[key], value, f"{source}: estimator key '{key}'")
-    return replace(EstimatorConfig(), **values)
+    config = replace(EstimatorConfig(), **values)
+    _check_mounting(config, source)
+    return config
+
+
+def mounting_covariance(config: EstimatorConfig):
+    """Prior covariance (3, 3), rad^2, of the error of the configured mounting's roll, pitch and
+    yaw: ``imu_mounting_cov_rad2``, else ``diag(imu_mounting_std_rad^2)``; None when both are
+    zero (the mounting taken as exact, no mounting state)."""
+    import numpy as np
+
+    cov = np.array(config.imu_mounting_cov_rad2, float)
+    if not cov.any():
+        cov = np.diag(np.square(config.imu_mounting_std_rad))
+    return cov if cov.any() else None
+
+
+def _check_mounting(config: EstimatorConfig, source: str) -> None:
+    """The mounting's uncertainty: stds not negative, a covariance symmetric and positive
+    semi-definite, not both given."""
+    import numpy as np
+
+    std, cov = np.array(config.imu_mounting_std_rad), np.array(config.imu_mounting_cov_rad2)
+    where = f"{source}: estimator key"
+    if np.any(std < 0.0):
+        raise EstimatorConfigError(f"{where} 'imu_mounting_std_rad' must not be negative")
+    if std.any() and cov.any():
+        raise EstimatorConfigError(
+            f"{where}s 'imu_mounting_std_rad' and 'imu_mounting_cov_rad2': give one of them"
+        )
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        raise EstimatorConfigError(f"{where} 'imu_mounting_cov_rad2' must be symmetric")
+    if np.linalg.eigvalsh(cov).min() < -1e-12 * max(np.abs(cov).max(), 1e-300):
+        raise EstimatorConfigError(
+            f"{where} 'imu_mounting_cov_rad2' must be positive semi-definite"
+        )
 
 
 def load_config(path: str | Path) -> EstimatorConfig:
@@ -160,12 +200,7 @@ def rig_overrides(rig, path: str | Path | None = None) -> dict:
 def _check(f, value, where: str):
     default = f.default
     if isinstance(default, tuple):
-        if not isinstance(value, list | tuple) or len(value) != len(default):
-            raise EstimatorConfigError(f"{where} must be an array like {list(default)}")
-        kind = type(default[0])
-        if not all(isinstance(v, kind) or kind is float and isinstance(v, int) for v in value):
-            raise EstimatorConfigError(f"{where} must hold {kind.__name__} values")
-        return tuple(kind(v) for v in value)
+        return _check_array(default, value, where)
     if isinstance(default, str):
         if value not in f.metadata["choices"]:
             raise EstimatorConfigError(f"{where} is {value!r}, one of {f.metadata['choices']}")
@@ -176,6 +211,20 @@ def _check(f, value, where: str):
     if not lo <= value <= hi:
         raise EstimatorConfigError(f"{where} is {value}, must be in [{lo}, {hi}]")
     return float(value)
+
+
+def _check_array(default: tuple, value, where: str) -> tuple:
+    """An array like ``default`` (of str or float, or of such arrays: a matrix)."""
+    if not isinstance(value, list | tuple) or len(value) != len(default):
+        shape = [list(d) if isinstance(d, tuple) else d for d in default]
+        raise EstimatorConfigError(f"{where} must be an array like {shape}")
+    if isinstance(default[0], tuple):
+        return tuple(_check_array(d, v, where) for d, v in zip(default, value, strict=True))
+    kind = type(default[0])
+    ok = all(isinstance(v, kind) or kind is float and type(v) is int for v in value)
+    if not ok or kind is float and not all(math.isfinite(v) for v in value):
+        raise EstimatorConfigError(f"{where} must hold finite {kind.__name__} values")
+    return tuple(kind(v) for v in value)
 
 
 def imu_keys(rig) -> dict:

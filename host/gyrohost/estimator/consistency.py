@@ -10,8 +10,9 @@ def nees(ekf, x_true):
 
     The covariance has rank ``n - 2 beta`` (it lives in the tangent space of the constraint
     manifold), so the error and the covariance are taken in an orthonormal basis of that
-    tangent space at the estimate. ``x_true`` may leave out the wheel noise states (the
-    marginal NEES of the rest).
+    tangent space at the estimate. ``x_true`` may leave out the trailing states no truth has
+    (the wheel noise; the mounting's error where the truth does not give it): the marginal
+    NEES of the rest.
 
     Returns
     -------
@@ -27,7 +28,8 @@ def nees(ekf, x_true):
 
 def block_nees(ekf, x_true):
     """Marginal NEES of every block of the state against ``x_true``: the node motion in the
-    tangent space of the bar constraints, the wheel speeds, the rest lengths, the gyro bias.
+    tangent space of the bar constraints, the wheel speeds, the rest lengths, the gyro bias,
+    the mounting's error (where it is a state and ``x_true`` has it).
 
     A block whose NEES sits far below its dof is conservative, far above overconfident; the
     full NEES mixes them.
@@ -40,7 +42,10 @@ def block_nees(ekf, x_true):
     motion = np.arange(L.q.start, L.q_dot.stop)
     T = null_space(ekf.manifold.jacobian(ekf.x)[:, motion])
     out = {"motion": _marginal(ekf, x_true, motion, T)}
-    for name, part in (("wheels", L.omega), ("rest", L.rest), ("bias", L.bias)):
+    blocks = [("wheels", L.omega), ("rest", L.rest), ("bias", L.bias)]
+    if L.n_mounting and len(x_true) >= L.mounting.stop:
+        blocks.append(("mounting", L.mounting))
+    for name, part in blocks:
         idx = np.arange(part.start, part.stop)
         out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
     return out

@@ -22,6 +22,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from gyrotensegrity import SimulationError
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
+from .config import mounting_covariance
 from .errors import EstimatorError
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
@@ -79,9 +80,9 @@ class TensegrityEKF:
     ----------
     model : gyrotensegrity.Model
     config : EstimatorConfig
-    x0 : ndarray, shape (n,) or (layout.n_base,), optional
+    x0 : ndarray, shape (n,) or shorter, optional
         Initial estimate (default: the scene's initial state, zero bias); projected onto the
-        constraints; without wheel noise states they start at 0.
+        constraints; the entries it leaves out (the mounting and wheel noise states) start at 0.
     P0 : ndarray, shape (n, n), optional
         Initial covariance (default: diagonal from the ``init_*_std`` keys).
     t0_s : float, s
@@ -99,6 +100,8 @@ class TensegrityEKF:
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
         self.dynamic_columns = np.arange(L.n_dynamic)
+        # the columns the IMU prediction's Jacobians are over
+        self.imu_columns = np.r_[self.dynamic_columns, L.mounting.start : L.mounting.stop]
         self.t = float(t0_s)
         self.t_start = self.t
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
@@ -113,7 +116,8 @@ class TensegrityEKF:
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
-        x0 = np.concatenate([x0, np.zeros(L.size - len(x0))])  # wheel noise states: mean 0
+        # mounting and wheel noise states: mean 0 (the configured mounting; no noise yet)
+        x0 = np.concatenate([x0, np.zeros(L.size - len(x0))])
         P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
         x, P = self.manifold.condition(np.asarray(x0, float), P0)
         self.kf.x, self.kf.P = x.reshape(-1, 1), P
@@ -133,8 +137,12 @@ class TensegrityEKF:
         std[L.omega] = c.init_wheel_std_rad_s
         std[L.rest] = c.init_rest_std_m
         std[L.bias] = c.init_gyro_bias_std_rad_s
+        std[L.mounting] = 0.0
         std[L.wheel_noise] = fuse_wheels.white_std(c)
-        return np.diag(std**2)
+        P = np.diag(std**2)
+        if L.n_mounting:
+            P[L.mounting, L.mounting] = mounting_covariance(c)
+        return P
 
     # -- state access ---------------------------------------------------------------------------
     @property
@@ -156,9 +164,12 @@ class TensegrityEKF:
         return dyn.N_fix + dyn.node_values(q), dyn.node_values(q_dot)
 
     def attitude(self):
-        """Sensor axes in the world (3, 3) and Z-Y-X angles (3,) rad of the estimate."""
+        """Sensor axes in the world (3, 3) and Z-Y-X angles (3,) rad of the estimate (with its
+        mounting, where that is a state)."""
         N, N_dot = self.batch_nodes(self.x[None, :])
-        R, _ = self.imu.frame(N, N_dot)
+        L = self.layout
+        R_bs = self.imu.mounting(self.x[L.mounting])[0] if L.n_mounting else None
+        R, _ = self.imu.frame(N, N_dot, R_bs)
         return R[0], euler_zyx(R)[0]
 
     @property

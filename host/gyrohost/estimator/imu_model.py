@@ -3,7 +3,8 @@
 The attachment is the rig's (``gyrohost.rig.truth``): three scene nodes ``imu_frame_nodes =
 [a, b, c]`` give the body frame, ``x`` along a -> b, ``z`` along ``x cross (c - a)``, ``y = z cross
 x``; the IMU point is the midpoint of a and b. The sensor axes are the body axes turned by
-``imu_mounting_rpy_rad`` (Z-Y-X). Measurements:
+``imu_mounting_rpy_rad`` (Z-Y-X), corrected by the mounting state ``d_mount`` where the filter has
+one (the angles ``imu_mounting_rpy_rad + d_mount``). Measurements:
 
 - angular rate of the sensor axes, in sensor axes (rad/s), plus the gyro bias state;
 - specific force ``R^T (a - g)`` in sensor axes (m/s^2), ``g = imu_gravity_m_s2`` (world frame;
@@ -52,15 +53,29 @@ class ImuGeometry:
             return np.array([primary[n] for n in names])
 
         self.a, self.b, self.c = index("imu_frame_nodes", config.imu_frame_nodes)
-        self.R_bs = rotation_zyx(*config.imu_mounting_rpy_rad)  # sensor axes in body axes
+        self.rpy_rad = np.asarray(config.imu_mounting_rpy_rad, float)
+        self.R_bs = rotation_zyx(*self.rpy_rad)  # sensor axes in body axes
         self.gravity = np.asarray(config.imu_gravity_m_s2, float)
 
-    def frame(self, N, N_dot):
+    def mounting(self, d_mount_rad):
+        """Sensor axes in body axes (3, 3) of the configured mounting corrected by
+        ``d_mount_rad`` (3,) rad, and their derivatives by the three corrections (3, 3, 3),
+        ``[k]`` by roll, pitch, yaw: ``R = Rz Ry Rx`` gives ``R [e_x]``, ``[Rz e_y] R``,
+        ``[e_z] R`` (``[v]`` the cross-product matrix of ``v``)."""
+        roll, pitch, yaw = self.rpy_rad + np.asarray(d_mount_rad)  # complex-step safe
+        R = rotation_zyx(roll, pitch, yaw)
+        axes = (np.array([-np.sin(yaw), np.cos(yaw), 0.0]), np.array([0.0, 0.0, 1.0]))
+        dR = np.stack([R @ _hat(np.array([1.0, 0.0, 0.0])), _hat(axes[0]) @ R, _hat(axes[1]) @ R])
+        return R, dR
+
+    def frame(self, N, N_dot, R_bs=None):
         """Sensor axes in the world and the sensor's angular rate.
 
         Parameters
         ----------
         N, N_dot : ndarray, shape (K, 3, n), m and m/s
+        R_bs : ndarray, shape (3, 3), optional
+            Sensor axes in body axes (default: the configured mounting's).
 
         Returns
         -------
@@ -86,12 +101,18 @@ class ImuGeometry:
         # ez . ey_dot = -ey . ez_dot since ey . ez = 0
         omega_b = np.concatenate([-_dot(ey, ez_dot), _dot(ex, ez_dot), _dot(ey, ex_dot)], axis=1)
         R_wb = np.stack([ex, ey, ez], axis=2)
-        return R_wb @ self.R_bs, omega_b @ self.R_bs
+        R_bs = self.R_bs if R_bs is None else R_bs
+        return R_wb @ R_bs, omega_b @ R_bs
 
     def specific_force(self, R_ws, N_ddot):
         """Specific force at the IMU point in sensor axes, (K, 3), m/s^2."""
         a = 0.5 * (N_ddot[:, :, self.a] + N_ddot[:, :, self.b]) - self.gravity
         return np.einsum("kji,kj->ki", R_ws, a)
+
+
+def _hat(v):
+    """Cross-product matrix (3, 3) of ``v`` (3,): ``_hat(v) @ w = v x w``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def euler_zyx(R):

@@ -1,22 +1,28 @@
 """The filter's state vector and its relation to the model's state.
 
-Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3`` and ``n_w`` more with the
-wheel telemetry's noise as a state)::
+Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3``, 3 more with the IMU
+mounting's error as a state and ``n_w`` more with the wheel telemetry's noise as a state)::
 
     x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
-          | rest (alpha, m) | b_g (3, rad/s) | a_w (n_w, rad/s, optional) ]
+          | rest (alpha, m) | b_g (3, rad/s) | d_mount (3, rad, optional)
+          | a_w (n_w, rad/s, optional) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
 :mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
 string rest lengths the servos have actually reached (they lag the command), ``b_g`` the gyro
-bias in sensor axes, ``a_w`` the white term of the last wheel sample's noise, which the next
-sample's noise shares (``wheel_noise_ma1``, :mod:`.fuse_wheels`). Wheel angles are left out
-(nothing observes them, nothing depends on them).
+bias in sensor axes, ``d_mount`` the error of the configured mounting's roll, pitch and yaw (the
+true angles less ``imu_mounting_rpy_rad``; a random constant, present when the configuration
+gives the mounting an uncertainty: :func:`.config.mounting_covariance`), ``a_w`` the white term
+of the last wheel sample's noise, which the next sample's noise shares (``wheel_noise_ma1``,
+:mod:`.fuse_wheels`). Wheel angles are left out (nothing observes them, nothing depends on
+them).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from .config import mounting_covariance
 
 
 @dataclass(frozen=True)
@@ -27,6 +33,7 @@ class FilterLayout:
     n_wheels: int
     n_strings: int
     n_wheel_noise: int = 0  # n_wheels with the wheel noise as a state, else 0
+    n_mounting: int = 0  # 3 with the mounting's error as a state, else 0
 
     @property
     def size(self) -> int:
@@ -34,8 +41,9 @@ class FilterLayout:
 
     @property
     def n_base(self) -> int:
-        """Entries of the model's state and the gyro bias (all but the wheel noise states)."""
-        return self.n_dynamic + 3
+        """Entries of the model's state, the gyro bias and the mounting's error (all but the
+        wheel noise states: those a truth can give)."""
+        return self.n_dynamic + 3 + self.n_mounting
 
     @property
     def n_dynamic(self) -> int:
@@ -60,7 +68,11 @@ class FilterLayout:
 
     @property
     def bias(self) -> slice:
-        return slice(self.n_dynamic, self.n_base)
+        return slice(self.n_dynamic, self.n_dynamic + 3)
+
+    @property
+    def mounting(self) -> slice:
+        return slice(self.n_dynamic + 3, self.n_base)
 
     @property
     def wheel_noise(self) -> slice:
@@ -73,15 +85,19 @@ class FilterLayout:
         names += [f"omega_w{k}_rad_s" for k in range(self.n_wheels)]
         names += [f"rest{k}_m" for k in range(self.n_strings)]
         names += [f"gyro_bias_{a}_rad_s" for a in "xyz"]
+        names += [f"mounting_{a}_rad" for a in ("roll", "pitch", "yaw")[: self.n_mounting]]
         return names + [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
 
 
 def layout_of(model, config=None) -> FilterLayout:
     """The filter state's layout for ``model``; with ``config`` (EstimatorConfig) the wheel
-    noise states it asks for."""
+    noise and mounting states it asks for."""
     n_w = len(model.wheel_bars)
-    noise = n_w if config is not None and config.wheel_noise_ma1 != 0.0 else 0
-    return FilterLayout(model.m, n_w, model.alpha, noise)
+    if config is None:
+        return FilterLayout(model.m, n_w, model.alpha)
+    noise = n_w if config.wheel_noise_ma1 != 0.0 else 0
+    mounting = 3 if mounting_covariance(config) is not None else 0
+    return FilterLayout(model.m, n_w, model.alpha, noise, mounting)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

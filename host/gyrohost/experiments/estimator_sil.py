@@ -347,6 +347,9 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResu
     ekf = TensegrityEKF(model, est_cfg)
     rng = np.random.default_rng(seed + 7_000_001)
     ekf = TensegrityEKF(model, est_cfg, x0=sample_initial(ekf, truth_x[0], rng))
+    if ekf.layout.n_mounting:  # its truth: the configured mounting's error, all run
+        error = np.tile(mounting_error(config, est_cfg), (len(truth_x), 1))
+        truth_x = np.hstack([truth_x, error])
     return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
@@ -359,6 +362,16 @@ def sil_keys(config, estimator=None) -> dict:
     return {**RIG_MODEL_KEYS, **rig_overrides(config, estimator)}
 
 
+def mounting_error(config, est_cfg) -> np.ndarray:
+    """The simulated IMU's true mounting (``[imu] mounting_rpy_rad`` turned by ``[sim.truth]
+    imu_rotation_deg``) less the filter's ``imu_mounting_rpy_rad``: roll, pitch, yaw (3,), rad."""
+    from gyrohost.geometry import euler_zyx, wrap_angle
+    from gyrohost.rig.imu_emu import sensor_in_body
+
+    true = sensor_in_body(config.imu.mounting_rpy_rad, config.sim.truth.imu_rotation_deg)
+    return wrap_angle(euler_zyx(true) - np.asarray(est_cfg.imu_mounting_rpy_rad))
+
+
 def sil_results(
     config,
     runs,
@@ -368,16 +381,18 @@ def sil_results(
     score_only=False,
     executor=None,
     estimator=None,
+    keys=None,
 ):
     """``runs`` SIL runs (seeds 1, 2, ...): in process on the simulated clock, each a case of
     ``executor`` (:class:`gyrohost.parallel.Executor`; default serial), or with ``realtime``
     recorded one after the other on the real-time simulated rig into ``out``/runNN
     (``score_only``: score logs already there) and scored from their logs; ``estimator``: a
     TOML file whose ``[estimator]`` keys the runs use (simulated clock: over :func:`sil_keys`;
-    ``score_only``: the replays). Returns the :class:`RunResult` list."""
+    ``score_only``: the replays); ``keys``: estimator keys over those (simulated clock).
+    Returns the :class:`RunResult` list."""
     if not realtime:
-        keys = sil_keys(config, estimator)
-        task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=keys)
+        overrides = {**sil_keys(config, estimator), **(keys or {})}
+        task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=overrides)
         return (executor or parallel.Executor(serial=True)).map(task, range(1, runs + 1))
     results = []
     for seed in range(1, runs + 1):

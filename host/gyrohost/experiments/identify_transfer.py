@@ -15,12 +15,15 @@ play the paper's schedule (:func:`gyrohost.control.presets.paper`, ``--duration`
   truth's at every truth step (5 ms). No feedback: an open-loop prediction.
 - **Filter.** The in-process SIL (:func:`.estimator_sil.sil_results`, ``--runs`` seeds from 1)
   with the truth's scene and mounting as ``[sim.truth]`` (scene, ``imu_rotation_deg``) and the
-  filter's scene and ``[imu] mounting_rpy_rad`` nominal or identified: NEES and NIS per source
-  against the 95 % bounds of a ``--runs``-run average. Three more filters tell the shares
-  apart: the nominal scene with the identified mounting, the identified scene with the true
-  mounting, and the truth's own scene and mounting (the reference: the filter's consistency on
-  this truth when nothing is mis-identified); ``--yaw-offsets``: the truth's with the mounting's
-  yaw off by each of these (rad), the filter's tolerance of a mis-identified yaw.
+  filter's scene and ``[imu] mounting_rpy_rad`` nominal or identified, the identified mounting
+  with its covariance (``imu_mounting_cov_rad2``, as ``gyrotens identify`` writes it: the
+  filter estimates the mounting's error, scored against the truth's): NEES and NIS per source
+  against the 95 % bounds of a ``--runs``-run average. More filters tell the shares apart: the
+  identified scene and mounting with the mounting taken as exact, the nominal scene with the
+  identified mounting, the identified scene with the true mounting, and the truth's own scene
+  and mounting (the reference: the filter's consistency on this truth when nothing is
+  mis-identified); ``--yaw-offsets``: the truth's with the mounting's yaw off by each of these
+  (rad), the filter's tolerance of a mis-identified yaw.
 """
 
 import argparse
@@ -45,11 +48,13 @@ IDENT_GROUPS = tuple(g for g in GROUPS if g != "bar-mass")
 
 @dataclass(frozen=True)
 class Rig:
-    """One side of the comparison: a scene file and the IMU mounting the host believes."""
+    """One side of the comparison: a scene file and the IMU mounting the host believes, with
+    its covariance (3, 3), rad^2, or None (exact)."""
 
     name: str
     scene_path: Path
     mounting_rpy_rad: tuple[float, float, float]
+    mounting_cov_rad2: tuple | None = None
 
 
 def paper_scene(scene, duration_s: float):
@@ -88,7 +93,7 @@ def transfer_rigs(folder: Path, nominal_config: Path, truth_config: Path, result
     """The truth, nominal and identified rigs on the paper's schedule, scenes written in
     ``folder``. Returns (truth, [nominal, identified])."""
     from gyrohost.config import load_rig_config
-    from gyrohost.ident.report import apply_result
+    from gyrohost.ident.report import apply_result, mounting_covariance
     from gyrohost.ident.scenefile import scene_toml
     from gyrotensegrity import load_scene
 
@@ -107,7 +112,12 @@ def transfer_rigs(folder: Path, nominal_config: Path, truth_config: Path, result
     )
     return truth, [
         Rig("nominal", written("nominal", nominal), tuple(nominal_cfg.imu.mounting_rpy_rad)),
-        Rig("identified", written("identified", found.scene), tuple(found.mounting_rpy_rad)),
+        Rig(
+            "identified",
+            written("identified", found.scene),
+            tuple(found.mounting_rpy_rad),
+            tuple(map(tuple, mounting_covariance(result))),
+        ),
     ]
 
 
@@ -162,7 +172,10 @@ def filter_figures(base, truth: Rig, host: Rig, runs: int, duration_s: float) ->
     from gyrohost.experiments.estimator_sil import sil_results
     from gyrohost.experiments.montecarlo import summarise
 
-    results = sil_results(sil_config(base, host, truth), runs, duration_s)
+    keys = (
+        {} if host.mounting_cov_rad2 is None else {"imu_mounting_cov_rad2": host.mounting_cov_rad2}
+    )
+    results = sil_results(sil_config(base, host, truth), runs, duration_s, keys=keys)
     return summarise(results, f"[{host.name}] ")
 
 
@@ -226,6 +239,7 @@ def main(argv=None) -> int:
                 identified.mounting_rpy_rad,
             ),
             identified,
+            replace(identified, name="identified, mounting taken as exact", mounting_cov_rad2=None),
             Rig("identified scene, true mounting", identified.scene_path, truth.mounting_rpy_rad),
             truth,
             *(

@@ -52,14 +52,22 @@ def _combination(v: np.ndarray, names: list[str]) -> str:
 
 def overlay_toml(result: FitResult, config) -> str:
     """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
-    ``length_at_zero_m`` (its zero offset added). Separable parameters only."""
+    ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
+    (:func:`mounting_covariance`). Separable parameters only."""
     a = apply_result(result, config)
     fitted = {p.group for p, ok in zip(result.params, result.separable, strict=True) if ok}
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
     if "mounting" in fitted:
+        out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
+    cov = mounting_covariance(result)
+    if cov is not None:
+        rows = ", ".join(_array(row) for row in cov)
         out += [
-            "[imu]",
-            f"mounting_rpy_rad = [{', '.join(repr(float(x)) for x in a.mounting_rpy_rad)}]",
+            "",
+            "[estimator]",
+            "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF estimates",
+            "# its error (docs/estimator.md)",
+            f"imu_mounting_cov_rad2 = [{rows}]",
         ]
     if "servo-offsets" in fitted:
         servos = [s for s in config.servos.servo if s.string]
@@ -67,6 +75,21 @@ def overlay_toml(result: FitResult, config) -> str:
             out += ["", "[[servos.servo]]", f'name = "{s.name}"']
             out.append(f"length_at_zero_m = {float(s.length_at_zero_m + offset)!r}")
     return "\n".join(out) + "\n"
+
+
+def _array(values) -> str:
+    return f"[{', '.join(repr(float(x)) for x in values)}]"
+
+
+def mounting_covariance(result: FitResult):
+    """Covariance (3, 3), rad^2, of the fitted mounting's roll, pitch and yaw (from their
+    1-sigmas and correlations); None unless all three were fitted and are separable with a
+    finite 1-sigma."""
+    idx = [i for i, p in enumerate(result.params) if p.group == "mounting"]
+    sigma = np.array([result.value_sigma(i) for i in idx])
+    if len(idx) != 3 or not np.all(result.separable[idx]) or not np.all(np.isfinite(sigma)):
+        return None
+    return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
 
 
 def apply_result(result: FitResult, config):

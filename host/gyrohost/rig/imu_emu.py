@@ -67,6 +67,12 @@ _RATES = {0x63: 100, 0x64: 20}
 _BAUDS = {100: 115200, 20: 9600}
 
 
+def sensor_in_body(mounting_rpy_rad, rotation_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The IMU's sensor axes in body axes (3, 3): the mounting ``mounting_rpy_rad`` (Z-Y-X, rad)
+    turned further about the body axes by ``rotation_deg`` (Z-Y-X, deg)."""
+    return rotation_zyx(*np.radians(rotation_deg)) @ rotation_zyx(*mounting_rpy_rad)
+
+
 class Bwt61Emulator(PtyDevice):
     """BWT61CL emulator; see the module docstring.
 
@@ -106,7 +112,7 @@ class Bwt61Emulator(PtyDevice):
         self.baud = _BAUDS[imu.rate_hz]
         self.vertical = imu.mounting == "vertical"
         # Sensor axes in body axes: the calibrated mounting, then turned about the body axes.
-        self.R_bs = rotation_zyx(*np.radians(rotation_deg)) @ rotation_zyx(*imu.mounting_rpy_rad)
+        self.R_bs = sensor_in_body(imu.mounting_rpy_rad, rotation_deg)
         self.yaw_offset_rad = 0.0
         self.samples_sent = 0
         self.commands_seen: list[int] = []

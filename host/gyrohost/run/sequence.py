@@ -386,9 +386,7 @@ class RunLoop:
             if strict:
                 raise fault
             self.event("fault", str(fault))
-        # a fault ends the run before anything is sent; the command is the schedule's at the
-        # time it goes out, a few ms of fusion after the tick (the filter is told that time)
-        self._command(self.now())
+        self._command(self.now())  # after any fault; stamped when sent, the fusion's ms late
         if self.ekf is not None:
             self.ekf.advance(max(start, self.ekf.t))
             _, self.latest_tilt = self.estimates.write(start)
