@@ -56,8 +56,8 @@ def test_gyrotens_rig_serves_all_three_devices_at_their_rates(tmp_path):
     )
     assert rates, out
     imu, frames, telemetry, servo = map(float, rates.groups())
-    # The IMU emulator skips samples rather than send a backlog when the loop was held up for
-    # more than a period (a loaded CPU); the wheel board catches up its 1 kHz ticks.
+    # The IMU emulator loses the samples of a stall of the loop longer than its backlog (a
+    # loaded CPU); the wheel board catches up its 1 kHz ticks.
     assert 80 <= imu <= 102 and frames == pytest.approx(3 * imu, rel=0.01)
     assert telemetry == pytest.approx(500, rel=0.05)
     assert servo > 10  # the stand-in host reads at up to 50 Hz for most of the run

@@ -117,6 +117,28 @@ def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth_half_a_peri
     assert emu.samples_sent == 3
 
 
+def test_a_stalled_imu_emulator_sends_the_missed_samples_and_keeps_its_grid():
+    """A rig loop held up sends the samples of the stall late, together, each showing its grid
+    time (the host fuses them there); a stall past the backlog loses samples, not the phase."""
+    from gyrohost.rig.imu_emu import MAX_BACKLOG_S, Bwt61Emulator
+
+    asked = []
+    emu = Bwt61Emulator(
+        truth_source=lambda t: asked.append(t) or Truth(SCENE, TruthConfig(), []).imu_truth(0.0)
+    )
+    try:
+        emu.tick(0.002)  # the grid starts here
+        emu.tick(0.0455)  # held up 43.5 ms: the samples of 0.012 ... 0.042 go out now
+        emu.tick(0.0455 + MAX_BACKLOG_S + 0.2)  # a stall past the backlog
+    finally:
+        emu.close()
+    assert asked[:5] == pytest.approx([0.002, 0.012, 0.022, 0.032, 0.042])
+    stall = np.array(asked[5:])
+    assert len(stall) == pytest.approx(MAX_BACKLOG_S / 0.01, abs=1)  # the newest MAX_BACKLOG_S
+    np.testing.assert_allclose((stall - 0.002) / 0.01, np.round((stall - 0.002) / 0.01), atol=1e-6)
+    assert np.all(np.diff(stall) == pytest.approx(0.01))
+
+
 def test_setup_errors_name_the_key():
     with pytest.raises(RigSetupError, match="string 's99' is not in scene dbar-gyro"):
         Truth(SCENE, TruthConfig(), [ServoConfig(name="x", id=3, pulley_radius_m=0.01,

@@ -14,6 +14,7 @@ ignores baud), ``65``/``66`` (horizontal/vertical mode). Modelling choice, not f
 vertical mode turns the output axes by -90 deg about the sensor x axis.
 """
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -62,6 +63,9 @@ def quantise(values: np.ndarray, scale: float) -> list[int]:
     return [int(c) for c in counts]
 
 
+MAX_BACKLOG_S = 0.1
+"""Longest stall of the rig loop whose samples the emulator still sends, late (the truth keeps
+this much history for them); a longer one loses the samples beyond, as a full UART buffer."""
 _VERTICAL = rotation_zyx(-np.pi / 2, 0.0, 0.0)
 _RATES = {0x63: 100, 0x64: 20}
 _BAUDS = {100: 115200, 20: 9600}
@@ -175,18 +179,22 @@ class Bwt61Emulator(PtyDevice):
 
     # --- PtyDevice hooks ----------------------------------------------------------------------
     def tick(self, now_s: float) -> None:
-        if self._next_emit_s is None or now_s - self._next_emit_s > self.period_s:
-            self._next_emit_s = now_s  # start, or the loop fell behind: do not send a backlog
-        if now_s < self._next_emit_s:
-            return
-        # the device samples on its own grid: the truth at the grid time, sent once it is known
-        # (one truth step later at most); a truth lagging further (a loaded CPU) is sent as is
-        waited_s = now_s - self._next_emit_s
-        if waited_s < 0.5 * self.period_s and not self._truth_known(self._next_emit_s):
-            return
-        self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
-        self.samples_sent += 1
-        self._next_emit_s += self.period_s
+        if self._next_emit_s is None:
+            self._next_emit_s = now_s
+        behind_s = now_s - self._next_emit_s - MAX_BACKLOG_S
+        if behind_s > 0.0:  # a longer stall: its samples are lost, the grid's phase is kept
+            self._next_emit_s += self.period_s * math.ceil(behind_s / self.period_s)
+        # the device samples on its own grid whatever the rig loop does, as the real sensor's
+        # clock does: samples the loop was held up for go out late, together (the host puts
+        # them back on the grid); each shows the truth at its grid time, once that is known
+        # (one truth step later at most; a truth lagging further is sent as it stands)
+        while now_s >= self._next_emit_s:
+            waited_s = now_s - self._next_emit_s
+            if waited_s < 0.5 * self.period_s and not self._truth_known(self._next_emit_s):
+                return
+            self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
+            self.samples_sent += 1
+            self._next_emit_s += self.period_s
 
     def handle_rx(self, data: bytes, now_s: float) -> None:
         self._rx += data

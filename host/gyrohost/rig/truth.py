@@ -45,7 +45,7 @@ import numpy as np
 
 from gyrohost.config import RigConfig, ServoConfig, TruthConfig
 from gyrohost.errors import GyrohostError
-from gyrohost.rig.imu_emu import ImuTruth
+from gyrohost.rig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
 from gyrotensegrity.schedule import constant
@@ -243,7 +243,7 @@ class Truth:
         self.wheel_input_rad_s = np.zeros(len(self.model.wheel_bars))
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
         self._check_frame()
-        depth = int(math.ceil(config.imu_latency_s / self.dt_s)) + 2
+        depth = int(math.ceil((config.imu_latency_s + MAX_BACKLOG_S) / self.dt_s)) + 2
         self._history: deque = deque(maxlen=depth)
         self._record: list | None = None
         self._x0 = self.stepper.x.copy()
