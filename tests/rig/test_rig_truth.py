@@ -105,16 +105,16 @@ def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth_half_a_peri
         truth_ready=lambda t: t <= known["until"],
     )
     try:
-        emu.tick(0.0031)  # the grid starts here
-        emu.tick(0.0134)  # due at 0.0131, the truth not there yet: the sample waits
+        emu.tick(0.0031)  # the grid lies on multiples of the period: nothing due yet
+        emu.tick(0.0104)  # due at 0.01, the truth not there yet: the sample waits
         known["until"] = 0.015
-        emu.tick(0.0152)  # sent now, showing 0.0131
-        emu.tick(0.0233)  # due at 0.0231, the truth not there: waits
-        emu.tick(0.0282)  # half a period late: sent with what the truth has
+        emu.tick(0.0122)  # sent now, showing 0.01
+        emu.tick(0.0203)  # due at 0.02, the truth not there: waits
+        emu.tick(0.0252)  # half a period late: sent with what the truth has
     finally:
         emu.close()
-    assert asked == pytest.approx([0.0031, 0.0131, 0.0231])
-    assert emu.samples_sent == 3
+    assert asked == pytest.approx([0.01, 0.02])
+    assert emu.samples_sent == 2
 
 
 def test_a_stalled_imu_emulator_sends_the_missed_samples_and_keeps_its_grid():
@@ -127,15 +127,15 @@ def test_a_stalled_imu_emulator_sends_the_missed_samples_and_keeps_its_grid():
         truth_source=lambda t: asked.append(t) or Truth(SCENE, TruthConfig(), []).imu_truth(0.0)
     )
     try:
-        emu.tick(0.002)  # the grid starts here
-        emu.tick(0.0455)  # held up 43.5 ms: the samples of 0.012 ... 0.042 go out now
+        emu.tick(0.0)  # the grid starts here
+        emu.tick(0.0455)  # held up 45.5 ms: the samples of 0.01 ... 0.04 go out now
         emu.tick(0.0455 + MAX_BACKLOG_S + 0.2)  # a stall past the backlog
     finally:
         emu.close()
-    assert asked[:5] == pytest.approx([0.002, 0.012, 0.022, 0.032, 0.042])
+    assert asked[:5] == pytest.approx([0.0, 0.01, 0.02, 0.03, 0.04])
     stall = np.array(asked[5:])
     assert len(stall) == pytest.approx(MAX_BACKLOG_S / 0.01, abs=1)  # the newest MAX_BACKLOG_S
-    np.testing.assert_allclose((stall - 0.002) / 0.01, np.round((stall - 0.002) / 0.01), atol=1e-6)
+    np.testing.assert_allclose(stall / 0.01, np.round(stall / 0.01), atol=1e-6)
     assert np.all(np.diff(stall) == pytest.approx(0.01))
 
 

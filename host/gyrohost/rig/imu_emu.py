@@ -179,8 +179,10 @@ class Bwt61Emulator(PtyDevice):
 
     # --- PtyDevice hooks ----------------------------------------------------------------------
     def tick(self, now_s: float) -> None:
-        if self._next_emit_s is None:
-            self._next_emit_s = now_s
+        if self._next_emit_s is None:  # the grid on the truth's steps (multiples of the
+            # period from rig time zero): a sample goes out as soon as the truth steps to it,
+            # not up to a step later, a delay no real sensor has
+            self._next_emit_s = math.ceil(now_s / self.period_s - 1e-9) * self.period_s
         behind_s = now_s - self._next_emit_s - MAX_BACKLOG_S
         if behind_s > 0.0:  # a longer stall: its samples are lost, the grid's phase is kept
             self._next_emit_s += self.period_s * math.ceil(behind_s / self.period_s)
