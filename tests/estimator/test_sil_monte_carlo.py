@@ -2,9 +2,9 @@
 6 noise seeds over the whole 3 s manoeuvre; the run-averaged NEES and the NIS of every source
 must lie inside the 95 % chi-square bounds of a 6-run average, the NEES at a share of the time
 steps (:data:`STEPS_INSIDE`). Twice: the SIL (every sample at its true time) and the filter as
-the run loop drives it (IMU samples stamped on arrival and put back on the IMU's grid, every
-wheel telemetry frame on arrival, ticks late by Exp(1 ms) with the commands sent then, servo
-reads reaching it 8 ms after they were taken, the filter predicting to every tick:
+the run loop drives it (IMU samples stamped on arrival and put back on the IMU's grid, the
+newest wheel telemetry frame at each tick, ticks late by Exp(1 ms) with the commands sent then,
+servo reads reaching it 8 ms after they were taken, the filter predicting to every tick:
 ``estimator_effects`` case ``loop-fixed``). The 20-run figures: ``python -m
 gyrohost.experiments.estimator_sil``, the effects one at a time: ``python -m
 gyrohost.experiments.estimator_effects`` (docs/estimator.md)."""
@@ -22,10 +22,9 @@ CONFIG = shipped("config", "sim-rig")
 SEEDS = range(1, 7)
 DURATION_S = 3.0
 SOURCES = ("imu_rate", "imu_accel", "imu_angle", "wheels", "servos")
-# the share of time steps whose 6-run average NEES is inside its bounds: the issue's target on
-# the SIL; with the run loop's late servo reads the motion block is overconfident late in the
-# manoeuvre (seeds 1-6: 84.1 %; 95.3 % with the reads on time; docs/estimator.md)
-STEPS_INSIDE = {"sil": 0.85, "loop": 0.80}
+# the share of time steps whose 6-run average NEES is inside its bounds: the issue's target, on
+# either clock (the loop's seeds 1-6: 95.7 %; 10 runs: 86.0 %, docs/estimator.md)
+STEPS_INSIDE = {"sil": 0.85, "loop": 0.85}
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +69,16 @@ def test_tilt_error_is_small(sil):
     tilt_deg = np.degrees(np.concatenate([r.tilt_rad for r in sil]))
     assert np.sqrt(np.mean(tilt_deg**2)) < 0.05
     assert tilt_deg.max() < 0.3
+
+
+def test_late_command_wait_is_the_mean_wait_for_the_truths_next_step():
+    from gyrohost.experiments.estimator_effects import late_command_wait_s, loop_ticks
+
+    step_s, late_s = 0.005, 1e-3
+    ticks = loop_ticks(2000.0, CASES["loop-fixed"], np.random.default_rng(0), late_s)
+    sampled = np.mean(np.ceil(ticks / step_s - 1e-9) * step_s - ticks)
+    assert abs(late_command_wait_s(late_s, step_s) - sampled) < 2e-5
+    assert abs(late_command_wait_s(late_s, step_s) - 4.034e-3) < 1e-6
 
 
 def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():

@@ -28,19 +28,27 @@ from gyrohost.experiments.sil_options import DEFAULT_CONFIG
 TICK_S = 0.01  # the run loop's period, s
 MIN_DELAY_S = 5e-4  # the smallest arrival delay, s
 MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
-# A command sent at a late tick reaches the truth's servos at its next 5 ms step, a delay the
-# filter cannot know: a rest-length walk of the default density covers it (the SIL's 1e-10,
-# made for commands on the exact 10 ms grid, gave NEES 57 539, servo NIS 7583)
-LATE_COMMAND_REST_PSD_M2_S = 1e-6
+# A command sent at a late tick reaches the truth's servos at the truth's next step, a wait the
+# filter cannot know sample by sample: its mean is carried by the servo lag
+# (:func:`late_command_wait_s`), its scatter (about 1 ms at Exp(1 ms) lateness) by the rest-length
+# walk: at the manoeuvre's 0.03-0.1 m/s a command switched 1 ms off moves the rest length by
+# v 10 ms 1 ms / servo lag each 10 ms tick, a walk of 3e-9 to 3e-8 m^2/s, set a little above for
+# the lag's own approximation (the SIL's 1e-10, made for commands on the exact 10 ms grid, gave
+# NEES 57 539; the default 1e-6 left the rest block at 0.09 of 2; docs/estimator.md)
+LATE_COMMAND_REST_PSD_M2_S = 5e-8
 SERVO_PERIOD_S = 0.04  # the servo worker's read period (gyrohost.run.settings: 25 Hz), s
 # how long after the servos sample a read it reaches the host (the end of the bulk read): a
 # read stamped on arrival lines up with the real-time rig's truth best 6-10 ms earlier
 SERVO_READ_DELAY_S = 8e-3
 # The newest telemetry frame at each late tick is 8 to 12 ms after the last (500 Hz frames):
-# the quantisation's anticorrelation at exactly 10 ms is gone from that sequence (an MA(1) of
-# -0.63 gave the wheel block 8.7 for 4 dof and NIS 5.84): white, with the SIL's walk (1e-6;
-# noise_from_rig's 1e-4 left the wheel block at 1.8)
-WHITE_WHEEL_KEYS = {"wheel_noise_ma1": 0.0}
+# from one such sample to the next the noise is white (lag one +0.05, where the SIL's exact
+# 10 ms has -0.48), but the encoder's counts still telescope in long means (a mean of 50 keeps
+# 0.42-0.71 of white noise's variance, 0.56 on average): an MA(1) whose long means keep that,
+# (1 + theta)^2 / (1 + theta^2) = 0.56 at theta -0.23 (white left the wheel block at 2.65 of 4)
+TICKED_WHEEL_KEYS = {"wheel_noise_ma1": -0.25}
+# the truth is recorded this long past the streams: the late ticks predict the filter past the
+# last sample, where the scoring needs the truth
+TRUTH_MARGIN_S = 3 * TICK_S
 
 
 @dataclass(frozen=True)
@@ -116,6 +124,23 @@ def loop_streams(data, frames, effects: Effects, rng, delay_s: float):
     return out, arrival
 
 
+def late_command_wait_s(late_s: float, step_s: float) -> float:
+    """Mean wait of a command sent at a tick late by Exp(``late_s``) for the truth's next step
+    (``step_s``, a divisor of the tick period), s: ``step - E[late mod step]``, which for the
+    exponential is ``step - late + step / (exp(step / late) - 1)``.
+
+    A delay ``d`` ahead of a first-order lag ``tau`` is, to first order in ``d / tau``, a lag
+    ``tau + d``: what the filter's servo lag takes on.
+    """
+    return step_s - late_s + step_s / np.expm1(step_s / late_s)
+
+
+def cut_streams(data, frames, duration_s: float):
+    """The streams and telemetry frames of a run up to ``duration_s`` (the truth runs on)."""
+    data = {name: arr[arr["t_s"] <= duration_s + 1e-9] for name, arr in data.items()}
+    return data, frames[frames[:, 0] <= duration_s + 1e-9]
+
+
 def servo_cycle_sends(ticks, duration_s: float, rng):
     """When the servo worker's reads (every ``SERVO_PERIOD_S``, phase from ``rng``) send the
     newest goal, s, and the tick that made each goal, s."""
@@ -176,8 +201,9 @@ def score_with_effects(
         servo_cycle_sends(ticks, duration_s, rng) if effects.servo_cycle else (ticks, None)
     )
     model, data, truth_x, truth_R, frames, dt_s = rig_model_run(
-        config, seed, duration_s, sends, made
+        config, seed, duration_s + TRUTH_MARGIN_S, sends, made
     )
+    data, frames = cut_streams(data, frames, duration_s)
     if effects.servo_cycle:  # the filter is told each command at its tick
         data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
@@ -187,8 +213,9 @@ def score_with_effects(
         keys["imu_latency_s"] = MIN_DELAY_S
     if effects.late_ticks:
         keys["rest_psd_m2_s"] = LATE_COMMAND_REST_PSD_M2_S
-    if effects.wheel_frames:  # frames taken at the ticks' jittered times: no MA(1) left
-        keys.update(WHITE_WHEEL_KEYS)
+        keys["servo_lag_s"] += late_command_wait_s(late_s, dt_s)
+    if effects.wheel_frames:  # fitted to the newest frame at each tick (wheel_clock)
+        keys.update(TICKED_WHEEL_KEYS)
     keys.update(overrides or {})
     est_cfg = config_from_dict(keys)
     ekf = TensegrityEKF(model, est_cfg)
