@@ -207,7 +207,8 @@ def score_with_effects(
     if effects.servo_cycle:  # the filter is told each command at its tick
         data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
-    rig_keys = {"servo_lag_s": SERVO_LAG_S}  # the real-time rig's noise, these servos' lag
+    # the real-time rig's noise, these servos' lag, the samples' own times
+    rig_keys = {"servo_lag_s": SERVO_LAG_S, "imu_latency_s": 0.0}
     keys = {**noise_from_rig(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
         keys["imu_latency_s"] = MIN_DELAY_S
