@@ -39,3 +39,18 @@ def test_figure_draws_the_run_average_at_every_step_with_its_bounds(tmp_path):
     assert [ax.get_ylabel() for ax in fig.axes] == ["NEES", "NIS imu_rate"]
     path = plot_consistency(nees, nis, len(runs), "test", tmp_path / "new" / "c.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_near_zero_first_value_leaves_the_axis_its_labelled_ticks():
+    runs = _runs()
+    for r in runs:
+        r.nis["imu_rate"][1][0] = 1e-300  # a first innovation of nothing
+    nees, nis = consistency_series(runs)
+    fig = figure_consistency(nees, nis, len(runs), "test")
+    ax = fig.axes[1]
+    bottom, top = ax.get_ylim()
+    lo, hi = chi2.ppf([0.025, 0.975], 9) / 3
+    assert lo / 50 < bottom < lo and hi < top < 100 * hi
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_yticklabels() if bottom <= t.get_position()[1] <= top]
+    assert len([t for t in labels if t]) >= 2

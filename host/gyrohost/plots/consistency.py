@@ -44,11 +44,22 @@ def _panel(ax, series: Series) -> None:
         label=f"mean {np.mean(series.values):.2f}; {100 * inside:.1f} % of steps inside",
     )
     ax.set_ylabel(series.name)
+    ax.set_ylim(*_y_range(series.values, lo, hi))
     ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))  # within a decade too
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+
+
+def _y_range(values, lo: float, hi: float) -> tuple[float, float]:
+    """The panel's log range: the bounds and the values, down to a thirtieth of the lower bound
+    at most (a first NIS of nearly 0 would stretch the axis over hundreds of decades and leave
+    it without a labelled tick)."""
+    finite = values[np.isfinite(values)]
+    floor = lo / 30.0
+    low = max(float(np.min(finite, initial=lo)), floor)
+    return min(low, lo) / 1.5, max(float(np.max(finite, initial=hi)), hi) * 1.5
 
 
 def figure_consistency(nees: Series, nis: list[Series], runs: int, title: str):
