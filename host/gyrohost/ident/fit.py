@@ -15,7 +15,7 @@ simulation are then read off the cost along their profile directions
 """
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -176,24 +176,40 @@ def fit(
 ) -> FitResult:
     """Fit ``params`` to the recordings ``recs`` (:class:`.forward.Recording`).
 
-    ``progress(simulations, cost)`` is called after every residual evaluation.
+    ``progress(simulations, cost)`` is called after every residual evaluation. Recordings
+    simulated in segments that start from the IMU (:func:`.shooting.anchored`) are fitted in
+    two passes: the first segment of each alone (it starts from the scene's known initial
+    state), whose IMU mounting and gyro bias the later segments' starts then read the IMU
+    with; then everything, from the first pass's optimum.
     """
-    problem = Problem(scene, config, est, params, recs)
-
-    def residual(theta):
-        r = problem(theta)
-        if progress is not None:
-            progress(problem.simulations, 0.5 * float(r @ r))
-        return r
-
-    theta0 = np.zeros(len(params))
-    initial = [-e for e in problem.errors(theta0)]
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
 
-    sol = least_squares(
-        residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, max_nfev=max_nfev
-    )
+    def solve(problem, theta0):
+        def residual(theta):
+            r = problem(theta)
+            if progress is not None:
+                progress(problem.simulations, 0.5 * float(r @ r))
+            return r
+
+        return least_squares(
+            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10,
+            max_nfev=max_nfev,
+        )  # fmt: skip
+
+    theta0 = np.zeros(len(params))
+    if any(r.segment_s > 0.0 and r.segment_start == "imu" for r in recs):
+        first = [forward.window(r, r.segment_s) if r.segment_s > 0.0 else r for r in recs]
+        theta0 = solve(Problem(scene, config, est, params, first), theta0).x
+        a = apply(scene, config, params, theta0, nominal_lag(config, est, recs))
+        anchor = {
+            "anchor_mounting_rpy_rad": tuple(a.mounting_rpy_rad),
+            "anchor_gyro_bias_rad_s": tuple(a.gyro_bias_rad_s),
+        }
+        recs = [replace(r, **anchor) for r in recs]
+    problem = Problem(scene, config, est, params, recs)
+    initial = [-e for e in problem.errors(np.zeros(len(params)))]
+    sol = solve(problem, theta0)
     final = [-e for e in problem.errors(sol.x)]
     sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
     rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
