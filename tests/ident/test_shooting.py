@@ -51,7 +51,7 @@ def test_segments_continue_the_truth_and_start_on_the_manifold(tmp_path):
         assert len(motion.omega_rad_s) == len(rec.t_imu_s)
         model = Model(rig_scene(scene))
         manifold, L = Manifold(model, model.layout), model.layout
-        for end, start in motion.starts:
+        for _end, start in motion.starts:
             assert np.max(np.abs(manifold.residual(start))) < 1e-12
         jumps[name] = np.array(
             [
