@@ -15,14 +15,14 @@ simulation are then read off the cost along their profile directions
 """
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.ident import forward, profile
+from gyrohost.ident import forward, profile, shooting
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 
@@ -73,6 +73,9 @@ class FitResult:
         The nominal scene the parameters act on.
     servo_lag_s : float
         The lag the parameters start from (s).
+    dropped : list of (str, float, float)
+        Segments left out as not predictable (:func:`.shooting.predictable`): recording, start
+        and end (s from its lead-in).
     """
 
     params: list
@@ -91,6 +94,7 @@ class FitResult:
     status: str
     scene: Scene
     servo_lag_s: float
+    dropped: list = field(default_factory=list)
 
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
@@ -197,7 +201,7 @@ def fit(
             max_nfev=max_nfev,
         )  # fmt: skip
 
-    theta0 = np.zeros(len(params))
+    theta0, dropped = np.zeros(len(params)), []
     if any(r.segment_s > 0.0 and r.segment_start == "imu" for r in recs):
         first = [forward.window(r, r.segment_s) if r.segment_s > 0.0 else r for r in recs]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
@@ -207,6 +211,7 @@ def fit(
             "anchor_gyro_bias_rad_s": tuple(a.gyro_bias_rad_s),
         }
         recs = [replace(r, **anchor) for r in recs]
+        recs, dropped = _predictable(Problem(scene, config, est, params, recs), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
     sol = solve(problem, theta0)
@@ -215,8 +220,20 @@ def fit(
     rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
-        float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s,
+        float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
     )  # fmt: skip
+
+
+def _predictable(problem: Problem, theta) -> tuple[list, list]:
+    """The recordings of ``problem`` without the segments their prediction at ``theta`` does
+    not follow (:func:`.shooting.predictable`), and those left out: (recording, start, end)."""
+    recs, dropped = [], []
+    dt_s = problem.config.sim.truth.dt_s
+    for rec, err in zip(problem.recs, problem.errors(theta), strict=True):
+        kept, windows = shooting.predictable(rec, err / problem.weights, dt_s)
+        recs.append(kept)
+        dropped += [(rec.name, t0, t1) for t0, t1 in windows]
+    return recs, dropped
 
 
 def _rms(errors, cols) -> float:

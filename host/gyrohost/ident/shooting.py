@@ -11,11 +11,16 @@ parameters are shared across segments; the start states are held (not fitted:
 docs/identification.md, "Multiple shooting", for the measurement behind that choice).
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrotensegrity.projection import project
 
+UNPREDICTABLE = 5.0
+"""A segment whose weighted residual RMS after the first pass exceeds this many times the first
+segment's is left out of the fit (:func:`predictable`)."""
 ANCHOR_HALF_S = 0.05
 """IMU samples within this of a segment's start are averaged into its anchor, s."""
 
@@ -98,3 +103,35 @@ def _mean_angles(imu) -> tuple[float, float]:
     """Mean roll (on the circle: it wraps once the D-bar rolls over) and pitch of IMU rows."""
     roll = np.arctan2(np.mean(np.sin(imu[:, 6])), np.mean(np.cos(imu[:, 6])))
     return float(roll), float(np.mean(imu[:, 7]))
+
+
+def edges_s(rec, dt_s: float) -> np.ndarray:
+    """Start times of the segments of ``rec`` and the end of its last, shape (k + 1,), s (the
+    segmenting of :func:`.forward.simulate`)."""
+    n = int(np.ceil(rec.t_imu_s[-1] / dt_s)) + 1
+    return np.append(dt_s * segment_starts(n, dt_s, rec.segment_s), np.inf)
+
+
+def predictable(rec, weighted_errors, dt_s: float):
+    """``rec`` without the IMU samples of the segments its prediction does not follow: their
+    weighted residual RMS (``weighted_errors``, shape (k, 8), at the first pass's optimum)
+    above :data:`UNPREDICTABLE` times the first segment's. Past the point where the D-bar rolls
+    over, a segment's prediction can leave the recording within a fraction of a second from any
+    start the IMU fixes (docs/identification.md); fitted, such segments drag every parameter.
+
+    Returns
+    -------
+    rec : Recording
+    dropped : list of (float, float)
+        The windows left out, s.
+    """
+    edges = edges_s(rec, dt_s)
+    seg = np.searchsorted(edges, rec.t_imu_s, "right") - 1
+    rms = np.array(
+        [np.sqrt(np.mean(weighted_errors[seg == i] ** 2)) for i in range(len(edges) - 1)]
+    )
+    bad = np.flatnonzero(rms > UNPREDICTABLE * rms[0])
+    keep = ~np.isin(seg, bad)
+    last = rec.t_imu_s[-1]
+    dropped = [(float(edges[i]), float(min(edges[i + 1], last))) for i in bad]
+    return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep]), dropped
