@@ -182,9 +182,9 @@ def fit(
 
     ``progress(simulations, cost)`` is called after every residual evaluation. Recordings
     simulated in segments that start from the IMU (:func:`.shooting.anchored`) are fitted in
-    two passes: the first segment of each alone (it starts from the scene's known initial
-    state), whose IMU mounting and gyro bias the later segments' starts then read the IMU
-    with; then everything, from the first pass's optimum.
+    two passes: the first segment of each alone (at least :data:`.shooting.FIRST_PASS_S`; it
+    starts from the scene's known initial state), whose IMU mounting and gyro bias the later
+    segments' starts then read the IMU with; then everything, from the first pass's optimum.
     """
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
@@ -203,7 +203,10 @@ def fit(
 
     theta0, dropped = np.zeros(len(params)), []
     if any(r.segment_s > 0.0 and r.segment_start == "imu" for r in recs):
-        first = [forward.window(r, r.segment_s) if r.segment_s > 0.0 else r for r in recs]
+        first = [
+            forward.window(r, max(r.segment_s, shooting.FIRST_PASS_S)) if r.segment_s else r
+            for r in recs
+        ]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
         a = apply(scene, config, params, theta0, nominal_lag(config, est, recs))
         anchor = {

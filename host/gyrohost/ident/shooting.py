@@ -18,6 +18,10 @@ import numpy as np
 from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrotensegrity.projection import project
 
+FIRST_PASS_S = 4.0
+"""The first pass of the fit (:func:`.fit.fit`) takes at least this much of each recording, s:
+2 s held so little of the pulls that the strings' stiffness wandered to where the model's
+fixed step is unstable."""
 UNPREDICTABLE = 5.0
 """A segment whose weighted residual RMS after the first pass exceeds this many times the first
 segment's is left out of the fit (:func:`predictable`)."""
