@@ -3,12 +3,13 @@
 The D-bar has an unstable roll mode: a prediction simulated from the start of a long recording
 follows it only until a small mismatch has grown into a roll the rig never made. Cut into
 segments of ``segment_s`` (:func:`segment_starts`), the first one starts where the rig starts
-(the scene's initial state, exactly known), every later one from the host estimator's state at
-its start (the ``estimate`` stream of the run log: positions and velocities of the reduced
-coordinates, interpolated to the segment's start and projected onto the bars' lengths,
-:func:`start_states`); without an estimate it continues from the previous segment's end. The
-parameters are shared across segments; the start states are held (not fitted:
-docs/identification.md, "Multiple shooting", for the measurement behind that choice).
+(the scene's initial state, exactly known), every later one from the previous one's end
+turned to the IMU's attitude and rate at its start (:func:`anchored`), or, if asked, from the
+host estimator's logged state there (:func:`start_states`; far off while the estimator runs a
+scene not yet identified). The parameters are shared across segments; the start states are
+held, not fitted, and segments the prediction does not follow are left out
+(:func:`predictable`); docs/identification.md, "Why the starts are held", has the
+measurements behind both.
 """
 
 from dataclasses import replace
