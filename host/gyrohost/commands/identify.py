@@ -116,7 +116,8 @@ def run(args) -> int:
         raise CliError(str(exc)) from None
     total = sum(len(r.t_imu_s) for r in recs)
     print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
-    progress = FitProgress(args.max_evaluations * (len(params) + 1))
+    passes = 2 if args.segment_s > 0 and args.segment_start == "imu" else 1  # fit.fit
+    progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         result = fit(scene, config, est, params, recs, progress, args.max_evaluations)
     finally:
