@@ -88,7 +88,7 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import report
-    from gyrohost.ident.fit import fit, nominal_lag
+    from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import IdentDataError
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import ParamsError, parameters
@@ -116,7 +116,7 @@ def run(args) -> int:
         raise CliError(str(exc)) from None
     total = sum(len(r.t_imu_s) for r in recs)
     print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
-    passes = 2 if args.segment_s > 0 and args.segment_start == "imu" else 1  # fit.fit
+    passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         result = fit(scene, config, est, params, recs, progress, args.max_evaluations)

@@ -185,15 +185,16 @@ def fit(
     """Fit ``params`` to the recordings ``recs`` (:class:`.forward.Recording`).
 
     ``progress(simulations, cost)`` is called after every residual evaluation. Recordings
-    simulated in segments that start from the IMU (:func:`.shooting.anchored`) are fitted in
-    two passes: the first segment of each alone (at least :data:`.shooting.FIRST_PASS_S`; it
-    starts from the scene's known initial state), whose IMU mounting and gyro bias the later
-    segments' starts then read the IMU with; then everything, from the first pass's optimum.
+    simulated in more than one segment, started from the IMU (:func:`.shooting.anchored`),
+    are fitted in two passes: the first segment of each alone (at least
+    :data:`.shooting.FIRST_PASS_S`; it starts from the scene's known initial state), whose IMU
+    mounting and gyro bias the later segments' starts then read the IMU with; then everything,
+    from the first pass's optimum.
     """
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
 
-    segmented = any(r.segment_s > 0.0 and r.segment_start == "imu" for r in recs)
+    segmented = two_passes(recs, config.sim.truth.dt_s)
     ftol = SEGMENTED_FTOL if segmented else 1e-8  # scipy's default
 
     def solve(problem, theta0):
@@ -232,6 +233,12 @@ def fit(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
     )  # fmt: skip
+
+
+def two_passes(recs, dt_s: float) -> bool:
+    """Whether :func:`fit` fits ``recs`` in two passes: one of them is simulated in more than
+    one segment, started from the IMU (``dt_s``: the model's step, s)."""
+    return any(r.segment_start == "imu" and len(shooting.edges_s(r, dt_s)) > 2 for r in recs)
 
 
 def _predictable(problem: Problem, theta) -> tuple[list, list]:
