@@ -38,6 +38,22 @@ def register(sub) -> None:
         help="fit only the first S seconds of each log (from its lead-in): output error over a "
         "long run loses the D-bar's unstable roll mode (docs/identification.md)",
     )
+    p.add_argument(
+        "--segment-s",
+        type=float,
+        default=4.0,
+        metavar="S",
+        help="multiple shooting: simulate each log in segments of S seconds, each later one "
+        "from the previous one's end turned to the IMU's attitude and rate (0: one simulation "
+        "from the lead-in; default 4)",
+    )
+    p.add_argument(
+        "--segment-start",
+        choices=("imu", "estimate"),
+        default="imu",
+        help="a later segment starts from the previous one's end turned to the IMU (default) "
+        "or from the host estimator's logged state",
+    )
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
     p.set_defaults(func=run)
 
@@ -89,7 +105,7 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import profile, report
-    from gyrohost.ident.fit import fit, nominal_lag
+    from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import IdentDataError
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import ParamsError, parameters
@@ -105,14 +121,20 @@ def run(args) -> int:
         est = for_rig(config)
         n_wheels = len(Model(scene).wheel_bars)
         commanded = args.lengths == "command"
-        recs = [load_recording(log, config, n_wheels, commanded, args.until) for log in args.logs]
+        recs = [
+            load_recording(
+                log, config, n_wheels, commanded, args.until, args.segment_s, args.segment_start
+            )
+            for log in args.logs
+        ]
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
         params = parameters(scene, config, groups, nominal_lag(config, est, recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
     total = sum(len(r.t_imu_s) for r in recs)
     print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
-    progress = FitProgress(args.max_evaluations * (len(params) + 1))
+    passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
+    progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         with profile.observing(progress.statistics):
             result = fit(scene, config, est, params, recs, progress, args.max_evaluations)

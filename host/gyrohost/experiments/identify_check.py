@@ -43,16 +43,17 @@ def _vec(v) -> str:
 
 
 def write_rigs(
-    folder: Path, duration_s: float | None = None, weighed: bool = False
+    folder: Path, duration_s: float | None = None, weighed: bool = False, repeat: int = 1
 ) -> tuple[Path, Path]:
     """The nominal and the truth rig configurations (and their scenes) in ``folder``;
     ``duration_s`` cuts the excitation short; ``weighed``: the nominal scene has the truth's
-    bar mass (the bars weighed). Returns (nominal config, truth config)."""
+    bar mass (the bars weighed); ``repeat``: the excitation played that many times (the truth
+    rolls over about 8 s in). Returns (nominal config, truth config)."""
     text = Path(shipped("scene", "dbar-gyro")).read_text()
     head = text.partition("[[strings]]")[0]
     L0 = 0.43105229381822
     t, v = [0.0, 0.3], [L0, L0]
-    for change, dur in EXCITATION:
+    for change, dur in EXCITATION * repeat:
         t.append(t[-1] + dur)
         v.append(L0 + change)
     t, v = np.array(t), np.array(v)

@@ -1,6 +1,7 @@
 """Identification on the real-time simulated rig, end to end, through the commands a lab uses.
 
-``python -m gyrohost.experiments.identify_rig [--seeds 1] [--out DIR] [--lengths servos]``
+``python -m gyrohost.experiments.identify_rig [--seeds 1] [--out DIR] [--lengths servos]
+[--until S] [--segment-s S] [--fit-only]``
 
 Per seed (the simulated IMU's noise and biases):
 
@@ -9,9 +10,9 @@ Per seed (the simulated IMU's noise and biases):
    x 0.7; ``C`` is ``sim-rig`` with the bars weighed (its scene: the shipped D-bar with the
    truth's bar mass) and the truth's IMU turned (3, -1.7, 1.1) degrees from where ``C`` says
    it is (``[sim.truth] imu_rotation_deg``);
-2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --until 11.5``
-   (the lead-in, the first pulls and a wheel step: output error loses the D-bar's unstable
-   roll mode once it takes over, 12 to 16.5 s into the logs seen);
+2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --segment-s 4``
+   (the whole log, in multiple-shooting segments; ``--until S`` fits only its first ``S``
+   seconds);
 3. ``gyrotens run --sim --config C --overlay OVERLAY.toml --scene IDENT.toml
    --truth-scene T``.
 
@@ -95,27 +96,35 @@ def truth_lag_s(log: Path) -> float:
     return float(np.median(truth["rig_t_s"] - truth["truth_t_s"]))
 
 
-def one_seed(root: Path, seed: int, lengths: str, until_s: float) -> dict:
-    """The three commands for one seed in ``root/seedN``; what they gave."""
+def one_seed(root: Path, seed: int, args) -> dict:
+    """The three commands for one seed in ``root/seedN`` (``args``: the options of
+    :func:`main`; with ``fit_only`` the recording is the one already there and the third
+    command is not run); what they gave."""
     folder = root / f"seed{seed}"
     folder.mkdir(parents=True, exist_ok=True)
-    config, truth = write_rig_files(folder, seed)
     log, ident, overlay = folder / "ident-run", folder / "ident.toml", folder / "overlay.toml"
-    rig = ["--sim", "--config", str(config), "--truth-scene", str(truth)]
-    out = {"record": gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])}
+    config, truth = folder / "rig.toml", folder / "truth.toml"
+    out = {}
+    if not args.fit_only:
+        config, truth = write_rig_files(folder, seed)
+        rig = ["--sim", "--config", str(config), "--truth-scene", str(truth)]
+        out["record"] = gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])
     out["truth_lag_s"] = truth_lag_s(log)
+    window = [] if args.until is None else ["--until", str(args.until)]
     t0 = time.perf_counter()
     out["identify"] = gyrotens(
         ["identify", str(log), "-o", str(ident), "--config", str(config),
-         "--overlay", str(overlay), "--lengths", lengths, "--until", str(until_s)], nice=True,
+         "--overlay", str(overlay), "--lengths", args.lengths,
+         "--segment-s", str(args.segment_s), *window], nice=True,
     )  # fmt: skip
     out["fit_s"] = time.perf_counter() - t0
-    if out["identify"] == 0:
-        out["errors"] = identified_errors(ident, overlay)
+    if out["identify"] == 0 and not args.fit_only:
         out["replay"] = gyrotens(
             ["run", *rig, "--overlay", str(overlay), "--scene", str(ident),
              "-o", str(folder / "with-ident")]
         )  # fmt: skip
+    if out["identify"] == 0:
+        out["errors"] = identified_errors(ident, overlay)
     return out
 
 
@@ -125,12 +134,16 @@ def main(argv=None) -> int:
     parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--out", type=Path, help="keep everything here (default: temporary)")
     parser.add_argument("--lengths", choices=("servos", "command"), default="servos")
-    parser.add_argument("--until", type=float, default=11.5, help="s of each log fitted (11.5)")
+    parser.add_argument("--until", type=float, help="s of each log fitted (default: all)")
+    parser.add_argument("--segment-s", type=float, default=4.0, help="segments, s (4; 0: one)")
+    parser.add_argument(
+        "--fit-only", action="store_true", help="fit the recordings already in --out again"
+    )
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            out = one_seed(root, seed, args.lengths, args.until)
+            out = one_seed(root, seed, args)
             errs = out.pop("errors", {})
             line = "  ".join(
                 f"{k} {v:+.3f}" if k.startswith("mounting") else f"{k} {100 * v:+.1f} %"

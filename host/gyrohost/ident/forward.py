@@ -9,7 +9,7 @@ interpolated to the IMU's time stamps. :func:`sensor_outputs` turns them into wh
 reports: rotated into the sensor's axes by the mounting rotation, plus the biases.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from gyrohost.config import RigConfig
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
 from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
+from gyrohost.ident import shooting
 from gyrohost.rig.truth import Truth
 from gyrotensegrity import Scene
 
@@ -53,6 +54,18 @@ class Recording:
         with ``commanded`` the host's commands.
     t_command_s, command_rad_s : ndarray, shapes (kc,) and (kc, n_w)
         Commanded wheel speeds (empty without a ``command`` stream).
+    segment_s : float, s
+        Length of the multiple-shooting segments (:mod:`.shooting`); 0: one simulation from
+        the start.
+    segment_start : str
+        How a later segment starts: ``"imu"``, the previous one's end turned to the IMU's
+        attitude and rate (:func:`.shooting.anchored`); ``"estimate"``, the host estimator's
+        logged state where there is one (:func:`.shooting.start_states`).
+    anchor_mounting_rpy_rad, anchor_gyro_bias_rad_s : tuple of 3 float, rad and rad/s
+        The IMU mounting and gyro bias the ``"imu"`` segment starts read the IMU with.
+    t_estimate_s, estimate_x : ndarray, shapes (ke,) and (ke, 6 m)
+        The host estimator's reduced coordinates and their rates (m, m/s) where logged
+        (empty: none logged).
     """
 
     name: str
@@ -65,6 +78,12 @@ class Recording:
     t_command_s: np.ndarray
     command_rad_s: np.ndarray
     commanded: bool = False
+    segment_s: float = 0.0
+    segment_start: str = "imu"
+    anchor_mounting_rpy_rad: tuple = (0.0, 0.0, 0.0)
+    anchor_gyro_bias_rad_s: tuple = (0.0, 0.0, 0.0)
+    t_estimate_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    estimate_x: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def recording(
@@ -125,11 +144,15 @@ class FrameMotion:
         Angular rate and specific force (gravity felt by the IMU included), body axes.
     R_wb : ndarray, shape (k, 3, 3)
         The frame's axes in the world frame.
+    starts : tuple of (ndarray, ndarray)
+        At every later segment's start, the state the previous one ended in and the one the
+        segment starts from (model state layout), for checks of the segmenting.
     """
 
     omega_rad_s: np.ndarray
     force_m_s2: np.ndarray
     R_wb: np.ndarray
+    starts: tuple = ()
 
 
 def simulate(
@@ -165,33 +188,64 @@ def simulate(
         ]
         settled = np.abs(speeds - cmd) < WHEEL_SETTLED_RAD_S
         speeds[settled] = cmd[settled]
-    ids = [s.id for s in servos]
+    starts = shooting.segment_starts(n, dt, rec.segment_s)
+    x0s = [None] * len(starts)
+    if rec.segment_start == "estimate":
+        x0s = shooting.start_states(truth.model, t_steps[starts], rec.t_estimate_s, rec.estimate_x)
     # the rig starts at rest in the scene's shape with the wheels already spinning
     truth.wheel_input_rad_s[:] = speeds[0]
     truth.rest_length_m[list(truth.servo_strings.values())] = lengths[0]
+    truth.u = truth.model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
+    ends = [*starts[1:], n]
+    parts, jumps = [], []
+    anchor = rotation_zyx(*rec.anchor_mounting_rpy_rad), np.asarray(rec.anchor_gyro_bias_rad_s)
+    for j, (k0, k1, x0) in enumerate(zip(starts, ends, x0s, strict=True)):
+        if j and x0 is None and rec.segment_start == "imu":
+            x0 = shooting.anchored(
+                truth, truth.stepper.x, rec.t_imu_s, rec.imu, t_steps[k0], *anchor
+            )
+        if x0 is not None:
+            jumps.append((truth.stepper.x.copy(), x0))
+            truth.set_state(x0)
+        motion = _run(truth, t_steps, lengths, speeds, k0, k1)
+        last = k1 == n
+        keep = (rec.t_imu_s >= t_steps[k0]) & ((rec.t_imu_s < t_steps[k1]) | last)
+        parts.append([_interp(rec.t_imu_s[keep], t_steps[k0 : k1 + 1], v) for v in motion])
+    omega, force, R = (np.concatenate(v) for v in zip(*parts, strict=True))
+    return FrameMotion(omega, force, R.reshape(-1, 3, 3), tuple(jumps))
+
+
+def _run(truth: Truth, t_steps, lengths, speeds, k0: int, k1: int):
+    """Step ``truth`` from its present state (at ``t_steps[k0]``) to ``t_steps[k1]`` under the
+    inputs of those steps; the IMU frame's rate, specific force and attitude (flattened) at
+    every step, shapes (k1 - k0 + 1, 3), (.., 3) and (.., 9)."""
+    ids = list(truth.servo_strings)
     model, stepper = truth.model, truth.stepper
-    truth.u = model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
     # the state at t_k with the input held over the step that led to it (as the rig's IMU sees
     # its truth, Truth.imu_truth)
-    xs, us = np.empty((n + 1, len(stepper.x))), []
-    for k in range(n + 1):
-        xs[k] = stepper.x
+    xs, us = np.empty((k1 - k0 + 1, len(stepper.x))), []
+    for j, k in enumerate(range(k0, k1 + 1)):
+        xs[j] = stepper.x
         us.append(truth.u)
-        truth.step(dict(zip(ids, lengths[k], strict=True)), speeds[k])
-    x_dot = np.array([stepper.dynamics(t, x, u) for t, x, u in zip(t_steps, xs, us, strict=True)])
-    L = model.layout
+        if k < k1:
+            truth.step(dict(zip(ids, lengths[k], strict=True)), speeds[k])
+    t = t_steps[k0 : k1 + 1]
+    x_dot = np.array([stepper.dynamics(tk, x, u) for tk, x, u in zip(t, xs, us, strict=True)])
+    L, k = model.layout, len(t)
     q, q_dot, q_ddot = (
-        v.reshape(n + 1, 3, model.m) for v in (xs[:, L.q], xs[:, L.q_dot], x_dot[:, L.q_dot])
+        v.reshape(k, 3, model.m) for v in (xs[:, L.q], xs[:, L.q_dot], x_dot[:, L.q_dot])
     )
     U2 = model.U2.toarray()  # (n, m): a few nodes
     N = np.einsum("ij,kdj->dik", U2, q) + model.N_fixed_T.T[..., None]
     N_dot, N_ddot = (np.einsum("ij,kdj->dik", U2, v) for v in (q_dot, q_ddot))
     omega, force, R = truth.frame_motion(N, N_dot, N_ddot)
-    return FrameMotion(
-        _interp(rec.t_imu_s, t_steps, omega),
-        _interp(rec.t_imu_s, t_steps, force),
-        _interp(rec.t_imu_s, t_steps, R.reshape(n + 1, 9)).reshape(-1, 3, 3),
-    )
+    return omega, force, R.reshape(k, 9)
+
+
+def window(rec: Recording, until_s: float) -> Recording:
+    """``rec`` up to ``until_s`` (its IMU samples; the inputs whole), one segment."""
+    keep = rec.t_imu_s < until_s
+    return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep], segment_s=0.0)
 
 
 def _servo_response(rec: Recording, t_steps: np.ndarray, lag_s: float) -> np.ndarray:

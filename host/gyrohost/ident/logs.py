@@ -2,6 +2,7 @@
 starts from the scene's initial state with its wheels spun up (from the ``lead_in`` phase) up to
 the safe state (the ``rampdown`` phase), else the whole log."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -30,10 +31,18 @@ def phase_window(folder: Path) -> tuple[float | None, float | None]:
 
 
 def load_recording(
-    folder, config: RigConfig, n_wheels: int, commanded=False, until_s=None
+    folder,
+    config: RigConfig,
+    n_wheels: int,
+    commanded=False,
+    until_s=None,
+    segment_s=0.0,
+    segment_start="imu",
 ) -> Recording:
     """The :class:`Recording` of the log folder ``folder``; with ``until_s``, only its first
-    ``until_s`` seconds (from the start of ``lead_in``, else of the log).
+    ``until_s`` seconds (from the start of ``lead_in``, else of the log); simulated in
+    segments of ``segment_s`` (0: one), a later one started as ``segment_start`` says
+    (:class:`.forward.Recording`; the ``estimate`` stream read where logged).
 
     Raises
     ------
@@ -64,4 +73,25 @@ def load_recording(
             k: v if k == streams.IMU else v[max(np.searchsorted(v["t_s"], start) - 1, 0) :]
             for k, v in data.items()
         }
-    return recording(str(folder), data, config, n_wheels, start, commanded)
+    rec = recording(str(folder), data, config, n_wheels, start, commanded)
+    t_est, est_x = _estimate(folder, float(data[streams.IMU]["t_s"][0]) if start is None else start)
+    return replace(
+        rec,
+        segment_s=float(segment_s),
+        segment_start=segment_start,
+        t_estimate_s=t_est,
+        estimate_x=est_x,
+    )
+
+
+def _estimate(folder: Path, t0_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ``estimate`` stream's times (from ``t0_s``) and reduced coordinates with their rates
+    (columns ``q_*`` then ``qdot_*``, in the filter's order), shapes (ke,) and (ke, 6 m); empty
+    without the stream."""
+    try:
+        est = read_stream(folder, streams.ESTIMATE)
+    except LogError:
+        return np.zeros(0), np.zeros((0, 0))
+    names = est.dtype.names
+    cols = [c for c in names if c.startswith("q_")] + [c for c in names if c.startswith("qdot_")]
+    return est["t_s"] - t0_s, np.column_stack([est[c] for c in cols])

@@ -41,6 +41,8 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
     for name, (before, after) in result.rms.items():
         lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
+    for name, t0, t1 in result.dropped:
+        lines.append(f"not fitted (the prediction does not follow it): {name} {t0:.1f}-{t1:.1f} s")
     lines.append(f"{result.nfev} evaluations: {result.status}")
     return lines
 

@@ -1,0 +1,142 @@
+"""Multiple shooting: a recording cut into segments, each simulated from its own start state.
+
+The D-bar has an unstable roll mode: a prediction simulated from the start of a long recording
+follows it only until a small mismatch has grown into a roll the rig never made. Cut into
+segments of ``segment_s`` (:func:`segment_starts`), the first one starts where the rig starts
+(the scene's initial state, exactly known), every later one from the previous one's end
+turned to the IMU's attitude and rate at its start (:func:`anchored`), or, if asked, from the
+host estimator's logged state there (:func:`start_states`; far off while the estimator runs a
+scene not yet identified). The parameters are shared across segments; the start states are
+held, not fitted, and segments the prediction does not follow are left out
+(:func:`predictable`); docs/identification.md, "Why the starts are held", has the
+measurements behind both.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from gyrohost.geometry import euler_zyx, rotation_zyx
+from gyrotensegrity.projection import project
+
+FIRST_PASS_S = 4.0
+"""The first pass of the fit (:func:`.fit.fit`) takes at least this much of each recording, s:
+2 s held so little of the pulls that the strings' stiffness wandered to where the model's
+fixed step is unstable."""
+UNPREDICTABLE = 5.0
+"""A segment whose weighted residual RMS after the first pass exceeds this many times the first
+segment's is left out of the fit (:func:`predictable`)."""
+ANCHOR_HALF_S = 0.05
+"""IMU samples within this of a segment's start are averaged into its anchor, s."""
+
+
+def segment_starts(n_steps: int, dt_s: float, segment_s: float) -> np.ndarray:
+    """Step indices where segments start, shape (k,): 0 first, every ``segment_s`` (rounded
+    to a step) after; a single segment for ``segment_s <= 0``. A last piece shorter than half
+    a segment joins the one before."""
+    if segment_s <= 0.0:
+        return np.zeros(1, int)
+    every = max(int(round(segment_s / dt_s)), 1)
+    starts = np.arange(0, n_steps, every)
+    if len(starts) > 1 and n_steps - starts[-1] < every // 2:
+        starts = starts[:-1]
+    return starts
+
+
+def start_states(model, t_starts_s, t_estimate_s, estimate_x) -> list:
+    """The state each segment starts from: ``None`` (the first: the scene's initial state; a
+    later one without an estimate there: the previous segment's end), else the estimator's
+    positions and velocities interpolated to the start, the wheel angles zero, projected onto
+    the bars' lengths and the rates that keep them.
+
+    Parameters
+    ----------
+    model : gyrotensegrity.Model
+        The simulated model (its state layout; the estimate's reduced coordinates are its
+        ``q`` and ``q_dot``).
+    t_starts_s : ndarray, shape (k,), s
+    t_estimate_s : ndarray, shape (ke,), s
+        The estimate's times (the recording's clock).
+    estimate_x : ndarray, shape (ke, 6 m)
+        ``q`` then ``q_dot`` at those times, m and m/s.
+    """
+    L = model.layout
+    out = [None]
+    for t in t_starts_s[1:]:
+        if not len(t_estimate_s) or not t_estimate_s[0] <= t <= t_estimate_s[-1]:
+            out.append(None)
+            continue
+        x = np.zeros(L.size)
+        x[: 6 * L.m] = [np.interp(t, t_estimate_s, v) for v in estimate_x.T]
+        out.append(project(model, x))
+    return out
+
+
+def anchored(truth, x, t_imu_s, imu, t_s: float, R_bs, gyro_bias_rad_s):
+    """The state ``x`` (a segment's predicted end) turned rigidly so that the sensor's roll
+    and pitch are the IMU's at ``t_s``, and given the rigid rotation that makes the sensor's
+    rate the IMU's (both averaged over :data:`ANCHOR_HALF_S` either side), projected onto the
+    bars' lengths; ``x`` itself without samples there.
+
+    ``R_bs`` (3, 3): the sensor's axes in the IMU frame, ``gyro_bias_rad_s`` (3,): what turns
+    the IMU's readings into the frame's attitude and rate (the fit's first pass,
+    :func:`.fit.fit`).
+
+    The D-bar's motion does not depend on where it points (its scenes have no gravity), so
+    turning the whole state leaves the dynamics alone: only the drift of the unstable roll
+    mode, in attitude and rate, is reset to what the IMU sees; the shape and its vibration
+    continue from the previous segment.
+    """
+    win = np.abs(t_imu_s - t_s) <= ANCHOR_HALF_S
+    if not np.any(win):
+        return x
+    model, L = truth.model, truth.model.layout
+    N, N_dot = model.nodes(x)
+    omega, _, R = truth.frame_motion(N[..., None], N_dot[..., None], np.zeros_like(N)[..., None])
+    R_s = R[0] @ R_bs
+    Q = rotation_zyx(*_mean_angles(imu[win]), euler_zyx(R_s)[2]) @ R_s.T
+    q = Q @ x[L.q].reshape(3, L.m)
+    rate = R_bs @ (np.mean(imu[win, :3], axis=0) - gyro_bias_rad_s)
+    d_omega = Q @ R[0] @ (rate - omega[0])
+    q_dot = Q @ x[L.q_dot].reshape(3, L.m) + np.cross(d_omega, q.T).T
+    out = x.copy()
+    out[L.q], out[L.q_dot] = q.ravel(), q_dot.ravel()
+    return project(model, out)
+
+
+def _mean_angles(imu) -> tuple[float, float]:
+    """Mean roll (on the circle: it wraps once the D-bar rolls over) and pitch of IMU rows."""
+    roll = np.arctan2(np.mean(np.sin(imu[:, 6])), np.mean(np.cos(imu[:, 6])))
+    return float(roll), float(np.mean(imu[:, 7]))
+
+
+def edges_s(rec, dt_s: float) -> np.ndarray:
+    """Start times of the segments of ``rec`` and the end of its last, shape (k + 1,), s (the
+    segmenting of :func:`.forward.simulate`)."""
+    n = int(np.ceil(rec.t_imu_s[-1] / dt_s)) + 1
+    return np.append(dt_s * segment_starts(n, dt_s, rec.segment_s), np.inf)
+
+
+def predictable(rec, weighted_errors, dt_s: float):
+    """``rec`` without the IMU samples of the segments its prediction does not follow: their
+    weighted residual RMS (``weighted_errors``, shape (k, 8), at the first pass's optimum)
+    above :data:`UNPREDICTABLE` times the first segment's. Past the point where the D-bar rolls
+    over, a segment's prediction can leave the recording within a fraction of a second from any
+    start the IMU fixes (docs/identification.md); fitted, such segments drag every parameter.
+
+    Returns
+    -------
+    rec : Recording
+    dropped : list of (float, float)
+        The windows left out, s.
+    """
+    edges = edges_s(rec, dt_s)
+    seg = np.searchsorted(edges, rec.t_imu_s, "right") - 1
+    rms = np.array(
+        [np.sqrt(np.mean(weighted_errors[seg == i] ** 2)) for i in range(len(edges) - 1)]
+    )
+    bad = np.flatnonzero(rms > UNPREDICTABLE * rms[0])
+    keep = ~np.isin(seg, bad)
+    last = rec.t_imu_s[-1]
+    dropped = [(float(edges[i]), float(min(edges[i + 1], last))) for i in bad]
+    return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep]), dropped
