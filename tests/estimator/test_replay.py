@@ -61,3 +61,26 @@ def test_regular_times_spread_bursts_and_cap_the_delay():
     t = regular_times(arrival, 0.01, 0.03)
     assert np.allclose(t, [0.0, 0.010, 0.020, 0.030, 0.035, 0.045, 0.17])
     assert np.all(t <= arrival) and np.all(arrival - t <= 0.03 + 1e-12)
+
+
+def test_regular_times_find_the_grid_again_after_a_lost_sample():
+    """A sample lost on the way (a corrupt frame) shifts the slots of the next ones a period
+    early; within the clock's window the grid is found again, and a burst after a stall of the
+    loop (samples late, none lost) is put back on the grid without such a shift."""
+    from gyrohost.estimator.driver import RegularClock, regular_times
+
+    rng = np.random.default_rng(3)
+    taken = 0.0037 + 0.01 * np.arange(400)
+    delay = 0.001 + rng.exponential(0.002, taken.size)
+    arrival = taken + delay
+    arrival[250:252] = arrival[252]  # a 20 ms stall: two samples arrive with the third
+    keep = np.ones(taken.size, bool)
+    keep[100] = False  # lost
+    t = regular_times(arrival[keep], 0.01, 0.03)
+    # the grid the clock finds lies the smallest delay (so far) after the samples
+    err = t - taken[keep] - np.min(delay)
+    window = RegularClock.WINDOW
+    assert np.max(np.abs(err[30:100])) < 1e-5
+    assert np.allclose(err[100 : 100 + window - 5], -0.01, atol=1e-5)  # the lost one's slot
+    assert np.max(np.abs(err[100 + window + 5 :])) < 1e-5  # found again, the burst included
+    assert np.all(t <= arrival[keep] + 1e-12)

@@ -9,6 +9,9 @@ is deterministic). Before each sample the filter predicts to its time; a gap lon
 time-outs are raised).
 """
 
+import math
+from collections import deque
+
 import numpy as np
 
 from . import streams as cols
@@ -30,22 +33,47 @@ class RegularClock:
     arrival, nor earlier than ``max_delay_s`` before it, nor sooner than ``period_s`` after the
     previous one (as reconstructed). ``period_s`` 0 keeps the arrival stamps.
 
+    A sample lost on the way (a corrupt frame, a row skipped in a replay) would leave every
+    later time a period early, since the next arrival takes the lost one's slot. So the clock
+    watches the delays it implies: once the smallest delay of the last :attr:`WINDOW` samples
+    exceeds the smallest of the whole stream by half a period or more, the lost periods are
+    counted and the grid moves on by them (a burst of late samples cannot do that: the
+    window holds on-time ones too).
+
     Parameters
     ----------
     period_s, max_delay_s : float, s
     """
 
+    WINDOW = 50
+    """Samples over which the smallest delay is watched (0.5 s at 100 Hz)."""
+
     def __init__(self, period_s: float, max_delay_s: float):
         self.period_s, self.max_delay_s = period_s, max_delay_s
         self.last_s: float | None = None
+        self.floor_s = math.inf  # the smallest delay seen, s
+        self._recent: deque = deque(maxlen=self.WINDOW)
 
     def __call__(self, arrival_s: float) -> float:
         """The sample time, s, of the sample that arrived at ``arrival_s``, s."""
-        t = float(arrival_s)
+        a = float(arrival_s)
+        t = a
         if self.last_s is not None and self.period_s > 0.0:
-            t = max(t - self.max_delay_s, min(t, self.last_s + self.period_s))
+            t = max(a - self.max_delay_s, min(a, self.last_s + self.period_s))
+            t = min(t + self._lost_periods(a - t) * self.period_s, a)
         self.last_s = t
         return t
+
+    def _lost_periods(self, delay_s: float) -> int:
+        self.floor_s = min(self.floor_s, delay_s)
+        self._recent.append(delay_s)
+        if len(self._recent) < self.WINDOW:
+            return 0
+        excess = min(self._recent) - self.floor_s
+        lost = int(round(excess / self.period_s)) if excess >= 0.5 * self.period_s else 0
+        if lost:
+            self._recent = deque((d - lost * self.period_s for d in self._recent), self.WINDOW)
+        return lost
 
 
 def regular_times(arrival_s, period_s, max_delay_s):
