@@ -19,6 +19,9 @@ from gyrohost.drivers import wheelproto as wp
 from gyrohost.run.devices import failure_text
 from gyrohost.sigint import InterruptsHandled
 
+SPEED_SETTLED_US = 50_000
+"""Board time since boot before its speeds count (a board that reset mid-run): the firmware's
+8 ms speed low-pass starts from zero at a boot and is within 0.2 % of the speed after 50 ms."""
 HOLD_TOLERANCE_STEPS = 32
 """A servo holds when its torque is on and its goal is within this of its present position."""
 
@@ -97,7 +100,7 @@ def _stop_wheels(loop, out: dict) -> tuple[bool, str]:
     while not ramped and loop.now() - start < s.rampdown_timeout_s:
         loop.tick(strict=False)
         tel = reader.latest
-        if tel is not None and reader.latest_ns > stop_ns:
+        if tel is not None and reader.latest_ns > stop_ns and tel.t_us >= SPEED_SETTLED_US:
             # setpoints at zero and drive stages off (the rest is coasting), or slow already
             fastest = float(np.max(np.abs(tel.omega_rad_s)))
             ramped = "OUTPUTS_ENABLED" not in tel.status_names or fastest < s.stop_threshold_rad_s
