@@ -88,3 +88,15 @@ def test_multiple_shooting_fits_past_the_roll_over_where_single_shooting_does_no
     assert errors[4.0] < np.log(1.03)
     assert errors[0.0] > np.log(1.03)
     assert dropped[0.0] == [] and dropped[4.0] == [(8.0, pytest.approx(12.0, abs=0.02))]
+
+
+def test_an_estimate_of_another_model_is_refused_naming_the_log(tmp_path):
+    nominal, truth = write_rigs(tmp_path, 1.5)
+    log = record_log(truth, 1, tmp_path / "log")
+    config = load_rig_config(nominal)
+    rec = load_recording(log, config, 4, commanded=True, segment_s=0.5)
+    rec = replace(
+        rec, segment_start="estimate", t_estimate_s=np.arange(3.0), estimate_x=np.zeros((3, 7))
+    )
+    with pytest.raises(forward.IdentDataError, match=r"log: estimate\.csv holds 7 .* has 24"):
+        forward.simulate(load_scene(tmp_path / "nominal.toml"), config, rec, None, SERVO_LAG_S)

@@ -191,6 +191,7 @@ def simulate(
     starts = shooting.segment_starts(n, dt, rec.segment_s)
     x0s = [None] * len(starts)
     if rec.segment_start == "estimate":
+        _check_estimate(rec, truth.model)
         x0s = shooting.start_states(truth.model, t_steps[starts], rec.t_estimate_s, rec.estimate_x)
     # the rig starts at rest in the scene's shape with the wheels already spinning
     truth.wheel_input_rad_s[:] = speeds[0]
@@ -294,3 +295,14 @@ def output_error(predicted: np.ndarray, rec: Recording) -> np.ndarray:
     err = predicted - rec.imu[:, :8]
     err[:, 6:] = wrap_angle(err[:, 6:])
     return err
+
+
+def _check_estimate(rec: Recording, model) -> None:
+    """The logged estimate's coordinates are the model's (a log of another scene or
+    estimator would start the segments from nonsense)."""
+    want = 6 * model.layout.m
+    if len(rec.t_estimate_s) and rec.estimate_x.shape[1] != want:
+        raise IdentDataError(
+            f"{rec.name}: estimate.csv holds {rec.estimate_x.shape[1]} q_*/qdot_* columns, the "
+            f"scene's model has {want}: segments cannot start from it (--segment-start imu)"
+        )
