@@ -374,11 +374,8 @@ class RunLoop:
             self.tick()
 
     def tick(self, strict: bool = True) -> None:
-        """Wait for the next tick of the grid, then drain, fuse, command, check and log.
-
-        ``strict`` False (in the safe state): device faults are logged, not raised, no limit is
-        checked and no hook called.
-        """
+        """Wait for the next tick of the grid, then drain, fuse, command, check and log;
+        ``strict`` False (the safe state): faults logged, not raised, no limit or hook."""
         start, due = self.ticker.wait()
         cpu0 = time.thread_time()
         n, faults = self.dispatcher.drain(self.ticker.t0_ns, self.ekf)
@@ -388,8 +385,9 @@ class RunLoop:
             self.event("fault", str(fault))
         self._command(self.now())  # after any fault; stamped when sent, the fusion's ms late
         if self.ekf is not None:
-            self.ekf.advance(max(start, self.ekf.t))
-            _, self.latest_tilt = self.estimates.write(start)
+            if start - self.ekf.t > self.settings.estimate_max_age_s:
+                self.ekf.advance(start)
+            _, self.latest_tilt = self.estimates.write(self.ekf.t)
             if strict and self.phase == "schedule" and self.maneuver is not None:
                 self._follow_estimate()
         if self.truth is not None:

@@ -38,6 +38,10 @@ class RunSettings:
     max_servo_load: float = RunTable.max_servo_load
     max_fused_per_tick: int = 4
     """Samples of one device fused per tick at most (the newest); older ones are only logged."""
+    estimate_max_age_s: float = 0.03
+    """The tick logs the estimate at its own time, the newest sample's (a prediction to the
+    tick would cost a tenth of the loop); one this much older is predicted to the tick, so
+    silent sources time out, s."""
 
     @classmethod
     def for_rig(cls, config) -> "RunSettings":
