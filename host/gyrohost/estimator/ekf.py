@@ -112,7 +112,6 @@ class TensegrityEKF:
         self._A = None  # linearisation of the dynamics at the current prior, if made
         # inputs not in effect yet, by due time: (s, "rest" or "wheels", values)
         self._commands: list[tuple[float, str, np.ndarray]] = []
-        self._last_wheels: np.ndarray | None = None  # the newest wheel command, queued or not
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
@@ -191,8 +190,9 @@ class TensegrityEKF:
     def set_input(self, rest_length_m, t_s=None, wheel_speed_rad_s=None):
         """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now), held until the next
         command. A command ahead of the filter waits for the prediction to reach ``t_s`` (the
-        run loop sends its command before it fuses the samples taken before it), so samples
-        fused meanwhile see the input they were taken under. With ``wheel_speed_rad_s``
+        run loop stamps its command when it sends it; samples taken before that can still
+        arrive), so samples fused meanwhile see the input they were taken under. With
+        ``wheel_speed_rad_s``
         (n_w,), scene wheel order, the wheels' commanded spins too, in effect
         ``wheel_delay_s`` after ``t_s`` (the wheel states follow them with ``wheel_lag_s``;
         none given: the previous ones; the first in effect at once)."""
@@ -202,15 +202,15 @@ class TensegrityEKF:
             speeds = np.array(wheel_speed_rad_s, float)
             if self.process.wheel_command_rad_s is None:
                 self.process.command_wheels(speeds)
-                self._last_wheels = speeds
             elif not np.array_equal(speeds, self._newest_wheel_command()):
                 # only changes: each queued command splits the prediction step at its due time
                 self._queue(stamp + self.config.wheel_delay_s, "wheels", speeds)
-                self._last_wheels = speeds
         self._apply_due_commands()
 
     def _newest_wheel_command(self) -> np.ndarray:
-        return self.process.wheel_command_rad_s if self._last_wheels is None else self._last_wheels
+        """The last wheel command given: the newest queued, else the one in effect."""
+        queued = [values for _, kind, values in self._commands if kind == "wheels"]
+        return queued[-1] if queued else self.process.wheel_command_rad_s
 
     def _queue(self, due_s: float, kind: str, values: np.ndarray) -> None:
         bisect.insort(self._commands, (due_s, kind, values), key=lambda c: c[0])

@@ -62,9 +62,8 @@ def stream_schema(name: str, columns, text_columns=(), description: str = "") ->
 class RowJson:
     """One stream's rows as JSON objects (numbers; ``null`` for NaN and infinities; strings in
     the text columns), made from the row's CSV texts: a finite number's shortest exact text
-    is a JSON number already, so a row costs a
-    join instead of a float conversion and an encoding per value (the run loop writes some 15
-    rows per 10 ms tick).
+    is a JSON number already, so a row costs a join instead of a float conversion and an
+    encoding per value (the run loop writes some 15 rows per 10 ms tick).
 
     Parameters
     ----------
@@ -221,7 +220,6 @@ class LogChannels:
         self.t0_unix_s = t0_unix_s
         self.shapes = None if scene is None else SceneShapes(scene)
         self.columns: dict[str, tuple] = {}
-        self.text: dict[str, frozenset] = {}
         self.scene_columns: dict[str, dict] = {}
         self.last_scene_ns: dict[str, int] = {}
         self._rows: dict[str, RowJson] = {}
@@ -229,7 +227,6 @@ class LogChannels:
     def open(self, name: str, columns, text_columns=(), description: str = "") -> list:
         """The :class:`ChannelSpec` of stream ``name`` and, for node positions, of its scene."""
         self.columns[name] = tuple(columns)
-        self.text[name] = frozenset(text_columns)
         self._rows[name] = RowJson(columns, text_columns)
         specs = [
             ChannelSpec(f"/{name}", f"gyrotens.{name}",
