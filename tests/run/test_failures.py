@@ -21,7 +21,15 @@ from gyrohost.run import mcap as runmcap
 from gyrohost.run.log import read_meta, read_stream
 
 pytestmark = pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
-STEPS = ["stop wheels", "hold servos", "stop readers", "close devices", "summary", "close log"]
+STEPS = [
+    "stop wheels",
+    "hold servos",
+    "stop readers",
+    "close devices",
+    "stop estimator",
+    "summary",
+    "close log",
+]
 
 
 def assert_log(folder) -> dict:

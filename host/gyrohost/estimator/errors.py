@@ -14,3 +14,6 @@ class EstimatorError(GyrohostError, RuntimeError):
         super().__init__(message)
         self.t_s = t_s
         self.member = member
+
+    def __reduce__(self):  # crosses the pipe from the run's estimator process whole
+        return type(self), (str(self), self.t_s, self.member)

@@ -156,6 +156,11 @@ def health_lines(table: dict) -> list[str]:
     nis = [f"{row(s, r)}, {r['rejected']} rejected" for s, r in table["nis"].items()]
     if nis:
         lines.append("estimator NIS: " + "; ".join(nis))
+    if table.get("not_fused_behind"):
+        lines.append(
+            f"estimator: {table['not_fused_behind']} samples not fused, to catch up with real "
+            "time (the host was too slow)"
+        )
     if table.get("diverged"):
         lines.append(f"estimator DIVERGED: {table['why']}")
     return lines

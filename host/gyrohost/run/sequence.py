@@ -39,32 +39,22 @@ from gyrohost.control.closed_loop import ekf_estimate
 from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Schedule
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.drivers.imu import Bwt61Driver
-from gyrohost.drivers.servos import StringServoBus
-from gyrohost.drivers.wheelboard import WheelBoard
-from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig, for_rig
 from gyrohost.estimator.imu_model import ImuGeometry
-from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.devices import ImuReader, ServoWorker, WheelTelemetry, failure_text
+from gyrohost.run.connect import connect_devices
+from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
-from gyrohost.run.errors import LimitBreach, RunError
+from gyrohost.run.errors import RunError
+from gyrohost.run.estimation import EstimatorProcess, start_state
 from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import StartStateRefused, check_start_state
-from gyrohost.run.streams import (
-    EstimateWriter,
-    InnovationWriter,
-    ReplanWriter,
-    TruthProbe,
-    open_run_streams,
-)
+from gyrohost.run.streams import ReplanWriter, TruthProbe, open_run_streams
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Readout, Ticker, status_words
-from gyrohost.run.wheel_faults import clear_reported_faults
 from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
 from gyrotensegrity import Model, load_scene
 
@@ -152,8 +142,8 @@ class RunLoop:
         self.imu = self.wheels = self.servos = None
         self.readers: list = []
         self.wheel_reader = self.servo_worker = None
-        self.ekf = None
-        self.estimates = None
+        self.estimator: EstimatorProcess | None = None
+        self.ekf = None  # the estimator while it is fed samples (None from the safe state on)
         self.truth = None
         self.latest_tilt = math.nan
         self.final: dict = {}
@@ -161,6 +151,7 @@ class RunLoop:
         self.rest_cmd = self.rest0.copy()
         self.t_schedule_s = math.nan
         self.estimate = self.replans = self.streams = None
+        self._followed_t_s = math.nan
 
     # --- the sequence -------------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -202,6 +193,8 @@ class RunLoop:
             attempt(self, out, "join re-planner", self._join_maneuver)
         safe = self.safe_state(reason)
         safe["steps"][:0] = out["steps"]
+        if self.estimator is not None:
+            attempt(self, safe, "stop estimator", self.estimator.stop)
         summary = {"reason": reason, "safe_state": safe}
         attempt(self, safe, "summary", lambda: self._summarise(summary, reason, safe))
         attempt(self, safe, "close log", lambda: self._close_log(safe))
@@ -232,7 +225,14 @@ class RunLoop:
 
     def _sequence(self) -> None:
         self._enter("connect")
-        self._connect()
+        self.estimator = EstimatorProcess(  # builds its model while the rig spins up
+            self.model,
+            self.config.scene_path,
+            self.estimator_config,
+            self.servo_strings,
+            self.settings.estimate_max_age_s,
+        )
+        connect_devices(self)
         check_start_state(self)
         self._enter("hold")
         self.servos.configure()
@@ -255,12 +255,13 @@ class RunLoop:
         self.event("phase", phase)
 
     def _record_tilts(self, key: str) -> None:
-        """The tilts of the estimate and the truth now, for the summary (D-bar scenes)."""
+        """The newest estimate's tilt and the truth's at its time, for the summary (D-bar
+        scenes)."""
         if self.tilt is None:
             return
         self.final[f"{key}_estimate_rad"] = self.latest_tilt
-        if self.truth is not None:
-            self.final[f"{key}_truth_rad"] = self.truth.latest_tilt
+        if self.truth is not None:  # at the estimate's time: it lags the loop by a tick or two
+            self.final[f"{key}_truth_rad"] = self.truth.tilt_at(self.estimator.t)
 
     def safe_state(self, reason: str) -> dict:
         """Ramp the wheels down, hold the servos, log the outcome; returns what was reached
@@ -268,36 +269,6 @@ class RunLoop:
         return reach_safe_state(self, reason)
 
     # --- devices ------------------------------------------------------------------------------
-    def _connect(self) -> None:
-        cfg, s = self.config, self.settings
-        self.imu = Bwt61Driver(cfg.imu.port, baud=cfg.imu.baud, timeout_s=s.imu_silence_s).open()
-        first = self.imu.read_sample()
-        self.wheel_reader = WheelTelemetry(self.queue, s.wheel_silence_s)
-        self.wheels = WheelBoard(cfg.wheelboard.port, on_telemetry=self.wheel_reader.on_telemetry)
-        hello = self.wheels.connect()
-        self.final["wheel_faults_cleared"] = clear_reported_faults(self.wheels, self._notice)
-        self.wheel_reader.arm()
-        self.wheels.set_param("TELEMETRY_DIV", s.telemetry_div)
-        self.wheels.set_param("HEARTBEAT_MS", s.heartbeat_ms)
-        speed_max = self.wheels.get_param("SPEED_MAX_MRAD_S") / 1000.0
-        scheduled = np.abs(self.schedule.wheel_speed)
-        fastest = max(np.max(np.abs(self.spins)), np.max(scheduled, initial=0.0))
-        if fastest > speed_max:
-            raise LimitBreach(
-                f"scene and schedule spins up to {fastest:.2f} rad/s exceed the wheel "
-                f"board's SPEED_MAX {speed_max:.2f} rad/s"
-            )
-        self.servos = StringServoBus(cfg.servos).open()
-        models = self.servos.ping_all()
-        versions = {
-            "wheel_board": hello,
-            "servo_models": models,
-            "imu_first_sample_temperature_degC": first.temperature_degC,
-        }
-        self.log.update_meta(devices=versions)
-        self.event("versions", f"wheel board fw {hello['fw_major']}.{hello['fw_minor']} "
-                   f"protocol v{hello['proto_version']}; servos {models}")  # fmt: skip
-
     def _start_readers(self) -> None:
         s = self.settings
         self.servo_worker = ServoWorker(self.servos, self.queue, s.servo_rate_hz)
@@ -342,20 +313,15 @@ class RunLoop:
                 )
 
     def _start_estimator(self) -> None:
-        est_cfg = self.estimator_config
-        model = self.model
-        # as gyrotens replay starts: the scene's state, the last wheel speeds and string lengths
-        x0 = from_model_state(model, model.initial_state(), model.input_at(0.0))
-        layout = layout_of(model)
-        x0[layout.omega] = np.array(self.wheel_reader.latest.omega_rad_s)[: layout.n_wheels]
-        for string, state in zip(self.servo_strings, self.latest_servos, strict=False):
-            x0[layout.rest.start + self.strings.index(string)] = state.length_m  # none yet: scene
-        innovations = InnovationWriter(self.log, self.servo_strings)
-        t0 = self.now()
-        self.ekf = TensegrityEKF(model, est_cfg, x0=x0, t0_s=t0, log=innovations)
-        self.log.update_meta(estimator=asdict(est_cfg))  # what gyrotens replay reads
+        while not self.estimator.ready():  # its model built while the wheels spun up
+            self.tick()
+        servos = zip(self.servo_strings, self.latest_servos, strict=False)  # none read: scene
+        lengths = {name: state.length_m for name, state in servos}
+        x0 = start_state(self.model, self.wheel_reader.latest.omega_rad_s, lengths)
+        self.estimator.start(self.log, x0, self.now())
+        self.log.update_meta(estimator=asdict(self.estimator_config))  # gyrotens replay reads it
+        self.ekf = self.estimator
         self.ekf.set_input(self.rest_cmd, wheel_speed_rad_s=self.omega_cmd[: self.n_wheels])
-        self.estimates = EstimateWriter(self.log, self.ekf, self.tilt)
         self.estimate = ekf_estimate(self.ekf)
 
     @property
@@ -383,15 +349,13 @@ class RunLoop:
             if strict:
                 raise fault
             self.event("fault", str(fault))
-        self._command(self.now())  # after any fault; stamped when sent, the fusion's ms late
+        self._command(self.now())  # after any fault; stamped when sent
         if self.ekf is not None:
-            if start - self.ekf.t > self.settings.estimate_max_age_s:
-                self.ekf.advance(start)
-            _, self.latest_tilt = self.estimates.write(self.ekf.t)
-            if strict and self.phase == "schedule" and self.maneuver is not None:
-                self._follow_estimate()
+            self.ekf.tick(start)
         if self.truth is not None:
             self._write_truth(strict)
+        if self.estimator is not None and self.estimator.log is not None:
+            self._exchange(start, strict)
         if strict:
             self.log.check()  # a refused write ends the run here, wherever it happened
             tel = self.wheel_reader.latest if self.wheels is not None else None
@@ -420,6 +384,23 @@ class RunLoop:
             "off" if self.ekf is None else status_words(self.ekf.status),
         )
 
+    def _exchange(self, t_s: float, strict: bool) -> None:
+        """The tick's calls to the estimator's process, its rows into the log; the newest
+        estimate's tilt, and a new estimate to the maneuver. ``strict`` False (the safe state):
+        its faults logged, not raised."""
+        est = self.estimator
+        try:  # a lagging estimate ends the run while the limits act on it
+            est.exchange(t_s, self.settings.estimator_max_lag_s if self.ekf else math.inf)
+        except Exception as exc:
+            if strict:
+                raise
+            self.event("fault", f"estimator: {failure_text(exc)}")
+        self.latest_tilt = est.tilt_rad
+        new = est.t != self._followed_t_s
+        if strict and new and self.phase == "schedule" and self.maneuver is not None:
+            self._followed_t_s = est.t
+            self._follow_estimate()
+
     def _follow_estimate(self) -> None:
         """Closed loop: the estimate to the maneuver, its schedule from the next tick on."""
         t_s, x = self.estimate()
@@ -430,7 +411,7 @@ class RunLoop:
         """The simulated rig's truth to its stream; in the safe state a failing probe (whatever
         it raises) is logged and dropped, so the rest of the safe state goes on."""
         try:
-            self.truth.write(self.estimates.score if self.estimates is not None else None)
+            self.truth.write(self.ekf)  # scored by the estimator while it is fed
         except Exception as exc:
             if strict:
                 raise
@@ -482,7 +463,7 @@ class RunLoop:
             self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
             self.replans.write(self.maneuver.records)  # the first plan, made before the run
 
-    def _notice(self, message: str) -> None:
+    def notice(self, message: str) -> None:
         """A line the user must see now: to ``notify`` (else stderr) and the events stream."""
         (self.notify or _stderr_line)(message)
         self.event("cleared", message)

@@ -42,6 +42,9 @@ class RunSettings:
     """The tick logs the estimate at its own time, the newest sample's (a prediction to the
     tick would cost a tenth of the loop); one this much older is predicted to the tick, so
     silent sources time out, s."""
+    estimator_max_lag_s: float = 1.0
+    """The estimator runs in its own process; its newest estimate this far behind the loop
+    ends the run (the limits and a maneuver would act on a stale estimate), s."""
 
     @classmethod
     def for_rig(cls, config) -> "RunSettings":

@@ -8,6 +8,7 @@ measure (:func:`gyrohost.control.attitude.attitude_of`, the D-bar) adds a ``tilt
 ``nodes`` and ``truth``. docs/run.md lists them all.
 """
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,9 @@ from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.run.health import NisTally, TruthScore
 from gyrohost.run.uncertainty import NodeSigma
+
+RECENT_TILTS = 100
+"""Truth tilts kept (1 s at the rig's 100 Hz), to compare with an estimate that lags."""
 
 INNOVATION_COMPONENTS = {
     "imu_rate": ("x", "y", "z"),
@@ -231,6 +235,7 @@ class TruthProbe:
     def __init__(self, rig, log, tilt: TiltMeter | None, t0_ns: int):
         self.rig, self.tilt, self.t0_ns = rig, tilt, t0_ns
         self.latest_tilt = float("nan")
+        self.recent_tilts: deque = deque(maxlen=RECENT_TILTS)  # (t_s, tilt_rad)
         self.stream = log.stream(
             "truth",
             [
@@ -246,12 +251,14 @@ class TruthProbe:
             description="the simulated rig's truth at its rig time on the host clock (t_s)",
         )
 
-    def write(self, score: TruthScore | None = None) -> None:
+    def write(self, score=None) -> None:
         """Write every truth sample received since the last call; score the estimate at each
-        (``score``: the estimate writer's, None before the estimator starts)."""
+        (``score``: a :class:`TruthScore`, or the estimator's process, which keeps one; None
+        while no estimator is fed)."""
         for s in self.rig.truth():
             self.latest_tilt = tilt_of(self.tilt, s.N)
             t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.state_rig_t_s
+            self.recent_tilts.append((t_s, self.latest_tilt))
             if score is not None:
                 score.truth(t_s, s.N, s.omega_w_rad_s, s.rest_length_m)
             self.stream.write(
@@ -264,6 +271,14 @@ class TruthProbe:
                 *s.omega_w_rad_s,
                 *s.rest_length_m,
             )
+
+    def tilt_at(self, t_s: float) -> float:
+        """The truth's plane tilt, rad, at host time ``t_s`` (interpolated between the recent
+        samples, the nearest outside them; NaN before any)."""
+        if not self.recent_tilts:
+            return float("nan")
+        t, tilt = np.array(self.recent_tilts).T
+        return float(np.interp(t_s, t, tilt))
 
 
 class ReplanWriter:

@@ -4,7 +4,6 @@ once it has reached the safe state."""
 from dataclasses import asdict
 
 from gyrohost.rig.process import RigProcessError
-from gyrohost.run.health import health
 from gyrohost.run.ticker import jitter_line
 from gyrotensegrity import __version__
 
@@ -40,9 +39,8 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "duration_s": loop.now(),
     }
     out.update(loop.final)
-    if loop.estimates is not None:  # the estimator ran (the safe state has let go of it)
-        score = loop.estimates.score if loop.truth is not None else None
-        out["estimator"] = health(loop.estimates.ekf.log.tally, score)
+    if loop.estimator is not None and loop.estimator.health is not None:  # it ran
+        out["estimator"] = loop.estimator.health
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
         target = loop.maneuver.target.tilt_rad
