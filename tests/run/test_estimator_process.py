@@ -118,9 +118,10 @@ def test_the_process_gives_the_filter_run_of_the_loop_thread(model, config, call
         assert len(rows) > 5, name
         assert np.array_equal(np.array(log.rows[name]), np.array(rows)), name
     assert proc.t == last[1] and np.array_equal(proc.x, last[4])  # the newest estimate
-    assert proc.health["nis"]["imu_rate"]["samples"] == filt.innovations.tally.table()[
-        "imu_rate"
-    ]["samples"]
+    assert (
+        proc.health["nis"]["imu_rate"]["samples"]
+        == filt.innovations.tally.table()["imu_rate"]["samples"]
+    )
     assert proc.health["not_fused_behind"] == 0
 
 
