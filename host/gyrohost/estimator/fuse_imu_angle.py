@@ -1,50 +1,62 @@
-"""IMU angles: ``z = euler_zyx(R_ws(eta2))`` (roll, pitch, yaw in rad); innovations wrapped.
+"""IMU angles as a rotation: the sample's Z-Y-X angles (roll, pitch, yaw, rad) turned into the
+sensor axes ``R_m`` and compared with the predicted ``R_ws`` as a rotation vector in world axes,
+``y = log(R_m R_ws^T)`` (rad).
 
-The Jacobian of the Z-Y-X angles follows from the Jacobian of ``R_ws`` by the chain rule
-(roll = atan2(R21, R22), pitch = -asin(R20), yaw = atan2(R10, R00)).
+Why not the angles themselves: the D-bar's manoeuvre takes the sensor's pitch through -90
+degrees, where roll and yaw are singular. Their Jacobian grows as 1 / cos(pitch) (1.8e6 per
+unit state near there) and one update then took the covariance to zero in a direction of the
+node positions (a NEES of 1e6 at one step on the real-time rig). The rotation vector is smooth
+everywhere: its Jacobian is ``vee(dR_ws R_ws^T)``, one column per state, never larger than the
+frame's own derivative.
+
+The angles' white noise (``imu_angle_std_rad`` each) maps into it through the Euler-rate matrix
+``E`` (its columns the world axes of the roll, pitch and yaw rotations): ``sigma^2 E E^T``. At
+pitch +-90 degrees roll and yaw turn about the same axis and ``E E^T`` loses a rank; a floor of
+``(FLOOR * sigma)^2`` per axis keeps the innovation's covariance positive there. The sample's
+time uncertainty adds ``imu_time_std_s^2 w w^T`` (``w`` the predicted angular velocity, world
+axes), as for the other IMU measurements.
 """
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from gyrohost.geometry import wrap_angle
+from gyrohost.geometry import rotation_zyx
 
 from .fusion import Measurement
-from .imu_prediction import ImuPrediction, at_sample_time, full_jacobian, timing_noise
+from .imu_prediction import ImuPrediction, full_jacobian
 
 SOURCE = "imu_angle"
-LABELS = ("roll", "pitch", "yaw")
+LABELS = ("x", "y", "z")
+FLOOR = 0.1
+"""Noise floor per world axis, as a fraction of ``imu_angle_std_rad`` (see module docstring)."""
 
 
-def angles_and_jacobian(R, dR):
-    """Z-Y-X angles (3,) rad of ``R`` (3, 3) and their Jacobian from dR (9, k), shape (3, k)."""
-
-    def d(i, j):
-        return dR[3 * i + j]
-
-    def atan2_grad(y, x, dy, dx):
-        return (x * dy - y * dx) / (x * x + y * y)
-
-    angles = np.array(
-        [np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(R[2, 0]), np.arctan2(R[1, 0], R[0, 0])]
-    )
-    J = np.stack(
-        [
-            atan2_grad(R[2, 1], R[2, 2], d(2, 1), d(2, 2)),
-            -d(2, 0) / np.sqrt(1.0 - R[2, 0] ** 2),
-            atan2_grad(R[1, 0], R[0, 0], d(1, 0), d(0, 0)),
-        ]
-    )
-    return angles, J
+def rotation_jacobian(R, dR):
+    """World-axes rotation rates (3, k) of the sensor axes ``R`` (3, 3) per unit of each state,
+    from ``dR`` (9, k): ``vee(dR_j R^T)``."""
+    M = np.einsum("ijk,lj->ilk", dR.reshape(3, 3, -1), R)  # dR_j R^T, skew-symmetric
+    return 0.5 * np.stack([M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]])
 
 
-def angle_residual(z, hx):
-    return wrap_angle(z - hx)
+def euler_rate_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """World axes (columns, (3, 3)) about which a change of roll, pitch and yaw turns the Z-Y-X
+    rotation: ``R_z(yaw) R_y(pitch) x``, ``R_z(yaw) y`` and ``z``."""
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    return np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
 
 
 def measurement(ekf, pred: ImuPrediction, euler_rad) -> Measurement:
-    """The angle sample (3,) rad with its prediction and Jacobian (3, n)."""
-    hx, J = angles_and_jacobian(pred.R_ws, pred.dR_ws)
-    hx = at_sample_time(ekf, pred, J, hx)
-    R = timing_noise(ekf, pred, J, ekf.config.imu_angle_std_rad)
-    z = np.asarray(euler_rad, float)
-    return Measurement(SOURCE, z, hx, full_jacobian(ekf, J), R, angle_residual)
+    """The angle sample (3,) rad as a rotation vector (3,) rad with its Jacobian (3, n).
+
+    The prediction is taken back to the sample's time when the filter is ``ekf.imu_lag_s``
+    ahead of it: the sensor then stood turned back by ``w lag``.
+    """
+    J = rotation_jacobian(pred.R_ws, pred.dR_ws)
+    w = J @ pred.x_dot  # angular velocity of the sensor axes, world axes, rad/s
+    R_m = rotation_zyx(*np.asarray(euler_rad, float))
+    y = Rotation.from_matrix(R_m @ pred.R_ws.T).as_rotvec() + ekf.imu_lag_s * w
+    c = ekf.config
+    E = euler_rate_matrix(*euler_rad)
+    R = c.imu_angle_std_rad**2 * (E @ E.T + FLOOR**2 * np.eye(3))
+    R += c.imu_time_std_s**2 * np.outer(w, w)
+    return Measurement(SOURCE, y, np.zeros(3), full_jacobian(ekf, J), R)

@@ -33,6 +33,10 @@ READY_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 30.0
 """Longest wait at the end of a run for the child to finish the samples it was sent, s."""
 
+NICE = 5
+"""The child's niceness: the loop's commands and the devices come first, the estimate may lag
+(a third of the CPU time of a process at niceness 0 when they compete for a core)."""
+
 _PIPE_ERRORS = (EOFError, OSError)
 
 
@@ -321,6 +325,7 @@ def _serve(conn, scene_path: str, config, servo_strings, max_age_s: float) -> No
     from gyrotensegrity import Model, load_scene
 
     ignore_interrupts()  # the parent stops the child once the rig is safe
+    os.nice(NICE)
     try:
         model = Model(load_scene(scene_path))
     except Exception as exc:  # reported to the parent, which raises it

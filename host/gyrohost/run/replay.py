@@ -47,7 +47,7 @@ GROUPS = {
 _LABELS = {
     "imu_rate": ("x", "y", "z"),
     "imu_accel": ("x", "y", "z"),
-    "imu_angle": ("roll", "pitch", "yaw"),
+    "imu_angle": ("x", "y", "z"),  # a rotation vector, world axes
 }
 
 

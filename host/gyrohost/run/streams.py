@@ -26,7 +26,7 @@ RECENT_TILTS = 100
 INNOVATION_COMPONENTS = {
     "imu_rate": ("x", "y", "z"),
     "imu_accel": ("x", "y", "z"),
-    "imu_angle": ("roll", "pitch", "yaw"),
+    "imu_angle": ("x", "y", "z"),  # a rotation vector, world axes
 }
 
 
