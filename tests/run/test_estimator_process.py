@@ -3,6 +3,7 @@ in the loop's thread, its faults raised in the loop, its lag bounded."""
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ import pytest
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.driver import events
+from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.errors import EstimatorError
 from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrohost.resources import shipped
@@ -126,7 +128,11 @@ def test_the_process_gives_the_filter_run_of_the_loop_thread(model, config, call
 
 
 def test_a_process_far_behind_fuses_the_newest_ticks_only_and_catches_up(model, config, calls):
-    proc, log = _through_process(model, config, calls, paced=False)
+    """Every call in one message: the waiting ticks' samples are left unfused, and their
+    sources do not time out for it (time-outs shorter than the stretch left out)."""
+    short = replace(config, imu_timeout_s=0.05, wheels_timeout_s=0.05, servos_timeout_s=0.1)
+    proc, log = _through_process(model, short, calls, paced=False)
+    assert proc.status == Status(0)
     n_ticks = sum(1 for c in calls if c[0] == "tick")
     assert proc.health["not_fused_behind"] > 0
     assert len(log.rows["estimate"]) < n_ticks  # the waiting ticks' estimates left out

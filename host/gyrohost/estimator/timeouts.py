@@ -43,6 +43,12 @@ class SourceMonitor:
         else:
             self.rejected += 1
 
+    def heard(self, t_s: float) -> None:
+        """A sample taken at ``t_s`` arrived and was left unfused (an estimator catching up
+        with real time): the source is not silent."""
+        self.last_t_s = t_s if self.last_t_s is None else max(self.last_t_s, t_s)
+        self.timed_out = False
+
     def check(self, t_s: float, t_start_s: float) -> bool:
         """Update the time-out state at ``t_s``; True when it is newly timed out."""
         since = t_s - (t_start_s if self.last_t_s is None else self.last_t_s)

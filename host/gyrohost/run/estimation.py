@@ -259,6 +259,14 @@ def start_state(model, omega_rad_s, lengths_m: dict) -> np.ndarray:
     return x0
 
 
+_SOURCES = {
+    "fuse_imu": ("imu_rate", "imu_accel", "imu_angle"),
+    "fuse_wheels": ("wheels",),
+    "fuse_servos": ("servos",),
+}
+"""The filter's calls that fuse a sample, and the sources each one feeds."""
+
+
 class _RowsOut:
     """The child's stand-in for the run's log: opened streams and rows, queued for the parent."""
 
@@ -310,6 +318,12 @@ class _Filter:
         else:
             getattr(ekf, kind)(*args)  # fuse_imu, fuse_wheels, fuse_servos, set_input
         return None
+
+    def skip(self, kind: str, t_s: float) -> None:
+        """Leave a sample at ``t_s`` unfused (catching up); its sources are not silent."""
+        self.skipped += 1
+        for source in _SOURCES[kind]:
+            self.ekf.monitors[source].heard(t_s)
 
     def health(self) -> dict:
         from gyrohost.run.health import health
@@ -373,14 +387,14 @@ class _Child:
                 health = self.filter.health() if self.filter else None
                 self.conn.send([*self.out.take(), ("health", health)])
                 return
-            if not self.failed and not self._skipped(kind):
+            if not self.failed and not self._skipped(kind, args):
                 self._call(kind, args)
 
-    def _skipped(self, kind: str) -> bool:
+    def _skipped(self, kind: str, args) -> bool:
         behind = self.ticks >= self.MAX_BEHIND_TICKS
-        if behind and kind.startswith("fuse_") and self.filter is not None:
-            self.filter.skipped += 1
-        return behind and (kind == "tick" or kind.startswith("fuse_"))
+        if behind and kind in _SOURCES and self.filter is not None:
+            self.filter.skip(kind, args[0])
+        return behind and (kind == "tick" or kind in _SOURCES)
 
     def _call(self, kind: str, args) -> None:
         try:
