@@ -258,22 +258,24 @@ def noise_from_rig(rig) -> dict:
         # the grid the host rebuilds from the earliest arrivals lies this much after the
         # samples (the pty and the reader thread): the estimate trailed the truth by 2.5 ms
         "imu_latency_s": 0.002,
-        # the node accelerations' noise: the run loop's late commands and the servos' steps
-        # (docs/estimator.md, "Real time"; 8 idle runs replayed: 1e-5 NEES 9.7 for 14 dof,
-        # 3e-6 12.0 with the rate NIS 2.6; the SIL's 3e-8 left the shape overconfident)
-        "accel_psd_m2_s3": 3.0e-6,
+        # the node accelerations' noise: the servos' steps and the rig's stalls (docs/
+        # estimator.md, "The estimator out of the loop": 8 idle runs replayed, 3e-6 NEES 20.5
+        # for 14 dof, 5e-6 with the servo keys below 17.7; the SIL's 3e-8 left the shape
+        # overconfident)
+        "accel_psd_m2_s3": 5.0e-6,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
         "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5-10 ms of the tick's command; its reads scatter
-        # about the truth's 5 ms rest-length steps and it strays from the lag model now and
-        # then, which the noise and the walk cover (docs/estimator.md, "The servos' keys")
-        "servo_lag_s": 0.01,
+        # paper's pulls a first-order lag of 5-10 ms of the tick's command (5 ms now that the
+        # ticks are on time); its reads scatter about the truth's 5 ms rest-length steps and it
+        # strays from the lag model now and then, which the noise and the walk cover
+        # (docs/estimator.md, "The servos' keys", "The estimator out of the loop")
+        "servo_lag_s": 0.005,
         "servo_length_std_m": 2.0e-4,
-        "rest_psd_m2_s": 3.0e-5,
+        "rest_psd_m2_s": 1.0e-5,
         # the wheel board emulator's telemetry: the encoder's quantisation through the
         # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds its speeds, so
         # they walk only slowly (the default 0.5 rad/s gave a wheel NIS of 0.003)

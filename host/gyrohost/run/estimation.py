@@ -33,7 +33,7 @@ READY_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 30.0
 """Longest wait at the end of a run for the child to finish the samples it was sent, s."""
 
-NICE = 5
+NICE = 15
 """The child's niceness: the loop's commands and the devices come first, the estimate may lag
 (a third of the CPU time of a process at niceness 0 when they compete for a core)."""
 
