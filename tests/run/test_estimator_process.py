@@ -181,3 +181,20 @@ def test_a_scene_the_child_cannot_build_is_named(model, config, tmp_path):
     finally:
         ok, detail = proc.stop()
     assert ok and detail == "never started"
+
+
+def test_a_child_killed_mid_run_is_an_error_naming_its_exit(model, config):
+    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
+    try:
+        while not proc.ready():
+            pass
+        proc.start(MemoryLog(), _x0(model), 0.0)
+        proc._proc.kill()
+        proc._proc.join(5.0)
+        with pytest.raises(EstimatorProcessError, match="exit code -9"):
+            for _ in range(100):
+                proc.tick(0.01)
+                proc.exchange()
+    finally:
+        ok, detail = proc.stop()
+    assert not ok and "without its summary" in detail

@@ -210,7 +210,7 @@ class EstimatorProcess:
             with InterruptsHeld():  # a message is sent whole or not at all
                 self._conn.send(batch)
         except _PIPE_ERRORS as exc:
-            raise EstimatorProcessError(f"estimator process: cannot send: {exc!r}") from exc
+            raise self._gone("cannot send", exc) from exc
 
     def _receive(self, timeout_s: float = 0.0) -> None:
         try:
@@ -221,10 +221,13 @@ class EstimatorProcess:
                     self._take(*reply)
                 timeout_s = 0.0
         except _PIPE_ERRORS as exc:
-            code = self._proc.exitcode
-            raise EstimatorProcessError(
-                f"estimator process: the pipe ended ({exc!r}; exit code {code})"
-            ) from exc
+            raise self._gone("the pipe ended", exc) from exc
+
+    def _gone(self, what: str, exc: BaseException) -> EstimatorProcessError:
+        self._proc.join(1.0)  # a child that died: its exit code (-9 killed) says why
+        return EstimatorProcessError(
+            f"estimator process: {what} ({exc!r}; exit code {self._proc.exitcode})"
+        )
 
     def _take(self, kind: str, *body) -> None:
         if kind == "row":
