@@ -61,7 +61,7 @@ class Recording:
         the start.
     segment_start : str
         How a later segment starts: ``"imu"``, the previous one's end turned to the IMU's
-        attitude and rate (:func:`.shooting.anchored`); ``"estimate"``, the host estimator's
+        tilt and rate (:func:`.shooting.anchored`); ``"estimate"``, the host estimator's
         logged state where there is one (:func:`.shooting.start_states`).
     anchor_mounting_rpy_rad, anchor_gyro_bias_rad_s : tuple of 3 float, rad and rad/s
         The IMU mounting and gyro bias the ``"imu"`` segment starts read the IMU with.
