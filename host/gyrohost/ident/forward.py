@@ -299,9 +299,10 @@ def output_error(predicted, rec: Recording) -> np.ndarray:
 
 def tilt_error(R_ws, roll_pitch_rad) -> np.ndarray:
     """Tilt of the predicted sensor axes ``R_ws`` (k, 3, 3) from the measured ones (roll and
-    pitch, (k, 2), rad), shape (k, 2), rad: the horizontal part of ``log(R_pred R_meas^T)``
-    (:func:`gyrohost.geometry.levelling_rotvec`), in the world of the measured attitude turned
-    to zero yaw (the IMU's yaw is relative and not compared).
+    pitch, (k, 2), rad), shape (k, 2), rad: the rotation between their up directions
+    (:func:`gyrohost.geometry.levelling_rotvec`; to first order the horizontal part of
+    ``log(R_pred R_meas^T)``), in the world of the measured attitude turned to zero yaw (the
+    IMU's yaw is relative and not compared).
 
     Not the angles' difference: the D-bar takes the sensor's pitch through -90 degrees, where
     roll is singular (it jumps by up to pi between neighbouring samples and the difference says
