@@ -78,3 +78,23 @@ def tilt_angle(normal, axis, normal0):
     p = normal - (normal @ axis)[..., None] * axis
     angle = np.arctan2(_cross(normal0, p) @ axis, p @ normal0)
     return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def levelling_rotvec(up):
+    """Rotation vector (..., 3), rad, world axes, of the smallest rotation that turns the unit
+    vectors ``up`` (..., 3) onto the world's z axis: about a horizontal axis (its z component
+    is 0), by the angle between them. Smooth in ``up`` except exactly upside down, where the
+    axis is undefined and zero is returned.
+
+    It compares attitudes without Euler angles (whose roll and yaw are singular at pitch +-90
+    degrees) and without yaw (relative on the IMU): ``up = R_a R_b^T z`` is the attitude
+    ``R_b``'s up direction seen in ``R_a``'s world, and its levelling rotation is, to first
+    order, the horizontal part of ``log(R_b R_a^T)`` in ``R_a``'s world.
+    """
+    up = np.asarray(up, float)
+    axis = np.stack([up[..., 1], -up[..., 0], np.zeros(up.shape[:-1])], axis=-1)  # up x z
+    s = np.linalg.norm(axis, axis=-1, keepdims=True)
+    angle = np.arctan2(s, up[..., 2:3])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(s > 1e-12, angle / s, np.where(up[..., 2:3] > 0.0, 1.0, 0.0))
+    return axis * scale

@@ -2,8 +2,9 @@
 
 Every recording's inputs (servo positions, wheel speeds) drive the rig's model
 (:mod:`.forward`) under a parameter vector; the residual is what the IMU reported less what the
-model predicts (rate, specific force, roll, pitch), each divided by its noise standard deviation
-(the rig's estimator settings, ``imu_*_std``). At the optimum the Jacobian ``J`` of these
+model predicts (rate, specific force, the attitude's tilt), each divided by its noise standard
+deviation (the rig's estimator settings, ``imu_*_std``; the tilt's mapped from the angles' by
+:func:`.forward.tilt_std`). At the optimum the Jacobian ``J`` of these
 residuals gives the linearised covariance ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance
 per degree of freedom. Directions the data cannot resolve are found from the singular values of
 ``J`` with unit columns (below ``rcond`` times the largest), and, for the D-bar's common scale of
@@ -26,7 +27,7 @@ from gyrohost.ident import forward, profile, shooting
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 
-CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "roll", "pitch")
+CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "tilt x", "tilt y")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 8)}
 RCOND = 1e-3
 """Singular values of the unit-column Jacobian below this fraction of the largest: not resolved."""
@@ -128,11 +129,12 @@ class Problem:
     def __init__(self, scene: Scene, config: RigConfig, est: EstimatorConfig, params, recs):
         self.scene, self.config, self.params, self.recs = scene, config, params, recs
         self.servo_lag_s = nominal_lag(config, est, recs)
-        self.weights = np.array(
-            3 * [est.imu_rate_std_rad_s]
-            + 3 * [est.imu_accel_std_m_s2]
-            + 2 * [est.imu_angle_std_rad]
-        )
+        self.weights = [
+            forward.noise_std(
+                r, est.imu_rate_std_rad_s, est.imu_accel_std_m_s2, est.imu_angle_std_rad
+            )
+            for r in recs
+        ]
         self.dynamic = np.array([p.group not in OUTPUT_GROUPS for p in params])
         self._key, self._motions = None, None
         self.simulations = 0
@@ -163,8 +165,12 @@ class Problem:
             for m, r in zip(self.motions(theta), self.recs, strict=True)
         ]
 
+    def weighted(self, theta) -> list:
+        """:meth:`errors` over their noise standard deviations (:func:`.forward.noise_std`)."""
+        return [e / w for e, w in zip(self.errors(theta), self.weights, strict=True)]
+
     def __call__(self, theta) -> np.ndarray:
-        return np.concatenate([(e / self.weights).ravel() for e in self.errors(theta)])
+        return np.concatenate([e.ravel() for e in self.weighted(theta)])
 
 
 def nominal_lag(config: RigConfig, est: EstimatorConfig, recs) -> float:
@@ -246,8 +252,8 @@ def _predictable(problem: Problem, theta) -> tuple[list, list]:
     not follow (:func:`.shooting.predictable`), and those left out: (recording, start, end)."""
     recs, dropped = [], []
     dt_s = problem.config.sim.truth.dt_s
-    for rec, err in zip(problem.recs, problem.errors(theta), strict=True):
-        kept, windows = shooting.predictable(rec, err / problem.weights, dt_s)
+    for rec, err in zip(problem.recs, problem.weighted(theta), strict=True):
+        kept, windows = shooting.predictable(rec, err, dt_s)
         recs.append(kept)
         dropped += [(rec.name, t0, t1) for t0, t1 in windows]
     return recs, dropped

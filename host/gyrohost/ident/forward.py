@@ -6,7 +6,8 @@ wound strings' rest lengths (through the string lag ``servo_lag_s``), its wheel 
 path, speed-controlled wheels) is stepped from the scene's initial state at the log's first IMU
 sample, and the IMU frame's rate, specific force and attitude are read at every step and
 interpolated to the IMU's time stamps. :func:`sensor_outputs` turns them into what the IMU
-reports: rotated into the sensor's axes by the mounting rotation, plus the biases.
+reports: rotated into the sensor's axes by the mounting rotation, plus the biases;
+:func:`output_error` compares them with the recording (the attitude as its tilt).
 """
 
 from dataclasses import dataclass, field, replace
@@ -16,7 +17,8 @@ import numpy as np
 from gyrohost.config import RigConfig
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
-from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
+from gyrohost.estimator.fuse_imu_angle import FLOOR
+from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
 from gyrohost.rig.truth import Truth
 from gyrotensegrity import Scene
@@ -59,7 +61,7 @@ class Recording:
         the start.
     segment_start : str
         How a later segment starts: ``"imu"``, the previous one's end turned to the IMU's
-        attitude and rate (:func:`.shooting.anchored`); ``"estimate"``, the host estimator's
+        tilt and rate (:func:`.shooting.anchored`); ``"estimate"``, the host estimator's
         logged state where there is one (:func:`.shooting.start_states`).
     anchor_mounting_rpy_rad, anchor_gyro_bias_rad_s : tuple of 3 float, rad and rad/s
         The IMU mounting and gyro bias the ``"imu"`` segment starts read the IMU with.
@@ -280,21 +282,65 @@ def _interp(t, tp, values):
 
 
 def sensor_outputs(motion: FrameMotion, mounting_rpy_rad, gyro_bias_rad_s, accel_bias_m_s2):
-    """What the IMU reports for ``motion``: rate, specific force (sensor axes, biased), roll
-    and pitch (of the sensor axes), shape (k, 8)."""
+    """What the IMU reports for ``motion``: rate and specific force (sensor axes, biased),
+    shape (k, 6), and the sensor's axes in the world, shape (k, 3, 3)."""
     R_bs = rotation_zyx(*mounting_rpy_rad)
     omega = motion.omega_rad_s @ R_bs + np.asarray(gyro_bias_rad_s)
     force = motion.force_m_s2 @ R_bs + np.asarray(accel_bias_m_s2)
-    angles = np.array([euler_zyx(R @ R_bs)[:2] for R in motion.R_wb])
-    return np.column_stack([omega, force, angles])
+    return np.column_stack([omega, force]), motion.R_wb @ R_bs
 
 
-def output_error(predicted: np.ndarray, rec: Recording) -> np.ndarray:
-    """Predicted less measured, shape (k, 8): rate, force, roll and pitch (wrapped; yaw is
-    relative on the sensor and not compared)."""
-    err = predicted - rec.imu[:, :8]
-    err[:, 6:] = wrap_angle(err[:, 6:])
-    return err
+def output_error(predicted, rec: Recording) -> np.ndarray:
+    """Predicted (:func:`sensor_outputs`) less measured, shape (k, 8): rate, force and the
+    attitude's tilt (:func:`tilt_error`)."""
+    signals, R_ws = predicted
+    return np.column_stack([signals - rec.imu[:, :6], tilt_error(R_ws, rec.imu[:, 6:8])])
+
+
+def tilt_error(R_ws, roll_pitch_rad) -> np.ndarray:
+    """Tilt of the predicted sensor axes ``R_ws`` (k, 3, 3) from the measured ones (roll and
+    pitch, (k, 2), rad), shape (k, 2), rad: the rotation between their up directions
+    (:func:`gyrohost.geometry.levelling_rotvec`; to first order the horizontal part of
+    ``log(R_pred R_meas^T)``), in the world of the measured attitude turned to zero yaw (the
+    IMU's yaw is relative and not compared).
+
+    Not the angles' difference: the D-bar takes the sensor's pitch through -90 degrees, where
+    roll is singular (it jumps by up to pi between neighbouring samples and the difference says
+    nothing of the attitude). The tilt is smooth everywhere; its noise is
+    :func:`tilt_std`."""
+    roll, pitch = roll_pitch_rad[:, 0], roll_pitch_rad[:, 1]
+    R_m = rotation_zyx(roll, pitch, np.zeros_like(roll))  # (3, 3, k)
+    # the predicted up direction (sensor axes: R_ws^T z) seen in the measured world
+    up = np.einsum("ijk,kj->ki", R_m, R_ws[:, 2, :])
+    return levelling_rotvec(up)[:, :2]
+
+
+def tilt_std(roll_pitch_rad, angle_std_rad: float) -> np.ndarray:
+    """Standard deviation of :func:`tilt_error`'s two components, shape (k, 2), rad, for the
+    IMU's roll, pitch and yaw each with white noise ``angle_std_rad``.
+
+    The angles' noise turns the attitude about the world axes of the Euler-rate matrix ``E``
+    (:func:`gyrohost.estimator.fuse_imu_angle.euler_rate_matrix`), as the estimator fuses them:
+    covariance ``std^2 (E E^T + FLOOR^2 I)``. At zero yaw its horizontal block is diagonal,
+    ``std^2 diag(cos(pitch)^2 + FLOOR^2, 1 + FLOOR^2)``: at pitch -90 degrees the roll turns
+    about the vertical and the tilt about x is left to the floor.
+    """
+    cp = np.cos(roll_pitch_rad[:, 1])
+    return angle_std_rad * np.column_stack(
+        [np.sqrt(cp**2 + FLOOR**2), np.full(len(cp), np.sqrt(1.0 + FLOOR**2))]
+    )
+
+
+def noise_std(rec: Recording, rate_std_rad_s, accel_std_m_s2, angle_std_rad) -> np.ndarray:
+    """Standard deviation of every column of :func:`output_error` on ``rec``, shape (k, 8)."""
+    k = len(rec.t_imu_s)
+    return np.column_stack(
+        [
+            np.full((k, 3), rate_std_rad_s),
+            np.full((k, 3), accel_std_m_s2),
+            tilt_std(rec.imu[:, 6:8], angle_std_rad),
+        ]
+    )
 
 
 def _check_estimate(rec: Recording, model) -> None:

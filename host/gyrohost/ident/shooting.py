@@ -4,7 +4,7 @@ The D-bar has an unstable roll mode: a prediction simulated from the start of a 
 follows it only until a small mismatch has grown into a roll the rig never made. Cut into
 segments of ``segment_s`` (:func:`segment_starts`), the first one starts where the rig starts
 (the scene's initial state, exactly known), every later one from the previous one's end
-turned to the IMU's attitude and rate at its start (:func:`anchored`), or, if asked, from the
+turned to the IMU's tilt and rate at its start (:func:`anchored`), or, if asked, from the
 host estimator's logged state there (:func:`start_states`; far off while the estimator runs a
 scene not yet identified). The parameters are shared across segments; the start states are
 held, not fitted, and segments the prediction does not follow are left out
@@ -15,8 +15,9 @@ measurements behind both.
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from gyrohost.geometry import euler_zyx, rotation_zyx
+from gyrohost.geometry import levelling_rotvec
 from gyrotensegrity.projection import project
 
 FIRST_PASS_S = 4.0
@@ -73,10 +74,11 @@ def start_states(model, t_starts_s, t_estimate_s, estimate_x) -> list:
 
 
 def anchored(truth, x, t_imu_s, imu, t_s: float, R_bs, gyro_bias_rad_s):
-    """The state ``x`` (a segment's predicted end) turned rigidly so that the sensor's roll
-    and pitch are the IMU's at ``t_s``, and given the rigid rotation that makes the sensor's
-    rate the IMU's (both averaged over :data:`ANCHOR_HALF_S` either side), projected onto the
-    bars' lengths; ``x`` itself without samples there.
+    """The state ``x`` (a segment's predicted end) turned rigidly so that the sensor's tilt
+    is the IMU's at ``t_s`` (its yaw kept: the smallest rotation that does it), and given the
+    rigid rotation that makes the sensor's rate the IMU's (both averaged over
+    :data:`ANCHOR_HALF_S` either side, :func:`mean_up`), projected onto the bars' lengths;
+    ``x`` itself without samples there.
 
     ``R_bs`` (3, 3): the sensor's axes in the IMU frame, ``gyro_bias_rad_s`` (3,): what turns
     the IMU's readings into the frame's attitude and rate (the fit's first pass,
@@ -93,8 +95,8 @@ def anchored(truth, x, t_imu_s, imu, t_s: float, R_bs, gyro_bias_rad_s):
     model, L = truth.model, truth.model.layout
     N, N_dot = model.nodes(x)
     omega, _, R = truth.frame_motion(N[..., None], N_dot[..., None], np.zeros_like(N)[..., None])
-    R_s = R[0] @ R_bs
-    Q = rotation_zyx(*_mean_angles(imu[win]), euler_zyx(R_s)[2]) @ R_s.T
+    # the IMU's up direction in the predicted world, levelled by a turn about a horizontal axis
+    Q = Rotation.from_rotvec(levelling_rotvec(R[0] @ R_bs @ mean_up(imu[win, 6:8]))).as_matrix()
     q = Q @ x[L.q].reshape(3, L.m)
     rate = R_bs @ (np.mean(imu[win, :3], axis=0) - gyro_bias_rad_s)
     d_omega = Q @ R[0] @ (rate - omega[0])
@@ -104,10 +106,17 @@ def anchored(truth, x, t_imu_s, imu, t_s: float, R_bs, gyro_bias_rad_s):
     return project(model, out)
 
 
-def _mean_angles(imu) -> tuple[float, float]:
-    """Mean roll (on the circle: it wraps once the D-bar rolls over) and pitch of IMU rows."""
-    roll = np.arctan2(np.mean(np.sin(imu[:, 6])), np.mean(np.cos(imu[:, 6])))
-    return float(roll), float(np.mean(imu[:, 7]))
+def mean_up(roll_pitch_rad) -> np.ndarray:
+    """The mean up direction, sensor axes, shape (3,), of attitudes given by their roll and
+    pitch (k, 2), rad: the unit mean of each one's (the attitude's third row; its yaw does not
+    enter): the tilt averaged as a direction. Not the angles' mean: near pitch -90 degrees roll
+    jumps by up to pi between samples, and pitch, which never passes -90, is biased above it."""
+    roll, pitch = roll_pitch_rad[:, 0], roll_pitch_rad[:, 1]
+    up = np.column_stack(
+        [-np.sin(pitch), np.cos(pitch) * np.sin(roll), np.cos(pitch) * np.cos(roll)]
+    )
+    mean = up.mean(axis=0)
+    return mean / np.linalg.norm(mean)
 
 
 def edges_s(rec, dt_s: float) -> np.ndarray:
