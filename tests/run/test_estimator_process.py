@@ -3,6 +3,7 @@ in the loop's thread, its faults raised in the loop, its lag bounded."""
 
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -84,15 +85,25 @@ def _x0(model):
     return start_state(model, wheels, {})
 
 
+@contextmanager
+def started(model, config, log=None, scene=SCENE):
+    """A child process started (its model built, the filter at the scene's state at 0 s);
+    stopped on the way out, ``stop()``'s outcome then in ``proc.outcome``."""
+    proc = EstimatorProcess(model, scene, config, SERVO_STRINGS, MAX_AGE_S)
+    try:
+        while not proc.ready():
+            pass
+        proc.start(MemoryLog() if log is None else log, _x0(model), 0.0)
+        yield proc
+    finally:
+        proc.outcome = proc.stop()
+
+
 def _through_process(model, config, calls, paced=True):
     """Feed ``calls`` to a child process: one tick per message, each sent once the child has
     logged the tick before (``paced``, as a loop on a fast enough CPU), or all in one message."""
     log = MemoryLog()
-    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
-    try:
-        while not proc.ready():
-            pass
-        proc.start(log, _x0(model), 0.0)
+    with started(model, config, log) as proc:
         ticks = 0
         for kind, *args in calls:
             getattr(proc, kind)(*args)
@@ -101,9 +112,7 @@ def _through_process(model, config, calls, paced=True):
                 proc.exchange()
                 while len(log.rows.get("estimate", [])) < ticks:
                     proc.exchange()
-        ok, detail = proc.stop()
-    finally:
-        proc.stop()
+    ok, detail = proc.outcome
     assert ok, detail
     return proc, log
 
@@ -140,12 +149,7 @@ def test_a_process_far_behind_fuses_the_newest_ticks_only_and_catches_up(model, 
 
 
 def test_a_filter_fault_is_raised_in_the_loop_and_the_process_still_stops(model, config, calls):
-    log = MemoryLog()
-    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
-    try:
-        while not proc.ready():
-            pass
-        proc.start(log, _x0(model), 0.0)
+    with started(model, config) as proc:
         proc.set_input([math.nan, 0.4], 0.0)
         proc.tick(0.05)  # predicted to the tick: the strings' forces are NaN
         deadline = time.monotonic() + 30.0
@@ -154,21 +158,14 @@ def test_a_filter_fault_is_raised_in_the_loop_and_the_process_still_stops(model,
                 proc.exchange()
         assert raised.value.member == "rest0_m" and raised.value.t_s > 0.0
         proc.exchange()  # raised once
-    finally:
-        ok, detail = proc.stop()
+    ok, detail = proc.outcome
     assert ok and proc.health is not None, detail
 
 
 def test_an_estimate_lagging_the_loop_too_far_ends_the_run(model, config):
-    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
-    try:
-        while not proc.ready():
-            pass
-        proc.start(MemoryLog(), _x0(model), 0.0)
+    with started(model, config) as proc:
         with pytest.raises(EstimatorProcessError, match=r"1\.500 s behind the loop"):
             proc.exchange(1.5, max_lag_s=1.0)
-    finally:
-        proc.stop()
 
 
 def test_a_scene_the_child_cannot_build_is_named(model, config, tmp_path):
@@ -184,17 +181,12 @@ def test_a_scene_the_child_cannot_build_is_named(model, config, tmp_path):
 
 
 def test_a_child_killed_mid_run_is_an_error_naming_its_exit(model, config):
-    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
-    try:
-        while not proc.ready():
-            pass
-        proc.start(MemoryLog(), _x0(model), 0.0)
+    with started(model, config) as proc:
         proc._proc.kill()
         proc._proc.join(5.0)
         with pytest.raises(EstimatorProcessError, match="exit code -9"):
             for _ in range(100):
                 proc.tick(0.01)
                 proc.exchange()
-    finally:
-        ok, detail = proc.stop()
+    ok, detail = proc.outcome
     assert not ok and "without its summary" in detail
