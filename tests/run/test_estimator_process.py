@@ -86,10 +86,10 @@ def _x0(model):
 
 
 @contextmanager
-def started(model, config, log=None, scene=SCENE):
+def started(model, config, log=None):
     """A child process started (its model built, the filter at the scene's state at 0 s);
     stopped on the way out, ``stop()``'s outcome then in ``proc.outcome``."""
-    proc = EstimatorProcess(model, scene, config, SERVO_STRINGS, MAX_AGE_S)
+    proc = EstimatorProcess(model, SCENE, config, SERVO_STRINGS, MAX_AGE_S)
     try:
         while not proc.ready():
             pass
