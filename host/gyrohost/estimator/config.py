@@ -269,8 +269,8 @@ def noise_from_rig(rig) -> dict:
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5-10 ms of the tick's command (5 ms now that the
-        # ticks are on time); its reads scatter about the truth's 5 ms rest-length steps and it
+        # paper's pulls a first-order lag of 5-10 ms of the tick's command (5 ms with the ticks
+        # on time); its reads scatter about the truth's 5 ms rest-length steps and it
         # strays from the lag model now and then, which the noise and the walk cover
         # (docs/estimator.md, "The servos' keys", "The estimator out of the loop")
         "servo_lag_s": 0.005,
