@@ -77,7 +77,14 @@ def test_a_run_completes_and_logs_every_stream(tmp_path):
     assert_safe_state(folder, result)
     loop = result.summary["loop"]
     assert loop["ticks"] > 50 and loop["period_p99_s"] >= loop["period_mean_s"] > 0  # no timing
-    assert len(read_stream(folder, "loop")) == loop["ticks"]  # asserts: the CPU is shared
+    ticks = read_stream(folder, "loop")
+    assert len(ticks) == loop["ticks"]  # asserts: the CPU is shared
+    fed = np.isin(ticks["phase"], ["schedule", "settle"])
+    lag_s = ticks["estimate_lag_s"]
+    assert np.all(np.isfinite(lag_s[fed])) and np.all(np.isnan(lag_s[ticks["phase"] == "hold"]))
+    lags = result.summary["estimator"]["lag_s"]  # the estimator's own process keeps up
+    assert lags["median"] == pytest.approx(np.median(lag_s[np.isfinite(lag_s)]), abs=1e-9)
+    assert 0.0 <= lags["median"] <= lags["p99"] <= lags["max"] < 1.0
     est = read_stream(folder, "estimate")
     assert np.all(np.isfinite(est["tilt_rad"]))
     assert (

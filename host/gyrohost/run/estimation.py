@@ -72,6 +72,8 @@ class EstimatorProcess:
         Its plane tilt (NaN without an attitude measure or an estimate).
     health : dict or None
         The summary's ``estimator`` table (:func:`gyrohost.run.health.health`), once stopped.
+    lags_s : list of float, s
+        How far the newest estimate was behind each tick while the filter was fed.
     """
 
     def __init__(self, model, scene_path, config, servo_strings, estimate_max_age_s: float):
@@ -81,6 +83,7 @@ class EstimatorProcess:
         self.status = Status(0)
         self.tilt_rad = float("nan")
         self.health: dict | None = None
+        self.lags_s: list[float] = []  # the estimate behind the loop at each fed tick, s
         self.log = None
         self._streams: dict = {}
         self._batch: list = []
@@ -167,11 +170,22 @@ class EstimatorProcess:
         fault, self._fault = self._fault, None
         if fault is not None:
             raise fault
+        if math.isfinite(max_lag_s):  # fed: the lag is the loop's to watch
+            self.lags_s.append(now_s - self.t)
         if now_s - self.t > max_lag_s:
             raise EstimatorProcessError(
                 f"the estimate is {now_s - self.t:.3f} s behind the loop (limit {max_lag_s:g} s):"
                 " the host is too slow for the estimator in real time"
             )
+
+    def lag_table(self) -> dict:
+        """Median, 99th percentile and largest lag of the estimate behind the loop's ticks, s
+        (empty before the filter was fed)."""
+        if not self.lags_s:
+            return {}
+        lags = np.array(self.lags_s)
+        return {"median": float(np.median(lags)), "p99": float(np.percentile(lags, 99)),
+                "max": float(lags.max())}  # fmt: skip
 
     def stop(self, timeout_s: float = STOP_TIMEOUT_S) -> tuple[bool, str]:
         """Let the child finish what it was sent, write its rows, take its health table and

@@ -156,6 +156,12 @@ def health_lines(table: dict) -> list[str]:
     nis = [f"{row(s, r)}, {r['rejected']} rejected" for s, r in table["nis"].items()]
     if nis:
         lines.append("estimator NIS: " + "; ".join(nis))
+    if table.get("lag_s"):
+        lag = {k: 1e3 * v for k, v in table["lag_s"].items()}
+        lines.append(
+            f"estimator behind the loop: median {lag['median']:.1f} ms, p99 {lag['p99']:.1f} ms, "
+            f"max {lag['max']:.1f} ms"
+        )
     if table.get("not_fused_behind"):
         lines.append(
             f"estimator: {table['not_fused_behind']} samples not fused, to catch up with real "

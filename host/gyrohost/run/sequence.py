@@ -364,7 +364,8 @@ class RunLoop:
             check_limits(self.settings, peak, tel, self.latest_servos,
                          self.latest_tilt, self.ekf)  # fmt: skip
         cpu = time.thread_time() - cpu0
-        self.streams.loop.write(start, start - due, self.now() - start, cpu, n, self.phase)
+        lag_s = start - self.ekf.t if self.ekf is not None else math.nan
+        self.streams.loop.write(start, start - due, self.now() - start, cpu, n, lag_s, self.phase)
         if self.progress is not None:
             self.progress(self.phase, start, self._played(start), self.readout())
         if strict and self.on_tick is not None:

@@ -80,9 +80,10 @@ def open_run_streams(log, strings, servo_strings) -> RunStreams:
         ),
         loop=log.stream(
             "loop",
-            ["t_s", "late_s", "work_s", "cpu_s", "samples", "phase"],
+            ["t_s", "late_s", "work_s", "cpu_s", "samples", "estimate_lag_s", "phase"],
             ("phase",),
-            "one row per host tick: lateness against the grid, wall and CPU time spent (s)",
+            "one row per host tick: lateness against the grid, wall and CPU time spent, the "
+            "newest estimate's time behind the tick (s)",
         ),
         imu=log.stream(
             cols.IMU, [*cols.imu_columns(), "temperature_degC"], (), "IMU samples at arrival"

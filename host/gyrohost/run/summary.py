@@ -40,7 +40,7 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
     }
     out.update(loop.final)
     if loop.estimator is not None and loop.estimator.health is not None:  # it ran
-        out["estimator"] = loop.estimator.health
+        out["estimator"] = {**loop.estimator.health, "lag_s": loop.estimator.lag_table()}
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
         target = loop.maneuver.target.tilt_rad
