@@ -14,10 +14,10 @@ fitted as ``gyrotens identify --segment-s S`` fits it (the default groups; strin
 the commands through the servos' lag, or the servos' reports with ``--lengths servos``).
 
 Per seed: the errors against the truth and their reported 1-sigmas (:func:`.identify_check.errors`),
-the segments left out, the fit's CPU time, when the truth has turned 60 degrees from its start
-(the roll-over), and per segment the linearised 1-sigma of log-stiffness and log-damping that
-its data alone would give (:func:`segment_sigmas`; all parameters free), with the same over the
-segments up to it.
+the segments left out, the fit's CPU time, when the truth's sensor has turned 60 degrees from
+its start, and per segment the linearised 1-sigma of log-stiffness and log-damping that its data
+alone would give (all parameters free), the same over the segments up to it, and how well the
+truth's own J3, stiffness and damping predict it (:func:`segment_figures`).
 """
 
 import argparse
@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 ROLLED_RAD = np.radians(60.0)
-"""The truth has rolled over once its sensor has turned this far from where it started: the
-nominal truth stays within 0.52 rad of it on the identify schedule (docs/schedule.md)."""
+"""How far the truth's sensor turns from where it started before it counts as rolled over, rad
+(the nominal truth tilts by 0.24 rad on the identify schedule, docs/schedule.md)."""
 INFORMED = ("stiffness", "damping")
 
 
@@ -81,17 +81,20 @@ def with_lead_in(schedule):
     )
 
 
-def segment_sigmas(result, scene, config, est, recs) -> list[tuple[float, float, dict, dict]]:
-    """Linearised 1-sigma of the :data:`INFORMED` parameters per segment of the (one) recording,
-    at the fit's optimum: the Jacobian of the weighted residuals (central differences at the
-    parameters' steps, every segment kept, started from the IMU read with the fit's mounting and
-    gyro bias), ``(J_s^T J_s)^+`` over the segment's rows alone and over the rows up to its end.
+def segment_figures(result, scene, config, est, recs) -> list[tuple]:
+    """Per segment of the (one) recording, every segment kept and started from the IMU read with
+    the fit's mounting and gyro bias: the linearised 1-sigma of the :data:`INFORMED` parameters
+    at the fit's optimum (the Jacobian of the weighted residuals by central differences at the
+    parameters' steps; ``(J_s^T J_s)^+`` over the segment's rows alone and over the rows up to
+    its end), and the weighted residual RMS with the truth's J3, stiffness and damping (the
+    fit's mounting and biases): about 1 where the prediction follows the recording.
 
     Returns
     -------
-    list of (start, end, own, cumulative)
+    list of (start, end, own, cumulative, rms_truth)
         Times in s; ``own`` and ``cumulative`` map parameter name -> 1-sigma (log factor).
     """
+    from gyrohost.experiments.identify_check import FACTORS
     from gyrohost.ident import shooting
     from gyrohost.ident.fit import Problem
     from gyrohost.ident.params import apply
@@ -111,17 +114,21 @@ def segment_sigmas(result, scene, config, est, recs) -> list[tuple[float, float,
         e[i] = p.step
         columns.append((problem(theta + e) - problem(theta - e)) / (2.0 * p.step))
     J = np.column_stack(columns).reshape(len(rec.t_imu_s), -1, len(theta))
+    names = [p.name for p in result.params]
+    true = theta.copy()
+    for name in ("J3", "stiffness", "damping"):
+        true[names.index(name)] = np.log(FACTORS[name])
+    r_true = problem(true).reshape(len(rec.t_imu_s), -1)
     edges = shooting.edges_s(rec, config.sim.truth.dt_s)
     edges[-1] = rec.t_imu_s[-1]
-    names = [p.name for p in result.params]
     idx = [names.index(n) for n in INFORMED]
     out = []
     for t0, t1 in zip(edges[:-1], edges[1:], strict=True):
         own = (rec.t_imu_s >= t0) & (rec.t_imu_s <= t1)
         upto = rec.t_imu_s <= t1
-        out.append(
-            (float(t0), float(t1), _sigmas(J[own], idx, names), _sigmas(J[upto], idx, names))
-        )
+        rms = float(np.sqrt(np.mean(r_true[own] ** 2)))
+        sigmas = _sigmas(J[own], idx, names), _sigmas(J[upto], idx, names)
+        out.append((float(t0), float(t1), *sigmas, rms))
     return out
 
 
@@ -149,7 +156,7 @@ def one_seed(root: Path, schedule: str, seed: int, segment_s: float, commanded: 
         "dropped": [(t0, t1) for _, t0, t1 in result.dropped],
         "rolled_s": rolled_s,
         "fit_cpu_s": cpu_s,
-        "segments": segment_sigmas(result, *inputs[:3], inputs[4]),
+        "segments": segment_figures(result, *inputs[:3], inputs[4]),
     }
 
 
@@ -164,13 +171,15 @@ def _print(seed: int, out: dict) -> None:
         f"{np.degrees(e[f'mounting.{a}'][0]):+.3f}" for a in ("roll", "pitch", "yaw")
     )
     dropped = ", ".join(f"{a:.1f}-{b:.1f}" for a, b in out["dropped"]) or "none"
+    turned, cpu = out["rolled_s"], out["fit_cpu_s"]
     print(f"seed {seed}: {rel}  mounting {mount} deg  left out {dropped} s  "
-          f"rolled over {out['rolled_s']:.2f} s  fit {out['fit_cpu_s']:.0f} s CPU")  # fmt: skip
-    for t0, t1, own, upto in out["segments"]:
+          f"turned 60 deg at {turned:.2f} s  fit {cpu:.0f} s CPU")  # fmt: skip
+    for t0, t1, own, upto, rms in out["segments"]:
         kept = not any(a <= t0 < b for a, b in out["dropped"])
         line = "  ".join(f"{k} {100 * own[k]:6.1f} % / {100 * upto[k]:6.1f} %" for k in INFORMED)
         print(f"  segment {t0:5.1f}-{t1:5.1f} s{'' if kept else ' (left out)'}: "
-              f"1-sigma own / up to its end: {line}", flush=True)  # fmt: skip
+              f"1-sigma own / up to its end: {line}; RMS at the truth {rms:.2f}",
+              flush=True)  # fmt: skip
 
 
 def main(argv=None) -> int:
