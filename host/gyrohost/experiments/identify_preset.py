@@ -9,15 +9,16 @@ its IMU turned (3, -1.7, 1.1) degrees) plays the schedule in full on the rig's m
 (:func:`.estimator_sil.rig_model_run`: truth, servos with their 50 ms lag, IMU and wheel-board
 emulators; seed = IMU noise and biases, wheel angles), instead of the real-time rig, after the
 run's 0.5 s lead-in (:func:`with_lead_in`: the log's time is the schedule's plus 0.5 s, as in
-a run's log). The log is
-fitted as ``gyrotens identify --segment-s S`` fits it (the default groups; string lengths from
-the commands through the servos' lag, or the servos' reports with ``--lengths servos``).
+a run's log). The log is fitted as ``gyrotens identify --segment-s S`` fits it (the default
+groups; string lengths from the commands through the servos' lag, or the servos' reports with
+``--lengths servos``).
 
-Per seed: the errors against the truth and their reported 1-sigmas (:func:`.identify_check.errors`),
-the segments left out, the fit's CPU time, when the truth's sensor has turned 60 degrees from
-its start, and per segment the linearised 1-sigma of log-stiffness and log-damping that its data
-alone would give (all parameters free), the same over the segments up to it, and how well the
-truth's own J3, stiffness and damping predict it (:func:`segment_figures`).
+Per seed: the errors against the truth and their reported 1-sigmas
+(:func:`.identify_check.errors`), the segments left out, the fit's CPU time, when the truth's
+sensor has turned 60 degrees from its start, and per segment the linearised 1-sigma of
+log-stiffness and log-damping that its data alone would give (all parameters free), the same
+over the segments up to it, and how well the truth's own J3, stiffness and damping predict it
+(:func:`segment_figures`).
 """
 
 import argparse
