@@ -43,8 +43,8 @@ STRING_SCAN = (np.linspace(-0.2, 0.2, 5), np.linspace(-0.4, 0.4, 5))
 """Offsets of the strings' stiffness and damping (log factors) on whose grid the cost of a fit in
 segments is evaluated around its optimum, the others held; from a lower point the fit is solved
 again. The cost there is rough enough (slack crossings) for the local solver to stop 15 to 40 %
-from the strings' truth at a cost above the truth's; the scan found points within 6 % on the
-simulated clock (docs/identification.md, "The preset on the simulated clock")."""
+from the strings' truth at a cost above the truth's (docs/identification.md, "The preset on the
+simulated clock")."""
 BAR_GROUPS = ("bar-mass", "bar-inertia")
 """The scale is only free, and tested, with one of these fitted: weighed bars pin it."""
 
