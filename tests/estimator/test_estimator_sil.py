@@ -55,6 +55,36 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     np.testing.assert_allclose(R_o[0], R[0] @ turn, atol=1e-12)  # at the same initial state
 
 
+def test_a_schedule_is_played_with_its_wheel_speeds():
+    """``rig_model_run(schedule=...)``: the host commands the schedule's rest lengths and wheel
+    speeds (the scene's are not played), and the board takes the wheels to a step within its
+    ramp (100 rad/s^2) while the truth's spins follow."""
+    from gyrohost.control.schedule import Schedule
+    from gyrohost.estimator import streams
+    from gyrohost.experiments.estimator_sil import rig_model_run
+
+    config = load_rig_config(CONFIG)
+    w0 = 74.87462492 * np.array([1.0, -1.0, -1.0, 1.0])
+    t = np.array([0.0, 0.2, 0.25, 0.6, 1.0])
+    s13 = np.array([0.43105, 0.43105, 0.43105, 0.41, 0.41])
+    s24 = np.sqrt(4 * 0.3048**2 - s13**2)
+    factor = np.array([1.0, 1.0, 1.1, 1.1, 1.1])
+    schedule = Schedule(("s13", "s24"), t, np.column_stack([s13, s24]), "test",
+                        ("b12", "b23", "b34", "b41"), np.outer(factor, w0))  # fmt: skip
+    model, data, x, _, _, dt_s = rig_model_run(config, 1, 1.0, schedule=schedule)
+    command = data[streams.COMMAND]
+    np.testing.assert_allclose(command["s13_rest_m"], np.interp(command["t_s"], t, s13))
+    spins = np.column_stack([command[c] for c in streams.wheel_command_columns(4)])
+    np.testing.assert_allclose(spins, np.outer(np.interp(command["t_s"], t, factor), w0))
+    true = x[:, 2 * 3 * model.layout.m : 2 * 3 * model.layout.m + 4]
+    k_step = int(round(0.2 / dt_s))
+    np.testing.assert_allclose(true[k_step], w0, atol=1e-3)  # held (mrad/s) until the step
+    np.testing.assert_allclose(true[-1], 1.1 * w0, atol=0.05)  # ramped within 0.5 s
+    reported = data[streams.WHEELS]
+    late = reported["t_s"] > 0.8
+    assert np.abs(reported["omega_0_rad_s"][late] - 1.1 * w0[0]).max() < 0.5
+
+
 def _config_with_keys(tmp_path, keys):
     """The shipped simulated rig's configuration with ``keys`` (TOML lines) in ``[estimator]``."""
     text = Path(CONFIG).read_text()

@@ -19,7 +19,7 @@ from gyrohost.experiments.identify_rig import (
 )
 from gyrohost.resources import resolve
 
-FIRST_S = 10.7  # s of the identify schedule: pulls at 0.02 and 0.10 m/s, a wheel step, rests
+FIRST_S = 11.3  # s of the identify schedule: its first three blocks of pulls, ending at rest
 
 
 def first_part(path):

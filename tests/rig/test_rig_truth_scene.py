@@ -162,3 +162,23 @@ def test_identify_schedule_is_inside_every_shipped_dbar_rigs_limits():
     assert len(rates) >= 4  # pulls at several rates
     assert dt[held].sum() >= 10.0  # rests and holds: at least 10 s of them
     assert s13.min() < s13[0] - 0.05 and s13.max() > s13[0] + 0.01  # amplitudes both ways
+
+
+def test_identify_schedule_is_at_rest_where_the_fit_starts_a_segment():
+    """``gyrotens identify`` cuts a log into 4 s segments (its default) from the lead-in, which
+    a run holds for ``lead_in_s`` before the schedule: each later segment starts from the IMU
+    and the previous segment's shape, which is right only with the structure at rest
+    (docs/identification.md), so no string moves from 0.45 s before an edge to 0.2 s after it,
+    and the wheels are still there too."""
+    from gyrohost.run.settings import RunSettings
+
+    schedule = load_schedule(resolve("schedule", "identify"))
+    lead_s, segment_s = RunSettings().lead_in_s, 4.0
+    edges = np.arange(segment_s, schedule.t_end + lead_s, segment_s) - lead_s
+    assert len(edges) >= 4
+    for edge in edges:
+        t = np.linspace(edge - 0.45, min(edge + 0.2, schedule.t_end), 50)
+        lengths = np.array([schedule(x) for x in t])
+        speeds = np.array([schedule.wheel_speeds(x) for x in t])
+        assert np.ptp(lengths, axis=0).max() < 1e-9, f"a string moves at {edge:g} s"
+        assert np.ptp(speeds, axis=0).max() < 1e-9, f"a wheel speed changes at {edge:g} s"

@@ -162,7 +162,9 @@ def score_log(folder, estimator=None) -> RunResult:
     return score_run(ekf, data, truth_at, partial_nees, blocks_of=None)
 
 
-def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_times_s=None):
+def rig_model_run(
+    config, seed, duration_s=3.0, command_times_s=None, schedule_times_s=None, schedule=None
+):
     """One in-process run on the rig's truth model and sensor emulators (see module docstring).
 
     The truth runs ``[sim.truth] scene`` when set and the IMU is turned by ``[sim.truth]
@@ -172,6 +174,10 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_t
     ``command_times_s`` (increasing, s): when the commands reach the servos (at the first truth
     step from then on; default: every 10 ms), each the schedule at its time or at its entry of
     ``schedule_times_s`` (the tick that made it, when the servos get it later).
+
+    ``schedule`` (a :class:`gyrohost.control.schedule.Schedule`): played instead of the scene's
+    rest lengths, its wheel speeds sent to the wheel board whenever the command changes (the
+    board spun up to its speeds at 0), as the run loop plays it.
 
     Returns
     -------
@@ -193,11 +199,13 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_t
     emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu, rotation_deg=rotation_deg)
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in model.scene.strings]
-    board = _WheelBoard(config, model.spin0, np.random.default_rng(seed + 5_000_003))
+    inputs = _commands(model, schedule)
+    board = _WheelBoard(config, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
-            model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s
-        )
+            model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s,
+            inputs,
+        )  # fmt: skip
     finally:
         board.close()
     n_w = len(model.spin0)
@@ -217,10 +225,27 @@ def rig_model_run(config, seed, duration_s=3.0, command_times_s=None, schedule_t
     return model, data, np.array(truth_x), np.array(truth_R), frames, truth.dt_s
 
 
+def _commands(model, schedule=None):
+    """``inputs(t)``: the host's rest lengths (alpha,) m and wheel speeds (n_w,) rad/s at
+    schedule time ``t``: the scene's (its spins held), those ``schedule`` plays in their place."""
+    if schedule is None:
+        return lambda t: (model.input_at(t)[: model.alpha], model.spin0)
+    strings, wheels = schedule.bind(model), schedule.bind_wheels(model)
+
+    def inputs(t):
+        rest, spins = model.input_at(t)[: model.alpha], np.array(model.spin0, float)
+        rest[strings], spins[wheels] = schedule(t), schedule.wheel_speeds(t)
+        return rest, spins
+
+    return inputs
+
+
 def _rig_model_rows(
-    model, truth, emu, board, servos, duration_s, command_times_s=None, schedule_times_s=None
+    model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s, inputs
 ):
-    """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples."""
+    """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples.
+    ``inputs``: the host's commands (:func:`_commands`), wheel speeds sent to the board when
+    they change."""
     from gyrohost.drivers.imu import Bwt61Parser
     from gyrohost.drivers.mx12 import length_to_steps, steps_to_length
     from gyrohost.estimator.layout import from_model_state
@@ -229,7 +254,7 @@ def _rig_model_rows(
     strings = [s.name for s in model.scene.strings]
     servo_strings = [strings.index(s.string) for s in servos]
     position = {s.id: s.length_at_zero_m for s in servos}
-    spins = model.spin0  # what the host commands
+    spins = board.commanded  # what the host commands
     truth.wheel_input_rad_s[:] = board.true_speeds()  # spun up before t = 0
     truth.u = truth.model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
     dt = truth.dt_s
@@ -244,7 +269,10 @@ def _rig_model_rows(
         t = k * dt
         wheels = board.advance(t)
         while sent < len(sends) and sends[sent] <= t + 1e-9:  # held until the next one
-            command = model.input_at(made[sent])[: model.alpha]
+            command, wanted = inputs(made[sent])
+            if not np.array_equal(wanted, spins):
+                spins = wanted
+                board.command(spins, t)
             rows[streams.COMMAND].append([sends[sent], *command, *spins])
             sent += 1
         reported = {  # the servo's position now, quantised to its steps
@@ -294,18 +322,23 @@ class _WheelBoard:
         self.decoder = wp.FrameDecoder()
         t0 = -WHEEL_SPIN_UP_S
         self.dev.tick(t0)
-        board = np.zeros(wp.N_WHEELS)
-        board[: len(spins)] = self.sign * spins
-        targets = {f"w{i}_mrad_s": int(round(1e3 * w)) for i, w in enumerate(board)}
-        for msg in (
-            wp.encode("PARAM_SET", param_id=wp.PARAM_BY_NAME["HEARTBEAT_MS"].id, value=60000),
-            wp.encode("SET_SPEEDS", **targets),
-        ):
-            self.dev.handle_rx(msg, t0)
+        heartbeat = wp.encode(
+            "PARAM_SET", param_id=wp.PARAM_BY_NAME["HEARTBEAT_MS"].id, value=60000
+        )
+        self.dev.handle_rx(heartbeat, t0)
+        self.command(spins, t0)
         self.latest = np.zeros(len(spins))
         self.frames: list = []  # (board time since t = 0, s; speeds) of every frame
         for k in range(1, int(WHEEL_SPIN_UP_S * 100) + 1):
             self.advance(t0 + 0.01 * k)  # in 10 ms chunks: the pty holds a few kB
+
+    def command(self, spins, t_s):
+        """Send the wheels' speeds (scene order), rad/s, at ``t_s``."""
+        board = np.zeros(self.wp.N_WHEELS)
+        board[: len(spins)] = self.sign * spins
+        targets = {f"w{i}_mrad_s": int(round(1e3 * w)) for i, w in enumerate(board)}
+        self.dev.handle_rx(self.wp.encode("SET_SPEEDS", **targets), t_s)
+        self.commanded = np.array(spins, float)
 
     def advance(self, t_s):
         """Tick the board to ``t_s``; return the latest reported speeds (scene order), rad/s."""

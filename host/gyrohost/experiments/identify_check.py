@@ -92,17 +92,22 @@ def write_rigs(
 
 def record_log(truth_config: Path, seed: int, folder: Path) -> Path:
     """One run of the truth's scene on the rig's models, written as a run log in ``folder``."""
-    from dataclasses import replace
-
     from gyrohost.config import load_rig_config
     from gyrohost.experiments.estimator_sil import rig_model_run
-    from gyrohost.run.log import RunLog
     from gyrotensegrity import load_scene
 
     config = load_rig_config(truth_config)
     config = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
     duration = load_scene(config.scene_path).duration
     _, data, *_ = rig_model_run(config, seed, duration)
+    return write_log(data, folder)
+
+
+def write_log(data: dict, folder: Path) -> Path:
+    """The streams ``data`` of an in-process run (:func:`.estimator_sil.rig_model_run`) as a run
+    log in ``folder``, its ``lead_in`` phase from 0 to the last IMU sample."""
+    from gyrohost.run.log import RunLog
+
     with RunLog(folder, {"source": "identify_check"}) as log:
         events = log.stream("events", ["t_s", "kind", "message"], ("kind", "message"))
         events.write(0.0, "phase", "lead_in")
@@ -114,12 +119,26 @@ def record_log(truth_config: Path, seed: int, folder: Path) -> Path:
     return folder
 
 
-def identify_log(nominal_config: Path, logs, groups=GROUPS):
-    """Fit ``groups`` to the logs from the nominal configuration (commanded string lengths)."""
+def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, commanded=True):
+    """Fit ``groups`` to the logs from the nominal configuration (:func:`fit_inputs`)."""
+    from gyrohost.ident.fit import fit
+
+    return fit(*fit_inputs(nominal_config, logs, groups, segment_s, commanded))
+
+
+def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, commanded=True):
+    """What :func:`gyrohost.ident.fit.fit` takes to fit ``groups`` to the logs from the nominal
+    configuration: string lengths from the host's commands (``commanded``, else the servos'
+    reports), each log simulated in segments of ``segment_s`` (0: one).
+
+    Returns
+    -------
+    scene, config, est, params, recs
+    """
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.experiments.estimator_sil import SERVO_LAG_S
-    from gyrohost.ident.fit import fit, nominal_lag
+    from gyrohost.ident.fit import nominal_lag
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import parameters
     from gyrotensegrity import Model, load_scene
@@ -128,9 +147,11 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS):
     scene = load_scene(config.scene_path)
     est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S)  # the rig models' servos
     n_w = len(Model(scene).wheel_bars)
-    recs = [load_recording(log, config, n_w, commanded=True) for log in logs]
+    recs = [
+        load_recording(log, config, n_w, commanded=commanded, segment_s=segment_s) for log in logs
+    ]
     params = parameters(scene, config, list(groups), nominal_lag(config, est, recs))
-    return fit(scene, config, est, params, recs)
+    return scene, config, est, params, recs
 
 
 def errors(result, weighed=False) -> dict[str, tuple[float, float]]:
