@@ -24,8 +24,10 @@ from collections import deque
 
 import numpy as np
 
+from gyrohost.estimator import fuse_servos, fuse_wheels
 from gyrohost.estimator.ekf import Status
 from gyrohost.run.errors import RunError
+from gyrohost.run.streams import IMU_FUSIONS
 from gyrohost.sigint import InterruptsHeld, ignore_interrupts
 
 READY_TIMEOUT_S = 60.0
@@ -163,9 +165,7 @@ class EstimatorProcess:
         EstimatorProcessError
             The child is gone, its pipe broke, or the estimate lags more than ``max_lag_s``.
         """
-        if self._batch:
-            batch, self._batch = self._batch, []
-            self._send(batch)
+        self._flush()
         self._receive()
         fault, self._fault = self._fault, None
         if fault is not None:
@@ -196,8 +196,7 @@ class EstimatorProcess:
         try:
             if self.health is None and self._proc.is_alive():
                 self._batch.append(("stop",))
-                self._send(self._batch)
-                self._batch = []
+                self._flush()
                 deadline = time.monotonic() + timeout_s
                 while self.health is None and time.monotonic() < deadline:
                     self._receive(0.1)
@@ -219,6 +218,12 @@ class EstimatorProcess:
         self._conn.close()
 
     # --- the pipe ----------------------------------------------------------------------------
+    def _flush(self) -> None:
+        """Send the calls made since the last message, as one message."""
+        if self._batch:
+            batch, self._batch = self._batch, []
+            self._send(batch)
+
     def _send(self, batch) -> None:
         try:
             with InterruptsHeld():  # a message is sent whole or not at all
@@ -277,9 +282,9 @@ def start_state(model, omega_rad_s, lengths_m: dict) -> np.ndarray:
 
 
 _SOURCES = {
-    "fuse_imu": ("imu_rate", "imu_accel", "imu_angle"),
-    "fuse_wheels": ("wheels",),
-    "fuse_servos": ("servos",),
+    "fuse_imu": tuple(m.SOURCE for m in IMU_FUSIONS),
+    "fuse_wheels": (fuse_wheels.SOURCE,),
+    "fuse_servos": (fuse_servos.SOURCE,),
 }
 """The filter's calls that fuse a sample, and the sources each one feeds."""
 

@@ -32,6 +32,7 @@ from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_streams
+from gyrohost.run.streams import INNOVATION_COMPONENTS
 from gyrotensegrity import Model, load_scene
 
 GROUPS = {
@@ -43,12 +44,6 @@ GROUPS = {
 }
 """Group of the filter state in the comparison with the run's estimate -> its slice of
 :class:`~gyrohost.estimator.layout.FilterLayout`."""
-
-_LABELS = {
-    "imu_rate": ("x", "y", "z"),
-    "imu_accel": ("x", "y", "z"),
-    "imu_angle": ("x", "y", "z"),  # a rotation vector, world axes
-}
 
 
 def _scene_path(log: Path, meta: dict) -> Path:
@@ -64,8 +59,8 @@ def _scene_path(log: Path, meta: dict) -> Path:
 
 
 def _components(source, model):
-    if source in _LABELS:
-        return _LABELS[source]
+    if source in INNOVATION_COMPONENTS:
+        return INNOVATION_COMPONENTS[source]
     if source == "wheels":
         return tuple(f"w{k}" for k in range(len(model.wheel_bars)))
     return tuple(s.name for s in model.scene.strings)

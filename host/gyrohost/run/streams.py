@@ -15,6 +15,7 @@ import numpy as np
 
 from gyrohost.control.attitude import TiltMeter, node_columns
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.estimator import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.run.health import NisTally, TruthScore
@@ -23,11 +24,10 @@ from gyrohost.run.uncertainty import NodeSigma
 RECENT_TILTS = 100
 """Truth tilts kept (1 s at the rig's 100 Hz), to compare with an estimate that lags."""
 
-INNOVATION_COMPONENTS = {
-    "imu_rate": ("x", "y", "z"),
-    "imu_accel": ("x", "y", "z"),
-    "imu_angle": ("x", "y", "z"),  # a rotation vector, world axes
-}
+IMU_FUSIONS = (fuse_imu_rate, fuse_imu_accel, fuse_imu_angle)
+"""The fusions of one IMU sample (each names its ``SOURCE`` and its components' ``LABELS``)."""
+INNOVATION_COMPONENTS = {m.SOURCE: m.LABELS for m in IMU_FUSIONS}
+"""Innovation components of the IMU's sources (the angles': a rotation vector, world axes)."""
 
 
 def node_columns_of(names, prefix: str = "") -> list[str]:
