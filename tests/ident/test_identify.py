@@ -144,3 +144,23 @@ def test_unknown_or_conflicting_groups_are_refused(tmp_path):
         parameters(scene, config, ["mass"], 0.05)
     with pytest.raises(ParamsError, match="alternatives"):
         parameters(scene, config, ["J3", "J3-each"], 0.05)
+
+
+def test_each_recording_has_its_own_imu_biases(tmp_path):
+    from gyrohost.config import load_rig_config
+    from gyrohost.ident.params import apply
+
+    nominal, _ = write_rigs(tmp_path)
+    config = load_rig_config(nominal)
+    scene = load_scene(config.scene_path)
+    params = parameters(scene, config, ["J3", "gyro-bias", "accel-bias"], 0.05, recordings=2)
+    names = [p.name for p in params]
+    assert names[1:4] == ["gyro_bias.x[1]", "gyro_bias.y[1]", "gyro_bias.z[1]"]
+    assert names[4:7] == ["gyro_bias.x[2]", "gyro_bias.y[2]", "gyro_bias.z[2]"]
+    assert len(names) == 13
+    theta = np.arange(13) * 1e-3
+    a = apply(scene, config, params, theta, 0.05, recordings=2)
+    assert np.array_equal(a.gyro_bias_rad_s, theta[1:7].reshape(2, 3))
+    assert np.array_equal(a.accel_bias_m_s2, theta[7:13].reshape(2, 3))
+    one = parameters(scene, config, ["gyro-bias"], 0.05)
+    assert [p.name for p in one] == ["gyro_bias.x", "gyro_bias.y", "gyro_bias.z"]

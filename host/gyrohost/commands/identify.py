@@ -28,8 +28,9 @@ def register(sub) -> None:
         "--lengths",
         choices=("servos", "command"),
         default="servos",
-        help="string lengths from the servos' reported positions (default) or from the host's "
-        "commands through the servos' lag",
+        help="string lengths from the servos' reported positions (default; between the reports "
+        "the commands through a response fitted to them) or from the host's commands through "
+        "the servos' lag",
     )
     p.add_argument(
         "--until",
@@ -128,11 +129,21 @@ def run(args) -> int:
             for log in args.logs
         ]
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
-        params = parameters(scene, config, groups, nominal_lag(config, est, recs))
+        params = parameters(scene, config, groups, nominal_lag(config, est, recs), len(recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
     total = sum(len(r.t_imu_s) for r in recs)
     print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
+    for k, r in enumerate(recs, 1):
+        if len(recs) > 1:
+            print(f"recording {k}: {r.name} (its IMU biases: the parameters ending in [{k}])")
+        if r.servo_response is not None:
+            s = r.servo_response
+            print(
+                f"{r.name}: string lengths between the servo reports from the commands through "
+                f"a delay of {1e3 * s.delay_s:.1f} ms and a lag of {1e3 * s.lag_s:.1f} ms "
+                f"(reports less that: {1e3 * s.rms_m:.3f} mm RMS)"
+            )
     passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:

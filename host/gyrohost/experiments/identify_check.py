@@ -150,7 +150,7 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
     recs = [
         load_recording(log, config, n_w, commanded=commanded, segment_s=segment_s) for log in logs
     ]
-    params = parameters(scene, config, list(groups), nominal_lag(config, est, recs))
+    params = parameters(scene, config, list(groups), nominal_lag(config, est, recs), len(recs))
     return scene, config, est, params, recs
 
 

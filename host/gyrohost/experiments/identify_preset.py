@@ -106,7 +106,7 @@ def segment_figures(result, scene, config, est, recs) -> list[tuple]:
     rec = replace(
         rec,
         anchor_mounting_rpy_rad=tuple(a.mounting_rpy_rad),
-        anchor_gyro_bias_rad_s=tuple(a.gyro_bias_rad_s),
+        anchor_gyro_bias_rad_s=tuple(a.gyro_bias_rad_s[0]),
     )
     problem = Problem(scene, config, est, result.params, [rec])
     columns = []

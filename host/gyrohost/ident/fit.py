@@ -146,7 +146,7 @@ class Problem:
         self.simulations = 0
 
     def applied(self, theta):
-        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s)
+        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
 
     def motions(self, theta) -> list:
         key = tuple(np.asarray(theta)[self.dynamic])
@@ -165,10 +165,12 @@ class Problem:
         a = self.applied(theta)
         return [
             forward.output_error(
-                forward.sensor_outputs(m, a.mounting_rpy_rad, a.gyro_bias_rad_s, a.accel_bias_m_s2),
+                forward.sensor_outputs(m, a.mounting_rpy_rad, gyro, accel),
                 r,
             )
-            for m, r in zip(self.motions(theta), self.recs, strict=True)
+            for m, r, gyro, accel in zip(
+                self.motions(theta), self.recs, a.gyro_bias_rad_s, a.accel_bias_m_s2, strict=True
+            )
         ]
 
     def weighted(self, theta) -> list:
@@ -229,12 +231,15 @@ def fit(
             for r in recs
         ]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
-        a = apply(scene, config, params, theta0, nominal_lag(config, est, recs))
-        anchor = {
-            "anchor_mounting_rpy_rad": tuple(a.mounting_rpy_rad),
-            "anchor_gyro_bias_rad_s": tuple(a.gyro_bias_rad_s),
-        }
-        recs = [replace(r, **anchor) for r in recs]
+        a = apply(scene, config, params, theta0, nominal_lag(config, est, recs), len(recs))
+        recs = [
+            replace(
+                r,
+                anchor_mounting_rpy_rad=tuple(a.mounting_rpy_rad),
+                anchor_gyro_bias_rad_s=tuple(gyro),
+            )
+            for r, gyro in zip(recs, a.gyro_bias_rad_s, strict=True)
+        ]
         recs, dropped = _predictable(Problem(scene, config, est, params, recs), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]

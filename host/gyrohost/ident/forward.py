@@ -20,6 +20,7 @@ from gyrohost.estimator import streams
 from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
+from gyrohost.ident.servo_render import ServoResponse, rendered
 from gyrohost.rig.truth import Truth
 from gyrotensegrity import Scene
 
@@ -52,8 +53,9 @@ class Recording:
     t_wheels_s, wheels_rad_s : ndarray, shapes (kw,) and (kw, n_w)
         Reported wheel speeds, scene wheel order.
     t_servos_s, servos_m : ndarray, shapes (ks,) and (ks, n_servos)
-        String lengths of the servos that wind a string, configuration order: reported, or
-        with ``commanded`` the host's commands.
+        String lengths of the servos that wind a string, configuration order: the reports
+        rendered between them by the commands (:mod:`.servo_render`; the reports alone in a
+        log without the commands), or with ``commanded`` the host's commands.
     t_command_s, command_rad_s : ndarray, shapes (kc,) and (kc, n_w)
         Commanded wheel speeds (empty without a ``command`` stream).
     segment_s : float, s
@@ -86,6 +88,7 @@ class Recording:
     anchor_gyro_bias_rad_s: tuple = (0.0, 0.0, 0.0)
     t_estimate_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     estimate_x: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    servo_response: ServoResponse | None = None
 
 
 def recording(
@@ -96,7 +99,9 @@ def recording(
 
     ``commanded``: the string lengths are the host's commands (``command`` stream, every tick)
     rather than the servos' reported positions (``servos`` stream, read less often); the fit's
-    ``servo_lag_s`` is then the servos' own first-order response to their commands."""
+    ``servo_lag_s`` is then the servos' own first-order response to their commands. Without
+    it, where the commands are logged, the reports are rendered between them by the commands
+    (:func:`.servo_render.rendered`)."""
     for stream in (streams.IMU, streams.WHEELS, streams.SERVOS):
         if stream not in data or len(data[stream]) < 2:
             raise IdentDataError(f"{name}: stream '{stream}' missing or shorter than two rows")
@@ -122,17 +127,26 @@ def recording(
         t_cmd, cmd = np.zeros(0), np.zeros((0, n_wheels))
     else:
         t_cmd, cmd = command["t_s"] - t0, np.column_stack([command[c] for c in cmd_cols])
+    t_servos, lengths = servos["t_s"] - t0, np.column_stack([servos[c] for c in servo_cols])
+    response = None
+    rest_cols = [streams.rest_column(s) for s in strings]
+    if not commanded and command is not None and len(command) > 1:
+        if all(c in command.dtype.names for c in rest_cols):
+            t_rest = command["t_s"] - t0
+            rest = np.column_stack([command[c] for c in rest_cols])
+            t_servos, lengths, response = rendered(t_servos, lengths, t_rest, rest)
     return Recording(
         name,
         imu["t_s"][keep] - t0,
         np.column_stack([imu[c][keep] for c in cols]),
         wheels["t_s"] - t0,
         np.column_stack([wheels[c] for c in streams.wheel_speed_columns(n_wheels)]),
-        servos["t_s"] - t0,
-        np.column_stack([servos[c] for c in servo_cols]),
+        t_servos,
+        lengths,
         t_cmd,
         cmd,
         commanded,
+        servo_response=response,
     )
 
 

@@ -83,9 +83,19 @@ def bar_inertia(scene: Scene) -> dict[str, float]:
     return out
 
 
-def parameters(scene: Scene, config: RigConfig, groups, servo_lag_s: float) -> list[Param]:
+def bias_name(group: str, axis: str, recording: int, recordings: int) -> str:
+    """The name of a bias parameter: ``gyro_bias.x``, or with several recordings each its own
+    (a MEMS bias changes from one power-up to the next), ``gyro_bias.x[2]`` for the second."""
+    name = f"{group.replace('-', '_')}.{axis}"
+    return name if recordings == 1 else f"{name}[{recording + 1}]"
+
+
+def parameters(
+    scene: Scene, config: RigConfig, groups, servo_lag_s: float, recordings: int = 1
+) -> list[Param]:
     """The :class:`Param` list of ``groups`` (names of :data:`GROUPS`) for this rig;
-    ``servo_lag_s``: the nominal lag (s), the start of its fit.
+    ``servo_lag_s``: the nominal lag (s), the start of its fit; ``recordings``: how many
+    recordings are fitted (the IMU's biases are one set per recording).
 
     Raises
     ------
@@ -124,7 +134,9 @@ def parameters(scene: Scene, config: RigConfig, groups, servo_lag_s: float) -> l
         elif g in ("gyro-bias", "accel-bias"):
             unit = _UNITS[g]
             out += [
-                Param(f"{g.replace('-', '_')}.{a}", g, False, 0.0, unit, step=1e-3) for a in "xyz"
+                Param(bias_name(g, a, k, recordings), g, False, 0.0, unit, step=1e-3)
+                for k in range(recordings)
+                for a in "xyz"
             ]
         elif g == "servo-offsets":
             out += [
@@ -152,8 +164,8 @@ class Applied:
     offsets_m : ndarray, shape (n_servos,), m
     servo_lag_s : float, s
     mounting_rpy_rad : ndarray, shape (3,), rad
-    gyro_bias_rad_s : ndarray, shape (3,), rad/s
-    accel_bias_m_s2 : ndarray, shape (3,), m/s^2
+    gyro_bias_rad_s : ndarray, shape (recordings, 3), rad/s
+    accel_bias_m_s2 : ndarray, shape (recordings, 3), m/s^2
     """
 
     scene: Scene
@@ -164,9 +176,12 @@ class Applied:
     accel_bias_m_s2: np.ndarray
 
 
-def apply(scene: Scene, config: RigConfig, params: list[Param], theta, servo_lag_s) -> Applied:
-    """The rig of parameter vector ``theta`` (shape (len(params),)); groups not estimated keep
-    the configuration's values (biases zero, the lag ``servo_lag_s``)."""
+def apply(
+    scene: Scene, config: RigConfig, params: list[Param], theta, servo_lag_s, recordings: int = 1
+) -> Applied:
+    """The rig of parameter vector ``theta`` (shape (len(params),)) for ``recordings``
+    recordings; groups not estimated keep the configuration's values (biases zero, the lag
+    ``servo_lag_s``)."""
     by = {p.name: (p, float(t)) for p, t in zip(params, theta, strict=True)}
 
     def factor(name):
@@ -197,6 +212,13 @@ def apply(scene: Scene, config: RigConfig, params: list[Param], theta, servo_lag
         np.array([absolute(f"servo_offset[{s.string}]", 0.0) for s in servos]),
         absolute("servo_lag", servo_lag_s),
         np.array([absolute(f"mounting.{a}", rpy[i]) for i, a in enumerate(_RPY)]),
-        np.array([absolute(f"gyro_bias.{a}", 0.0) for a in "xyz"]),
-        np.array([absolute(f"accel_bias.{a}", 0.0) for a in "xyz"]),
+        *(
+            np.array(
+                [
+                    [absolute(bias_name(g, a, k, recordings), 0.0) for a in "xyz"]
+                    for k in range(recordings)
+                ]
+            )
+            for g in ("gyro-bias", "accel-bias")
+        ),
     )
