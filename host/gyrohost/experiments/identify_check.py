@@ -83,11 +83,16 @@ def write_rigs(
     nominal, truth = folder / "nominal-rig.toml", folder / "truth-rig.toml"
     nominal.write_text(config.replace('scene = "dbar-gyro"', 'scene = "nominal.toml"'))
     truth.write_text(
-        config.replace('scene = "dbar-gyro"', 'scene = "truth.toml"').replace(
-            "mounting_rpy_rad = [0.0, 0.0, 0.0]", f"mounting_rpy_rad = {_vec(MOUNTING_RPY_RAD)}"
-        )
+        with_true_mounting(config.replace('scene = "dbar-gyro"', 'scene = "truth.toml"'))
     )
     return nominal, truth
+
+
+def with_true_mounting(config_text: str) -> str:
+    """A shipped rig configuration's text with the truth's IMU mounting
+    (:data:`MOUNTING_RPY_RAD`)."""
+    zero = "mounting_rpy_rad = [0.0, 0.0, 0.0]"
+    return config_text.replace(zero, f"mounting_rpy_rad = {_vec(MOUNTING_RPY_RAD)}")
 
 
 def record_log(truth_config: Path, seed: int, folder: Path) -> Path:

@@ -1,13 +1,15 @@
 """An identified scene on another manoeuvre than the one it was identified from (simulated rig).
 
 ``python -m gyrohost.experiments.identify_transfer [--seed 1] [--runs 6] [--duration 3]
-[--out DIR] [--yaw-offsets RAD ...]``
+[--out DIR] [--yaw-offsets RAD ...] [--preset]``
 
 The truth of :mod:`.identify_check` (J3 x 1.3, bar mass x 0.8, string stiffness x 1.25, damping
 x 0.7, the IMU mounted (3, -1.7, 1.1) degrees off) is identified from its excitation, the bars
 weighed (:func:`.identify_check.write_rigs` with ``weighed``, :func:`.identify_check.record_log`,
-:func:`.identify_check.identify_log`; seed ``--seed``). Then truth, nominal and identified scene
-play the paper's schedule (:func:`gyrohost.control.presets.paper`, ``--duration`` s):
+:func:`.identify_check.identify_log`; seed ``--seed``); with ``--preset`` from the shipped
+``identify`` preset as a lab records and fits it (:func:`identify_preset`). Then truth, nominal
+and identified scene play the paper's schedule (:func:`gyrohost.control.presets.paper`,
+``--duration`` s):
 
 - **Prediction.** Each scene's rig model (:func:`.estimator_sil.rig_model_run` with that scene as
   the truth) under the same host commands (rest lengths through the servos' lag, wheel speeds
@@ -87,6 +89,24 @@ def identify(folder: Path, seed: int, duration_s: float | None = None):
     nominal, truth = write_rigs(folder, duration_s, weighed=True)
     log = record_log(truth, seed, folder / "ident-log")
     return nominal, truth, identify_log(nominal, [log], IDENT_GROUPS)
+
+
+def identify_preset(folder: Path, seed: int):
+    """Record the shipped ``identify`` preset on the acceptance truth of :mod:`.identify_rig`
+    in process (:func:`.identify_preset.record`, seed ``seed``) and fit it as ``gyrotens
+    identify`` does: the servos' reports rendered by the commands, 4 s segments, the default
+    groups. Returns what :func:`identify` returns; the truth's configuration is written here
+    (the host's with the truth's scene and mounting)."""
+    from gyrohost.experiments.identify_check import fit_inputs, with_true_mounting
+    from gyrohost.experiments.identify_preset import record
+    from gyrohost.ident.fit import fit
+    from gyrohost.ident.groups import DEFAULT_GROUPS
+
+    nominal, log, _ = record(folder, "identify", seed)
+    truth = folder / "truth-rig.toml"
+    text = nominal.read_text().replace('scene = "weighed.toml"', 'scene = "truth.toml"')
+    truth.write_text(with_true_mounting(text))
+    return nominal, truth, fit(*fit_inputs(nominal, [log], DEFAULT_GROUPS, 4.0, commanded=False))
 
 
 def transfer_rigs(folder: Path, nominal_config: Path, truth_config: Path, result, duration_s):
@@ -209,6 +229,12 @@ def main(argv=None) -> int:
     parser.add_argument("--duration", type=float, default=3.0, help="of the paper's schedule, s")
     parser.add_argument("--out", type=Path, help="keep scenes and log here (default: temporary)")
     parser.add_argument(
+        "--preset",
+        action="store_true",
+        help="identify from the shipped identify preset (19.7 s, the servos' reports) instead "
+        "of the 5 s excitation with commanded lengths",
+    )
+    parser.add_argument(
         "--yaw-offsets",
         type=float,
         nargs="*",
@@ -223,7 +249,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         root.mkdir(parents=True, exist_ok=True)
-        nominal_config, truth_config, result = identify(root, args.seed)
+        found = identify_preset if args.preset else identify
+        nominal_config, truth_config, result = found(root, args.seed)
         print("\n".join(report_lines(result)))
         for name, (error, sigma) in errors(result, weighed=True).items():
             print(f"error against the truth: {name} {error:+.5f} (1-sigma {sigma:.5f})")

@@ -24,9 +24,11 @@ FIRST_PASS_S = 4.0
 """The first pass of the fit (:func:`.fit.fit`) takes at least this much of each recording, s:
 2 s held so little of the pulls that the strings' stiffness wandered to where the model's
 fixed step is unstable."""
-UNPREDICTABLE = 5.0
+UNPREDICTABLE = 2.0
 """A segment whose weighted residual RMS after the first pass exceeds this many times the first
-segment's is left out of the fit (:func:`predictable`)."""
+segment's is left out of the fit (:func:`predictable`). Followed segments are within 1.2 times
+the first's, those past a fold 4.8 times and more (docs/identification.md, "Several
+recordings"): a fold's first segment, kept, drags the strings by tens of percent."""
 ANCHOR_HALF_S = 0.05
 """IMU samples within this of a segment's start are averaged into its anchor, s."""
 
