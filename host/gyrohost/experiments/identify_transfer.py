@@ -210,7 +210,7 @@ def print_tables(prediction: dict, filters: dict) -> None:
     for name, (z, worst, rms) in prediction.items():
         print(f"{name:<36}{1e3 * z:14.2f}{1e3 * worst:13.2f}{1e3 * rms:11.2f}")
     first = next(iter(filters.values()))
-    keys = [k for k in first if isinstance(first[k], dict)]
+    keys = [k for k in first if isinstance(first[k], dict) and "dof" in first[k]]
     names = {"nees": "NEES", "nees_after_burn_in": "NEES>0.2s"}
     head = [f"{names.get(k, k.removeprefix('nis_'))} ({first[k]['dof']})" for k in keys]
     print(f"\n{'filter':<36}" + "".join(f"{h:>16}" for h in head) + f"{'tilt RMS deg':>14}")

@@ -35,6 +35,11 @@ quantisation (about 1e-3 rad/s), and a momentum imbalance that small already gro
 few seconds, in the D-bar's unstable roll mode."""
 
 
+HELD_POINTS = 5
+"""Points per model step over which the rendered string lengths are averaged: the 1 ms grid of
+:mod:`.servo_render` in a 5 ms step."""
+
+
 class IdentDataError(GyrohostError, ValueError):
     """A recording cannot be fitted (a stream missing, too short, or a servo not in it)."""
 
@@ -193,8 +198,12 @@ def simulate(
     if rec.commanded:
         lengths = _servo_response(rec, t_steps, servo_lag_s) + offsets
     else:
-        t_held = t_steps + 0.5 * dt  # a step holds its inputs: their mean over the step
-        lengths = np.column_stack([np.interp(t_held, rec.t_servos_s, v) for v in rec.servos_m.T])
+        # a step holds its inputs: their mean over the step (the midpoint's value is it for a
+        # straight line, 3 um off it where a lag bends the rendered lengths)
+        t_held = t_steps[:, None] + dt * (np.arange(HELD_POINTS) + 0.5) / HELD_POINTS
+        lengths = np.column_stack(
+            [np.interp(t_held, rec.t_servos_s, v).mean(axis=1) for v in rec.servos_m.T]
+        )
         lengths += offsets
     speeds = np.column_stack([np.interp(t_steps, rec.t_wheels_s, w) for w in rec.wheels_rad_s.T])
     speeds = _smooth(speeds, int(round(WHEEL_SMOOTHING_S / dt)))
