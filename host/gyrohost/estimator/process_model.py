@@ -48,6 +48,13 @@ from .errors import EstimatorConfigError
 from .layout import layout_of
 
 
+def on_wire(omega_rad_s, config):
+    """Wheel speeds (n_w,) rad/s rounded to the board's wire step ``wheel_resolution_rad_s``
+    (unchanged where it is 0), as the driver sends them."""
+    step = config.wheel_resolution_rad_s
+    return np.round(omega_rad_s / step) * step if step > 0.0 else omega_rad_s
+
+
 def check_model(model) -> None:
     """Raise :class:`EstimatorConfigError` for models the estimator does not support."""
     if model.beta == 0:
@@ -122,8 +129,9 @@ class ProcessModel:
 
     def command_wheels(self, omega_rad_s) -> None:
         """The wheel board's commanded spins (n_w,) rad/s from now on; the first command is
-        taken as the setpoint reached (the run starts the filter with the wheels steady)."""
-        self.wheel_command_rad_s = np.array(omega_rad_s, float)
+        taken as the setpoint reached (the run starts the filter with the wheels steady). The
+        board spins to them rounded to its wire's step (``wheel_resolution_rad_s``)."""
+        self.wheel_command_rad_s = on_wire(np.array(omega_rad_s, float), self.config)
         if self.wheel_setpoint_rad_s is None:
             self.wheel_setpoint_rad_s = self.wheel_command_rad_s.copy()
             self.wheel_target_rad_s = self.wheel_command_rad_s.copy()
