@@ -40,6 +40,10 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
+    # a servo that covers each goal step at its moving speed strays from the first-order lag
+    # within the step by up to the step: std ratio x |goal step| over a command period, added as
+    # a walk of the rest lengths until the next goal (0: none)
+    servo_step_std_ratio: float = field(default=0.0, metadata=_pos("servo in-step std", 0.0, 10.0))
     # white noise of the rest lengths as the string forces see them (the servo's motion within a
     # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
     rest_jitter_psd_m2_s: float = field(default=0.0, metadata=_pos("rest length jitter"))
@@ -266,7 +270,7 @@ def noise_from_rig(rig) -> dict:
         # sample-time uncertainty below, more of it leaves the shape conservative in calm
         # stretches, the SIL's 3e-8 overconfident (docs/estimator.md, "Real-time keys by
         # replay")
-        "accel_psd_m2_s3": 1.0e-6,
+        "accel_psd_m2_s3": 2.0e-6,
         # the simulated IMU shows the truth of its grid time only when the rig's truth has got
         # there within half a period; when it lags, an older one: off its grid time by a few ms,
         # which the angles feel through the turn rate while the plane turns fast
@@ -277,13 +281,16 @@ def noise_from_rig(rig) -> dict:
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5-10 ms of the tick's command (5 ms with the ticks
-        # on time); its reads scatter about the truth's 5 ms rest-length steps and it
-        # strays from the lag model now and then, which the noise and the walk cover
-        # (docs/estimator.md, "The servos' keys", "The estimator out of the loop")
+        # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
+        # tick it covers the goal step and holds, so it strays from the lag by up to the step,
+        # a position spread uniformly over it (std step / sqrt(12)) that walks the rest lengths
+        # while they move; holding still, they sit exactly on the goal (a walk of its own would
+        # leave the rest block far under its dof); its reads scatter about the truth's 5 ms
+        # rest-length steps (docs/estimator.md, "The servos' keys", "Real-time keys by replay")
         "servo_lag_s": 0.005,
         "servo_length_std_m": 2.0e-4,
-        "rest_psd_m2_s": 1.0e-5,
+        "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
+        "rest_psd_m2_s": 1.0e-7,
         # the rig's truth holds each rest length over its 5 ms step: the strings see a sawtooth
         # about the filter's continuous rest lengths, growing with the string's speed, which the
         # kink rectifies (as the in-process SIL's keys; 8 idle runs replayed: NEES 19.1 -> 15.8
