@@ -266,10 +266,10 @@ def noise_from_rig(rig) -> dict:
         # the grid the host rebuilds from the earliest arrivals lies this much after the
         # samples (the pty and the reader thread): the estimate trailed the truth by 2.5 ms
         "imu_latency_s": 0.002,
-        # the node accelerations' noise: the servos' steps and the rig's stalls; with the IMU's
-        # sample-time uncertainty below, more of it leaves the shape conservative in calm
-        # stretches, the SIL's 3e-8 overconfident (docs/estimator.md, "Real-time keys by
-        # replay")
+        # the node accelerations' noise: the servos' steps and the rig's stalls; 5e-6 leaves
+        # the shape conservative in calm stretches, the SIL's 3e-8 overconfident, and with the
+        # IMU's sample-time uncertainty below 2e-6 keeps the rate NIS inside its bounds
+        # (docs/estimator.md, "Real-time keys by replay")
         "accel_psd_m2_s3": 2.0e-6,
         # the simulated IMU shows the truth of its grid time only when the rig's truth has got
         # there within half a period; when it lags, an older one: off its grid time by a few ms,
@@ -303,7 +303,7 @@ def noise_from_rig(rig) -> dict:
         "wheel_speed_std_rad_s": 0.0146,
         "wheel_resolution_rad_s": 1.0e-3,
         # the emulated wheels sit exactly on their setpoints between commands: no walk is real,
-        # and any makes the wheel block conservative; this much keeps the wheel NIS at its dof
+        # and any makes the wheel block conservative; this much keeps the wheel NIS near its dof
         # (less walk: the block's NEES falls towards 0, more: the NIS falls below its bounds)
         "wheel_accel_psd_rad2_s3": 1.0e-3,
         # the emulated motors follow the board's ramped setpoint with their lag, and the
