@@ -40,6 +40,10 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
+    # a servo that covers each goal step at its moving speed strays from the first-order lag
+    # within the step by up to the step: std ratio x |goal step| over a command period, added as
+    # a walk of the rest lengths until the next goal (0: none)
+    servo_step_std_ratio: float = field(default=0.0, metadata=_pos("servo in-step std", 0.0, 10.0))
     # white noise of the rest lengths as the string forces see them (the servo's motion within a
     # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
     rest_jitter_psd_m2_s: float = field(default=0.0, metadata=_pos("rest length jitter"))
@@ -84,6 +88,10 @@ class EstimatorConfig:
     # how far a telemetry frame's arrival stamp may be off its sample time: adds
     # (d omega/dt)^2 wheel_time_std_s^2 to the wheel noise while the wheels change speed, s
     wheel_time_std_s: float = field(default=0.0, metadata=_pos("wheel stamp std", 0.0, 0.1))
+    # the wheel board's wire resolution (SET_SPEEDS and telemetry in integer mrad/s): the board
+    # spins to each command rounded to it, and its telemetry truncates towards zero (a reading
+    # low in magnitude by half of it on average); 0: both exact, rad/s
+    wheel_resolution_rad_s: float = field(default=0.0, metadata=_pos("wheel wire step", 0.0, 1.0))
     # the string kink the prediction uses: "sharp" (tension-only, as the model) or "mean" (the
     # expected force under the rest-length jitter, rest_jitter_psd_m2_s; the jitter noise then
     # carries only its variance about that mean)
@@ -258,24 +266,31 @@ def noise_from_rig(rig) -> dict:
         # the grid the host rebuilds from the earliest arrivals lies this much after the
         # samples (the pty and the reader thread): the estimate trailed the truth by 2.5 ms
         "imu_latency_s": 0.002,
-        # the node accelerations' noise: the servos' steps and the rig's stalls (docs/
-        # estimator.md, "The estimator out of the loop": 8 idle runs replayed, 3e-6 NEES 20.5
-        # for 14 dof, 5e-6 with the servo keys below 17.7; the SIL's 3e-8 left the shape
-        # overconfident)
-        "accel_psd_m2_s3": 5.0e-6,
+        # the node accelerations' noise: the servos' steps and the rig's stalls; 5e-6 leaves
+        # the shape conservative in calm stretches, the SIL's 3e-8 overconfident, and with the
+        # IMU's sample-time uncertainty below 2e-6 keeps the rate NIS inside its bounds
+        # (docs/estimator.md, "Real-time keys by replay")
+        "accel_psd_m2_s3": 2.0e-6,
+        # the simulated IMU shows the truth of its grid time only when the rig's truth has got
+        # there within half a period; when it lags, an older one: off its grid time by a few ms,
+        # which the angles feel through the turn rate while the plane turns fast
+        "imu_time_std_s": 0.002,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
         "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5-10 ms of the tick's command (5 ms with the ticks
-        # on time); its reads scatter about the truth's 5 ms rest-length steps and it
-        # strays from the lag model now and then, which the noise and the walk cover
-        # (docs/estimator.md, "The servos' keys", "The estimator out of the loop")
+        # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
+        # tick it covers the goal step and holds, so it strays from the lag by up to the step,
+        # a position spread uniformly over it (std step / sqrt(12)) that walks the rest lengths
+        # while they move; holding still, they sit exactly on the goal (a walk of its own would
+        # leave the rest block far under its dof); its reads scatter about the truth's 5 ms
+        # rest-length steps (docs/estimator.md, "The servos' keys", "Real-time keys by replay")
         "servo_lag_s": 0.005,
         "servo_length_std_m": 2.0e-4,
-        "rest_psd_m2_s": 1.0e-5,
+        "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
+        "rest_psd_m2_s": 1.0e-7,
         # the rig's truth holds each rest length over its 5 ms step: the strings see a sawtooth
         # about the filter's continuous rest lengths, growing with the string's speed, which the
         # kink rectifies (as the in-process SIL's keys; 8 idle runs replayed: NEES 19.1 -> 15.8
@@ -283,10 +298,14 @@ def noise_from_rig(rig) -> dict:
         "rest_jitter_psd_m2_s": 4.0e-10,
         "kink_model": "mean",
         # the wheel board emulator's telemetry: the encoder's quantisation through the
-        # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md); the board holds its speeds, so
-        # they walk only slowly (the default 0.5 rad/s gave a wheel NIS of 0.003)
+        # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md), in integer mrad/s on the wire
+        # both ways (commands rounded, readings truncated)
         "wheel_speed_std_rad_s": 0.0146,
-        "wheel_accel_psd_rad2_s3": 1.0e-4,
+        "wheel_resolution_rad_s": 1.0e-3,
+        # the emulated wheels sit exactly on their setpoints between commands: no walk is real,
+        # and any makes the wheel block conservative; this much keeps the wheel NIS near its dof
+        # (less walk: the block's NEES falls towards 0, more: the NIS falls below its bounds)
+        "wheel_accel_psd_rad2_s3": 1.0e-3,
         # the emulated motors follow the board's ramped setpoint with their lag, and the
         # reported speed trails the true one by the firmware's low-pass (1 ms x
         # 2^SPEED_FILTER_SHIFT = 8 ms): in a ramp the two lags add

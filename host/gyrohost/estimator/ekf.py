@@ -219,10 +219,11 @@ class TensegrityEKF:
         """Put the commands due by now in effect; the next one's due time (inf: none
         pending)."""
         while self._commands and self._commands[0][0] <= self.t + 1e-12:
-            _, kind, values = self._commands.pop(0)
+            due_s, kind, values = self._commands.pop(0)
             if kind == "wheels":
                 self.process.command_wheels(values)
             else:
+                self.process.goal_stepped(values - self.u[: self.model.alpha], due_s)
                 self.u = self.u.copy()
                 self.u[: self.model.alpha] = values
         return self._commands[0][0] if self._commands else np.inf

@@ -13,6 +13,7 @@ covariance ``-var(a) S^-1 H P`` with the posterior), replaces the state. ``theta
 import math
 
 import numpy as np
+from scipy.special import erf
 
 from .fusion import Innovation, Measurement, fuse
 
@@ -25,12 +26,31 @@ def white_std(config) -> float:
     return config.wheel_speed_std_rad_s / math.sqrt(1.0 + theta * theta)
 
 
+def truncation(omega_rad_s, config):
+    """Mean (n_w,) rad/s and slope (n_w,) of what the telemetry's truncation towards zero
+    (step ``wheel_resolution_rad_s``) adds to speeds ``omega_rad_s`` (n_w,) rad/s.
+
+    A reading ``omega + v`` (noise std ``wheel_speed_std_rad_s``, far above the step) loses
+    on average half a step towards zero: ``-step/2 sign(omega + v)``, whose mean over ``v`` is
+    ``-step/2 erf(omega / (std sqrt 2))``.
+    """
+    step, std = config.wheel_resolution_rad_s, config.wheel_speed_std_rad_s
+    if step == 0.0:
+        return np.zeros_like(omega_rad_s), np.zeros_like(omega_rad_s)
+    a = omega_rad_s / std
+    return -0.5 * step * erf(a / math.sqrt(2.0)), -step * np.exp(-0.5 * a * a) / (
+        std * math.sqrt(2.0 * math.pi)
+    )
+
+
 def predict(ekf, x):
-    """Predicted wheel speeds (n_w,) rad/s and the (linear) Jacobian (n_w, n)."""
+    """Predicted wheel speeds (n_w,) rad/s (less the telemetry's truncation, :func:`truncation`)
+    and the Jacobian (n_w, n)."""
     L = ekf.layout
+    offset, slope = truncation(x[L.omega], ekf.config)
     H = np.zeros((L.n_wheels, L.size))
-    H[:, L.omega] = np.eye(L.n_wheels)
-    hx = x[L.omega].copy()
+    H[:, L.omega] = np.diag(1.0 + slope)
+    hx = x[L.omega] + offset
     if L.n_wheel_noise:
         theta = ekf.config.wheel_noise_ma1
         H[:, L.wheel_noise] = theta * np.eye(L.n_wheels)

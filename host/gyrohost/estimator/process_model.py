@@ -48,6 +48,13 @@ from .errors import EstimatorConfigError
 from .layout import layout_of
 
 
+def on_wire(omega_rad_s, config):
+    """Wheel speeds (n_w,) rad/s rounded to the board's wire step ``wheel_resolution_rad_s``
+    (unchanged where it is 0), as the driver sends them."""
+    step = config.wheel_resolution_rad_s
+    return np.round(omega_rad_s / step) * step if step > 0.0 else omega_rad_s
+
+
 def check_model(model) -> None:
     """Raise :class:`EstimatorConfigError` for models the estimator does not support."""
     if model.beta == 0:
@@ -80,6 +87,9 @@ class ProcessModel:
         self.wheel_target_rad_s: np.ndarray | None = None
         """The setpoints the wheels are pulled towards in this derivative evaluation, rad/s."""
         self.jac = self._closed_form() if config.jacobian == "analytic" else None
+        self.rest_step_psd_m2_s = np.zeros(self.layout.n_strings)
+        """Walk density (alpha,) m^2/s of the rest lengths from the servos' last goal step."""
+        self._goal_s: float | None = None
 
     def _closed_form(self):
         try:
@@ -122,11 +132,27 @@ class ProcessModel:
 
     def command_wheels(self, omega_rad_s) -> None:
         """The wheel board's commanded spins (n_w,) rad/s from now on; the first command is
-        taken as the setpoint reached (the run starts the filter with the wheels steady)."""
-        self.wheel_command_rad_s = np.array(omega_rad_s, float)
+        taken as the setpoint reached (the run starts the filter with the wheels steady). The
+        board spins to them rounded to its wire's step (``wheel_resolution_rad_s``)."""
+        self.wheel_command_rad_s = on_wire(np.array(omega_rad_s, float), self.config)
         if self.wheel_setpoint_rad_s is None:
             self.wheel_setpoint_rad_s = self.wheel_command_rad_s.copy()
             self.wheel_target_rad_s = self.wheel_command_rad_s.copy()
+
+    def goal_stepped(self, step_m, t_s: float) -> None:
+        """The servos' goals moved by ``step_m`` (alpha,) m at ``t_s`` s.
+
+        A servo covers its goal step at its moving speed, then holds: within the command period
+        its position strays from the first-order lag by up to the step. That spread, std
+        ``servo_step_std_ratio |step|`` over the period since the last goal (``1/sqrt(12)`` for
+        a position uniform over the step), walks the rest lengths until the next goal.
+        """
+        ratio = self.config.servo_step_std_ratio
+        if ratio > 0.0 and self._goal_s is not None and t_s > self._goal_s:
+            self.rest_step_psd_m2_s = (ratio * np.asarray(step_m, float)) ** 2 / (
+                t_s - self._goal_s
+            )
+        self._goal_s = t_s
 
     def _aim(self, sp0, tau_s: float) -> None:
         """Point the wheels at the setpoints ``tau_s`` s after they were ``sp0`` (the stage's
@@ -332,17 +358,24 @@ class ProcessModel:
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
         (integrated exactly into positions and velocities), random walks of the wheel speeds,
-        rest lengths and the gyro bias; with the step's Jacobian ``F`` (n, n) and the state
+        rest lengths (``rest_psd_m2_s`` and the servos' last goal step's,
+        :meth:`goal_stepped`) and the gyro bias; with the step's Jacobian ``F`` (n, n) and the state
         ``x`` (n,) it linearises about, also white noise of density ``rest_jitter_psd_m2_s`` on
         the rest lengths the string forces see, through the kink of each string
         (:meth:`jitter_noise`).
         """
         Q = self._white_noise(dt)
-        if F is None or x is None or self.config.rest_jitter_psd_m2_s == 0.0:
+        steps = self.rest_step_psd_m2_s.any()
+        jitter = F is not None and x is not None and self.config.rest_jitter_psd_m2_s > 0.0
+        if not (steps or jitter):
             return Q
-        n = self.layout.q_dot.stop
         Q = Q.copy()
-        Q[:n, :n] += self.jitter_noise(dt, F, x)
+        if steps:
+            r = np.arange(self.layout.rest.start, self.layout.rest.stop)
+            Q[r, r] += self.rest_step_psd_m2_s * dt
+        if jitter:
+            n = self.layout.q_dot.stop
+            Q[:n, :n] += self.jitter_noise(dt, F, x)
         return Q
 
     def jitter_noise(self, dt, F, x):

@@ -88,6 +88,7 @@ RIG_MODEL_KEYS = {
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "rest_psd_m2_s": 1e-13,
+    "servo_step_std_ratio": 0.0,  # these servos are the filter's lag exactly
     "rest_jitter_psd_m2_s": 4e-10,
     "kink_model": "mean",
     "wheel_noise_ma1": -0.75,
@@ -96,6 +97,7 @@ RIG_MODEL_KEYS = {
     # command with noise_from_rig's lag, which would make them overconfident
     "wheel_lag_s": 0.0,
     "imu_latency_s": 0.0,  # the SIL's samples carry their own times
+    "imu_time_std_s": 0.0,
 }
 
 
