@@ -197,3 +197,30 @@ def test_the_identify_progress_line_shows_the_statistics_step():
     assert "cost 2.5" in text and "statistics: cost profile 1, evaluation 2/8" in text
     assert "cost profile 2, evaluation 1/8" in text
     assert "scale below refit, evaluation 5;    4 in all" in text
+
+
+def test_segments_that_disagree_beyond_their_noise_widen_the_sigma():
+    """One output parameter seen by four 1 s segments of 100 samples (unit noise each, so a
+    segment's own sigma is 0.1) whose optima are 0, +-d: the Birge ratio in closed form; segments
+    that agree leave the sigma as it is."""
+    t = np.arange(400) * 0.01
+    rec = SimpleNamespace(t_imu_s=t, segment_s=1.0)
+    seg = (t // 1.0).astype(int)
+    params = [SimpleNamespace(step=1e-3)]
+
+    def problem(optima):
+        x = np.asarray(optima)[seg]
+        return SimpleNamespace(
+            params=params, recs=[rec], weighted=lambda theta: [((theta[0] - x) / 1.0)[:, None]]
+        )
+
+    d = 0.3
+    optima = [0.0, d, -d, 0.0]
+    ratio = profile.segment_spread(problem(optima), np.zeros(1), np.array([True]), 0.005)
+    expected = np.sqrt(np.sum(100.0 * np.square(optima)) / 3.0)  # a_i = 100, mean 0
+    assert ratio[0] == pytest.approx(expected, rel=1e-6)
+    close = problem([0.01, 0.0, -0.01, 0.0])
+    agree = profile.segment_spread(close, np.zeros(1), np.array([True]), 0.005)
+    assert agree[0] == 1.0
+    held = profile.segment_spread(problem(optima), np.zeros(1), np.array([False]), 0.005)
+    assert held[0] == 1.0

@@ -87,6 +87,9 @@ class FitResult:
     dropped : list of (str, float, float)
         Segments left out as not predictable (:func:`.shooting.predictable`): recording, start
         and end (s from its lead-in).
+    widened : dict
+        Output parameter -> the factor its sigma was widened by because the segments disagree
+        about it beyond their noise (:func:`.profile.segment_spread`).
     """
 
     params: list
@@ -106,6 +109,7 @@ class FitResult:
     scene: Scene
     servo_lag_s: float
     dropped: list = field(default_factory=list)
+    widened: dict = field(default_factory=dict)
 
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
@@ -249,10 +253,16 @@ def fit(
         sol = solve(problem, lower_start)
     final = [-e for e in problem.errors(sol.x)]
     sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
+    widened = {}
+    if segmented:
+        ratio = profile.segment_spread(problem, sol.x, ~problem.dynamic, config.sim.truth.dt_s)
+        widened = {p.name: float(r) for p, r in zip(params, ratio, strict=True) if r > 1.0}
+        sigma = sigma * ratio
     rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
+        widened,
     )  # fmt: skip
 
 

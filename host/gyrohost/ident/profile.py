@@ -34,6 +34,8 @@ from itertools import count
 import numpy as np
 from scipy.optimize import least_squares
 
+from gyrohost.ident import shooting
+
 PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
 """Where the cost is sampled along a profile direction, in linearised sigmas."""
 SCALE_STEP = 0.2
@@ -165,3 +167,48 @@ def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
         ends.append(start + B @ sol.x)
     valley = ends[1] - ends[0]
     return min(rises), valley / np.linalg.norm(valley), 0.5 * (ends[0] + ends[1]) - theta
+
+
+def segment_spread(problem, theta, output: np.ndarray, dt_s: float) -> np.ndarray:
+    """How far the segments of a fit in segments disagree about each output parameter (the
+    mounting and the biases: ``output``, bool of shape (p,)), beyond their own noise: the Birge
+    ratio ``sqrt(sum_i a_i (x_i - xbar)^2 / (n - 1))`` of the segments' own optima ``x_i``
+    (each segment's weighted sum of squares, the other parameters held, as a parabola through
+    ``theta`` and ``theta +- step``: curvature ``a_i``, ``1 / a_i`` its variance) about their
+    weighted mean ``xbar``; at least 1, and 1 for the other parameters or fewer than 3
+    segments. Shape (p,).
+
+    Each later segment starts from the IMU's attitude and rate read with the first pass's
+    mounting (:func:`.shooting.anchored`); what that start misses (the shape's own motion) each
+    segment's mounting absorbs differently, by more than its noise allows (the yaw by 1e-3 rad
+    between segments whose own sigma is 2e-4, docs/identification.md), which the sigmas from
+    the whole cost do not see.
+    """
+    segments = [
+        np.searchsorted(shooting.edges_s(r, dt_s), r.t_imu_s, "right") - 1 for r in problem.recs
+    ]
+    ratio = np.ones(len(theta))
+    for i in np.flatnonzero(output):
+        h = problem.params[i].step
+        sums = []
+        for d in (-h, 0.0, h):
+            t = np.array(theta, float)
+            t[i] += d
+            sums.append(_segment_sums(problem.weighted(t), segments))
+        lo, mid, hi = (np.concatenate(s) for s in sums)
+        a = (lo + hi - 2.0 * mid) / (2.0 * h * h)
+        keep = a > 0.0
+        if np.count_nonzero(keep) < 3:
+            continue
+        x, a = -(hi - lo)[keep] / (2.0 * h) / (2.0 * a[keep]), a[keep]
+        chi2 = float(np.sum(a * (x - np.sum(a * x) / np.sum(a)) ** 2))
+        ratio[i] = max(1.0, np.sqrt(chi2 / (len(x) - 1)))
+    return ratio
+
+
+def _segment_sums(weighted, segments) -> list[np.ndarray]:
+    """Per recording, each segment's weighted sum of squares, shape (segments,)."""
+    return [
+        np.array([np.sum(w[seg == k] ** 2) for k in range(seg.max() + 1)])
+        for w, seg in zip(weighted, segments, strict=True)
+    ]

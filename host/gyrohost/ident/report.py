@@ -41,6 +41,11 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
     for name, (before, after) in result.rms.items():
         lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
+    for name, ratio in result.widened.items():
+        lines.append(
+            f"1-sigma of {name} widened {ratio:.1f} times: the segments disagree about it "
+            "beyond their noise"
+        )
     for name, t0, t1 in result.dropped:
         lines.append(f"not fitted (the prediction does not follow it): {name} {t0:.1f}-{t1:.1f} s")
     lines.append(f"{result.nfev} evaluations: {result.status}")
