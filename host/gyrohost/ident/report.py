@@ -43,7 +43,7 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
     for name, ratio in result.widened.items():
         lines.append(
-            f"1-sigma of {name} widened {ratio:.1f} times: the segments disagree about it "
+            f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
             "beyond their noise"
         )
     for name, t0, t1 in result.dropped:
