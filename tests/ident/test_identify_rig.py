@@ -14,6 +14,7 @@ from gyrohost.control.schedule import Schedule, load_schedule
 from gyrohost.experiments.identify_rig import (
     IMU_ROTATION_DEG,
     identified_errors,
+    truth_kept_overlay,
     truth_lag_s,
     write_rig_files,
 )
@@ -51,10 +52,14 @@ def test_rig_log_identified_then_run_with_the_result(tmp_path, capsys):
     for axis in ("roll", "pitch", "yaw"):
         assert abs(errors[f"mounting.{axis}_deg"]) < 0.3, errors
     again = tmp_path / "with-ident"
-    argv = [*rig, "--overlay", str(overlay), "--scene", str(ident), "-o", str(again)]
+    kept = truth_kept_overlay(overlay, tmp_path / "run-overlay.toml")
+    argv = [*rig, "--overlay", str(kept), "--scene", str(ident), "-o", str(again)]
     main(["run", *argv])
     meta = json.loads((again / "meta.json").read_text())
     assert meta["summary"]["reason"] == "completed"
+    # the truth's IMU stays where it was, so the estimator on the identified rig follows it
+    np.testing.assert_allclose(meta["rig_config"]["sim"]["truth"]["imu_rotation_deg"], 0, atol=0.3)
+    assert not meta["summary"]["estimator"]["diverged"], meta["summary"]["estimator"]["why"]
     mounting = tomllib.loads(overlay.read_text())["imu"]["mounting_rpy_rad"]
     np.testing.assert_allclose(meta["estimator"]["imu_mounting_rpy_rad"], mounting)
     assert np.degrees(mounting) == pytest.approx(IMU_ROTATION_DEG, abs=0.3)

@@ -13,8 +13,10 @@ Per seed (the simulated IMU's noise and biases):
 2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --segment-s 4``
    (the whole log, in multiple-shooting segments; ``--until S`` fits only its first ``S``
    seconds);
-3. ``gyrotens run --sim --config C --overlay OVERLAY.toml --scene IDENT.toml
-   --truth-scene T``.
+3. ``gyrotens run --sim --config C --overlay RUN.toml --scene IDENT.toml --truth-scene T``,
+   ``RUN.toml`` the fit's ``OVERLAY.toml`` with the truth's IMU kept where it was
+   (:func:`truth_kept_overlay`: ``[sim.truth] imu_rotation_deg`` turns the emulated IMU from
+   where the configuration says it is, and the overlay moves that to the identified mounting).
 
 It prints each identified figure's error against the truth (J3, stiffness and damping as
 relative errors, the mounting in degrees), the fit's wall time and the exit status of every
@@ -87,6 +89,23 @@ def identified_errors(ident: Path, overlay: Path) -> dict[str, float]:
     return out
 
 
+def truth_kept_overlay(overlay: Path, out: Path) -> Path:
+    """``overlay`` (what ``gyrotens identify`` wrote) with ``[sim.truth] imu_rotation_deg`` set
+    so that the emulated IMU stays at the truth's mounting (:data:`IMU_ROTATION_DEG` from a zero
+    mounting) now that the host's is the identified one, written to ``out``.
+
+    The emulator turns the IMU by ``imu_rotation_deg`` from the configuration's mounting:
+    without this the overlay would turn the truth's IMU by the identified mounting as well, and
+    the run would test a rig the fit never saw."""
+    from gyrohost.geometry import euler_zyx, rotation_zyx
+
+    identified = tomllib.loads(overlay.read_text())["imu"]["mounting_rpy_rad"]
+    turn = rotation_zyx(*np.radians(IMU_ROTATION_DEG)) @ rotation_zyx(*identified).T
+    deg = ", ".join(repr(float(a)) for a in np.degrees(euler_zyx(turn)))
+    out.write_text(overlay.read_text() + f"\n[sim.truth]\nimu_rotation_deg = [{deg}]\n")
+    return out
+
+
 def truth_lag_s(log: Path) -> float:
     """Median lag (s) of the simulated rig's truth behind real time in the run: a loaded CPU
     makes the recording's physics lag its time stamps."""
@@ -119,8 +138,9 @@ def one_seed(root: Path, seed: int, args) -> dict:
     )  # fmt: skip
     out["fit_s"] = time.perf_counter() - t0
     if out["identify"] == 0 and not args.fit_only:
+        kept = truth_kept_overlay(overlay, folder / "run-overlay.toml")
         out["replay"] = gyrotens(
-            ["run", *rig, "--overlay", str(overlay), "--scene", str(ident),
+            ["run", *rig, "--overlay", str(kept), "--scene", str(ident),
              "-o", str(folder / "with-ident")]
         )  # fmt: skip
     if out["identify"] == 0:
