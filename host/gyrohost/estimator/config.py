@@ -310,9 +310,10 @@ def noise_from_rig(rig) -> dict:
         # reported speed trails the true one by the firmware's low-pass (1 ms x
         # 2^SPEED_FILTER_SHIFT = 8 ms): in a ramp the two lags add
         "wheel_lag_s": rig.sim.wheels.time_constant_s + SPEED_FILTER_S,
-        # the telemetry of a speed step on the real-time simulated rig starts 20 ms later than
-        # the lags alone say (docs/estimator.md, "Wheel commands")
-        "wheel_delay_s": 0.02,
+        # with the loop on time the telemetry of a speed step starts when the lags alone say:
+        # a delay of 20 ms (what a late loop showed) puts the model behind the board through
+        # every ramp (docs/estimator.md, "Wheel commands")
+        "wheel_delay_s": 0.0,
         # ... and its frames arrive with a jitter of about 10 ms (stamped on arrival)
         "wheel_time_std_s": 0.01,
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
