@@ -97,17 +97,11 @@ def segment_figures(result, scene, config, est, recs) -> list[tuple]:
     """
     from gyrohost.experiments.identify_check import FACTORS
     from gyrohost.ident import shooting
-    from gyrohost.ident.fit import Problem
+    from gyrohost.ident.fit import Problem, anchored
     from gyrohost.ident.params import apply
 
-    (rec,) = recs
     theta = result.theta
-    a = apply(scene, config, result.params, theta, result.servo_lag_s)
-    rec = replace(
-        rec,
-        anchor_mounting_rpy_rad=tuple(a.mounting_rpy_rad),
-        anchor_gyro_bias_rad_s=tuple(a.gyro_bias_rad_s[0]),
-    )
+    (rec,) = anchored(recs, apply(scene, config, result.params, theta, result.servo_lag_s))
     problem = Problem(scene, config, est, result.params, [rec])
     columns = []
     for i, p in enumerate(result.params):

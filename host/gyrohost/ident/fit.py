@@ -236,15 +236,7 @@ def fit(
         ]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
         a = apply(scene, config, params, theta0, nominal_lag(config, est, recs), len(recs))
-        recs = [
-            replace(
-                r,
-                anchor_mounting_rpy_rad=tuple(a.mounting_rpy_rad),
-                anchor_gyro_bias_rad_s=tuple(gyro),
-            )
-            for r, gyro in zip(recs, a.gyro_bias_rad_s, strict=True)
-        ]
-        recs, dropped = _predictable(Problem(scene, config, est, params, recs), theta0)
+        recs, dropped = _predictable(Problem(scene, config, est, params, anchored(recs, a)), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
     sol = solve(problem, theta0)
@@ -264,6 +256,19 @@ def fit(
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
         widened,
     )  # fmt: skip
+
+
+def anchored(recs, applied) -> list:
+    """``recs`` whose later segments' starts read the IMU (:func:`.shooting.anchored`) with the
+    mounting and each recording's gyro bias of ``applied`` (:class:`.params.Applied`)."""
+    return [
+        replace(
+            r,
+            anchor_mounting_rpy_rad=tuple(applied.mounting_rpy_rad),
+            anchor_gyro_bias_rad_s=tuple(g),
+        )
+        for r, g in zip(recs, applied.gyro_bias_rad_s, strict=True)
+    ]
 
 
 def two_passes(recs, dt_s: float) -> bool:

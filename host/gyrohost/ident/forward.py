@@ -20,7 +20,7 @@ from gyrohost.estimator import streams
 from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
-from gyrohost.ident.servo_render import ServoResponse, rendered
+from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
 from gyrohost.rig.truth import Truth
 from gyrotensegrity import Scene
 
@@ -33,11 +33,6 @@ WHEEL_SETTLED_RAD_S = 0.5
 the command: the board's speed loop holds it there, while the reports' mean is off by their
 quantisation (about 1e-3 rad/s), and a momentum imbalance that small already grows, over a
 few seconds, in the D-bar's unstable roll mode."""
-
-
-HELD_POINTS = 5
-"""Points per model step over which the rendered string lengths are averaged: the 1 ms grid of
-:mod:`.servo_render` in a 5 ms step."""
 
 
 class IdentDataError(GyrohostError, ValueError):
@@ -199,8 +194,10 @@ def simulate(
         lengths = _servo_response(rec, t_steps, servo_lag_s) + offsets
     else:
         # a step holds its inputs: their mean over the step (the midpoint's value is it for a
-        # straight line, 3 um off it where a lag bends the rendered lengths)
-        t_held = t_steps[:, None] + dt * (np.arange(HELD_POINTS) + 0.5) / HELD_POINTS
+        # straight line, 3 um off it where a lag bends the rendered lengths), read at the
+        # rendered grid's points within it
+        points = max(int(round(dt / GRID_S)), 1)
+        t_held = t_steps[:, None] + dt * (np.arange(points) + 0.5) / points
         lengths = np.column_stack(
             [np.interp(t_held, rec.t_servos_s, v).mean(axis=1) for v in rec.servos_m.T]
         )
@@ -277,18 +274,14 @@ def window(rec: Recording, until_s: float) -> Recording:
 def _servo_response(rec: Recording, t_steps: np.ndarray, lag_s: float) -> np.ndarray:
     """The servos' positions under the commands of ``rec`` (each held until the next), through
     a first-order lag ``lag_s``, as the mean over each step from ``t_steps``: shape (k, n)."""
-    idx = np.clip(np.searchsorted(rec.t_servos_s, t_steps, "right") - 1, 0, None)
-    command = rec.servos_m[idx]
+    command = held(rec.t_servos_s, rec.servos_m, t_steps)
     if lag_s <= 0.0:
         return command
     dt = t_steps[1] - t_steps[0]
     gain = 1.0 - np.exp(-dt / lag_s)
-    out, position = np.empty_like(command), command[0].copy()
-    for k, target in enumerate(command):
-        # the mean of the exponential approach over the step
-        out[k] = target + (position - target) * gain * lag_s / dt
-        position += gain * (target - position)
-    return out
+    start = lagged(rec.t_servos_s, rec.servos_m, t_steps, lag_s)  # at each step's start
+    # the mean of the exponential approach over the step
+    return command + (start - command) * gain * lag_s / dt
 
 
 def _smooth(values, width):

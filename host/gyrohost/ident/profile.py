@@ -188,14 +188,15 @@ def segment_spread(problem, theta, output: np.ndarray, dt_s: float) -> np.ndarra
         np.searchsorted(shooting.edges_s(r, dt_s), r.t_imu_s, "right") - 1 for r in problem.recs
     ]
     ratio = np.ones(len(theta))
+    mid = np.concatenate(_segment_sums(problem.weighted(theta), segments))
     for i in np.flatnonzero(output):
         h = problem.params[i].step
         sums = []
-        for d in (-h, 0.0, h):
+        for d in (-h, h):
             t = np.array(theta, float)
             t[i] += d
-            sums.append(_segment_sums(problem.weighted(t), segments))
-        lo, mid, hi = (np.concatenate(s) for s in sums)
+            sums.append(np.concatenate(_segment_sums(problem.weighted(t), segments)))
+        lo, hi = sums
         a = (lo + hi - 2.0 * mid) / (2.0 * h * h)
         keep = a > 0.0
         if np.count_nonzero(keep) < 3:

@@ -17,7 +17,7 @@ from scipy.optimize import minimize
 from scipy.signal import lfilter
 
 GRID_S = 1e-3
-"""Time step of the rendered lengths, s (the model's 5 ms steps take their mid-step values)."""
+"""Time step of the rendered lengths, s (each of the model's steps takes their mean over it)."""
 DELAYS_S = np.arange(-0.02, 0.1 + 1e-9, 1e-3)
 """Delays tried, s: from a command's stamp to the servo starting towards it, as the reports'
 stamps see it (they are taken on another thread than the commands': a few ms either way)."""
@@ -41,18 +41,23 @@ class ServoResponse:
     rms_m: float
 
 
+def held(t_cmd_s, cmd_m, t_s) -> np.ndarray:
+    """Commands ``cmd_m`` (shape (kc, n)), each held from its stamp ``t_cmd_s`` until the next,
+    at times ``t_s`` (shape (k,)): shape (k, n); before the first, the first."""
+    return cmd_m[np.clip(np.searchsorted(t_cmd_s, t_s, "right") - 1, 0, None)]
+
+
 def lagged(t_cmd_s, cmd_m, t_s, lag_s: float) -> np.ndarray:
     """Commands ``cmd_m`` (shape (kc, n), each held from its stamp ``t_cmd_s``) through a
     first-order lag ``lag_s`` (s), at the uniform grid ``t_s`` (shape (k,)): shape (k, n);
     the servo starts at the first command."""
-    idx = np.clip(np.searchsorted(t_cmd_s, t_s, "right") - 1, 0, None)
-    held = cmd_m[idx]
+    u = held(t_cmd_s, cmd_m, t_s)
     if lag_s <= 0.0:
-        return held
+        return u
     a = 1.0 - np.exp(-(t_s[1] - t_s[0]) / lag_s)
     # y[k+1] = y[k] + a (u[k] - y[k]): the lag's exact step over a held input
-    zi = held[:1]  # y[0] = zi: the servo at the first command
-    return lfilter([0.0, a], [1.0, a - 1.0], held, axis=0, zi=zi)[0]
+    zi = u[:1]  # y[0] = zi: the servo at the first command
+    return lfilter([0.0, a], [1.0, a - 1.0], u, axis=0, zi=zi)[0]
 
 
 def fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m) -> ServoResponse:
