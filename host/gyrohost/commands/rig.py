@@ -229,8 +229,15 @@ def _serve(rig, duration_s: float | None, control) -> None:
                 elif line.strip():
                     print(_answer(rig, line), flush=True)
                 continue
-            for line, answer in control.server.handle(sock, lambda text: _answer(rig, text)):
-                print(f"control: {line}: {answer}", flush=True)
+            control.server.handle(sock, lambda text: _logged_answer(rig, text))
+
+
+def _logged_answer(rig, line: str) -> str:
+    """The answer to a control ``line``, printed before the client gets it: a client that stops
+    the rig (SIGINT) as soon as it has the answer still finds the line in the rig's output."""
+    answer = _answer(rig, line)
+    print(f"control: {line}: {answer}", flush=True)
+    return answer
 
 
 def _answer(rig, line: str) -> str:

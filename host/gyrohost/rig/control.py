@@ -122,35 +122,33 @@ class ControlServer:
         """Every socket to wait on: the listener and each connection."""
         return [self.listener, *self._clients]
 
-    def handle(self, sock, answer) -> list[tuple[str, str]]:
+    def handle(self, sock, answer) -> None:
         """Serve ``sock`` (ready to read): accept a connection, or answer each whole line it
-        sent with ``answer(line) -> str``; returns the (command, answer) pairs served."""
+        sent with ``answer(line) -> str``. Whatever ``answer`` records is recorded before the
+        client reads the answer, so a client that stops the server on it finds it recorded."""
         if sock is self.listener:
             conn, _ = sock.accept()
             self._clients[conn] = b""
-            return []
+            return
         try:
             data = sock.recv(4096)
         except OSError:
             data = b""
         if not data:
             self._drop(sock)
-            return []
+            return
         *lines, rest = (self._clients[sock] + data).split(b"\n")
         self._clients[sock] = rest
-        served = []
         for raw in lines:
             line = raw.decode("utf-8", errors="replace").strip()
             if not line:
                 continue
             text = answer(line)
-            served.append((line, text))
             try:
                 sock.sendall((text.rstrip("\n") + ANSWER_END).encode())
             except OSError:
                 self._drop(sock)
                 break
-        return served
 
     def _drop(self, sock) -> None:
         self._clients.pop(sock, None)
