@@ -109,6 +109,11 @@ def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined
     assert "not separable" in bar
     assert sum(line.startswith("determined:") for line in lines) == 3
     assert any("common scale" in line for line in lines)
+    assert not any("valley" in line for line in lines)  # a fit in one segment has none
+    walked = replace(result, strings_valley=[(-1.02, 6513.0), (0.0, 6582.2), (0.83, 6651.2)])
+    line = next(line for line in report_lines(walked) if line.startswith("strings' valley"))
+    assert "stiffness x1.127 and damping x1.221" in line
+    assert "-1.02: 6513.0, +0.00: 6582.2, +0.83: 6651.2" in line
 
 
 def test_the_identified_scene_keeps_the_bars_nominal_along_an_undetermined_scale():

@@ -40,12 +40,6 @@ SEGMENTED_FTOL = 1e-6
 """Relative change of the cost that ends a fit in segments: some 0.005 cost units on the
 real-time rig's logs, far below the cost's roughness (about 1); the default (1e-8) went on
 for twice the simulations to the same estimates (docs/identification.md)."""
-STRING_SCAN = (np.linspace(-0.2, 0.2, 5), np.linspace(-0.4, 0.4, 5))
-"""Offsets of the strings' stiffness and damping (log factors) on whose grid the cost of a fit in
-segments is evaluated around its optimum, the others held; from a lower point the fit is solved
-again. The cost there is rough enough (slack crossings) for the local solver to stop 15 to 40 %
-from the strings' truth at a cost above the truth's (docs/identification.md, "The preset on the
-simulated clock")."""
 BAR_GROUPS = ("bar-mass", "bar-inertia")
 """The scale is only free, and tested, with one of these fitted: weighed bars pin it."""
 
@@ -90,6 +84,9 @@ class FitResult:
     widened : dict
         Output parameter -> the factor its sigma was widened by because the segments disagree
         about it beyond their noise (:func:`.profile.segment_spread`).
+    strings_valley : list of (float, float)
+        The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
+        steps) and cost; empty where the fit is not in segments.
     """
 
     params: list
@@ -110,6 +107,7 @@ class FitResult:
     servo_lag_s: float
     dropped: list = field(default_factory=list)
     widened: dict = field(default_factory=dict)
+    strings_valley: list = field(default_factory=list)
 
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
@@ -207,8 +205,8 @@ def fit(
     are fitted in two passes: the first segment of each alone (at least
     :data:`.shooting.FIRST_PASS_S`; it starts from the scene's known initial state), whose IMU
     mounting and gyro bias the later segments' starts then read the IMU with; then everything,
-    from the first pass's optimum, and again from the lowest point of a grid of the strings'
-    stiffness and damping around that optimum when it is lower (:func:`scan_strings`).
+    from the first pass's optimum, then moved to the smooth minimum along the valley where the
+    strings' stiffness and damping trade (:func:`.profile.strings_valley`).
     """
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
@@ -240,9 +238,9 @@ def fit(
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
     sol = solve(problem, theta0)
-    lower_start = scan_strings(problem, sol.x, float(sol.cost), lower) if segmented else None
-    if lower_start is not None:
-        sol = solve(problem, lower_start)
+    strings = []
+    if segmented:
+        sol, strings = profile.strings_valley(solve, problem, sol, lower)
     final = [-e for e in problem.errors(sol.x)]
     sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
     widened = {}
@@ -254,7 +252,7 @@ def fit(
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
-        widened,
+        widened, [(k, float(c)) for k, _, c in strings],
     )  # fmt: skip
 
 
@@ -275,28 +273,6 @@ def two_passes(recs, dt_s: float) -> bool:
     """Whether :func:`fit` fits ``recs`` in two passes: one of them is simulated in more than
     one segment, started from the IMU (``dt_s``: the model's step, s)."""
     return any(r.segment_start == "imu" and len(shooting.edges_s(r, dt_s)) > 2 for r in recs)
-
-
-def scan_strings(problem: Problem, theta, cost: float, lower) -> np.ndarray | None:
-    """The point of the :data:`STRING_SCAN` grid around ``theta`` (stiffness and damping moved,
-    the others held, inside the bounds ``lower``) whose cost is lowest, if below ``cost``; else
-    ``None`` (also without both strings' parameters)."""
-    names = [p.name for p in problem.params]
-    if "stiffness" not in names or "damping" not in names:
-        return None
-    i, j = names.index("stiffness"), names.index("damping")
-    best = None
-    for dk in STRING_SCAN[0]:
-        for dc in STRING_SCAN[1]:
-            t = np.array(theta, float)
-            t[i] += dk
-            t[j] += dc
-            if (dk == 0.0 and dc == 0.0) or np.any(t < lower):
-                continue
-            r = problem(t)
-            if 0.5 * float(r @ r) < cost:
-                best, cost = t, 0.5 * float(r @ r)
-    return best
 
 
 def _predictable(problem: Problem, theta) -> tuple[list, list]:

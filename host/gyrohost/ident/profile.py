@@ -38,6 +38,14 @@ from gyrohost.ident import shooting
 
 PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
 """Where the cost is sampled along a profile direction, in linearised sigmas."""
+VALLEY_STEPS = (-2.0, -1.0, 1.0, 2.0)
+"""Where a fit in segments is solved again along the strings' valley, in :data:`VALLEY_STEP`."""
+VALLEY_STEP = np.array([0.12, 0.2])
+"""One valley step in the strings' log stiffness and log damping: along the valley where the
+two trade on the D-bar's preset (solved again from there, the fit stays within a few percent of
+its start, at costs within tens of units; along the major axis of their linearised covariance
+it slides back towards the start instead) and about the spacing of the local optima along it
+(docs/identification.md)."""
 SCALE_STEP = 0.2
 """Log factor of the common scale tested: +-20 % (the spread of the unmeasured parameters)."""
 CHI2_95 = 3.841
@@ -213,3 +221,58 @@ def _segment_sums(weighted, segments) -> list[np.ndarray]:
         np.array([np.sum(w[seg == k] ** 2) for k in range(seg.max() + 1)])
         for w, seg in zip(weighted, segments, strict=True)
     ]
+
+
+def strings_valley(solve, problem, sol, lower):
+    """The fit ``sol`` moved to the smooth minimum of the valley where the strings' stiffness and
+    damping trade (correlation about +0.9).
+
+    Along that valley the cost is rough and the local solver stops near wherever it starts,
+    at optima some 0.2 apart in log damping whose costs differ by tens of units. The fit is
+    solved again from :data:`VALLEY_STEPS` of :data:`VALLEY_STEP`, a parabola is fitted
+    to the cost of every optimum against its offset along that direction, and the fit is solved
+    once more from the optima interpolated at the parabola's vertex (within the offsets
+    sampled; the lowest optimum's offset where the parabola is not convex).
+
+    Parameters
+    ----------
+    solve : callable
+        ``solve(problem, theta0) -> scipy.optimize.OptimizeResult`` (with ``x`` and ``cost``):
+        the fit's local solver.
+    problem : .fit.Problem
+    sol : OptimizeResult
+        The fit's optimum.
+    lower : ndarray, shape (p,)
+        The parameters' lower bounds; a start below one is not tried.
+
+    Returns
+    -------
+    sol : OptimizeResult
+        The fit from the vertex (``sol`` itself without both strings' parameters).
+    points : list of (offset, theta, cost)
+        Every optimum along the valley, ``sol``'s at offset 0, sorted by offset (valley steps).
+    """
+    names = [p.name for p in problem.params]
+    if "stiffness" not in names or "damping" not in names:
+        return sol, []
+    idx = [names.index("stiffness"), names.index("damping")]
+    optima = [sol]
+    for k in VALLEY_STEPS:
+        start = np.array(sol.x, float)
+        start[idx] += k * VALLEY_STEP
+        if np.all(start >= lower):
+            optima.append(solve(problem, start))
+    step2 = float(VALLEY_STEP @ VALLEY_STEP)
+    along = [float((o.x[idx] - sol.x[idx]) @ VALLEY_STEP) / step2 for o in optima]
+    points = sorted(
+        ((k, o.x, float(o.cost)) for k, o in zip(along, optima, strict=True)),
+        key=lambda point: point[0],
+    )
+    offsets, thetas, costs = (np.array(v) for v in zip(*points, strict=True))
+    vertex = offsets[np.argmin(costs)]
+    if len(points) >= 3:
+        a, b, _ = np.polyfit(offsets, costs, 2)
+        if a > 0.0:
+            vertex = float(np.clip(-b / (2.0 * a), offsets[0], offsets[-1]))
+    start = np.array([np.interp(vertex, offsets, column) for column in thetas.T])
+    return solve(problem, start), points

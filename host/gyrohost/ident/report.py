@@ -7,6 +7,7 @@ import numpy as np
 
 from gyrohost.ident.fit import BAR_GROUPS, CHANNELS, INVOLVED, STREAMS, FitResult
 from gyrohost.ident.params import apply
+from gyrohost.ident.profile import VALLEY_STEP
 from gyrohost.ident.scenefile import scene_toml
 
 
@@ -45,6 +46,13 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append(
             f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
             "beyond their noise"
+        )
+    if result.strings_valley:
+        optima = ", ".join(f"{k:+.2f}: {c:.1f}" for k, c in result.strings_valley)
+        lines.append(
+            f"strings' valley (offset in steps of stiffness x{np.exp(VALLEY_STEP[0]):.3f} and "
+            f"damping x{np.exp(VALLEY_STEP[1]):.3f}: cost at its optimum): {optima}; "
+            f"fitted from its parabola's vertex, cost {result.cost:.1f}"
         )
     for name, t0, t1 in result.dropped:
         lines.append(f"not fitted (the prediction does not follow it): {name} {t0:.1f}-{t1:.1f} s")
