@@ -20,13 +20,15 @@ class Valley:
     """Weighted residuals whose cost is ``CURVATURE (s - SMOOTH_MIN)^2`` along the valley plus
     ``WALL c^2`` across it plus ripples of 20 units, zero at multiples of :data:`RIPPLE`."""
 
-    def __init__(self, names=("stiffness", "damping")):
+    def __init__(self, names=("stiffness", "damping"), smooth_min=SMOOTH_MIN):
         self.params = [Param(n, n, True, 1.0, "-") for n in names]
+        self.smooth_min = smooth_min
 
     def __call__(self, theta):
         s, c = theta @ ALONG, theta @ ACROSS
         ripple = 20.0 * (1.0 - np.cos(2.0 * np.pi * s / RIPPLE))
-        return np.sqrt(2.0 * np.array([CURVATURE * (s - SMOOTH_MIN) ** 2, WALL * c**2, ripple]))
+        smooth = CURVATURE * (s - self.smooth_min) ** 2
+        return np.sqrt(2.0 * np.array([smooth, WALL * c**2, ripple]))
 
 
 def stalling_solve(problem, theta0):
@@ -49,6 +51,16 @@ def test_the_fit_stuck_two_ripples_off_moves_to_the_smooth_minimum():
     # ripple minimum is one ripple (0.115) along
     assert sol.x @ ALONG == pytest.approx(RIPPLE)
     assert sol.cost < min(c for _, _, c in points)
+
+
+def test_a_minimum_beyond_the_steps_is_bracketed_by_further_starts():
+    step = 2 * RIPPLE  # one valley step along the valley
+    problem = Valley(smooth_min=-3.2 * step)
+    stuck = stalling_solve(problem, np.zeros(2))
+    sol, points = profile.strings_valley(stalling_solve, problem, stuck, np.full(2, -np.inf))
+    # -3 was the lowest of -4..2: -4 tried and no farther (at -4 -3.2 is inside)
+    assert [round(k) for k, _, _ in points] == [-4, -3, -2, -1, 0, 1, 2]
+    assert sol.x @ ALONG == pytest.approx(-3 * step)
 
 
 def test_starts_below_the_bounds_are_not_tried_and_other_parameters_left_alone():

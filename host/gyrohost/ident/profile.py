@@ -40,6 +40,8 @@ PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
 """Where the cost is sampled along a profile direction, in linearised sigmas."""
 VALLEY_STEPS = (-2.0, -1.0, 1.0, 2.0)
 """Where a fit in segments is solved again along the strings' valley, in :data:`VALLEY_STEP`."""
+VALLEY_REACH = 4.0
+"""The farthest start along the valley, in :data:`VALLEY_STEP` (log factors 0.48 and 0.8)."""
 VALLEY_STEP = np.array([0.12, 0.2])
 """One valley step in the strings' log stiffness and log damping: along the valley where the
 two trade on the D-bar's preset (solved again from there, the fit stays within a few percent of
@@ -229,10 +231,11 @@ def strings_valley(solve, problem, sol, lower):
 
     Along that valley the cost is rough and the local solver stops near wherever it starts,
     at optima some 0.2 apart in log damping whose costs differ by tens of units. The fit is
-    solved again from :data:`VALLEY_STEPS` of :data:`VALLEY_STEP`, a parabola is fitted
-    to the cost of every optimum against its offset along that direction, and the fit is solved
-    once more from the optima interpolated at the parabola's vertex (within the offsets
-    sampled; the lowest optimum's offset where the parabola is not convex).
+    solved again from :data:`VALLEY_STEPS` of :data:`VALLEY_STEP`, and one step further out
+    while the lowest optimum is the outermost on its side (up to :data:`VALLEY_REACH` steps); a
+    parabola is fitted to the costs of the lowest optimum and up to two neighbours either side
+    against their offsets along the step, and the fit is solved once more from the optima
+    interpolated at its vertex (the lowest optimum's offset where it is not convex).
 
     Parameters
     ----------
@@ -256,23 +259,44 @@ def strings_valley(solve, problem, sol, lower):
     if "stiffness" not in names or "damping" not in names:
         return sol, []
     idx = [names.index("stiffness"), names.index("damping")]
-    optima = [sol]
-    for k in VALLEY_STEPS:
+
+    def solved_from(k: float):
         start = np.array(sol.x, float)
         start[idx] += k * VALLEY_STEP
-        if np.all(start >= lower):
-            optima.append(solve(problem, start))
-    step2 = float(VALLEY_STEP @ VALLEY_STEP)
-    along = [float((o.x[idx] - sol.x[idx]) @ VALLEY_STEP) / step2 for o in optima]
-    points = sorted(
-        ((k, o.x, float(o.cost)) for k, o in zip(along, optima, strict=True)),
-        key=lambda point: point[0],
-    )
-    offsets, thetas, costs = (np.array(v) for v in zip(*points, strict=True))
+        return solve(problem, start) if np.all(start >= lower) else None
+
+    tried = {0.0: sol} | {k: solved_from(k) for k in VALLEY_STEPS}
+    while True:
+        points = _valley_points(tried.values(), sol.x[idx], idx)
+        lowest = int(np.argmin([c for _, _, c in points]))
+        if 0 < lowest < len(points) - 1:
+            break
+        k = min(tried) - 1.0 if lowest == 0 else max(tried) + 1.0
+        if abs(k) > VALLEY_REACH:
+            break
+        tried[k] = solved_from(k)
+        if tried[k] is None:
+            break
+    near = points[max(lowest - 2, 0) : lowest + 3]
+    offsets, thetas, costs = (np.array(v) for v in zip(*near, strict=True))
     vertex = offsets[np.argmin(costs)]
-    if len(points) >= 3:
+    if len(near) >= 3:
         a, b, _ = np.polyfit(offsets, costs, 2)
         if a > 0.0:
             vertex = float(np.clip(-b / (2.0 * a), offsets[0], offsets[-1]))
     start = np.array([np.interp(vertex, offsets, column) for column in thetas.T])
     return solve(problem, start), points
+
+
+def _valley_points(optima, origin, idx) -> list[tuple]:
+    """(offset along :data:`VALLEY_STEP` from ``origin``, theta, cost) of each optimum solved
+    (``None``: not tried), sorted by offset."""
+    step2 = float(VALLEY_STEP @ VALLEY_STEP)
+    return sorted(
+        (
+            (float((o.x[idx] - origin) @ VALLEY_STEP) / step2, o.x, float(o.cost))
+            for o in optima
+            if o is not None
+        ),
+        key=lambda point: point[0],
+    )
