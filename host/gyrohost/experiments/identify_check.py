@@ -27,7 +27,10 @@ from gyrohost.estimator import streams
 from gyrohost.resources import shipped
 
 FACTORS = {"J3": 1.3, "bar_mass": 0.8, "stiffness": 1.25, "damping": 0.7}
-MOUNTING_RPY_RAD = (np.radians(3.0), np.radians(-1.7), np.radians(1.1))
+"""The acceptance truth's parameters on the shipped D-bar's."""
+IMU_ROTATION_DEG = (3.0, -1.7, 1.1)
+"""The acceptance truth's IMU mounting: roll, pitch, yaw, degrees."""
+MOUNTING_RPY_RAD = tuple(np.radians(IMU_ROTATION_DEG))
 ROD_M = 0.3048  # the D-bar's bar length (dbar-gyro)
 EXCITATION = [  # (change of the horizontal string from its initial length, m; duration, s)
     (-0.03, 0.25), (-0.03, 0.3), (0.0, 0.6), (0.0, 0.3), (-0.06, 0.5), (-0.06, 0.2),

@@ -33,10 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.experiments.identify_check import FACTORS, IMU_ROTATION_DEG
 from gyrohost.resources import shipped
 
-FACTORS = {"J3": 1.3, "bar_mass": 0.8, "stiffness": 1.25, "damping": 0.7}
-IMU_ROTATION_DEG = (3.0, -1.7, 1.1)
 J3_NOMINAL = 0.5 * 0.050 * 0.031**2  # the shipped D-bar's wheel disc, kg m^2
 
 
