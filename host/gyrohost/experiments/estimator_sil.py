@@ -137,12 +137,13 @@ def _truth_at(truth, t, columns):
     return np.array([np.interp(t, truth["t_s"], truth[c]) for c in columns])
 
 
-def score_log(folder, estimator=None) -> RunResult:
+def score_log(folder, estimator=None, config=None) -> RunResult:
     """Replay a simulated-rig log and score it against its ``truth`` stream (positions, wheel
     speeds and rest lengths: NEES over those, the positions in the tangent space of the bar
     lengths; the velocity entries of ``x_true`` are the estimate's own); ``estimator``: a TOML
-    file whose ``[estimator]`` keys override the log's."""
-    ekf, data = prepare(folder, config=replayed_config(folder, estimator))
+    file whose ``[estimator]`` keys override the log's; ``config``: an
+    :class:`~gyrohost.estimator.config.EstimatorConfig` replayed instead of either."""
+    ekf, data = prepare(folder, config=config or replayed_config(folder, estimator))
     model, L = ekf.model, ekf.layout
     truth = read_stream(folder, "truth")
     scene_nodes = list(model.scene.node_names)
