@@ -1,6 +1,6 @@
 """Multiple shooting (gyrohost.ident.shooting): where segments start and what they start from."""
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -13,7 +13,7 @@ from gyrohost.ident import forward
 from gyrohost.ident.fit import fit
 from gyrohost.ident.logs import load_recording
 from gyrohost.ident.params import parameters
-from gyrohost.ident.shooting import segment_starts
+from gyrohost.ident.shooting import UNPREDICTABLE, predictable, segment_starts
 from gyrohost.rig.truth import rig_scene
 from gyrotensegrity import Model, load_scene
 
@@ -100,3 +100,30 @@ def test_an_estimate_of_another_model_is_refused_naming_the_log(tmp_path):
     )
     with pytest.raises(forward.IdentDataError, match=r"log: estimate\.csv holds 7 .* has 24"):
         forward.simulate(load_scene(tmp_path / "nominal.toml"), config, rec, None, SERVO_LAG_S)
+
+
+@dataclass
+class Samples:
+    """What :func:`predictable` reads of a recording: IMU times and samples, segment length."""
+
+    t_imu_s: np.ndarray
+    imu: np.ndarray
+    segment_s: float = 4.0
+
+
+def test_predictable_leaves_out_the_segments_whose_prediction_leaves():
+    """Four 4 s segments of unit noise; from 10 s the third grows as a fold does (e-fold in a
+    third of a second); the fourth is off from its start. Kept: the first two; the third and
+    fourth are above :data:`.shooting.UNPREDICTABLE` times the first's RMS, whole."""
+    t = np.arange(0.0, 16.0, 0.01)
+    errors = np.random.default_rng(3).normal(size=(len(t), 8))
+    errors[t >= 10.0] *= np.exp(3.0 * (t[t >= 10.0] - 10.0))[:, None]
+    errors[t >= 12.0] = 5.0 * UNPREDICTABLE
+    rec = Samples(t, np.column_stack([t] * 8))
+    kept, dropped = predictable(rec, errors, 0.005)
+    assert dropped == [(8.0, 12.0), (12.0, pytest.approx(15.99))]
+    assert kept.t_imu_s[-1] == pytest.approx(8.0 - 0.01)
+    np.testing.assert_array_equal(kept.imu[:, 0], kept.t_imu_s)  # the samples with their times
+    # segments at noise level are kept
+    kept, dropped = predictable(rec, np.random.default_rng(4).normal(size=(len(t), 8)), 0.005)
+    assert dropped == [] and len(kept.t_imu_s) == len(t)
