@@ -24,6 +24,10 @@ correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
   determined by the data, and the line through the two re-fitted optima is the direction that
   is not. A combination across that line still changes along the bent valley: its change
   ``c . bend`` within the scale tested is added to its sigma (in quadrature).
+
+The same roughness stops the local solver wherever it starts along the valley where the strings'
+stiffness and damping trade; :func:`strings_valley` solves the fit again along it and takes the
+smooth minimum of the optima it reaches.
 """
 
 from collections.abc import Callable
