@@ -2,7 +2,6 @@
 
 import os
 import signal
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -14,23 +13,11 @@ FIRMWARE_BUILD = Path(__file__).resolve().parents[1] / "firmware" / "build"
 os.environ["GYROTENS_FIRMWARE_BUILD"] = str(FIRMWARE_BUILD)
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-@pytest.fixture
-def terminal_popen():
-    """``subprocess.Popen`` for a child that takes Ctrl-C as a terminal user's process does.
-
-    A shell starts background jobs with SIGINT ignored, and a child inherits that; Python then
-    never raises KeyboardInterrupt. Tests that send SIGINT must not depend on how the test run
-    itself was started, so the child gets the default SIGINT disposition back.
-    """
-
-    def popen(*args, **kwargs):
-        return subprocess.Popen(*args, preexec_fn=_default_sigint, **kwargs)
-
-    return popen
+# A shell starts background jobs with SIGINT ignored, and a process inherits that: Python then
+# never raises KeyboardInterrupt, and a test that sends SIGINT to a child would wait on a child
+# that ignores it. The test run takes Ctrl-C as a terminal user's process does, and so does
+# every child it starts (a signal with a handler is back at its default after the child's exec).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(autouse=True)

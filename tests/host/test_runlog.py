@@ -105,7 +105,7 @@ def test_not_a_log_folder(tmp_path):
         read_meta(tmp_path)
 
 
-def test_rows_survive_sigint(tmp_path, terminal_popen):
+def test_rows_survive_sigint(tmp_path):
     """Every row written before Ctrl-C is on disk, without any close()."""
     script = f"""
 import time
@@ -117,7 +117,7 @@ for i in range(100):
 print("written", flush=True)
 time.sleep(30)
 """
-    p = terminal_popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     assert p.stdout.readline().strip() == "written"
     p.send_signal(signal.SIGINT)
     p.wait(timeout=10)

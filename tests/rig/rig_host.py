@@ -7,7 +7,6 @@ Used by tests/rig/test_rig_cli.py; also runnable by hand next to ``gyrotens rig`
 """
 
 import argparse
-import signal
 import subprocess
 import sys
 import time
@@ -24,10 +23,7 @@ SERVO_PERIOD_S = 0.02
 
 
 def start_rig(cwd, *options: str, stdin=subprocess.DEVNULL) -> subprocess.Popen:
-    """``gyrotens rig OPTIONS`` in a subprocess started in ``cwd``, its output as text pipes;
-    SIGINT stops it as Ctrl-C does, however this process was started (a shell starts
-    background jobs with SIGINT ignored, a child inherits that, and Python then never raises
-    KeyboardInterrupt: a test sending SIGINT would wait on a rig that ignores it)."""
+    """``gyrotens rig OPTIONS`` in a subprocess started in ``cwd``, its output as text pipes."""
     return subprocess.Popen(
         [sys.executable, "-m", "gyrohost", "rig", *options],
         stdin=stdin,
@@ -35,12 +31,7 @@ def start_rig(cwd, *options: str, stdin=subprocess.DEVNULL) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         cwd=cwd,
-        preexec_fn=_default_sigint,
     )
-
-
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict[str, float]:

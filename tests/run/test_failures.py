@@ -139,11 +139,11 @@ def test_a_full_disk_ends_the_run_in_the_safe_state_and_says_where_the_log_ends(
     assert read_stream(log, "loop")["t_s"][-1] > 1.0  # the run got somewhere first
 
 
-def _signal_run(tmp_path, terminal_popen, signum: int, group: bool, second: bool):
+def _signal_run(tmp_path, signum: int, group: bool, second: bool):
     log = tmp_path / "log"
     cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG_PATH), "--sim"]
     cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
-    proc = terminal_popen(
+    proc = subprocess.Popen(
         cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
     )
     send = (lambda: os.killpg(proc.pid, signum)) if group else lambda: proc.send_signal(signum)
@@ -164,11 +164,10 @@ def _signal_run(tmp_path, terminal_popen, signum: int, group: bool, second: bool
     ("signum", "group", "status", "name"),
     [(signal.SIGTERM, False, 143, "SIGTERM"), (signal.SIGHUP, True, 129, "SIGHUP")],
 )
-def test_sigterm_and_sighup_end_in_the_safe_state(tmp_path, terminal_popen, signum, group,
-                                                  status, name):  # fmt: skip
+def test_sigterm_and_sighup_end_in_the_safe_state(tmp_path, signum, group, status, name):
     """SIGTERM to the CLI (``kill``); SIGHUP to the whole group (a closed terminal: the rig
     process gets it too and keeps serving). A second one during the safe state is ignored."""
-    code, out, err, log = _signal_run(tmp_path, terminal_popen, signum, group, second=True)
+    code, out, err, log = _signal_run(tmp_path, signum, group, second=True)
     assert code == status, err
     assert "Traceback" not in err
     assert f"stopped in the safe state: interrupted ({name})" in err

@@ -33,11 +33,11 @@ def wait_for(path: Path, text: str, timeout_s: float) -> None:
     raise AssertionError(f"{path}: no {text!r} within {timeout_s} s")
 
 
-def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path, terminal_popen):
+def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
     log = tmp_path / "log"
     cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
     cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
-    proc = terminal_popen(
+    proc = subprocess.Popen(
         cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
     )
     try:
