@@ -35,7 +35,7 @@ def figures(tmp_path_factory):
     root = tmp_path_factory.mktemp("realtime")
     with tarfile.open(DATA) as tar:
         tar.extractall(root, filter="data")
-    config = load_rig_config(shipped("config", "sim-rig"))
+    config = for_rig(load_rig_config(shipped("config", "sim-rig")))
     scene = str(shipped("scene", "dbar-gyro"))
     results = []
     for k in range(1, RUNS + 1):
@@ -44,7 +44,7 @@ def figures(tmp_path_factory):
         assert meta["rig_config"]["scene"] == "dbar-gyro"
         meta["scene"] = scene
         (folder / "meta.json").write_text(json.dumps(meta))
-        results.append(score_log(folder, config=for_rig(config)))
+        results.append(score_log(folder, config=config))
     return summarise(results, "[replay] ")
 
 

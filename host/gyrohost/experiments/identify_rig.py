@@ -98,10 +98,11 @@ def truth_kept_overlay(overlay: Path, out: Path) -> Path:
     the run would test a rig the fit never saw."""
     from gyrohost.geometry import euler_zyx, rotation_zyx
 
-    identified = tomllib.loads(overlay.read_text())["imu"]["mounting_rpy_rad"]
+    text = overlay.read_text()
+    identified = tomllib.loads(text)["imu"]["mounting_rpy_rad"]
     turn = rotation_zyx(*np.radians(IMU_ROTATION_DEG)) @ rotation_zyx(*identified).T
     deg = ", ".join(repr(float(a)) for a in np.degrees(euler_zyx(turn)))
-    out.write_text(overlay.read_text() + f"\n[sim.truth]\nimu_rotation_deg = [{deg}]\n")
+    out.write_text(text + f"\n[sim.truth]\nimu_rotation_deg = [{deg}]\n")
     return out
 
 
