@@ -2,6 +2,7 @@
 the IMU seeing the truth, run-time faults reaching the drivers as their named errors."""
 
 import queue
+import time
 
 import numpy as np
 import pytest
@@ -173,3 +174,29 @@ def test_advance_needs_the_sim_clock():
         rig.close()
     with pytest.raises(ValueError, match="clock must be"):
         SimulatedRig(CONFIG, clock="fast")
+
+
+def test_a_truth_sample_is_read_at_one_step_while_the_truth_moves():
+    """Read by another thread, as the rig process streams it: each sample's state is the
+    truth's at the sample's own time, never a later step's."""
+    with SimulatedRig(CONFIG, clock="real") as rig:
+        bus = StringServoBus(ServoBusConfig(port=rig.paths["servos"], servo=CONFIG.servos.servo))
+        bus.open().configure()
+        rig.start_recording()
+        goal = L0 - 0.05
+        bus.command_lengths({"left": goal, "right": np.sqrt(4 * 0.3048**2 - goal**2)})
+        samples, end = [], time.monotonic() + 0.6
+        while time.monotonic() < end:  # as fast as the GIL lets this thread in
+            samples.append(rig.truth_sample())
+        record = rig.recording()
+        bus.close()
+    rig.check()
+
+    steps = {t: k for k, t in enumerate(record.t_s)}
+    taken = [(steps[t], N, rest) for t, _, N, _, rest in samples if t in steps]
+    assert len({k for k, _, _ in taken}) > 50  # many steps, each read several times
+    for k, N, rest in taken:
+        np.testing.assert_array_equal(N, record.N[k])
+        np.testing.assert_array_equal(rest, record.rest_length_m[k])
+    moved = np.max(np.abs(record.N[-1] - record.N[0]))
+    assert moved > 1e-3, f"the truth moved only {moved} m: nothing to tell the steps apart"

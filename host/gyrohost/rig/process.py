@@ -243,16 +243,7 @@ def _serve(conn, config, period_s: float) -> None:
                     conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
                 continue
             next_s += period_s
-            sample = (
-                time.monotonic_ns(),
-                rig.t_s,
-                truth.t_s,
-                truth.t_s + rig.slip_s,
-                rig.truth_nodes(),
-                rig.truth_wheel_speeds(),
-                rig.truth_rest_lengths(),
-            )
-            conn.send(("truth", sample))
+            conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         return
     finally:

@@ -293,6 +293,22 @@ class SimulatedRig:
         with self._lock:
             return self.truth.rest_length_m.copy()
 
+    def truth_sample(self) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
+        """The truth read at one instant: its time, s, the rig time its state belongs to
+        (time plus slip), s, node positions (3, n), m, wheel spins (n_w,), rad/s, and rest
+        lengths (alpha,), m. One lock for all: the loop thread steps the truth between
+        separate reads, and a state a few steps past its stamp is a large error while the
+        D-bar turns fast."""
+        with self._lock:
+            t_s = self.truth.t_s
+            return (
+                t_s,
+                t_s + self._slip_s,
+                self.truth.nodes(),
+                self.truth.wheel_input_rad_s.copy(),
+                self.truth.rest_length_m.copy(),
+            )
+
     def start_recording(self) -> None:
         """Record the truth at every following step (see :meth:`recording`)."""
         with self._lock:
