@@ -96,8 +96,8 @@ def test_imu_truth_between_steps_is_the_motion_then():
     assert truth.has_imu_truth(0.02) and not truth.has_imu_truth(0.0201)
 
 
-def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth_half_a_period():
-    from gyrohost.rig.imu_emu import Bwt61Emulator
+def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth():
+    from gyrohost.rig.imu_emu import TRUTH_WAIT_S, Bwt61Emulator
 
     asked, known = [], {"until": 0.005}
     emu = Bwt61Emulator(
@@ -110,7 +110,9 @@ def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth_half_a_peri
         known["until"] = 0.015
         emu.tick(0.0122)  # sent now, showing 0.01
         emu.tick(0.0203)  # due at 0.02, the truth not there: waits
-        emu.tick(0.0252)  # half a period late: sent with what the truth has
+        emu.tick(0.02 + TRUTH_WAIT_S - 1e-4)  # still waits
+        assert emu.samples_sent == 1
+        emu.tick(0.02 + TRUTH_WAIT_S + 1e-4)  # waited its longest: sent with what the truth has
     finally:
         emu.close()
     assert asked == pytest.approx([0.01, 0.02])

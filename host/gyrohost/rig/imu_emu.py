@@ -63,6 +63,11 @@ def quantise(values: np.ndarray, scale: float) -> list[int]:
     return [int(c) for c in counts]
 
 
+TRUTH_WAIT_S = 0.02
+"""Longest a sample waits for the truth to reach its time before it goes with an older state:
+late but right is what a real sensor's link does to a sample; a state 5-15 ms old while the
+D-bar turns at 2 rad/s is a sampling-time error no real sensor has. Two periods, inside the
+host's ``imu_max_delay_s`` (0.03 s) with the pty's few ms."""
 MAX_BACKLOG_S = 0.1
 """Longest stall of the rig loop whose samples the emulator still sends, late (the truth keeps
 this much history for them); a longer one loses the samples beyond, as a full UART buffer."""
@@ -92,7 +97,7 @@ class Bwt61Emulator(PtyDevice):
         is used.
     truth_ready : callable, optional
         ``truth_ready(t_s) -> bool``: ``truth_source`` knows time ``t_s``; a sample waits for
-        it up to half a period past its time, then goes with what the source has.
+        it up to :data:`TRUTH_WAIT_S` past its time, then goes with what the source has.
     rotation_deg : sequence of 3 float, deg
         The sensor turned further by this roll, pitch, yaw (Z-Y-X, about the body axes) from
         where ``imu.mounting_rpy_rad`` puts it: a mounting the host's calibration does not know.
@@ -189,10 +194,10 @@ class Bwt61Emulator(PtyDevice):
         # the device samples on its own grid whatever the rig loop does, as the real sensor's
         # clock does: samples the loop was held up for go out late, together (the host puts
         # them back on the grid); each shows the truth at its grid time, once that is known
-        # (one truth step later at most; a truth lagging further is sent as it stands)
+        # (a truth lagging longer than TRUTH_WAIT_S is sent as it stands)
         while now_s >= self._next_emit_s:
             waited_s = now_s - self._next_emit_s
-            if waited_s < 0.5 * self.period_s and not self._truth_known(self._next_emit_s):
+            if waited_s < TRUTH_WAIT_S and not self._truth_known(self._next_emit_s):
                 return
             self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
             self.samples_sent += 1

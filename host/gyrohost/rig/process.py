@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrohost.errors import GyrohostError
+from gyrohost.gcfreeze import heap_frozen
 from gyrohost.sigint import InterruptsHeld, ignore_interrupts
 
 READY_TIMEOUT_S = 60.0
@@ -219,31 +220,32 @@ def _serve(conn, config, period_s: float) -> None:
     )
     next_s = time.monotonic()
     try:
-        while True:
-            if rig.loop_error is not None:
-                conn.send(("error", f"the rig loop stopped: {rig.loop_error!r}"))
-                return
-            if conn.poll(max(next_s - time.monotonic(), 0.0)):
-                kind, args, kwargs = conn.recv()
-                if kind == "close":
+        with heap_frozen():  # the truth's steps are real-time work too
+            while True:
+                if rig.loop_error is not None:
+                    conn.send(("error", f"the rig loop stopped: {rig.loop_error!r}"))
                     return
-                if kind == "inject":
-                    try:
-                        rig.inject(*args, **kwargs)
-                        conn.send(("injected", {}))
-                    except FaultCommandError as exc:
-                        conn.send(("error", str(exc)))
-                elif kind == "command":
-                    try:
-                        conn.send(("answer", {"text": rig.command(*args)}))
-                    except FaultCommandError as exc:
-                        conn.send(("error", str(exc)))
-                elif kind == "stats":
-                    s = rig.stats()
-                    conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
-                continue
-            next_s += period_s
-            conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
+                if conn.poll(max(next_s - time.monotonic(), 0.0)):
+                    kind, args, kwargs = conn.recv()
+                    if kind == "close":
+                        return
+                    if kind == "inject":
+                        try:
+                            rig.inject(*args, **kwargs)
+                            conn.send(("injected", {}))
+                        except FaultCommandError as exc:
+                            conn.send(("error", str(exc)))
+                    elif kind == "command":
+                        try:
+                            conn.send(("answer", {"text": rig.command(*args)}))
+                        except FaultCommandError as exc:
+                            conn.send(("error", str(exc)))
+                    elif kind == "stats":
+                        s = rig.stats()
+                        conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
+                    continue
+                next_s += period_s
+                conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         return
     finally:

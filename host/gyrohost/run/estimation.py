@@ -26,6 +26,7 @@ import numpy as np
 
 from gyrohost.estimator import fuse_servos, fuse_wheels
 from gyrohost.estimator.ekf import Status
+from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.errors import RunError
 from gyrohost.run.streams import IMU_FUSIONS
 from gyrohost.sigint import InterruptsHeld, ignore_interrupts
@@ -369,7 +370,8 @@ def _serve(conn, scene_path: str, config, servo_strings, max_age_s: float) -> No
         return
     conn.send([("ready",)])
     try:
-        _Child(conn, model, config, servo_strings, max_age_s).serve()
+        with heap_frozen():
+            _Child(conn, model, config, servo_strings, max_age_s).serve()
     except (EOFError, BrokenPipeError):
         return
 

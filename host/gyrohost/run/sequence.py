@@ -41,6 +41,7 @@ from gyrohost.control.schedule import Schedule
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator.config import EstimatorConfig, for_rig
 from gyrohost.estimator.imu_model import ImuGeometry
+from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.connect import connect_devices
 from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
@@ -237,18 +238,19 @@ class RunLoop:
         self._enter("hold")
         self.servos.configure()
         self._start_readers()
-        self._enter("spinup")
-        self._spin_up()
-        self._enter("lead_in")
-        self._start_estimator()
-        self._ticks(self.settings.lead_in_s)
-        self._enter("schedule")
-        self.t_schedule_s = self.now()
-        self._ticks(self.schedule.t_end)
-        self._record_tilts("tilt_end")
-        self._enter("settle")
-        self._ticks(self.settings.settle_s)
-        self._record_tilts("tilt_settled")
+        with heap_frozen():
+            self._enter("spinup")
+            self._spin_up()
+            self._enter("lead_in")
+            self._start_estimator()
+            self._ticks(self.settings.lead_in_s)
+            self._enter("schedule")
+            self.t_schedule_s = self.now()
+            self._ticks(self.schedule.t_end)
+            self._record_tilts("tilt_end")
+            self._enter("settle")
+            self._ticks(self.settings.settle_s)
+            self._record_tilts("tilt_settled")
 
     def _enter(self, phase: str) -> None:
         self.phase = phase
