@@ -97,7 +97,6 @@ RIG_MODEL_KEYS = {
     # command with noise_from_rig's lag, which would make them overconfident
     "wheel_lag_s": 0.0,
     "imu_latency_s": 0.0,  # the SIL's samples carry their own times
-    "imu_time_std_s": 0.0,
 }
 
 
