@@ -267,10 +267,10 @@ def noise_from_rig(rig) -> dict:
         # samples (the pty and the reader thread): the estimate trailed the truth by 2.5 ms
         "imu_latency_s": 0.002,
         # the node accelerations' noise: the servos' goal steps and the loop's late ticks,
-        # which the in-process SIL's 3e-8 does not see; 1e-7 holds the NEES and the rate NIS
-        # inside their bounds on two idle batches, 2e-7 leaves the NEES at its lower bound
-        # (docs/estimator.md, "Real-time keys by replay")
-        "accel_psd_m2_s3": 1.0e-7,
+        # which the in-process SIL's 3e-8 does not see; 5e-7 holds the NEES mid-bounds on three
+        # idle batches scored from drawn starts, 1e-7 leaves it at the upper bound and 2e-6
+        # at the lower (docs/estimator.md, "Real-time keys by replay")
+        "accel_psd_m2_s3": 5.0e-7,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
         "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),

@@ -115,8 +115,13 @@ class TensegrityEKF:
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
-        # mounting and wheel noise states: mean 0 (the configured mounting; no noise yet)
-        x0 = np.concatenate([x0, np.zeros(L.size - len(x0))])
+        self.start_at(x0, P0)
+
+    def start_at(self, x0, P0=None) -> None:
+        """Set the state to ``x0`` (its leading entries; the mounting and wheel noise states
+        after them 0: the configured mounting, no noise yet) with the covariance ``P0`` (n, n)
+        (default :meth:`initial_covariance`), both conditioned on the constraint manifold."""
+        x0 = np.concatenate([x0, np.zeros(self.layout.size - len(x0))])
         P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
         x, P = self.manifold.condition(np.asarray(x0, float), P0)
         self.kf.x, self.kf.P = x.reshape(-1, 1), P

@@ -22,7 +22,7 @@ from gyrohost.estimator.config import config_from_dict, noise_from_rig
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
-from gyrohost.experiments.montecarlo import sampled_truth, score_run, summarise
+from gyrohost.experiments.montecarlo import START_SEED_OFFSET, sampled_truth, score_run, summarise
 from gyrohost.experiments.sil_options import DEFAULT_CONFIG
 
 TICK_S = 0.01  # the run loop's period, s
@@ -220,7 +220,7 @@ def score_with_effects(
     keys.update(overrides or {})
     est_cfg = config_from_dict(keys)
     ekf = TensegrityEKF(model, est_cfg)
-    x0 = sample_initial(ekf, truth_x[0], np.random.default_rng(seed + 7_000_001))
+    x0 = sample_initial(ekf, truth_x[0], np.random.default_rng(seed + START_SEED_OFFSET))
     ekf = TensegrityEKF(model, est_cfg, x0=x0)
     feed = ticked_feed(arrival, ticks, effects)
     return score_run(ekf, fed, sampled_truth(truth_x, truth_R, dt_s), feed=feed)
