@@ -10,11 +10,12 @@ from pathlib import Path
 import gyrohost
 
 ROOT = Path(gyrohost.__file__).parent
-BASE = {"errors", "geometry", "config", "overlay", "resources", "sigint", "parallel"}
+BASE = {"errors", "geometry", "config", "overlay", "resources", "sigint", "parallel", "gcfreeze"}
 ALLOWED = {
     "errors": set(),
     "geometry": set(),
     "sigint": set(),
+    "gcfreeze": set(),
     "parallel": {"errors"},
     "resources": {"errors"},
     "overlay": {"errors"},

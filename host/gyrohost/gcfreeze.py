@@ -6,6 +6,10 @@ run loop that held the 100 Hz ticks for up to six periods: no servo goals for 64
 servos ran to the next goal at their speed limit (docs/run.md). Objects that exist when a loop
 starts live as long as it does, so they are frozen: collections then scan only what the loop
 allocated since.
+
+The collection before the freeze holds the interpreter for its whole length (0.1 s in a run's
+process, half a second in a test session's): a block is entered before any device thread
+starts, or the wheel board's heartbeat waits that long and the board latches its fail-safe.
 """
 
 import gc

@@ -89,7 +89,7 @@ def test_heartbeat_loss_ramps_down_and_latches(board):
         client.check_faults()
     with pytest.raises(wb.DeviceError) as err:
         client.set_speeds([1.0, 0.0, 0.0, 0.0])
-    assert err.value.name == "FAULT_ACTIVE"
+    assert err.value.name == "FAULT_ACTIVE" and str(err.value).endswith("latched: HEARTBEAT_LOST")
     client.heartbeat_period_s = 0.02
     time.sleep(1.05)  # the beater wakes from its 1 s wait and beats every 20 ms again
     assert client.clear_faults(["HEARTBEAT_LOST"]) == ["HEARTBEAT_LOST"]

@@ -6,6 +6,7 @@ import os
 import signal
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -13,8 +14,9 @@ import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
+from gyrohost.gcfreeze import heap_frozen
 from gyrohost.resources import shipped
-from gyrohost.run import RunSettings, ScheduleRefused, run_simulated
+from gyrohost.run import RunSettings, ScheduleRefused, run_simulated, sequence
 from gyrohost.run.log import read_meta, read_stream
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
@@ -59,9 +61,22 @@ def assert_safe_state(folder, result):
     assert kinds.count("safe_state") == 2  # the reason, then what was reached
 
 
-def test_a_run_completes_and_logs_every_stream(tmp_path):
+def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch):
+    threads_at_freeze = []
+
+    @contextmanager
+    def recorded_freeze():
+        threads_at_freeze.append({t.name for t in threading.enumerate()})
+        with heap_frozen():
+            yield
+
+    monkeypatch.setattr(sequence, "heap_frozen", recorded_freeze)
+    before = {t.name for t in threading.enumerate()}
     result, folder = run(tmp_path)
     assert result.completed and result.exit_status == 0, result.reason
+    # the collection before the freeze holds the interpreter: no device thread may be waiting
+    # on it (a wheel-board heartbeat held for HEARTBEAT_MS latches the board's fail-safe)
+    assert threads_at_freeze == [before]
     meta = read_meta(folder)
     for name in INPUT_STREAMS + OUTPUT_STREAMS + RUN_STREAMS:
         assert name in meta["streams"], name

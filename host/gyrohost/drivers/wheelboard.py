@@ -38,14 +38,19 @@ class FirmwareMismatchError(WheelBoardError):
 class DeviceError(WheelBoardError):
     """The board answered a request with an ERROR reply.
 
-    Attributes: ``request`` (message name), ``code`` (number), ``name``, ``text``, ``detail``.
+    Attributes: ``request`` (message name), ``code`` (number), ``name``, ``text``, ``detail``,
+    ``latched`` (the faults the board's latest telemetry reported, named in the message when
+    the refusal is FAULT_ACTIVE: the reply itself does not carry them).
     """
 
-    def __init__(self, request: str, code: int, detail: int):
+    def __init__(self, request: str, code: int, detail: int, latched: Sequence[str] = ()):
         self.request, self.code, self.detail = request, code, detail
         self.name, self.text = wp.error_name(code), wp.error_text(code)
+        self.latched = list(latched)
+        why = f"; latched: {', '.join(self.latched)}" if self.name == "FAULT_ACTIVE" else ""
         super().__init__(
             f"{request} refused by the wheel board: {self.name} ({self.text}), detail {detail}"
+            + why
         )
 
 
@@ -322,7 +327,7 @@ class WheelBoard:
                 continue
             if msg.name == "ERROR" and msg.fields["req_id"] in req_ids:
                 req = wp.BY_ID[msg.fields["req_id"]].name
-                raise DeviceError(req, msg.fields["code"], msg.fields["detail"])
+                raise DeviceError(req, msg.fields["code"], msg.fields["detail"], self.faults)
             if msg.name == "ACK" and msg.fields["req_id"] not in req_ids:
                 continue
             if msg.name in expect:

@@ -460,15 +460,9 @@ def report(args) -> dict:
     config = load_rig_config(args.config)
     with parallel.from_args(args) as executor:
         results = sil_results(
-            config,
-            args.runs,
-            args.duration,
-            args.realtime,
-            args.out,
-            args.score_only,
-            executor,
-            args.estimator,
-        )
+            config, args.runs, args.duration, args.realtime, args.out, args.score_only,
+            executor, args.estimator,
+        )  # fmt: skip
     clock = "real-time rig through the run loop" if args.realtime else "simulated clock"
     print(f"--- SIL ({clock}): {len(results)} runs of the paper's schedule")
     figures = summarise(results, "[sil] ")

@@ -195,11 +195,25 @@ class RigProcess:
 
 def _serve(conn, config, period_s: float) -> None:
     """Child process: build and start the rig, stream the truth, answer requests."""
-    from gyrohost.rig.sim import FaultCommandError, SimulatedRig
+    from gyrohost.rig.sim import SimulatedRig
 
     ignore_interrupts()  # Ctrl-C, SIGTERM, SIGHUP are the parent's: it still needs the rig
     try:
         rig = SimulatedRig(config, clock="real")
+    except Exception as exc:  # reported to the parent, which raises it
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    # the truth's steps are real-time work too; frozen once the rig is built and before its
+    # device threads start, which the collection would hold up
+    with heap_frozen():
+        _start_and_serve(conn, rig, period_s)
+
+
+def _start_and_serve(conn, rig, period_s: float) -> None:
+    """Start the built rig, report ready, then stream its truth and answer requests."""
+    from gyrohost.rig.sim import FaultCommandError
+
+    try:
         t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)
         rig.start()
     except Exception as exc:  # reported to the parent, which raises it
@@ -220,32 +234,31 @@ def _serve(conn, config, period_s: float) -> None:
     )
     next_s = time.monotonic()
     try:
-        with heap_frozen():  # the truth's steps are real-time work too
-            while True:
-                if rig.loop_error is not None:
-                    conn.send(("error", f"the rig loop stopped: {rig.loop_error!r}"))
+        while True:
+            if rig.loop_error is not None:
+                conn.send(("error", f"the rig loop stopped: {rig.loop_error!r}"))
+                return
+            if conn.poll(max(next_s - time.monotonic(), 0.0)):
+                kind, args, kwargs = conn.recv()
+                if kind == "close":
                     return
-                if conn.poll(max(next_s - time.monotonic(), 0.0)):
-                    kind, args, kwargs = conn.recv()
-                    if kind == "close":
-                        return
-                    if kind == "inject":
-                        try:
-                            rig.inject(*args, **kwargs)
-                            conn.send(("injected", {}))
-                        except FaultCommandError as exc:
-                            conn.send(("error", str(exc)))
-                    elif kind == "command":
-                        try:
-                            conn.send(("answer", {"text": rig.command(*args)}))
-                        except FaultCommandError as exc:
-                            conn.send(("error", str(exc)))
-                    elif kind == "stats":
-                        s = rig.stats()
-                        conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
-                    continue
-                next_s += period_s
-                conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
+                if kind == "inject":
+                    try:
+                        rig.inject(*args, **kwargs)
+                        conn.send(("injected", {}))
+                    except FaultCommandError as exc:
+                        conn.send(("error", str(exc)))
+                elif kind == "command":
+                    try:
+                        conn.send(("answer", {"text": rig.command(*args)}))
+                    except FaultCommandError as exc:
+                        conn.send(("error", str(exc)))
+                elif kind == "stats":
+                    s = rig.stats()
+                    conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
+                continue
+            next_s += period_s
+            conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         return
     finally:

@@ -167,8 +167,12 @@ class RunLoop:
         with InterruptsRaised():  # SIGTERM, SIGHUP: as Ctrl-C
             self.log = RunLog(self.log_folder, run_meta(self), self.sinks)
             try:
-                self._open_streams()
-                self._sequence()
+                # frozen before any device thread runs: the collection holds the interpreter
+                # for its whole length (0.1 s in a small process, longer in a big one), and a
+                # wheel board whose heartbeat stops for HEARTBEAT_MS latches its fail-safe
+                with heap_frozen():
+                    self._open_streams()
+                    self._sequence()
                 reason, status = "completed", 0
             except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP
                 reason, status = f"interrupted ({signal_name(exc)})", exit_status(exc)
@@ -238,19 +242,18 @@ class RunLoop:
         self._enter("hold")
         self.servos.configure()
         self._start_readers()
-        with heap_frozen():
-            self._enter("spinup")
-            self._spin_up()
-            self._enter("lead_in")
-            self._start_estimator()
-            self._ticks(self.settings.lead_in_s)
-            self._enter("schedule")
-            self.t_schedule_s = self.now()
-            self._ticks(self.schedule.t_end)
-            self._record_tilts("tilt_end")
-            self._enter("settle")
-            self._ticks(self.settings.settle_s)
-            self._record_tilts("tilt_settled")
+        self._enter("spinup")
+        self._spin_up()
+        self._enter("lead_in")
+        self._start_estimator()
+        self._ticks(self.settings.lead_in_s)
+        self._enter("schedule")
+        self.t_schedule_s = self.now()
+        self._ticks(self.schedule.t_end)
+        self._record_tilts("tilt_end")
+        self._enter("settle")
+        self._ticks(self.settings.settle_s)
+        self._record_tilts("tilt_settled")
 
     def _enter(self, phase: str) -> None:
         self.phase = phase
