@@ -136,7 +136,9 @@ def test_a_full_disk_ends_the_run_in_the_safe_state_and_says_where_the_log_ends(
         rows = read_stream(log, name)
         if len(rows) and "t_s" in rows.dtype.names:
             assert rows["t_s"][-1] <= t_end
-    assert read_stream(log, "loop")["t_s"][-1] > 1.0  # the run got somewhere first
+    # the run logged for a while first: the 400 kB fill about 1 s into the run, in the spin-up
+    # (0.99 to 1.09 s measured: the count of rows a second varies with the machine's load)
+    assert read_stream(log, "loop")["t_s"][-1] > 0.5
 
 
 def _signal_run(tmp_path, signum: int, group: bool, second: bool):
