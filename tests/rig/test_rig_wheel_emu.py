@@ -67,6 +67,17 @@ def test_handshake_setpoints_reached_and_telemetry_rate(board):
     assert client.stats()["bad_crc"] == 0
 
 
+def test_the_longest_silence_to_the_board_is_measured(board):
+    _, client, _ = board
+    time.sleep(0.2)
+    assert 0.0 < client.silence_max_s < 0.25  # a beat every 50 ms
+    client.heartbeat_period_s = 0.3  # the host pauses once
+    time.sleep(0.15)  # the beater has started its 0.3 s wait
+    client.heartbeat_period_s = 0.05
+    time.sleep(0.3)
+    assert 0.29 <= client.silence_max_s < 1.0
+
+
 def test_heartbeat_loss_ramps_down_and_latches(board):
     device, client, events = board
     client.set_param("HEARTBEAT_MS", 100)

@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from gyrohost.commands.run import report
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.gcfreeze import heap_frozen
@@ -61,7 +62,7 @@ def assert_safe_state(folder, result):
     assert kinds.count("safe_state") == 2  # the reason, then what was reached
 
 
-def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch):
+def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch, capsys):
     threads_at_freeze = []
 
     @contextmanager
@@ -77,6 +78,13 @@ def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch):
     # the collection before the freeze holds the interpreter: no device thread may be waiting
     # on it (a wheel-board heartbeat held for HEARTBEAT_MS latches the board's fail-safe)
     assert threads_at_freeze == [before]
+    silence = result.summary["wheel_board_silence_s"]
+    assert 0.0 < silence["max"] < silence["limit"] == 0.5
+    capsys.readouterr()
+    assert report(result) == 0 and "warning" not in capsys.readouterr().err
+    silence["max"] = 0.3  # what gyrotens run says of a host that paused that long
+    report(result)
+    assert "nothing for 300 ms; at 500 ms its fail-safe stops the wheels" in capsys.readouterr().err
     meta = read_meta(folder)
     for name in INPUT_STREAMS + OUTPUT_STREAMS + RUN_STREAMS:
         assert name in meta["streams"], name

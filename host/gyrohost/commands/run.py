@@ -8,6 +8,10 @@ import sys
 import time
 from pathlib import Path
 
+SILENCE_WARNING = 0.5
+"""Share of the wheel board's HEARTBEAT_MS the host may leave it without a frame before
+``gyrotens run`` warns."""
+
 
 def register(sub) -> None:
     p = sub.add_parser("run", help="run a schedule on the rig (hardware, ptys or --sim) and log it")
@@ -299,6 +303,14 @@ def report(result) -> int:
         print(f"mcap: {mcap} (opens in Foxglove)")
     if "loop" in s:  # none if the summary could not be made
         print(jitter_line(s["loop"]))
+    silence = s.get("wheel_board_silence_s")
+    if silence and silence["max"] > SILENCE_WARNING * silence["limit"]:
+        print(
+            f"gyrotens run: warning: the host sent the wheel board nothing for "
+            f"{1e3 * silence['max']:.0f} ms; at {1e3 * silence['limit']:.0f} ms its fail-safe "
+            "stops the wheels (a loaded or stalling host: close other programs)",
+            file=sys.stderr,
+        )
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
         if "tilt_end_truth_rad" in s:

@@ -87,6 +87,12 @@ class WheelBoard:
         Called from the reader thread when fault bits newly appear in telemetry.
     telemetry_queue_len : int
         Capacity of :attr:`telemetry`; when full the oldest sample is dropped.
+
+    Attributes
+    ----------
+    silence_max_s : float, s
+        Longest interval between two frames to the board since the heartbeat started (the
+        board latches HEARTBEAT_LOST after HEARTBEAT_MS without one).
     """
 
     def __init__(
@@ -113,6 +119,8 @@ class WheelBoard:
         self.last_telemetry: wp.Telemetry | None = None
         self.telemetry_dropped = 0
         self.hello: dict[str, int] | None = None
+        self.silence_max_s = 0.0  # longest time without a frame to the board, heartbeat on
+        self._last_sent_s: float | None = None
         self._replies: queue.Queue[wp.Message] = queue.Queue()
         self._write_lock = threading.Lock()
         self._request_lock = threading.Lock()
@@ -140,6 +148,7 @@ class WheelBoard:
                 f"parameters, this host expects {wp.N_WHEELS} and {len(wp.PARAMS)}"
             )
         self.hello = fields
+        self._last_sent_s = time.monotonic()
         self._heartbeat_on.set()
         return fields
 
@@ -288,6 +297,14 @@ class WheelBoard:
         data = wp.encode(name, **fields)
         with self._write_lock:
             self._port.write(data)
+            self._note_sent(time.monotonic())
+
+    def _note_sent(self, now_s: float) -> None:
+        """Any frame restarts the board's HEARTBEAT_MS count: the longest gap between two, once
+        the heartbeat runs, says how near a stalled host came to the board's fail-safe."""
+        if self._heartbeat_on.is_set() and self._last_sent_s is not None:
+            self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
+        self._last_sent_s = now_s
 
     def _drain_replies(self) -> None:
         while True:

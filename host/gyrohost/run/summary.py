@@ -39,6 +39,9 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "duration_s": loop.now(),
     }
     out.update(loop.final)
+    if loop.wheels is not None:  # how near the host's pauses came to the board's fail-safe
+        limit_s = loop.settings.heartbeat_ms / 1e3
+        out["wheel_board_silence_s"] = {"max": loop.wheels.silence_max_s, "limit": limit_s}
     if loop.estimator is not None and loop.estimator.health is not None:  # it ran
         out["estimator"] = {**loop.estimator.health, "lag_s": loop.estimator.lag_table()}
     if loop.maneuver is not None:
