@@ -73,15 +73,21 @@ def test_truth_spins_follow_the_real_firmware_at_715_rpm(binaries):
             # ramp 0.75 s, then settling to +-1 % in about 1.7 s (docs/fil.md)
             settle_s = wait_settled(rig.truth_wheel_speeds, truth_target, 0.01, 0.5, 12.0)
             t1, frames1 = time.monotonic(), rig.stats().telemetry_frames
+            reports = []
             for _ in range(10):  # and stay there, next to the harness's and the firmware's own
                 time.sleep(0.1)
                 rig.check()
                 truth = rig.truth_wheel_speeds()
                 harness = np.asarray(rig.wheels.wheel_speeds_rad_s())
-                reported = np.asarray(board.last_telemetry.omega_rad_s)
+                reports.append(board.last_telemetry.omega_rad_s)
                 assert within(truth, truth_target, 0.01), truth
                 assert within(truth, harness * SPIN_SIGN, 0.01), (truth, harness)
-                assert within(reported, PATTERN_RAD_S, 0.01), reported
+            # one frame is the firmware's speed estimate of one moment (counts over a tick,
+            # low-passed): up to 1.1 % off on a settled wheel in 120 frames; the mean of ten was
+            # within 0.36 % in ten runs
+            reports = np.array(reports)
+            assert within(reports, PATTERN_RAD_S, 0.02), reports
+            assert within(reports.mean(axis=0), PATTERN_RAD_S, 0.01), reports
             rate = (rig.stats().telemetry_frames - frames1) / (time.monotonic() - t1)
             with pytest.raises(FaultCommandError, match="need the emulator"):
                 rig.command("fault wheels corrupt 3")
