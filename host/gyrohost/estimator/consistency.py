@@ -46,15 +46,19 @@ def block_nees(ekf, x_true):
     if L.n_mounting and len(x_true) >= L.mounting.stop:
         blocks.append(("mounting", L.mounting))
     for name, part in blocks:
-        idx = np.arange(part.start, part.stop)
+        idx = _indices(part)
         out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
     return out
 
 
-def _marginal(ekf, x_true, idx, T):
-    e = T.T @ (x_true[idx] - ekf.x[idx])
-    P = T.T @ ekf.P[np.ix_(idx, idx)] @ T
-    return float(e @ np.linalg.solve(P, e)), T.shape[1]
+def _marginal(ekf, x_true, idx, T, x=None, P=None):
+    """NEES of the entries ``idx`` of the estimate (``x``, ``P``; the filter's own when None)
+    in the basis ``T`` (len(idx), d) of their tangent space: (value, d)."""
+    x = ekf.x if x is None else x
+    P = ekf.P if P is None else P
+    e = T.T @ (x_true[idx] - x[idx])
+    P_t = T.T @ P[np.ix_(idx, idx)] @ T
+    return float(e @ np.linalg.solve(P_t, e)), T.shape[1]
 
 
 def average_bounds(dof, runs, probability=0.95):
@@ -98,14 +102,39 @@ def observed_nees(ekf, x, P, x_true):
     dof : int
     """
     L = ekf.layout
-    Tq = null_space(ekf.manifold.jacobian(x)[: ekf.model.beta, L.q])
+    Tq = _position_tangent(ekf, x)
     idx = np.r_[L.q.start : L.q.stop, L.omega.start : L.rest.stop]
     k = L.n_wheels + L.n_strings
     T = np.zeros((len(idx), Tq.shape[1] + k))
     T[: Tq.shape[0], : Tq.shape[1]] = Tq
     T[Tq.shape[0] :, Tq.shape[1] :] = np.eye(k)
-    err = T.T @ (x_true - x)[idx]
-    return float(err @ np.linalg.solve(T.T @ P[np.ix_(idx, idx)] @ T, err)), T.shape[1]
+    return _marginal(ekf, x_true, idx, T, x, P)
+
+
+def observed_blocks(ekf, x_true):
+    """The marginal NEES of each block :func:`observed_nees` adds up, at the present estimate:
+    ``positions`` (the node coordinates in the tangent space of the bar lengths), ``wheels``
+    and ``rest`` (the rest lengths); a dict block name -> (value, dof), as :func:`block_nees`.
+
+    The total is not their sum where the blocks' errors correlate; each says on its own whether
+    that part of the state is conservative (far below its dof) or overconfident (far above).
+    """
+    L = ekf.layout
+    out = {"positions": _marginal(ekf, x_true, _indices(L.q), _position_tangent(ekf, ekf.x))}
+    for name, part in (("wheels", L.omega), ("rest", L.rest)):
+        idx = _indices(part)
+        out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
+    return out
+
+
+def _position_tangent(ekf, x):
+    """An orthonormal basis (3 m, 3 m - beta) of the node coordinates along which every bar
+    keeps its length at ``x``."""
+    return null_space(ekf.manifold.jacobian(x)[: ekf.model.beta, ekf.layout.q])
+
+
+def _indices(part):
+    return np.arange(part.start, part.stop)
 
 
 def state_of_truth(ekf, x, N, omega_rad_s, rest_m):

@@ -46,6 +46,7 @@ from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
 from gyrohost.estimator.consistency import (
     average_bounds,
+    observed_blocks,
     observed_nees,
     sample_initial,
     state_of_truth,
@@ -171,7 +172,7 @@ def score_log(folder, estimator=None, config=None, start_seed=None) -> RunResult
     if start_seed is not None:
         rng = np.random.default_rng(start_seed)
         ekf.start_at(sample_initial(ekf, truth_at(ekf)[0], rng))
-    return score_run(ekf, data, truth_at, partial_nees, blocks_of=None)
+    return score_run(ekf, data, truth_at, partial_nees, blocks_of=observed_blocks)
 
 
 def rig_model_run(

@@ -48,8 +48,8 @@ class RunResult:
     """Per IMU sample of one run: t_s, nees (with nees_dof), tilt_rad, position_m (RMS node
     error of the eta2 coordinates); nis: source -> (times, values, dof); cpu_s: filter CPU time;
     blocks: block -> (values, dof), the marginal NEES of every block of the state
-    (:func:`gyrohost.estimator.consistency.block_nees`; empty where the truth has no
-    velocities)."""
+    (:func:`gyrohost.estimator.consistency.block_nees`), or of what a truth of positions, wheel
+    speeds and rest lengths observes (:func:`~gyrohost.estimator.consistency.observed_blocks`)."""
 
     t_s: np.ndarray
     nees: np.ndarray
@@ -176,17 +176,23 @@ BLOCK_WINDOWS_S = ((0.0, 0.2), (0.2, 1.0), (1.0, 2.0), (2.0, np.inf))
 
 
 def _blocks(results, k, label):
-    """Print the run-averaged marginal NEES of every block over :data:`BLOCK_WINDOWS_S`."""
+    """Print the run-averaged marginal NEES of every block over :data:`BLOCK_WINDOWS_S`, and
+    the share of the steps where it lies below, inside and above its bounds (a block below at
+    most steps is conservative, above overconfident: the total's misses come from those)."""
     out = {}
-    t = results[0].t_s[:k]
+    t, n = results[0].t_s[:k], len(results)
     for name, (_, dof) in results[0].blocks.items():
         avg = np.mean([r.blocks[name][0][:k] for r in results], axis=0)
         windows = [_mean(avg[(t >= a) & (t < b)]) for a, b in BLOCK_WINDOWS_S]
-        out[name] = {"mean": float(np.mean(avg)), "dof": dof, "windows": windows}
+        lo, hi = average_bounds(dof, n)
+        shares = {"below": float(np.mean(avg < lo)), "above": float(np.mean(avg > hi))}
+        shares["inside"] = 1.0 - shares["below"] - shares["above"]
+        out[name] = {"mean": float(np.mean(avg)), "dof": dof, "windows": windows, **shares}
         spans = ", ".join(
             f"{a:g}-{b:g} s {w:.2f}" for (a, b), w in zip(BLOCK_WINDOWS_S, windows, strict=True)
         )
-        print(f"{label}block {name} (dof {dof}): mean {np.mean(avg):.2f}; {spans}")
+        steps = ", ".join(f"{100 * shares[s]:.0f} % {s}" for s in ("below", "inside", "above"))
+        print(f"{label}block {name} (dof {dof}): mean {np.mean(avg):.2f}; {spans}; steps {steps}")
     return out
 
 
