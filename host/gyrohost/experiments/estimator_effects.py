@@ -207,8 +207,9 @@ def score_with_effects(
     if effects.servo_cycle:  # the filter is told each command at its tick
         data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
-    # the real-time rig's noise, these servos' lag, the samples' own times
-    rig_keys = {"servo_lag_s": SERVO_LAG_S, "imu_latency_s": 0.0}
+    # the real-time rig's noise, these servos' lag, the samples' own times (each delay of
+    # this harness is its own and known: no uncertainty about them)
+    rig_keys = {"servo_lag_s": SERVO_LAG_S, "imu_latency_s": 0.0, "imu_time_std_s": 0.0}
     keys = {**noise_from_rig(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
         keys["imu_latency_s"] = MIN_DELAY_S
