@@ -35,9 +35,16 @@ def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
 
     Taken back over the lag, the rest lengths miss the random walk they made since the read
     (``rest_psd_m2_s lag_s``, the walk's variance over the lag): it adds to the read's noise.
+    So does, while a servo moves, its read's offset from the rest length the strings pull with,
+    as a time (``servo_time_std_s``) through the rest length's rate in the model,
+    ``(command - rest) / servo_lag_s``: a servo at rest reads exactly where it holds.
     """
     strings = np.asarray(strings, dtype=int)
     hx, H = predict(ekf, ekf.x, strings, lag_s)
-    c = ekf.config
-    R = np.eye(len(hx)) * (c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s)
+    c, L = ekf.config, ekf.layout
+    rest = ekf.x[L.rest][strings]
+    rate = (np.asarray(ekf.u[: L.n_strings], float)[strings] - rest) / c.servo_lag_s
+    R = np.diag(
+        c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s + (c.servo_time_std_s * rate) ** 2
+    )
     return fuse(ekf, Measurement(SOURCE, np.asarray(lengths_m, float), hx, H, R))[0]

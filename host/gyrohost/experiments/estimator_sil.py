@@ -89,6 +89,7 @@ RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
+    "servo_time_std_s": 0.0,  # no read off the filter's lag to cover, moving or not
     "rest_psd_m2_s": 1e-13,
     "servo_step_std_ratio": 0.0,  # these servos are the filter's lag exactly
     "rest_jitter_psd_m2_s": 4e-10,
