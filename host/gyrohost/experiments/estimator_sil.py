@@ -99,9 +99,8 @@ RIG_MODEL_KEYS = {
     # the board holds one setpoint all run: the spins walk about it rather than follow the
     # command with noise_from_rig's lag, which would make them overconfident
     "wheel_lag_s": 0.0,
-    # the SIL's samples carry their own times: no latency, and no uncertainty about it
-    "imu_latency_s": 0.0,
-    "imu_time_std_s": 0.0,
+    "imu_latency_s": 0.0,  # the SIL's samples carry their own times,
+    "imu_time_std_s": 0.0,  # exactly
 }
 
 
