@@ -106,7 +106,23 @@ def test_a_bad_row_is_skipped_with_a_warning_naming_file_row_and_column(log, tmp
     summary = read_meta(tmp_path / "r")["summary"]
     intact = _replayed(log.with_name("intact"), tmp_path / "intact-replay")
     assert len(summary["warnings"]) == 1 and summary["final_status"] == intact["final_status"]
-    assert summary["compare_live"]["nodes_m"] < intact["compare_live"]["nodes_m"] + 1e-3
+    # one sample less moves the estimate by less than its own 1-sigma, at every row (the
+    # largest move is about 1 mm where the D-bar turns fastest; the sigmas there are larger)
+    assert _largest_move_in_sigmas(tmp_path / "r", tmp_path / "intact-replay") < 1.0
+
+
+def _largest_move_in_sigmas(replay: Path, reference: Path) -> float:
+    """Largest ``|replay - reference| / std`` of any node coordinate at the reference's rows
+    (the replay's estimate as it stood then: its last row at or before)."""
+    a, b = read_stream(replay, "estimate"), read_stream(reference, "estimate")
+    at = np.searchsorted(a["t_s"], b["t_s"], side="right") - 1
+    rows = at >= 0
+    moves = [
+        np.abs(a[c][at[rows]] - b[c][rows]) / b[f"std_{c}"][rows]
+        for c in b.dtype.names
+        if c.startswith("q_")
+    ]
+    return float(np.max(moves))
 
 
 def test_a_log_cut_by_a_power_loss_replays_to_where_it_ends(log, tmp_path, capsys):
