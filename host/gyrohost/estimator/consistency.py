@@ -45,6 +45,13 @@ def block_nees(ekf, x_true):
     blocks = [("wheels", L.omega), ("rest", L.rest), ("bias", L.bias)]
     if L.n_mounting and len(x_true) >= L.mounting.stop:
         blocks.append(("mounting", L.mounting))
+    return {**out, **_entry_blocks(ekf, x_true, blocks)}
+
+
+def _entry_blocks(ekf, x_true, blocks):
+    """The marginal NEES of each ``(name, slice)`` of the state, entry by entry (no tangent
+    space): name -> (value, dof)."""
+    out = {}
     for name, part in blocks:
         idx = _indices(part)
         out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
@@ -121,10 +128,7 @@ def observed_blocks(ekf, x_true):
     """
     L = ekf.layout
     out = {"positions": _marginal(ekf, x_true, _indices(L.q), _position_tangent(ekf, ekf.x))}
-    for name, part in (("wheels", L.omega), ("rest", L.rest)):
-        idx = _indices(part)
-        out[name] = _marginal(ekf, x_true, idx, np.eye(len(idx)))
-    return out
+    return {**out, **_entry_blocks(ekf, x_true, (("wheels", L.omega), ("rest", L.rest)))}
 
 
 def _position_tangent(ekf, x):
