@@ -247,6 +247,11 @@ def imu_keys(rig) -> dict:
     }
 
 
+EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
+"""Keys for IMU samples that carry their own times (in-process runs): no latency, no
+uncertainty about it (:func:`noise_from_rig` sets both for the real-time rig)."""
+
+
 def noise_from_rig(rig) -> dict:
     """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``), with
     the :func:`imu_keys` and the simulated IMU's attachment (``[sim.truth]``).

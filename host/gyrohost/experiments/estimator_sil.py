@@ -44,6 +44,7 @@ import numpy as np
 from gyrohost import parallel
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
+from gyrohost.estimator.config import EXACT_IMU_TIMES
 from gyrohost.estimator.consistency import (
     average_bounds,
     observed_blocks,
@@ -99,8 +100,7 @@ RIG_MODEL_KEYS = {
     # the board holds one setpoint all run: the spins walk about it rather than follow the
     # command with noise_from_rig's lag, which would make them overconfident
     "wheel_lag_s": 0.0,
-    "imu_latency_s": 0.0,  # the SIL's samples carry their own times,
-    "imu_time_std_s": 0.0,  # exactly
+    **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
 
 
