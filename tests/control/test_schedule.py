@@ -27,6 +27,17 @@ def test_round_trip(tmp_path, suffix):
     np.testing.assert_array_equal(back.rest_length, s.rest_length)
 
 
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_the_purpose_round_trips_and_is_left_out_where_it_is_the_default(tmp_path, suffix):
+    s = simple()
+    assert s.purpose == "run" and "purpose" not in s.to_dict()["schedule"]
+    ident = Schedule(s.names, s.t, s.rest_length, "x", purpose="identification")
+    assert load_schedule(ident.save(tmp_path / f"a{suffix}")).purpose == "identification"
+    assert ident.splice(s, 1.0).purpose == "identification"
+    with pytest.raises(ScheduleError, match="purpose 'record' is none of run, identification"):
+        Schedule(s.names, s.t, s.rest_length, "x", purpose="record")
+
+
 def test_evaluation_is_linear_and_held():
     s = simple()
     np.testing.assert_allclose(s(0.5), [0.375, 0.425])
@@ -44,6 +55,7 @@ def test_evaluation_is_linear_and_held():
         (lambda d: d["rest_length_m"].update(s13=[0.4, "x", 0.4]), r"s13\[1\]: must be"),
         (lambda d: d.update(extra=1), r"extra: unknown key"),
         (lambda d: d.pop("schedule"), r"schedule: missing"),
+        (lambda d: d["schedule"].update(purpose="record"), r"schedule\.purpose: must be one"),
     ],
 )
 def test_errors_name_file_and_key(tmp_path, edit, message):
@@ -114,6 +126,8 @@ def test_shipped_schedules(dbar):
     tilt = load_schedule(root / "tilt-0.3rad-4s.toml")
     assert tilt.problems(Limits(max_speed_m_s=0.05)) == []
     tilt.input_at(dbar, 1.0)  # its strings are the scene's
+    assert paper.purpose == tilt.purpose == "run"
+    assert load_schedule(root / "identify.toml").purpose == "identification"
 
 
 def test_limits_from_servo_config():

@@ -13,6 +13,7 @@ from gyrohost.run.health import (
     DIVERGED_REJECTED_IN_A_ROW,
     NisTally,
     TruthScore,
+    fails_run,
     health,
     health_lines,
 )
@@ -81,6 +82,12 @@ def test_nis_per_source_and_rejections_in_a_row_decide_divergence():
     assert table["diverged"] and "imu_rate" in table["why"]
     assert table["nis"]["imu_rate"]["rejected"] == DIVERGED_REJECTED_IN_A_ROW
     assert any("DIVERGED" in line for line in health_lines(table))
+    assert fails_run(table)
+    # an identification run's estimate runs on the scene still to be identified
+    expected = {**table, "required": False}
+    assert not fails_run(expected)
+    (line,) = [line for line in health_lines(expected) if "diverged" in line]
+    assert "imu_rate" in line and "expected on an identification run" in line
     tally.add(_innovation("imu_rate", True))
     assert not health(tally, None)["diverged"]  # fusing again
 

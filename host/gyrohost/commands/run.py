@@ -266,7 +266,7 @@ def _run(args) -> int:
         progress.close()
         if "live" in options:
             options["live"].close()  # also when the run never started
-    return report(result)
+    return report(result, args.config)
 
 
 def _live_view(config, port: int):
@@ -290,10 +290,11 @@ def _run_name(schedule) -> str:
     return f"tilt{target.tilt_rad:+g}-{'closed' if target.closed_loop else 'open'}"
 
 
-def report(result) -> int:
-    """Print how a run ended and where its log is; returns its exit status."""
+def report(result, config: str = "sim-rig") -> int:
+    """Print how a run ended and where its log is (an identification run: the command that
+    fits it, with the rig configuration ``config``); returns its exit status."""
     from gyrohost.run import jitter_line
-    from gyrohost.run.health import health_lines
+    from gyrohost.run.health import fails_run, health_lines
     from gyrohost.run.safe_state import describe, failed_steps
 
     s = result.summary
@@ -326,11 +327,13 @@ def report(result) -> int:
         print(f"gyrotens run: safe state: {line}", file=sys.stderr)
     if result.exit_status == 0:
         print(f"run completed; rig in the safe state: {describe(safe)}")
+        if s.get("schedule_purpose") == "identification":
+            print(f"next: gyrotens identify {result.log_folder} -o ident.toml --config {config}")
         return 0
     if result.completed:  # the schedule ran to its end, the log or the estimate did not
         what = (
             "the estimate diverged"
-            if s.get("estimator", {}).get("diverged")
+            if fails_run(s.get("estimator", {}))
             else "the log is incomplete"
         )
         print(f"gyrotens run: completed, but {what}", file=sys.stderr)

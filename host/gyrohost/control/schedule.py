@@ -11,6 +11,7 @@ File format (TOML, or the same keys in JSON; ``docs/schedule.md``)::
     [schedule]
     name = "paper"
     t_s = [0.0, 0.1, ...]            # strictly increasing, s
+    purpose = "identification"       # optional: "run" (the default) or "identification"
 
     [rest_length_m]                  # one array per actuated string, same length as t_s, m
     s13 = [0.431, 0.421, ...]
@@ -31,6 +32,11 @@ import numpy as np
 from gyrotensegrity.textfile import TextFileError, read_text
 
 from .errors import ScheduleError
+
+PURPOSES = ("run", "identification")
+"""What a schedule is for. An ``identification`` schedule records the data ``gyrotens identify``
+fits, on a rig whose parameters are not yet known: its run's estimate, on the scene still to be
+identified, may diverge without failing the run (docs/schedule.md)."""
 
 
 @dataclass(frozen=True)
@@ -120,6 +126,8 @@ class Schedule:
         Scene names of the bars whose wheels the schedule spins (none: the scene's spins).
     wheel_speed : ndarray, shape (k, w), rad/s
         Commanded spin of each of those wheels, about +b of its bar.
+    purpose : str
+        One of :data:`PURPOSES`.
     """
 
     names: tuple
@@ -128,6 +136,7 @@ class Schedule:
     name: str = "schedule"
     wheels: tuple = ()
     wheel_speed: np.ndarray | None = None
+    purpose: str = "run"
 
     def __post_init__(self):
         t = np.asarray(self.t, float)
@@ -139,6 +148,10 @@ class Schedule:
         w = np.zeros((t.size, 0)) if self.wheel_speed is None else self.wheel_speed
         object.__setattr__(self, "wheel_speed", np.asarray(w, float))
         where = f"schedule {self.name}"
+        if self.purpose not in PURPOSES:
+            raise ScheduleError(
+                f"{where}: purpose {self.purpose!r} is none of {', '.join(PURPOSES)}"
+            )
         if t.ndim != 1 or t.size == 0:
             raise ScheduleError(f"{where}: t must be a non-empty 1-D array")
         if v.shape != (t.size, len(self.names)):
@@ -273,12 +286,12 @@ class Schedule:
         t = np.concatenate([self.t[head], [t_s], other.t[tail]])
         v = np.vstack([self.rest_length[head], here, other.rest_length[tail]])
         w = np.vstack([self.wheel_speed[head], self.wheel_speeds(t_s), other.wheel_speed[tail]])
-        return Schedule(self.names, t, v, self.name, self.wheels, w)
+        return Schedule(self.names, t, v, self.name, self.wheels, w, self.purpose)
 
     def to_dict(self) -> dict:
         """Plain data in the file layout (see the module docstring)."""
         out = {
-            "schedule": {"name": self.name, "t_s": self.t.tolist()},
+            "schedule": {"name": self.name, "t_s": self.t.tolist(), **self._purpose_key()},
             "rest_length_m": {n: self.rest_length[:, i].tolist() for i, n in enumerate(self.names)},
         }
         if self.wheels:
@@ -286,6 +299,10 @@ class Schedule:
                 n: self.wheel_speed[:, i].tolist() for i, n in enumerate(self.wheels)
             }
         return out
+
+    def _purpose_key(self) -> dict:
+        """The file's ``purpose`` key, left out where it is the default."""
+        return {} if self.purpose == PURPOSES[0] else {"purpose": self.purpose}
 
     def save(self, path) -> Path:
         """Write ``.toml`` or ``.json`` (by suffix); returns the path."""
@@ -304,7 +321,8 @@ class Schedule:
         def arr(x):
             return "[" + ", ".join(repr(float(v)) for v in x) + "]"
 
-        lines = ["[schedule]", f"name = {json.dumps(self.name)}", f"t_s = {arr(self.t)}", ""]
+        lines = ["[schedule]", f"name = {json.dumps(self.name)}", f"t_s = {arr(self.t)}"]
+        lines += [f"{k} = {json.dumps(v)}" for k, v in self._purpose_key().items()] + [""]
         lines.append("[rest_length_m]")
         lines += [f"{n} = {arr(self.rest_length[:, i])}" for i, n in enumerate(self.names)]
         if self.wheels:
@@ -328,11 +346,14 @@ def schedule_from_dict(data: dict, source: str = "<schedule>") -> Schedule:
     if not isinstance(head, dict):
         fail("schedule", "missing table")
     for key in head:
-        if key not in ("name", "t_s"):
-            fail(f"schedule.{key}", "unknown key (allowed: name, t_s)")
+        if key not in ("name", "t_s", "purpose"):
+            fail(f"schedule.{key}", "unknown key (allowed: name, t_s, purpose)")
     name = head.get("name", Path(source).stem)
     if not isinstance(name, str):
         fail("schedule.name", "must be a string")
+    purpose = head.get("purpose", PURPOSES[0])
+    if purpose not in PURPOSES:
+        fail("schedule.purpose", f"must be one of {', '.join(PURPOSES)}, got {purpose!r}")
     t = _numbers(head.get("t_s"), "schedule.t_s", fail)
     wheels = data.get("wheel_speed_rad_s", {})
     if not isinstance(wheels, dict):
@@ -349,7 +370,13 @@ def schedule_from_dict(data: dict, source: str = "<schedule>") -> Schedule:
     if bad.size:
         fail(f"schedule.t_s[{bad[0] + 1}]", "times must increase strictly")
     return Schedule(
-        tuple(strings), t, _stack(cols, t.size), name, tuple(wheels), _stack(speeds, t.size)
+        tuple(strings),
+        t,
+        _stack(cols, t.size),
+        name,
+        tuple(wheels),
+        _stack(speeds, t.size),
+        purpose,
     )
 
 

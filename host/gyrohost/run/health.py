@@ -6,7 +6,8 @@ the NEES against its truth; a diverged estimate fails the run.
 tick nearest to it (:func:`gyrohost.estimator.consistency.observed_nees`: node coordinates on
 the constraint manifold, wheel speeds and rest lengths). The summary's ``estimator`` table
 (:func:`health`) gives each mean with the two-sided 95 % chi-square bounds of a mean over that
-many samples (as if independent: a guide, not a test) and says whether the estimate diverged.
+many samples (as if independent: a guide, not a test) and says whether the estimate diverged;
+the run adds whether it was ``required`` to hold (:func:`fails_run`).
 """
 
 from collections import deque
@@ -137,6 +138,13 @@ def health(nis: NisTally | None, truth: TruthScore | None) -> dict:
     return out
 
 
+def fails_run(table: dict) -> bool:
+    """Whether the summary's ``estimator`` table fails the run: diverged where the run required
+    the estimate to hold (every run but an identification run, whose scene is the one still to
+    be identified)."""
+    return bool(table.get("diverged")) and table.get("required", True)
+
+
 def health_lines(table: dict) -> list[str]:
     """Printable lines of a :func:`health` table."""
 
@@ -167,6 +175,11 @@ def health_lines(table: dict) -> list[str]:
             f"estimator: {table['not_fused_behind']} samples not fused, to catch up with real "
             "time (the host was too slow)"
         )
-    if table.get("diverged"):
+    if fails_run(table):
         lines.append(f"estimator DIVERGED: {table['why']}")
+    elif table.get("diverged"):
+        lines.append(
+            f"estimator diverged: {table['why']} (expected on an identification run: the scene "
+            "is the one still to be identified; the log is what gyrotens identify fits)"
+        )
     return lines

@@ -47,6 +47,7 @@ from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import RunError
 from gyrohost.run.estimation import EstimatorProcess, start_state
+from gyrohost.run.health import fails_run
 from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
@@ -184,7 +185,7 @@ class RunLoop:
                 summary = self._end(reason)
         if self.log.failure is not None and status == 0:
             status = 1  # the run completed, its log did not
-        if summary.get("estimator", {}).get("diverged") and status == 0:
+        if fails_run(summary.get("estimator", {})) and status == 0:
             status = 1  # the run completed, its estimate did not hold
         return RunResult(reason == "completed", reason, status, self.log_folder, summary)
 

@@ -37,13 +37,19 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "not_fused": loop.dispatcher.skipped,
         "servo_comm_retries": getattr(loop.servo_worker, "comm_errors_total", 0),
         "duration_s": loop.now(),
+        "schedule_purpose": loop.schedule.purpose,
     }
     out.update(loop.final)
     if loop.wheels is not None:  # how near the host's pauses came to the board's fail-safe
         limit_s = loop.settings.heartbeat_ms / 1e3
         out["wheel_board_silence_s"] = {"max": loop.wheels.silence_max_s, "limit": limit_s}
     if loop.estimator is not None and loop.estimator.health is not None:  # it ran
-        out["estimator"] = {**loop.estimator.health, "lag_s": loop.estimator.lag_table()}
+        out["estimator"] = {
+            **loop.estimator.health,
+            "lag_s": loop.estimator.lag_table(),
+            # an identification run's scene is the one still to be identified
+            "required": loop.schedule.purpose != "identification",
+        }
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
         target = loop.maneuver.target.tilt_rad
