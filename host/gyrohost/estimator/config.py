@@ -15,8 +15,11 @@ from gyrotensegrity.textfile import read_toml
 from .errors import EstimatorConfigError
 
 _DEG = math.pi / 180.0
-SPEED_FILTER_S = 0.008
-"""Time constant of the wheel firmware's speed low-pass (1 ms ticks, SPEED_FILTER_SHIFT 3), s."""
+SPEED_FILTER_DELAY_S = 0.007
+"""How far the wheel board's reported speed trails the wheel's own while it changes steadily, s:
+the firmware's low-pass ``y += (x - y) / 2^shift`` per 1 ms tick trails a ramp by
+``(2^shift - 1)`` ticks (SPEED_FILTER_SHIFT 3). The emulator's encoder delta is its tick's own
+speed; a real encoder's is the last tick's mean, half a tick (0.5 ms) more."""
 
 
 def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:
@@ -85,9 +88,19 @@ class EstimatorConfig:
     # at most at the board's ramp rate (ACCEL_RAD_S2); 0: the speeds are held (the model's input)
     wheel_lag_s: float = field(default=0.0, metadata=_pos("wheel response time", 0.0, 10.0))
     wheel_accel_rad_s2: float = field(default=100.0, metadata=_pos("wheel ramp rate", 1e-3))
+    # the board reports its speed through a low-pass, which trails a changing speed by this
+    # much: a telemetry sample reads omega - wheel_filter_s d omega/dt (the wheel states are the
+    # wheels' own speeds, which drive the structure), s
+    wheel_filter_s: float = field(default=0.0, metadata=_pos("wheel speed filter delay", 0.0, 1.0))
     # from a wheel command's time stamp to when the wheels are seen to follow it (the command's
     # way to the board, the telemetry's way back), s
     wheel_delay_s: float = field(default=0.0, metadata=_pos("wheel command delay", 0.0, 1.0))
+    # how far the time the board acts on a command may be off the command's stamp plus
+    # wheel_delay_s: while a wheel changes speed its state walks so that its spread reaches
+    # (wheel_command_time_std_s d omega/dt)^2, s
+    wheel_command_time_std_s: float = field(
+        default=0.0, metadata=_pos("wheel command time std", 0.0, 0.1)
+    )
     # how far a telemetry frame's arrival stamp may be off its sample time: adds
     # (d omega/dt)^2 wheel_time_std_s^2 to the wheel noise while the wheels change speed, s
     wheel_time_std_s: float = field(default=0.0, metadata=_pos("wheel stamp std", 0.0, 0.1))
@@ -322,15 +335,19 @@ def noise_from_rig(rig) -> dict:
         # (less walk: the block's NEES falls towards 0, more: the NIS falls below its bounds)
         "wheel_accel_psd_rad2_s3": 1.0e-3,
         # the emulated motors follow the board's ramped setpoint with their lag, and the
-        # reported speed trails the true one by the firmware's low-pass (1 ms x
-        # 2^SPEED_FILTER_SHIFT = 8 ms): in a ramp the two lags add
-        "wheel_lag_s": rig.sim.wheels.time_constant_s + SPEED_FILTER_S,
+        # reported speed trails theirs by the firmware's low-pass
+        "wheel_lag_s": rig.sim.wheels.time_constant_s,
+        "wheel_filter_s": SPEED_FILTER_DELAY_S,
         # with the loop on time the telemetry of a speed step starts when the lags alone say:
         # a delay of 20 ms (what a late loop showed) puts the model behind the board through
         # every ramp (docs/estimator.md, "Wheel commands")
         "wheel_delay_s": 0.0,
         # ... and its frames arrive with a jitter of about 10 ms (stamped on arrival)
         "wheel_time_std_s": 0.01,
+        # the truth spins its wheels at the board's speeds of its 5 ms step's end: in a speed
+        # step the wheels act on a command at a time uniform over the step (dt / sqrt(12), as
+        # the servos' reads)
+        "wheel_command_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
         "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
     }

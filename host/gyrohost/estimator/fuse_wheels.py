@@ -1,4 +1,9 @@
-"""Wheel speeds from the wheel board: ``z = omega_w + v`` (rad/s, one per wheel, about ``+b``).
+"""Wheel speeds from the wheel board: ``z = omega_w - tau_f d omega_w/dt + v`` (rad/s, one per
+wheel, about ``+b``).
+
+The board reports its speed through a low-pass that trails a changing speed by ``tau_f``
+(``wheel_filter_s``); the states are the wheels' own speeds, whose rate the process model gives
+(linear in them: ``wheel_acceleration_slope``).
 
 The telemetry's noise ``v`` is the encoder's quantisation through the firmware's low-pass: from
 one sample to the next it is anticorrelated, so averaging cancels it faster than white noise of
@@ -44,13 +49,15 @@ def truncation(omega_rad_s, config):
 
 
 def predict(ekf, x):
-    """Predicted wheel speeds (n_w,) rad/s (less the telemetry's truncation, :func:`truncation`)
-    and the Jacobian (n_w, n)."""
-    L = ekf.layout
-    offset, slope = truncation(x[L.omega], ekf.config)
+    """Predicted wheel speeds (n_w,) rad/s as the board reports them (through its low-pass, less
+    the telemetry's truncation, :func:`truncation`) and the Jacobian (n_w, n)."""
+    L, tau_f = ekf.layout, ekf.config.wheel_filter_s
+    rate = ekf.process.wheel_acceleration(x[None, L.omega], ekf.u)[0]
+    reported = x[L.omega] - tau_f * rate
+    offset, slope = truncation(reported, ekf.config)
     H = np.zeros((L.n_wheels, L.size))
-    H[:, L.omega] = np.diag(1.0 + slope)
-    hx = x[L.omega] + offset
+    H[:, L.omega] = np.diag((1.0 + slope) * (1.0 - tau_f * ekf.process.wheel_acceleration_slope()))
+    hx = reported + offset
     if L.n_wheel_noise:
         theta = ekf.config.wheel_noise_ma1
         H[:, L.wheel_noise] = theta * np.eye(L.n_wheels)

@@ -169,6 +169,13 @@ class ProcessModel:
             return np.broadcast_to(self.dyn.wheel_acceleration(u), omega.shape)
         return (target - omega) / lag
 
+    def wheel_acceleration_slope(self) -> float:
+        """d(wheel acceleration)/d omega of each wheel, 1/s: ``-1 / wheel_lag_s`` where the wheels
+        follow commands, else 0 (the model's spin accelerations do not depend on the spins)."""
+        if self.wheel_target_rad_s is None or self.config.wheel_lag_s == 0.0:
+            return 0.0
+        return -1.0 / self.config.wheel_lag_s
+
     def mean_force_rest(self, q, q_dot, rest):
         """Rest lengths (K, alpha) m at which every string pulls with its expected force under
         the rest-length jitter (per step ``N(0, s^2)``, ``s^2 = rest_jitter_psd_m2_s /
@@ -251,8 +258,7 @@ class ProcessModel:
         A[L.q, L.q_dot] = np.eye(3 * m)
         A[L.q_dot] = J
         A[L.rest, L.rest] = -np.eye(L.n_strings) / self.config.servo_lag_s
-        if self.wheel_target_rad_s is not None and self.config.wheel_lag_s > 0.0:
-            A[L.omega, L.omega] = -np.eye(L.n_wheels) / self.config.wheel_lag_s
+        A[L.omega, L.omega] = self.wheel_acceleration_slope() * np.eye(L.n_wheels)
         f = np.empty(nd)
         f[L.q] = x[L.q_dot]
         f[L.q_dot] = z_ddot.ravel()
@@ -367,9 +373,13 @@ class ProcessModel:
         Q = self._white_noise(dt)
         steps = self.rest_step_psd_m2_s.any()
         jitter = F is not None and x is not None and self.config.rest_jitter_psd_m2_s > 0.0
-        if not (steps or jitter):
+        timing = None if x is None else self.wheel_timing_psd(x)
+        if not (steps or jitter or timing is not None):
             return Q
         Q = Q.copy()
+        if timing is not None:
+            w = np.arange(self.layout.omega.start, self.layout.omega.stop)
+            Q[w, w] += timing * dt
         if steps:
             r = np.arange(self.layout.rest.start, self.layout.rest.stop)
             Q[r, r] += self.rest_step_psd_m2_s * dt
@@ -377,6 +387,22 @@ class ProcessModel:
             n = self.layout.q_dot.stop
             Q[:n, :n] += self.jitter_noise(dt, F, x)
         return Q
+
+    def wheel_timing_psd(self, x):
+        """Walk density (n_w,) rad^2/s^3 of the wheel speeds at the state ``x`` (n,) for the
+        uncertain time at which the board acts on its commands, or None (no such key, or the
+        wheels not commanded).
+
+        A wheel that follows its setpoint ``omega_dot = (target - omega) / lag`` and acts on it
+        ``delta`` late is ``delta omega_dot`` off; a walk of density ``2 (std omega_dot)^2 / lag``
+        through the lag spreads it by ``(std omega_dot)^2``, with ``std`` =
+        ``wheel_command_time_std_s``.
+        """
+        std, lag = self.config.wheel_command_time_std_s, self.config.wheel_lag_s
+        if std == 0.0 or lag == 0.0 or self.wheel_target_rad_s is None:
+            return None
+        rate = (self.wheel_target_rad_s - x[self.layout.omega]) / lag
+        return 2.0 * (std * rate) ** 2 / lag
 
     def jitter_noise(self, dt, F, x):
         """Node-motion covariance (6 m, 6 m) of a rest-length jitter through tension-only strings.
