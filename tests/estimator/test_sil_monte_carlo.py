@@ -82,7 +82,7 @@ def test_late_command_wait_is_the_mean_wait_for_the_truths_next_step():
 
 
 def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():
-    from gyrohost.estimator.process_model import kink_weight
+    from gyrohost.estimator.kink import kink_weight
 
     z = np.random.default_rng(0).standard_normal(400_000)
     for a in (-2.0, -0.7, 0.0, 0.5, 1.5, 4.0):
@@ -95,8 +95,9 @@ def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(mod
     from dataclasses import replace
 
     from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.kink import kink_weight
     from gyrohost.estimator.layout import from_model_state, layout_of
-    from gyrohost.estimator.process_model import ProcessModel, kink_weight
+    from gyrohost.estimator.process_model import ProcessModel
 
     q, dt = 2e-10, 0.01
     pm = ProcessModel(model, replace(EstimatorConfig(), rest_jitter_psd_m2_s=q))

@@ -8,12 +8,9 @@ import numpy as np
 from gyrohost.estimator import EstimatorConfig
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.estimator.imu_prediction import predict_imu
+from gyrohost.estimator.kink import expected_positive_part, kink_weight
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.estimator.process_model import (
-    ProcessModel,
-    expected_positive_part,
-    kink_weight,
-)
+from gyrohost.estimator.process_model import ProcessModel
 from gyrohost.geometry import euler_zyx
 
 

@@ -1,0 +1,155 @@
+"""The process model's discrete noise covariance: white node accelerations, random walks of
+the wheel speeds, rest lengths and gyro bias, the servos' goal steps, the board's command
+timing while the wheels change speed, and the rest-length jitter through the string kinks.
+A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provides ``layout``,
+``config``, ``dyn``, ``wheel_target_rad_s``, ``rest_step_psd_m2_s`` and the ``_noise`` cache.
+"""
+
+import numpy as np
+
+from . import complex_step
+from .kink import expected_positive_part, kink_weight
+
+
+class ProcessNoise:
+    """Discrete process noise of :class:`~gyrohost.estimator.process_model.ProcessModel`."""
+
+    def noise(self, dt, F=None, x=None):
+        """Discrete process noise covariance over ``dt`` s, shape (n, n).
+
+        White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
+        (integrated exactly into positions and velocities), random walks of the wheel speeds,
+        rest lengths (``rest_psd_m2_s`` and the servos' last goal step's,
+        :meth:`goal_stepped`) and the gyro bias; with the step's Jacobian ``F`` (n, n) and the state
+        ``x`` (n,) it linearises about, also white noise of density ``rest_jitter_psd_m2_s`` on
+        the rest lengths the string forces see, through the kink of each string
+        (:meth:`jitter_noise`).
+        """
+        Q = self._white_noise(dt)
+        steps = self.rest_step_psd_m2_s.any()
+        jitter = F is not None and x is not None and self.config.rest_jitter_psd_m2_s > 0.0
+        timing = None if x is None else self.wheel_timing_psd(x)
+        if not (steps or jitter or timing is not None):
+            return Q
+        Q = Q.copy()
+        if timing is not None:
+            w = np.arange(self.layout.omega.start, self.layout.omega.stop)
+            Q[w, w] += timing * dt
+        if steps:
+            r = np.arange(self.layout.rest.start, self.layout.rest.stop)
+            Q[r, r] += self.rest_step_psd_m2_s * dt
+        if jitter:
+            n = self.layout.q_dot.stop
+            Q[:n, :n] += self.jitter_noise(dt, F, x)
+        return Q
+
+    def wheel_timing_psd(self, x):
+        """Walk density (n_w,) rad^2/s^3 of the wheel speeds at the state ``x`` (n,) for the
+        uncertain time at which the board acts on its commands, or None (no such key, or the
+        wheels not commanded).
+
+        A wheel that follows its setpoint ``omega_dot = (target - omega) / lag`` and acts on it
+        ``delta`` late is ``delta omega_dot`` off; a walk of density ``2 (std omega_dot)^2 / lag``
+        through the lag spreads it by ``(std omega_dot)^2``, with ``std`` =
+        ``wheel_command_time_std_s``.
+        """
+        std, lag = self.config.wheel_command_time_std_s, self.config.wheel_lag_s
+        if std == 0.0 or lag == 0.0 or self.wheel_target_rad_s is None:
+            return None
+        rate = (self.wheel_target_rad_s - x[self.layout.omega]) / lag
+        return 2.0 * (std * rate) ** 2 / lag
+
+    def jitter_noise(self, dt, F, x):
+        """Node-motion covariance (6 m, 6 m) of a rest-length jitter through tension-only strings.
+
+        The string forces see rest lengths ``rest + d``, ``d`` white with density ``q`` =
+        ``rest_jitter_psd_m2_s`` (per step ``d ~ N(0, s^2)``, ``s^2 = q / dt``). String i is taut
+        while ``d < mu_i``, ``mu_i = min(stretch, stretch + c/k d(length)/dt)`` (tension margin
+        as a length): the jitter's force error against the filter's prediction (which takes
+        ``d = 0``) is ``k (max(mu - d, 0) - max(mu, 0))``, whose mean square is ``k^2 s^2
+        w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2 at the kink, 1 well taut). It acts
+        along the string as if taut: ``Q = (q / dt) sum_i w_i G_i G_i^T`` with ``G_i`` the
+        step's response to the taut string's ``d acceleration / d rest_i`` (:meth:`taut_columns`).
+        A slack string at the linearisation point thus still gets the noise of its re-engaging.
+        """
+        q = self.config.rest_jitter_psd_m2_s
+        G, margin = self.taut_columns(dt, F, x)
+        a = margin / np.sqrt(q / dt)
+        w = kink_weight(a)
+        if self.config.kink_model == "mean":  # the prediction carries the mean already
+            w = w - (expected_positive_part(a) - np.maximum(a, 0.0)) ** 2
+        return (q / dt) * (G * w) @ G.T
+
+    def taut_columns(self, dt, F, x):
+        """Response of the node motion over a step to every rest length, each string as if taut.
+
+        Returns
+        -------
+        G : ndarray, shape (6 m, alpha)
+            ``dt/2 (b_i + F b_i)`` (trapezoid rule for the integral of the step's transition
+            over the step), ``b_i`` = (0, d eta2_ddot / d rest_i) of string i held taut, m/m
+            and (m/s)/m.
+        margin : ndarray, shape (alpha,), m
+            Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
+        """
+        L, dyn = self.layout, self.dyn
+        s, s_dot = self.string_lengths(x)
+        rest = x[L.rest]
+        margin = np.minimum(s - rest, s - rest + dyn.c_s / dyn.k_s * s_dot)
+        # the string force is affine in its rest length while taut (slope -k along the string)
+        # and the accelerations are affine in the string forces: any taut point gives the
+        # column; 1 mm of margin keeps every string taut whatever its state
+        taut_rest = rest - np.maximum(-margin, 0.0) - 1e-3
+        a = self._rest_columns(x, taut_rest)
+        n = L.q_dot.stop
+        G = F[:n, L.q_dot] @ a
+        G[L.q_dot] += a
+        return 0.5 * dt * G, margin
+
+    def _rest_columns(self, x, rest):
+        """``d eta2_ddot / d rest`` (3 m, alpha) at the state ``x`` with rest lengths ``rest``:
+        in closed form (one evaluation: a column depends on its own string only) or by the
+        complex step."""
+        L, m, alpha = self.layout, self.layout.m, self.layout.n_strings
+        if self.jac is not None:
+            q, q_dot = x[L.q].reshape(3, m), x[L.q_dot].reshape(3, m)
+            return self.jac(q, q_dot, x[L.omega], rest)[1][:, L.rest]
+        X = np.tile(x[: L.n_dynamic].astype(complex), (alpha, 1))
+        X[:, L.rest] = rest
+        X[np.arange(alpha), L.rest.start + np.arange(alpha)] += 1j * complex_step.STEP
+        a, _ = self.dyn.accelerations(
+            X[:, L.q].reshape(alpha, 3, m),
+            X[:, L.q_dot].reshape(alpha, 3, m),
+            X[:, L.omega],
+            X[:, L.rest],
+        )
+        return a.reshape(alpha, 3 * m).imag.T / complex_step.STEP
+
+    def string_lengths(self, x):
+        """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""
+        L, dyn = self.layout, self.dyn
+        # bar and string vectors are EE_T(q) + off (bars first); keep the strings
+        Y = (dyn.EE_T(x[L.q].reshape(3, L.m)) + dyn.off)[:, dyn.beta :]
+        Y_dot = dyn.EE_T(x[L.q_dot].reshape(3, L.m))[:, dyn.beta :]
+        s = np.sqrt((Y * Y).sum(axis=0))
+        return s, (Y * Y_dot).sum(axis=0) / s
+
+    def _white_noise(self, dt):
+        if dt in self._noise:
+            return self._noise[dt]
+        L, c = self.layout, self.config
+        Q = np.zeros((L.size, L.size))
+        i, j = np.arange(L.q.start, L.q.stop), np.arange(L.q_dot.start, L.q_dot.stop)
+        qa = c.accel_psd_m2_s3
+        Q[i, i] = qa * dt**3 / 3.0
+        Q[i, j] = Q[j, i] = qa * dt**2 / 2.0
+        Q[j, j] = qa * dt
+        w = np.arange(L.omega.start, L.omega.stop)
+        Q[w, w] = c.wheel_accel_psd_rad2_s3 * dt
+        r = np.arange(L.rest.start, L.rest.stop)
+        Q[r, r] = c.rest_psd_m2_s * dt
+        b = np.arange(L.bias.start, L.bias.stop)
+        Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
+        if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
+            self._noise[dt] = Q
+        return Q
