@@ -104,6 +104,9 @@ class EstimatorConfig:
     # how far a telemetry frame's arrival stamp may be off its sample time: adds
     # (d omega/dt)^2 wheel_time_std_s^2 to the wheel noise while the wheels change speed, s
     wheel_time_std_s: float = field(default=0.0, metadata=_pos("wheel stamp std", 0.0, 0.1))
+    # when the wheel board's samples were taken: "device", its own clock (t_us) put on the
+    # host's (driver.DeviceClock); "arrival", as the host stamped them
+    wheel_times: str = field(default="device", metadata={"choices": ("device", "arrival")})
     # the wheel board's wire resolution (SET_SPEEDS and telemetry in integer mrad/s): the board
     # spins to each command rounded to it, and its telemetry truncates towards zero (a reading
     # low in magnitude by half of it on average); 0: both exact, rad/s
@@ -342,8 +345,10 @@ def noise_from_rig(rig) -> dict:
         # a delay of 20 ms (what a late loop showed) puts the model behind the board through
         # every ramp (docs/estimator.md, "Wheel commands")
         "wheel_delay_s": 0.0,
-        # ... and its frames arrive with a jitter of about 10 ms (stamped on arrival)
-        "wheel_time_std_s": 0.01,
+        # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
+        # time (wheel_times "device"), exact to the link's shortest delay: no stamp noise
+        # (10 ms while they were fused at arrival, docs/estimator.md)
+        "wheel_time_std_s": 0.0,
         # the truth spins its wheels at the board's speeds of its 5 ms step's end: in a speed
         # step the wheels act on a command at a time uniform over the step (dt / sqrt(12), as
         # the servos' reads)

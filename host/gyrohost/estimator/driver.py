@@ -2,7 +2,8 @@
 
 The IMU's sample times are reconstructed from its arrival stamps by :class:`RegularClock`
 (online, ``gyrohost.run.dispatch``) or :func:`regular_times` (a logged stream, before it is
-handed here). Samples of all streams are merged by time; at equal
+handed here); the wheel board's from its own clock by :class:`DeviceClock` (:func:`wheel_times`
+for a logged stream). Samples of all streams are merged by time; at equal
 times commands come first, then the IMU, the wheels and the servos (a fixed order, so a replay
 is deterministic). Before each sample the filter predicts to its time; a gap longer than
 ``process_dt_s`` is bridged in prediction steps, each reported like a sample (this is where
@@ -91,6 +92,58 @@ def regular_times(arrival_s, period_s, max_delay_s):
     """
     clock = RegularClock(period_s, max_delay_s)
     return np.array([clock(a) for a in np.asarray(arrival_s, dtype=float)])
+
+
+class DeviceClock:
+    """Sample times on the host's clock of a device that stamps its samples with its own (the
+    wheel board's ``t_us``: microseconds, 32 bits), one sample at a time (online;
+    :func:`device_times` for a whole stream).
+
+    The time is the device's plus an offset, the smallest ``arrival - device`` of the last
+    :attr:`WINDOW` samples: a sample never arrives before it was taken, and the fastest of many
+    shows the link's shortest delay (the window follows the two crystals' drift, 1e-4 at most:
+    0.2 ms over it). Arrival stamps alone carry the link's and the reader's jitter, 0-11 ms on
+    the simulated rig, which in a speed ramp reads as 1 rad/s. A device clock that wraps is
+    unwrapped; one that steps back (the board reset) starts the window again.
+    """
+
+    WINDOW = 100
+    """Samples over which the smallest delay is taken (2 s of 50 Hz telemetry)."""
+    WRAP_US = 1 << 32
+
+    def __init__(self):
+        self._recent: deque = deque(maxlen=self.WINDOW)
+        self._last_us: int | None = None
+        self._wraps = 0
+
+    def __call__(self, arrival_s: float, device_us) -> float:
+        """The host time, s, of the sample stamped ``device_us`` that arrived at ``arrival_s``."""
+        d = int(device_us)
+        if self._last_us is not None and d < self._last_us:
+            if self._last_us - d > self.WRAP_US // 2:
+                self._wraps += 1
+            else:  # the device restarted its clock
+                self._recent.clear()
+                self._wraps = 0
+        self._last_us = d
+        device_s = (d + self._wraps * self.WRAP_US) * 1e-6
+        self._recent.append(float(arrival_s) - device_s)
+        return min(device_s + min(self._recent), float(arrival_s))  # round-off: not after it
+
+
+def device_times(arrival_s, device_us):
+    """:class:`DeviceClock` over a whole stream (causal), shape (k,) s."""
+    clock = DeviceClock()
+    return np.array([clock(a, d) for a, d in zip(arrival_s, device_us, strict=True)])
+
+
+def wheel_times(wheels, config):
+    """Times (k,) s at which the run loop fuses the samples of a logged ``wheels`` stream: on
+    the board's clock (``wheel_times = "device"``, where the log has it), else as stamped on
+    arrival."""
+    if config.wheel_times == "arrival" or cols.WHEEL_DEVICE_TIME not in wheels.dtype.names:
+        return np.array(wheels["t_s"], float)
+    return device_times(wheels["t_s"], wheels[cols.WHEEL_DEVICE_TIME])
 
 
 def events(data):

@@ -22,6 +22,7 @@ Output streams
 BOARD_WHEELS = 4
 IMU = "imu"
 WHEELS = "wheels"
+WHEEL_DEVICE_TIME = "device_t_us"  # the board's own clock at the sample, us
 SERVOS = "servos"
 COMMAND = "command"
 ESTIMATE = "estimate"

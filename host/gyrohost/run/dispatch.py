@@ -9,7 +9,7 @@ import queue
 
 import numpy as np
 
-from gyrohost.estimator.driver import RegularClock
+from gyrohost.estimator.driver import DeviceClock, RegularClock
 from gyrohost.run.devices import Sample
 
 
@@ -45,23 +45,30 @@ class ImuHandler:
 class WheelHandler:
     """Wheel-board telemetry: the ``wheels`` stream; the scene's wheels fused.
 
+    Logged at their arrival stamps (and the board's ``t_us``); fused at the board's own time
+    put on the host's clock (:class:`~gyrohost.estimator.driver.DeviceClock`, as ``gyrotens
+    replay`` does from the log), unless ``wheel_times`` is ``"arrival"``.
+
     Parameters
     ----------
     stream : Stream
     n_wheels : int
         Wheels of the scene (the board's first ``n_wheels``).
+    config : EstimatorConfig
     """
 
     device = "wheels"
 
-    def __init__(self, stream, n_wheels: int):
+    def __init__(self, stream, n_wheels: int, config):
         self.stream, self.n_wheels = stream, n_wheels
+        self.clock = DeviceClock() if config.wheel_times == "device" else None
 
     def take(self, t_s: float, v, ekf) -> None:
-        """Log the sample taken at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        """Log the sample that arrived at host time ``t_s``; fuse it unless ``ekf`` is None."""
         self.stream.write(t_s, *v.omega_rad_s, v.t_us, v.seq, v.status, v.faults, *v.drive)
+        t_sample_s = t_s if self.clock is None else self.clock(t_s, v.t_us)
         if ekf is not None:
-            ekf.fuse_wheels(t_s, np.array(v.omega_rad_s)[: self.n_wheels])
+            ekf.fuse_wheels(t_sample_s, np.array(v.omega_rad_s)[: self.n_wheels])
 
 
 class ServoHandler:

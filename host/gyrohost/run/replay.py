@@ -213,6 +213,11 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     after[streams.IMU]["t_s"] = driver.regular_times(
         imu["t_s"], config.imu_period_s, config.imu_max_delay_s
     )[kept]
+    if streams.WHEELS in data:  # on the board's clock, as the run loop fused them
+        wheels = data[streams.WHEELS]
+        kept = (wheels["t_s"] > t0) & (wheels["t_s"] <= t1)
+        after[streams.WHEELS] = wheels[kept].copy()
+        after[streams.WHEELS]["t_s"] = driver.wheel_times(wheels, config)[kept]
     if live is not None:
         after[streams.ESTIMATE] = live
     return ekf, after

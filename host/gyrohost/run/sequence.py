@@ -460,7 +460,7 @@ class RunLoop:
         self.servo_handler = ServoHandler(self.streams.servos, self.strings, self.servo_strings)
         handlers = [
             ImuHandler(self.streams.imu, self.estimator_config),
-            WheelHandler(self.streams.wheels, len(self.model.wheel_bars)),
+            WheelHandler(self.streams.wheels, len(self.model.wheel_bars), self.estimator_config),
             self.servo_handler,
         ]
         self.dispatcher = Dispatcher(self.queue, handlers, self.settings.max_fused_per_tick)

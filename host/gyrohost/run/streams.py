@@ -92,7 +92,7 @@ def open_run_streams(log, strings, servo_strings) -> RunStreams:
             cols.WHEELS,
             [
                 *cols.wheels_columns(),
-                "device_t_us",
+                cols.WHEEL_DEVICE_TIME,
                 "seq",
                 "status",
                 "faults",
