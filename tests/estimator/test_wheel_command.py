@@ -5,12 +5,11 @@ a ramp through a first-order lag."""
 import math
 
 import numpy as np
+from wheel_step import ACCEL, STEP, TAU_S, stepped_filter
 
 from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.layout import layout_of
-
-TAU_S, ACCEL, STEP = 0.05, 100.0, 11.0  # lag s, ramp rad/s^2, step rad/s (ramp lasts 0.11 s)
 
 
 def closed_form(t, s0):
@@ -23,13 +22,7 @@ def closed_form(t, s0):
 
 
 def test_wheel_states_follow_the_ramped_command_through_the_lag(model):
-    config = EstimatorConfig(wheel_lag_s=TAU_S, wheel_accel_rad_s2=ACCEL)
-    ekf = TensegrityEKF(model, config)
-    omega = layout_of(model).omega
-    rest = model.input_at(0.0)[: model.alpha]
-    s0 = ekf.x[omega].copy()
-    ekf.set_input(rest, 0.0, s0)  # the wheels steady at their command
-    ekf.set_input(rest, 0.0, s0 + STEP * np.sign(s0))
+    ekf, omega, s0 = stepped_filter(model)
     for t in (0.03, 0.11, 0.2, 0.4):
         ekf.advance(t)
         want = [np.sign(s) * (closed_form(t, abs(s)) - abs(s)) + s for s in s0]
@@ -48,13 +41,7 @@ def test_without_a_lag_the_wheels_are_held_as_the_model_says(model):
 def test_a_wheel_delay_shifts_the_response_by_that_much(model):
     """With ``wheel_delay_s`` the response is the undelayed one, that much later."""
     delay = 0.02
-    config = EstimatorConfig(wheel_lag_s=TAU_S, wheel_accel_rad_s2=ACCEL, wheel_delay_s=delay)
-    ekf = TensegrityEKF(model, config)
-    omega = layout_of(model).omega
-    rest = model.input_at(0.0)[: model.alpha]
-    s0 = ekf.x[omega].copy()
-    ekf.set_input(rest, 0.0, s0)
-    ekf.set_input(rest, 0.0, s0 + STEP * np.sign(s0))
+    ekf, omega, s0 = stepped_filter(model, wheel_delay_s=delay)
     ekf.advance(delay)
     np.testing.assert_allclose(ekf.x[omega], s0, atol=1e-9)  # nothing yet
     for t in (0.035, 0.13, 0.3):

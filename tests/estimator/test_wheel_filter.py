@@ -8,13 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from wheel_step import ACCEL, STEP, TAU_S, stepped_filter
 
-from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import SPEED_FILTER_DELAY_S, EstimatorConfig
 from gyrohost.estimator.fuse_wheels import predict
-from gyrohost.estimator.layout import layout_of
 
-TAU_S, ACCEL, STEP, TICK_S, SHIFT = 0.05, 100.0, 11.0, 1e-3, 3
+TICK_S, SHIFT = 1e-3, 3  # the firmware's tick, s, and its SPEED_FILTER_SHIFT
 
 
 def board(t_end_s, s0):
@@ -28,17 +27,6 @@ def board(t_end_s, s0):
         y += (w - y) / 2**SHIFT
         out[k] = (s, w, y)
     return out
-
-
-def stepped_filter(model, **keys):
-    config = EstimatorConfig(wheel_lag_s=TAU_S, wheel_accel_rad_s2=ACCEL, **keys)
-    ekf = TensegrityEKF(model, config)
-    omega = layout_of(model).omega
-    rest = model.input_at(0.0)[: model.alpha]
-    s0 = ekf.x[omega].copy()
-    ekf.set_input(rest, 0.0, s0)  # the wheels steady at their command
-    ekf.set_input(rest, 0.0, s0 + STEP * np.sign(s0))
-    return ekf, omega, s0
 
 
 def reported_error(model, **keys):
