@@ -10,7 +10,7 @@ import numpy as np
 from gyrohost.config import RigConfig
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import for_rig
-from gyrohost.estimator.driver import regular_times
+from gyrohost.estimator.driver import regular_times, wheel_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
 from gyrohost.run.log import LogError, read_stream, read_streams
 
@@ -55,12 +55,17 @@ def load_recording(
         data = read_streams(folder, names)
     except LogError as exc:
         raise IdentDataError(str(exc)) from None
+    est = for_rig(config)
     if streams.IMU in data:
         # sampled on the IMU's grid, arrival-stamped in bursts: the grid back, as the run loop
         # and gyrotens replay fuse them (estimator.driver.RegularClock)
-        imu, est = data[streams.IMU].copy(), for_rig(config)
+        imu = data[streams.IMU].copy()
         imu["t_s"] = regular_times(imu["t_s"], est.imu_period_s, est.imu_max_delay_s)
         data[streams.IMU] = imu
+    if streams.WHEELS in data:  # on the board's clock, as the run loop and replay take them
+        wheels = data[streams.WHEELS].copy()
+        wheels["t_s"] = wheel_times(wheels, est)
+        data[streams.WHEELS] = wheels
     start, end = phase_window(folder)
     if until_s is not None:
         first = start if start is not None else float(data[streams.IMU]["t_s"][0])
