@@ -10,16 +10,24 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from gyrohost.config import TruthConfig
+from gyrohost.drivers import wheelproto as wp
 from gyrotensegrity.textfile import read_toml
 
 from .errors import EstimatorConfigError
 
 _DEG = math.pi / 180.0
-SPEED_FILTER_DELAY_S = 0.007
-"""How far the wheel board's reported speed trails the wheel's own while it changes steadily, s:
-the firmware's low-pass ``y += (x - y) / 2^shift`` per 1 ms tick trails a ramp by
-``(2^shift - 1)`` ticks (SPEED_FILTER_SHIFT 3). The emulator's encoder delta is its tick's own
-speed; a real encoder's is the last tick's mean, half a tick (0.5 ms) more."""
+
+
+def speed_filter_delay_s(shift: int) -> float:
+    """How far the wheel board's reported speed trails the wheel's own while it changes
+    steadily, s: the firmware's low-pass ``y += (x - y) / 2^shift`` per tick trails a ramp by
+    ``2^shift - 1`` ticks. The emulator's encoder delta is its tick's own speed; a real
+    encoder's is the last tick's mean, half a tick (0.5 ms) more."""
+    return (2**shift - 1) / wp.TICK_HZ
+
+
+SPEED_FILTER_DELAY_S = speed_filter_delay_s(wp.PARAM_BY_NAME["SPEED_FILTER_SHIFT"].default)
+"""The delay of the firmware's default SPEED_FILTER_SHIFT (3): 7 ms."""
 
 
 def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:

@@ -5,15 +5,46 @@ import numpy as np
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard
+from gyrohost.estimator.config import speed_filter_delay_s
 from gyrohost.run.devices import WheelTelemetry
 from gyrohost.run.errors import LimitBreach
 from gyrohost.run.wheel_faults import clear_reported_faults
+
+WHEEL_MODEL_PARAMS = ("ACCEL_RAD_S2", "SPEED_FILTER_SHIFT")
+"""The board's parameters the estimator's wheel model repeats (its ramp and its low-pass)."""
+FILTER_TOLERANCE_S = 1e-3  # a real encoder's half tick, and some
+
+
+def wheel_model_differences(board_params: dict, est) -> list[str]:
+    """Where the estimator's model of the wheel board (``est``, an ``EstimatorConfig``) differs
+    from the board's parameters ``board_params`` (name -> value, :data:`WHEEL_MODEL_PARAMS`),
+    one line each naming the key to set; none where the wheels are held (``wheel_lag_s`` 0:
+    the board's commands are not modelled)."""
+    if est.wheel_lag_s == 0.0:
+        return []
+    out = []
+    accel = board_params["ACCEL_RAD_S2"]
+    if accel != est.wheel_accel_rad_s2:
+        out.append(
+            f"ACCEL_RAD_S2 is {accel} rad/s^2, the estimator's wheel_accel_rad_s2 "
+            f"{est.wheel_accel_rad_s2:g}: set it to {accel} ([estimator] of the configuration)"
+        )
+    shift = board_params["SPEED_FILTER_SHIFT"]
+    delay_s = speed_filter_delay_s(shift)
+    if abs(delay_s - est.wheel_filter_s) > FILTER_TOLERANCE_S:
+        out.append(
+            f"SPEED_FILTER_SHIFT {shift} reports speeds {1e3 * delay_s:g} ms behind a ramp "
+            f"(0.5 ms more from a real encoder), the estimator's wheel_filter_s is "
+            f"{1e3 * est.wheel_filter_s:g} ms ([estimator] of the configuration)"
+        )
+    return out
 
 
 def connect_devices(loop) -> None:
     """Open the IMU (one sample read), the wheel board (handshake; faults latched before the
     run cleared and reported; telemetry rate and heartbeat set; its SPEED_MAX against the scene's
-    and the schedule's spins) and the servo bus (pings), on ``loop`` (a ``RunLoop``).
+    and the schedule's spins; its ramp and speed low-pass against the estimator's model, a
+    notice where they differ) and the servo bus (pings), on ``loop`` (a ``RunLoop``).
 
     Raises
     ------
@@ -38,10 +69,14 @@ def connect_devices(loop) -> None:
             f"scene and schedule spins up to {fastest:.2f} rad/s exceed the wheel "
             f"board's SPEED_MAX {speed_max:.2f} rad/s"
         )
+    board_params = {name: loop.wheels.get_param(name) for name in WHEEL_MODEL_PARAMS}
+    for line in wheel_model_differences(board_params, loop.estimator_config):
+        loop.notice(f"wheel board: {line}")
     loop.servos = StringServoBus(cfg.servos).open()
     models = loop.servos.ping_all()
     versions = {
         "wheel_board": hello,
+        "wheel_board_params": board_params,
         "servo_models": models,
         "imu_first_sample_temperature_degC": first.temperature_degC,
     }

@@ -473,7 +473,7 @@ class RunLoop:
     def notice(self, message: str) -> None:
         """A line the user must see now: to ``notify`` (else stderr) and the events stream."""
         (self.notify or _stderr_line)(message)
-        self.event("cleared", message)
+        self.event("notice", message)
 
     def event(self, kind: str, message: str) -> None:
         """Append one row to the ``events`` stream (commas become semicolons)."""
