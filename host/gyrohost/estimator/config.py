@@ -354,9 +354,11 @@ def noise_from_rig(rig) -> dict:
         # every ramp (docs/estimator.md, "Wheel commands")
         "wheel_delay_s": 0.0,
         # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
-        # time (wheel_times "device"), exact to the link's shortest delay: no stamp noise
-        # (10 ms while they were fused at arrival, docs/estimator.md)
-        "wheel_time_std_s": 0.0,
+        # time (wheel_times "device"), late by the link's shortest delay (about 1 ms) and
+        # against a truth that picks up the wheel speeds once per 5 ms step: 2 ms (0: the
+        # wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
+        # docs/estimator.md)
+        "wheel_time_std_s": 0.002,
         # the truth spins its wheels at the board's speeds of its 5 ms step's end: in a speed
         # step the wheels act on a command at a time uniform over the step (dt / sqrt(12), as
         # the servos' reads)
