@@ -23,7 +23,7 @@ def predict(ekf, x, strings, lag_s=0.0):
     """
     L = ekf.layout
     gain = np.exp(lag_s / ekf.config.servo_lag_s)
-    command = _commanded(ekf, strings)
+    command = np.asarray(ekf.u[: L.n_strings], float)[strings]
     H = np.zeros((len(strings), L.size))
     H[np.arange(len(strings)), L.rest.start + strings] = gain
     return command + (x[L.rest][strings] - command) * gain, H
@@ -42,13 +42,8 @@ def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
     strings = np.asarray(strings, dtype=int)
     hx, H = predict(ekf, ekf.x, strings, lag_s)
     c = ekf.config
-    rate = (_commanded(ekf, strings) - ekf.x[ekf.layout.rest][strings]) / c.servo_lag_s
+    rate = ekf.process.rest_rate(ekf.x[ekf.layout.rest], ekf.u)[strings]
     R = np.diag(
         c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s + (c.servo_time_std_s * rate) ** 2
     )
     return fuse(ekf, Measurement(SOURCE, np.asarray(lengths_m, float), hx, H, R))[0]
-
-
-def _commanded(ekf, strings):
-    """The rest lengths (k,) m commanded to the strings with indices ``strings``."""
-    return np.asarray(ekf.u[: ekf.layout.n_strings], float)[strings]

@@ -129,7 +129,7 @@ class ProcessModel(ProcessNoise):
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
         dx[:, L.omega] = self.wheel_acceleration(omega, u)
-        dx[:, L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
+        dx[:, L.rest] = self.rest_rate(rest, u)
         return (dx, N_ddot) if with_node_accelerations else dx
 
     def command_wheels(self, omega_rad_s) -> None:
@@ -162,6 +162,11 @@ class ProcessModel(ProcessNoise):
         if sp0 is not None:
             a = self.config.wheel_accel_rad_s2 * tau_s
             self.wheel_target_rad_s = sp0 + np.clip(self.wheel_command_rad_s - sp0, -a, a)
+
+    def rest_rate(self, rest, u):
+        """Rates (..., alpha) m/s of the rest lengths ``rest`` (..., alpha) m, real or complex:
+        their first-order lag ``servo_lag_s`` behind the commanded ones in the input ``u``."""
+        return (u[: self.layout.n_strings] - rest) / self.config.servo_lag_s
 
     def wheel_acceleration(self, omega, u):
         """Spin accelerations (K, n_w) rad/s^2 of the wheel states ``omega`` (K, n_w), real or
@@ -265,7 +270,7 @@ class ProcessModel(ProcessNoise):
         f[L.q] = x[L.q_dot]
         f[L.q_dot] = z_ddot.ravel()
         f[L.omega] = self.wheel_acceleration(x[None, L.omega], u)[0]
-        f[L.rest] = (u[: L.n_strings] - rest) / self.config.servo_lag_s
+        f[L.rest] = self.rest_rate(rest, u)
         return f, A, z_ddot, J
 
     def linearise(self, x, u):

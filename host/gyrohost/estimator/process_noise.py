@@ -2,7 +2,8 @@
 the wheel speeds, rest lengths and gyro bias, the servos' goal steps, the board's command
 timing while the wheels change speed, and the rest-length jitter through the string kinks.
 A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provides ``layout``,
-``config``, ``dyn``, ``wheel_target_rad_s``, ``rest_step_psd_m2_s`` and the ``_noise`` cache.
+``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``rest_step_psd_m2_s`` and the
+``_noise`` cache.
 """
 
 import numpy as np
@@ -53,11 +54,11 @@ class ProcessNoise:
         through the lag spreads it by ``(std omega_dot)^2``, with ``std`` =
         ``wheel_command_time_std_s``.
         """
-        std, lag = self.config.wheel_command_time_std_s, self.config.wheel_lag_s
-        if std == 0.0 or lag == 0.0 or self.wheel_target_rad_s is None:
+        std, slope = self.config.wheel_command_time_std_s, self.wheel_acceleration_slope()
+        if std == 0.0 or slope == 0.0:  # slope -1 / lag where the wheels follow commands
             return None
-        rate = (self.wheel_target_rad_s - x[self.layout.omega]) / lag
-        return 2.0 * (std * rate) ** 2 / lag
+        rate = self.wheel_acceleration(x[None, self.layout.omega], None)[0]
+        return -2.0 * slope * (std * rate) ** 2
 
     def jitter_noise(self, dt, F, x):
         """Node-motion covariance (6 m, 6 m) of a rest-length jitter through tension-only strings.
