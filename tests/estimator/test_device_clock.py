@@ -4,6 +4,7 @@ the smallest delay seen over the link (:class:`DeviceClock`); the run loop fuses
 
 import numpy as np
 import pytest
+from fake_loop import Ekf, Stream
 
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.driver import DeviceClock, device_times, wheel_times
@@ -53,18 +54,6 @@ def test_a_wrapped_board_clock_continues_and_a_reset_one_starts_again():
 
 
 def test_the_run_loop_fuses_the_wheels_where_replay_puts_them():
-    class Stream:
-        rows = []
-
-        def write(self, *row):
-            self.rows.append(row)
-
-    class Ekf:
-        fused_at = []
-
-        def fuse_wheels(self, t_s, _omega):
-            self.fused_at.append(t_s)
-
     class Telemetry:
         omega_rad_s, drive, seq, status, faults = (75.0,) * 4, (0,) * 4, 0, 0, 0
 

@@ -3,6 +3,7 @@ health table of the run summary (NIS per source, gate rejections, NEES against t
 rig's truth) and the divergence that fails a run."""
 
 import numpy as np
+from fake_loop import Ekf, Stream
 
 from gyrohost.estimator.driver import RegularClock, regular_times
 from gyrohost.estimator.ekf import TensegrityEKF
@@ -19,22 +20,6 @@ from gyrohost.run.health import (
 )
 
 
-class _Stream:
-    def __init__(self):
-        self.rows = []
-
-    def write(self, *row):
-        self.rows.append(row)
-
-
-class _Ekf:
-    def __init__(self):
-        self.fused_at = []
-
-    def fuse_imu(self, t_s, *_):
-        self.fused_at.append(t_s)
-
-
 class _Sample:
     omega_rad_s = accel_m_s2 = euler_rad = (0.0, 0.0, 0.0)
     temperature_degC = 25.0
@@ -44,7 +29,7 @@ def test_the_run_loop_logs_arrivals_and_fuses_at_the_grid_replay_reconstructs(co
     rng = np.random.default_rng(1)
     arrival = 0.01 * np.arange(60) + 5e-4 + rng.exponential(4e-3, 60)
     arrival[20:23] = arrival[22]  # a burst: three samples read at once
-    stream, ekf = _Stream(), _Ekf()
+    stream, ekf = Stream(), Ekf()
     handler = ImuHandler(stream, config)
     for t in arrival:
         handler.take(float(t), _Sample(), ekf)
