@@ -156,6 +156,10 @@ class WheelEmuConfig:
     coast_time_constant_s: float = field(default=5.0, metadata=_spec(lo=1e-3, hi=1000.0))
     ripple_fraction: float = field(default=0.0, metadata=_spec(lo=0.0, hi=0.5))
     ripple_per_rev: int = field(default=1, metadata=_spec(lo=1, hi=100))
+    speed_error_std_rad_s: float = field(
+        default=0.01, metadata=_spec(lo=0.0, hi=10.0, doc="the speed loop's error, stationary std")
+    )
+    seed: int = field(default=2, metadata=_spec(lo=0, doc="of the speed error"))
     faults: StreamFaultConfig = StreamFaultConfig()
     kind: str = field(default="emulator", metadata=_spec(choices=WHEEL_KINDS))
     spin_sign: tuple[int, int, int, int] = field(

@@ -89,6 +89,14 @@ def explicit_steps(model: Model, integrator: str, duration: float, rtol: float, 
     return rate * duration, why, name
 
 
+def stable_step(model: Model, dt: float) -> float:
+    """The largest RK4 step of at most ``dt`` (s) that keeps the model's fastest oscillation
+    within RK4's stability limit (``omega h <= RK4_STABLE``), s."""
+    omega, _ = diagnostics.highest_frequency(model)
+    # a hair inside the limit, so that omega h <= RK4_STABLE holds in floating point too
+    return dt if omega * dt <= RK4_STABLE else RK4_STABLE / omega * (1.0 - 1e-9)
+
+
 def check_step(
     model: Model, integrator: str, dt: float, duration: float, rtol=None, x0=None, u0=None
 ) -> None:

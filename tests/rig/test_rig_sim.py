@@ -56,7 +56,9 @@ def test_truth_follows_servos_and_wheels_and_the_imu_sees_the_tilt(rig):
     rig, imu, wheels, bus = rig
     wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
     rig.advance(1.2)  # 0.75 s of ramp at 100 rad/s^2, then the 50 ms motor lag
-    np.testing.assert_allclose(rig.truth_wheel_speeds(), [SPIN, -SPIN, -SPIN, SPIN], atol=0.01)
+    # within five times the speed loop's error (std speed_error_std_rad_s) of the setpoints
+    atol = 5.0 * rig.config.sim.wheels.speed_error_std_rad_s
+    np.testing.assert_allclose(rig.truth_wheel_speeds(), [SPIN, -SPIN, -SPIN, SPIN], atol=atol)
     assert np.max(np.abs(rig.truth_nodes()[2])) < 1e-9  # no string moved yet: still planar
     imu.poll()  # discard the samples so far
     rig.start_recording()

@@ -1,6 +1,7 @@
 """The rig's truth model: inputs from the devices, IMU frame kinematics against closed forms."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,7 +10,9 @@ from gyrohost.config import ServoConfig, TruthConfig
 from gyrohost.geometry import rotation_zyx
 from gyrohost.resources import shipped
 from gyrohost.rig.truth import RigSetupError, Truth, rig_scene
-from gyrotensegrity import Model, load_scene
+from gyrotensegrity import Model, SimulationError, Stepper, load_scene
+from gyrotensegrity.diagnostics import highest_frequency
+from gyrotensegrity.simulate import RK4_STABLE
 
 SCENE = load_scene(shipped("scene", "dbar-gyro"))
 LEFT = ServoConfig(name="left", id=1, pulley_radius_m=0.01, string="s13")
@@ -149,3 +152,27 @@ def test_setup_errors_name_the_key():
         Truth(SCENE, TruthConfig(imu_frame_nodes=("n1", "n9", "n2")), [])
     with pytest.raises(RigSetupError, match="on one line"):
         Truth(SCENE, TruthConfig(imu_frame_nodes=("n1", "n3", "n1")), [])
+
+
+def test_a_scene_too_stiff_for_one_rk4_step_takes_substeps(tmp_path):
+    """Strings 40 times stiffer (an identification's trial can be): one RK4 step of dt_s would
+    blow up (the stepper refuses it), so the truth substeps within the stability limit and its
+    nodes follow the same model stepped ten times finer within 1 mm (the strings' own ringing,
+    at the limit, is damped faster than it is)."""
+    text = Path(shipped("scene", "dbar-gyro")).read_text()
+    assert "stiffness = 200.0" in text
+    (tmp_path / "stiff.toml").write_text(text.replace("stiffness = 200.0", "stiffness = 8000.0"))
+    scene = load_scene(tmp_path / "stiff.toml")
+    truth = Truth(scene, TruthConfig(dt_s=0.005))
+    omega, _ = highest_frequency(truth.model)
+    assert omega * 0.005 > RK4_STABLE and omega * truth.stepper.max_dt <= RK4_STABLE
+    with pytest.raises(SimulationError, match="stiff"):
+        Stepper(truth.model, max_dt=0.005)
+    fine = Stepper(truth.model, max_dt=truth.stepper.max_dt / 10, fast=True)
+    u = truth.u.copy()
+    u[0] -= 0.02  # pull the first string: the stiff strings ring
+    for _ in range(20):
+        x = truth.stepper.step(0.005, u)
+        x_fine = fine.step(0.005, u)
+    q = truth.model.layout.q
+    assert np.all(np.isfinite(x)) and np.abs(x[q] - x_fine[q]).max() < 1e-3

@@ -3,6 +3,7 @@
 import os
 import queue
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -195,21 +196,43 @@ def test_reset_is_seen_as_a_restarted_sequence_and_watchdog_fault(board):
 
 def test_ripple_and_lag_on_the_emulator_clock():
     """Driven tick by tick on its own clock (no thread): ramp, lag, then a 5 % ripple."""
-    with WheelBoardEmulator(WheelEmuConfig(time_constant_s=0.02, ripple_fraction=0.05)) as dev:
-        dev.tick(0.0)  # the board boots when first polled
-        dev.handle_rx(wp.encode("PARAM_SET", param_id=9, value=60000), 0.0)  # 60 s heartbeat
-        speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
-        dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": 20000})), 0.0)
-        trace = []
-        for k in range(1, 1501):
-            dev.tick(k * 1e-3)
-            trace.append(dev.wheel_speeds_rad_s()[0])
+    emu = WheelEmuConfig(time_constant_s=0.02, ripple_fraction=0.05, speed_error_std_rad_s=0.0)
+    dev, trace = _spun_up(emu, 20000, 1500)
     assert dev.ticks == 1500 and dev.telemetry_sent == 750
     # 0.1 s of ramp at 100 rad/s^2: setpoint 10 rad/s, the 20 ms lag 100 x 0.02 = 2 rad/s behind
     assert trace[99] == pytest.approx(8.0, abs=0.5)  # (+-5 % ripple)
     steady = np.array(trace[500:])  # ramp done at 0.2 s, lag settled well before 0.5 s
     assert steady.max() == pytest.approx(21.0, abs=0.05)
     assert steady.min() == pytest.approx(19.0, abs=0.05)
+
+
+def test_the_speed_loop_error_is_gauss_markov_at_the_motor_time_constant():
+    """At a held setpoint the true speed errs by the closed-form first-order Gauss-Markov
+    process: stationary std ``speed_error_std_rad_s``, correlation exp(-lag / time constant)."""
+    emu = WheelEmuConfig(time_constant_s=0.05, speed_error_std_rad_s=0.02, seed=7)
+    _, trace = _spun_up(emu, 50000, 50000)
+    error = np.array(trace[1000:]) - 50.0  # the ramp (0.5 s) and five lags done
+    assert np.std(error) == pytest.approx(0.02, rel=0.1)  # about 1000 time constants
+    for lag_ticks in (10, 50, 100):
+        rho = np.corrcoef(error[:-lag_ticks], error[lag_ticks:])[0, 1]
+        assert rho == pytest.approx(np.exp(-lag_ticks * 1e-3 / 0.05), abs=0.05)
+    _, exact = _spun_up(replace(emu, speed_error_std_rad_s=0.0), 50000, 2000)
+    assert np.all(np.array(exact[1000:]) == pytest.approx(50.0, abs=1e-3))  # the lag alone
+
+
+def _spun_up(emu, w0_mrad_s, ticks):
+    """An emulator on its own clock (no thread) with wheel 0 set to ``w0_mrad_s`` at 0, ticked
+    ``ticks`` times: (the emulator, wheel 0's true speed after each tick, rad/s)."""
+    with WheelBoardEmulator(emu) as dev:
+        dev.tick(0.0)  # the board boots when first polled
+        dev.handle_rx(wp.encode("PARAM_SET", param_id=9, value=60000), 0.0)  # 60 s heartbeat
+        speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
+        dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": w0_mrad_s})), 0.0)
+        trace = []
+        for k in range(1, ticks + 1):
+            dev.tick(k * 1e-3)
+            trace.append(dev.wheel_speeds_rad_s()[0])
+    return dev, trace
 
 
 def test_gyrotens_wheels_calibrate_reports_and_clears_the_boot_fault_then_saves(capsys):

@@ -276,6 +276,12 @@ EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
 uncertainty about it (:func:`noise_from_rig` sets both for the real-time rig)."""
 
 
+MIN_WHEEL_WALK = 1e-6
+"""The wheels' walk (rad^2/s^3) :func:`noise_from_rig` keeps for emulated wheels without a
+speed error: with none the wheel covariance collapses, and the in-process SIL diverged on the
+identification's truth (NEES 3e5 for 28)."""
+
+
 def noise_from_rig(rig) -> dict:
     """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``), with
     the :func:`imu_keys` and the simulated IMU's attachment (``[sim.truth]``).
@@ -294,6 +300,7 @@ def noise_from_rig(rig) -> dict:
         return math.sqrt(white**2 + count**2 / 12.0 + bias**2)
 
     accel_white = emu.accel_noise_density_m_s2_rthz * root
+    wheels = rig.sim.wheels
     return {
         # the grid the host rebuilds from the earliest arrivals lies this much after the
         # samples: the truth's step computed before the sample goes out, then the pty and the
@@ -341,13 +348,14 @@ def noise_from_rig(rig) -> dict:
         # both ways (commands rounded, readings truncated)
         "wheel_speed_std_rad_s": 0.0146,
         "wheel_resolution_rad_s": 1.0e-3,
-        # the emulated wheels sit exactly on their setpoints between commands: no walk is real,
-        # and any makes the wheel block conservative; this much keeps the wheel NIS near its dof
-        # (less walk: the block's NEES falls towards 0, more: the NIS falls below its bounds)
-        "wheel_accel_psd_rad2_s3": 1.0e-3,
-        # the emulated motors follow the board's ramped setpoint with their lag, and the
+        # the emulated motors follow the board's ramped setpoint with their lag, erring from it
+        # by a first-order Gauss-Markov process of that time constant: the lag model's walk
+        # with the same stationary spread (2 std^2 / lag), at least MIN_WHEEL_WALK; the
         # reported speed trails theirs by the firmware's low-pass
-        "wheel_lag_s": rig.sim.wheels.time_constant_s,
+        "wheel_lag_s": wheels.time_constant_s,
+        "wheel_accel_psd_rad2_s3": max(
+            2.0 * wheels.speed_error_std_rad_s**2 / wheels.time_constant_s, MIN_WHEEL_WALK
+        ),
         "wheel_filter_s": SPEED_FILTER_DELAY_S,
         # with the loop on time the telemetry of a speed step starts when the lags alone say:
         # a delay of 20 ms (what a late loop showed) puts the model behind the board through

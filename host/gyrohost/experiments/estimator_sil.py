@@ -80,12 +80,8 @@ SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order
 # accelerations is small (3e-8). The servos here are exactly the filter's first-order lag: their
 # length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um), and through
 # the string forces the dynamics pin the rest lengths far below it: a walk of 1e-13 m^2/s
-# covers what the model misses there (1e-10: rest block 0.12 of 2; 1e-14: 22). The wheel
-# telemetry is the encoder's quantisation through the firmware's low-pass, at a constant speed
-# anticorrelated from one 10 ms sample to the next (lag one -0.49, lag two +0.35) and nearly
-# gone from long means (a mean of 50 samples keeps 0.02-0.07 of white noise's variance): an
-# MA(1) of coefficient -0.75 at the noise's measured std, and a walk of 1e-6 (the board holds
-# the speeds) bring the wheel block to its dof (4.2-4.7; with the walk 1e-4: 2.5).
+# covers what the model misses there (1e-10: rest block 0.12 of 2; 1e-14: 22). The wheels
+# take noise_from_rig's keys: their speed loop's error is the lag model's walk.
 RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
@@ -95,11 +91,6 @@ RIG_MODEL_KEYS = {
     "servo_step_std_ratio": 0.0,  # these servos are the filter's lag exactly
     "rest_jitter_psd_m2_s": 4e-10,
     "kink_model": "mean",
-    "wheel_noise_ma1": -0.75,
-    "wheel_accel_psd_rad2_s3": 1e-6,
-    # the board holds one setpoint all run: the spins walk about it rather than follow the
-    # command with noise_from_rig's lag, which would make them overconfident
-    "wheel_lag_s": 0.0,
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
 
@@ -116,7 +107,9 @@ def record_run(config, seed, folder, duration_s=3.0, estimator=None):
     from gyrohost.run import run_simulated
     from gyrotensegrity import Model, load_scene
 
-    cfg = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
+    sim = config.sim
+    sim = replace(sim, imu=replace(sim.imu, seed=seed), wheels=replace(sim.wheels, seed=seed))
+    cfg = replace(config, sim=sim)
     schedule = paper(Model(load_scene(cfg.scene_path)), duration_s=duration_s)
     result = run_simulated(cfg, schedule, folder, estimator=for_rig(cfg, estimator))
     if result.exit_status:
@@ -215,7 +208,8 @@ def rig_model_run(
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in model.scene.strings]
     inputs = _commands(model, schedule)
-    board = _WheelBoard(config, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
+    wheels = replace(config.sim.wheels, seed=seed)
+    board = _WheelBoard(wheels, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
             model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s,
@@ -325,13 +319,13 @@ class _WheelBoard:
     """The rig's wheel-board emulator on the simulated clock, spun up to ``spins`` (scene
     order) by ``t = 0``, its telemetry read off the pty and decoded."""
 
-    def __init__(self, config, spins, rng):
+    def __init__(self, wheels, spins, rng):
         from gyrohost.drivers import wheelproto as wp
         from gyrohost.rig.wheel_emu import WheelBoardEmulator
 
         self.wp = wp
-        self.sign = np.array(config.sim.wheels.spin_sign[: len(spins)], float)
-        self.dev = WheelBoardEmulator(config.sim.wheels)
+        self.sign = np.array(wheels.spin_sign[: len(spins)], float)
+        self.dev = WheelBoardEmulator(wheels)
         self.dev.angle_rad = list(rng.uniform(0.0, 2.0 * np.pi, wp.N_WHEELS))
         self.fd = os.open(self.dev.slave_path, os.O_RDONLY | os.O_NONBLOCK)
         self.decoder = wp.FrameDecoder()

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.experiments.identify_check import FACTORS, IMU_ROTATION_DEG
+from gyrohost.experiments.identify_check import FACTORS, IMU_ROTATION_DEG, wheel_speed_error
 from gyrohost.resources import shipped
 
 J3_NOMINAL = 0.5 * 0.050 * 0.031**2  # the shipped D-bar's wheel disc, kg m^2
@@ -56,7 +56,7 @@ def write_rig_files(folder: Path, seed: int = 1) -> tuple[Path, Path]:
     truth = truth.replace("damping = 2.0", f"damping = {2.0 * f['damping']!r}")
     truth = truth.replace("spin = ", f"J3 = {J3_NOMINAL * f['J3']!r}, spin = ")
     (folder / "truth.toml").write_text(truth)
-    config = Path(shipped("config", "sim-rig")).read_text()
+    config = wheel_speed_error(Path(shipped("config", "sim-rig")).read_text(), 0.0)
     config = config.replace('scene = "dbar-gyro"', 'scene = "weighed.toml"')
     config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)
     rotation = ", ".join(repr(a) for a in IMU_ROTATION_DEG)

@@ -49,6 +49,7 @@ from gyrohost.rig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
 from gyrotensegrity.schedule import constant
+from gyrotensegrity.simulate import stable_step
 
 FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
@@ -215,8 +216,11 @@ class Truth:
         self.config = config
         self.model = Model(rig_scene(scene, config.wheel_inertia_scale))
         # The compiled fast path (equal to the reference right-hand side to round-off,
-        # tests/model/test_fast.py) keeps the truth ahead of real time on a loaded laptop.
-        self.stepper = Stepper(self.model, max_dt=config.dt_s, fast=True)
+        # tests/model/test_fast.py) keeps the truth ahead of real time on a loaded laptop. A
+        # scene too stiff for one RK4 step per dt_s (a stiffer truth, an identification's trial)
+        # takes substeps within the stability limit instead of failing.
+        max_dt = stable_step(self.model, config.dt_s)
+        self.stepper = Stepper(self.model, max_dt=max_dt, fast=True)
         self.dt_s = config.dt_s
         names = [s.name for s in scene.strings]
         self.servo_strings: dict[int, int] = {}

@@ -21,7 +21,12 @@ from boot on the emulator's clock, so simulated-time runs are exact:
 
 Motor model (not the firmware's): while a wheel's outputs are enabled its true speed follows the
 ramped setpoint with a first-order lag (``time_constant_s``); with outputs off it coasts down
-(``coast_time_constant_s``). An optional ripple multiplies the true speed by
+(``coast_time_constant_s``). A driven wheel's speed errs from that lag by a first-order
+Gauss-Markov process of stationary std ``speed_error_std_rad_s`` and the motor's time constant:
+the torque the speed loop does not cancel (cogging, the bars' gyroscopic reaction, the loop
+acting on its own quantised estimate) through the motor's response. Without it a wheel holds its
+speed exactly and its encoder walks a fixed quantisation pattern, whose noise averages out like
+no real encoder's. An optional ripple multiplies the true speed by
 ``1 + ripple_fraction * sin(ripple_per_rev * angle)``. The reported speed is measured as the
 firmware measures it (``spd.h``): each tick the wheel angle is read as a 14-bit encoder count, the
 count difference to the last tick (wrapped at 14 bits) is the raw speed, and the firmware's
@@ -38,6 +43,7 @@ setpoints are 0; the wheels keep spinning and coast down.
 """
 
 import math
+import random
 
 from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelproto as wp
@@ -100,6 +106,7 @@ class WheelBoardEmulator(PtyDevice):
         self.omega_rad_s = [0.0] * wp.N_WHEELS
         self.angle_rad = [0.0] * wp.N_WHEELS
         self._base_rad_s = [0.0] * wp.N_WHEELS
+        self._rng = random.Random(emu.seed)
         self.boots = 0
         self.telemetry_sent = 0
         self._reset_request: tuple[float, bool] | None = None
@@ -384,10 +391,14 @@ class WheelBoardEmulator(PtyDevice):
         emu = self.emu
         on = math.exp(-dt_s / emu.time_constant_s)
         off = math.exp(-dt_s / emu.coast_time_constant_s)
+        # the exact step of the Gauss-Markov error: its stationary variance is kept
+        error_std = emu.speed_error_std_rad_s * math.sqrt(1.0 - on * on)
         for i in range(wp.N_WHEELS):
             base = self._base_rad_s[i]
             if self.enabled[i]:
                 base = self.setpoints[i] / 1000.0 + (base - self.setpoints[i] / 1000.0) * on
+                if error_std:
+                    base += self._rng.gauss(0.0, error_std)
             else:
                 base *= off
             self._base_rad_s[i] = base
