@@ -99,17 +99,23 @@ class SilError(GyrohostError, ValueError):
     """A SIL run cannot start (its log folder exists)."""
 
 
+def seeded(config, seed):
+    """``config`` with its simulated IMU's and wheels' noise drawn from ``seed``."""
+    sim = config.sim
+    sim = replace(sim, imu=replace(sim.imu, seed=seed), wheels=replace(sim.wheels, seed=seed))
+    return replace(config, sim=sim)
+
+
 def record_run(config, seed, folder, duration_s=3.0, estimator=None):
-    """One run of the paper's schedule on the simulated rig with IMU seed ``seed``;
-    ``estimator``: a TOML file whose ``[estimator]`` keys override the configuration's."""
+    """One run of the paper's schedule on the simulated rig with its noise from ``seed``
+    (:func:`seeded`); ``estimator``: a TOML file whose ``[estimator]`` keys override the
+    configuration's."""
     from gyrohost.control.presets import paper
     from gyrohost.estimator.config import for_rig
     from gyrohost.run import run_simulated
     from gyrotensegrity import Model, load_scene
 
-    sim = config.sim
-    sim = replace(sim, imu=replace(sim.imu, seed=seed), wheels=replace(sim.wheels, seed=seed))
-    cfg = replace(config, sim=sim)
+    cfg = seeded(config, seed)
     schedule = paper(Model(load_scene(cfg.scene_path)), duration_s=duration_s)
     result = run_simulated(cfg, schedule, folder, estimator=for_rig(cfg, estimator))
     if result.exit_status:
@@ -200,16 +206,16 @@ def rig_model_run(
     from gyrohost.rig.truth import Truth, truth_scene
     from gyrotensegrity import Model, load_scene
 
+    config = seeded(config, seed)
     model = Model(load_scene(config.scene_path))
     sim = replace(config.sim.truth, servo_lag_s=0.0)
     truth = Truth(truth_scene(config), sim, config.servos.servo)
     rotation_deg = config.sim.truth.imu_rotation_deg
-    emu = Bwt61Emulator(replace(config.sim.imu, seed=seed), config.imu, rotation_deg=rotation_deg)
+    emu = Bwt61Emulator(config.sim.imu, config.imu, rotation_deg=rotation_deg)
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in model.scene.strings]
     inputs = _commands(model, schedule)
-    wheels = replace(config.sim.wheels, seed=seed)
-    board = _WheelBoard(wheels, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
+    board = _WheelBoard(config.sim.wheels, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
             model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s,

@@ -127,7 +127,6 @@ def record_log(truth_config: Path, seed: int, folder: Path) -> Path:
     from gyrotensegrity import load_scene
 
     config = load_rig_config(truth_config)
-    config = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
     duration = load_scene(config.scene_path).duration
     _, data, *_ = rig_model_run(config, seed, duration)
     return write_log(data, folder)

@@ -25,7 +25,6 @@ import argparse
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +54,6 @@ def record(folder: Path, schedule_name: str, seed: int) -> tuple[Path, Path, flo
 
     config_path, truth_path = write_rig_files(folder, seed)
     config = with_truth_scene(load_rig_config(config_path), truth_path)
-    config = replace(config, sim=replace(config.sim, imu=replace(config.sim.imu, seed=seed)))
     schedule = with_lead_in(load_schedule_arg(schedule_name, config.scene_path))
     _, data, _, truth_R, _, dt_s = rig_model_run(config, seed, schedule.t_end, schedule=schedule)
     turned = np.arccos(np.clip((np.einsum("ji,kji->k", truth_R[0], truth_R) - 1) / 2, -1, 1))
