@@ -55,6 +55,16 @@ def register(sub) -> None:
         help="a later segment starts from the previous one's end turned to the IMU (default) "
         "or from the host estimator's logged state",
     )
+    p.add_argument(
+        "--method",
+        choices=("output", "filter"),
+        default="output",
+        help="output error: simulate the rig from the log's inputs (default); filter: the "
+        "host's EKF runs the log and its prediction errors are fitted, which follows a rig "
+        "whose wheels err from their setpoints (docs/identification.md, 'The filter's "
+        "prediction error'); --lengths, --segment-s and --segment-start are the output "
+        "error's",
+    )
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
     p.set_defaults(func=run)
 
@@ -105,10 +115,9 @@ def run(args) -> int:
     from gyrohost.cli import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
-    from gyrohost.ident import profile, report
+    from gyrohost.ident import filter_fit, profile, report
     from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import IdentDataError
-    from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import ParamsError, parameters
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, load_scene
@@ -120,35 +129,32 @@ def run(args) -> int:
         config = load_rig_config(resolve("config", args.config))
         scene = load_scene(config.scene_path)
         est = for_rig(config)
-        n_wheels = len(Model(scene).wheel_bars)
-        commanded = args.lengths == "command"
-        recs = [
-            load_recording(
-                log, config, n_wheels, commanded, args.until, args.segment_s, args.segment_start
-            )
-            for log in args.logs
-        ]
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
-        params = parameters(scene, config, groups, nominal_lag(config, est, recs), len(recs))
+        if args.method == "filter":
+            recs = [filter_fit.load(log, args.until) for log in args.logs]
+            if "gyro-bias" in groups:
+                print("gyro-bias: the filter's own state, not fitted")
+                groups.remove("gyro-bias")
+            params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
+        else:
+            recs = _recordings(args, config, Model(scene))
+            params = parameters(scene, config, groups, nominal_lag(config, est, recs), len(recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
-    total = sum(len(r.t_imu_s) for r in recs)
-    print(f"{len(recs)} recording(s), {total} IMU samples; fitting {len(params)} parameters")
-    for k, r in enumerate(recs, 1):
-        if len(recs) > 1:
-            print(f"recording {k}: {r.name} (its IMU biases: the parameters ending in [{k}])")
-        if r.servo_response is not None:
-            s = r.servo_response
-            print(
-                f"{r.name}: string lengths between the servo reports from the commands through "
-                f"a delay of {1e3 * s.delay_s:.1f} ms and a lag of {1e3 * s.lag_s:.1f} ms "
-                f"(reports less that: {1e3 * s.rms_m:.3f} mm RMS)"
-            )
-    passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
+    print(f"{len(recs)} recording(s); fitting {len(params)} parameters by the {args.method} error")
+    if args.method == "filter":
+        passes = 2 + len(profile.VALLEY_STEPS)
+        fitter = filter_fit.fit
+    else:
+        _describe(recs)
+        passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
+        fitter = fit
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         with profile.observing(progress.statistics):
-            result = fit(scene, config, est, params, recs, progress, args.max_evaluations)
+            result = fitter(scene, config, est, params, recs, progress, args.max_evaluations)
+    except filter_fit.FilterFitError as exc:
+        raise CliError(str(exc)) from None
     finally:
         progress.close()
     print("\n".join(report.report_lines(result)))
@@ -162,3 +168,32 @@ def run(args) -> int:
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
     print(f"run with it: gyrotens run --config {args.config} --overlay {overlay} --scene {out}")
     return 0
+
+
+def _recordings(args, config, model) -> list:
+    """The output-error fit's recordings of the logs (:func:`.logs.load_recording`)."""
+    from gyrohost.ident.logs import load_recording
+
+    n_wheels = len(model.wheel_bars)
+    commanded = args.lengths == "command"
+    return [
+        load_recording(
+            log, config, n_wheels, commanded, args.until, args.segment_s, args.segment_start
+        )
+        for log in args.logs
+    ]
+
+
+def _describe(recs) -> None:
+    """Print the output-error recordings' samples and how their string lengths were rendered."""
+    print(f"{sum(len(r.t_imu_s) for r in recs)} IMU samples")
+    for k, r in enumerate(recs, 1):
+        if len(recs) > 1:
+            print(f"recording {k}: {r.name} (its IMU biases: the parameters ending in [{k}])")
+        if r.servo_response is not None:
+            s = r.servo_response
+            print(
+                f"{r.name}: string lengths between the servo reports from the commands through "
+                f"a delay of {1e3 * s.delay_s:.1f} ms and a lag of {1e3 * s.lag_s:.1f} ms "
+                f"(reports less that: {1e3 * s.rms_m:.3f} mm RMS)"
+            )

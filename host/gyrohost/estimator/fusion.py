@@ -14,6 +14,7 @@ and passed to the filter's log callback.
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 from scipy.stats import chi2
 
 
@@ -34,6 +35,10 @@ class Innovation:
     accepted : bool
     rejected_count : int
         Rejections of this source so far (this one included).
+    whitened : ndarray, shape (k,), or None
+        ``L^-1 y`` with ``S = L L^T``: independent unit-variance components when consistent,
+        whose squares sum to ``nis`` (the residual of a prediction-error fit,
+        :mod:`gyrohost.ident.filter_fit`); NaN where ``S`` is not positive definite.
     """
 
     source: str
@@ -44,6 +49,7 @@ class Innovation:
     test_ratio: float
     accepted: bool
     rejected_count: int
+    whitened: np.ndarray | None = None
 
 
 _GATES: dict[tuple[float, int], float] = {}
@@ -89,14 +95,23 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     for meas in measurements:
         y = meas.residual(meas.z, meas.hx)
         S = meas.H @ kf.P @ meas.H.T + meas.R
-        nis = float(y @ np.linalg.solve(S, y))
+        w = _whitened(S, y)
+        nis = float(w @ w)
         ratio = nis / gate(ekf.config.gate_probability, len(y))
         accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
         monitor = ekf.monitors[meas.source]
         monitor.record(ekf.t, accepted)
         results.append(
             Innovation(
-                meas.source, ekf.t, y, np.diag(S).copy(), nis, ratio, accepted, monitor.rejected
+                meas.source,
+                ekf.t,
+                y,
+                np.diag(S).copy(),
+                nis,
+                ratio,
+                accepted,
+                monitor.rejected,
+                w,
             )  # fmt: skip
         )
         if accepted:
@@ -117,3 +132,12 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     for r in results:
         ekf.emit(r)
     return results
+
+
+def _whitened(S: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``L^-1 y`` for the Cholesky factor ``L`` of ``S``; NaN (so NIS NaN, the sample
+    rejected) where ``S`` is not positive definite or not finite."""
+    try:
+        return solve_triangular(np.linalg.cholesky(S), y, lower=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return np.full(len(y), np.nan)

@@ -155,6 +155,27 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, comma
     return fit(*fit_inputs(nominal_config, logs, groups, segment_s, commanded))
 
 
+def identify_filter(nominal_config: Path, logs, groups=GROUPS):
+    """Fit ``groups`` (less ``gyro-bias``: the filter's own state) to the logs from the
+    nominal configuration by the filter's prediction error (:mod:`gyrohost.ident.filter_fit`),
+    the filter tuned as the simulated-clock SIL tunes it for the rig models
+    (:data:`.estimator_sil.RIG_MODEL_KEYS`)."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import config_from_dict, noise_from_rig
+    from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS
+    from gyrohost.ident import filter_fit
+    from gyrohost.ident.params import parameters
+    from gyrotensegrity import load_scene
+
+    config = load_rig_config(nominal_config)
+    scene = load_scene(config.scene_path)
+    est = config_from_dict({**noise_from_rig(config), **RIG_MODEL_KEYS})
+    recs = [filter_fit.load(log) for log in logs]
+    groups = [g for g in groups if g != "gyro-bias"]
+    params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
+    return filter_fit.fit(scene, config, est, params, recs)
+
+
 def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, commanded=True):
     """What :func:`gyrohost.ident.fit.fit` takes to fit ``groups`` to the logs from the nominal
     configuration: string lengths from the host's commands (``commanded``, else the servos'
@@ -222,6 +243,18 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--speed-error", type=float, default=0.0, help="the wheels' speed-loop error, rad/s"
     )
+    parser.add_argument(
+        "--segment-s", type=float, default=0.0, help="fit in segments of this, s (0: one)"
+    )
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="play the excitation this many times (default 1)"
+    )
+    parser.add_argument(
+        "--method",
+        choices=("output", "filter"),
+        default="output",
+        help="output error (simulation) or the filter's prediction error",
+    )
     args = parser.parse_args(argv)
     groups = [g for g in GROUPS if g != "bar-mass" or not args.weighed]
     groups += ["servo-lag"] if args.with_lag else []
@@ -229,14 +262,21 @@ def main(argv=None) -> int:
         root = args.out or Path(tmp)
         root.mkdir(parents=True, exist_ok=True)
         nominal, truth = write_rigs(
-            root, args.duration, weighed=args.weighed, speed_error_std_rad_s=args.speed_error
+            root,
+            args.duration,
+            weighed=args.weighed,
+            repeat=args.repeat,
+            speed_error_std_rad_s=args.speed_error,
         )
         rows = []
         for seed in range(1, args.seeds + 1):
             t0 = time.perf_counter()
             log = record_log(truth, seed, root / f"run{seed:02d}")
             t1 = time.perf_counter()
-            result = identify_log(nominal, [log], groups)
+            if args.method == "filter":
+                result = identify_filter(nominal, [log], groups)
+            else:
+                result = identify_log(nominal, [log], groups, args.segment_s)
             rows.append(errors(result, args.weighed))
             line = "  ".join(f"{k} {100 * e:+.2f}({100 * s:.2f})" for k, (e, s) in rows[-1].items())
             fit_s = time.perf_counter() - t1

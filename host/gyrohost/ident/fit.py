@@ -87,6 +87,10 @@ class FitResult:
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
+    channels : tuple of str
+        The columns of ``residuals``.
+    streams : dict
+        Stream -> its slice of ``channels``.
     """
 
     params: list
@@ -108,6 +112,8 @@ class FitResult:
     dropped: list = field(default_factory=list)
     widened: dict = field(default_factory=dict)
     strings_valley: list = field(default_factory=list)
+    channels: tuple = CHANNELS
+    streams: dict = field(default_factory=lambda: dict(STREAMS))
 
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
@@ -248,7 +254,9 @@ def fit(
         ratio = profile.segment_spread(problem, sol.x, ~problem.dynamic, config.sim.truth.dt_s)
         widened = {p.name: float(r) for p, r in zip(params, ratio, strict=True) if r > 1.0}
         sigma = sigma * ratio
-    rms = {name: (_rms(initial, cols), _rms(final, cols)) for name, cols in STREAMS.items()}
+    rms = {
+        name: (stream_rms(initial, cols), stream_rms(final, cols)) for name, cols in STREAMS.items()
+    }
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
@@ -287,7 +295,8 @@ def _predictable(problem: Problem, theta) -> tuple[list, list]:
     return recs, dropped
 
 
-def _rms(errors, cols) -> float:
+def stream_rms(errors, cols) -> float:
+    """RMS of the columns ``cols`` of every array of ``errors`` together."""
     return float(np.sqrt(np.mean(np.concatenate([e[:, cols] for e in errors]) ** 2)))
 
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.ident.fit import BAR_GROUPS, CHANNELS, INVOLVED, STREAMS, FitResult
+from gyrohost.ident.fit import BAR_GROUPS, INVOLVED, FitResult
 from gyrohost.ident.params import apply
 from gyrohost.ident.profile import VALLEY_STEP
 from gyrohost.ident.scenefile import scene_toml
@@ -140,15 +140,15 @@ def plot_residuals(result: FitResult, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(STREAMS), 1, figsize=(9, 7), sharex=True)
+    fig, axes = plt.subplots(len(result.streams), 1, figsize=(9, 7), sharex=True)
     units = {"gyro": "rad/s", "accel": "m/s^2", "angle": "rad"}
-    for ax, (name, cols) in zip(axes, STREAMS.items(), strict=True):
+    for ax, (name, cols) in zip(axes, result.streams.items(), strict=True):
         before = np.concatenate(result.initial_residuals)[:, cols]
         after = np.concatenate(result.residuals)[:, cols]
         k = np.arange(len(after)) * 0.01
         for j in range(after.shape[1]):
             ax.plot(k, before[:, j], color="0.8", lw=0.6)
-        for j, label in enumerate(CHANNELS[cols]):
+        for j, label in enumerate(result.channels[cols]):
             ax.plot(k, after[:, j], lw=0.8, label=label)
         ax.set_ylabel(f"{name}, {units[name]}")
         ax.legend(loc="upper right", fontsize=7, ncol=3)

@@ -175,9 +175,17 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
         config = config_from_dict(meta.get("estimator", {}), f"{log}/meta.json")
     model = Model(load_scene(scene_path))
     data = read_inputs(log, warn)
-    live = data.pop(streams.ESTIMATE, None)
     if streams.IMU not in data or not len(data[streams.IMU]):
         raise LogError(f"{log}: no imu samples to replay")
+    return started(model, config, data)
+
+
+def started(model, config: EstimatorConfig, data: dict):
+    """The filter of ``model`` and ``config`` at the start of the streams ``data`` (as
+    :func:`read_inputs` returns them, at least one IMU sample), and the samples it fuses from
+    there on, as :func:`prepare` describes them."""
+    data = dict(data)
+    live = data.pop(streams.ESTIMATE, None)
     t1 = np.inf
     if live is not None and len(live):
         t0, t1 = float(live["t_s"][0]), float(live["t_s"][-1])

@@ -1,0 +1,263 @@
+"""Prediction-error fit: the rig's parameters that make the host's EKF predict its sensors best.
+
+The output-error fit (:mod:`.fit`) simulates the rig from the log's inputs and compares the
+simulation with the IMU; it has to know every input the structure felt. The wheels' speed loop
+leaves each wheel off its setpoint by an error the reports see only through their quantisation
+noise (docs/rig.md), and the D-bar's unstable roll mode grows that unknown input into a motion
+no simulation from the logged speeds follows (docs/identification.md, "The wheels' speed error").
+Here the EKF runs the log instead (:func:`gyrohost.run.replay.started`, gate open), its process
+model the scene of a parameter vector: it carries the wheels' error as the process noise of its
+wheel states and corrects the state at every sample, so each innovation is the one-sample-ahead
+prediction error of that scene. The residual is every innovation whitened by its covariance
+(:attr:`gyrohost.estimator.fusion.Innovation.whitened`: unit variance when the scene is the
+rig's), of every source; the fit and its statistics are the output-error fit's
+(:func:`.fit.statistics`).
+
+Parameters: those of :mod:`.params` that the filter's model or its inputs carry (the scene's
+masses, inertias, stiffness and damping; the IMU mounting as the filter's
+``imu_mounting_rpy_rad``; the servo lag as its ``servo_lag_s``; servo zero offsets added to the
+reported and commanded lengths; accelerometer and gyro biases taken off the IMU's readings, the
+gyro's on top of the filter's own bias state).
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from gyrohost.config import RigConfig
+from gyrohost.errors import GyrohostError
+from gyrohost.estimator import driver, streams
+from gyrohost.estimator.config import EstimatorConfig
+from gyrohost.estimator.errors import EstimatorError
+from gyrohost.ident import fit as output_fit
+from gyrohost.ident import profile
+from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.logs import phase_window
+from gyrohost.ident.params import Param, apply
+from gyrohost.run.log import LogError
+from gyrohost.run.replay import read_inputs, started
+from gyrotensegrity import Model, Scene
+
+IMU_SOURCES = ("imu_rate", "imu_accel", "imu_angle")
+CHANNELS = tuple(f"{stream} {a}" for stream in ("gyro", "accel", "angle") for a in "xyz")
+STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 9)}
+"""The IMU innovations' columns in :attr:`.fit.FitResult.residuals`: rate (rad/s), specific
+force (m/s^2), the attitude's error as a rotation vector in world axes (rad)."""
+
+
+FAILED_RESIDUAL = 1e3
+"""Every residual from where the filter broke (a state off every bar length, a non-finite
+covariance) to the recording's end: a step of the fit into such parameters is refused as far
+worse than any the filter runs through."""
+
+
+class FilterFitError(GyrohostError, RuntimeError):
+    """The filter could not run a recording under the nominal parameters."""
+
+
+@dataclass(frozen=True)
+class FilterRecording:
+    """A log's streams as the filter fuses them (:func:`gyrohost.run.replay.read_inputs`),
+    from the start of its ``lead_in`` phase (or its first sample) to its ``rampdown`` (or its
+    end), at most ``until_s`` long."""
+
+    name: str
+    data: dict
+
+
+def load(folder, until_s: float | None = None) -> FilterRecording:
+    """The :class:`FilterRecording` of the log folder ``folder``.
+
+    Raises
+    ------
+    IdentDataError
+        The log cannot be read, or holds fewer than two IMU samples in the window.
+    """
+    try:
+        data = read_inputs(folder)
+    except LogError as exc:
+        raise IdentDataError(str(exc)) from None
+    data.pop(streams.ESTIMATE, None)  # the span is the phases', not the run estimator's
+    if streams.IMU not in data:
+        raise IdentDataError(f"{folder}: stream '{streams.IMU}' missing")
+    start, end = phase_window(folder)
+    first = float(data[streams.IMU]["t_s"][0]) if start is None else start
+    end = first + until_s if until_s is not None and (end is None or first + until_s < end) else end
+    if end is not None:
+        data = {k: v[v["t_s"] < end] for k, v in data.items()}
+    if start is not None:
+        # the last wheel report, servo position and command before the start set the filter's
+        # start (gyrotens replay's rule); the IMU from the start on
+        data = {
+            k: v[v["t_s"] >= start]
+            if k == streams.IMU
+            else v[max(np.searchsorted(v["t_s"], start, "right") - 1, 0) :]
+            for k, v in data.items()
+        }
+    if len(data[streams.IMU]) < 2:
+        raise IdentDataError(f"{folder}: fewer than two IMU samples to fit")
+    return FilterRecording(str(folder), data)
+
+
+class FilterProblem:
+    """The whitened innovations of parameter vectors over the recordings (the interface of
+    :class:`.fit.Problem`, which :func:`.fit.statistics` and :mod:`.profile` use)."""
+
+    def __init__(self, scene: Scene, config: RigConfig, est, params: list, recs: list):
+        self.scene, self.config, self.params, self.recs = scene, config, params, recs
+        self.est = replace(est, gate_probability=1.0)  # every sample in, every run alike
+        self.servo_lag_s = est.servo_lag_s
+        self.dynamic = np.ones(len(params), bool)  # every parameter needs a filter run
+        self._key, self._runs = None, None
+        self.simulations = 0
+        self.failures: list[str] = []
+        self._length = None  # residuals per evaluation: every sample's, as the first run gave
+
+    def applied(self, theta):
+        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
+
+    def runs(self, theta) -> list:
+        """Per recording, the innovations in fusion order and where the filter broke, or None
+        (see :func:`_run`)."""
+        key = tuple(np.asarray(theta, float))
+        if key != self._key:
+            a = self.applied(theta)
+            est = replace(
+                self.est,
+                imu_mounting_rpy_rad=tuple(float(v) for v in a.mounting_rpy_rad),
+                servo_lag_s=float(a.servo_lag_s),
+            )
+            model = Model(a.scene)
+            self._runs = [
+                _run(model, est, rec, _corrected(rec.data, a, i, self.config))
+                for i, rec in enumerate(self.recs)
+            ]
+            self._key = key
+            self.simulations += 1
+        return self._runs
+
+    def errors(self, theta) -> list:
+        """The IMU's innovations (measured less predicted) per recording, shape (k_i, 9):
+        rate (rad/s), specific force (m/s^2), attitude (rotation vector, world axes, rad)."""
+        return [imu_innovations(run) for run, _ in self.runs(theta)]
+
+    def __call__(self, theta) -> np.ndarray:
+        runs = self.runs(theta)
+        w = np.concatenate([r.whitened for run, _ in runs for r in run])
+        broke = [why for _, why in runs if why] + ([] if np.all(np.isfinite(w)) else ["NaN"])
+        if self._length is None:
+            if broke:
+                raise FilterFitError(_named(self.params, theta, "; ".join(broke)))
+            self._length = len(w)
+        if broke:
+            self.failures.append(_named(self.params, theta, "; ".join(broke)))
+            w = np.nan_to_num(w[: self._length], nan=FAILED_RESIDUAL)
+            w = np.pad(w, (0, self._length - len(w)), constant_values=FAILED_RESIDUAL)
+        return w
+
+
+def _named(params, theta, what: str) -> str:
+    values = ", ".join(f"{p.name} {p.value(t):.6g}" for p, t in zip(params, theta, strict=True))
+    return f"the filter broke ({what}) at {values}"
+
+
+def _corrected(data: dict, a, k: int, config: RigConfig) -> dict:
+    """The streams of recording ``k`` as the rig of ``a`` (:func:`.params.apply`) would have
+    logged them without its biases and with its servos' zeros: the biases taken off the
+    IMU's readings, the zero offsets added to the wound strings' reported and commanded
+    lengths."""
+    out = dict(data)
+    imu = data[streams.IMU].copy()
+    biases = (a.gyro_bias_rad_s[k], a.accel_bias_m_s2[k])
+    for cols, bias in zip((streams.IMU_RATE, streams.IMU_ACCEL), biases, strict=True):
+        for c, b in zip(cols, bias, strict=True):
+            imu[c] -= b
+    out[streams.IMU] = imu
+    strings = [s.string for s in config.servos.servo if s.string]
+    for name, column in ((streams.SERVOS, streams.servo_length_column),
+                         (streams.COMMAND, streams.rest_column)):  # fmt: skip
+        if name in data:
+            rows = data[name].copy()
+            for s, offset in zip(strings, a.offsets_m, strict=True):
+                if column(s) in rows.dtype.names:
+                    rows[column(s)] += offset
+            out[name] = rows
+    return out
+
+
+def _run(model: Model, est: EstimatorConfig, rec: FilterRecording, data: dict):
+    """The filter of ``model`` over ``data``: every :class:`~gyrohost.estimator.fusion.
+    Innovation` in fusion order up to where it broke, and why it broke (None: it did not)."""
+    ekf, samples = started(model, est, data)
+    out = []
+    ekf.log = out.append
+    try:
+        driver.run(ekf, samples)
+    except EstimatorError as exc:
+        return out, f"{rec.name}: {exc}"
+    return out, None
+
+
+def imu_innovations(run: list) -> np.ndarray:
+    """The IMU's innovations of one run (:func:`_run`), shape (k, 9): rate, force, angles."""
+    parts = [np.array([r.innovation for r in run if r.source == s]) for s in IMU_SOURCES]
+    return np.column_stack(parts)
+
+
+def fit(
+    scene: Scene,
+    config: RigConfig,
+    est: EstimatorConfig,
+    params: list[Param],
+    recs: list,
+    progress: Callable[[int, float], None] | None = None,
+    max_nfev: int = 40,
+) -> output_fit.FitResult:
+    """Fit ``params`` to the recordings ``recs`` (:class:`FilterRecording`) by the filter's
+    prediction error; ``progress(runs, cost)`` after every evaluation. The result is the
+    output-error fit's, its residuals the IMU's innovations (:data:`STREAMS`)."""
+    lower = np.array([p.lower for p in params])
+    steps = [p.step for p in params]
+    problem = FilterProblem(scene, config, est, params, recs)
+
+    def residual(theta):
+        r = problem(theta)
+        if progress is not None:
+            progress(problem.simulations, 0.5 * float(r @ r))
+        return r
+
+    def solve(problem, theta0):
+        return least_squares(
+            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10,
+            ftol=output_fit.SEGMENTED_FTOL, max_nfev=max_nfev,
+        )  # fmt: skip
+
+    initial = problem.errors(np.zeros(len(params)))
+    sol, strings = profile.strings_valley(
+        solve, problem, solve(problem, np.zeros(len(params))), lower
+    )
+    final = problem.errors(sol.x)
+    sigma, corr, unresolved, separable, combos, valley = output_fit.statistics(
+        problem, sol, lower, steps
+    )
+    rms = {
+        name: (output_fit.stream_rms(initial, cols), output_fit.stream_rms(final, cols))
+        for name, cols in STREAMS.items()
+    }
+    return output_fit.FitResult(
+        params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
+        float(sol.cost), int(sol.nfev), _status(sol.message, problem), scene, problem.servo_lag_s,
+        strings_valley=[(k, float(c)) for k, _, c in strings], channels=CHANNELS, streams=STREAMS,
+    )  # fmt: skip
+
+
+def _status(message: str, problem: FilterProblem) -> str:
+    """The optimiser's message, and how often the filter broke on the way (the first time)."""
+    if not problem.failures:
+        return message
+    n = len(problem.failures)
+    return (
+        f"{message}; {n} of {problem.simulations} filter runs broke, first: {problem.failures[0]}"
+    )

@@ -1,0 +1,103 @@
+"""Identification by the filter's prediction error on the simulated rig's models, whose wheels
+err from their setpoints (the speed loop's error, 0.01 rad/s): the truth of
+``identify_check`` (J3 x 1.3, stiffness x 1.25, damping x 0.7, IMU 3 deg off)."""
+
+import numpy as np
+import pytest
+
+from gyrohost.cli import main
+from gyrohost.experiments.identify_check import (
+    errors,
+    identify_filter,
+    record_log,
+    write_rigs,
+)
+from gyrohost.ident import filter_fit
+from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.params import parameters
+
+SPEED_ERROR_RAD_S = 0.01
+
+
+def test_j3_and_mounting_within_the_acceptance_where_the_wheels_err(tmp_path):
+    """The output-error fit misses J3 by 3 to 6 % and the mounting by degrees on such logs
+    (docs/identification.md); the filter follows the roll mode the wheels' error seeds."""
+    nominal, truth = write_rigs(
+        tmp_path, 3.5, weighed=True, speed_error_std_rad_s=SPEED_ERROR_RAD_S
+    )
+    log = record_log(truth, 1, tmp_path / "log")
+    result = identify_filter(nominal, [log], ("J3", "mounting", "accel-bias"))
+    err = errors(result, weighed=True)
+    assert abs(err["J3"][0]) < 0.03, err["J3"]
+    for axis in ("roll", "pitch", "yaw"):
+        assert abs(err[f"mounting.{axis}"][0]) < np.radians(0.3), (axis, err)
+    assert np.all(np.isfinite(result.sigma)) and np.all(result.sigma > 0.0)
+    # the residuals are the IMU's innovations: far smaller at the estimate than at the nominal
+    assert result.rms["gyro"][1] < 0.5 * result.rms["gyro"][0], result.rms
+
+
+def test_the_window_is_the_logs_phases_cut_by_until(tmp_path):
+    _, truth = write_rigs(tmp_path, 1.5)
+    log = record_log(truth, 2, tmp_path / "log")
+    whole = filter_fit.load(log)
+    cut = filter_fit.load(log, until_s=0.5)
+    t = whole.data["imu"]["t_s"]
+    assert t[0] >= 0.0 and t[-1] > 1.4
+    assert cut.data["imu"]["t_s"][-1] < 0.5 <= cut.data["imu"]["t_s"][-1] + 0.011
+    with pytest.raises(IdentDataError, match="fewer than two IMU samples"):
+        filter_fit.load(log, until_s=0.005)
+
+
+def _problem(tmp_path):
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrotensegrity import load_scene
+
+    tmp_path.mkdir(exist_ok=True)
+    nominal, truth = write_rigs(tmp_path, 1.0)
+    log = record_log(truth, 3, tmp_path / "log")
+    config = load_rig_config(nominal)
+    scene, est = load_scene(config.scene_path), for_rig(config)
+    params = parameters(scene, config, ["J3"], est.servo_lag_s)
+    return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)])
+
+
+def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_path, monkeypatch):
+    """Where the filter breaks under a parameter vector the fit tried, the rest of the
+    recording's residuals are a wall the optimiser backs off from (and the break is counted);
+    under the nominal parameters, where the fit starts, it is an error naming them."""
+    problem = _problem(tmp_path)
+    whole = problem(np.zeros(1))
+    run = filter_fit._run
+
+    def breaks_halfway(model, est, rec, data):
+        innovations, _ = run(model, est, rec, data)
+        return innovations[: len(innovations) // 2], "t = 0.5 s: prediction failed"
+
+    monkeypatch.setattr(filter_fit, "_run", breaks_halfway)
+    broken = problem(np.array([0.1]))
+    assert len(broken) == len(whole)
+    half = np.flatnonzero(broken == filter_fit.FAILED_RESIDUAL)
+    assert len(half) > 0.4 * len(whole) and half[-1] == len(whole) - 1
+    assert len(problem.failures) == 1 and "J3" in problem.failures[0]
+
+    fresh = _problem(tmp_path / "again")
+    monkeypatch.setattr(filter_fit, "_run", breaks_halfway)
+    with pytest.raises(filter_fit.FilterFitError, match="prediction failed.*J3"):
+        fresh(np.zeros(1))
+
+
+def test_cli_fits_by_the_filter_and_writes_scene_overlay_and_plot(tmp_path, capsys):
+    nominal, truth = write_rigs(
+        tmp_path, 1.5, weighed=True, speed_error_std_rad_s=SPEED_ERROR_RAD_S
+    )
+    log = record_log(truth, 2, tmp_path / "log")
+    out = tmp_path / "ident" / "rig.toml"
+    argv = ["identify", str(log), "-o", str(out), "--config", str(nominal), "--method", "filter"]
+    assert main([*argv, "--params", "J3,mounting,gyro-bias", "--max-evaluations", "8"]) == 0
+    text = capsys.readouterr().out
+    assert "gyro-bias: the filter's own state, not fitted" in text
+    assert "by the filter error" in text
+    assert out.is_file() and (tmp_path / "ident" / "rig-residuals.png").stat().st_size > 10_000
+    overlay = (tmp_path / "ident" / "rig-config.toml").read_text()
+    assert "mounting_rpy_rad" in overlay
