@@ -10,8 +10,10 @@ model the scene of a parameter vector: it carries the wheels' error as the proce
 wheel states and corrects the state at every sample, so each innovation is the one-sample-ahead
 prediction error of that scene. The residual is every innovation whitened by its covariance
 (:attr:`gyrohost.estimator.fusion.Innovation.whitened`: unit variance when the scene is the
-rig's), of every source; the fit and its statistics are the output-error fit's
-(:func:`.fit.statistics`).
+rig's), of every source. The fit is solved as the output-error fit is, and moved to the smooth
+minimum of the valley where the strings' stiffness and damping trade
+(:func:`.profile.strings_valley`: the cost is as rough along it, some ten units where a string
+goes slack a sample earlier); its statistics are the output-error fit's (:func:`.fit.statistics`).
 
 Parameters: those of :mod:`.params` that the filter's model or its inputs carry (the scene's
 masses, inertias, stiffness and damping; the IMU mounting as the filter's
@@ -24,7 +26,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from gyrohost.config import RigConfig
 from gyrohost.errors import GyrohostError
@@ -221,18 +222,7 @@ def fit(
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
     problem = FilterProblem(scene, config, est, params, recs)
-
-    def residual(theta):
-        r = problem(theta)
-        if progress is not None:
-            progress(problem.simulations, 0.5 * float(r @ r))
-        return r
-
-    def solve(problem, theta0):
-        return least_squares(
-            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10,
-            ftol=output_fit.SEGMENTED_FTOL, max_nfev=max_nfev,
-        )  # fmt: skip
+    solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL)
 
     initial = problem.errors(np.zeros(len(params)))
     sol, strings = profile.strings_valley(

@@ -216,21 +216,8 @@ def fit(
     """
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
-
     segmented = two_passes(recs, config.sim.truth.dt_s)
-    ftol = SEGMENTED_FTOL if segmented else 1e-8  # scipy's default
-
-    def solve(problem, theta0):
-        def residual(theta):
-            r = problem(theta)
-            if progress is not None:
-                progress(problem.simulations, 0.5 * float(r @ r))
-            return r
-
-        return least_squares(
-            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, ftol=ftol,
-            max_nfev=max_nfev,
-        )  # fmt: skip
+    solve = solver(params, progress, max_nfev, SEGMENTED_FTOL if segmented else 1e-8)
 
     theta0, dropped = np.zeros(len(params)), []
     if segmented:
@@ -262,6 +249,29 @@ def fit(
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
         widened, [(k, float(c)) for k, _, c in strings],
     )  # fmt: skip
+
+
+def solver(params, progress, max_nfev: int, ftol: float):
+    """``solve(problem, theta0)``: ``scipy.optimize.least_squares`` of a problem's residual
+    (:class:`Problem` or one with its interface) from ``theta0`` within the bounds of
+    ``params`` and with their finite-difference steps, ``progress(simulations, cost)`` after
+    every evaluation."""
+    lower = np.array([p.lower for p in params])
+    steps = [p.step for p in params]
+
+    def solve(problem, theta0):
+        def residual(theta):
+            r = problem(theta)
+            if progress is not None:
+                progress(problem.simulations, 0.5 * float(r @ r))
+            return r
+
+        return least_squares(
+            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, ftol=ftol,
+            max_nfev=max_nfev,
+        )  # fmt: skip
+
+    return solve
 
 
 def anchored(recs, applied) -> list:
