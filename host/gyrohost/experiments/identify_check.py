@@ -11,8 +11,10 @@ servos, IMU emulator and wheel-board emulator; seed = IMU noise and biases) and 
 log; :func:`identify_log` then fits it from the nominal configuration, string lengths from the
 host's commands. Per seed: every parameter's error against the truth, in its reported 1-sigma;
 the coverage table counts how often ``|error| <= 1 sigma`` (68 % expected) and ``<= 2 sigma``.
-``--with-lag`` fits the servo lag too; ``--duration S`` cuts the excitation short;
-``--speed-error STD`` gives the emulated wheels a speed-loop error (default 0: exact).
+``--with-lag`` fits the servo lag too; ``--duration S`` cuts the excitation short, ``--repeat N``
+plays it N times; ``--speed-error STD`` gives the emulated wheels a speed-loop error (default 0:
+exact); ``--method filter`` fits by the filter's prediction error (:func:`identify_filter`)
+instead of the output error, ``--segment-s S`` fits the output error in segments.
 """
 
 import argparse
