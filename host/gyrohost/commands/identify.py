@@ -132,9 +132,10 @@ def run(args) -> int:
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
         if args.method == "filter":
             recs = [filter_fit.load(log, args.until) for log in args.logs]
-            if "gyro-bias" in groups:
-                print("gyro-bias: the filter's own state, not fitted")
-                groups.remove("gyro-bias")
+            for g in filter_fit.STATE_GROUPS:
+                if g in groups:
+                    print(f"{g}: the filter's own state, not fitted")
+                    groups.remove(g)
             params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
         else:
             recs = _recordings(args, config, Model(scene))

@@ -158,10 +158,10 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, comma
 
 
 def identify_filter(nominal_config: Path, logs, groups=GROUPS):
-    """Fit ``groups`` (less ``gyro-bias``: the filter's own state) to the logs from the
-    nominal configuration by the filter's prediction error (:mod:`gyrohost.ident.filter_fit`),
-    the filter tuned as the simulated-clock SIL tunes it for the rig models
-    (:data:`.estimator_sil.RIG_MODEL_KEYS`)."""
+    """Fit ``groups`` (less the filter's own states, ``filter_fit.STATE_GROUPS``) to the logs
+    from the nominal configuration by the filter's prediction error
+    (:mod:`gyrohost.ident.filter_fit`), the filter tuned as the simulated-clock SIL tunes it
+    for the rig models (:data:`.estimator_sil.RIG_MODEL_KEYS`)."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import config_from_dict, noise_from_rig
     from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS
@@ -173,7 +173,7 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS):
     scene = load_scene(config.scene_path)
     est = config_from_dict({**noise_from_rig(config), **RIG_MODEL_KEYS})
     recs = [filter_fit.load(log) for log in logs]
-    groups = [g for g in groups if g != "gyro-bias"]
+    groups = [g for g in groups if g not in filter_fit.STATE_GROUPS]
     params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
     return filter_fit.fit(scene, config, est, params, recs)
 

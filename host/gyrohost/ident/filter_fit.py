@@ -35,13 +35,15 @@ from gyrohost.estimator.errors import EstimatorError
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
 from gyrohost.ident.forward import IdentDataError
-from gyrohost.ident.logs import phase_window
+from gyrohost.ident.logs import windowed
 from gyrohost.ident.params import Param, apply
 from gyrohost.run.log import LogError
 from gyrohost.run.replay import read_inputs, started
 from gyrotensegrity import Model, Scene
 
 IMU_SOURCES = ("imu_rate", "imu_accel", "imu_angle")
+STATE_GROUPS = ("gyro-bias",)
+"""Parameter groups the filter estimates as its own states: not fitted."""
 CHANNELS = tuple(f"{stream} {a}" for stream in ("gyro", "accel", "angle") for a in "xyz")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 9)}
 """The IMU innovations' columns in :attr:`.fit.FitResult.residuals`: rate (rad/s), specific
@@ -83,20 +85,12 @@ def load(folder, until_s: float | None = None) -> FilterRecording:
     data.pop(streams.ESTIMATE, None)  # the span is the phases', not the run estimator's
     if streams.IMU not in data:
         raise IdentDataError(f"{folder}: stream '{streams.IMU}' missing")
-    start, end = phase_window(folder)
-    first = float(data[streams.IMU]["t_s"][0]) if start is None else start
-    end = first + until_s if until_s is not None and (end is None or first + until_s < end) else end
-    if end is not None:
-        data = {k: v[v["t_s"] < end] for k, v in data.items()}
+    data, start = windowed(folder, data, until_s)
     if start is not None:
-        # the last wheel report, servo position and command before the start set the filter's
-        # start (gyrotens replay's rule); the IMU from the start on
-        data = {
-            k: v[v["t_s"] >= start]
-            if k == streams.IMU
-            else v[max(np.searchsorted(v["t_s"], start, "right") - 1, 0) :]
-            for k, v in data.items()
-        }
+        # the filter starts at the earliest row (gyrotens replay's rule): the last wheel
+        # report, servo position and command before the start set its start, the IMU is
+        # fused from the start on
+        data[streams.IMU] = data[streams.IMU][data[streams.IMU]["t_s"] >= start]
     if len(data[streams.IMU]) < 2:
         raise IdentDataError(f"{folder}: fewer than two IMU samples to fit")
     return FilterRecording(str(folder), data)

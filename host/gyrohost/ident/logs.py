@@ -30,6 +30,26 @@ def phase_window(folder: Path) -> tuple[float | None, float | None]:
     return times.get(FIRST_PHASE), times.get(LAST_PHASE)
 
 
+def windowed(folder: Path, data: dict, until_s: float | None = None):
+    """The streams ``data`` (name -> rows with host times ``t_s``, an ``imu`` among them) of
+    the log folder ``folder`` within its phases (:func:`phase_window`), at most ``until_s``
+    from the start (of ``lead_in``, else of the IMU): every stream cut at the end, and every
+    stream but the IMU from its last row before the start (commands and reports logged then
+    hold over it); the IMU whole before the end. Returns (the streams, the start or None)."""
+    start, end = phase_window(folder)
+    if until_s is not None:
+        first = start if start is not None else float(data[streams.IMU]["t_s"][0])
+        end = first + until_s if end is None else min(end, first + until_s)
+    if end is not None:
+        data = {k: v[v["t_s"] < end] for k, v in data.items()}
+    if start is not None:
+        data = {
+            k: v if k == streams.IMU else v[max(np.searchsorted(v["t_s"], start) - 1, 0) :]
+            for k, v in data.items()
+        }
+    return data, start
+
+
 def load_recording(
     folder,
     config: RigConfig,
@@ -66,18 +86,7 @@ def load_recording(
         wheels = data[streams.WHEELS].copy()
         wheels["t_s"] = wheel_times(wheels, est)
         data[streams.WHEELS] = wheels
-    start, end = phase_window(folder)
-    if until_s is not None:
-        first = start if start is not None else float(data[streams.IMU]["t_s"][0])
-        end = first + until_s if end is None else min(end, first + until_s)
-    if end is not None:
-        data = {k: v[v["t_s"] < end] for k, v in data.items()}
-    if start is not None:
-        # commands and wheel reports from just before the window hold over its start
-        data = {
-            k: v if k == streams.IMU else v[max(np.searchsorted(v["t_s"], start) - 1, 0) :]
-            for k, v in data.items()
-        }
+    data, start = windowed(folder, data, until_s)
     rec = recording(str(folder), data, config, n_wheels, start, commanded)
     t_est, est_x = _estimate(folder, float(data[streams.IMU]["t_s"][0]) if start is None else start)
     return replace(
