@@ -2,6 +2,9 @@
 err from their setpoints (the speed loop's error, 0.01 rad/s): the truth of
 ``identify_check`` (J3 x 1.3, stiffness x 1.25, damping x 0.7, IMU 3 deg off)."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -48,7 +51,7 @@ def test_the_window_is_the_logs_phases_cut_by_until(tmp_path):
         filter_fit.load(log, until_s=0.005)
 
 
-def _problem(tmp_path):
+def _problem(tmp_path, workers=1):
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrotensegrity import load_scene
@@ -59,7 +62,61 @@ def _problem(tmp_path):
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
     params = parameters(scene, config, ["J3"], est.servo_lag_s)
-    return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)])
+    return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
+
+
+def test_a_batch_in_worker_processes_is_the_runs_one_by_one(tmp_path):
+    """The Jacobian's columns run in other processes, each with its own copy of the problem:
+    the same residuals to the last bit, every run counted."""
+    thetas = [np.array([v]) for v in (0.05, -0.05, 0.1)]
+    serial = _problem(tmp_path / "one")
+    expected = [serial(t) for t in thetas]
+    parallel = _problem(tmp_path / "two", workers=2)
+    parallel(np.zeros(1))  # the first run sets the residuals' length
+    try:
+        got = parallel.batch(thetas)
+    finally:
+        parallel.close()
+    for e, g in zip(expected, got, strict=True):
+        np.testing.assert_array_equal(g, e)
+    assert parallel.simulations == 1 + len(thetas)
+
+
+UNGUARDED_SCRIPT = """
+import sys
+from pathlib import Path
+import numpy as np
+from gyrohost.config import load_rig_config
+from gyrohost.estimator.config import for_rig
+from gyrohost.experiments.identify_check import record_log, write_rigs
+from gyrohost.ident import filter_fit
+from gyrohost.ident.params import parameters
+from gyrotensegrity import load_scene
+
+root = Path(sys.argv[1])
+nominal, truth = write_rigs(root, 0.3)
+config = load_rig_config(nominal)
+scene, est = load_scene(config.scene_path), for_rig(config)
+params = parameters(scene, config, ["J3"], est.servo_lag_s)
+log = record_log(truth, 1, root / "log")
+problem = filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], 2)
+problem(np.zeros(1))
+problem.batch([np.ones(1)])
+"""
+
+
+def test_a_script_without_the_main_guard_gets_an_error_not_a_hang(tmp_path):
+    """Spawned workers import the caller's script first; without the guard they die at
+    start-up, which must end the fit with an error that says why."""
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED_SCRIPT)
+    (tmp_path / "rigs").mkdir()
+    done = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "rigs")],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode != 0
+    assert "FilterFitError" in done.stderr and "__name__" in done.stderr, done.stderr[-2000:]
 
 
 def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_path, monkeypatch):

@@ -2,6 +2,7 @@
 fit the rig's parameters to recorded runs (docs/identification.md)."""
 
 import sys
+from functools import partial
 from pathlib import Path
 
 
@@ -66,7 +67,23 @@ def register(sub) -> None:
         "error's",
     )
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
+    p.add_argument(
+        "--workers",
+        type=_at_least_one,
+        metavar="N",
+        help="--method filter: run the filter under N parameter vectors at once, in N "
+        "processes (default: one per usable core)",
+    )
     p.set_defaults(func=run)
+
+
+def _at_least_one(text: str) -> int:
+    import argparse
+
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
 
 
 class FitProgress:
@@ -145,7 +162,7 @@ def run(args) -> int:
     print(f"{len(recs)} recording(s); fitting {len(params)} parameters by the {args.method} error")
     if args.method == "filter":
         passes = 2 + len(profile.VALLEY_STEPS)
-        fitter = filter_fit.fit
+        fitter = partial(filter_fit.fit, workers=args.workers or filter_fit.usable_cores())
     else:
         _describe(recs)
         passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1

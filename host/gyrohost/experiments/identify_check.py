@@ -157,7 +157,7 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, comma
     return fit(*fit_inputs(nominal_config, logs, groups, segment_s, commanded))
 
 
-def identify_filter(nominal_config: Path, logs, groups=GROUPS):
+def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int = 1):
     """Fit ``groups`` (less the filter's own states, ``filter_fit.STATE_GROUPS``) to the logs
     from the nominal configuration by the filter's prediction error
     (:mod:`gyrohost.ident.filter_fit`), the filter tuned as the simulated-clock SIL tunes it
@@ -175,7 +175,7 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS):
     recs = [filter_fit.load(log) for log in logs]
     groups = [g for g in groups if g not in filter_fit.STATE_GROUPS]
     params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
-    return filter_fit.fit(scene, config, est, params, recs)
+    return filter_fit.fit(scene, config, est, params, recs, workers=workers)
 
 
 def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, commanded=True):
@@ -257,6 +257,11 @@ def main(argv=None) -> int:
         default="output",
         help="output error (simulation) or the filter's prediction error",
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        help="processes of the filter's fit (default: one per usable core)",
+    )
     args = parser.parse_args(argv)
     groups = [g for g in GROUPS if g != "bar-mass" or not args.weighed]
     groups += ["servo-lag"] if args.with_lag else []
@@ -276,7 +281,10 @@ def main(argv=None) -> int:
             log = record_log(truth, seed, root / f"run{seed:02d}")
             t1 = time.perf_counter()
             if args.method == "filter":
-                result = identify_filter(nominal, [log], groups)
+                from gyrohost.ident.filter_fit import usable_cores
+
+                workers = args.workers or usable_cores()
+                result = identify_filter(nominal, [log], groups, workers)
             else:
                 result = identify_log(nominal, [log], groups, args.segment_s)
             rows.append(errors(result, args.weighed))

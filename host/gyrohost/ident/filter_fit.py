@@ -22,8 +22,14 @@ reported and commanded lengths; accelerometer and gyro biases taken off the IMU'
 gyro's on top of the filter's own bias state).
 """
 
+import os
+import pickle
+import tempfile
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
+from multiprocessing import get_context
 
 import numpy as np
 
@@ -98,14 +104,21 @@ def load(folder, until_s: float | None = None) -> FilterRecording:
 
 class FilterProblem:
     """The whitened innovations of parameter vectors over the recordings (the interface of
-    :class:`.fit.Problem`, which :func:`.fit.statistics` and :mod:`.profile` use)."""
+    :class:`.fit.Problem`, which :func:`.fit.statistics` and :mod:`.profile` use).
 
-    def __init__(self, scene: Scene, config: RigConfig, est, params: list, recs: list):
+    With ``workers`` > 1, :meth:`batch` runs the filters of its parameter vectors in that many
+    processes (started at the first batch, ended by :meth:`close`): a Jacobian's columns, a
+    profile's samples. Each process holds its own copy of the problem."""
+
+    def __init__(
+        self, scene: Scene, config: RigConfig, est, params: list, recs: list, workers: int = 1
+    ):
         self.scene, self.config, self.params, self.recs = scene, config, params, recs
         self.est = replace(est, gate_probability=1.0)  # every sample in, every run alike
         self.servo_lag_s = est.servo_lag_s
         self.dynamic = np.ones(len(params), bool)  # every parameter needs a filter run
-        self._key, self._runs = None, None
+        self.workers = workers
+        self._key, self._runs, self._pool = None, None, None
         self.simulations = 0
         self.failures: list[str] = []
         self._length = None  # residuals per evaluation: every sample's, as the first run gave
@@ -138,10 +151,34 @@ class FilterProblem:
         rate (rad/s), specific force (m/s^2), attitude (rotation vector, world axes, rad)."""
         return [imu_innovations(run) for run, _ in self.runs(theta)]
 
-    def __call__(self, theta) -> np.ndarray:
+    def whitened(self, theta) -> tuple[np.ndarray, list[str]]:
+        """Every whitened innovation of the runs of ``theta`` in order, and why runs broke."""
         runs = self.runs(theta)
         w = np.concatenate([r.whitened for run, _ in runs for r in run])
         broke = [why for _, why in runs if why] + ([] if np.all(np.isfinite(w)) else ["NaN"])
+        return w, broke
+
+    def __call__(self, theta) -> np.ndarray:
+        return self._walled(theta, *self.whitened(theta))
+
+    def batch(self, thetas) -> list:
+        """The residuals of several parameter vectors, in order."""
+        if self.workers <= 1 or self._length is None:
+            return [self(t) for t in thetas]
+        if self._pool is None:
+            self._pool = _Workers(self)
+        outs = self._pool.map(thetas)
+        self.simulations += len(outs)
+        return [self._walled(t, w, broke) for t, (w, broke) in zip(thetas, outs, strict=True)]
+
+    def close(self) -> None:
+        """End the worker processes, if any."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def _walled(self, theta, w: np.ndarray, broke: list[str]) -> np.ndarray:
+        """``w``, from where a run broke on filled with :data:`FAILED_RESIDUAL`."""
         if self._length is None:
             if broke:
                 raise FilterFitError(_named(self.params, theta, "; ".join(broke)))
@@ -151,6 +188,58 @@ class FilterProblem:
             w = np.nan_to_num(w[: self._length], nan=FAILED_RESIDUAL)
             w = np.pad(w, (0, self._length - len(w)), constant_values=FAILED_RESIDUAL)
         return w
+
+
+class _Workers:
+    """``problem.workers`` processes, each with its own copy of ``problem``.
+
+    The processes are spawned (a fresh interpreter: no thread of this one forked) and read the
+    problem from a file: a spawned process imports the caller's main script first, and where
+    that has no ``if __name__ == "__main__":`` guard it dies at start-up, which
+    ``ProcessPoolExecutor`` reports as a broken pool only when the arguments it sends at
+    start-up are small: with the recordings among them it waits forever (CPython 3.11)."""
+
+    def __init__(self, problem: FilterProblem):
+        fd, self.path = tempfile.mkstemp(prefix="gyrotens-filter-fit-", suffix=".pickle")
+        with os.fdopen(fd, "wb") as f:
+            parts = (problem.scene, problem.config, problem.est, problem.params, problem.recs)
+            pickle.dump(parts, f)
+        self.pool = ProcessPoolExecutor(
+            problem.workers, get_context("spawn"), initializer=_start_worker, initargs=(self.path,)
+        )
+
+    def map(self, thetas) -> list:
+        try:
+            return list(self.pool.map(_worker_whitened, thetas))
+        except BrokenProcessPool:
+            raise FilterFitError(
+                "a worker process of the filter fit ended abruptly; a script that fits with "
+                "workers > 1 needs its top level under 'if __name__ == \"__main__\":' "
+                "(processes are spawned), else fit with workers=1"
+            ) from None
+
+    def close(self) -> None:
+        self.pool.shutdown()
+        os.unlink(self.path)
+
+
+_worker_problem: FilterProblem | None = None
+"""A worker process's copy of the problem (:class:`_Workers`)."""
+
+
+def _start_worker(path: str) -> None:
+    global _worker_problem
+    with open(path, "rb") as f:
+        _worker_problem = FilterProblem(*pickle.load(f))
+
+
+def _worker_whitened(theta):
+    return _worker_problem.whitened(theta)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on: the default of the fit's ``workers``."""
+    return len(os.sched_getaffinity(0))
 
 
 def _named(params, theta, what: str) -> str:
@@ -209,23 +298,27 @@ def fit(
     recs: list,
     progress: Callable[[int, float], None] | None = None,
     max_nfev: int = 40,
+    workers: int = 1,
 ) -> output_fit.FitResult:
     """Fit ``params`` to the recordings ``recs`` (:class:`FilterRecording`) by the filter's
-    prediction error; ``progress(runs, cost)`` after every evaluation. The result is the
-    output-error fit's, its residuals the IMU's innovations (:data:`STREAMS`)."""
+    prediction error; ``progress(runs, cost)`` after every evaluation; the Jacobians' columns
+    and the profiles' samples in ``workers`` processes. The result is the output-error fit's,
+    its residuals the IMU's innovations (:data:`STREAMS`)."""
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
-    problem = FilterProblem(scene, config, est, params, recs)
+    problem = FilterProblem(scene, config, est, params, recs, workers)
     solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL)
-
-    initial = problem.errors(np.zeros(len(params)))
-    sol, strings = profile.strings_valley(
-        solve, problem, solve(problem, np.zeros(len(params))), lower
-    )
-    final = problem.errors(sol.x)
-    sigma, corr, unresolved, separable, combos, valley = output_fit.statistics(
-        problem, sol, lower, steps
-    )
+    try:
+        initial = problem.errors(np.zeros(len(params)))
+        sol, strings = profile.strings_valley(
+            solve, problem, solve(problem, np.zeros(len(params))), lower
+        )
+        final = problem.errors(sol.x)
+        sigma, corr, unresolved, separable, combos, valley = output_fit.statistics(
+            problem, sol, lower, steps
+        )
+    finally:
+        problem.close()
     rms = {
         name: (output_fit.stream_rms(initial, cols), output_fit.stream_rms(final, cols))
         for name, cols in STREAMS.items()

@@ -19,11 +19,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.ident import forward, profile, shooting
+from gyrohost.ident import forward, lsq, profile, shooting
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 
@@ -188,6 +187,11 @@ class Problem:
     def __call__(self, theta) -> np.ndarray:
         return np.concatenate([e.ravel() for e in self.weighted(theta)])
 
+    def batch(self, thetas) -> list:
+        """The residuals of several parameter vectors, in order (one after the other: the
+        simulations they share are reused)."""
+        return [self(t) for t in thetas]
+
 
 def nominal_lag(config: RigConfig, est: EstimatorConfig, recs) -> float:
     """The lag to start from, s: the servos' response (the estimator's ``servo_lag_s``) for
@@ -252,23 +256,24 @@ def fit(
 
 
 def solver(params, progress, max_nfev: int, ftol: float):
-    """``solve(problem, theta0)``: ``scipy.optimize.least_squares`` of a problem's residual
-    (:class:`Problem` or one with its interface) from ``theta0`` within the bounds of
+    """``solve(problem, theta0)``: the least-squares fit (:func:`.lsq.solve`) of a problem's
+    residual (:class:`Problem` or one with its interface) from ``theta0`` within the bounds of
     ``params`` and with their finite-difference steps, ``progress(simulations, cost)`` after
     every evaluation."""
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
 
     def solve(problem, theta0):
-        def residual(theta):
-            r = problem(theta)
+        def reported(rs):
             if progress is not None:
-                progress(problem.simulations, 0.5 * float(r @ r))
-            return r
+                for r in rs:
+                    progress(problem.simulations, 0.5 * float(r @ r))
+            return rs
 
-        return least_squares(
-            residual, theta0, bounds=(lower, np.inf), diff_step=steps, xtol=1e-10, ftol=ftol,
-            max_nfev=max_nfev,
+        return lsq.solve(
+            lambda theta: reported([problem(theta)])[0],
+            lambda thetas: reported(problem.batch(thetas)),
+            theta0, steps, lower, xtol=1e-10, ftol=ftol, max_nfev=max_nfev,
         )  # fmt: skip
 
     return solve

@@ -36,9 +36,8 @@ from contextvars import ContextVar
 from itertools import count
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from gyrohost.ident import shooting
+from gyrohost.ident import lsq, shooting
 
 PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
 """Where the cost is sampled along a profile direction, in linearised sigmas."""
@@ -85,12 +84,6 @@ def _notify(step: str, done: int, total: int | None) -> None:
         callback(step, done, total)
 
 
-def cost(problem, theta) -> float:
-    """Half the weighted sum of squares at ``theta``."""
-    r = problem(theta)
-    return 0.5 * float(r @ r)
-
-
 def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float, float]:
     """1-sigma of the combination ``c . theta`` from the cost along its profile direction.
 
@@ -120,8 +113,8 @@ def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float
     direction = cov @ c / sd  # moves c . theta by one linearised sigma per unit
     t = np.append(PROFILE_STEPS, 0.0)
     rise = np.zeros(len(t))
-    for j, k in enumerate(PROFILE_STEPS):
-        rise[j] = cost(problem, theta + k * direction) - cost0
+    for j, r in enumerate(problem.batch([theta + k * direction for k in PROFILE_STEPS])):
+        rise[j] = 0.5 * float(r @ r) - cost0
         _notify("profile", j + 1, len(PROFILE_STEPS))
     x = t * sd
     A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
@@ -165,16 +158,18 @@ def scale_rise(problem, theta, direction, members, steps, lower, cost0: float):
         z_lower = np.append(np.full(k - 1, -np.inf), lower[others] - start[others])
         calls = count(1)
 
-        def held(z, s=start, label=label, calls=calls):
-            r = problem(s + B @ z)
-            _notify(label, next(calls), None)  # the Jacobian's evaluations count too
-            return r
+        def held(zs, s=start, label=label, calls=calls):
+            rs = problem.batch([s + B @ z for z in zs])
+            for _ in rs:
+                _notify(label, next(calls), None)  # the Jacobian's evaluations count too
+            return rs
 
-        sol = least_squares(
+        sol = lsq.solve(
+            lambda z, held=held: held([z])[0],
             held,
             np.maximum(np.zeros(p - 1), z_lower + 1e-9),
-            bounds=(z_lower, np.inf),
-            diff_step=z_steps,
+            z_steps,
+            z_lower,
             max_nfev=SCALE_EVALUATIONS,
         )
         rises.append(float(sol.cost) - cost0)
