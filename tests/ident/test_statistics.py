@@ -88,6 +88,39 @@ def test_roughness_widens_the_sigma_of_the_parameter_it_hits():
     assert sigma_rough[0] == pytest.approx(sigma_smooth[0], rel=0.1)  # J3: untouched
 
 
+class Dropped:
+    """One parameter with a smooth 1-sigma of 0.01 (unit noise) whose cost drops by ``drop``
+    units beyond -5 sigmas, as the filter fit's does where a gate or a slack kink is crossed a
+    step earlier."""
+
+    def __init__(self, drop: float):
+        self.jump = np.sqrt(2.0 * drop)
+
+    def __call__(self, theta):
+        x = float(theta[0])
+        return np.array([x / 0.01, 0.0 if x < -0.05 else self.jump])
+
+    def batch(self, thetas):
+        return [self(t) for t in thetas]
+
+
+@pytest.mark.parametrize("drop", [0.0, 40.5])
+def test_a_cost_not_convex_within_six_sigmas_is_sampled_again_farther_out(drop):
+    """A drop larger than the smooth rise within the profile's steps leaves those samples
+    concave; four times as far out the rise dominates and the drop counts as roughness."""
+    problem, theta = Dropped(drop), np.zeros(1)
+    cost0 = 0.5 * float(problem(theta) @ problem(theta))
+    steps = []
+    with profile.observing(lambda step, *_: steps.append(step)):
+        sigma, rough = profile.secant_sigma(
+            problem, theta, np.eye(1) * 1e-4, np.ones(1), 1.0, cost0
+        )
+    wider = "profile wider" in steps
+    assert wider == (drop > 0.0), set(steps)
+    assert sigma == pytest.approx(0.01 * np.sqrt(1.0 + 2.0 * rough), rel=0.02)
+    assert (rough > 10.0) if wider else (rough < 1e-9)
+
+
 def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined():
     """Bars not weighed (a pin within the noise over +-20 %): the scale is flagged, the four factors
     are not separable, their combinations along the valley are determined and within their

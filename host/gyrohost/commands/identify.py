@@ -116,7 +116,10 @@ class FitProgress:
         if step == "profile" and done == 1:
             self.profiles += 1
         if self.enabled:
-            what = f"cost profile {self.profiles}" if step == "profile" else f"{step} refit"
+            if step.startswith("profile"):
+                what = f"cost {step} {self.profiles}"
+            else:
+                what = f"{step} refit"
             of = "" if total is None else f"/{total}"
             self.stream.write(
                 f"\rstatistics: {what}, evaluation {done}{of}; {self.stats_calls:4d} in all  "

@@ -219,8 +219,10 @@ class _Workers:
             ) from None
 
     def close(self) -> None:
-        self.pool.shutdown()
-        os.unlink(self.path)
+        try:
+            self.pool.shutdown()
+        finally:
+            os.unlink(self.path)
 
 
 _worker_problem: FilterProblem | None = None
@@ -238,8 +240,11 @@ def _worker_whitened(theta):
 
 
 def usable_cores() -> int:
-    """The cores this process may run on: the default of the fit's ``workers``."""
-    return len(os.sched_getaffinity(0))
+    """The cores this process may run on (all of them where the system does not say, as on
+    macOS and Windows): the default of the fit's ``workers``."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
 
 
 def _named(params, theta, what: str) -> str:

@@ -14,7 +14,8 @@ correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
   linearised sigma, fitted with a parabola: its curvature ``a`` (cost units per unit squared)
   and the scatter ``eps`` of the samples about it (the roughness). The 1-sigma is
   ``sqrt((s^2 + 2 eps) / a)``: one sigma is where the smooth cost has risen by the noise's
-  ``s^2 / 2`` plus the roughness ``eps``.
+  ``s^2 / 2`` plus the roughness ``eps``. Where the samples are not convex (jumps larger than
+  the rise within those steps) they are taken again :data:`PROFILE_WIDER` times as far out.
 * :func:`scale_rise`: scaling every mass, inertia, stiffness and damping by one factor leaves the
   D-bar's motion almost unchanged; the Jacobian does not show it (the valley is narrow and bent
   by the wheels' mass, which is kept). The cost is re-minimised with that common factor held
@@ -41,6 +42,12 @@ from gyrohost.ident import lsq, shooting
 
 PROFILE_STEPS = (-6.0, -4.5, -3.0, -1.5, 1.5, 3.0, 4.5, 6.0)
 """Where the cost is sampled along a profile direction, in linearised sigmas."""
+PROFILE_WIDER = 4.0
+"""How much farther out the profile is sampled again where the samples at :data:`PROFILE_STEPS`
+are not convex: the filter fit's cost jumps by tens of units within a few sigmas of J3 (gates
+and slack kinks crossed a step earlier or later), while its smooth rise at 24 sigmas is some 300
+units (``s^2`` about 1), so the wider samples read the curvature under the jumps and count the
+jumps as roughness in the sigma."""
 VALLEY_STEPS = (-2.0, -1.0, 1.0, 2.0)
 """Where a fit in segments is solved again along the strings' valley, in :data:`VALLEY_STEP`."""
 VALLEY_REACH = 4.0
@@ -68,9 +75,10 @@ _observer: ContextVar[Callable[[str, int, int | None], None] | None] = ContextVa
 def observing(callback: Callable[[str, int, int | None], None]):
     """Within the block, ``callback(step, done, total)`` is called after every evaluation of
     the cost by :func:`secant_sigma` and :func:`scale_rise` (the statistics after a fit, which
-    take about as long as the fit): ``step`` is ``"profile"`` or ``"scale below"`` / ``"scale
-    above"``, ``done`` the evaluations of that step so far (1 starts a new one), ``total`` its
-    number of evaluations (``None``: open-ended, a re-minimisation)."""
+    take about as long as the fit): ``step`` is ``"profile"`` (``"profile wider"`` where it is
+    sampled again farther out) or ``"scale below"`` / ``"scale above"``, ``done`` the
+    evaluations of that step so far (1 starts a new one), ``total`` its number of evaluations
+    (``None``: open-ended, a re-minimisation)."""
     token = _observer.set(callback)
     try:
         yield
@@ -105,24 +113,34 @@ def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float
     Returns
     -------
     sigma : float
-        ``inf`` where the sampled cost is not convex.
+        ``inf`` where the sampled cost is not convex, at :data:`PROFILE_STEPS` nor
+        :data:`PROFILE_WIDER` times as far out.
     roughness : float
         Standard deviation of the samples about their parabola (cost units).
     """
     sd = float(np.sqrt(c @ cov @ c))
     direction = cov @ c / sd  # moves c . theta by one linearised sigma per unit
+    for widen, step in ((1.0, "profile"), (PROFILE_WIDER, "profile wider")):
+        curvature, roughness = _parabola(problem, theta, direction * widen, sd * widen, cost0, step)
+        if curvature > 0.0:
+            return float(np.sqrt((s2 + 2.0 * roughness) / curvature)), roughness
+    return np.inf, roughness
+
+
+def _parabola(problem, theta, direction, unit: float, cost0: float, step: str):
+    """Curvature (cost units per unit of ``c . theta`` squared) and roughness (cost units) of
+    the cost sampled at :data:`PROFILE_STEPS` along ``direction`` (shape (p,), one step moves
+    ``c . theta`` by ``unit``) and at ``theta`` itself."""
     t = np.append(PROFILE_STEPS, 0.0)
     rise = np.zeros(len(t))
     for j, r in enumerate(problem.batch([theta + k * direction for k in PROFILE_STEPS])):
         rise[j] = 0.5 * float(r @ r) - cost0
-        _notify("profile", j + 1, len(PROFILE_STEPS))
-    x = t * sd
+        _notify(step, j + 1, len(PROFILE_STEPS))
+    x = t * unit
     A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
     coef = np.linalg.lstsq(A, rise, rcond=None)[0]
     roughness = float(np.sqrt(np.sum((rise - A @ coef) ** 2) / (len(x) - 3)))
-    if coef[2] <= 0.0:
-        return np.inf, roughness
-    return float(np.sqrt((s2 + 2.0 * roughness) / coef[2])), roughness
+    return float(coef[2]), roughness
 
 
 def held_basis(p: int, members: np.ndarray) -> np.ndarray:
