@@ -2,8 +2,11 @@
 err from their setpoints (the speed loop's error, 0.01 rad/s): the truth of
 ``identify_check`` (J3 x 1.3, stiffness x 1.25, damping x 0.7, IMU 3 deg off)."""
 
+import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -111,12 +114,50 @@ def test_a_script_without_the_main_guard_gets_an_error_not_a_hang(tmp_path):
     script = tmp_path / "unguarded.py"
     script.write_text(UNGUARDED_SCRIPT)
     (tmp_path / "rigs").mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp_path))  # the dying workers' own problem files
     done = subprocess.run(
         [sys.executable, str(script), str(tmp_path / "rigs")],
-        capture_output=True, text=True, timeout=120, cwd=tmp_path,
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, env=env,
     )  # fmt: skip
     assert done.returncode != 0
     assert "FilterFitError" in done.stderr and "__name__" in done.stderr, done.stderr[-2000:]
+
+
+def test_ctrl_c_ends_a_fit_in_workers_quietly_and_leaves_nothing_behind(tmp_path):
+    """Ctrl-C reaches every process of the group: the command says it was interrupted (no
+    worker's traceback), its workers end with it and their problem file is removed."""
+    nominal, truth = write_rigs(tmp_path, 1.0)
+    log = record_log(truth, 1, tmp_path / "log")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    fit = subprocess.Popen(
+        [sys.executable, "-m", "gyrohost.cli", "identify", str(log), "--config", str(nominal),
+         "--method", "filter", "--workers", "2", "--params", "J3,mounting",
+         "-o", str(tmp_path / "ident.toml")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        env=dict(os.environ, TMPDIR=str(scratch)),
+    )  # fmt: skip
+    deadline = time.monotonic() + 60.0
+    while not list(scratch.glob("gyrotens-filter-fit-*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(2.0)  # the workers spawned and fitting
+    os.killpg(fit.pid, signal.SIGINT)
+    _, err = fit.communicate(timeout=60)
+    assert fit.returncode == 130 and "interrupted" in err, err[-2000:]
+    assert "Traceback" not in err, err[-2000:]
+    assert not list(scratch.glob("gyrotens-filter-fit-*"))
+    deadline = time.monotonic() + 10.0
+    while _group_alive(fit.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _group_alive(fit.pid)
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_path, monkeypatch):

@@ -24,6 +24,7 @@ gyro's on top of the filter's own bias state).
 
 import os
 import pickle
+import signal
 import tempfile
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -220,7 +221,7 @@ class _Workers:
 
     def close(self) -> None:
         try:
-            self.pool.shutdown()
+            self.pool.shutdown(cancel_futures=True)  # an interrupted batch is not finished
         finally:
             os.unlink(self.path)
 
@@ -231,6 +232,9 @@ _worker_problem: FilterProblem | None = None
 
 def _start_worker(path: str) -> None:
     global _worker_problem
+    # Ctrl-C reaches the whole process group: the parent's interrupt shuts the pool down, and
+    # a worker of its own would print its traceback and break the pool under it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     with open(path, "rb") as f:
         _worker_problem = FilterProblem(*pickle.load(f))
 
