@@ -153,3 +153,15 @@ def test_whitened_innovation_is_the_innovation_over_its_covariance_factor(model,
     (r,) = fuse(ekf2, Measurement("imu_rate", z, np.zeros(2), H, R))
     assert np.allclose(np.linalg.cholesky(S) @ r.whitened, z, rtol=1e-10)
     assert np.isclose(r.nis, z @ np.linalg.solve(S, z), rtol=1e-10)
+
+
+def test_a_finite_state_the_imu_cannot_see_raises_with_member(model, config):
+    """Nodes 1e200 m out (a diverged prediction) are finite, but the model refuses the state
+    the IMU's prediction linearises at: the estimator's error, naming the member, not the
+    model's."""
+    ekf = TensegrityEKF(model, config)
+    ekf.kf.x[: 3 * model.m, 0] *= 1e200
+    rate, accel, angle = imu_sample(TensegrityEKF(model, config))
+    with pytest.raises(EstimatorError, match=r"t = 0 s: the IMU's prediction failed") as exc:
+        ekf.fuse_imu(ekf.t + config.imu_latency_s, rate, accel, angle)
+    assert exc.value.member and exc.value.t_s == 0.0

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -54,7 +55,7 @@ def test_the_window_is_the_logs_phases_cut_by_until(tmp_path):
         filter_fit.load(log, until_s=0.005)
 
 
-def _problem(tmp_path, workers=1):
+def _problem(tmp_path, workers=1, groups=("J3",)):
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrotensegrity import load_scene
@@ -64,7 +65,7 @@ def _problem(tmp_path, workers=1):
     log = record_log(truth, 3, tmp_path / "log")
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
-    params = parameters(scene, config, ["J3"], est.servo_lag_s)
+    params = parameters(scene, config, list(groups), est.servo_lag_s)
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
 
 
@@ -183,6 +184,19 @@ def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_p
     monkeypatch.setattr(filter_fit, "_run", breaks_halfway)
     with pytest.raises(filter_fit.FilterFitError, match="prediction failed.*J3"):
         fresh(np.zeros(1))
+
+
+def test_a_filter_diverging_far_out_is_a_counted_break_not_a_crash(tmp_path):
+    """Strings 400 times too stiff make the 10 ms prediction diverge until the IMU's predicted
+    attitude is not finite: a break the fit walls off and names, without warnings."""
+    problem = _problem(tmp_path, groups=("stiffness",))
+    problem(np.zeros(1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        far = problem(np.array([6.0]))
+    assert not caught, [str(w.message) for w in caught]
+    assert np.any(far == filter_fit.FAILED_RESIDUAL)
+    assert len(problem.failures) == 1 and "stiffness" in problem.failures[0], problem.failures
 
 
 def test_cli_fits_by_the_filter_and_writes_scene_overlay_and_plot(tmp_path, capsys):

@@ -316,7 +316,7 @@ class TensegrityEKF:
         self.imu_lag_s = max(self.t - taken_s, 0.0)
         if not self._arrive(taken_s, fuse_imu_rate.SOURCE):
             return []
-        pred = predict_imu(self, self.x, self.u)
+        pred = self._imu_prediction()
         self._A = pred.A  # the lean process model's next linearisation
         return fuse(
             self,
@@ -324,6 +324,30 @@ class TensegrityEKF:
             fuse_imu_accel.measurement(self, pred, accel_m_s2),
             fuse_imu_angle.measurement(self, pred, euler_rad),
         )
+
+    def _imu_prediction(self):
+        """:func:`.imu_prediction.predict_imu` at the estimate, refused where the model refuses
+        the state or the prediction is not finite: a finite state can still be one no IMU
+        could see (bars folded together, nodes 1e150 m out after a diverging prediction), and
+        the angle's rotation would fail on it."""
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
+            try:
+                pred = predict_imu(self, self.x, self.u)
+            except SimulationError as exc:
+                raise EstimatorError(
+                    f"t = {self.t:.6g} s: the IMU's prediction failed: {exc}",
+                    self.t,
+                    getattr(exc, "member", ""),
+                ) from None
+        for name, value in vars(pred).items():
+            if not np.all(np.isfinite(value)):
+                raise EstimatorError(
+                    f"t = {self.t:.6g} s: the IMU's prediction ({name}) at the estimate is "
+                    "non-finite",
+                    self.t,
+                    name,
+                )
+        return pred
 
     def fuse_wheels(self, t_s, omega_rad_s):
         """Predict to ``t_s`` and fuse the wheel speeds (n_w,) rad/s."""

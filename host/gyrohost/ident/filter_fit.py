@@ -26,6 +26,7 @@ import os
 import pickle
 import signal
 import tempfile
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -33,6 +34,7 @@ from dataclasses import dataclass, replace
 from multiprocessing import get_context
 
 import numpy as np
+from scipy.linalg import LinAlgWarning
 
 from gyrohost.config import RigConfig
 from gyrohost.errors import GyrohostError
@@ -286,10 +288,14 @@ def _run(model: Model, est: EstimatorConfig, rec: FilterRecording, data: dict):
     ekf, samples = started(model, est, data)
     out = []
     ekf.log = out.append
-    try:
-        driver.run(ekf, samples)
-    except EstimatorError as exc:
-        return out, f"{rec.name}: {exc}"
+    # Far from the optimum the filter can diverge: the break is counted, walled off and named
+    # in the status line, and the overflow warnings on its way would bury the progress bar.
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", LinAlgWarning)
+        try:
+            driver.run(ekf, samples)
+        except EstimatorError as exc:
+            return out, f"{rec.name}: {exc}"
     return out, None
 
 
