@@ -165,3 +165,23 @@ def test_a_finite_state_the_imu_cannot_see_raises_with_member(model, config):
     with pytest.raises(EstimatorError, match=r"t = 0 s: the IMU's prediction failed") as exc:
         ekf.fuse_imu(ekf.t + config.imu_latency_s, rate, accel, angle)
     assert exc.value.member and exc.value.t_s == 0.0
+
+
+def test_predicted_axes_that_are_not_a_rotation_raise_with_member(model, config, monkeypatch):
+    """Finite axes that are no rotation (a frame whose nodes overflowed) are refused by name
+    before the angle's rotation would reject them with a bare ValueError."""
+    from dataclasses import replace
+
+    from gyrohost.estimator import ekf as ekf_module
+
+    predict = ekf_module.predict_imu
+    squashed = np.diag([1.0, 1.0, 0.01])
+    monkeypatch.setattr(
+        ekf_module,
+        "predict_imu",
+        lambda *a: (lambda p: replace(p, R_ws=p.R_ws @ squashed))(predict(*a)),
+    )
+    ekf = TensegrityEKF(model, config)
+    rate, accel, angle = imu_sample(ekf)
+    with pytest.raises(EstimatorError, match=r"not a rotation \(R\^T R off the identity by 1\)"):
+        ekf.fuse_imu(ekf.t + config.imu_latency_s, rate, accel, angle)

@@ -39,6 +39,9 @@ SOURCES = (
     fuse_wheels.SOURCE,
     fuse_servos.SOURCE,
 )
+ROTATION_TOLERANCE = 1e-6
+"""Largest entry of ``R^T R - I`` of the IMU's predicted axes taken as a rotation: their
+frame is orthonormal to round-off (1e-15) wherever its nodes span a plane."""
 
 
 class Status(IntFlag):
@@ -347,6 +350,14 @@ class TensegrityEKF:
                     self.t,
                     name,
                 )
+        off = float(np.max(np.abs(pred.R_ws.T @ pred.R_ws - np.eye(3))))
+        if off > ROTATION_TOLERANCE:  # the frame's nodes overflowed or fell on one line
+            raise EstimatorError(
+                f"t = {self.t:.6g} s: the IMU's predicted axes at the estimate are not a "
+                f"rotation (R^T R off the identity by {off:.3g})",
+                self.t,
+                "R_ws",
+            )
         return pred
 
     def fuse_wheels(self, t_s, omega_rad_s):
