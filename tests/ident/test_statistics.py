@@ -121,6 +121,30 @@ def test_a_cost_not_convex_within_six_sigmas_is_sampled_again_farther_out(drop):
     assert (rough > 10.0) if wider else (rough < 1e-9)
 
 
+class Walled(Dropped):
+    """:class:`Dropped` whose model breaks beyond 0.1 (a filter that diverges): the
+    residuals there are a wall, and the break is counted as the filter fit counts it."""
+
+    def __init__(self, drop: float):
+        super().__init__(drop)
+        self.failures = []
+
+    def __call__(self, theta):
+        if abs(float(theta[0])) > 0.1:
+            self.failures.append(f"broke at {float(theta[0]):.3g}")
+            return np.full(2, 1e3)
+        return super().__call__(theta)
+
+
+def test_a_profile_that_breaks_the_model_gives_no_sigma():
+    """The wider samples reach 0.24, where the model breaks: the wall's rise is not the
+    data's (read as a parabola it gives 0.16 here), so no sigma is read off it."""
+    problem, theta = Walled(40.5), np.zeros(1)
+    cost0 = 0.5 * float(problem(theta) @ problem(theta))
+    sigma, _ = profile.secant_sigma(problem, theta, np.eye(1) * 1e-4, np.ones(1), 1.0, cost0)
+    assert problem.failures and sigma == np.inf
+
+
 def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined():
     """Bars not weighed (a pin within the noise over +-20 %): the scale is flagged, the four factors
     are not separable, their combinations along the valley are determined and within their

@@ -114,14 +114,18 @@ def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float
     -------
     sigma : float
         ``inf`` where the sampled cost is not convex, at :data:`PROFILE_STEPS` nor
-        :data:`PROFILE_WIDER` times as far out.
+        :data:`PROFILE_WIDER` times as far out, or where a sample broke the model.
     roughness : float
         Standard deviation of the samples about their parabola (cost units).
     """
     sd = float(np.sqrt(c @ cov @ c))
     direction = cov @ c / sd  # moves c . theta by one linearised sigma per unit
     for widen, step in ((1.0, "profile"), (PROFILE_WIDER, "profile wider")):
-        curvature, roughness = _parabola(problem, theta, direction * widen, sd * widen, cost0, step)
+        curvature, roughness, broke = _parabola(
+            problem, theta, direction * widen, sd * widen, cost0, step
+        )
+        if broke:
+            break
         if curvature > 0.0:
             return float(np.sqrt((s2 + 2.0 * roughness) / curvature)), roughness
     return np.inf, roughness
@@ -130,7 +134,10 @@ def secant_sigma(problem, theta, cov, c, s2: float, cost0: float) -> tuple[float
 def _parabola(problem, theta, direction, unit: float, cost0: float, step: str):
     """Curvature (cost units per unit of ``c . theta`` squared) and roughness (cost units) of
     the cost sampled at :data:`PROFILE_STEPS` along ``direction`` (shape (p,), one step moves
-    ``c . theta`` by ``unit``) and at ``theta`` itself."""
+    ``c . theta`` by ``unit``) and at ``theta`` itself; and whether a sample broke the
+    problem's model (its ``failures`` grew: the filter fit's wall of residuals, whose rise
+    is the wall's and not the data's)."""
+    broken = len(getattr(problem, "failures", ()))
     t = np.append(PROFILE_STEPS, 0.0)
     rise = np.zeros(len(t))
     for j, r in enumerate(problem.batch([theta + k * direction for k in PROFILE_STEPS])):
@@ -140,7 +147,7 @@ def _parabola(problem, theta, direction, unit: float, cost0: float, step: str):
     A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
     coef = np.linalg.lstsq(A, rise, rcond=None)[0]
     roughness = float(np.sqrt(np.sum((rise - A @ coef) ** 2) / (len(x) - 3)))
-    return float(coef[2]), roughness
+    return float(coef[2]), roughness, len(getattr(problem, "failures", ())) > broken
 
 
 def held_basis(p: int, members: np.ndarray) -> np.ndarray:
