@@ -253,10 +253,7 @@ class TensegrityEKF:
             try:
                 x_next, F = self.process.step(self.x, self.u, dt, self._A)
             except SimulationError as exc:  # the model's fast path refuses a singular state
-                t = self.t + dt
-                raise EstimatorError(
-                    f"t = {t:.6g} s: prediction failed: {exc}", t, getattr(exc, "member", "")
-                ) from None
+                raise _failed(self.t + dt, f"prediction failed: {exc}", exc.member) from None
         self._A = None
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
@@ -275,9 +272,7 @@ class TensegrityEKF:
         bad = np.flatnonzero(~np.isfinite(self.x) | ~np.isfinite(np.diag(self.P)))
         if bad.size:
             name = self.layout.labels()[bad[0]]
-            raise EstimatorError(
-                f"t = {self.t:.6g} s: {what} made state entry {name} non-finite", self.t, name
-            )
+            raise _failed(self.t, f"{what} made state entry {name} non-finite", name)
 
     # -- measurement update ---------------------------------------------------------------------
     def constrain(self) -> None:
@@ -337,27 +332,18 @@ class TensegrityEKF:
             try:
                 pred = predict_imu(self, self.x, self.u)
             except SimulationError as exc:
-                raise EstimatorError(
-                    f"t = {self.t:.6g} s: the IMU's prediction failed: {exc}",
-                    self.t,
-                    getattr(exc, "member", ""),
-                ) from None
+                raise _failed(self.t, f"the IMU's prediction failed: {exc}", exc.member) from None
         for name, value in vars(pred).items():
             if not np.all(np.isfinite(value)):
-                raise EstimatorError(
-                    f"t = {self.t:.6g} s: the IMU's prediction ({name}) at the estimate is "
-                    "non-finite",
-                    self.t,
-                    name,
-                )
+                what = f"the IMU's prediction ({name}) at the estimate is non-finite"
+                raise _failed(self.t, what, name)
         off = float(np.max(np.abs(pred.R_ws.T @ pred.R_ws - np.eye(3))))
         if off > ROTATION_TOLERANCE:  # the frame's nodes overflowed or fell on one line
-            raise EstimatorError(
-                f"t = {self.t:.6g} s: the IMU's predicted axes at the estimate are not a "
-                f"rotation (R^T R off the identity by {off:.3g})",
-                self.t,
-                "R_ws",
+            what = (
+                "the IMU's predicted axes at the estimate are not a rotation "
+                f"(R^T R off the identity by {off:.3g})"
             )
+            raise _failed(self.t, what, "R_ws")
         return pred
 
     def fuse_wheels(self, t_s, omega_rad_s):
@@ -374,3 +360,8 @@ class TensegrityEKF:
         if not self._arrive(t_s, fuse_servos.SOURCE):
             return []
         return [fuse_servos.fuse_servos(self, lengths_m, strings, lag_s)]
+
+
+def _failed(t_s: float, what: str, member: str) -> EstimatorError:
+    """The filter's error at ``t_s``: ``t = ... s: what``, naming ``member``."""
+    return EstimatorError(f"t = {t_s:.6g} s: {what}", t_s, member)

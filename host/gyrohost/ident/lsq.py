@@ -46,16 +46,15 @@ def solve(residual: Residual, batch: Batch, theta0, steps, lower, **options) -> 
     steps = np.asarray(steps, float)
     if np.any(steps <= 0.0):
         raise ValueError(f"steps must be positive, got {steps.tolist()}")
-    last: dict[bytes, np.ndarray] = {}
+    last_theta, last_r = None, None
 
     def remembered(theta):
-        r = residual(theta)
-        last.clear()
-        last[np.asarray(theta, float).tobytes()] = r
-        return r
+        nonlocal last_theta, last_r
+        last_theta, last_r = np.array(theta, float), residual(theta)
+        return last_r
 
     def jacobian(theta):
-        r0 = last.get(np.asarray(theta, float).tobytes())
-        return forward_jacobian(batch, theta, remembered(theta) if r0 is None else r0, steps)
+        same = last_theta is not None and np.array_equal(last_theta, theta)
+        return forward_jacobian(batch, theta, last_r if same else remembered(theta), steps)
 
     return least_squares(remembered, theta0, jac=jacobian, bounds=(lower, np.inf), **options)
