@@ -276,6 +276,39 @@ EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
 uncertainty about it (:func:`noise_from_rig` sets both for the real-time rig)."""
 
 
+PULL_SPEED_M_S = 0.1
+"""The strings' speed the rest-length jitter is sized for (:func:`sawtooth_psd`): the paper's
+pulls, m/s."""
+
+
+def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
+    """The rest-length jitter ``rest_jitter_psd_m2_s`` (m^2 s) of a rig whose strings move in
+    steps about the filter's continuous rest lengths, pulled at :data:`PULL_SPEED_M_S` (``v``).
+
+    Two sawtooths add up: the truth holds each rest length over its step ``h`` (peak to peak
+    ``v h``), and a servo given a goal every command period ``T`` covers the goal's step at its
+    speed ``V`` and holds (peak to peak ``v T (1 - v/V)``; 0 for ``T = 0``, servos that follow
+    their lag smoothly). A sawtooth of peak to peak ``p`` and period ``P`` is taken as white
+    noise of density ``2 (p^2 / 12) P``, and the sum is doubled: with its own density the
+    in-process SIL's motion block sat at twice its dof while a string crossed its kink
+    (docs/estimator.md, "The rest-length jitter"). The two spreads add within 3 % for servos
+    up to twice the pull's speed; servos that jump to their goals step where the truth does,
+    and the sum overstates their spread by up to a fifth.
+
+    Parameters
+    ----------
+    truth_dt_s : float
+        The truth's step ``h``, s.
+    command_period_s : float
+        The servos' goal period ``T``, s (0: no goal steps).
+    servo_speed_m_s : float
+        The servos' moving speed ``V``, m/s.
+    """
+    v = PULL_SPEED_M_S
+    held = max(1.0 - v / servo_speed_m_s, 0.0)
+    return 2.0 * v**2 / 6.0 * (truth_dt_s**3 + command_period_s**3 * held**2)
+
+
 MIN_WHEEL_WALK = 1e-6
 """The wheels' walk (rad^2/s^3) :func:`noise_from_rig` keeps for emulated wheels without a
 speed error: with none the wheel covariance collapses, and the in-process SIL diverged on the
@@ -292,6 +325,7 @@ def noise_from_rig(rig) -> dict:
     :func:`config_from_dict`.
     """
     from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
+    from gyrohost.run.settings import RunSettings
 
     root = math.sqrt(rig.imu.rate_hz / 2.0)
     emu = rig.sim.imu
@@ -337,11 +371,15 @@ def noise_from_rig(rig) -> dict:
         "servo_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
         "rest_psd_m2_s": 1.0e-7,
-        # the rig's truth holds each rest length over its 5 ms step: the strings see a sawtooth
-        # about the filter's continuous rest lengths, growing with the string's speed, which the
-        # kink rectifies (as the in-process SIL's keys; 8 idle runs replayed: NEES 19.1 -> 15.8
-        # and 20.5 -> 17.6 on two batches, docs/estimator.md)
-        "rest_jitter_psd_m2_s": 4.0e-10,
+        # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
+        # ones which the kink rectifies: the truth's hold over its step and the servos' goal
+        # steps, one per tick of the run loop, each covered at the servo's speed (the fastest
+        # servo's: the largest sawtooth; docs/estimator.md, "The rest-length jitter")
+        "rest_jitter_psd_m2_s": sawtooth_psd(
+            rig.sim.truth.dt_s,
+            1.0 / RunSettings.rate_hz,
+            max((s.max_speed_m_s for s in rig.servos.servo), default=math.inf),
+        ),
         "kink_model": "mean",
         # the wheel board emulator's telemetry: the encoder's quantisation through the
         # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md), in integer mrad/s on the wire

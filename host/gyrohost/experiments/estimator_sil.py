@@ -42,9 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost import parallel
+from gyrohost.config import TruthConfig
 from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
-from gyrohost.estimator.config import EXACT_IMU_TIMES
+from gyrohost.estimator.config import EXACT_IMU_TIMES, sawtooth_psd
 from gyrohost.estimator.consistency import (
     average_bounds,
     observed_blocks,
@@ -68,20 +69,20 @@ from gyrohost.run.replay import prepare
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-# Keys for the in-process SIL (on top of noise_from_rig), each checked by the marginal NEES of
-# its block (docs/estimator.md). The rig's truth has no random forces: one filter step from the
-# true state reproduces the truth to round-off except where a string crosses its slack/taut kink
-# within the step (the truth holds each rest length over its 5 ms step while the filter's rest
-# state moves continuously: a sawtooth of +-0.25 mm at 0.1 m/s, which the kink rectifies). That
-# is white noise on the rest lengths as the string forces see them, mapped through every string
-# as if taut and weighted by its kink error, with the kink's mean force in the prediction
-# (kink_model "mean"); the sawtooth's own variance (2e-10 m^2 s) left the motion block twice its
-# dof while a string sat at its kink, twice that covers it. What is left for white node
+# Keys for the in-process SIL (on top of noise_from_rig), each checked by the marginal NEES of its
+# block (docs/estimator.md). The rig's truth has no random forces: one filter step from the true
+# state reproduces the truth to round-off except where a string crosses its slack/taut kink within
+# the step (the truth holds each rest length over its 5 ms step while the filter's rest state moves
+# continuously: a sawtooth of +-0.25 mm at 0.1 m/s, which the kink rectifies). That is white noise
+# on the rest lengths as the string forces see them, mapped through every string as if taut and
+# weighted by its kink error, with the kink's mean force in the prediction (kink_model "mean"); the
+# sawtooth's own density (2e-10 m^2 s) left the motion block twice its dof while a string sat at its
+# kink, twice that covers it (sawtooth_psd of the truth's step). What is left for white node
 # accelerations is small (3e-8). The servos here are exactly the filter's first-order lag: their
-# length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um), and through
-# the string forces the dynamics pin the rest lengths far below it: a walk of 1e-13 m^2/s
-# covers what the model misses there (1e-10: rest block 0.12 of 2; 1e-14: 22). The wheels
-# take noise_from_rig's keys: their speed loop's error is the lag model's walk.
+# length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um), and through the
+# string forces the dynamics pin the rest lengths far below it: a walk of 1e-13 m^2/s covers what
+# the model misses there (1e-10: rest block 0.12 of 2; 1e-14: 22). The wheels take noise_from_rig's
+# keys: their speed loop's error is the lag model's walk.
 RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
@@ -89,7 +90,7 @@ RIG_MODEL_KEYS = {
     "servo_time_std_s": 0.0,  # no read off the filter's lag to cover, moving or not
     "rest_psd_m2_s": 1e-13,
     "servo_step_std_ratio": 0.0,  # these servos are the filter's lag exactly
-    "rest_jitter_psd_m2_s": 4e-10,
+    "rest_jitter_psd_m2_s": sawtooth_psd(TruthConfig.dt_s),
     "kink_model": "mean",
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
