@@ -233,6 +233,11 @@ class StartCheckConfig:
     wheel_speed_rad_s: float = field(default=1.0, metadata=_spec(lo=0.0, hi=1000.0))
 
 
+LOOP_RATE_HZ = 100.0
+"""The run loop's tick rate (``gyrohost.run.settings.RunSettings.rate_hz``), Hz: the servos get
+their goals at every tick."""
+
+
 @dataclass(frozen=True)
 class RunTable:
     """The ``[run]`` table: limits of a run on this rig (``gyrohost.run.settings.RunSettings``

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-from gyrohost.config import TruthConfig
+from gyrohost.config import LOOP_RATE_HZ, TruthConfig
 from gyrohost.drivers import wheelproto as wp
 from gyrotensegrity.textfile import read_toml
 
@@ -325,7 +325,6 @@ def noise_from_rig(rig) -> dict:
     :func:`config_from_dict`.
     """
     from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
-    from gyrohost.run.settings import RunSettings
 
     root = math.sqrt(rig.imu.rate_hz / 2.0)
     emu = rig.sim.imu
@@ -377,7 +376,7 @@ def noise_from_rig(rig) -> dict:
         # servo's: the largest sawtooth; docs/estimator.md, "The rest-length jitter")
         "rest_jitter_psd_m2_s": sawtooth_psd(
             rig.sim.truth.dt_s,
-            1.0 / RunSettings.rate_hz,
+            1.0 / LOOP_RATE_HZ,
             max((s.max_speed_m_s for s in rig.servos.servo), default=math.inf),
         ),
         "kink_model": "mean",

@@ -25,9 +25,8 @@ configuration's ``[estimator]`` keys and ``--estimator FILE``'s (:func:`sil_keys
 
 ``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
 (``run_simulated``: ptys, drivers, arrival time stamps, the IMU's fused at its reconstructed
-grid) and scores the replayed log against its
-``truth`` stream (positions, wheel speeds, rest lengths only: the stream has no velocities). On a
-loaded machine the real-time rig's truth lags by up to 0.2 s and its truth stream with it.
+grid) and scores the replayed log against its ``truth`` stream (positions, wheel speeds, rest
+lengths: no velocities); on a loaded machine the truth lags by up to 0.2 s, and its stream.
 """
 
 import argparse

@@ -3,7 +3,7 @@
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from gyrohost.config import RunTable
+from gyrohost.config import LOOP_RATE_HZ, RunTable
 
 
 @dataclass(frozen=True)
@@ -11,7 +11,7 @@ class RunSettings:
     """Timing, thresholds and limits of a run (SI units); the limits' defaults are those of the
     rig configuration's ``[run]`` table (:class:`gyrohost.config.RunTable`)."""
 
-    rate_hz: float = 100.0
+    rate_hz: float = LOOP_RATE_HZ
     servo_rate_hz: float = 25.0
     telemetry_div: int = 20
     """Wheel-board TELEMETRY every this many 1 kHz ticks (20: 50 Hz)."""
