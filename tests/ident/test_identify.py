@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
+from gyrohost.experiments import identify_check
 from gyrohost.experiments.identify_check import (
     FACTORS,
     MOUNTING_RPY_RAD,
@@ -118,6 +119,21 @@ def test_cli_refuses_a_log_without_streams(tmp_path, capsys):
     argv = ["identify", str(tmp_path / "empty"), "-o", str(tmp_path / "x.toml")]
     assert main(argv) == 2
     assert "empty" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("count", ["0", "-2"])
+def test_fewer_than_one_worker_is_refused_before_anything_runs(tmp_path, capsys, count):
+    """The CLI and the acceptance harness take ``--workers`` alike: a count below 1 is an
+    argument error naming it, before a log is read or recorded."""
+    argv = ["identify", str(tmp_path / "absent"), "-o", str(tmp_path / "x.toml")]
+    with pytest.raises(SystemExit) as cli:
+        main([*argv, "--method", "filter", "--workers", count])
+    with pytest.raises(SystemExit) as check:
+        identify_check.main(["--method", "filter", "--workers", count, "--out", str(tmp_path)])
+    assert cli.value.code == check.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count(f"argument --workers: must be at least 1, got {int(count)}") == 2
+    assert not any(tmp_path.iterdir())
 
 
 def test_parameters_the_data_cannot_separate_are_reported_as_such():

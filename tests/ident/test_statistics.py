@@ -33,6 +33,7 @@ class Problem:
         self.params += [Param("mounting.roll", "mounting", False, 0.0, "rad")]
         self.dynamic = np.array([True] * 4 + [False])
         self.scene = SimpleNamespace(bars=[SimpleNamespace(mass=1.0, wheel=None)])
+        self.failures = []  # its model never breaks
 
     def signals(self, theta):
         j, m, k, c, roll = theta
@@ -95,6 +96,7 @@ class Dropped:
 
     def __init__(self, drop: float):
         self.jump = np.sqrt(2.0 * drop)
+        self.failures = []
 
     def __call__(self, theta):
         x = float(theta[0])
@@ -124,10 +126,6 @@ def test_a_cost_not_convex_within_six_sigmas_is_sampled_again_farther_out(drop):
 class Walled(Dropped):
     """:class:`Dropped` whose model breaks beyond 0.1 (a filter that diverges): the
     residuals there are a wall, and the break is counted as the filter fit counts it."""
-
-    def __init__(self, drop: float):
-        super().__init__(drop)
-        self.failures = []
 
     def __call__(self, theta):
         if abs(float(theta[0])) > 0.1:

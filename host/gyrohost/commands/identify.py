@@ -69,7 +69,7 @@ def register(sub) -> None:
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
     p.add_argument(
         "--workers",
-        type=_at_least_one,
+        type=at_least_one,
         metavar="N",
         help="--method filter: run the filter under N parameter vectors at once, in N "
         "processes (default: one per usable core)",
@@ -77,7 +77,8 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _at_least_one(text: str) -> int:
+def at_least_one(text: str) -> int:
+    """An argparse type: an integer of at least 1."""
     import argparse
 
     n = int(text)
@@ -165,7 +166,7 @@ def run(args) -> int:
     print(f"{len(recs)} recording(s); fitting {len(params)} parameters by the {args.method} error")
     if args.method == "filter":
         passes = 2 + len(profile.VALLEY_STEPS)
-        fitter = partial(filter_fit.fit, workers=args.workers or filter_fit.usable_cores())
+        fitter = partial(filter_fit.fit, workers=args.workers)
     else:
         _describe(recs)
         passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrohost.commands.identify import at_least_one
 from gyrohost.estimator import streams
 from gyrohost.resources import shipped
 
@@ -157,11 +158,12 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, comma
     return fit(*fit_inputs(nominal_config, logs, groups, segment_s, commanded))
 
 
-def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int = 1):
+def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | None = 1):
     """Fit ``groups`` (less the filter's own states, ``filter_fit.STATE_GROUPS``) to the logs
     from the nominal configuration by the filter's prediction error
     (:mod:`gyrohost.ident.filter_fit`), the filter tuned as the simulated-clock SIL tunes it
-    for the rig models (:data:`.estimator_sil.RIG_MODEL_KEYS`)."""
+    for the rig models (:data:`.estimator_sil.RIG_MODEL_KEYS`), in ``workers`` processes (None:
+    one per usable core)."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import config_from_dict, noise_from_rig
     from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS
@@ -259,7 +261,7 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         "--workers",
-        type=int,
+        type=at_least_one,
         help="processes of the filter's fit (default: one per usable core)",
     )
     args = parser.parse_args(argv)
@@ -281,10 +283,7 @@ def main(argv=None) -> int:
             log = record_log(truth, seed, root / f"run{seed:02d}")
             t1 = time.perf_counter()
             if args.method == "filter":
-                from gyrohost.ident.filter_fit import usable_cores
-
-                workers = args.workers or usable_cores()
-                result = identify_filter(nominal, [log], groups, workers)
+                result = identify_filter(nominal, [log], groups, args.workers)
             else:
                 result = identify_log(nominal, [log], groups, args.segment_s)
             rows.append(errors(result, args.weighed))

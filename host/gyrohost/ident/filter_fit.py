@@ -313,14 +313,15 @@ def fit(
     recs: list,
     progress: Callable[[int, float], None] | None = None,
     max_nfev: int = 40,
-    workers: int = 1,
+    workers: int | None = 1,
 ) -> output_fit.FitResult:
     """Fit ``params`` to the recordings ``recs`` (:class:`FilterRecording`) by the filter's
     prediction error; ``progress(runs, cost)`` after every evaluation; the Jacobians' columns
-    and the profiles' samples in ``workers`` processes. The result is the output-error fit's,
-    its residuals the IMU's innovations (:data:`STREAMS`)."""
+    and the profiles' samples in ``workers`` processes (None: :func:`usable_cores`). The result
+    is the output-error fit's, its residuals the IMU's innovations (:data:`STREAMS`)."""
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
+    workers = usable_cores() if workers is None else workers
     problem = FilterProblem(scene, config, est, params, recs, workers)
     solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL)
     try:

@@ -151,6 +151,7 @@ class Problem:
         self.dynamic = np.array([p.group not in OUTPUT_GROUPS for p in params])
         self._key, self._motions = None, None
         self.simulations = 0
+        self.failures: list[str] = []  # a simulation does not break: a filter run may (profile)
 
     def applied(self, theta):
         return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))

@@ -137,7 +137,7 @@ def _parabola(problem, theta, direction, unit: float, cost0: float, step: str):
     ``c . theta`` by ``unit``) and at ``theta`` itself; and whether a sample broke the
     problem's model (its ``failures`` grew: the filter fit's wall of residuals, whose rise
     is the wall's and not the data's)."""
-    broken = len(getattr(problem, "failures", ()))
+    broken = len(problem.failures)
     t = np.append(PROFILE_STEPS, 0.0)
     rise = np.zeros(len(t))
     for j, r in enumerate(problem.batch([theta + k * direction for k in PROFILE_STEPS])):
@@ -147,7 +147,7 @@ def _parabola(problem, theta, direction, unit: float, cost0: float, step: str):
     A = np.column_stack([np.ones_like(x), x, 0.5 * x**2])
     coef = np.linalg.lstsq(A, rise, rcond=None)[0]
     roughness = float(np.sqrt(np.sum((rise - A @ coef) ** 2) / (len(x) - 3)))
-    return float(coef[2]), roughness, len(getattr(problem, "failures", ())) > broken
+    return float(coef[2]), roughness, len(problem.failures) > broken
 
 
 def held_basis(p: int, members: np.ndarray) -> np.ndarray:
