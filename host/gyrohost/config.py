@@ -137,6 +137,10 @@ class ServoEmuConfig:
     stall_torque_N_m: float = field(default=0.2, metadata=_spec(lo=1e-3, hi=10.0))
     overload_ids: tuple[int, ...] = field(default=(), metadata=_spec(lo=0, hi=252))
     no_reply_ids: tuple[int, ...] = field(default=(), metadata=_spec(lo=0, hi=252))
+    # a servo at rest stops anywhere within this many steps of its goal (uniform): its shaft
+    # is continuous, its encoder reads a count (0.5: within the count its read shows)
+    hold_band_steps: float = field(default=0.5, metadata=_spec(lo=0.0, hi=10.0))
+    seed: int = field(default=3, metadata=_spec(lo=0, doc="of the positions where servos stop"))
     faults: StreamFaultConfig = StreamFaultConfig()
 
 

@@ -24,7 +24,7 @@ from gyrohost.drivers.mx12 import (
 )
 from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
 from gyrohost.rig.pty_link import PtyDevice
-from gyrohost.rig.servo_emu import Mx12Bus, Packet, PacketCutter, status_packet
+from gyrohost.rig.servo_emu import EmulatedMx12, Mx12Bus, Packet, PacketCutter, status_packet
 
 SERVO = ServoConfig(name="left", id=3, pulley_radius_m=0.01, length_at_zero_m=0.3, max_length_m=0.6)
 
@@ -296,3 +296,36 @@ def test_every_embedded_packet_is_recovered(pieces, chunk):
 @given(st.binary(max_size=400))
 def test_cutter_never_raises_on_random_bytes(data):
     assert all(isinstance(p, Packet) for p in PacketCutter().feed(data))
+
+
+# --- the emulator's motion ----------------------------------------------------------------------
+
+
+def _move(servo: EmulatedMx12, goal: int) -> None:
+    servo.write(Addr.GOAL_POSITION, goal.to_bytes(2, "little"))
+    for _ in range(2000):  # 2 s at 1 ms: far longer than the move at the no-load speed
+        servo.advance(1e-3)
+
+
+def test_an_emulated_servo_stops_within_its_hold_band_and_holds_there():
+    servo = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.5, seed=7), SERVO)
+    assert 0 < abs(servo.position_steps - SERVO.zero_position) <= 0.5  # the start is held too
+    servo.write(Addr.TORQUE_ENABLE, b"\x01")
+    offsets = []
+    for goal in (1000, 1400, 1200):
+        _move(servo, goal)
+        offsets.append(servo.position_steps - goal)
+        servo.advance(1.0)  # held: it does not creep onto the goal
+        assert servo.position_steps - goal == offsets[-1]
+        present, _ = servo.read(Addr.PRESENT_POSITION, 2)
+        moving, _ = servo.read(Addr.MOVING, 1)
+        assert int.from_bytes(present, "little") == goal and moving == b"\x00"
+    assert all(0 < abs(e) <= 0.5 for e in offsets) and len(set(offsets)) == 3
+    servo.position_steps = 1300.0  # pushed out of its band by hand: it moves back
+    _move(servo, 1200)
+    assert abs(servo.position_steps - 1200) <= 0.5
+
+    exact = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.0), SERVO)
+    exact.write(Addr.TORQUE_ENABLE, b"\x01")
+    _move(exact, 1000)
+    assert exact.position_steps == 1000.0

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from gyrohost.config import LOOP_RATE_HZ, TruthConfig
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.drivers.mx12 import steps_per_metre
 from gyrotensegrity.textfile import read_toml
 
 from .errors import EstimatorConfigError
@@ -54,6 +55,13 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
+    # a walk of the rest lengths of the servos whose goal moved at the last command, until the
+    # next one (added to rest_psd_m2_s), m^2/s
+    rest_moving_psd_m2_s: float = field(default=0.0, metadata=_pos("moving rest length walk"))
+    # a resting servo's string sits anywhere within this spread of its command (the goal's
+    # count, where the servo stops about it): a walk of the rest lengths that keeps it as their
+    # spread through the lag, whatever the step, m
+    rest_hold_std_m: float = field(default=0.0, metadata=_pos("resting servo spread"))
     # a servo that covers each goal step at its moving speed strays from the first-order lag
     # within the step by up to the step: std ratio x |goal step| over a command period, added as
     # a walk of the rest lengths until the next goal (0: none)
@@ -309,6 +317,21 @@ def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
     return 2.0 * v**2 / 6.0 * (truth_dt_s**3 + command_period_s**3 * held**2)
 
 
+def servo_hold_std(count_m, band_steps):
+    """``rest_hold_std_m``, m: a resting servo's string sits off its command by the goal's
+    rounding to a count (uniform over one) and by where the servo stopped within its hold band
+    (uniform over ``+-band_steps`` counts), variance ``count^2 (1 + 4 band^2) / 12``.
+
+    Parameters
+    ----------
+    count_m : float
+        The string length of one servo step, m.
+    band_steps : float
+        The servos' hold band, steps (``[sim.servos] hold_band_steps``).
+    """
+    return count_m * math.sqrt((1.0 + 4.0 * band_steps**2) / 12.0)
+
+
 MIN_WHEEL_WALK = 1e-6
 """The wheels' walk (rad^2/s^3) :func:`noise_from_rig` keeps for emulated wheels without a
 speed error: with none the wheel covariance collapses, and the in-process SIL diverged on the
@@ -369,7 +392,15 @@ def noise_from_rig(rig) -> dict:
         "servo_length_std_m": 5.0e-5,
         "servo_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
-        "rest_psd_m2_s": 1.0e-7,
+        # a resting servo holds within its band of the command's count: a walk only while the
+        # goals move (1e-7 all the time kept 15 um at rest where the truth stays within 6 um,
+        # the rest block near 0; docs/estimator.md, "Resting servos")
+        "rest_psd_m2_s": 0.0,
+        "rest_moving_psd_m2_s": 1.0e-7,
+        "rest_hold_std_m": servo_hold_std(
+            max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
+            rig.sim.servos.hold_band_steps,
+        ),
         # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
         # ones which the kink rectifies: the truth's hold over its step and the servos' goal
         # steps, one per tick of the run loop, each covered at the servo's speed (the fastest

@@ -147,13 +147,14 @@ class ProcessModel(ProcessNoise):
         A servo covers its goal step at its moving speed, then holds: within the command period
         its position strays from the first-order lag by up to the step. That spread, std
         ``servo_step_std_ratio |step|`` over the period since the last goal (``1/sqrt(12)`` for
-        a position uniform over the step), walks the rest lengths until the next goal.
+        a position uniform over the step), walks the rest lengths until the next goal, as does
+        ``rest_moving_psd_m2_s`` for every servo whose goal moved.
         """
-        ratio = self.config.servo_step_std_ratio
-        if ratio > 0.0 and self._goal_s is not None and t_s > self._goal_s:
-            self.rest_step_psd_m2_s = (ratio * np.asarray(step_m, float)) ** 2 / (
-                t_s - self._goal_s
-            )
+        c = self.config
+        if self._goal_s is not None and t_s > self._goal_s:
+            step = np.asarray(step_m, float)
+            spread = (c.servo_step_std_ratio * step) ** 2 / (t_s - self._goal_s)
+            self.rest_step_psd_m2_s = spread + c.rest_moving_psd_m2_s * (step != 0.0)
         self._goal_s = t_s
 
     def _aim(self, sp0, tau_s: float) -> None:

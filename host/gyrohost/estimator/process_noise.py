@@ -20,8 +20,9 @@ class ProcessNoise:
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
         (integrated exactly into positions and velocities), random walks of the wheel speeds,
-        rest lengths (``rest_psd_m2_s`` and the servos' last goal step's,
-        :meth:`goal_stepped`) and the gyro bias; with the step's Jacobian ``F`` (n, n) and the state
+        rest lengths (``rest_psd_m2_s``, the resting servos' spread ``rest_hold_std_m``
+        (:meth:`lag_factor`) and the servos' last goal step's, :meth:`goal_stepped`) and the
+        gyro bias; with the step's Jacobian ``F`` (n, n) and the state
         ``x`` (n,) it linearises about, also white noise of density ``rest_jitter_psd_m2_s`` on
         the rest lengths the string forces see, through the kink of each string
         (:meth:`jitter_noise`).
@@ -43,6 +44,16 @@ class ProcessNoise:
             n = self.layout.q_dot.stop
             Q[:n, :n] += self.jitter_noise(dt, F, x)
         return Q
+
+    def lag_factor(self, dt):
+        """The step's factor on a rest length's offset from its command: the filter's
+        integrator over ``dt`` s of the lag ``servo_lag_s`` (the lean model's one RK4 step, the
+        rk4 model's substeps). The hold's walk ``rest_hold_std_m^2 (1 - factor^2)`` keeps that
+        spread at rest whatever the steps."""
+        c = self.config
+        n = 1 if c.process_method == "lean" else max(1, int(np.ceil(dt / c.rk4_substep_s - 1e-9)))
+        z = -dt / n / c.servo_lag_s
+        return (1.0 + z * (1.0 + z / 2.0 * (1.0 + z / 3.0 * (1.0 + z / 4.0)))) ** n
 
     def wheel_timing_psd(self, x):
         """Walk density (n_w,) rad^2/s^3 of the wheel speeds at the state ``x`` (n,) for the
@@ -148,7 +159,8 @@ class ProcessNoise:
         w = np.arange(L.omega.start, L.omega.stop)
         Q[w, w] = c.wheel_accel_psd_rad2_s3 * dt
         r = np.arange(L.rest.start, L.rest.stop)
-        Q[r, r] = c.rest_psd_m2_s * dt
+        hold = self.lag_factor(dt)
+        Q[r, r] = c.rest_psd_m2_s * dt + c.rest_hold_std_m**2 * (1.0 - hold * hold)
         b = np.arange(L.bias.start, L.bias.stop)
         Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
         if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few

@@ -71,24 +71,24 @@ SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order
 # Keys for the in-process SIL (on top of noise_from_rig), each checked by the marginal NEES of its
 # block (docs/estimator.md). The rig's truth has no random forces: one filter step from the true
 # state reproduces the truth to round-off except where a string crosses its slack/taut kink within
-# the step (the truth holds each rest length over its 5 ms step while the filter's rest state moves
-# continuously: a sawtooth of +-0.25 mm at 0.1 m/s, which the kink rectifies). That is white noise
-# on the rest lengths as the string forces see them, mapped through every string as if taut and
-# weighted by its kink error, with the kink's mean force in the prediction (kink_model "mean"); the
-# sawtooth's own density (2e-10 m^2 s) left the motion block twice its dof while a string sat at its
-# kink, twice that covers it (sawtooth_psd of the truth's step). What is left for white node
-# accelerations is small (3e-8). The servos here are exactly the filter's first-order lag: their
-# length noise is the step quantisation (2 pi 10 mm / 4096 / sqrt(12) = 4.4 um), and through the
-# string forces the dynamics pin the rest lengths far below it: a walk of 1e-13 m^2/s covers what
-# the model misses there (1e-10: rest block 0.12 of 2; 1e-14: 22). The wheels take noise_from_rig's
-# keys: their speed loop's error is the lag model's walk.
+# the step (the truth's 5 ms hold of each rest length against the filter's continuous one: a
+# sawtooth of +-0.25 mm at 0.1 m/s that the kink rectifies). That is white noise on the rest
+# lengths as the string forces see them, through every string as if taut and weighted by its kink
+# error, with the kink's mean force in the prediction (kink_model "mean"); the sawtooth's own
+# density (2e-10 m^2 s) left the motion block twice its dof at a kink, twice that covers it
+# (sawtooth_psd of the truth's step); white node accelerations keep a little (3e-8). The servos here
+# are exactly the filter's first-order lag (no read off it, no goal-step spread, hold or moving
+# walk): reads to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s for what the model
+# misses where the dynamics pin them (1e-10: rest block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
 RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
-    "servo_time_std_s": 0.0,  # no read off the filter's lag to cover, moving or not
+    "servo_time_std_s": 0.0,
     "rest_psd_m2_s": 1e-13,
-    "servo_step_std_ratio": 0.0,  # these servos are the filter's lag exactly
+    "rest_hold_std_m": 0.0,
+    "rest_moving_psd_m2_s": 0.0,
+    "servo_step_std_ratio": 0.0,
     "rest_jitter_psd_m2_s": sawtooth_psd(TruthConfig.dt_s),
     "kink_model": "mean",
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
@@ -100,10 +100,10 @@ class SilError(GyrohostError, ValueError):
 
 
 def seeded(config, seed):
-    """``config`` with its simulated IMU's and wheels' noise drawn from ``seed``."""
+    """``config`` with its simulated IMU's and wheels' noise and its servos' stops from ``seed``."""
     sim = config.sim
-    sim = replace(sim, imu=replace(sim.imu, seed=seed), wheels=replace(sim.wheels, seed=seed))
-    return replace(config, sim=sim)
+    drawn = {name: replace(getattr(sim, name), seed=seed) for name in ("imu", "wheels", "servos")}
+    return replace(config, sim=replace(sim, **drawn))
 
 
 def record_run(config, seed, folder, duration_s=3.0, estimator=None):

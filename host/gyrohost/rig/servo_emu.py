@@ -18,9 +18,13 @@ says by default, drops its torque; writing torque enable 1 clears the latch. The
 :meth:`Mx12Bus.string_length_m` (the present rest length) to feed the model.
 
 Modelling choice: with torque off the position stays (the MX gearbox is not back-driven here).
+A servo that reaches its goal stops anywhere within ``hold_band_steps`` of it (uniform, drawn
+from ``seed`` and its ID) and holds there until the goal changes: its shaft, which the truth
+reads, is continuous, its present position a count.
 """
 
 import math
+import random
 import time
 from dataclasses import dataclass
 
@@ -153,21 +157,27 @@ class EmulatedMx12:
         self.table[Addr.RETURN_DELAY] = min(emu.return_delay_us // 2, 254)
         self.emu = emu
         self.spec = spec
-        self.position_steps = float(spec.zero_position if spec is not None else 0)
-        self.velocity_steps_s = 0.0
         self.tension_N = 0.0
         self.forced_overload = False
         self.no_reply = False
-        self.overload_latched = False
-        self._store_goal(int(round(self.position_steps)))
+        self._rng = random.Random(emu.seed * 1000 + servo_id)
+        self.reset()
 
     def reset(self) -> None:
-        """Back to the start position (the calibrated zero), at rest, that position the goal;
-        an overload latched by tension is cleared (mode and torque stay)."""
-        self.position_steps = float(self.spec.zero_position if self.spec is not None else 0)
+        """Back to the start position (the calibrated zero, held within the band), at rest,
+        that position the goal; an overload latched by tension is cleared (mode and torque
+        stay)."""
+        start = self.spec.zero_position if self.spec is not None else 0
+        self.position_steps = self._settle(start)
         self.velocity_steps_s = 0.0
         self.overload_latched = False
-        self._store_goal(int(round(self.position_steps)))
+        self._store_goal(start)
+
+    def _settle(self, goal: int) -> float:
+        """Where the shaft stops at ``goal``, steps: anywhere within the hold band."""
+        self._held_goal = goal
+        band = self.emu.hold_band_steps
+        return goal + self._rng.uniform(-band, band)
 
     # --- control table ------------------------------------------------------------------------
     def word(self, addr: int) -> int:
@@ -253,10 +263,19 @@ class EmulatedMx12:
             units = signed_from_sign_magnitude(speed_units)
             self.velocity_steps_s = _units_to_steps_s(max(min(units, no_load), -no_load))
             self.position_steps += self.velocity_steps_s * dt_s
+            self._held_goal = None
+            return
+        goal = self._goal()
+        if goal == self._held_goal and abs(goal - self.position_steps) <= self.emu.hold_band_steps:
+            self.velocity_steps_s = 0.0
             return
         max_steps_s = _units_to_steps_s(min(speed_units or no_load, no_load))
-        error = self._goal() - self.position_steps
-        step = math.copysign(min(abs(error), max_steps_s * dt_s), error)
+        error = goal - self.position_steps
+        if abs(error) <= max_steps_s * dt_s:
+            step = self._settle(goal) - self.position_steps
+        else:
+            step = math.copysign(max_steps_s * dt_s, error)
+            self._held_goal = None
         self.position_steps += step
         self.velocity_steps_s = step / dt_s if dt_s > 0 else 0.0
 
@@ -277,7 +296,8 @@ class EmulatedMx12:
             2, "little"
         )
         self.table[40:42] = sign_magnitude_from_signed(load_units).to_bytes(2, "little")
-        self.table[Addr.MOVING] = int(abs(self._goal() - self.position_steps) > 0.5)
+        band = max(self.emu.hold_band_steps, 0.5)
+        self.table[Addr.MOVING] = int(abs(self._goal() - self.position_steps) > band)
 
     def string_length_m(self) -> float:
         """Present string length from the calibration, m (needs ``spec``)."""
