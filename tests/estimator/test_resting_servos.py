@@ -1,7 +1,7 @@
 """A resting servo's string sits within a count of its command (the goal's rounding, where the
 servo stopped): ``rest_hold_std_m`` keeps that spread as the rest lengths' through the lag,
-whatever the filter's steps, and ``rest_moving_psd_m2_s`` walks them only while their goals
-move. Checked on the covariance the filter carries, with no read fused."""
+whatever the filter's steps. Checked on the covariance the filter carries, with no read
+fused."""
 
 import math
 
@@ -14,7 +14,7 @@ from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.config import EstimatorConfig, noise_from_rig, servo_hold_std
 from gyrohost.resources import shipped
 
-HOLD_M, STEP_M = 6e-6, 1e-3
+HOLD_M = 6e-6
 LAG_S = 0.005  # the simulated rig's: shorter than the filter's 10 ms step
 
 
@@ -38,19 +38,6 @@ def test_the_hold_is_the_rest_lengths_spread_at_rest_whatever_the_steps(model, m
         ekf.advance(t)
         # from the start's 1 mm down to the hold within a few lags, then held there
     np.testing.assert_allclose(_rest_std(ekf), HOLD_M, rtol=1e-6)
-
-
-def test_the_moving_walk_only_while_the_goals_move(model):
-    ekf = _ekf(model, rest_moving_psd_m2_s=1e-7)
-    rest = model.input_at(0.0)[: model.alpha]
-    r = ekf.layout.rest
-    ekf.set_input(rest + [STEP_M, 0.0], 0.01)  # the first string's goal moves, not the second's
-    ekf.advance(0.01)
-    walk = np.diag(ekf.process.noise(0.005))[r]
-    assert walk[0] == pytest.approx(1e-7 * 0.005, rel=1e-12) and walk[1] == 0.0
-    ekf.set_input(rest + [STEP_M, 0.0], 0.02)  # both hold
-    ekf.advance(0.02)
-    assert np.all(np.diag(ekf.process.noise(0.005))[r] == 0.0)
 
 
 def test_the_simulated_rig_s_hold_from_its_servos_count_and_band():

@@ -55,16 +55,13 @@ class EstimatorConfig:
     accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
     wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
     rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
-    # a walk of the rest lengths of the servos whose goal moved at the last command, until the
-    # next one (added to rest_psd_m2_s), m^2/s
-    rest_moving_psd_m2_s: float = field(default=0.0, metadata=_pos("moving rest length walk"))
     # a resting servo's string sits anywhere within this spread of its command (the goal's
     # count, where the servo stops about it): a walk of the rest lengths that keeps it as their
     # spread through the lag, whatever the step, m
     rest_hold_std_m: float = field(default=0.0, metadata=_pos("resting servo spread"))
     # a servo that covers each goal step at its moving speed strays from the first-order lag
-    # within the step by up to the step: std ratio x |goal step| over a command period, added as
-    # a walk of the rest lengths until the next goal (0: none)
+    # within the step by up to the step: std ratio x |goal step|, the spread the rest lengths
+    # keep about the lag until the next goal (0: none)
     servo_step_std_ratio: float = field(default=0.0, metadata=_pos("servo in-step std", 0.0, 10.0))
     # white noise of the rest lengths as the string forces see them (the servo's motion within a
     # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
@@ -379,24 +376,23 @@ def noise_from_rig(rig) -> dict:
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
         # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
         # tick it covers the goal step and holds, so it strays from the lag by up to the step,
-        # a position spread uniformly over it (std step / sqrt(12)) that walks the rest lengths
-        # while they move; holding still, they sit exactly on the goal (a walk of its own would
-        # leave the rest block far under its dof); its reads scatter about the truth's 5 ms
-        # rest-length steps (docs/estimator.md, "The servos' keys", "Real-time keys by replay")
+        # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
+        # while they move; holding still, they sit within the hold below; its reads scatter
+        # about the truth's 5 ms rest-length steps (docs/estimator.md, "The servos' keys",
+        # "Real-time keys by replay", "Resting servos")
         "servo_lag_s": 0.005,
         # a moving servo's read lies anywhere within the truth's 5 ms hold of its rest length
-        # (uniform: dt / sqrt(12) as a time); at rest it reads exactly where it holds, and
-        # 5e-5 m left for the rest puts the servo NIS at 1.8-2.0 of 2 on three real-time batches
-        # (2e-4 and no time: 0.87-1.06, below its bounds on one; docs/estimator.md, "The
-        # servos' reads, moving and at rest")
+        # (uniform: dt / sqrt(12) as a time); at rest it reads within a count of where it
+        # holds, and 5e-5 m left for the rest put the servo NIS at 1.8-2.0 of 2 on three
+        # real-time batches (2e-4 and no time: 0.87-1.06, below its bounds on one;
+        # docs/estimator.md, "The servos' reads, moving and at rest")
         "servo_length_std_m": 5.0e-5,
         "servo_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
-        # a resting servo holds within its band of the command's count: a walk only while the
-        # goals move (1e-7 all the time kept 15 um at rest where the truth stays within 6 um,
-        # the rest block near 0; docs/estimator.md, "Resting servos")
+        # a resting servo holds within its band of the command's count, and no walk beyond it
+        # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
+        # docs/estimator.md, "Resting servos")
         "rest_psd_m2_s": 0.0,
-        "rest_moving_psd_m2_s": 1.0e-7,
         "rest_hold_std_m": servo_hold_std(
             max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
             rig.sim.servos.hold_band_steps,

@@ -231,7 +231,7 @@ class TensegrityEKF:
             if kind == "wheels":
                 self.process.command_wheels(values)
             else:
-                self.process.goal_stepped(values - self.u[: self.model.alpha], due_s)
+                self.process.goal_stepped(values - self.u[: self.model.alpha])
                 self.u = self.u.copy()
                 self.u[: self.model.alpha] = values
         return self._commands[0][0] if self._commands else np.inf

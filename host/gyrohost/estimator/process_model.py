@@ -89,9 +89,9 @@ class ProcessModel(ProcessNoise):
         self.wheel_target_rad_s: np.ndarray | None = None
         """The setpoints the wheels are pulled towards in this derivative evaluation, rad/s."""
         self.jac = self._closed_form() if config.jacobian == "analytic" else None
-        self.rest_step_psd_m2_s = np.zeros(self.layout.n_strings)
-        """Walk density (alpha,) m^2/s of the rest lengths from the servos' last goal step."""
-        self._goal_s: float | None = None
+        self.rest_step_var_m2 = np.zeros(self.layout.n_strings)
+        """Spread (alpha,) m^2 the rest lengths keep about their lag from the last goal step."""
+        self._commanded = False  # the first goals set the lag's target, they are no step
 
     def _closed_form(self):
         try:
@@ -141,21 +141,18 @@ class ProcessModel(ProcessNoise):
             self.wheel_setpoint_rad_s = self.wheel_command_rad_s.copy()
             self.wheel_target_rad_s = self.wheel_command_rad_s.copy()
 
-    def goal_stepped(self, step_m, t_s: float) -> None:
-        """The servos' goals moved by ``step_m`` (alpha,) m at ``t_s`` s.
+    def goal_stepped(self, step_m) -> None:
+        """The servos' goals moved by ``step_m`` (alpha,) m.
 
-        A servo covers its goal step at its moving speed, then holds: within the command period
-        its position strays from the first-order lag by up to the step. That spread, std
-        ``servo_step_std_ratio |step|`` over the period since the last goal (``1/sqrt(12)`` for
-        a position uniform over the step), walks the rest lengths until the next goal, as does
-        ``rest_moving_psd_m2_s`` for every servo whose goal moved.
+        A servo covers its goal step at its moving speed, then holds: until the next goal its
+        position strays from the first-order lag by up to the step. That spread, std
+        ``servo_step_std_ratio |step|`` (``1/sqrt(12)`` for a position uniform over the step),
+        the rest lengths keep about their lag until the next goal (:meth:`lag_factor`, as the
+        hold).
         """
-        c = self.config
-        if self._goal_s is not None and t_s > self._goal_s:
-            step = np.asarray(step_m, float)
-            spread = (c.servo_step_std_ratio * step) ** 2 / (t_s - self._goal_s)
-            self.rest_step_psd_m2_s = spread + c.rest_moving_psd_m2_s * (step != 0.0)
-        self._goal_s = t_s
+        step = np.asarray(step_m, float) if self._commanded else np.zeros(len(step_m))
+        self.rest_step_var_m2 = (self.config.servo_step_std_ratio * step) ** 2
+        self._commanded = True
 
     def _aim(self, sp0, tau_s: float) -> None:
         """Point the wheels at the setpoints ``tau_s`` s after they were ``sp0`` (the stage's

@@ -2,7 +2,7 @@
 the wheel speeds, rest lengths and gyro bias, the servos' goal steps, the board's command
 timing while the wheels change speed, and the rest-length jitter through the string kinks.
 A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provides ``layout``,
-``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``rest_step_psd_m2_s`` and the
+``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``rest_step_var_m2`` and the
 ``_noise`` cache.
 """
 
@@ -20,15 +20,15 @@ class ProcessNoise:
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
         (integrated exactly into positions and velocities), random walks of the wheel speeds,
-        rest lengths (``rest_psd_m2_s``, the resting servos' spread ``rest_hold_std_m``
-        (:meth:`lag_factor`) and the servos' last goal step's, :meth:`goal_stepped`) and the
-        gyro bias; with the step's Jacobian ``F`` (n, n) and the state
-        ``x`` (n,) it linearises about, also white noise of density ``rest_jitter_psd_m2_s`` on
-        the rest lengths the string forces see, through the kink of each string
-        (:meth:`jitter_noise`).
+        rest lengths (``rest_psd_m2_s``; and, kept as their spread about the lag whatever the
+        steps, :meth:`lag_factor`, the resting servos' ``rest_hold_std_m`` and the servos' last
+        goal step's, :meth:`goal_stepped`) and the gyro bias; with the step's Jacobian ``F``
+        (n, n) and the state ``x`` (n,) it linearises about, also white noise of density
+        ``rest_jitter_psd_m2_s`` on the rest lengths the string forces see, through the kink of
+        each string (:meth:`jitter_noise`).
         """
         Q = self._white_noise(dt)
-        steps = self.rest_step_psd_m2_s.any()
+        steps = self.rest_step_var_m2.any()
         jitter = F is not None and x is not None and self.config.rest_jitter_psd_m2_s > 0.0
         timing = None if x is None else self.wheel_timing_psd(x)
         if not (steps or jitter or timing is not None):
@@ -39,7 +39,8 @@ class ProcessNoise:
             Q[w, w] += timing * dt
         if steps:
             r = np.arange(self.layout.rest.start, self.layout.rest.stop)
-            Q[r, r] += self.rest_step_psd_m2_s * dt
+            hold = self.lag_factor(dt)
+            Q[r, r] += self.rest_step_var_m2 * (1.0 - hold * hold)
         if jitter:
             n = self.layout.q_dot.stop
             Q[:n, :n] += self.jitter_noise(dt, F, x)
@@ -48,8 +49,8 @@ class ProcessNoise:
     def lag_factor(self, dt):
         """The step's factor on a rest length's offset from its command: the filter's
         integrator over ``dt`` s of the lag ``servo_lag_s`` (the lean model's one RK4 step, the
-        rk4 model's substeps). The hold's walk ``rest_hold_std_m^2 (1 - factor^2)`` keeps that
-        spread at rest whatever the steps."""
+        rk4 model's substeps). A walk ``var (1 - factor^2)`` keeps the spread ``var`` about the
+        lag whatever the steps: the hold's, a goal step's."""
         c = self.config
         n = 1 if c.process_method == "lean" else max(1, int(np.ceil(dt / c.rk4_substep_s - 1e-9)))
         z = -dt / n / c.servo_lag_s

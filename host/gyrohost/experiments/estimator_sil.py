@@ -77,9 +77,9 @@ SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order
 # error, with the kink's mean force in the prediction (kink_model "mean"); the sawtooth's own
 # density (2e-10 m^2 s) left the motion block twice its dof at a kink, twice that covers it
 # (sawtooth_psd of the truth's step); white node accelerations keep a little (3e-8). The servos here
-# are exactly the filter's first-order lag (no read off it, no goal-step spread, hold or moving
-# walk): reads to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s for what the model
-# misses where the dynamics pin them (1e-10: rest block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
+# are exactly the filter's first-order lag (no read off it, no goal-step spread, no hold): reads
+# to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s for what the model misses where
+# the dynamics pin them (1e-10: rest block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
 RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
@@ -87,7 +87,6 @@ RIG_MODEL_KEYS = {
     "servo_time_std_s": 0.0,
     "rest_psd_m2_s": 1e-13,
     "rest_hold_std_m": 0.0,
-    "rest_moving_psd_m2_s": 0.0,
     "servo_step_std_ratio": 0.0,
     "rest_jitter_psd_m2_s": sawtooth_psd(TruthConfig.dt_s),
     "kink_model": "mean",
