@@ -180,3 +180,28 @@ def test_each_recording_has_its_own_imu_biases(tmp_path):
     assert np.array_equal(a.accel_bias_m_s2, theta[7:13].reshape(2, 3))
     one = parameters(scene, config, ["gyro-bias"], 0.05)
     assert [p.name for p in one] == ["gyro_bias.x", "gyro_bias.y", "gyro_bias.z"]
+
+
+def test_a_simulation_that_breaks_walls_its_residuals_and_names_the_parameters(tmp_path):
+    """The output error's model breaks under some parameters a profile or a step tries (the
+    strings' damping x 150 here: its state goes non-finite): their residuals are a wall, the
+    fit goes on; at the first evaluation it is an error naming the values."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.ident import fit
+    from gyrohost.ident.logs import load_recording
+
+    nominal, truth = write_rigs(tmp_path, SHORT_S)
+    config = load_rig_config(nominal)
+    rec = load_recording(record_log(truth, 3, tmp_path / "log"), config, 4, commanded=True)
+    scene, est = load_scene(config.scene_path), for_rig(config)
+    params = parameters(scene, config, ["damping"], est.servo_lag_s, 1)
+    breaking = np.array([5.0])  # log factor
+    with pytest.raises(fit.FitError, match=r"simulation broke .* at damping 29\d\.\d"):
+        fit.Problem(scene, config, est, params, [rec])(breaking)
+    problem = fit.Problem(scene, config, est, params, [rec])
+    good = problem(np.zeros(1))
+    wall = problem(breaking)
+    assert wall.shape == good.shape and np.all(wall == fit.FAILED_RESIDUAL)
+    assert len(problem.failures) == 1 and "damping" in problem.failures[0]
+    assert np.array_equal(problem(np.zeros(1)), good)  # the fit goes on where it runs

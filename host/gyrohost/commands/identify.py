@@ -138,7 +138,7 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report
-    from gyrohost.ident.fit import fit, nominal_lag, two_passes
+    from gyrohost.ident.fit import FitError, fit, nominal_lag, two_passes
     from gyrohost.ident.forward import IdentDataError
     from gyrohost.ident.params import ParamsError, parameters
     from gyrohost.resources import ResourceError, resolve
@@ -176,7 +176,7 @@ def run(args) -> int:
     try:
         with profile.observing(progress.statistics):
             result = fitter(scene, config, est, params, recs, progress, args.max_evaluations)
-    except filter_fit.FilterFitError as exc:
+    except FitError as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()

@@ -37,12 +37,12 @@ import numpy as np
 from scipy.linalg import LinAlgWarning
 
 from gyrohost.config import RigConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.errors import EstimatorError
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
+from gyrohost.ident.fit import FAILED_RESIDUAL
 from gyrohost.ident.forward import IdentDataError
 from gyrohost.ident.logs import windowed
 from gyrohost.ident.params import Param, apply
@@ -59,13 +59,7 @@ STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 9)}
 force (m/s^2), the attitude's error as a rotation vector in world axes (rad)."""
 
 
-FAILED_RESIDUAL = 1e3
-"""Every residual from where the filter broke (a state off every bar length, a non-finite
-covariance) to the recording's end: a step of the fit into such parameters is refused as far
-worse than any the filter runs through."""
-
-
-class FilterFitError(GyrohostError, RuntimeError):
+class FilterFitError(output_fit.FitError):
     """The filter could not run a recording under the nominal parameters."""
 
 
@@ -254,8 +248,7 @@ def usable_cores() -> int:
 
 
 def _named(params, theta, what: str) -> str:
-    values = ", ".join(f"{p.name} {p.value(t):.6g}" for p, t in zip(params, theta, strict=True))
-    return f"the filter broke ({what}) at {values}"
+    return output_fit.broken_at(params, theta, f"the filter broke ({what})")
 
 
 def _corrected(data: dict, a, k: int, config: RigConfig) -> dict:

@@ -21,10 +21,28 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gyrohost.config import RigConfig
+from gyrohost.errors import GyrohostError
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.ident import forward, lsq, profile, shooting
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
+from gyrotensegrity.errors import SimulationError
+
+FAILED_RESIDUAL = 1e3
+"""Every residual the model could not give under a parameter vector (a simulation gone
+non-finite; from where a filter broke to the recording's end): a step of the fit into such
+parameters is refused as far worse than any the model runs through."""
+
+
+class FitError(GyrohostError, RuntimeError):
+    """The model could not run a recording under the nominal parameters."""
+
+
+def broken_at(params, theta, what: str) -> str:
+    """``what`` broke, and the parameter values it broke at."""
+    values = ", ".join(f"{p.name} {p.value(t):.6g}" for p, t in zip(params, theta, strict=True))
+    return f"{what} at {values}"
+
 
 CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "tilt x", "tilt y")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 8)}
@@ -151,7 +169,8 @@ class Problem:
         self.dynamic = np.array([p.group not in OUTPUT_GROUPS for p in params])
         self._key, self._motions = None, None
         self.simulations = 0
-        self.failures: list[str] = []  # a simulation does not break: a filter run may (profile)
+        self.failures: list[str] = []  # parameter vectors the simulation broke at (profile)
+        self._length = None  # residuals per evaluation, as the first one gave
 
     def applied(self, theta):
         return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
@@ -186,7 +205,16 @@ class Problem:
         return [e / w for e, w in zip(self.errors(theta), self.weights, strict=True)]
 
     def __call__(self, theta) -> np.ndarray:
-        return np.concatenate([e.ravel() for e in self.weighted(theta)])
+        try:
+            w = np.concatenate([e.ravel() for e in self.weighted(theta)])
+        except SimulationError as exc:
+            why = broken_at(self.params, theta, f"the simulation broke ({exc})")
+            if self._length is None:
+                raise FitError(why) from None
+            self.failures.append(why)
+            return np.full(self._length, FAILED_RESIDUAL)
+        self._length = len(w)
+        return w
 
     def batch(self, thetas) -> list:
         """The residuals of several parameter vectors, in order (one after the other: the

@@ -212,6 +212,8 @@ def started(model, config: EstimatorConfig, data: dict):
             [last[streams.rest_column(s.name)] for s in model.scene.strings],
             wheel_speed_rad_s=[last[c] for c in cmd] if cmd else None,
         )
+    else:  # no command yet: the servos hold where they start (not the scene's input at t0)
+        ekf.set_input(x0[layout_of(model).rest])
     after = {k: d[(d["t_s"] >= t0 if k == streams.IMU else d["t_s"] > t0) & (d["t_s"] <= t1)]
              for k, d in data.items()}  # fmt: skip
     # fused at the IMU's grid reconstructed from every arrival, as the run loop fused them
