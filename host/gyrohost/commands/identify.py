@@ -62,8 +62,8 @@ def register(sub) -> None:
         default="output",
         help="output error: simulate the rig from the log's inputs (default); filter: the "
         "host's EKF runs the log and its prediction errors are fitted, which follows a rig "
-        "whose wheels err from their setpoints, shown on the simulated clock only: on a "
-        "real-time recording it lands far off (docs/identification.md, 'The filter's "
+        "whose wheels err from their setpoints, as a real rig's do: use it there, with "
+        "--until ending before the D-bar folds (docs/identification.md, 'The filter's "
         "prediction error'); --lengths, --segment-s and --segment-start are the output "
         "error's",
     )
