@@ -321,8 +321,15 @@ class ProcessModel(ProcessNoise):
         F = np.eye(len(xd)) + Ad + Ad2 / 2.0 + Ad3 / 6.0 + Ad3 @ Ad / 24.0
         return x_next, F
 
+    def substeps(self, dt) -> int:
+        """RK4 steps the process model takes over ``dt`` s: one (lean), or substeps of at
+        most ``rk4_substep_s`` (rk4)."""
+        if self.config.process_method == "lean":
+            return 1
+        return max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
+
     def _rk4(self, xd, u, dt, sp0):
-        n = max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
+        n = self.substeps(dt)
         h = dt / n
         if self.jac is not None:
             return self._rk4_closed_form(xd, u, h, n, sp0)

@@ -2,8 +2,8 @@
 the wheel speeds, rest lengths and gyro bias, the servos' goal steps, the board's command
 timing while the wheels change speed, and the rest-length jitter through the string kinks.
 A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provides ``layout``,
-``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``rest_step_var_m2`` and the
-``_noise`` cache.
+``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``substeps``,
+``rest_step_var_m2`` and the ``_noise`` cache.
 """
 
 import numpy as np
@@ -51,9 +51,8 @@ class ProcessNoise:
         integrator over ``dt`` s of the lag ``servo_lag_s`` (the lean model's one RK4 step, the
         rk4 model's substeps). A walk ``var (1 - factor^2)`` keeps the spread ``var`` about the
         lag whatever the steps: the hold's, a goal step's."""
-        c = self.config
-        n = 1 if c.process_method == "lean" else max(1, int(np.ceil(dt / c.rk4_substep_s - 1e-9)))
-        z = -dt / n / c.servo_lag_s
+        n = self.substeps(dt)
+        z = -dt / n / self.config.servo_lag_s
         return (1.0 + z * (1.0 + z / 2.0 * (1.0 + z / 3.0 * (1.0 + z / 4.0)))) ** n
 
     def wheel_timing_psd(self, x):
