@@ -20,6 +20,7 @@ from gyrohost.experiments.identify_check import (
     write_rigs,
 )
 from gyrohost.ident import filter_fit
+from gyrohost.ident.fit import FAILED_RESIDUAL
 from gyrohost.ident.forward import IdentDataError
 from gyrohost.ident.params import parameters
 
@@ -176,7 +177,7 @@ def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_p
     monkeypatch.setattr(filter_fit, "_run", breaks_halfway)
     broken = problem(np.array([0.1]))
     assert len(broken) == len(whole)
-    half = np.flatnonzero(broken == filter_fit.FAILED_RESIDUAL)
+    half = np.flatnonzero(broken == FAILED_RESIDUAL)
     assert len(half) > 0.4 * len(whole) and half[-1] == len(whole) - 1
     assert len(problem.failures) == 1 and "J3" in problem.failures[0]
 
@@ -195,7 +196,7 @@ def test_a_filter_diverging_far_out_is_a_counted_break_not_a_crash(tmp_path):
         warnings.simplefilter("always")
         far = problem(np.array([6.0]))
     assert not caught, [str(w.message) for w in caught]
-    assert np.any(far == filter_fit.FAILED_RESIDUAL)
+    assert np.any(far == FAILED_RESIDUAL)
     assert len(problem.failures) == 1 and "stiffness" in problem.failures[0], problem.failures
 
 

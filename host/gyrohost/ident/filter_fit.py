@@ -42,7 +42,6 @@ from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.errors import EstimatorError
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
-from gyrohost.ident.fit import FAILED_RESIDUAL
 from gyrohost.ident.forward import IdentDataError
 from gyrohost.ident.logs import windowed
 from gyrohost.ident.params import Param, apply
@@ -99,13 +98,15 @@ def load(folder, until_s: float | None = None) -> FilterRecording:
     return FilterRecording(str(folder), data)
 
 
-class FilterProblem:
+class FilterProblem(output_fit.WalledResiduals):
     """The whitened innovations of parameter vectors over the recordings (the interface of
     :class:`.fit.Problem`, which :func:`.fit.statistics` and :mod:`.profile` use).
 
     With ``workers`` > 1, :meth:`batch` runs the filters of its parameter vectors in that many
     processes (started at the first batch, ended by :meth:`close`): a Jacobian's columns, a
     profile's samples. Each process holds its own copy of the problem."""
+
+    error = FilterFitError
 
     def __init__(
         self, scene: Scene, config: RigConfig, est, params: list, recs: list, workers: int = 1
@@ -156,7 +157,8 @@ class FilterProblem:
         return w, broke
 
     def __call__(self, theta) -> np.ndarray:
-        return self._walled(theta, *self.whitened(theta))
+        w, broke = self.whitened(theta)
+        return self._walled(theta, w, _what_broke(broke))
 
     def batch(self, thetas) -> list:
         """The residuals of several parameter vectors, in order."""
@@ -166,25 +168,16 @@ class FilterProblem:
             self._pool = _Workers(self)
         outs = self._pool.map(thetas)
         self.simulations += len(outs)
-        return [self._walled(t, w, broke) for t, (w, broke) in zip(thetas, outs, strict=True)]
+        return [
+            self._walled(t, w, _what_broke(broke))
+            for t, (w, broke) in zip(thetas, outs, strict=True)
+        ]
 
     def close(self) -> None:
         """End the worker processes, if any."""
         if self._pool is not None:
             self._pool.close()
             self._pool = None
-
-    def _walled(self, theta, w: np.ndarray, broke: list[str]) -> np.ndarray:
-        """``w``, from where a run broke on filled with :data:`FAILED_RESIDUAL`."""
-        if self._length is None:
-            if broke:
-                raise FilterFitError(_named(self.params, theta, "; ".join(broke)))
-            self._length = len(w)
-        if broke:
-            self.failures.append(_named(self.params, theta, "; ".join(broke)))
-            w = np.nan_to_num(w[: self._length], nan=FAILED_RESIDUAL)
-            w = np.pad(w, (0, self._length - len(w)), constant_values=FAILED_RESIDUAL)
-        return w
 
 
 class _Workers:
@@ -247,8 +240,9 @@ def usable_cores() -> int:
     return os.cpu_count() or 1
 
 
-def _named(params, theta, what: str) -> str:
-    return output_fit.broken_at(params, theta, f"the filter broke ({what})")
+def _what_broke(broke: list[str]) -> str:
+    """Why the filter runs broke, for :meth:`FilterProblem._walled` ("": none did)."""
+    return f"the filter broke ({'; '.join(broke)})" if broke else ""
 
 
 def _corrected(data: dict, a, k: int, config: RigConfig) -> dict:

@@ -44,6 +44,28 @@ def broken_at(params, theta, what: str) -> str:
     return f"{what} at {values}"
 
 
+class WalledResiduals:
+    """Residual vectors of one length, walled where the model broke (:class:`Problem`,
+    :class:`.filter_fit.FilterProblem`): the first evaluation sets the length, and a break
+    there is an :attr:`error`; a later break names its parameter vector in ``failures`` and
+    fills its residuals from where it broke on with :data:`FAILED_RESIDUAL`. Needs ``params``,
+    ``failures`` and ``_length``."""
+
+    error: type[FitError] = FitError
+
+    def _walled(self, theta, w: np.ndarray, broke: str) -> np.ndarray:
+        """``w`` of ``theta``, walled if ``broke`` says what broke ("": nothing)."""
+        if self._length is None:
+            if broke:
+                raise self.error(broken_at(self.params, theta, broke))
+            self._length = len(w)
+        if broke:
+            self.failures.append(broken_at(self.params, theta, broke))
+            w = np.nan_to_num(w[: self._length], nan=FAILED_RESIDUAL)
+            w = np.pad(w, (0, self._length - len(w)), constant_values=FAILED_RESIDUAL)
+        return w
+
+
 CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "tilt x", "tilt y")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 8)}
 RCOND = 1e-3
@@ -153,7 +175,7 @@ class FitResult:
         ]
 
 
-class Problem:
+class Problem(WalledResiduals):
     """The weighted residual of parameter vectors over the recordings; simulations are reused
     while only output parameters change (the Jacobian's columns of mounting and biases)."""
 
@@ -206,15 +228,10 @@ class Problem:
 
     def __call__(self, theta) -> np.ndarray:
         try:
-            w = np.concatenate([e.ravel() for e in self.weighted(theta)])
+            w, broke = np.concatenate([e.ravel() for e in self.weighted(theta)]), ""
         except SimulationError as exc:
-            why = broken_at(self.params, theta, f"the simulation broke ({exc})")
-            if self._length is None:
-                raise FitError(why) from None
-            self.failures.append(why)
-            return np.full(self._length, FAILED_RESIDUAL)
-        self._length = len(w)
-        return w
+            w, broke = np.empty(0), f"the simulation broke ({exc})"
+        return self._walled(theta, w, broke)
 
     def batch(self, thetas) -> list:
         """The residuals of several parameter vectors, in order (one after the other: the
