@@ -368,6 +368,23 @@ def load_rig_config(path: str | Path, overlays=()) -> RigConfig:
         raise ConfigError(f"{exc} (with the overlay {merged} merged)") from None
 
 
+def load_with_scenes(path, overlays=(), scene=None, truth_scene=None) -> RigConfig:
+    """:func:`load_rig_config` with the host's scene and the simulated truth's replaced where
+    given (a file or a shipped name, as ``--scene`` and ``--truth-scene`` take them).
+
+    Raises
+    ------
+    ConfigError, ResourceError
+        As :func:`load_rig_config`; a scene that is neither a file nor a shipped name.
+    """
+    config = load_rig_config(path, overlays)
+    if scene is not None:
+        config = replace(config, scene=str(resolve("scene", scene)))
+    if truth_scene is not None:
+        config = with_truth_scene(config, resolve("scene", truth_scene))
+    return config
+
+
 def rig_config_from_dict(data: dict, source: str = "<dict>") -> RigConfig:
     """Build a :class:`RigConfig` from parsed TOML ``data``; ``source`` names it in errors."""
     return replace(_build(RigConfig, data, "", source), source=source)
@@ -474,6 +491,7 @@ __all__ = [
     "WheelEmuConfig",
     "WheelboardConfig",
     "load_rig_config",
+    "load_with_scenes",
     "rig_config_from_dict",
     "with_truth_scene",
 ]

@@ -5,6 +5,8 @@ the servo worker's next read break it, sent at once they do not, and late servo 
 when sampled are as good as reads on time. The figures per effect:
 ``python -m gyrohost.experiments.estimator_effects`` (docs/estimator.md)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,36 @@ def test_gyrotens_sil_prints_the_consistency_table(capsys, tmp_path):
     assert "time steps inside" in out and "tilt error RMS" in out and "filter CPU" in out
     assert main(["sil", "--runs", "0"]) == 2
     assert main(["sil", "--realtime", "--workers", "2"]) == 2  # real time runs one at a time
+
+
+def test_gyrotens_sil_takes_the_run_commands_overlay_and_scenes(tmp_path, monkeypatch, capsys):
+    """``--overlay``, ``--scene`` and ``--truth-scene`` build the configuration the SIL runs,
+    as ``gyrotens run`` builds it: an identified scene and overlay checked against a truth;
+    a missing or broken file is an error line naming it, not a traceback."""
+    import gyrohost.experiments.estimator_sil as sil
+    from gyrohost.cli import main
+
+    seen = {}
+
+    def capture(config, *args):
+        seen["config"] = config
+        raise sil.SilError("captured")
+
+    monkeypatch.setattr(sil, "sil_results", capture)
+    scene = Path(shipped("scene", "dbar-gyro")).read_text()
+    (tmp_path / "host.toml").write_text(scene.replace('name = "dbar-gyro"', 'name = "host"'))
+    (tmp_path / "overlay.toml").write_text("[imu]\nmounting_rpy_rad = [0.01, -0.02, 0.03]\n")
+    argv = ["sil", "--runs", "1", "--overlay", str(tmp_path / "overlay.toml"),
+            "--scene", str(tmp_path / "host.toml"), "--truth-scene", "dbar-rig"]  # fmt: skip
+    assert main(argv) == 2
+    config = seen["config"]
+    assert config.imu.mounting_rpy_rad == (0.01, -0.02, 0.03)
+    assert Path(config.scene_path) == tmp_path / "host.toml"
+    assert Path(config.truth_scene_path) == Path(shipped("scene", "dbar-rig"))
+    assert "captured" in capsys.readouterr().err
+    monkeypatch.undo()
+    (tmp_path / "broken.toml").write_text("x = [")
+    for option, value in (("--truth-scene", "nope"), ("--scene", "broken.toml"),
+                          ("--overlay", "missing.toml")):  # fmt: skip
+        assert main(["sil", "--runs", "1", "--duration", "0.3", option, str(tmp_path / value)]) == 2
+        assert f"gyrotens sil: error: {tmp_path / value}" in capsys.readouterr().err, option

@@ -5,14 +5,17 @@ weighed), ``gyrotens identify`` of its log, and a run with the identified scene 
 
 import json
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gyrohost.cli import main
+from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule, load_schedule
 from gyrohost.experiments.identify_rig import (
     IMU_ROTATION_DEG,
+    estimator_figures,
     identified_errors,
     truth_kept_overlay,
     truth_lag_s,
@@ -73,3 +76,29 @@ def test_rig_log_identified_then_run_with_the_result(tmp_path, capsys):
     mounting = tomllib.loads(overlay.read_text())["imu"]["mounting_rpy_rad"]
     np.testing.assert_allclose(meta["estimator"]["imu_mounting_rpy_rad"], mounting)
     assert np.degrees(mounting) == pytest.approx(IMU_ROTATION_DEG, abs=0.3)
+
+
+def test_rig_files_seed_every_emulator_and_set_the_wheels_error(tmp_path):
+    config, truth = write_rig_files(tmp_path, seed=4, speed_error_rad_s=0.01)
+    rig = load_rig_config(config)
+    assert (rig.sim.imu.seed, rig.sim.wheels.seed, rig.sim.servos.seed) == (4, 4, 4)
+    assert rig.sim.wheels.speed_error_std_rad_s == 0.01
+    assert rig.sim.truth.imu_rotation_deg == IMU_ROTATION_DEG
+    assert Path(rig.scene_path).name == "weighed.toml"
+    assert tomllib.loads(truth.read_text())["strings"][0]["damping"] == pytest.approx(1.4)
+    (tmp_path / "exact").mkdir()
+    exact = load_rig_config(write_rig_files(tmp_path / "exact", seed=1)[0])
+    assert exact.sim.wheels.speed_error_std_rad_s == 0.0
+
+
+def test_estimator_figures_read_the_runs_summary(tmp_path):
+    row = {"mean": 14.2, "dof": 14, "bounds95": [13.5, 14.5]}
+    summary = {
+        "estimator": {"nees": row, "nis": {"wheels": {**row, "mean": 2.0, "bounds95": [3, 5]}}},
+        "tilt_end_estimate_rad": 0.51,
+        "tilt_end_truth_rad": 0.5,
+    }
+    (tmp_path / "meta.json").write_text(json.dumps({"summary": summary}))
+    figures = estimator_figures(tmp_path)
+    assert figures["nees"] == (14.2, True) and figures["wheels"] == (2.0, False)
+    assert figures["tilt_end_error_deg"] == pytest.approx(np.degrees(0.01))

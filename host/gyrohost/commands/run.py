@@ -218,10 +218,8 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from dataclasses import replace
-
     from gyrohost.cli import CliError
-    from gyrohost.config import load_rig_config, with_truth_scene
+    from gyrohost.config import load_with_scenes
     from gyrohost.errors import GyrohostError
     from gyrohost.estimator.config import for_rig
     from gyrohost.resources import resolve
@@ -231,13 +229,11 @@ def _run(args) -> int:
     from gyrotensegrity import SceneError
 
     try:
-        config = load_rig_config(resolve("config", args.config), args.overlay)
-        if args.scene is not None:
-            config = replace(config, scene=str(resolve("scene", args.scene)))
-        if args.truth_scene is not None:
-            if not args.sim:
-                raise CliError("--truth-scene is for the simulated rig: add --sim")
-            config = with_truth_scene(config, resolve("scene", args.truth_scene))
+        if args.truth_scene is not None and not args.sim:
+            raise CliError("--truth-scene is for the simulated rig: add --sim")
+        config = load_with_scenes(
+            resolve("config", args.config), args.overlay, args.scene, args.truth_scene
+        )
         estimator = for_rig(config, args.estimator)
         schedule = _what_to_run(config, args)
     except (GyrohostError, SceneError, OSError) as exc:

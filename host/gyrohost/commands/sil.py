@@ -1,5 +1,5 @@
-"""``gyrotens sil [--runs N] [--realtime] [--config C] [--workers N]``: the estimator's
-consistency.
+"""``gyrotens sil [--runs N] [--realtime] [--config C] [--overlay FILE] [--scene S]
+[--truth-scene T] [--workers N]``: the estimator's consistency.
 
 Runs the paper's schedule ``N`` times on the simulated rig (in process on a simulated clock, or
 ``--realtime`` through the run loop) and prints NEES and the NIS of every source against the
@@ -19,10 +19,13 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from gyrohost.cli import CliError
+    from gyrohost.errors import ConfigError
     from gyrohost.estimator.errors import EstimatorConfigError
     from gyrohost.experiments.estimator_sil import SilError, report
+    from gyrohost.resources import ResourceError
     from gyrohost.run import ScheduleRefused
     from gyrohost.run.log import LogError
+    from gyrotensegrity import SceneError
 
     if args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
@@ -31,8 +34,9 @@ def run(args) -> int:
                        "simulated clock")  # fmt: skip
     try:
         report(args)
-    except (SilError, ScheduleRefused, EstimatorConfigError) as exc:  # bad input: a message, exit 2
-        raise CliError(str(exc)) from None
+    except (SilError, ScheduleRefused, EstimatorConfigError, ConfigError, ResourceError,
+            SceneError) as exc:  # fmt: skip
+        raise CliError(str(exc)) from None  # bad input: a message, exit 2
     except LogError as exc:  # --score-only: a run folder missing or damaged
         raise CliError(f"{exc} (--score-only scores the runs --realtime recorded there)") from None
     return 0

@@ -457,9 +457,9 @@ def sil_results(
 
 def report(args) -> dict:
     """Run and print the SIL table of ``args`` (:func:`add_arguments`); returns the figures."""
-    from gyrohost.config import load_rig_config
+    from gyrohost.config import load_with_scenes
 
-    config = load_rig_config(args.config)
+    config = load_with_scenes(args.config, args.overlay, args.scene, args.truth_scene)
     with parallel.from_args(args) as executor:
         results = sil_results(
             config, args.runs, args.duration, args.realtime, args.out, args.score_only,

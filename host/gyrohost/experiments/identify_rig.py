@@ -1,26 +1,33 @@
 """Identification on the real-time simulated rig, end to end, through the commands a lab uses.
 
-``python -m gyrohost.experiments.identify_rig [--seeds 1] [--out DIR] [--lengths servos]
-[--until S] [--segment-s S] [--fit-only]``
+``python -m gyrohost.experiments.identify_rig [--seeds 1] [--first-seed 1] [--out DIR]
+[--speed-error RAD_S] [--method output|filter] [--workers N] [--lengths servos] [--until S]
+[--segment-s S] [--steps record,identify,run]``
 
-Per seed (the simulated IMU's noise and biases):
+Per seed (the simulated IMU's noise and biases, the wheels' speed error and the servos' holds):
 
-1. ``gyrotens run --sim --config C --truth-scene T --schedule identify -o LOG``: the truth ``T``
-   is the shipped D-bar with J3 x 1.3, bar mass x 0.8, string stiffness x 1.25 and damping
-   x 0.7; ``C`` is ``sim-rig`` with the bars weighed (its scene: the shipped D-bar with the
-   truth's bar mass) and the truth's IMU turned (3, -1.7, 1.1) degrees from where ``C`` says
-   it is (``[sim.truth] imu_rotation_deg``);
-2. ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml --segment-s 4``
-   (the whole log, in multiple-shooting segments; ``--until S`` fits only its first ``S``
-   seconds);
-3. ``gyrotens run --sim --config C --overlay RUN.toml --scene IDENT.toml --truth-scene T``,
-   ``RUN.toml`` the fit's ``OVERLAY.toml`` with the truth's IMU kept where it was
-   (:func:`truth_kept_overlay`: ``[sim.truth] imu_rotation_deg`` turns the emulated IMU from
-   where the configuration says it is, and the overlay moves that to the identified mounting).
+1. ``record``: ``gyrotens run --sim --config C --truth-scene T --schedule identify -o LOG``: the
+   truth ``T`` is the shipped D-bar with J3 x 1.3, bar mass x 0.8, string stiffness x 1.25 and
+   damping x 0.7; ``C`` is ``sim-rig`` with the bars weighed (its scene: the shipped D-bar with
+   the truth's bar mass), the truth's IMU turned (3, -1.7, 1.1) degrees from where ``C`` says
+   it is (``[sim.truth] imu_rotation_deg``) and the emulated wheels erring from their
+   setpoints by ``--speed-error`` (0 by default: the acceptance's exact wheels; a real speed
+   loop errs by about 0.01 rad/s);
+2. ``identify``: ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml``
+   with ``--method`` (the output error in ``--segment-s`` multiple-shooting segments, or the
+   filter's prediction error) over the whole log or its first ``--until`` seconds;
+3. ``run``: the paper's schedule on the same truth, twice: ``gyrotens run --sim --config C
+   --truth-scene T`` (the nominal scene and mounting) and the same with ``--overlay RUN.toml
+   --scene IDENT.toml``, ``RUN.toml`` the fit's ``OVERLAY.toml`` with the truth's IMU kept
+   where it was (:func:`truth_kept_overlay`: ``[sim.truth] imu_rotation_deg`` turns the
+   emulated IMU from where the configuration says it is, and the overlay moves that to the
+   identified mounting).
 
 It prints each identified figure's error against the truth (J3, stiffness and damping as
-relative errors, the mounting in degrees), the fit's wall time and the exit status of every
-command. The rig runs are real time: run this at normal priority on a quiet machine.
+relative errors, the mounting in degrees), the fit's wall time, the exit status of every
+command and, for the two runs of the paper's schedule, the estimator's NEES and NIS per source
+against their bounds and the tilt's error at the end (:func:`estimator_figures`). The rig runs
+are real time: run this at normal priority on a quiet machine.
 """
 
 import argparse
@@ -39,8 +46,15 @@ from gyrohost.resources import shipped
 J3_NOMINAL = 0.5 * 0.050 * 0.031**2  # the shipped D-bar's wheel disc, kg m^2
 
 
-def write_rig_files(folder: Path, seed: int = 1) -> tuple[Path, Path]:
-    """The host's configuration ``C`` (bars weighed) and the truth scene ``T`` in ``folder``.
+STEPS = ("record", "identify", "run")
+
+
+def write_rig_files(
+    folder: Path, seed: int = 1, speed_error_rad_s: float = 0.0
+) -> tuple[Path, Path]:
+    """The host's configuration ``C`` (bars weighed; the simulated IMU, wheels and servos
+    seeded with ``seed``; the wheels erring from their setpoints by ``speed_error_rad_s``) and
+    the truth scene ``T`` in ``folder``.
 
     Returns
     -------
@@ -56,9 +70,12 @@ def write_rig_files(folder: Path, seed: int = 1) -> tuple[Path, Path]:
     truth = truth.replace("damping = 2.0", f"damping = {2.0 * f['damping']!r}")
     truth = truth.replace("spin = ", f"J3 = {J3_NOMINAL * f['J3']!r}, spin = ")
     (folder / "truth.toml").write_text(truth)
-    config = wheel_speed_error(Path(shipped("config", "sim-rig")).read_text(), 0.0)
+    config = Path(shipped("config", "sim-rig")).read_text()
+    config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)  # [sim.imu], the first
+    config = wheel_speed_error(config, speed_error_rad_s)
+    for table in ("[sim.wheels]\n", "[sim.servos]\n"):
+        config = config.replace(table, f"{table}seed = {seed}\n", 1)
     config = config.replace('scene = "dbar-gyro"', 'scene = "weighed.toml"')
-    config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)
     rotation = ", ".join(repr(a) for a in IMU_ROTATION_DEG)
     config += f"\n[sim.truth]\nimu_rotation_deg = [{rotation}]\n"
     (folder / "rig.toml").write_text(config)
@@ -115,37 +132,72 @@ def truth_lag_s(log: Path) -> float:
     return float(np.median(truth["rig_t_s"] - truth["truth_t_s"]))
 
 
+def estimator_figures(log: Path) -> dict:
+    """The estimator's figures of a simulated run's summary: NEES and NIS per source (mean and
+    whether inside the 95 % bounds of the run's own average) and the tilt's error at the end
+    of the schedule (deg)."""
+    import json
+
+    summary = json.loads((log / "meta.json").read_text())["summary"]
+    rows = {"nees": summary["estimator"]["nees"], **summary["estimator"]["nis"]}
+    out = {}
+    for name, row in rows.items():
+        low, high = row["bounds95"]
+        out[name] = (row["mean"], bool(low <= row["mean"] <= high))
+    tilt = summary["tilt_end_estimate_rad"] - summary["tilt_end_truth_rad"]
+    out["tilt_end_error_deg"] = float(np.degrees(tilt))
+    return out
+
+
+def _identify_argv(log: Path, files: dict, args) -> list[str]:
+    """``gyrotens identify``'s arguments for ``log`` with the options of :func:`main`."""
+    argv = ["identify", str(log), "-o", str(files["ident"]), "--config", str(files["config"]),
+            "--overlay", str(files["overlay"]), "--method", args.method]  # fmt: skip
+    if args.method == "filter":
+        argv += [] if args.workers is None else ["--workers", str(args.workers)]
+    else:
+        argv += ["--lengths", args.lengths, "--segment-s", str(args.segment_s)]
+    return argv + ([] if args.until is None else ["--until", str(args.until)])
+
+
 def one_seed(root: Path, seed: int, args) -> dict:
-    """The three commands for one seed in ``root/seedN`` (``args``: the options of
-    :func:`main`; with ``fit_only`` the recording is the one already there and the third
-    command is not run); what they gave."""
+    """The steps ``args.steps`` of :data:`STEPS` for one seed in ``root/seedN`` (``args``: the
+    options of :func:`main`; a step left out takes what an earlier call left there); what they
+    gave."""
     folder = root / f"seed{seed}"
     folder.mkdir(parents=True, exist_ok=True)
-    log, ident, overlay = folder / "ident-run", folder / "ident.toml", folder / "overlay.toml"
-    config, truth = folder / "rig.toml", folder / "truth.toml"
+    files = {name: folder / f"{name}.toml" for name in ("config", "truth", "ident", "overlay")}
+    files["config"], log = folder / "rig.toml", folder / "ident-run"
     out = {}
-    if not args.fit_only:
-        config, truth = write_rig_files(folder, seed)
-        rig = ["--sim", "--config", str(config), "--truth-scene", str(truth)]
+    if "record" in args.steps:
+        write_rig_files(folder, seed, args.speed_error)
+    rig = ["--sim", "--config", str(files["config"]), "--truth-scene", str(files["truth"])]
+    if "record" in args.steps:
         out["record"] = gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])
     out["truth_lag_s"] = truth_lag_s(log)
-    window = [] if args.until is None else ["--until", str(args.until)]
-    t0 = time.perf_counter()
-    out["identify"] = gyrotens(
-        ["identify", str(log), "-o", str(ident), "--config", str(config),
-         "--overlay", str(overlay), "--lengths", args.lengths,
-         "--segment-s", str(args.segment_s), *window], nice=True,
-    )  # fmt: skip
-    out["fit_s"] = time.perf_counter() - t0
-    if out["identify"] == 0 and not args.fit_only:
-        kept = truth_kept_overlay(overlay, folder / "run-overlay.toml")
-        out["replay"] = gyrotens(
-            ["run", *rig, "--overlay", str(kept), "--scene", str(ident),
-             "-o", str(folder / "with-ident")]
-        )  # fmt: skip
-    if out["identify"] == 0:
-        out["errors"] = identified_errors(ident, overlay)
+    if "identify" in args.steps:
+        t0 = time.perf_counter()
+        out["identify"] = gyrotens(_identify_argv(log, files, args), nice=True)
+        out["fit_s"] = time.perf_counter() - t0
+    if not files["ident"].exists():
+        return out
+    out["errors"] = identified_errors(files["ident"], files["overlay"])
+    if "run" in args.steps:
+        kept = truth_kept_overlay(files["overlay"], folder / "run-overlay.toml")
+        with_ident = ["--overlay", str(kept), "--scene", str(files["ident"])]
+        for name, extra in (("nominal", []), ("identified", with_ident)):
+            run_log = folder / f"paper-{name}"
+            out[f"run {name}"] = gyrotens(["run", *rig, *extra, "-o", str(run_log)])
+            out[f"estimator {name}"] = estimator_figures(run_log)
     return out
+
+
+def _steps(text: str) -> tuple[str, ...]:
+    steps = tuple(text.split(","))
+    unknown = [s for s in steps if s not in STEPS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown step(s) {unknown}: choose from {STEPS}")
+    return steps
 
 
 def main(argv=None) -> int:
@@ -153,12 +205,18 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", type=int, default=1)
     parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--out", type=Path, help="keep everything here (default: temporary)")
+    parser.add_argument(
+        "--speed-error", type=float, default=0.0, help="the wheels' speed error, rad/s (0)"
+    )
+    parser.add_argument("--method", choices=("output", "filter"), default="output")
+    parser.add_argument("--workers", type=int, help="the filter fit's processes")
     parser.add_argument("--lengths", choices=("servos", "command"), default="servos")
     parser.add_argument("--until", type=float, help="s of each log fitted (default: all)")
     parser.add_argument("--segment-s", type=float, default=4.0, help="segments, s (4; 0: one)")
     parser.add_argument(
-        "--fit-only", action="store_true", help="fit the recordings already in --out again"
-    )
+        "--steps", type=_steps, default=STEPS,
+        help="comma-separated, of record,identify,run (default all; the others reuse --out)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)

@@ -16,6 +16,16 @@ def add_arguments(parser) -> None:
     """The options of ``gyrotens sil`` and of the experiment's command line."""
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
+    parser.add_argument(
+        "--overlay", type=Path, action="append", default=[], metavar="FILE",
+        help="TOML keys merged into the configuration (as gyrotens identify writes them); "
+        "may be repeated",
+    )  # fmt: skip
+    parser.add_argument("--scene", help="the host's scene (default: the configuration's)")
+    parser.add_argument(
+        "--truth-scene", metavar="FILE",
+        help="the scene the simulated rig's truth runs (default: [sim.truth] scene)",
+    )  # fmt: skip
     parser.add_argument("--duration", type=float, default=3.0, help="schedule length, s")
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
     parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
