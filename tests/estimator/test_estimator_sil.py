@@ -132,3 +132,23 @@ def test_score_only_without_recorded_runs_says_what_it_reads(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert "run01: not a log folder" in err and "--score-only scores the runs" in err
+
+
+@pytest.mark.parametrize("completed", [True, False])
+def test_a_real_time_run_whose_filter_diverged_is_scored(tmp_path, monkeypatch, completed):
+    """A run whose estimator diverged completes with exit status 1 (a nominal scene against
+    another truth): the SIL scores it, for its NEES is the figure asked for; a run that
+    stopped before its schedule ended is an error naming it."""
+    import gyrohost.run
+    from gyrohost.experiments.estimator_sil import SilError, record_run
+    from gyrohost.run.settings import RunResult
+
+    reason = "completed" if completed else "wheel board silent"
+    ended = RunResult(completed, reason, 1, tmp_path)
+    monkeypatch.setattr(gyrohost.run, "run_simulated", lambda *args, **kwargs: ended)
+    config = load_rig_config(CONFIG)
+    if completed:
+        assert record_run(config, 1, tmp_path, 0.5) == tmp_path
+    else:
+        with pytest.raises(SilError, match=f"{tmp_path}: the run stopped: wheel board silent"):
+            record_run(config, 1, tmp_path, 0.5)

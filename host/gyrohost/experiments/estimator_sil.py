@@ -95,7 +95,7 @@ RIG_MODEL_KEYS = {
 
 
 class SilError(GyrohostError, ValueError):
-    """A SIL run cannot start (its log folder exists)."""
+    """A SIL run cannot start (its log folder exists) or stopped before its schedule ended."""
 
 
 def seeded(config, seed):
@@ -117,8 +117,8 @@ def record_run(config, seed, folder, duration_s=3.0, estimator=None):
     cfg = seeded(config, seed)
     schedule = paper(Model(load_scene(cfg.scene_path)), duration_s=duration_s)
     result = run_simulated(cfg, schedule, folder, estimator=for_rig(cfg, estimator))
-    if result.exit_status:
-        raise RuntimeError(f"{folder}: the run stopped: {result.reason}")
+    if not result.completed:  # a diverged filter completes: the scores say how far it is off
+        raise SilError(f"{folder}: the run stopped: {result.reason}")
     return folder
 
 

@@ -2,7 +2,7 @@
 
 ``python -m gyrohost.experiments.identify_rig [--seeds 1] [--first-seed 1] [--out DIR]
 [--speed-error RAD_S] [--method output|filter] [--workers N] [--lengths servos] [--until S]
-[--segment-s S] [--steps record,identify,run]``
+[--segment-s S] [--sil-runs 10] [--steps record,identify,run]``
 
 Per seed (the simulated IMU's noise and biases, the wheels' speed error and the servos' holds):
 
@@ -16,18 +16,20 @@ Per seed (the simulated IMU's noise and biases, the wheels' speed error and the 
 2. ``identify``: ``gyrotens identify LOG -o IDENT.toml --config C --overlay OVERLAY.toml``
    with ``--method`` (the output error in ``--segment-s`` multiple-shooting segments, or the
    filter's prediction error) over the whole log or its first ``--until`` seconds;
-3. ``run``: the paper's schedule on the same truth, twice: ``gyrotens run --sim --config C
-   --truth-scene T`` (the nominal scene and mounting) and the same with ``--overlay RUN.toml
-   --scene IDENT.toml``, ``RUN.toml`` the fit's ``OVERLAY.toml`` with the truth's IMU kept
-   where it was (:func:`truth_kept_overlay`: ``[sim.truth] imu_rotation_deg`` turns the
-   emulated IMU from where the configuration says it is, and the overlay moves that to the
-   identified mounting).
+3. ``run``: ``gyrotens run --sim --config C --truth-scene T --overlay RUN.toml --scene
+   IDENT.toml`` (the lab's third command, on the paper's schedule), ``RUN.toml`` the fit's
+   ``OVERLAY.toml`` with the truth's IMU kept where it was (:func:`truth_kept_overlay`:
+   ``[sim.truth] imu_rotation_deg`` turns the emulated IMU from where the configuration says
+   it is, and the overlay moves that to the identified mounting); then the estimator's
+   consistency against the same truth, ``gyrotens sil --realtime --runs N`` (``--sil-runs``,
+   10 by default; 0: none) with the nominal scene and mounting and with the identified ones.
 
 It prints each identified figure's error against the truth (J3, stiffness and damping as
 relative errors, the mounting in degrees), the fit's wall time, the exit status of every
-command and, for the two runs of the paper's schedule, the estimator's NEES and NIS per source
-against their bounds and the tilt's error at the end (:func:`estimator_figures`). The rig runs
-are real time: run this at normal priority on a quiet machine.
+command, the third command's NEES and NIS against the bounds of its own average and the tilt's
+error at its end (:func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
+against the bounds of an N-run average. The rig runs are real time: run this at normal
+priority on a quiet machine.
 """
 
 import argparse
@@ -185,11 +187,25 @@ def one_seed(root: Path, seed: int, args) -> dict:
     if "run" in args.steps:
         kept = truth_kept_overlay(files["overlay"], folder / "run-overlay.toml")
         with_ident = ["--overlay", str(kept), "--scene", str(files["ident"])]
+        out["run"] = gyrotens(["run", *rig, *with_ident, "-o", str(folder / "with-ident")])
+        out["estimator"] = estimator_figures(folder / "with-ident")
+        sil = ["--config", str(files["config"]), "--truth-scene", str(files["truth"])]
         for name, extra in (("nominal", []), ("identified", with_ident)):
-            run_log = folder / f"paper-{name}"
-            out[f"run {name}"] = gyrotens(["run", *rig, *extra, "-o", str(run_log)])
-            out[f"estimator {name}"] = estimator_figures(run_log)
+            if args.sil_runs:
+                out[f"sil {name}"] = sil_figures([*sil, *extra], folder / f"sil-{name}", args)
     return out
+
+
+def sil_figures(argv: list[str], folder: Path, args) -> list[str]:
+    """The consistency lines (NEES, NIS per source, tilt) of ``gyrotens sil --realtime ARGV``
+    over ``args.sil_runs`` runs of the paper's schedule, logged in ``folder``."""
+    cmd = [sys.executable, "-m", "gyrohost", "sil", "--realtime", "--runs", str(args.sil_runs),
+           *argv, "--out", str(folder)]  # fmt: skip
+    done = subprocess.run(cmd, check=False, capture_output=True, text=True)
+    if done.returncode:
+        return [f"gyrotens sil exited with {done.returncode}: {done.stderr.strip()[-300:]}"]
+    keep = ("[sil] NEES:", "[sil] NIS", "[sil] tilt")
+    return [line for line in done.stdout.splitlines() if line.startswith(keep)]
 
 
 def _steps(text: str) -> tuple[str, ...]:
@@ -214,6 +230,10 @@ def main(argv=None) -> int:
     parser.add_argument("--until", type=float, help="s of each log fitted (default: all)")
     parser.add_argument("--segment-s", type=float, default=4.0, help="segments, s (4; 0: one)")
     parser.add_argument(
+        "--sil-runs", type=int, default=10,
+        help="real-time SIL runs of the nominal and the identified scene (run step; 0: none)",
+    )  # fmt: skip
+    parser.add_argument(
         "--steps", type=_steps, default=STEPS,
         help="comma-separated, of record,identify,run (default all; the others reuse --out)",
     )  # fmt: skip
@@ -223,11 +243,14 @@ def main(argv=None) -> int:
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             out = one_seed(root, seed, args)
             errs = out.pop("errors", {})
+            sils = {k: out.pop(k) for k in [k for k in out if k.startswith("sil ")]}
             line = "  ".join(
                 f"{k} {v:+.3f}" if k.startswith("mounting") else f"{k} {100 * v:+.1f} %"
                 for k, v in errs.items()
             )
             print(f"seed {seed}: {out}; {line}", flush=True)
+            for name, lines in sils.items():
+                print(f"  {name} ({args.sil_runs} runs):\n    " + "\n    ".join(lines), flush=True)
     return 0
 
 
