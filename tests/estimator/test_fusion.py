@@ -153,6 +153,9 @@ def test_whitened_innovation_is_the_innovation_over_its_covariance_factor(model,
     (r,) = fuse(ekf2, Measurement("imu_rate", z, np.zeros(2), H, R))
     assert np.allclose(np.linalg.cholesky(S) @ r.whitened, z, rtol=1e-10)
     assert np.isclose(r.nis, z @ np.linalg.solve(S, z), rtol=1e-10)
+    # the likelihood's other term: how far the state's uncertainty widens S beyond R
+    spread = np.linalg.slogdet(S)[1] - np.linalg.slogdet(R)[1]
+    assert spread > 0.0 and np.isclose(r.spread, spread, rtol=1e-10)
 
 
 def test_a_finite_state_the_imu_cannot_see_raises_with_member(model, config):

@@ -70,6 +70,19 @@ def _problem(tmp_path, workers=1, groups=("J3",)):
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
 
 
+def test_the_residuals_are_the_innovations_likelihood(tmp_path):
+    """Each innovation's whitened components and then the square root of its spread: half
+    their squares sum to the NIS and log det S - log det R, the negative log-likelihood up to
+    a constant; the noise variance is the whitened components' alone."""
+    problem = _problem(tmp_path)
+    r = problem(np.zeros(1))
+    run = [i for recording, _ in problem.runs(np.zeros(1)) for i in recording]
+    assert len(r) == sum(len(i.whitened) + 1 for i in run)
+    nis, spread = sum(i.nis for i in run), sum(i.spread for i in run)
+    assert spread > 0.0 and r @ r == pytest.approx(nis + spread, rel=1e-12)
+    assert problem.residual_variance(r, 1) == pytest.approx(nis / (len(r) - len(run) - 1))
+
+
 def test_a_batch_in_worker_processes_is_the_runs_one_by_one(tmp_path):
     """The Jacobian's columns run in other processes, each with its own copy of the problem:
     the same residuals to the last bit, every run counted."""

@@ -141,7 +141,7 @@ def test_parameters_the_data_cannot_separate_are_reported_as_such():
     rng = np.random.default_rng(0)
     J = rng.normal(size=(200, 3))
     J[:, 2] = J[:, 1]
-    cov, unresolved, separable = uncertainty(J, rng.normal(size=200), 3)
+    cov, unresolved, separable = uncertainty(J, 1.0, 3)
     assert list(separable) == [True, False, False]
     assert cov[0, 0] > 0
     assert len(unresolved) == 1 and abs(unresolved[0][1]) == pytest.approx(2**-0.5)

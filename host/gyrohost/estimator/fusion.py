@@ -39,6 +39,11 @@ class Innovation:
         ``L^-1 y`` with ``S = L L^T``: independent unit-variance components when consistent,
         whose squares sum to ``nis`` (the residual of a prediction-error fit,
         :mod:`gyrohost.ident.filter_fit`); NaN where ``S`` is not positive definite.
+    spread : float
+        ``log det S - log det R`` (>= 0, dimensionless): how much the estimate's uncertainty
+        widens the innovation beyond the sensor's noise ``R``, the term the likelihood adds to
+        the NIS (a fit on the NIS alone prefers parameters that widen ``S``); NaN with
+        ``whitened``.
     """
 
     source: str
@@ -50,6 +55,7 @@ class Innovation:
     accepted: bool
     rejected_count: int
     whitened: np.ndarray | None = None
+    spread: float = float("nan")
 
 
 _GATES: dict[tuple[float, int], float] = {}
@@ -95,7 +101,7 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     for meas in measurements:
         y = meas.residual(meas.z, meas.hx)
         S = meas.H @ kf.P @ meas.H.T + meas.R
-        w = _whitened(S, y)
+        w, log_det = _whitened(S, y)
         nis = float(w @ w)
         ratio = nis / gate(ekf.config.gate_probability, len(y))
         accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
@@ -112,6 +118,7 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
                 accepted,
                 monitor.rejected,
                 w,
+                log_det - _log_det(meas.R),
             )  # fmt: skip
         )
         if accepted:
@@ -134,10 +141,20 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     return results
 
 
-def _whitened(S: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``L^-1 y`` for the Cholesky factor ``L`` of ``S``; NaN (so NIS NaN, the sample
-    rejected) where ``S`` is not positive definite or not finite."""
+def _whitened(S: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """``L^-1 y`` for the Cholesky factor ``L`` of ``S``, and ``log det S``; NaN (so NIS NaN,
+    the sample rejected) where ``S`` is not positive definite or not finite."""
     try:
-        return solve_triangular(np.linalg.cholesky(S), y, lower=True)
+        L = np.linalg.cholesky(S)
+        return solve_triangular(L, y, lower=True), 2.0 * float(np.sum(np.log(np.diag(L))))
     except (np.linalg.LinAlgError, ValueError):
-        return np.full(len(y), np.nan)
+        return np.full(len(y), np.nan), float("nan")
+
+
+def _log_det(R: np.ndarray) -> float:
+    """``log det R`` of a sensor's noise covariance; NaN where it is not positive definite (an
+    attitude's noise turned by a prediction that is no rotation)."""
+    try:
+        return 2.0 * float(np.sum(np.log(np.diag(np.linalg.cholesky(R)))))
+    except (np.linalg.LinAlgError, ValueError):
+        return float("nan")

@@ -8,11 +8,15 @@ no simulation from the logged speeds follows (docs/identification.md, "The wheel
 Here the EKF runs the log instead (:func:`gyrohost.run.replay.started`, gate open), its process
 model the scene of a parameter vector: it carries the wheels' error as the process noise of its
 wheel states and corrects the state at every sample, so each innovation is the one-sample-ahead
-prediction error of that scene. The residual is every innovation whitened by its covariance
-(:attr:`gyrohost.estimator.fusion.Innovation.whitened`: unit variance when the scene is the
-rig's), of every source. The fit is solved as the output-error fit is, and moved to the smooth
-minimum of the valley where the strings' stiffness and damping trade
-(:func:`.profile.strings_valley`: the cost is as rough along it, some ten units where a string
+prediction error of that scene. The cost is the innovations' negative log-likelihood: every
+innovation whitened by its covariance ``S`` (:attr:`gyrohost.estimator.fusion.Innovation.
+whitened`: unit variance when the scene is the rig's), of every source, and for each the
+square root of its ``log det S`` less the sensor's ``log det R``
+(:attr:`~gyrohost.estimator.fusion.Innovation.spread`, never negative). Without that term a
+scene that widens ``S`` buys a smaller NIS: on the real-time rig the strings' damping fell
+20 to 30 % low along the cost (docs/identification.md). The fit is solved as the output-error
+fit is, and moved to the smooth minimum of the valley where the strings' stiffness and damping
+trade (:func:`.profile.strings_valley`: the cost is as rough along it, some ten units where a string
 goes slack a sample earlier); its statistics are the output-error fit's (:func:`.fit.statistics`).
 
 Parameters: those of :mod:`.params` that the filter's model or its inputs carry (the scene's
@@ -120,6 +124,7 @@ class FilterProblem(output_fit.WalledResiduals):
         self.simulations = 0
         self.failures: list[str] = []
         self._length = None  # residuals per evaluation: every sample's, as the first run gave
+        self._spreads = None  # which of them are the spreads' square roots
 
     def applied(self, theta):
         return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
@@ -149,15 +154,25 @@ class FilterProblem(output_fit.WalledResiduals):
         rate (rad/s), specific force (m/s^2), attitude (rotation vector, world axes, rad)."""
         return [imu_innovations(run) for run, _ in self.runs(theta)]
 
-    def whitened(self, theta) -> tuple[np.ndarray, list[str]]:
-        """Every whitened innovation of the runs of ``theta`` in order, and why runs broke."""
+    def residuals(self, theta) -> tuple[np.ndarray, list[str]]:
+        """The residuals of ``theta`` (every innovation of the runs in order, whitened, then
+        the square root of its spread: half their squares sum to the negative
+        log-likelihood, up to a constant), and why runs broke."""
         runs = self.runs(theta)
-        w = np.concatenate([r.whitened for run, _ in runs for r in run])
+        w = np.concatenate([_likelihood_terms(r) for run, _ in runs for r in run])
+        if self._spreads is None:
+            self._spreads = np.concatenate([_spread_entry(r) for run, _ in runs for r in run])
         broke = [why for _, why in runs if why] + ([] if np.all(np.isfinite(w)) else ["NaN"])
         return w, broke
 
+    def residual_variance(self, r: np.ndarray, p: int) -> float:
+        """The noise variance of the whitened innovations among the residuals ``r`` (the
+        spreads' square roots are no noise)."""
+        w = r[: len(self._spreads)][~self._spreads]
+        return float(w @ w) / max(len(w) - p, 1)
+
     def __call__(self, theta) -> np.ndarray:
-        w, broke = self.whitened(theta)
+        w, broke = self.residuals(theta)
         return self._walled(theta, w, _what_broke(broke))
 
     def batch(self, thetas) -> list:
@@ -200,7 +215,7 @@ class _Workers:
 
     def map(self, thetas) -> list:
         try:
-            return list(self.pool.map(_worker_whitened, thetas))
+            return list(self.pool.map(_worker_residuals, thetas))
         except BrokenProcessPool:
             raise FilterFitError(
                 "a worker process of the filter fit ended abruptly; a script that fits with "
@@ -228,8 +243,8 @@ def _start_worker(path: str) -> None:
         _worker_problem = FilterProblem(*pickle.load(f))
 
 
-def _worker_whitened(theta):
-    return _worker_problem.whitened(theta)
+def _worker_residuals(theta):
+    return _worker_problem.residuals(theta)
 
 
 def usable_cores() -> int:
@@ -238,6 +253,17 @@ def usable_cores() -> int:
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1
+
+
+def _likelihood_terms(r) -> np.ndarray:
+    """An innovation's residuals: whitened, and the square root of its spread (rounding can
+    take a spread of zero a hair below it)."""
+    return np.append(r.whitened, np.sqrt(max(r.spread, 0.0)))
+
+
+def _spread_entry(r) -> np.ndarray:
+    """Where :func:`_likelihood_terms` of ``r`` puts its spread."""
+    return np.append(np.zeros(len(r.whitened), bool), True)
 
 
 def _what_broke(broke: list[str]) -> str:

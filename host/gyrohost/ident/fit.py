@@ -65,6 +65,11 @@ class WalledResiduals:
             w = np.pad(w, (0, self._length - len(w)), constant_values=FAILED_RESIDUAL)
         return w
 
+    def residual_variance(self, r: np.ndarray, p: int) -> float:
+        """The noise variance of the whitened residuals ``r`` with ``p`` parameters fitted
+        (1 where the noise model is right): ``r @ r / (n - p)``."""
+        return float(r @ r) / max(len(r) - p, 1)
+
 
 CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "tilt x", "tilt y")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 8)}
@@ -367,8 +372,8 @@ def statistics(problem: Problem, sol, lower, steps):
     (module docstring)."""
     J, r, theta, cost0 = sol.jac, sol.fun, sol.x, float(sol.cost)
     p = len(theta)
-    s2 = float(r @ r) / max(len(r) - p, 1)
-    cov, unresolved, separable = uncertainty(J, r, p)
+    s2 = problem.residual_variance(r, p)
+    cov, unresolved, separable = uncertainty(J, s2, p)
     sigma, roughness = secant_sigmas(problem, theta, cov, separable, s2, cost0)
     members = scale_members(problem.params)
     valley, bend = None, np.zeros(p)
@@ -382,7 +387,7 @@ def statistics(problem: Problem, sol, lower, steps):
     if valley is None:
         cs = [c for c, _ in _determined(theta, unresolved, separable)]
     else:
-        cov, unresolved, separable = uncertainty(J, r, p, held=valley)
+        cov, unresolved, separable = uncertainty(J, s2, p, held=valley)
         sigma, _ = secant_sigmas(problem, theta, cov, separable, s2, cost0)
         cs = []
         for i in members[1:]:
@@ -444,13 +449,12 @@ def _scaled(cov, sigma, separable):
     return sigma, corr
 
 
-def uncertainty(J: np.ndarray, r: np.ndarray, p: int, held=None):
+def uncertainty(J: np.ndarray, s2: float, p: int, held=None):
     """Linearised covariance ``s^2 (J^T J)^+`` (shape (p, p)), unresolved directions and
-    separability from the Jacobian ``J`` (n, p) of the weighted residuals ``r`` (n,) at the
-    optimum; ``held`` (unit vector, shape (p,)): a direction known to be unresolved, left out
-    of the covariance (the others given it) and added to the unresolved ones."""
-    dof = max(len(r) - p, 1)
-    s2 = float(r @ r) / dof
+    separability from the Jacobian ``J`` (n, p) of the weighted residuals at the optimum, whose
+    noise variance is ``s2`` (:meth:`WalledResiduals.residual_variance`); ``held`` (unit
+    vector, shape (p,)): a direction known to be unresolved, left out of the covariance (the
+    others given it) and added to the unresolved ones."""
     B = np.eye(p) if held is None else np.linalg.svd(held[None, :])[2][1:].T
     JB = J @ B
     norms = np.linalg.norm(JB, axis=0)
