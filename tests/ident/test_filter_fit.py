@@ -223,7 +223,7 @@ def test_cli_fits_by_the_filter_and_writes_scene_overlay_and_plot(tmp_path, caps
     assert main([*argv, "--params", "J3,mounting,gyro-bias", "--max-evaluations", "8"]) == 0
     text = capsys.readouterr().out
     assert "gyro-bias: the filter's own state, not fitted" in text
-    assert "by the filter error" in text
+    assert "by the filter's likelihood" in text
     assert out.is_file() and (tmp_path / "ident" / "rig-residuals.png").stat().st_size > 10_000
     overlay = (tmp_path / "ident" / "rig-config.toml").read_text()
     assert "mounting_rpy_rad" in overlay

@@ -61,11 +61,11 @@ def register(sub) -> None:
         choices=("output", "filter"),
         default="output",
         help="output error: simulate the rig from the log's inputs (default); filter: the "
-        "host's EKF runs the log and its prediction errors are fitted, which follows a rig "
-        "whose wheels err from their setpoints, as a real rig's do: use it there, with "
-        "--until ending before the D-bar folds (docs/identification.md, 'The filter's "
-        "prediction error'); --lengths, --segment-s and --segment-start are the output "
-        "error's",
+        "host's EKF runs the log and the likelihood of its innovations is fitted, which "
+        "follows a rig whose wheels err from their setpoints, as a real rig's do: use it "
+        "there, with --until ending before the D-bar folds (docs/identification.md, 'The "
+        "filter's prediction error'); --lengths, --segment-s and --segment-start are the "
+        "output error's",
     )
     p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
     p.add_argument(
@@ -164,7 +164,8 @@ def run(args) -> int:
             params = parameters(scene, config, groups, nominal_lag(config, est, recs), len(recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
-    print(f"{len(recs)} recording(s); fitting {len(params)} parameters by the {args.method} error")
+    how = {"output": "the output error", "filter": "the filter's likelihood"}[args.method]
+    print(f"{len(recs)} recording(s); fitting {len(params)} parameters by {how}")
     if args.method == "filter":
         passes = 2 + len(profile.VALLEY_STEPS)
         fitter = partial(filter_fit.fit, workers=args.workers)
