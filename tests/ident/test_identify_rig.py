@@ -22,6 +22,7 @@ from gyrohost.experiments.identify_rig import (
     write_rig_files,
 )
 from gyrohost.resources import resolve
+from gyrohost.run.log import FORMAT
 
 FIRST_S = 11.3  # s of the identify schedule: its first three blocks of pulls, ending at rest
 
@@ -98,7 +99,7 @@ def test_estimator_figures_read_the_runs_summary(tmp_path):
         "tilt_end_estimate_rad": 0.51,
         "tilt_end_truth_rad": 0.5,
     }
-    (tmp_path / "meta.json").write_text(json.dumps({"summary": summary}))
+    (tmp_path / "meta.json").write_text(json.dumps({"format": FORMAT, "summary": summary}))
     figures = estimator_figures(tmp_path)
     assert figures["nees"] == (14.2, True) and figures["wheels"] == (2.0, False)
     assert figures["tilt_end_error_deg"] == pytest.approx(np.degrees(0.01))

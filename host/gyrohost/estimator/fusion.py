@@ -146,7 +146,7 @@ def _whitened(S: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     the sample rejected) where ``S`` is not positive definite or not finite."""
     try:
         L = np.linalg.cholesky(S)
-        return solve_triangular(L, y, lower=True), 2.0 * float(np.sum(np.log(np.diag(L))))
+        return solve_triangular(L, y, lower=True), _log_det_of_factor(L)
     except (np.linalg.LinAlgError, ValueError):
         return np.full(len(y), np.nan), float("nan")
 
@@ -155,6 +155,11 @@ def _log_det(R: np.ndarray) -> float:
     """``log det R`` of a sensor's noise covariance; NaN where it is not positive definite (an
     attitude's noise turned by a prediction that is no rotation)."""
     try:
-        return 2.0 * float(np.sum(np.log(np.diag(np.linalg.cholesky(R)))))
+        return _log_det_of_factor(np.linalg.cholesky(R))
     except (np.linalg.LinAlgError, ValueError):
         return float("nan")
+
+
+def _log_det_of_factor(L: np.ndarray) -> float:
+    """``log det (L L^T)`` of a Cholesky factor ``L``."""
+    return 2.0 * float(np.sum(np.log(np.diag(L))))

@@ -138,9 +138,9 @@ def estimator_figures(log: Path) -> dict:
     """The estimator's figures of a simulated run's summary: NEES and NIS per source (mean and
     whether inside the 95 % bounds of the run's own average) and the tilt's error at the end
     of the schedule (deg)."""
-    import json
+    from gyrohost.run.log import read_meta
 
-    summary = json.loads((log / "meta.json").read_text())["summary"]
+    summary = read_meta(log)["summary"]
     rows = {"nees": summary["estimator"]["nees"], **summary["estimator"]["nis"]}
     out = {}
     for name, row in rows.items():
@@ -168,13 +168,13 @@ def one_seed(root: Path, seed: int, args) -> dict:
     gave."""
     folder = root / f"seed{seed}"
     folder.mkdir(parents=True, exist_ok=True)
-    files = {name: folder / f"{name}.toml" for name in ("config", "truth", "ident", "overlay")}
-    files["config"], log = folder / "rig.toml", folder / "ident-run"
+    files = {name: folder / f"{name}.toml" for name in ("truth", "ident", "overlay")}
+    files["config"], log = folder / "rig.toml", folder / "ident-run"  # as write_rig_files names
+    against_truth = ["--config", str(files["config"]), "--truth-scene", str(files["truth"])]
+    rig = ["--sim", *against_truth]
     out = {}
     if "record" in args.steps:
         write_rig_files(folder, seed, args.speed_error)
-    rig = ["--sim", "--config", str(files["config"]), "--truth-scene", str(files["truth"])]
-    if "record" in args.steps:
         out["record"] = gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])
     out["truth_lag_s"] = truth_lag_s(log)
     if "identify" in args.steps:
@@ -189,10 +189,9 @@ def one_seed(root: Path, seed: int, args) -> dict:
         with_ident = ["--overlay", str(kept), "--scene", str(files["ident"])]
         out["run"] = gyrotens(["run", *rig, *with_ident, "-o", str(folder / "with-ident")])
         out["estimator"] = estimator_figures(folder / "with-ident")
-        sil = ["--config", str(files["config"]), "--truth-scene", str(files["truth"])]
-        for name, extra in (("nominal", []), ("identified", with_ident)):
-            if args.sil_runs:
-                out[f"sil {name}"] = sil_figures([*sil, *extra], folder / f"sil-{name}", args)
+        sils = (("nominal", []), ("identified", with_ident)) if args.sil_runs else ()
+        for name, extra in sils:
+            out[f"sil {name}"] = sil_figures([*against_truth, *extra], folder / f"sil-{name}", args)
     return out
 
 

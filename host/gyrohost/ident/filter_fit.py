@@ -13,8 +13,8 @@ innovation whitened by its covariance ``S`` (:attr:`gyrohost.estimator.fusion.In
 whitened`: unit variance when the scene is the rig's), of every source, and for each the
 square root of its ``log det S`` less the sensor's ``log det R``
 (:attr:`~gyrohost.estimator.fusion.Innovation.spread`, never negative). Without that term a
-scene that widens ``S`` buys a smaller NIS: on the real-time rig the strings' damping fell
-20 to 30 % low along the cost (docs/identification.md). The fit is solved as the output-error
+scene that widens ``S`` buys a smaller NIS, and the strings' damping falls low
+(docs/identification.md, "Why the likelihood"). The fit is solved as the output-error
 fit is, and moved to the smooth minimum of the valley where the strings' stiffness and damping
 trade (:func:`.profile.strings_valley`: the cost is as rough along it, some ten units where a string
 goes slack a sample earlier); its statistics are the output-error fit's (:func:`.fit.statistics`).
@@ -168,7 +168,7 @@ class FilterProblem(output_fit.WalledResiduals):
     def residual_variance(self, r: np.ndarray, p: int) -> float:
         """The noise variance of the whitened innovations among the residuals ``r`` (the
         spreads' square roots are no noise)."""
-        w = r[: len(self._spreads)][~self._spreads]
+        w = r[~self._spreads]  # walled residuals keep the first run's length
         return float(w @ w) / max(len(w) - p, 1)
 
     def __call__(self, theta) -> np.ndarray:
