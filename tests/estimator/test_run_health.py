@@ -3,6 +3,7 @@ health table of the run summary (NIS per source, gate rejections, NEES against t
 rig's truth) and the divergence that fails a run."""
 
 import numpy as np
+import pytest
 from fake_loop import Ekf, Stream
 
 from gyrohost.estimator.driver import RegularClock, regular_times
@@ -101,3 +102,18 @@ def test_nees_against_the_truth_and_a_diverged_estimate(model, config):
     table = health(NisTally(), score)
     assert table["nees"]["node_error_recent_rms_m"] > DIVERGED_NODE_ERROR_M
     assert table["diverged"] and "node error" in table["why"]
+
+
+def test_the_nees_is_scored_sample_by_sample_not_as_independent_samples(model, config):
+    """One run's NEES samples are correlated from step to step, so the summary gives the share
+    of samples inside their own 95 % bounds, not bounds of a mean over them."""
+    score = TruthScore(TensegrityEKF(model, config))
+    score.dof = 14  # per sample: [5.63, 26.12]
+    score.nees = [1.0, 10.0, 14.0, 30.0]
+    score.node_error_m = [1e-3] * 4
+    table = health(NisTally(), score)
+    assert table["nees"]["inside"] == 0.5
+    assert table["nees"]["sample_bounds95"] == pytest.approx([5.629, 26.119], abs=1e-3)
+    assert "bounds95" not in table["nees"]
+    (line,) = [line for line in health_lines(table) if "NEES" in line]
+    assert "50.0 % of 4 samples inside their 95 % bounds [5.63, 26.12]" in line

@@ -93,13 +93,14 @@ def test_rig_files_seed_every_emulator_and_set_the_wheels_error(tmp_path):
 
 
 def test_estimator_figures_read_the_runs_summary(tmp_path):
-    row = {"mean": 14.2, "dof": 14, "bounds95": [13.5, 14.5]}
+    nees = {"mean": 14.2, "dof": 14, "inside": 0.93, "sample_bounds95": [5.6, 26.1]}
+    wheels = {"mean": 2.0, "dof": 4, "bounds95": [3, 5]}
     summary = {
-        "estimator": {"nees": row, "nis": {"wheels": {**row, "mean": 2.0, "bounds95": [3, 5]}}},
+        "estimator": {"nees": nees, "nis": {"wheels": wheels}},
         "tilt_end_estimate_rad": 0.51,
         "tilt_end_truth_rad": 0.5,
     }
     (tmp_path / "meta.json").write_text(json.dumps({"format": FORMAT, "summary": summary}))
     figures = estimator_figures(tmp_path)
-    assert figures["nees"] == (14.2, True) and figures["wheels"] == (2.0, False)
+    assert figures["nees"] == (14.2, 0.93) and figures["wheels"] == (2.0, False)
     assert figures["tilt_end_error_deg"] == pytest.approx(np.degrees(0.01))

@@ -26,8 +26,9 @@ Per seed (the simulated IMU's noise and biases, the wheels' speed error and the 
 
 It prints each identified figure's error against the truth (J3, stiffness and damping as
 relative errors, the mounting in degrees), the fit's wall time, the exit status of every
-command, the third command's NEES and NIS against the bounds of its own average and the tilt's
-error at its end (:func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
+command, the third command's figures (the NEES with the share of its samples inside their
+own bounds, the NIS against the bounds of the run's average, the tilt's error at its end:
+:func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
 against the bounds of an N-run average. The rig runs are real time: run this at normal
 priority on a quiet machine.
 """
@@ -135,15 +136,16 @@ def truth_lag_s(log: Path) -> float:
 
 
 def estimator_figures(log: Path) -> dict:
-    """The estimator's figures of a simulated run's summary: NEES and NIS per source (mean and
-    whether inside the 95 % bounds of the run's own average) and the tilt's error at the end
-    of the schedule (deg)."""
+    """The estimator's figures of a simulated run's summary: the NEES (mean and the share of
+    its samples inside their own 95 % bounds), the NIS per source (mean and whether inside the
+    95 % bounds of the run's own average) and the tilt's error at the end of the schedule
+    (deg)."""
     from gyrohost.run.log import read_meta
 
     summary = read_meta(log)["summary"]
-    rows = {"nees": summary["estimator"]["nees"], **summary["estimator"]["nis"]}
-    out = {}
-    for name, row in rows.items():
+    nees = summary["estimator"]["nees"]
+    out = {"nees": (nees["mean"], nees["inside"])}
+    for name, row in summary["estimator"]["nis"].items():
         low, high = row["bounds95"]
         out[name] = (row["mean"], bool(low <= row["mean"] <= high))
     tilt = summary["tilt_end_estimate_rad"] - summary["tilt_end_truth_rad"]

@@ -5,9 +5,13 @@ the NEES against its truth; a diverged estimate fails the run.
 :class:`TruthScore` scores each truth sample of the simulated rig against the estimate of the
 tick nearest to it (:func:`gyrohost.estimator.consistency.observed_nees`: node coordinates on
 the constraint manifold, wheel speeds and rest lengths). The summary's ``estimator`` table
-(:func:`health`) gives each mean with the two-sided 95 % chi-square bounds of a mean over that
-many samples (as if independent: a guide, not a test) and says whether the estimate diverged;
-the run adds whether it was ``required`` to hold (:func:`fails_run`).
+(:func:`health`) gives each NIS mean with the two-sided 95 % chi-square bounds of a mean over
+that many samples (a guide: a consistent filter's innovations are white, a real loop's
+nearly so) and the NEES mean with the share of its samples inside their own 95 % bounds: the
+estimate's errors are correlated from step to step, so the bounds of a mean over the samples
+of one run would be far too narrow (those of a mean over runs: ``gyrotens sil --runs N``). It
+says whether the estimate diverged; the run adds whether it was ``required`` to hold
+(:func:`fails_run`).
 """
 
 from collections import deque
@@ -106,9 +110,18 @@ class TruthScore:
         self.node_error_m.append(float(np.sqrt(np.mean((x[q] - x_true[q]) ** 2))))
 
     def table(self) -> dict:
-        """NEES mean with its bounds, node error RMS over the run and over the last samples."""
+        """NEES mean, the share of its samples inside their own 95 % bounds (``inside``,
+        ``sample_bounds95``), node error RMS over the run and over the last samples."""
         err = np.array(self.node_error_m)
-        out = _mean_row(float(np.sum(self.nees)), len(self.nees), self.dof)
+        nees = np.array(self.nees)
+        lo, hi = average_bounds(self.dof, 1)
+        out = {
+            "mean": float(np.mean(nees)) if nees.size else float("nan"),
+            "dof": self.dof,
+            "samples": int(nees.size),
+            "inside": float(np.mean((nees >= lo) & (nees <= hi))) if nees.size else float("nan"),
+            "sample_bounds95": [float(lo), float(hi)],
+        }
         out["node_error_rms_m"] = float(np.sqrt(np.mean(err**2))) if err.size else float("nan")
         out["node_error_recent_rms_m"] = (
             float(np.sqrt(np.mean(err[-RECENT:] ** 2))) if err.size else float("nan")
@@ -157,8 +170,12 @@ def health_lines(table: dict) -> list[str]:
     lines = []
     if "nees" in table:
         n = table["nees"]
+        lo, hi = n["sample_bounds95"]
         lines.append(
-            f"estimator vs truth: {row('NEES', n)}; node error RMS "
+            f"estimator vs truth: NEES {n['mean']:.2f} (dof {n['dof']}), "
+            f"{100 * n['inside']:.1f} % of {n['samples']} samples inside their 95 % bounds "
+            f"[{lo:.2f}, {hi:.2f}] (a consistent filter: about 95 %; the bounds of the mean "
+            f"need several runs: gyrotens sil); node error RMS "
             f"{1e3 * n['node_error_rms_m']:.2f} mm"
         )
     nis = [f"{row(s, r)}, {r['rejected']} rejected" for s, r in table["nis"].items()]
