@@ -13,6 +13,7 @@ import pytest
 from gyrohost.cli import main
 from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule, load_schedule
+from gyrohost.experiments.identify_check import coverage_lines
 from gyrohost.experiments.identify_rig import (
     IMU_ROTATION_DEG,
     estimator_figures,
@@ -62,9 +63,10 @@ def test_rig_log_identified_then_run_with_the_result(tmp_path, capsys):
     assert main([*argv, "--overlay", str(overlay)]) == 0
     assert f"--overlay {overlay} --scene {ident}" in capsys.readouterr().out
     errors = identified_errors(ident, overlay)
-    assert abs(errors["J3"]) < 0.03, errors
+    assert abs(errors["J3"][0]) < 0.03, errors
+    assert 0.0 < errors["J3"][1] < 0.03, errors  # the reported 1-sigma, read back
     for axis in ("roll", "pitch", "yaw"):
-        assert abs(errors[f"mounting.{axis}_deg"]) < 0.3, errors
+        assert abs(errors[f"mounting.{axis}_deg"][0]) < 0.3, errors
     again = tmp_path / "with-ident"
     kept = truth_kept_overlay(overlay, tmp_path / "run-overlay.toml")
     argv = [*rig, "--overlay", str(kept), "--scene", str(ident), "-o", str(again)]
@@ -104,3 +106,12 @@ def test_estimator_figures_read_the_runs_summary(tmp_path):
     figures = estimator_figures(tmp_path)
     assert figures["nees"] == (14.2, 0.93) and figures["wheels"] == (2.0, False)
     assert figures["tilt_end_error_deg"] == pytest.approx(np.degrees(0.01))
+
+
+def test_the_coverage_table_counts_errors_within_one_and_two_sigmas():
+    rows = [{"J3": (e, 0.01)} for e in (0.005, -0.015, 0.025)] + [{"damping": (0.1, 0.2)}]
+    lines = coverage_lines(rows, "relative")
+    j3 = next(line for line in lines if line.startswith("J3")).split()
+    assert j3[1:] == ["0.0150", "0.0250", "0.0100", "33%", "67%"]
+    assert next(line for line in lines if line.startswith("damping")).endswith("100%        100%")
+    assert lines[-1] == "(relative; expected coverage 68 % and 95 %, 4 seeds)"

@@ -12,7 +12,7 @@ from scipy.optimize import least_squares
 from gyrohost.ident import profile
 from gyrohost.ident.fit import FitResult, WalledResiduals, statistics, uncertainty
 from gyrohost.ident.params import Param
-from gyrohost.ident.report import apply_result, report_lines
+from gyrohost.ident.report import apply_result, read_identified, report_lines
 
 RNG = np.random.default_rng(7)
 T = np.linspace(0.0, 1.0, 400)
@@ -168,6 +168,12 @@ def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined
     assert sum(line.startswith("determined:") for line in lines) == 3
     assert any("common scale" in line for line in lines)
     assert not any("valley" in line for line in lines)  # a fit in one segment has none
+    header = "\n".join(f"# {line}" for line in ["Identified by gyrotens identify", *lines])
+    (name,) = read_identified(header)  # the not separable left out, no other line taken
+    assert name == problem.params[4].name
+    value, one_sigma = read_identified(header)[name]
+    assert value == pytest.approx(result.value(4), rel=1e-5)
+    assert one_sigma == pytest.approx(result.value_sigma(4), rel=5e-3)
     walked = replace(result, strings_valley=[(-1.02, 6513.0), (0.0, 6582.2), (0.83, 6651.2)])
     line = next(line for line in report_lines(walked) if line.startswith("strings' valley"))
     assert "stiffness x1.127 and damping x1.221" in line

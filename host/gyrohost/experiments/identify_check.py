@@ -233,6 +233,21 @@ def errors(result, weighed=False) -> dict[str, tuple[float, float]]:
     return out
 
 
+def coverage_lines(rows: list[dict], units: str) -> list[str]:
+    """The coverage table of ``rows`` (per seed, parameter -> (error, reported 1-sigma), in
+    ``units``): per parameter the mean and largest error, the mean sigma, and how often the
+    error lies within 1 and 2 sigmas."""
+    lines = [f"{'parameter':<18}{'mean |error|':>14}{'max |error|':>13}{'mean sigma':>12}"
+             f"{'<= 1 sigma':>12}{'<= 2 sigma':>12}"]  # fmt: skip
+    for name in dict.fromkeys(k for r in rows for k in r):
+        e = np.array([abs(r[name][0]) for r in rows if name in r])
+        s = np.array([r[name][1] for r in rows if name in r])
+        lines.append(f"{name:<18}{e.mean():14.4f}{e.max():13.4f}{s.mean():12.4f}"
+                     f"{np.mean(e <= s):12.0%}{np.mean(e <= 2 * s):12.0%}")  # fmt: skip
+    lines.append(f"({units}; expected coverage 68 % and 95 %, {len(rows)} seeds)")
+    return lines
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_check")
     parser.add_argument("--seeds", type=int, default=10)
@@ -291,14 +306,7 @@ def main(argv=None) -> int:
             fit_s = time.perf_counter() - t1
             print(f"seed {seed}: record {t1 - t0:.1f} s, fit {fit_s:.1f} s ({result.nfev} "
                   f"evaluations); error(1-sigma) x 100: {line}", flush=True)  # fmt: skip
-    print(f"\n{'parameter':<18}{'mean |error|':>14}{'max |error|':>13}{'mean sigma':>12}"
-          f"{'<= 1 sigma':>12}{'<= 2 sigma':>12}")  # fmt: skip
-    for name in dict.fromkeys(k for r in rows for k in r):
-        e = np.array([abs(r[name][0]) for r in rows if name in r])
-        s = np.array([r[name][1] for r in rows if name in r])
-        print(f"{name:<18}{e.mean():14.4f}{e.max():13.4f}{s.mean():12.4f}"
-              f"{np.mean(e <= s):12.0%}{np.mean(e <= 2 * s):12.0%}")  # fmt: skip
-    print("(log factors: 0.01 = 1 %; mounting in rad; expected coverage 68 % and 95 %)")
+    print("\n".join(coverage_lines(rows, "log factors: 0.01 = 1 %; mounting in rad")))
     flagged = sum(any(k.endswith("| scale") for k in r) for r in rows)
     print(f"common scale not determined in {flagged} of {len(rows)} seeds")
     return 0

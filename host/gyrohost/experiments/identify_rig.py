@@ -24,8 +24,9 @@ Per seed (the simulated IMU's noise and biases, the wheels' speed error and the 
    consistency against the same truth, ``gyrotens sil --realtime --runs N`` (``--sil-runs``,
    10 by default; 0: none) with the nominal scene and mounting and with the identified ones.
 
-It prints each identified figure's error against the truth (J3, stiffness and damping as
-relative errors, the mounting in degrees), the fit's wall time, the exit status of every
+It prints each identified figure's error against the truth with its reported 1-sigma (J3,
+stiffness and damping relative, the mounting in degrees; over several seeds, the coverage
+table of :func:`~gyrohost.experiments.identify_check.coverage_lines`), the fit's wall time, the exit status of every
 command, the third command's figures (the NEES with the share of its samples inside their
 own bounds, the NIS against the bounds of the run's average, the tilt's error at its end:
 :func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
@@ -43,7 +44,13 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.experiments.identify_check import FACTORS, IMU_ROTATION_DEG, wheel_speed_error
+from gyrohost.experiments.identify_check import (
+    FACTORS,
+    IMU_ROTATION_DEG,
+    coverage_lines,
+    wheel_speed_error,
+)
+from gyrohost.ident.report import read_identified
 from gyrohost.resources import shipped
 
 J3_NOMINAL = 0.5 * 0.050 * 0.031**2  # the shipped D-bar's wheel disc, kg m^2
@@ -91,20 +98,27 @@ def gyrotens(args: list[str], nice: bool = False) -> int:
     return subprocess.run(["nice", "-n", "19", *cmd] if nice else cmd, check=False).returncode
 
 
-def identified_errors(ident: Path, overlay: Path) -> dict[str, float]:
-    """Relative errors of J3, stiffness and damping and the mounting's error (degrees, each
-    axis) of an identified scene and overlay against the truth."""
-    scene = tomllib.loads(ident.read_text())
-    wheel = scene["bars"][0]["wheel"]
-    string = scene["strings"][0]
+def identified_errors(ident: Path, overlay: Path) -> dict[str, tuple[float, float]]:
+    """Parameter -> (error against the truth, reported 1-sigma) of an identified scene and
+    overlay: relative for J3, stiffness and damping, degrees for each axis of the mounting (a
+    parameter reported not separable has sigma inf)."""
+    text = ident.read_text()
+    scene, reported = tomllib.loads(text), read_identified(text)
+    wheel, string = scene["bars"][0]["wheel"], scene["strings"][0]
+    truth = {
+        "J3": J3_NOMINAL * FACTORS["J3"],
+        "stiffness": 200.0 * FACTORS["stiffness"],
+        "damping": 2.0 * FACTORS["damping"],
+    }
+    got = {"J3": wheel["J3"], "stiffness": string["stiffness"], "damping": string["damping"]}
     out = {
-        "J3": wheel["J3"] / (J3_NOMINAL * FACTORS["J3"]) - 1.0,
-        "stiffness": string["stiffness"] / (200.0 * FACTORS["stiffness"]) - 1.0,
-        "damping": string["damping"] / (2.0 * FACTORS["damping"]) - 1.0,
+        name: (got[name] / true - 1.0, reported.get(name, (0.0, np.inf))[1] / true)
+        for name, true in truth.items()
     }
     rpy = np.degrees(tomllib.loads(overlay.read_text())["imu"]["mounting_rpy_rad"])
-    for axis, got, true in zip(("roll", "pitch", "yaw"), rpy, IMU_ROTATION_DEG, strict=True):
-        out[f"mounting.{axis}_deg"] = float(got - true)
+    for axis, value, true in zip(("roll", "pitch", "yaw"), rpy, IMU_ROTATION_DEG, strict=True):
+        sigma = np.degrees(reported.get(f"mounting.{axis}", (0.0, np.inf))[1])
+        out[f"mounting.{axis}_deg"] = (float(value - true), float(sigma))
     return out
 
 
@@ -210,7 +224,7 @@ def sil_figures(argv: list[str], folder: Path, args) -> list[str]:
 
 
 def _steps(text: str) -> tuple[str, ...]:
-    steps = tuple(text.split(","))
+    steps = tuple(s for s in text.split(",") if s)
     unknown = [s for s in steps if s not in STEPS]
     if unknown:
         raise argparse.ArgumentTypeError(f"unknown step(s) {unknown}: choose from {STEPS}")
@@ -236,22 +250,28 @@ def main(argv=None) -> int:
     )  # fmt: skip
     parser.add_argument(
         "--steps", type=_steps, default=STEPS,
-        help="comma-separated, of record,identify,run (default all; the others reuse --out)",
+        help="comma-separated, of record,identify,run (default all; the others reuse --out; "
+        "empty: report what --out holds)",
     )  # fmt: skip
     args = parser.parse_args(argv)
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             out = one_seed(root, seed, args)
             errs = out.pop("errors", {})
+            rows += [errs] if errs else []
             sils = {k: out.pop(k) for k in [k for k in out if k.startswith("sil ")]}
             line = "  ".join(
-                f"{k} {v:+.3f}" if k.startswith("mounting") else f"{k} {100 * v:+.1f} %"
-                for k, v in errs.items()
-            )
-            print(f"seed {seed}: {out}; {line}", flush=True)
+                f"{k} {e:+.3f} ({s:.3f})" if k.startswith("mounting")
+                else f"{k} {100 * e:+.1f} % ({100 * s:.1f})"
+                for k, (e, s) in errs.items()
+            )  # fmt: skip
+            print(f"seed {seed}: {out}; error (1-sigma): {line}", flush=True)
             for name, lines in sils.items():
                 print(f"  {name} ({args.sil_runs} runs):\n    " + "\n    ".join(lines), flush=True)
+    if len(rows) > 1:
+        print("\n".join(coverage_lines(rows, "J3, stiffness, damping relative; mounting in deg")))
     return 0
 
 

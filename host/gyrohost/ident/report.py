@@ -132,6 +132,22 @@ def identified_scene(result: FitResult, config, logs) -> str:
     return scene_toml(scene, header)
 
 
+def read_identified(text: str) -> dict[str, tuple[float, float]]:
+    """Parameter -> (identified value, 1-sigma) as an identified scene's header gives them
+    (:func:`identified_scene`, to :func:`report_lines`' digits; the parameters reported not
+    separable left out)."""
+    out = {}
+    for line in text.splitlines():
+        words = line.removeprefix("# ").split()
+        if not line.startswith("# ") or len(words) < 4:
+            continue
+        try:
+            out[words[0]] = (float(words[2]), float(words[3]))
+        except ValueError:  # the column header, a non-separable row, the other report lines
+            continue
+    return out
+
+
 def plot_residuals(result: FitResult, path: Path) -> None:
     """One panel per stream: measured less predicted, nominal (grey) and identified, every
     channel, all recordings one after the other."""
