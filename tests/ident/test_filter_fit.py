@@ -227,3 +227,23 @@ def test_cli_fits_by_the_filter_and_writes_scene_overlay_and_plot(tmp_path, caps
     assert out.is_file() and (tmp_path / "ident" / "rig-residuals.png").stat().st_size > 10_000
     overlay = (tmp_path / "ident" / "rig-config.toml").read_text()
     assert "mounting_rpy_rad" in overlay
+
+
+def _turning_recording(yaw_rad_s: float, duration_s: float) -> filter_fit.FilterRecording:
+    """A recording whose IMU reports the sensor pitched 80 degrees and turning about the
+    world's vertical at ``yaw_rad_s`` from 0.5 s on."""
+    t = np.arange(0.0, duration_s, 0.01) + 100.0
+    imu = np.zeros(len(t), dtype=[(c, float) for c in ("t_s", "roll_rad", "pitch_rad", "yaw_rad")])
+    imu["t_s"], imu["pitch_rad"] = t, np.radians(80.0)
+    imu["yaw_rad"] = yaw_rad_s * np.clip(t - 100.5, 0.0, None)
+    return filter_fit.FilterRecording("log", {"imu": imu})
+
+
+def test_a_window_past_the_roll_over_is_warned_with_the_until_that_ends_it_before():
+    """The windows of real-time recordings that fitted turned up to 25 degrees, those that
+    broke 84 to 90."""
+    turning = _turning_recording(np.radians(10.0), 8.0)  # 30 degrees at 3.5 s, 45 at 5 s
+    assert filter_fit.turned_s(turning, np.radians(30.0)) == pytest.approx(3.5, abs=0.011)
+    warning = filter_fit.roll_over_warning(turning)
+    assert "turns 45 degrees from its start 5.0" in warning and "--until 3.5 " in warning
+    assert filter_fit.roll_over_warning(_turning_recording(np.radians(10.0), 5.0)) is None

@@ -154,6 +154,8 @@ def run(args) -> int:
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
         if args.method == "filter":
             recs = [filter_fit.load(log, args.until) for log in args.logs]
+            for warning in filter(None, map(filter_fit.roll_over_warning, recs)):
+                print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
             for g in filter_fit.STATE_GROUPS:
                 if g in groups:
                     print(f"{g}: the filter's own state, not fitted")

@@ -26,10 +26,10 @@ Per seed (the simulated IMU's noise and biases, the wheels' speed error and the 
 
 It prints each identified figure's error against the truth with its reported 1-sigma (J3,
 stiffness and damping relative, the mounting in degrees; over several seeds, the coverage
-table of :func:`~gyrohost.experiments.identify_check.coverage_lines`), the fit's wall time, the exit status of every
-command, the third command's figures (the NEES with the share of its samples inside their
-own bounds, the NIS against the bounds of the run's average, the tilt's error at its end:
-:func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
+table of :func:`~gyrohost.experiments.identify_check.coverage_lines`), the fit's wall time,
+the exit status of every command, the third command's figures (the NEES with the share of its
+samples inside their own bounds, the NIS against the bounds of the run's average, the tilt's
+error at its end: :func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
 against the bounds of an N-run average. The rig runs are real time: run this at normal
 priority on a quiet machine.
 """

@@ -44,6 +44,7 @@ from gyrohost.config import RigConfig
 from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.errors import EstimatorError
+from gyrohost.geometry import rotation_zyx
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
 from gyrohost.ident.forward import IdentDataError
@@ -60,6 +61,15 @@ CHANNELS = tuple(f"{stream} {a}" for stream in ("gyro", "accel", "angle") for a 
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 9)}
 """The IMU innovations' columns in :attr:`.fit.FitResult.residuals`: rate (rad/s), specific
 force (m/s^2), the attitude's error as a rotation vector in world axes (rad)."""
+
+
+ROLLED_OVER_RAD = np.radians(45.0)
+"""How far the IMU's reported attitude may turn from its start within a fitted window before the
+fit warns that the window runs past the D-bar's roll-over: windows whose sensor turned 6 to 25
+degrees fitted every parameter of the acceptance, windows to 84 and 90 degrees broke the filter
+and left J3 22 % off (docs/identification.md, "On a real-time recording")."""
+SUGGESTED_TURN_RAD = np.radians(30.0)
+"""Where the warning suggests ending the window: the largest turn that fitted, rounded up."""
 
 
 class FilterFitError(output_fit.FitError):
@@ -293,6 +303,32 @@ def _corrected(data: dict, a, k: int, config: RigConfig) -> dict:
                     rows[column(s)] += offset
             out[name] = rows
     return out
+
+
+def turned_s(rec: FilterRecording, angle_rad: float) -> float | None:
+    """Seconds from the recording's first IMU sample to the first whose reported attitude has
+    turned further than ``angle_rad`` from that sample's; None if none has."""
+    imu = rec.data[streams.IMU]
+    R = rotation_zyx(imu["roll_rad"], imu["pitch_rad"], imu["yaw_rad"])  # (3, 3, k)
+    cos_turn = (np.einsum("ij,ijk->k", R[:, :, 0], R) - 1.0) / 2.0
+    beyond = np.flatnonzero(cos_turn < np.cos(angle_rad))
+    return float(imu["t_s"][beyond[0]] - imu["t_s"][0]) if beyond.size else None
+
+
+def roll_over_warning(rec: FilterRecording) -> str | None:
+    """What to say of a recording whose window runs past the roll-over (:data:`ROLLED_OVER_RAD`),
+    with the ``--until`` that ends it where the sensor has turned :data:`SUGGESTED_TURN_RAD`;
+    None for a window that stays short of it."""
+    over = turned_s(rec, ROLLED_OVER_RAD)
+    if over is None:
+        return None
+    until = turned_s(rec, SUGGESTED_TURN_RAD)
+    return (
+        f"{rec.name}: the IMU turns {np.degrees(ROLLED_OVER_RAD):.0f} degrees from its start "
+        f"{over:.2f} s into the fitted window: past the D-bar's roll-over the filter fit breaks "
+        f"or lands wrong (docs/identification.md); --until {np.floor(10 * until) / 10:.1f} "
+        f"ends the window where it has turned {np.degrees(SUGGESTED_TURN_RAD):.0f} degrees"
+    )
 
 
 def _run(model: Model, est: EstimatorConfig, rec: FilterRecording, data: dict):
