@@ -240,8 +240,8 @@ def _turning_recording(yaw_rad_s: float, duration_s: float) -> filter_fit.Filter
 
 
 def test_a_window_past_the_roll_over_is_warned_with_the_until_that_ends_it_before():
-    """The windows of real-time recordings that fitted turned up to 25 degrees, those that
-    broke 84 to 90."""
+    """The windows of real-time recordings that fitted turned up to 25 degrees, the one that
+    broke 90."""
     turning = _turning_recording(np.radians(10.0), 8.0)  # 30 degrees at 3.5 s, 45 at 5 s
     assert filter_fit.turned_s(turning, np.radians(30.0)) == pytest.approx(3.5, abs=0.011)
     warning = filter_fit.roll_over_warning(turning)

@@ -65,9 +65,10 @@ force (m/s^2), the attitude's error as a rotation vector in world axes (rad)."""
 
 ROLLED_OVER_RAD = np.radians(45.0)
 """How far the IMU's reported attitude may turn from its start within a fitted window before the
-fit warns that the window runs past the D-bar's roll-over: windows whose sensor turned 6 to 25
-degrees fitted every parameter of the acceptance, windows to 84 and 90 degrees broke the filter
-and left J3 22 % off (docs/identification.md, "On a real-time recording")."""
+fit warns that the window runs past the D-bar's roll-over: on the real-time simulated rig the
+windows whose sensor turned 6 to 25 degrees (and 9, with exact wheels) fitted every parameter of
+the acceptance, a window to 90 degrees broke the filter and left J3 22 % off
+(docs/identification.md, "On a real-time recording")."""
 SUGGESTED_TURN_RAD = np.radians(30.0)
 """Where the warning suggests ending the window: the largest turn that fitted, rounded up."""
 
