@@ -26,6 +26,13 @@ def euler_zyx(R: np.ndarray) -> np.ndarray:
     return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
 
 
+def turn_from_first(R: np.ndarray) -> np.ndarray:
+    """How far each rotation of ``R`` (k, 3, 3) has turned from the first, rad, shape (k,): the
+    angle of ``R[0]^T R[i]``."""
+    cos_turn = (np.einsum("ji,kji->k", R[0], R) - 1.0) / 2.0
+    return np.arccos(np.clip(cos_turn, -1.0, 1.0))
+
+
 def wrap_angle(a):
     """Angles wrapped into [-pi, pi), rad (any shape)."""
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi

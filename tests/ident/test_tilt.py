@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.fuse_imu_angle import FLOOR, euler_rate_matrix
-from gyrohost.geometry import euler_zyx, levelling_rotvec, rotation_zyx
+from gyrohost.geometry import euler_zyx, levelling_rotvec, rotation_zyx, turn_from_first
 from gyrohost.ident.forward import tilt_error, tilt_std
 from gyrohost.ident.shooting import anchored
 from gyrohost.resources import shipped
@@ -146,3 +146,13 @@ def test_anchored_start_recovers_the_tilt_at_pitch_near_minus_90():
     turn = Rotation.from_matrix(R_start @ sensor(x_pred).T).as_rotvec()
     assert abs(turn[2]) < 1e-6
     assert np.linalg.norm(turn) > np.radians(3.0)  # it did correct the tilt
+
+
+def test_the_turn_from_the_first_attitude_is_the_angle_between_them():
+    """Against scipy's magnitude of the relative rotation, through pitch -90 degrees."""
+    rng = np.random.default_rng(3)
+    R = Rotation.random(50, random_state=rng)
+    expected = (R[0].inv() * R).magnitude()
+    np.testing.assert_allclose(turn_from_first(R.as_matrix()), expected, atol=1e-6)
+    through = np.array([rotation_zyx(0.3, p, -0.2) for p in np.radians([-80.0, -90.0, -100.0])])
+    np.testing.assert_allclose(turn_from_first(through), np.radians([0.0, 10.0, 20.0]), atol=1e-6)

@@ -51,13 +51,13 @@ def record(folder: Path, schedule_name: str, seed: int) -> tuple[Path, Path, flo
     from gyrohost.experiments.estimator_sil import rig_model_run
     from gyrohost.experiments.identify_check import write_log
     from gyrohost.experiments.identify_rig import write_rig_files
+    from gyrohost.geometry import turn_from_first
 
     config_path, truth_path = write_rig_files(folder, seed)
     config = with_truth_scene(load_rig_config(config_path), truth_path)
     schedule = with_lead_in(load_schedule_arg(schedule_name, config.scene_path))
     _, data, _, truth_R, _, dt_s = rig_model_run(config, seed, schedule.t_end, schedule=schedule)
-    turned = np.arccos(np.clip((np.einsum("ji,kji->k", truth_R[0], truth_R) - 1) / 2, -1, 1))
-    over = np.flatnonzero(turned > ROLLED_RAD)
+    over = np.flatnonzero(turn_from_first(truth_R) > ROLLED_RAD)
     rolled_s = float(over[0] * dt_s) if len(over) else float("nan")
     return config_path, write_log(data, folder / "log"), rolled_s
 

@@ -44,7 +44,7 @@ from gyrohost.config import RigConfig
 from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.errors import EstimatorError
-from gyrohost.geometry import rotation_zyx
+from gyrohost.geometry import rotation_zyx, turn_from_first
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
 from gyrohost.ident.forward import IdentDataError
@@ -311,8 +311,7 @@ def turned_s(rec: FilterRecording, angle_rad: float) -> float | None:
     turned further than ``angle_rad`` from that sample's; None if none has."""
     imu = rec.data[streams.IMU]
     R = rotation_zyx(imu["roll_rad"], imu["pitch_rad"], imu["yaw_rad"])  # (3, 3, k)
-    cos_turn = (np.einsum("ij,ijk->k", R[:, :, 0], R) - 1.0) / 2.0
-    beyond = np.flatnonzero(cos_turn < np.cos(angle_rad))
+    beyond = np.flatnonzero(turn_from_first(np.moveaxis(R, -1, 0)) > angle_rad)
     return float(imu["t_s"][beyond[0]] - imu["t_s"][0]) if beyond.size else None
 
 
