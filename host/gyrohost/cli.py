@@ -28,6 +28,7 @@ COMMANDS = [
     "sweep",
     "wheels",
     "identify",
+    "noise",
 ]
 
 
