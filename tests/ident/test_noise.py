@@ -4,11 +4,10 @@ own output) on a short ``gyrotens run --sim``, and its errors on damaged logs.""
 
 import math
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from sim_run import sim_run_log
 
 from gyrohost.cli import main
 from gyrohost.config import load_rig_config
@@ -35,14 +34,7 @@ firmware's low-pass (docs/rig.md, measured there over 5 s x 4 wheels x 5 start a
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):
     """A ``gyrotens run --sim`` of the D-bar held for HOLD_S s, then pulled."""
-    root = tmp_path_factory.mktemp("noise")
-    (root / "schedule.toml").write_text(SCHEDULE)
-    cmd = [sys.executable, "-m", "gyrohost", "run", "--sim", "--schedule", "schedule.toml",
-           "-o", "log"]  # fmt: skip
-    proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True, timeout=300)
-    # the figures need the still start only: a loaded machine may end the run otherwise
-    assert proc.returncode == 0 or "gyrotens run: completed" in proc.stderr, proc.stderr
-    return root / "log"
+    return sim_run_log(tmp_path_factory.mktemp("noise"), SCHEDULE)
 
 
 @pytest.fixture(scope="module")

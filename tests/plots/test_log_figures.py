@@ -2,12 +2,10 @@
 on the simulated rig for the bands, innovations and line styles, synthetic logs for the
 attitude across a pitch of -90° and for a log written before the standard deviations were."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 from scipy.stats import chi2, norm
+from sim_run import sim_run_log
 
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.imu_model import ImuGeometry
@@ -40,14 +38,7 @@ s13 = [0.43105229381822, 0.40]
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):
     """A short ``gyrotens run --sim`` of the D-bar (its log folder)."""
-    root = tmp_path_factory.mktemp("figures")
-    (root / "schedule.toml").write_text(SCHEDULE)
-    cmd = [sys.executable, "-m", "gyrohost", "run", "--sim", "--schedule", "schedule.toml",
-           "-o", "log"]  # fmt: skip
-    proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True, timeout=300)
-    # the figures draw whatever the estimate did: a loaded machine can make it diverge (exit 1)
-    assert proc.returncode == 0 or "gyrotens run: completed" in proc.stderr, proc.stderr
-    return root / "log"
+    return sim_run_log(tmp_path_factory.mktemp("figures"), SCHEDULE)
 
 
 @pytest.fixture(scope="module")
