@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -138,9 +139,11 @@ def test_a_script_without_the_main_guard_gets_an_error_not_a_hang(tmp_path):
     assert "FilterFitError" in done.stderr and "__name__" in done.stderr, done.stderr[-2000:]
 
 
-def test_ctrl_c_ends_a_fit_in_workers_quietly_and_leaves_nothing_behind(tmp_path):
+@pytest.mark.parametrize("starting", [True, False], ids=["workers starting", "workers fitting"])
+def test_ctrl_c_ends_a_fit_in_workers_quietly_and_leaves_nothing_behind(tmp_path, starting):
     """Ctrl-C reaches every process of the group: the command says it was interrupted (no
-    worker's traceback), its workers end with it and their problem file is removed."""
+    worker's traceback, also while the workers are still importing), its workers end with it
+    and their problem file is removed."""
     nominal, truth = write_rigs(tmp_path, 1.0)
     log = record_log(truth, 1, tmp_path / "log")
     scratch = tmp_path / "tmp"
@@ -155,7 +158,11 @@ def test_ctrl_c_ends_a_fit_in_workers_quietly_and_leaves_nothing_behind(tmp_path
     deadline = time.monotonic() + 60.0
     while not list(scratch.glob("gyrotens-filter-fit-*")) and time.monotonic() < deadline:
         time.sleep(0.05)
-    time.sleep(2.0)  # the workers spawned and fitting
+    if starting:  # the interrupt as soon as both workers exist, while they still import
+        while len(_group(fit.pid)) < 3 and time.monotonic() < deadline:
+            time.sleep(0.005)
+    else:
+        time.sleep(2.0)  # the workers spawned and fitting
     os.killpg(fit.pid, signal.SIGINT)
     _, err = fit.communicate(timeout=60)
     assert fit.returncode == 130 and "interrupted" in err, err[-2000:]
@@ -165,6 +172,19 @@ def test_ctrl_c_ends_a_fit_in_workers_quietly_and_leaves_nothing_behind(tmp_path
     while _group_alive(fit.pid) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not _group_alive(fit.pid)
+
+
+def _group(pgid: int) -> list[int]:
+    """The processes of the process group ``pgid`` (Linux: /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # ended meanwhile
+        if int(fields[2]) == pgid:  # after the name: state, ppid, pgrp
+            found.append(int(stat.parent.name))
+    return found
 
 
 def _group_alive(pgid: int) -> bool:

@@ -335,6 +335,13 @@ speed error: with none the wheel covariance collapses, and the in-process SIL di
 identification's truth (NEES 3e5 for 28)."""
 
 
+def imu_wire_counts() -> tuple[float, float, float]:
+    """One count of the IMU's wire format: rate (rad/s), specific force (m/s^2), angle (rad)."""
+    from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
+
+    return float(RATE_SCALE_RAD_S), float(ACCEL_SCALE_M_S2), float(ANGLE_SCALE_RAD)
+
+
 def noise_from_rig(rig) -> dict:
     """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``), with
     the :func:`imu_keys` and the simulated IMU's attachment (``[sim.truth]``).
@@ -344,8 +351,7 @@ def noise_from_rig(rig) -> dict:
     it away with ``FF AA 67`` where possible) is folded into its noise. Returns a dict for
     :func:`config_from_dict`.
     """
-    from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
-
+    rate_count, accel_count, angle_count = imu_wire_counts()
     root = math.sqrt(rig.imu.rate_hz / 2.0)
     emu = rig.sim.imu
 
@@ -368,9 +374,9 @@ def noise_from_rig(rig) -> dict:
         # idle batches scored from drawn starts, 1e-7 leaves it at the upper bound and 2e-6
         # at the lower (docs/estimator.md, "Real-time keys by replay")
         "accel_psd_m2_s3": 5.0e-7,
-        "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, RATE_SCALE_RAD_S),
-        "imu_accel_std_m_s2": std(accel_white, ACCEL_SCALE_M_S2, emu.accel_bias_std_m_s2),
-        "imu_angle_std_rad": std(emu.angle_noise_std_rad, ANGLE_SCALE_RAD),
+        "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
+        "imu_accel_std_m_s2": std(accel_white, accel_count, emu.accel_bias_std_m_s2),
+        "imu_angle_std_rad": std(emu.angle_noise_std_rad, angle_count),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),
         # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the

@@ -30,10 +30,12 @@ import os
 import pickle
 import signal
 import tempfile
+import threading
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 
@@ -225,14 +227,20 @@ class _Workers:
         )
 
     def map(self, thetas) -> list:
+        futures = []
         try:
-            return list(self.pool.map(_worker_residuals, thetas))
+            with _interrupts_ignored():  # the processes start here, on the first submissions
+                futures = [self.pool.submit(_worker_residuals, t) for t in thetas]
+            return [f.result() for f in futures]
         except BrokenProcessPool:
             raise FilterFitError(
                 "a worker process of the filter fit ended abruptly; a script that fits with "
                 "workers > 1 needs its top level under 'if __name__ == \"__main__\":' "
                 "(processes are spawned), else fit with workers=1"
             ) from None
+        finally:
+            for f in futures:
+                f.cancel()  # an interrupted batch is not finished
 
     def close(self) -> None:
         try:
@@ -245,11 +253,27 @@ _worker_problem: FilterProblem | None = None
 """A worker process's copy of the problem (:class:`_Workers`)."""
 
 
+@contextmanager
+def _interrupts_ignored():
+    """SIGINT ignored in this process within the block (where it can be set: the main thread).
+
+    Ctrl-C reaches the whole process group: the parent's interrupt shuts the pool down, and a
+    worker's own would print its traceback and break the pool under it. A process started
+    within the block inherits the ignored signal from its first instruction (a spawned
+    interpreter keeps it so), before its imports, which take seconds on a slow machine; a
+    Ctrl-C within the block's few milliseconds is lost to the parent too."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _start_worker(path: str) -> None:
     global _worker_problem
-    # Ctrl-C reaches the whole process group: the parent's interrupt shuts the pool down, and
-    # a worker of its own would print its traceback and break the pool under it.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     with open(path, "rb") as f:
         _worker_problem = FilterProblem(*pickle.load(f))
 

@@ -31,9 +31,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
 from gyrohost.estimator import streams
-from gyrohost.estimator.config import EstimatorConfig
+from gyrohost.estimator.config import EstimatorConfig, imu_wire_counts
 from gyrohost.ident.forward import IdentDataError
 from gyrohost.run.log import LogError, read_streams
 
@@ -172,12 +171,13 @@ def figure(key, unit, pieces, floor, configured, bias=0.0) -> NoiseFigure:
 def _sensors(est: EstimatorConfig, accel_bias_m_s2: float) -> list[tuple]:
     """(key, unit, stream, columns, floor, bias) of every figure :func:`measure` takes."""
     root12 = math.sqrt(12.0)
+    rate_count, accel_count, angle_count = imu_wire_counts()
     return [
         ("imu_rate_std_rad_s", "rad/s", streams.IMU, streams.IMU_RATE,
-         RATE_SCALE_RAD_S / root12, 0.0),
+         rate_count / root12, 0.0),
         ("imu_accel_std_m_s2", "m/s^2", streams.IMU, streams.IMU_ACCEL,
-         ACCEL_SCALE_M_S2 / root12, accel_bias_m_s2),
-        ("imu_angle_std_rad", "rad", streams.IMU, streams.IMU_ANGLE, ANGLE_SCALE_RAD / root12, 0.0),
+         accel_count / root12, accel_bias_m_s2),
+        ("imu_angle_std_rad", "rad", streams.IMU, streams.IMU_ANGLE, angle_count / root12, 0.0),
         ("wheel_speed_std_rad_s", "rad/s", streams.WHEELS, streams.wheel_speed_columns(),
          est.wheel_resolution_rad_s / root12, 0.0),
     ]  # fmt: skip
