@@ -17,16 +17,21 @@ from gyrohost.run.log import LogError, read_stream, read_streams
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
 
 
-def phase_window(folder: Path) -> tuple[float | None, float | None]:
-    """Host times (s) where ``lead_in`` and ``rampdown`` begin (``None`` if not logged)."""
-    try:
-        events = read_stream(folder, "events")
-    except LogError:
-        return None, None
+def phase_starts(events: np.ndarray) -> dict[str, float]:
+    """Phase -> host time (s) it first begins, from a log's ``events`` rows."""
     times = {}
     for row in events:
         if row["kind"] == "phase":
             times.setdefault(str(row["message"]), float(row["t_s"]))
+    return times
+
+
+def phase_window(folder: Path) -> tuple[float | None, float | None]:
+    """Host times (s) where ``lead_in`` and ``rampdown`` begin (``None`` if not logged)."""
+    try:
+        times = phase_starts(read_stream(folder, "events"))
+    except LogError:
+        return None, None
     return times.get(FIRST_PHASE), times.get(LAST_PHASE)
 
 

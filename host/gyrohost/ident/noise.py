@@ -34,9 +34,10 @@ from scipy.stats import chi2
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import EstimatorConfig, imu_wire_counts
 from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.logs import FIRST_PHASE, phase_starts
 from gyrohost.run.log import LogError, read_streams
 
-START_PHASE = "lead_in"
+START_PHASE = FIRST_PHASE
 END_PHASES = ("settle", "rampdown")
 """Phases whose start ends the still window at the latest (the run winding down)."""
 MIN_SAMPLES = 20
@@ -110,10 +111,7 @@ def still_window(folder: Path, data: dict) -> tuple[float, float]:
     IdentDataError
         The log has no ``lead_in`` phase.
     """
-    starts = {}
-    for row in data["events"]:
-        if row["kind"] == "phase":
-            starts.setdefault(str(row["message"]), float(row["t_s"]))
+    starts = phase_starts(data["events"])
     if START_PHASE not in starts:
         raise IdentDataError(
             f"{folder}: no '{START_PHASE}' phase in its events: not a gyrotens run log, or the "
@@ -131,12 +129,12 @@ def _first_change_s(command: np.ndarray, t0: float) -> float:
     """Time (s) of the first command after ``t0`` that differs from the one in effect at
     ``t0`` (inf: none does)."""
     columns = [c for c in command.dtype.names if c != "t_s"]
-    held = np.searchsorted(command["t_s"], t0, side="right") - 1
+    held = max(np.searchsorted(command["t_s"], t0, side="right") - 1, 0)
     values = np.column_stack([command[c] for c in columns])
     tolerance = np.array([REST_TOLERANCE_M if c.endswith("_rest_m") else WHEEL_TOLERANCE_RAD_S
                           for c in columns])  # fmt: skip
-    later = np.arange(len(command)) > max(held, 0)
-    moved = later & np.any(np.abs(values - values[max(held, 0)]) > tolerance, axis=1)
+    later = np.arange(len(command)) > held
+    moved = later & np.any(np.abs(values - values[held]) > tolerance, axis=1)
     return float(command["t_s"][np.argmax(moved)]) if moved.any() else np.inf
 
 
@@ -168,19 +166,21 @@ def figure(key, unit, pieces, floor, configured, bias=0.0) -> NoiseFigure:
     return NoiseFigure(key, unit, std, channels, dof, interval, lag, floor, configured, bias)
 
 
-def _sensors(est: EstimatorConfig, accel_bias_m_s2: float) -> list[tuple]:
-    """(key, unit, stream, columns, floor, bias) of every figure :func:`measure` takes."""
-    root12 = math.sqrt(12.0)
-    rate_count, accel_count, angle_count = imu_wire_counts()
-    return [
-        ("imu_rate_std_rad_s", "rad/s", streams.IMU, streams.IMU_RATE,
-         rate_count / root12, 0.0),
-        ("imu_accel_std_m_s2", "m/s^2", streams.IMU, streams.IMU_ACCEL,
-         accel_count / root12, accel_bias_m_s2),
-        ("imu_angle_std_rad", "rad", streams.IMU, streams.IMU_ANGLE, angle_count / root12, 0.0),
-        ("wheel_speed_std_rad_s", "rad/s", streams.WHEELS, streams.wheel_speed_columns(),
-         est.wheel_resolution_rad_s / root12, 0.0),
-    ]  # fmt: skip
+SENSORS = (
+    ("imu_rate_std_rad_s", "rad/s", streams.IMU, streams.IMU_RATE),
+    ("imu_accel_std_m_s2", "m/s^2", streams.IMU, streams.IMU_ACCEL),
+    ("imu_angle_std_rad", "rad", streams.IMU, streams.IMU_ANGLE),
+    ("wheel_speed_std_rad_s", "rad/s", streams.WHEELS, tuple(streams.wheel_speed_columns())),
+)
+"""(estimator key, unit, stream, columns) of every figure :func:`measure` takes."""
+KEYS = tuple(key for key, *_ in SENSORS)
+"""The estimator keys :func:`measure` gives figures of (where the logs hold their streams)."""
+
+
+def _floors(est: EstimatorConfig) -> dict:
+    """Key -> one count of its wire over ``sqrt(12)``, for every key of :data:`KEYS`."""
+    counts = (*imu_wire_counts(), est.wheel_resolution_rad_s)
+    return {key: c / math.sqrt(12.0) for key, c in zip(KEYS, counts, strict=True)}
 
 
 NOTES = {
@@ -188,9 +188,6 @@ NOTES = {
     "loop's error, which the filter carries as the wheel states' walk): an upper bound",
 }
 """What a figure holds beyond the sensor's white noise."""
-
-KEYS = ("imu_rate_std_rad_s", "imu_accel_std_m_s2", "imu_angle_std_rad", "wheel_speed_std_rad_s")
-"""The estimator keys :func:`measure` gives figures of (where the logs hold their streams)."""
 
 
 def measure(folders, est: EstimatorConfig, accel_bias_m_s2: float) -> tuple[list, list]:
@@ -219,8 +216,7 @@ def measure(folders, est: EstimatorConfig, accel_bias_m_s2: float) -> tuple[list
         A log cannot be read, has no still window, or holds fewer than :data:`MIN_SAMPLES`
         IMU samples in it (naming the log and the window).
     """
-    sensors = _sensors(est, accel_bias_m_s2)
-    pieces = {key: [] for key, *_ in sensors}
+    pieces = {key: [] for key in KEYS}
     windows = []
     for folder in map(Path, folders):
         data = _read(folder)
@@ -234,16 +230,17 @@ def measure(folders, est: EstimatorConfig, accel_bias_m_s2: float) -> tuple[list
                 "needed: record a run whose schedule starts with a rest (--schedule identify)"
             )
         windows.append((str(folder), t0, t1 - t0, n_imu))
-        for key, _, stream, columns, *_ in sensors:
+        for key, _, stream, columns in SENSORS:
             rows = inside.get(stream)
             if rows is None or len(rows) < MIN_SAMPLES:
                 continue
             for c in (c for c in columns if c in rows.dtype.names):
                 v = np.unwrap(rows[c]) if c in streams.IMU_ANGLE else rows[c]
                 pieces[key].append((c, rows["t_s"], np.asarray(v, float)))
+    floors, biases = _floors(est), {"imu_accel_std_m_s2": accel_bias_m_s2}
     figures = [
-        figure(key, unit, pieces[key], floor, float(getattr(est, key)), bias)
-        for key, unit, _, _, floor, bias in sensors
+        figure(key, unit, pieces[key], floors[key], float(getattr(est, key)), biases.get(key, 0.0))
+        for key, unit, *_ in SENSORS
         if pieces[key]
     ]
     return figures, windows
