@@ -30,14 +30,13 @@ import os
 import pickle
 import signal
 import tempfile
-import threading
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from multiprocessing import get_context
+from multiprocessing import get_context, resource_tracker
 
 import numpy as np
 from scipy.linalg import LinAlgWarning
@@ -229,7 +228,7 @@ class _Workers:
     def map(self, thetas) -> list:
         futures = []
         try:
-            with _interrupts_ignored():  # the processes start here, on the first submissions
+            with _interrupts_held():  # the processes start here, on the first submissions
                 futures = [self.pool.submit(_worker_residuals, t) for t in thetas]
             return [f.result() for f in futures]
         except BrokenProcessPool:
@@ -254,22 +253,24 @@ _worker_problem: FilterProblem | None = None
 
 
 @contextmanager
-def _interrupts_ignored():
-    """SIGINT ignored in this process within the block (where it can be set: the main thread).
+def _interrupts_held():
+    """SIGINT held back (blocked, not ignored) in this thread within the block.
 
     Ctrl-C reaches the whole process group: the parent's interrupt shuts the pool down, and a
     worker's own would print its traceback and break the pool under it. A process started
-    within the block inherits the ignored signal from its first instruction (a spawned
-    interpreter keeps it so), before its imports, which take seconds on a slow machine; a
-    Ctrl-C within the block's few milliseconds is lost to the parent too."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    within the block inherits the blocked signal from its first instruction (the mask survives
+    the spawn's exec), before its imports, which take seconds on a slow machine, and keeps it
+    blocked: the pool's shutdown ends it. The parent's Ctrl-C within the block stays pending
+    and is delivered when the block ends, as the interrupt it is; an ignored one would be lost.
+    The resource tracker unblocks SIGINT when it starts, so it is started before the block."""
+    resource_tracker.ensure_running()
+    signals = {signal.SIGINT}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if signal.SIGINT not in previous:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, signals)
 
 
 def _start_worker(path: str) -> None:
