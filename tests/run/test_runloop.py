@@ -81,10 +81,16 @@ def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch, capsys):
     silence = result.summary["wheel_board_silence_s"]
     assert 0.0 < silence["max"] < silence["limit"] == 0.5
     capsys.readouterr()
-    assert report(result) == 0 and "warning" not in capsys.readouterr().err
+    assert report(result) == 0 and "nothing for" not in capsys.readouterr().err
     silence["max"] = 0.3  # what gyrotens run says of a host that paused that long
     report(result)
     assert "nothing for 300 ms; at 500 ms its fail-safe stops the wheels" in capsys.readouterr().err
+    assert set(result.summary["rig_real_time"]) == {"kept", "late_share", "max_lag_s", "slipped_s"}
+    result.summary["rig_real_time"] = {  # a CPU too loaded for the rig
+        "kept": False, "late_share": 0.6, "max_lag_s": 0.25, "slipped_s": 0.2,
+    }  # fmt: skip
+    report(result)
+    assert "truth did not keep real time (60 % of its steps late" in capsys.readouterr().err
     meta = read_meta(folder)
     for name in INPUT_STREAMS + OUTPUT_STREAMS + RUN_STREAMS:
         assert name in meta["streams"], name
@@ -203,7 +209,7 @@ def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
                 rig.truth()
                 time.sleep(0.01)
         with pytest.raises(RigProcessError, match="simulated rig"):
-            rig.stats_lines()
+            rig.stats()
 
 
 class _Interrupted(Exception):

@@ -140,6 +140,7 @@ def run(args) -> int:
     from gyrohost.ident import filter_fit, profile, report
     from gyrohost.ident.fit import FitError, fit, nominal_lag, two_passes
     from gyrohost.ident.forward import IdentDataError
+    from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import ParamsError, parameters
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, load_scene
@@ -147,6 +148,9 @@ def run(args) -> int:
     out = args.out
     if out.suffix != ".toml":
         raise CliError(f"-o {out}: the identified scene must be a .toml file")
+    for log in args.logs:
+        for warning in log_warnings(log):
+            print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
     try:
         config = load_rig_config(resolve("config", args.config))
         scene = load_scene(config.scene_path)

@@ -12,7 +12,8 @@ from gyrohost.estimator import streams
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.driver import regular_times, wheel_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
-from gyrohost.run.log import LogError, read_stream, read_streams
+from gyrohost.run.log import LogError, read_meta, read_stream, read_streams
+from gyrohost.run.summary import real_time_warning
 
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
 
@@ -24,6 +25,39 @@ def phase_starts(events: np.ndarray) -> dict[str, float]:
         if row["kind"] == "phase":
             times.setdefault(str(row["message"]), float(row["t_s"]))
     return times
+
+
+def log_warnings(folder: Path) -> list[str]:
+    """What makes the log ``folder`` a doubtful recording to identify from: a run that ended
+    before its schedule did (how far the schedule got), or a simulated rig whose truth did not
+    keep real time."""
+    try:
+        summary = read_meta(folder).get("summary")
+    except LogError:
+        return []  # the recording's own loading names what is missing
+    if summary is None:
+        return [f"{folder}: the run has no summary (it never reached its safe state)"]
+    out = []
+    if not summary.get("completed", False):
+        out.append(f"{folder}: the run stopped {_how_far(folder)} ({summary.get('reason')})")
+    real_time = summary.get("rig_real_time")
+    if real_time is not None and not real_time["kept"]:
+        out.append(f"{folder}: {real_time_warning(real_time)}")
+    return out
+
+
+def _how_far(folder: Path) -> str:
+    """How far into its schedule the run of the log ``folder`` got: from the ``schedule``
+    phase's start to the ``end`` event."""
+    try:
+        events = read_stream(folder, "events")
+    except LogError:
+        return "at an unknown time (no events)"
+    start = phase_starts(events).get("schedule")
+    ends = [float(row["t_s"]) for row in events if row["kind"] == "end"]
+    if start is None:
+        return "before its schedule began"
+    return f"{ends[0] - start:.1f} s into its schedule" if ends else "in its schedule"
 
 
 def phase_window(folder: Path) -> tuple[float | None, float | None]:

@@ -130,10 +130,11 @@ class RigProcess:
         self._send(("command", (line,), {}))
         return self._reply("answer")["text"]
 
-    def stats_lines(self) -> list[str]:
-        """The rig's rates and truth timing lines."""
+    def stats(self) -> dict:
+        """The rig's rates and truth timing: ``lines`` (text) and ``real_time`` (whether the
+        truth kept it, and the figures: :meth:`RigStats.real_time`)."""
         self._send(("stats", (), {}))
-        return self._reply("stats")["lines"]
+        return self._reply("stats")
 
     def close(self) -> None:
         """Stop the child (idempotent)."""
@@ -255,7 +256,8 @@ def _start_and_serve(conn, rig, period_s: float) -> None:
                         conn.send(("error", str(exc)))
                 elif kind == "stats":
                     s = rig.stats()
-                    conn.send(("stats", {"lines": [s.rates_line(), s.truth_line()]}))
+                    lines = [s.rates_line(), s.truth_line()]
+                    conn.send(("stats", {"lines": lines, "real_time": s.real_time()}))
                 continue
             next_s += period_s
             conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))

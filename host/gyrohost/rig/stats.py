@@ -3,6 +3,11 @@
 import math
 from dataclasses import dataclass
 
+LATE_SHARE_MAX = 0.1
+"""Share of the truth's steps that may be late (more than a step behind wall time) for a run to
+count as real time: beyond, the logged streams' stamps and the physics disagree by tens of ms
+and vary, which an identification reads as a mounting or an inertia (docs/identification.md)."""
+
 
 @dataclass(frozen=True)
 class RigStats:
@@ -53,6 +58,17 @@ class RigStats:
             f"wheels {self.rate(self.telemetry_frames):.1f} telemetry frames/s, "
             f"servos {self.rate(self.servo_packets):.1f} packets/s"
         )
+
+    def real_time(self) -> dict:
+        """Whether the truth kept real time (:data:`LATE_SHARE_MAX`, no slip) and the figures
+        that say so: ``kept``, ``late_share``, ``max_lag_s``, ``slipped_s``."""
+        late = self.late_steps / max(self.truth_steps, 1)
+        return {
+            "kept": late <= LATE_SHARE_MAX and self.slipped_s == 0.0,
+            "late_share": late,
+            "max_lag_s": self.max_lag_s,
+            "slipped_s": self.slipped_s,
+        }
 
     def truth_line(self) -> str:
         """One line: truth step timing."""

@@ -58,8 +58,22 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
                 out[f"{key}_truth_error_rad"] = out[f"{key}_truth_rad"] - target
     if loop.rig is not None:
         try:
-            out["rig"] = loop.rig.stats_lines()
+            stats = loop.rig.stats()
+            out["rig"], out["rig_real_time"] = stats["lines"], stats["real_time"]
         except RigProcessError as exc:
             out["rig"] = [str(exc)]
+        if not out.get("rig_real_time", {}).get("kept", True):
+            loop.event("warning", real_time_warning(out["rig_real_time"]))
     loop.event("timing", jitter_line(timing))
     return out
+
+
+def real_time_warning(real_time: dict) -> str:
+    """What a simulated run whose truth did not keep real time (``summary["rig_real_time"]``)
+    means for its log."""
+    return (
+        f"the simulated rig's truth did not keep real time ({100 * real_time['late_share']:.0f} "
+        f"% of its steps late, up to {1e3 * real_time['max_lag_s']:.0f} ms; slipped "
+        f"{real_time['slipped_s']:.2f} s): the CPU was too loaded, so the log's stamps and its "
+        "physics disagree; do not identify from it (close other programs and record again)"
+    )
