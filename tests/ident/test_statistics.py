@@ -204,6 +204,35 @@ def test_the_identified_scene_keeps_the_bars_nominal_along_an_undetermined_scale
     assert k == pytest.approx(np.exp(0.2 - 0.1))
 
 
+def test_parameters_not_determined_keep_their_nominal_and_are_named():
+    """A separable parameter whose 1-sigma is infinite (no minimum) or a factor e and more
+    (what a log past the roll-over, or one the rig could not record in real time, gives) is
+    reported as undetermined and left at its nominal in the scene."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.ident.report import undetermined
+    from gyrohost.resources import resolve
+    from gyrotensegrity import load_scene
+
+    config = load_rig_config(resolve("config", "sim-rig"))
+    scene = load_scene(config.scene_path)
+    params = [replace(p, nominal=1.0) for p in Problem(np.zeros(5)).params]
+    theta = np.array([0.1, 0.2, 9.0, 2.5, -0.1])  # the third and fourth where the fit ended
+    sigma = np.array([0.01, 0.02, np.inf, 1.0, 0.03])
+    result = FitResult(
+        params, theta, sigma, np.eye(5), [], np.ones(5, bool), [], None,
+        [], [], {}, 0.0, 0, "", scene, 0.05,
+    )  # fmt: skip
+    assert list(result.determined) == [True, True, False, False, True]
+    assert undetermined(result) == [params[2].name, params[3].name]
+    lines = report_lines(result)
+    for p in params[2:4]:
+        assert "undetermined" in next(line for line in lines if line.startswith(p.name))
+    header = "\n".join(f"# {line}" for line in lines)
+    assert set(read_identified(header)) == {params[i].name for i in (0, 1, 4)}
+    kept = apply_result(replace(result, theta=np.where(result.determined, theta, 0.0)), config)
+    np.testing.assert_equal(apply_result(result, config).scene.to_dict(), kept.scene.to_dict())
+
+
 def test_held_direction_leaves_the_covariance():
     J = RNG.normal(size=(300, 3))
     u = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)

@@ -188,6 +188,14 @@ def run(args) -> int:
     finally:
         progress.close()
     print("\n".join(report.report_lines(result)))
+    loose = report.undetermined(result)
+    if loose:
+        print(
+            "gyrotens identify: warning: not determined by the data (a 1-sigma of a factor e, "
+            f"a radian or more, or no minimum): {', '.join(loose)}; the scene keeps their "
+            "nominal values",
+            file=sys.stderr,
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(report.identified_scene(result, config, args.logs))
     overlay = args.overlay or out.with_name(out.stem + "-config.toml")

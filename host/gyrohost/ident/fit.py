@@ -77,6 +77,11 @@ RCOND = 1e-3
 """Singular values of the unit-column Jacobian below this fraction of the largest: not resolved."""
 INVOLVED = 0.2
 """A parameter whose weight in an unresolved direction exceeds this is not separable."""
+DETERMINED_SIGMA = 1.0
+"""A separable parameter whose 1-sigma reaches this, in its units of ``theta`` (a factor e of
+a relative one, a radian of the mounting, 1 rad/s of a gyro bias), or is infinite (its cost not
+convex) is not determined: past the roll-over or on a log the rig could not record in real
+time the fit ends anywhere (docs/identification.md), and the scene keeps its nominal."""
 SCALE_GROUPS = ("J3", "J3-each", "bar-mass", "bar-inertia", "stiffness", "damping")
 """Groups that scale together without changing the D-bar's motion much (every mass, inertia,
 stiffness and damping; the wheels' mass and transverse inertia, which are kept, break it)."""
@@ -159,6 +164,11 @@ class FitResult:
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 
+    @property
+    def determined(self) -> np.ndarray:
+        """Separable parameters whose 1-sigma is below :data:`DETERMINED_SIGMA`, shape (p,)."""
+        return self.separable & (self.sigma < DETERMINED_SIGMA)
+
     def value(self, i: int) -> float:
         """Physical value of parameter ``i``."""
         return self.params[i].value(self.theta[i])
@@ -169,9 +179,9 @@ class FitResult:
         return self.sigma[i] * (abs(p.nominal) if p.relative else 1.0)
 
     def strong_correlations(self, threshold=0.8) -> list[tuple[str, str, float]]:
-        """Pairs of separable parameters with |correlation| above ``threshold``."""
+        """Pairs of determined parameters with |correlation| above ``threshold``."""
         names = [p.name for p in self.params]
-        ok = self.separable
+        ok = self.determined
         return [
             (names[i], names[j], float(self.correlation[i, j]))
             for i in range(len(names))

@@ -16,13 +16,14 @@ def report_lines(result: FitResult) -> list[str]:
     combinations the data do not separate, the residual RMS per stream."""
     lines = [f"{'parameter':<22}{'nominal':>14}{'identified':>14}{'1-sigma':>12}  unit"]
     for i, p in enumerate(result.params):
-        if result.separable[i]:
+        if result.determined[i]:
             est, sig = f"{result.value(i):14.6g}", f"{result.value_sigma(i):12.3g}"
         else:
-            est, sig = f"{'not separable':>14}", f"{'':>12}"
+            why = "not separable" if not result.separable[i] else "undetermined"
+            est, sig = f"{why:>14}", f"{'':>12}"
         rel = (
             f" ({100 * (np.exp(result.theta[i]) - 1):+.1f} %)"
-            if p.relative and result.separable[i]
+            if p.relative and result.determined[i]
             else ""
         )
         lines.append(f"{p.name:<22}{p.nominal:14.6g}{est}{sig}  {p.unit}{rel}")
@@ -60,6 +61,12 @@ def report_lines(result: FitResult) -> list[str]:
     return lines
 
 
+def undetermined(result: FitResult) -> list[str]:
+    """Names of the separable parameters the fit did not determine (``FitResult.determined``)."""
+    loose = result.separable & ~result.determined
+    return [p.name for p, no in zip(result.params, loose, strict=True) if no]
+
+
 def _combination(v: np.ndarray, names: list[str]) -> str:
     terms = [f"{c:+.3f} {n}" for c, n in zip(v, names, strict=True) if abs(c) > 0.05]
     return " ".join(terms)
@@ -68,9 +75,9 @@ def _combination(v: np.ndarray, names: list[str]) -> str:
 def overlay_toml(result: FitResult, config) -> str:
     """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
     ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
-    (:func:`mounting_covariance`). Separable parameters only."""
+    (:func:`mounting_covariance`). Determined parameters only."""
     a = apply_result(result, config)
-    fitted = {p.group for p, ok in zip(result.params, result.separable, strict=True) if ok}
+    fitted = {p.group for p, ok in zip(result.params, result.determined, strict=True) if ok}
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
     if "mounting" in fitted:
         out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
@@ -98,17 +105,16 @@ def _array(values) -> str:
 
 def mounting_covariance(result: FitResult):
     """Covariance (3, 3), rad^2, of the fitted mounting's roll, pitch and yaw (from their
-    1-sigmas and correlations); None unless all three were fitted and are separable with a
-    finite 1-sigma."""
+    1-sigmas and correlations); None unless all three were fitted and are determined."""
     idx = [i for i, p in enumerate(result.params) if p.group == "mounting"]
     sigma = np.array([result.value_sigma(i) for i in idx])
-    if len(idx) != 3 or not np.all(result.separable[idx]) or not np.all(np.isfinite(sigma)):
+    if len(idx) != 3 or not np.all(result.determined[idx]):
         return None
     return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
 
 
 def apply_result(result: FitResult, config):
-    """:func:`.params.apply` of the estimate, non-separable parameters at their nominal; with
+    """:func:`.params.apply` of the estimate, parameters not determined at their nominal; with
     an undetermined common scale, the estimate moved along it until the bars' parameter is at
     its nominal (the same motion), the others where that leaves them."""
     theta = result.theta
@@ -116,15 +122,15 @@ def apply_result(result: FitResult, config):
     if valley is not None:
         ref = next(i for i, p in enumerate(result.params) if p.group in BAR_GROUPS)
         theta = theta - theta[ref] / valley[ref] * valley
-        keep = result.separable | (np.abs(valley) > INVOLVED)
+        keep = result.determined | (np.abs(valley) > INVOLVED)
     else:
-        keep = result.separable
+        keep = result.determined
     theta = np.where(keep, theta, 0.0)
     return apply(result.scene, config, result.params, theta, result.servo_lag_s)
 
 
 def identified_scene(result: FitResult, config, logs) -> str:
-    """The complete scene file of the estimate (non-separable parameters left nominal)."""
+    """The complete scene file of the estimate (parameters not determined left nominal)."""
     scene = apply_result(result, config).scene
     header = "\n".join(
         [f"Identified by gyrotens identify from {', '.join(map(str, logs))}", *report_lines(result)]
@@ -135,7 +141,7 @@ def identified_scene(result: FitResult, config, logs) -> str:
 def read_identified(text: str) -> dict[str, tuple[float, float]]:
     """Parameter -> (identified value, 1-sigma) as an identified scene's header gives them
     (:func:`identified_scene`, to :func:`report_lines`' digits; the parameters reported not
-    separable left out)."""
+    separable or not determined left out)."""
     out = {}
     for line in text.splitlines():
         words = line.removeprefix("# ").split()
@@ -143,7 +149,7 @@ def read_identified(text: str) -> dict[str, tuple[float, float]]:
             continue
         try:
             out[words[0]] = (float(words[2]), float(words[3]))
-        except ValueError:  # the column header, a non-separable row, the other report lines
+        except ValueError:  # the column header, a row not determined, the other lines
             continue
     return out
 
