@@ -1,5 +1,6 @@
-"""What ``gyrotens identify`` says about a log it should not be trusted with: a run that
-stopped before its schedule ended, a simulated rig whose truth did not keep real time."""
+"""What ``gyrotens identify`` says about a log it should not be trusted with (a run that
+stopped before its schedule ended, a simulated rig whose truth did not keep real time) and
+about noise keys the lab has not measured."""
 
 import pytest
 
@@ -70,3 +71,29 @@ def test_real_time_is_kept_with_few_late_steps_and_no_slip(late_steps, slipped_s
     figures = stats(late_steps, slipped_s).real_time()
     assert figures["kept"] is kept
     assert figures["late_share"] == late_steps / 2000
+
+
+def test_noise_keys_left_at_the_templates_datasheet_values_are_named(tmp_path, capsys):
+    """The fit weighs each sensor by the estimator's noise keys: a copy of the lab-rig
+    template that still has them says so, one line per key, and a measured one (its marker
+    removed) does not."""
+    from gyrohost.ident.noise import KEYS
+    from gyrohost.resources import resolve
+
+    log = write_log(tmp_path / "log", {"completed": True}, PHASES)
+    text = resolve("config", "lab-rig").read_text()
+    config = tmp_path / "my-rig.toml"
+    config.write_text(text)
+    argv = ["identify", str(log), "-o", str(tmp_path / "i.toml"), "--config", str(config)]
+    assert main(argv) != 0  # the log has no streams, after the warnings
+    err = capsys.readouterr().err
+    for key in KEYS:
+        assert f"estimator.{key} is still the template's datasheet value" in err, key
+    measured = "\n".join(
+        line.split("#")[0] if line.startswith("imu_rate_std_rad_s") else line
+        for line in text.splitlines()
+    )
+    config.write_text(measured)
+    main(argv)
+    err = capsys.readouterr().err
+    assert "imu_rate_std_rad_s is still" not in err and "imu_angle_std_rad is still" in err

@@ -152,7 +152,15 @@ def run(args) -> int:
         for warning in log_warnings(log):
             print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
     try:
-        config = load_rig_config(resolve("config", args.config))
+        config_path = resolve("config", args.config)
+        config = load_rig_config(config_path)
+        for key in _noise_placeholders(config_path):
+            print(
+                f"gyrotens identify: warning: {config_path}: {key} is still the template's "
+                "datasheet value, and the fit weighs its sensor by it: measure it with "
+                f"'gyrotens noise LOG --config {args.config}' (docs/identification.md, step 2)",
+                file=sys.stderr,
+            )
         scene = load_scene(config.scene_path)
         est = for_rig(config)
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
@@ -206,6 +214,16 @@ def run(args) -> int:
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
     print(f"run with it: gyrotens run --config {args.config} --overlay {overlay} --scene {out}")
     return 0
+
+
+def _noise_placeholders(config_path) -> list[str]:
+    """The estimator's noise keys the configuration still has at the lab-rig template's
+    datasheet values (:mod:`gyrohost.bringup.placeholders`), dotted."""
+    from gyrohost.bringup.placeholders import find_placeholders
+    from gyrohost.ident.noise import KEYS
+
+    keys = {f"estimator.{key}" for key in KEYS}
+    return [p.key for p in find_placeholders(config_path) if p.key in keys]
 
 
 def _recordings(args, config, model) -> list:
