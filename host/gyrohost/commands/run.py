@@ -292,7 +292,7 @@ def report(result, config: str = "sim-rig") -> int:
     from gyrohost.run import jitter_line
     from gyrohost.run.health import fails_run, health_lines
     from gyrohost.run.safe_state import describe, failed_steps
-    from gyrohost.run.summary import real_time_warning
+    from gyrohost.run.summary import real_time_lost
 
     s = result.summary
     print(f"log: {result.log_folder}")
@@ -309,8 +309,9 @@ def report(result, config: str = "sim-rig") -> int:
             "stops the wheels (a loaded or stalling host: close other programs)",
             file=sys.stderr,
         )
-    if not s.get("rig_real_time", {}).get("kept", True):
-        print(f"gyrotens run: warning: {real_time_warning(s['rig_real_time'])}", file=sys.stderr)
+    lost = real_time_lost(s)
+    if lost:
+        print(f"gyrotens run: warning: {lost}", file=sys.stderr)
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
         if "tilt_end_truth_rad" in s:

@@ -13,7 +13,7 @@ from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.driver import regular_times, wheel_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
 from gyrohost.run.log import LogError, read_meta, read_stream, read_streams
-from gyrohost.run.summary import real_time_warning
+from gyrohost.run.summary import real_time_lost
 
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
 
@@ -40,9 +40,9 @@ def log_warnings(folder: Path) -> list[str]:
     out = []
     if not summary.get("completed", False):
         out.append(f"{folder}: the run stopped {_how_far(folder)} ({summary.get('reason')})")
-    real_time = summary.get("rig_real_time")
-    if real_time is not None and not real_time["kept"]:
-        out.append(f"{folder}: {real_time_warning(real_time)}")
+    lost = real_time_lost(summary)
+    if lost:
+        out.append(f"{folder}: {lost}")
     return out
 
 
@@ -54,9 +54,9 @@ def _how_far(folder: Path) -> str:
     except LogError:
         return "at an unknown time (no events)"
     start = phase_starts(events).get("schedule")
-    ends = [float(row["t_s"]) for row in events if row["kind"] == "end"]
     if start is None:
         return "before its schedule began"
+    ends = [float(row["t_s"]) for row in events if row["kind"] == "end"]
     return f"{ends[0] - start:.1f} s into its schedule" if ends else "in its schedule"
 
 

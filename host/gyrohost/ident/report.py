@@ -15,15 +15,16 @@ def report_lines(result: FitResult) -> list[str]:
     """The fit as text: every parameter with its 1-sigma, the strong correlations, the
     combinations the data do not separate, the residual RMS per stream."""
     lines = [f"{'parameter':<22}{'nominal':>14}{'identified':>14}{'1-sigma':>12}  unit"]
+    determined = result.determined
     for i, p in enumerate(result.params):
-        if result.determined[i]:
+        if determined[i]:
             est, sig = f"{result.value(i):14.6g}", f"{result.value_sigma(i):12.3g}"
         else:
             why = "not separable" if not result.separable[i] else "undetermined"
             est, sig = f"{why:>14}", f"{'':>12}"
         rel = (
             f" ({100 * (np.exp(result.theta[i]) - 1):+.1f} %)"
-            if p.relative and result.determined[i]
+            if p.relative and determined[i]
             else ""
         )
         lines.append(f"{p.name:<22}{p.nominal:14.6g}{est}{sig}  {p.unit}{rel}")

@@ -62,15 +62,19 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
             out["rig"], out["rig_real_time"] = stats["lines"], stats["real_time"]
         except RigProcessError as exc:
             out["rig"] = [str(exc)]
-        if not out.get("rig_real_time", {}).get("kept", True):
-            loop.event("warning", real_time_warning(out["rig_real_time"]))
+        lost = real_time_lost(out)
+        if lost:
+            loop.event("warning", lost)
     loop.event("timing", jitter_line(timing))
     return out
 
 
-def real_time_warning(real_time: dict) -> str:
-    """What a simulated run whose truth did not keep real time (``summary["rig_real_time"]``)
-    means for its log."""
+def real_time_lost(summary: dict) -> str | None:
+    """What it means for the log that the simulated rig's truth did not keep real time, by a
+    run's ``summary`` (its ``rig_real_time``); None where it did, or no simulated rig ran."""
+    real_time = summary.get("rig_real_time")
+    if real_time is None or real_time["kept"]:
+        return None
     return (
         f"the simulated rig's truth did not keep real time ({100 * real_time['late_share']:.0f} "
         f"% of its steps late, up to {1e3 * real_time['max_lag_s']:.0f} ms; slipped "
