@@ -11,6 +11,7 @@ import pytest
 from scipy.integrate import DOP853
 
 from gyrohost.bench.extremes import (
+    ACCURACY_CLASS,
     extent,
     near_flat_dbar,
     prism,
@@ -104,13 +105,16 @@ def test_wheels_at_3000_rad_s_hold(integrator, opts):
 
 
 def test_fold_instability_is_sensitive_not_holds():
-    """Wheels at 1e4 rad/s: the D-bar's fold instability grows from round-off, so DOP853 at
-    rtol 1e-11 and 1e-13 part by micrometres at 0.8 s (metres soon after); each run alone
-    keeps its constraints, which made the cell "hold" before."""
+    """Wheels at 1e4 rad/s: the D-bar's fold instability grows from round-off about
+    e-fold per 20 ms, so DOP853 at rtol 1e-11 and 1e-13 part by about 1e-6 of the extent at
+    0.8 s and 1e-2 at 1.0 s. The test runs to 1.0 s and asks the spread to be 100 x the
+    DOP853 class: a CPU whose rounding seeds the growth 100 x smaller still passes, while a
+    stable motion stays near the tolerances (about 1e-11). Each run alone keeps its
+    constraints, which made the cell "hold" before."""
     data = with_spin(1e4)
-    ref = reference(data, 0.8, budget_s=120.0)
-    assert ref["spread"] > 1e-6
-    cell = run_cell(data, 0.8, "dop853", 120.0, ref)
+    ref = reference(data, 1.0, budget_s=120.0)
+    assert ref["spread"] > 100 * ACCURACY_CLASS["dop853"]
+    cell = run_cell(data, 1.0, "dop853", 120.0, ref)
     assert cell["status"] == "sensitive" and "amplifies round-off" in cell["message"]
     assert cell["bar_length_error"] < 1e-9
 
