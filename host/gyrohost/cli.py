@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from gyrohost.errors import GyrohostError
+from gyrohost.commands.errors import CliError
 
 COMMANDS = [
     "demo",
@@ -30,10 +30,6 @@ COMMANDS = [
     "identify",
     "noise",
 ]
-
-
-class CliError(GyrohostError, ValueError):
-    """A user-facing error: printed as ``gyrotens: error: <message>``, exit status 2."""
 
 
 class _VersionAction(argparse.Action):

@@ -1,7 +1,7 @@
 """One executor for independent cases: serial in this process, or Dask tasks on a cluster.
 
 Used by ``gyrotens sweep`` (:mod:`gyrohost.sweep`), the estimator's Monte Carlo
-(:mod:`gyrohost.experiments.montecarlo`) and the independent cases of ``gyrotens bench``. Every
+(:mod:`gyrohost.sil.montecarlo`) and the independent cases of ``gyrotens bench``. Every
 case is one call ``fn(item)``; the results come back in the order of the items, whichever worker
 finished first.
 

@@ -10,7 +10,7 @@ import pytest
 
 from gyrohost.control import DBarReduced, Replanner
 from gyrohost.control.adapt import WheelGainFit
-from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia
+from gyrohost.control.sil import run_sil, scene_with_wheel_inertia
 from gyrohost.resources import shipped
 from gyrotensegrity import Model
 

@@ -4,9 +4,9 @@ import pytest
 
 from gyrohost.estimator import EstimatorConfig
 from gyrohost.estimator.layout import from_model_state
-from gyrohost.experiments.montecarlo import TRUTH_PSD_M2_S3
-from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrohost.resources import shipped
+from gyrohost.sil.montecarlo import TRUTH_PSD_M2_S3
+from gyrohost.sil.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, Stepper, load_scene
 
 SCENE = shipped("scene", "dbar-gyro")

@@ -7,7 +7,7 @@ import pytest
 
 from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.consistency import average_bounds, observed_blocks, observed_nees
-from gyrohost.experiments.montecarlo import RunResult, summarise
+from gyrohost.sil.montecarlo import RunResult, summarise
 
 
 @pytest.fixture()

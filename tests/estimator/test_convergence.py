@@ -1,11 +1,11 @@
 """The filter on synthetic data: convergence, and a reduced Monte Carlo consistency check
-(the full one, 20 runs of 3 s: ``python -m gyrohost.experiments.montecarlo``)."""
+(the full one, 20 runs of 3 s: ``python -m gyrohost.sil.montecarlo``)."""
 
 import numpy as np
 
 from gyrohost.estimator import TensegrityEKF, driver
 from gyrohost.estimator.consistency import tilt_error
-from gyrohost.experiments.montecarlo import run_monte_carlo, summarise
+from gyrohost.sil.montecarlo import run_monte_carlo, summarise
 
 
 def test_converges_on_synthetic_data(model, config, synthetic):

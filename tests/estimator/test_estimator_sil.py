@@ -1,6 +1,6 @@
 """The filter on the rig's own truth model and IMU emulator (in process, simulated clock): a
 short software-in-the-loop check; the 20-run Monte Carlo is
-``python -m gyrohost.experiments.estimator_sil``."""
+``python -m gyrohost.sil.scoring``."""
 
 from pathlib import Path
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gyrohost.config import load_rig_config
-from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, score_rig_model_run
 from gyrohost.resources import shipped
+from gyrohost.sil.scoring import RIG_MODEL_KEYS, score_rig_model_run
 
 CONFIG = shipped("config", "sim-rig")
 
@@ -26,6 +26,21 @@ def test_filter_tracks_the_rig_truth_model():
         assert 0.3 * dof[0] < np.mean(nis) < 2.0 * dof[0], source
 
 
+def test_filter_follows_the_truth_as_the_run_loop_feeds_it():
+    """The run loop's timing (arrival stamps on the IMU's grid, ticks late, servo reads late):
+    one seed, 3 s. A consistent filter's time-averaged NEES has the dof as its expectation and
+    one seed's spreads by tens of percent around it; a filter the loop's timing breaks runs to
+    many times the dof. 3 x dof tells the two apart on any CPU; the consistency itself is the
+    study's (``python -m studies estimator_effects``)."""
+    from gyrohost.sil.effects import CASES, score_with_effects
+
+    result = score_with_effects(load_rig_config(CONFIG), 1, CASES["loop-fixed"], 3.0)
+    late = result.t_s >= 0.2
+    assert np.all(np.isfinite(result.nees))
+    assert np.mean(result.nees[late]) < 3.0 * result.nees_dof
+    assert np.degrees(np.abs(result.tilt_rad)).max() < 0.3
+
+
 def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     """``[sim.truth] scene`` and ``imu_rotation_deg``: the truth (wheels 30 % heavier) moves
     otherwise than under the host's scene, which the host's commands and model keep; the true
@@ -33,8 +48,8 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     from dataclasses import replace
 
     from gyrohost.config import with_truth_scene
-    from gyrohost.experiments.estimator_sil import rig_model_run
     from gyrohost.geometry import rotation_zyx
+    from gyrohost.sil.scoring import rig_model_run
 
     scene = Path(shipped("scene", "dbar-gyro")).read_text()
     J3 = 1.3 * 0.5 * 0.05 * 0.031**2
@@ -61,7 +76,7 @@ def test_a_schedule_is_played_with_its_wheel_speeds():
     ramp (100 rad/s^2) while the truth's spins follow."""
     from gyrohost.control.schedule import Schedule
     from gyrohost.estimator import streams
-    from gyrohost.experiments.estimator_sil import rig_model_run
+    from gyrohost.sil.scoring import rig_model_run
 
     config = load_rig_config(CONFIG)
     w0 = 74.87462492 * np.array([1.0, -1.0, -1.0, 1.0])
@@ -100,7 +115,7 @@ def test_config_and_file_keys_reach_the_simulated_clock_filter(tmp_path):
     """A configuration's ``[estimator]`` keys override the SIL's own, ``--estimator``'s override
     both: a servo noise of 10 mm (the SIL's: 4.4 um) and an angle noise of 1 rad make their NIS
     vanish in the filter that runs."""
-    from gyrohost.experiments.estimator_sil import sil_keys, sil_results
+    from gyrohost.sil.scoring import sil_keys, sil_results
 
     config = _config_with_keys(tmp_path, "servo_length_std_m = 0.01\nimu_angle_std_rad = 0.5")
     extra = tmp_path / "estimator.toml"
@@ -118,7 +133,7 @@ def test_config_and_file_keys_reach_the_simulated_clock_filter(tmp_path):
 
 def test_a_bad_config_key_names_the_file(tmp_path):
     from gyrohost.estimator.errors import EstimatorConfigError
-    from gyrohost.experiments.estimator_sil import sil_keys
+    from gyrohost.sil.scoring import sil_keys
 
     config = _config_with_keys(tmp_path, "servo_length_sd_m = 0.01")
     with pytest.raises(EstimatorConfigError, match=r"rig\.toml.*servo_length_sd_m"):
@@ -140,8 +155,8 @@ def test_a_real_time_run_whose_filter_diverged_is_scored(tmp_path, monkeypatch, 
     another truth): the SIL scores it, for its NEES is the figure asked for; a run that
     stopped before its schedule ended is an error naming it."""
     import gyrohost.run
-    from gyrohost.experiments.estimator_sil import SilError, record_run
     from gyrohost.run.settings import RunResult
+    from gyrohost.sil.scoring import SilError, record_run
 
     reason = "completed" if completed else "wheel board silent"
     ended = RunResult(completed, reason, 1, tmp_path)

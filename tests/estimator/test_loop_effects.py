@@ -3,7 +3,7 @@ deterministic): IMU samples stamped on arrival break the filter's consistency, t
 reconstructed grid (what the run loop fuses at) restores most of it; servo goals held back to
 the servo worker's next read break it, sent at once they do not, and late servo reads stamped
 when sampled are as good as reads on time. The figures per effect:
-``python -m gyrohost.experiments.estimator_effects`` (docs/estimator.md)."""
+``python -m gyrohost.sil.effects`` (docs/estimator.md)."""
 
 from pathlib import Path
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from gyrohost.config import load_rig_config
-from gyrohost.experiments.estimator_effects import CASES, score_with_effects
 from gyrohost.resources import shipped
+from gyrohost.sil.effects import CASES, score_with_effects
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
 
@@ -78,7 +78,7 @@ def test_gyrotens_sil_takes_the_run_commands_overlay_and_scenes(tmp_path, monkey
     """``--overlay``, ``--scene`` and ``--truth-scene`` build the configuration the SIL runs,
     as ``gyrotens run`` builds it: an identified scene and overlay checked against a truth;
     a missing or broken file is an error line naming it, not a traceback."""
-    import gyrohost.experiments.estimator_sil as sil
+    import gyrohost.sil.scoring as sil
     from gyrohost.cli import main
 
     seen = {}

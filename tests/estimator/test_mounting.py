@@ -126,7 +126,7 @@ def test_mis_identified_mounting_consistent_only_with_its_std(mis_mounted, std_r
     from run_average import inside_bounds
 
     from gyrohost.estimator.consistency import average_bounds
-    from gyrohost.experiments.estimator_sil import (
+    from gyrohost.sil.scoring import (
         RIG_MODEL_KEYS,
         mounting_error,
         score_rig_model_run,

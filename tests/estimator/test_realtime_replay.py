@@ -29,9 +29,9 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.consistency import average_bounds
-from gyrohost.experiments.estimator_sil import score_log
-from gyrohost.experiments.montecarlo import START_SEED_OFFSET, summarise
 from gyrohost.resources import shipped
+from gyrohost.sil.montecarlo import START_SEED_OFFSET, summarise
+from gyrohost.sil.scoring import score_log
 
 DATA = Path(__file__).parent / "data"
 BATCHES = {

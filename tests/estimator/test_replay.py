@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.experiments.synthetic import write_log
 from gyrohost.run.log import read_meta, read_stream
+from gyrohost.sil.synthetic import write_log
 
 
 @pytest.fixture(scope="module")

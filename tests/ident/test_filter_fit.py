@@ -16,16 +16,16 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.experiments.identify_check import (
+from gyrohost.ident import filter_fit
+from gyrohost.ident.fit import FAILED_RESIDUAL
+from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.params import parameters
+from gyrohost.ident.simcheck import (
     errors,
     identify_filter,
     record_log,
     write_rigs,
 )
-from gyrohost.ident import filter_fit
-from gyrohost.ident.fit import FAILED_RESIDUAL
-from gyrohost.ident.forward import IdentDataError
-from gyrohost.ident.params import parameters
 
 SPEED_ERROR_RAD_S = 0.01
 
@@ -109,7 +109,7 @@ from pathlib import Path
 import numpy as np
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
-from gyrohost.experiments.identify_check import record_log, write_rigs
+from gyrohost.ident.simcheck import record_log, write_rigs
 from gyrohost.ident import filter_fit
 from gyrohost.ident.params import parameters
 from gyrotensegrity import load_scene

@@ -60,10 +60,10 @@ def test_a_log_s_reports_are_rendered_with_the_rig_s_servo_response(tmp_path):
     """An in-process recording (servos: a first-order 50 ms lag, read at 25 Hz): the response
     fitted to the reports is the rig's, and the rendered lengths are its commands through it."""
     from gyrohost.config import load_rig_config
-    from gyrohost.experiments.estimator_sil import SERVO_LAG_S
-    from gyrohost.experiments.identify_check import record_log, write_rigs
     from gyrohost.ident.forward import _servo_response
     from gyrohost.ident.logs import load_recording
+    from gyrohost.ident.simcheck import record_log, write_rigs
+    from gyrohost.sil.scoring import SERVO_LAG_S
 
     nominal, truth = write_rigs(tmp_path, 2.5)
     log = record_log(truth, 1, tmp_path / "log")

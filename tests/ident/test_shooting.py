@@ -8,12 +8,12 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.manifold import Manifold
-from gyrohost.experiments.identify_check import FACTORS, MOUNTING_RPY_RAD, record_log, write_rigs
 from gyrohost.ident import forward
 from gyrohost.ident.fit import fit
 from gyrohost.ident.logs import load_recording
 from gyrohost.ident.params import parameters
 from gyrohost.ident.shooting import UNPREDICTABLE, predictable, segment_starts
+from gyrohost.ident.simcheck import FACTORS, MOUNTING_RPY_RAD, record_log, write_rigs
 from gyrohost.rig.truth import rig_scene
 from gyrotensegrity import Model, load_scene
 

@@ -9,7 +9,6 @@ from sim_run import sim_run_log
 
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.imu_model import ImuGeometry
-from gyrohost.experiments.synthetic import write_log
 from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrohost.plots.log import (
     NO_BAND,
@@ -24,6 +23,7 @@ from gyrohost.plots.run_data import RunData, attitude_lines, sensor_axes
 from gyrohost.plots.styles import style
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta
+from gyrohost.sil.synthetic import write_log
 from gyrotensegrity import Model, load_scene
 
 SCHEDULE = """[schedule]

@@ -4,9 +4,9 @@
 import numpy as np
 from scipy.stats import chi2
 
-from gyrohost.experiments.estimator_sil import consistency_series
-from gyrohost.experiments.montecarlo import RunResult
 from gyrohost.plots.consistency import figure_consistency, plot_consistency
+from gyrohost.sil.montecarlo import RunResult
+from gyrohost.sil.scoring import consistency_series
 
 
 def _runs():

@@ -14,9 +14,9 @@ from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.driver import events
 from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.errors import EstimatorError
-from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrohost.resources import shipped
 from gyrohost.run.estimation import EstimatorProcess, EstimatorProcessError, _Filter, start_state
+from gyrohost.sil.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, load_scene
 
 SCENE = shipped("scene", "dbar-gyro")

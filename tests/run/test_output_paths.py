@@ -102,7 +102,7 @@ def test_a_read_only_o_is_one_line_and_nothing_is_written(command, tmp_path):
 
 def _tiny_log(folder: Path) -> Path:
     """A log folder with one IMU row, enough for replay and plot to reach their output."""
-    from gyrohost.experiments.synthetic import write_log
+    from gyrohost.sil.synthetic import write_log
 
     if not folder.exists():
         import numpy as np

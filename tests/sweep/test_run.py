@@ -151,8 +151,8 @@ def test_cli_sweep_runs_serially_and_a_bad_spec_exits_2(spec, tmp_path, capsys):
 
 def test_monte_carlo_runs_the_same_on_dask(cluster):
     from gyrohost.estimator.config import EstimatorConfig
-    from gyrohost.experiments.montecarlo import run_monte_carlo
     from gyrohost.resources import shipped
+    from gyrohost.sil.montecarlo import run_monte_carlo
     from gyrotensegrity import Model, load_scene
 
     model = Model(load_scene(shipped("scene", "dbar-gyro")))

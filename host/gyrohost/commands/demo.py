@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.commands.run import Progress
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.control.presets import paper

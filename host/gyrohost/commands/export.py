@@ -22,7 +22,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.commands.replay import Warnings
     from gyrohost.run.log import LogError, check_output_folder
     from gyrohost.run.mcap import export_mcap

@@ -134,7 +134,7 @@ class FitProgress:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report

@@ -23,7 +23,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import noise

@@ -38,7 +38,7 @@ def _is_log(path: Path) -> bool:
 
 
 def _plot_log(args):
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.commands.replay import Warnings
     from gyrohost.plots.log import plot_log
 
@@ -55,7 +55,7 @@ PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.run.log import LogError, check_output_folder
 
     if not args.file.exists():

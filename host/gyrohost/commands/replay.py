@@ -47,7 +47,7 @@ class Warnings:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.estimator import EstimatorConfigError, EstimatorError, load_config
     from gyrohost.estimator.ekf import Status
     from gyrohost.run.log import LogError

@@ -67,7 +67,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import ConfigError, load_rig_config, with_truth_scene
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.rig.control import control_path, default_ports_file
@@ -182,7 +182,7 @@ def _answers(path: Path) -> bool:
 
 
 def _send(ports_file: Path, line: str) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.rig.control import ControlError, PortsFileError, read_ports_file, send_command
 
     try:

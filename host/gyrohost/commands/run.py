@@ -109,7 +109,7 @@ def planned_maneuver(config, args):
 
 def _what_to_run(config, args):
     """A Schedule (``--schedule``, default the paper preset) or a Maneuver (``--target-tilt``)."""
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
 
     if args.target_tilt is None:
         if args.closed_loop or args.replan_thread:
@@ -177,7 +177,7 @@ class Progress:
 
 
 def _wired(config, args):
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import EMULATED_PORT
     from gyrohost.rig.control import PortsFileError, read_ports_file
     from gyrohost.run import with_ports
@@ -218,7 +218,7 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import load_with_scenes
     from gyrohost.errors import GyrohostError
     from gyrohost.estimator.config import for_rig

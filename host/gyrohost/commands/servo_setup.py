@@ -29,7 +29,7 @@ def register(sub) -> None:
 
 
 def _id_range(text: str) -> range:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
 
     try:
         lo, _, hi = text.partition("-")
@@ -43,7 +43,7 @@ def _id_range(text: str) -> range:
 
 def run_id(args) -> int:
     from gyrohost.bringup.servo_setup import change_id
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.errors import GyrohostError
 
     ids = _id_range(args.scan_ids)
@@ -65,7 +65,7 @@ def run_zero(args) -> int:
     from dataclasses import replace
 
     from gyrohost.bringup.servo_setup import check_sign, read_zero
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.config import load_rig_config
     from gyrohost.errors import GyrohostError
     from gyrohost.resources import resolve

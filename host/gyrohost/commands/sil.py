@@ -4,13 +4,13 @@
 Runs the paper's schedule ``N`` times on the simulated rig (in process on a simulated clock, or
 ``--realtime`` through the run loop) and prints NEES and the NIS of every source against the
 95 % bounds of an N-run average, the share of time steps inside them, tilt and node errors and
-the filter's CPU time (:mod:`gyrohost.experiments.estimator_sil`, docs/estimator.md). The
+the filter's CPU time (:mod:`gyrohost.sil.scoring`, docs/estimator.md). The
 simulated clock's runs go through :mod:`gyrohost.parallel` with ``--workers`` or ``--scheduler``.
 """
 
 
 def register(sub) -> None:
-    from gyrohost.experiments.sil_options import add_arguments
+    from gyrohost.sil.options import add_arguments
 
     p = sub.add_parser("sil", help="estimator consistency on the simulated rig (NEES, NIS)")
     add_arguments(p)
@@ -18,13 +18,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.errors import ConfigError
     from gyrohost.estimator.errors import EstimatorConfigError
-    from gyrohost.experiments.estimator_sil import SilError, report
     from gyrohost.resources import ResourceError
     from gyrohost.run import ScheduleRefused
     from gyrohost.run.log import LogError
+    from gyrohost.sil.scoring import SilError, report
     from gyrotensegrity import SceneError
 
     if args.runs < 1:

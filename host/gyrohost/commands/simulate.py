@@ -51,7 +51,7 @@ class _Progress:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, SimulationError, load_scene, simulate
     from gyrotensegrity.integrators import NAMES

@@ -22,7 +22,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.cli import CliError
+    from gyrohost.commands.errors import CliError
     from gyrohost.parallel import ExecutorError
     from gyrohost.sweep import SpecError, load_spec, run_sweep
     from gyrohost.sweep.plots import goal_score

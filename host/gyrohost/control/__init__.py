@@ -11,7 +11,7 @@ Typical use::
     p.schedule.save("schedules/tilt-0.3.toml")       # gyrotens run --schedule FILE
     u = p.schedule.input_at(model, t)                 # the model's input at t
 
-See ``docs/schedule.md``. ``python -m gyrohost.experiments.control_compare`` prints the SIL figures.
+See ``docs/schedule.md``. ``python -m studies.control_compare`` prints the SIL figures.
 """
 
 from .attitude import Attitude

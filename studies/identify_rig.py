@@ -1,6 +1,6 @@
 """Identification on the real-time simulated rig, end to end, through the commands a lab uses.
 
-``python -m gyrohost.experiments.identify_rig [--seeds 1] [--first-seed 1] [--out DIR]
+``python -m studies.identify_rig [--seeds 1] [--first-seed 1] [--out DIR]
 [--speed-error RAD_S] [--method output|filter] [--workers N] [--lengths servos] [--until S]
 [--segment-s S] [--sil-runs 10] [--steps record,identify,run]``
 
@@ -26,7 +26,7 @@ Per seed (the simulated IMU's noise and biases, the wheels' speed error and the 
 
 It prints each identified figure's error against the truth with its reported 1-sigma (J3,
 stiffness and damping relative, the mounting in degrees; over several seeds, the coverage
-table of :func:`~gyrohost.experiments.identify_check.coverage_lines`), the fit's wall time,
+table of :func:`~gyrohost.ident.simcheck.coverage_lines`), the fit's wall time,
 the exit status of every command, the third command's figures (the NEES with the share of its
 samples inside their own bounds, the NIS against the bounds of the run's average, the tilt's
 error at its end: :func:`estimator_figures`), and the two SILs' NEES, NIS and tilt lines
@@ -44,13 +44,13 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.experiments.identify_check import (
+from gyrohost.ident.report import read_identified
+from gyrohost.ident.simcheck import (
     FACTORS,
     IMU_ROTATION_DEG,
     coverage_lines,
     wheel_speed_error,
 )
-from gyrohost.ident.report import read_identified
 from gyrohost.resources import shipped
 
 J3_NOMINAL = 0.5 * 0.050 * 0.031**2  # the shipped D-bar's wheel disc, kg m^2
@@ -232,7 +232,7 @@ def _steps(text: str) -> tuple[str, ...]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_rig")
+    parser = argparse.ArgumentParser(prog="python -m studies.identify_rig")
     parser.add_argument("--seeds", type=int, default=1)
     parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--out", type=Path, help="keep everything here (default: temporary)")

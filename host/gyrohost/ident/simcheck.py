@@ -1,32 +1,23 @@
-"""Acceptance of identification on the simulated rig's models (simulated clock, in process).
-
-``python -m gyrohost.experiments.identify_check [--seeds 10] [--out DIR]``
+"""Identification against a simulated truth whose errors are known (simulated clock, in process).
 
 A truth that differs from the shipped D-bar: J3 x 1.3, bar mass x 0.8, string stiffness x 1.25,
 damping x 0.7, the IMU mounted (3, -1.7, 1.1) degrees off, written as a scene and a copy of the
 ``sim-rig`` configuration pointing at it. Both scenes play :data:`EXCITATION` on the horizontal
 string (pulls of 2 to 8 cm at 0.05 to 0.12 m/s with rests; the vertical string follows the
-rhombus), recorded by :func:`gyrohost.experiments.estimator_sil.rig_model_run` (the rig's truth,
+rhombus), recorded by :func:`gyrohost.sil.scoring.rig_model_run` (the rig's truth,
 servos, IMU emulator and wheel-board emulator; seed = IMU noise and biases) and written as a run
 log; :func:`identify_log` then fits it from the nominal configuration, string lengths from the
-host's commands. Per seed: every parameter's error against the truth, in its reported 1-sigma;
-the coverage table counts how often ``|error| <= 1 sigma`` (68 % expected) and ``<= 2 sigma``.
-``--with-lag`` fits the servo lag too; ``--duration S`` cuts the excitation short, ``--repeat N``
-plays it N times; ``--speed-error STD`` gives the emulated wheels a speed-loop error (default 0:
-exact); ``--method filter`` fits by the filter's prediction error (:func:`identify_filter`)
-instead of the output error, ``--segment-s S`` fits the output error in segments.
+host's commands; :func:`errors` gives every parameter's error against the truth with its
+reported 1-sigma, and :func:`coverage_lines` counts how often ``|error| <= 1 sigma`` (68 %
+expected) and ``<= 2 sigma``. The tests record their small logs with it; the accuracy study
+(``python -m studies.identify_check``) runs it over seeds.
 """
 
-import argparse
-import sys
-import tempfile
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from gyrohost.commands.identify import at_least_one
 from gyrohost.estimator import streams
 from gyrohost.resources import shipped
 
@@ -126,7 +117,7 @@ def with_true_mounting(config_text: str) -> str:
 def record_log(truth_config: Path, seed: int, folder: Path) -> Path:
     """One run of the truth's scene on the rig's models, written as a run log in ``folder``."""
     from gyrohost.config import load_rig_config
-    from gyrohost.experiments.estimator_sil import rig_model_run
+    from gyrohost.sil.scoring import rig_model_run
     from gyrotensegrity import load_scene
 
     config = load_rig_config(truth_config)
@@ -136,8 +127,8 @@ def record_log(truth_config: Path, seed: int, folder: Path) -> Path:
 
 
 def write_log(data: dict, folder: Path) -> Path:
-    """The streams ``data`` of an in-process run (:func:`.estimator_sil.rig_model_run`) as a run
-    log in ``folder``, its ``lead_in`` phase from 0 to the last IMU sample."""
+    """The streams ``data`` of an in-process run (:func:`gyrohost.sil.scoring.rig_model_run`)
+    as a run log in ``folder``, its ``lead_in`` phase from 0 to the last IMU sample."""
     from gyrohost.run.log import RunLog
 
     with RunLog(folder, {"source": "identify_check"}) as log:
@@ -162,13 +153,13 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | No
     """Fit ``groups`` (less the filter's own states, ``filter_fit.STATE_GROUPS``) to the logs
     from the nominal configuration by the filter's prediction error
     (:mod:`gyrohost.ident.filter_fit`), the filter tuned as the simulated-clock SIL tunes it
-    for the rig models (:data:`.estimator_sil.RIG_MODEL_KEYS`), in ``workers`` processes (None:
-    one per usable core)."""
+    for the rig models (:data:`gyrohost.sil.scoring.RIG_MODEL_KEYS`), in ``workers`` processes
+    (None: one per usable core)."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import config_from_dict, noise_from_rig
-    from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS
     from gyrohost.ident import filter_fit
     from gyrohost.ident.params import parameters
+    from gyrohost.sil.scoring import RIG_MODEL_KEYS
     from gyrotensegrity import load_scene
 
     config = load_rig_config(nominal_config)
@@ -191,10 +182,10 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
     """
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
-    from gyrohost.experiments.estimator_sil import SERVO_LAG_S
     from gyrohost.ident.fit import nominal_lag
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import parameters
+    from gyrohost.sil.scoring import SERVO_LAG_S
     from gyrotensegrity import Model, load_scene
 
     config = load_rig_config(nominal_config)
@@ -246,71 +237,3 @@ def coverage_lines(rows: list[dict], units: str) -> list[str]:
                      f"{np.mean(e <= s):12.0%}{np.mean(e <= 2 * s):12.0%}")  # fmt: skip
     lines.append(f"({units}; expected coverage 68 % and 95 %, {len(rows)} seeds)")
     return lines
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_check")
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--out", type=Path, help="keep the logs here (default: a temporary folder)")
-    parser.add_argument(
-        "--weighed",
-        action="store_true",
-        help="the nominal scene has the true bar mass (weighed) and the fit leaves it",
-    )
-    parser.add_argument("--with-lag", action="store_true", help="fit the servo lag too")
-    parser.add_argument("--duration", type=float, help="s of the excitation (default: all 5.05)")
-    parser.add_argument(
-        "--speed-error", type=float, default=0.0, help="the wheels' speed-loop error, rad/s"
-    )
-    parser.add_argument(
-        "--segment-s", type=float, default=0.0, help="fit in segments of this, s (0: one)"
-    )
-    parser.add_argument(
-        "--repeat", type=int, default=1, help="play the excitation this many times (default 1)"
-    )
-    parser.add_argument(
-        "--method",
-        choices=("output", "filter"),
-        default="output",
-        help="output error (simulation) or the filter's prediction error",
-    )
-    parser.add_argument(
-        "--workers",
-        type=at_least_one,
-        help="processes of the filter's fit (default: one per usable core)",
-    )
-    args = parser.parse_args(argv)
-    groups = [g for g in GROUPS if g != "bar-mass" or not args.weighed]
-    groups += ["servo-lag"] if args.with_lag else []
-    with tempfile.TemporaryDirectory() as tmp:
-        root = args.out or Path(tmp)
-        root.mkdir(parents=True, exist_ok=True)
-        nominal, truth = write_rigs(
-            root,
-            args.duration,
-            weighed=args.weighed,
-            repeat=args.repeat,
-            speed_error_std_rad_s=args.speed_error,
-        )
-        rows = []
-        for seed in range(1, args.seeds + 1):
-            t0 = time.perf_counter()
-            log = record_log(truth, seed, root / f"run{seed:02d}")
-            t1 = time.perf_counter()
-            if args.method == "filter":
-                result = identify_filter(nominal, [log], groups, args.workers)
-            else:
-                result = identify_log(nominal, [log], groups, args.segment_s)
-            rows.append(errors(result, args.weighed))
-            line = "  ".join(f"{k} {100 * e:+.2f}({100 * s:.2f})" for k, (e, s) in rows[-1].items())
-            fit_s = time.perf_counter() - t1
-            print(f"seed {seed}: record {t1 - t0:.1f} s, fit {fit_s:.1f} s ({result.nfev} "
-                  f"evaluations); error(1-sigma) x 100: {line}", flush=True)  # fmt: skip
-    print("\n".join(coverage_lines(rows, "log factors: 0.01 = 1 %; mounting in rad")))
-    flagged = sum(any(k.endswith("| scale") for k in r) for r in rows)
-    print(f"common scale not determined in {flagged} of {len(rows)} seeds")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

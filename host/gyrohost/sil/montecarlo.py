@@ -1,29 +1,25 @@
 """Monte Carlo consistency check of the EKF on synthetic runs (and the lean model's cost).
 
-``python -m gyrohost.experiments.montecarlo [--runs 20] [--duration 3] [--method lean|rk4|both]
-[--serial | --scheduler ADDRESS | --workers N]`` (the runs are cases of :mod:`gyrohost.parallel`:
-a Dask ``LocalCluster`` of this machine's cores by default)
+The runs are cases of :mod:`gyrohost.parallel`; the study ``python -m studies.estimator_montecarlo``
+runs 20 of them per process model.
 
 Each run draws its own truth disturbances, gyro bias, sensor noise and initial estimate error
 (seed = run index), runs the paper's D-bar manoeuvre through the reference model
 (:mod:`.synthetic`) and the filter over the synthetic streams, and records at every IMU sample
-the NEES (on the constraint manifold, :mod:`.consistency`), the NIS of every source, the tilt
-error and the node position error. Printed: averages against the 95 % chi-square bounds of an
-average over the runs, the share of time steps inside them, tilt and position errors, cycle
-time.
+the NEES (on the constraint manifold, :mod:`gyrohost.estimator.consistency`), the NIS of every
+source, the tilt error and the node position error; :func:`summarise` prints the averages
+against the 95 % chi-square bounds of an average over the runs, the share of time steps inside
+them, tilt and position errors, cycle time.
 """
 
-import argparse
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
 
 import numpy as np
 
 from gyrohost import parallel
 from gyrohost.estimator import driver, streams
-from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.consistency import (
     average_bounds,
     block_nees,
@@ -32,9 +28,9 @@ from gyrohost.estimator.consistency import (
     tilt_error,
 )
 from gyrohost.estimator.ekf import TensegrityEKF
-from gyrohost.experiments.synthetic import sensor_streams, simulate_truth
 from gyrohost.resources import shipped
-from gyrotensegrity import Model, load_scene
+from gyrohost.sil.synthetic import sensor_streams, simulate_truth
+from gyrotensegrity import Model
 
 DEFAULT_SCENE = shipped("scene", "dbar-gyro")
 TRUTH_PSD_M2_S3 = 1e-4  # density of the disturbance the synthetic truth carries
@@ -223,26 +219,3 @@ def run_monte_carlo(model, config, runs, duration_s, first_seed=0, executor=None
     task = partial(scene_run, model.scene, config, duration_s)
     seeds = range(first_seed, first_seed + runs)
     return (executor or parallel.Executor(serial=True)).map(task, seeds)
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.montecarlo")
-    parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE)
-    parser.add_argument("--runs", type=int, default=20)
-    parser.add_argument("--duration", type=float, default=3.0, help="s")
-    parser.add_argument("--method", choices=("lean", "rk4", "both"), default="both")
-    parallel.add_arguments(parser)
-    args = parser.parse_args(argv)
-    model = Model(load_scene(args.scene))
-    methods = ("lean", "rk4") if args.method == "both" else (args.method,)
-    with parallel.from_args(args) as executor:
-        for method in methods:
-            cfg = replace(EstimatorConfig(), process_method=method)
-            print(f"--- {args.runs} runs of {args.duration} s, process model {method}")
-            results = run_monte_carlo(model, cfg, args.runs, args.duration, executor=executor)
-            summarise(results, f"[{method}] ")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,6 +1,6 @@
 """A shipped schedule on the acceptance truth, recorded and identified on the simulated clock.
 
-``python -m gyrohost.experiments.identify_preset [--schedule identify] [--seeds 5]
+``python -m studies.identify_preset [--schedule identify] [--seeds 5]
 [--first-seed 1] [--segment-s 4] [--lengths command] [--out DIR]``
 
 The rig of :mod:`.identify_rig` (the host's configuration ``sim-rig`` with the bars weighed; the
@@ -48,10 +48,10 @@ def record(folder: Path, schedule_name: str, seed: int) -> tuple[Path, Path, flo
     """
     from gyrohost.commands.run import load_schedule_arg
     from gyrohost.config import load_rig_config, with_truth_scene
-    from gyrohost.experiments.estimator_sil import rig_model_run
-    from gyrohost.experiments.identify_check import write_log
-    from gyrohost.experiments.identify_rig import write_rig_files
     from gyrohost.geometry import turn_from_first
+    from gyrohost.ident.simcheck import write_log
+    from gyrohost.sil.scoring import rig_model_run
+    from studies.identify_rig import write_rig_files
 
     config_path, truth_path = write_rig_files(folder, seed)
     config = with_truth_scene(load_rig_config(config_path), truth_path)
@@ -93,10 +93,10 @@ def segment_figures(result, scene, config, est, recs) -> list[tuple]:
     list of (start, end, own, cumulative, rms_truth)
         Times in s; ``own`` and ``cumulative`` map parameter name -> 1-sigma (log factor).
     """
-    from gyrohost.experiments.identify_check import FACTORS
     from gyrohost.ident import shooting
     from gyrohost.ident.fit import Problem, anchored
     from gyrohost.ident.params import apply
+    from gyrohost.ident.simcheck import FACTORS
 
     theta = result.theta
     (rec,) = anchored(recs, apply(scene, config, result.params, theta, result.servo_lag_s))
@@ -133,9 +133,9 @@ def _sigmas(J, idx, names) -> dict:
 
 def one_seed(root: Path, schedule: str, seed: int, segment_s: float, commanded: bool) -> dict:
     """Record and identify one seed; the figures of the module docstring."""
-    from gyrohost.experiments.identify_check import errors, fit_inputs
     from gyrohost.ident.fit import fit
     from gyrohost.ident.groups import DEFAULT_GROUPS
+    from gyrohost.ident.simcheck import errors, fit_inputs
 
     folder = root / f"seed{seed}"
     folder.mkdir(parents=True, exist_ok=True)
@@ -176,7 +176,7 @@ def _print(seed: int, out: dict) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_preset")
+    parser = argparse.ArgumentParser(prog="python -m studies.identify_preset")
     parser.add_argument("--schedule", default="identify", help="schedule file or shipped name")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--first-seed", type=int, default=1)

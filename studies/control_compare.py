@@ -1,4 +1,4 @@
-"""``python -m gyrohost.experiments.control_compare``: SIL figures of the tilt maneuver, open
+"""``python -m studies.control_compare``: SIL figures of the tilt maneuver, open
 vs closed loop.
 
 Truth: the scene with every wheel's J_3 scaled by ``--inertia-factor`` (default 1.2, a 20 %
@@ -15,15 +15,13 @@ import numpy as np
 from gyrohost.control.errors import PlanError, ScheduleError
 from gyrohost.control.planner import Planner
 from gyrohost.control.schedule import Limits
-from gyrohost.experiments.control_sil import run_sil, scene_with_wheel_inertia, validate
+from gyrohost.control.sil import run_sil, scene_with_wheel_inertia, validate
 from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene
 
 
 def parse(argv):
-    p = argparse.ArgumentParser(
-        prog="python -m gyrohost.experiments.control_compare", description=__doc__
-    )
+    p = argparse.ArgumentParser(prog="python -m studies.control_compare", description=__doc__)
     p.add_argument("--scene", default=str(shipped("scene", "dbar-gyro")))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")
     p.add_argument("--duration", type=float, default=4.0, help="maneuver length, s")

@@ -1,9 +1,9 @@
 """The real-time run loop's effects on the filter's consistency, one at a time, on the simulated
 clock (deterministic: every delay is drawn from the run's seed).
 
-``python -m gyrohost.experiments.estimator_effects [--runs 3] [--duration 3] [--delay-ms 2]``
+The study ``python -m studies.estimator_effects`` scores each case over seeds.
 
-The in-process SIL (:mod:`.estimator_sil`) hands the filter every sample at its true time, the
+The in-process SIL (:mod:`.scoring`) hands the filter every sample at its true time, the
 wheel board's latest frame at every IMU sample. The run loop (``gyrohost.run``) differs in the
 ways :class:`Effects` names; each can be switched on alone and the runs scored as the SIL
 scores them (NEES over the full state at the filter's time, against the truth interpolated to
@@ -12,7 +12,6 @@ reader thread's wake-up); the loop's ticks are ``10 ms k + Exp(late)`` (its meas
 p99 a few ms on an idle machine, tens of ms under load).
 """
 
-import argparse
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -21,9 +20,8 @@ from gyrohost.estimator import driver, streams
 from gyrohost.estimator.config import EXACT_IMU_TIMES, config_from_dict, noise_from_rig
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
-from gyrohost.experiments.estimator_sil import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
-from gyrohost.experiments.montecarlo import START_SEED_OFFSET, sampled_truth, score_run, summarise
-from gyrohost.experiments.sil_options import DEFAULT_CONFIG
+from gyrohost.sil.montecarlo import START_SEED_OFFSET, sampled_truth, score_run
+from gyrohost.sil.scoring import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
 
 TICK_S = 0.01  # the run loop's period, s
 MIN_DELAY_S = 5e-4  # the smallest arrival delay, s
@@ -193,7 +191,7 @@ def ticked_feed(arrival, ticks, effects: Effects):
 def score_with_effects(
     config, seed, effects: Effects, duration_s=3.0, delay_s=2e-3, late_s=1e-3, overrides=None
 ):
-    """One :func:`.estimator_sil.rig_model_run` handed to the filter as ``effects`` say;
+    """One :func:`.scoring.rig_model_run` handed to the filter as ``effects`` say;
     ``overrides``: estimator keys on top of the case's."""
     rng = np.random.default_rng(seed + 9_000_011)
     ticks = loop_ticks(duration_s, effects, rng, late_s)
@@ -259,47 +257,3 @@ CASES["loop-fixed-rig-noise"] = replace(CASES["loop-fixed"], rig_noise=True)
 CASES["servo-cycle"] = replace(CASES["loop-fixed"], servo_cycle=True)
 CASES["servo-read-arrival"] = replace(CASES["loop-fixed"], servo_read_arrival=True)
 CASES["servo-before"] = replace(CASES["servo-read-arrival"], servo_cycle=True)
-
-
-def _value(text):
-    try:
-        return float(text)
-    except ValueError:
-        return text
-
-
-def main(argv=None) -> int:
-    from gyrohost.config import load_rig_config
-
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_effects")
-    parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--first-seed", type=int, default=1)
-    parser.add_argument("--duration", type=float, default=3.0, help="s")
-    parser.add_argument("--delay-ms", type=float, default=2.0, help="mean arrival delay, ms")
-    parser.add_argument("--late-ms", type=float, default=1.0, help="mean tick lateness, ms")
-    parser.add_argument("--case", choices=sorted(CASES), action="append")
-    parser.add_argument("--key", action="append", default=[], help="estimator KEY=VALUE")
-    args = parser.parse_args(argv)
-    config = load_rig_config(DEFAULT_CONFIG)
-    overrides = {k: _value(v) for k, v in (kv.split("=", 1) for kv in args.key)}
-    for name in args.case or CASES:
-        effects = CASES[name]
-        results = [
-            score_with_effects(
-                config,
-                s,
-                effects,
-                args.duration,
-                1e-3 * args.delay_ms,
-                1e-3 * args.late_ms,
-                overrides,
-            )
-            for s in range(args.first_seed, args.first_seed + args.runs)
-        ]
-        print(f"--- {name}: {effects.label()}; {args.runs} runs")
-        summarise(results, f"[{name}] ")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,9 +1,8 @@
 """Software-in-the-loop Monte Carlo on the simulated rig's models.
 
-``python -m gyrohost.experiments.estimator_sil [--runs 20] [--config FILE] [--realtime]
-[--plot FILE] [--serial | --workers N | --scheduler ADDRESS]``, or ``gyrotens sil`` (same
-options; the simulated clock's runs go through :mod:`gyrohost.parallel` when ``--workers`` or
-``--scheduler`` is given, the real-time ones always one after the other). Besides the printed
+What ``gyrotens sil`` runs (:func:`report`; the simulated clock's runs go through
+:mod:`gyrohost.parallel` when ``--workers`` or ``--scheduler`` is given, the real-time ones
+always one after the other). Besides the printed
 table, the step-by-step figure of NEES and NIS with their bounds
 (:mod:`gyrohost.plots.consistency`) goes to ``--plot``, by default ``OUT/consistency.png``.
 
@@ -29,7 +28,6 @@ grid) and scores the replayed log against its ``truth`` stream (positions, wheel
 lengths: no velocities); on a loaded machine the truth lags by up to 0.2 s, and its stream.
 """
 
-import argparse
 import os
 import select
 import sys
@@ -52,7 +50,9 @@ from gyrohost.estimator.consistency import (
     sample_initial,
     state_of_truth,
 )
-from gyrohost.experiments.montecarlo import (
+from gyrohost.run.log import read_stream
+from gyrohost.run.replay import prepare
+from gyrohost.sil.montecarlo import (
     START_SEED_OFFSET,
     RunResult,
     nees_average,
@@ -61,9 +61,6 @@ from gyrohost.experiments.montecarlo import (
     score_run,
     summarise,
 )
-from gyrohost.experiments.sil_options import add_arguments
-from gyrohost.run.log import read_stream
-from gyrohost.run.replay import prepare
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
@@ -486,14 +483,3 @@ def consistency_series(results):
 
     nees = series("NEES", *nees_average(results))
     return nees, [series(f"NIS {s}", *nis_average(results, s)) for s in results[0].nis]
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_sil")
-    add_arguments(parser)
-    report(parser.parse_args(argv))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

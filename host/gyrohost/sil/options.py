@@ -1,4 +1,4 @@
-"""The options of ``gyrotens sil`` and ``python -m gyrohost.experiments.estimator_sil``.
+"""The options of ``gyrotens sil`` and the studies that score the estimator.
 
 A module of its own that imports neither numpy nor the model, so that registering ``sil`` keeps
 ``gyrotens --help`` fast.

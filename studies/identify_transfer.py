@@ -1,6 +1,6 @@
 """An identified scene on another manoeuvre than the one it was identified from (simulated rig).
 
-``python -m gyrohost.experiments.identify_transfer [--seed 1] [--runs 6] [--duration 3]
+``python -m studies.identify_transfer [--seed 1] [--runs 6] [--duration 3]
 [--out DIR] [--yaw-offsets RAD ...] [--preset]``
 
 The truth of :mod:`.identify_check` (J3 x 1.3, bar mass x 0.8, string stiffness x 1.25, damping
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.experiments.identify_check import (
+from gyrohost.ident.simcheck import (
     GROUPS,
     errors,
     identify_log,
@@ -97,10 +97,10 @@ def identify_preset(folder: Path, seed: int):
     identify`` does: the servos' reports rendered by the commands, 4 s segments, the default
     groups. Returns what :func:`identify` returns; the truth's configuration is written here
     (the host's with the truth's scene and mounting)."""
-    from gyrohost.experiments.identify_check import fit_inputs, with_true_mounting
-    from gyrohost.experiments.identify_preset import record
     from gyrohost.ident.fit import fit
     from gyrohost.ident.groups import DEFAULT_GROUPS
+    from gyrohost.ident.simcheck import fit_inputs, with_true_mounting
+    from studies.identify_preset import record
 
     nominal, log, _ = record(folder, "identify", seed)
     truth = folder / "truth-rig.toml"
@@ -162,7 +162,7 @@ def sil_config(base, host: Rig, truth: Rig):
 def node_tracks(base, host: Rig, scene_path: Path, seed: int, duration_s: float) -> np.ndarray:
     """Node positions of ``scene_path``'s rig model under ``host``'s commands at every truth
     step: shape (k, 3, n), m."""
-    from gyrohost.experiments.estimator_sil import rig_model_run
+    from gyrohost.sil.scoring import rig_model_run
 
     config = sil_config(base, host, Rig("prediction", scene_path, host.mounting_rpy_rad))
     model, _, truth_x, *_ = rig_model_run(config, seed, duration_s)
@@ -189,8 +189,8 @@ def prediction_errors(base, truth: Rig, rigs, seed: int, duration_s: float) -> d
 def filter_figures(base, truth: Rig, host: Rig, runs: int, duration_s: float) -> dict:
     """The SIL's :func:`~.montecarlo.summarise` figures of a filter on ``host``'s scene and
     mounting against ``truth``, ``runs`` seeds from 1."""
-    from gyrohost.experiments.estimator_sil import sil_results
-    from gyrohost.experiments.montecarlo import summarise
+    from gyrohost.sil.montecarlo import summarise
+    from gyrohost.sil.scoring import sil_results
 
     keys = (
         {} if host.mounting_cov_rad2 is None else {"imu_mounting_cov_rad2": host.mounting_cov_rad2}
@@ -223,7 +223,7 @@ def print_tables(prediction: dict, filters: dict) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.identify_transfer")
+    parser = argparse.ArgumentParser(prog="python -m studies.identify_transfer")
     parser.add_argument("--seed", type=int, default=1, help="of the identification run")
     parser.add_argument("--runs", type=int, default=6, help="SIL runs per filter (seeds 1...)")
     parser.add_argument("--duration", type=float, default=3.0, help="of the paper's schedule, s")

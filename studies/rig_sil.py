@@ -1,6 +1,6 @@
 """SIL on the simulated rig with the EKF: open vs closed loop under a wheel-inertia error.
 
-``python -m gyrohost.experiments.rig_sil [--config RIG.toml] [-o DIR] [--thread]`` runs the
+``python -m studies.rig_sil [--config RIG.toml] [-o DIR] [--thread]`` runs the
 maneuver twice on the simulated rig in real time (``gyrotens run --sim --target-tilt``): the
 truth's wheels have ``J_3`` times ``--inertia-scale`` (``[sim.truth] wheel_inertia_scale``),
 the planner and the EKF the nominal scene. Open loop plays the first plan; closed loop
@@ -119,7 +119,7 @@ def main(argv=None) -> int:
     from gyrohost.control.maneuver import Target
     from gyrohost.resources import shipped
 
-    p = argparse.ArgumentParser(prog="python -m gyrohost.experiments.rig_sil", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m studies.rig_sil", description=__doc__)
     p.add_argument("--config", type=Path, default=shipped("config", "sim-rig"))
     p.add_argument("-o", "--out", type=Path, default=Path("out/rig-sil"))
     p.add_argument("--target", type=float, default=-0.3, help="target tilt, rad")

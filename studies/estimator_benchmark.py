@@ -1,6 +1,6 @@
 """Cost of one EKF cycle: predict 10 ms + fuse one IMU sample (rate, specific force, angles).
 
-``python -m gyrohost.experiments.estimator_benchmark`` prints the median and the 90th percentile
+``python -m studies.estimator_benchmark`` prints the median and the 90th percentile
 over a run of cycles on the D-bar during the paper's manoeuvre (IMU samples of the reference
 model), for the lean and the rk4 process models, each with the dynamics' Jacobian by the
 complex step and in closed form (``--jacobian``, default both), with the rest-length jitter
@@ -18,8 +18,8 @@ import numpy as np
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.estimator.imu_model import euler_zyx
-from gyrohost.experiments.synthetic import simulate_truth
 from gyrohost.resources import shipped
+from gyrohost.sil.synthetic import simulate_truth
 from gyrotensegrity import Model, load_scene, rhs
 
 DEFAULT_SCENE = shipped("scene", "dbar-gyro")
@@ -72,7 +72,7 @@ def rhs_time(model, repeats=200):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gyrohost.experiments.estimator_benchmark")
+    parser = argparse.ArgumentParser(prog="python -m studies.estimator_benchmark")
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE)
     parser.add_argument("--cycles", type=int, default=200)
     parser.add_argument(

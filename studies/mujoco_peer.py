@@ -2,8 +2,8 @@
 
 Two modes::
 
-    python -m gyrohost.experiments.mujoco_peer SCENE -o OUT.npz [--duration 1] [--dt 1e-4]
-    python -m gyrohost.experiments.mujoco_peer --compare [--scene dbar-gyro] [--duration 1]
+    python -m studies.mujoco_peer SCENE -o OUT.npz [--duration 1] [--dt 1e-4]
+    python -m studies.mujoco_peer --compare [--scene dbar-gyro] [--duration 1]
 
 The first is the MuJoCo script: it imports MuJoCo, builds the scene as MuJoCo bodies
 (:func:`gyrohost.bench.peers.run_mujoco`, RK4), runs it and writes the primary nodes' positions
@@ -105,9 +105,7 @@ def markdown(r: dict) -> str:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m gyrohost.experiments.mujoco_peer", description=__doc__
-    )
+    p = argparse.ArgumentParser(prog="python -m studies.mujoco_peer", description=__doc__)
     p.add_argument("scene", nargs="?", default="dbar-gyro", help="scene file or shipped name")
     p.add_argument("-o", "--out", type=Path, help="MuJoCo run: node positions (.npz)")
     p.add_argument("--duration", type=float, default=1.0, help="simulated time, s")

@@ -1,0 +1,1 @@
+"""Studies: what measures the product rather than tests it (not in the wheel); ``python -m studies``."""

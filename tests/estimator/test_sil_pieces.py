@@ -1,0 +1,73 @@
+"""The pieces of the SIL that the consistency studies build on, checked exactly: the wait of a
+late command for the truth's next step, the kink weight of the rest-length jitter, the jitter's
+columns through a string near its kink. The Monte Carlo itself (NEES and NIS of 6-20 seeds
+against the bounds of their average, and the share of time steps inside them) is a statistical
+claim and a study: ``python -m studies estimator_sil`` and ``python -m studies
+estimator_effects`` (reports/)."""
+
+import numpy as np
+
+from gyrohost.sil.effects import CASES
+
+
+def test_late_command_wait_is_the_mean_wait_for_the_truths_next_step():
+    from gyrohost.sil.effects import late_command_wait_s, loop_ticks
+
+    step_s, late_s = 0.005, 1e-3
+    ticks = loop_ticks(2000.0, CASES["loop-fixed"], np.random.default_rng(0), late_s)
+    sampled = np.mean(np.ceil(ticks / step_s - 1e-9) * step_s - ticks)
+    assert abs(late_command_wait_s(late_s, step_s) - sampled) < 2e-5
+    assert abs(late_command_wait_s(late_s, step_s) - 4.034e-3) < 1e-6
+
+
+def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():
+    from gyrohost.estimator.kink import kink_weight
+
+    z = np.random.default_rng(0).standard_normal(400_000)
+    for a in (-2.0, -0.7, 0.0, 0.5, 1.5, 4.0):
+        sampled = np.mean((np.maximum(a - z, 0.0) - max(a, 0.0)) ** 2)
+        assert abs(kink_weight(a) - sampled) < 0.01, a
+    assert kink_weight(-8.0) < 1e-12 and abs(kink_weight(8.0) - 1.0) < 1e-12
+
+
+def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(model):
+    from dataclasses import replace
+
+    from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.kink import kink_weight
+    from gyrohost.estimator.layout import from_model_state, layout_of
+    from gyrohost.estimator.process_model import ProcessModel
+
+    q, dt = 2e-10, 0.01
+    pm = ProcessModel(model, replace(EstimatorConfig(), rest_jitter_psd_m2_s=q))
+    L = layout_of(model)
+    x = from_model_state(model, model.initial_state(), model.input_at(0.0))
+    x_next, F = pm.step(x, model.input_at(0.0), dt)
+    assert np.array_equal(pm.noise(dt), pm.noise(dt, F))  # no state: no jitter term
+    G, margin = pm.taut_columns(dt, F, x)
+    # each column: the trapezoid rule dt/2 (b + F b) for b = (0, d acceleration / d rest_i) of
+    # the string held taut, here from central differences of the model's accelerations
+    s, _ = pm.string_lengths(x)
+    n = L.q_dot.stop
+    for i in range(L.n_strings):
+        X = np.tile(x[: L.n_dynamic], (2, 1))
+        X[:, L.rest] = s - 2e-3  # both strings taut
+        X[:, L.rest.start + i] += (-1e-7, 1e-7)
+        acc = pm.derivative(X, model.input_at(0.0))[:, L.q_dot]
+        b = np.zeros(n)
+        b[L.q_dot] = (acc[1] - acc[0]) / 2e-7
+        expected = 0.5 * dt * (b + F[:n, L.q_dot] @ b[L.q_dot])
+        assert np.linalg.norm(G[:, i] - expected) < 1e-6 * np.linalg.norm(expected)
+    added = pm.noise(dt, F, x) - pm.noise(dt)
+    w = kink_weight(margin / np.sqrt(q / dt))
+    assert np.allclose(added[:n, :n], q / dt * (G * w) @ G.T)
+    assert not added[n:].any() and not added[:, n:].any()
+    # at t = 0 both strings sit exactly at their rest length (the kink, slack for the model):
+    # half the taut noise, where the taut-only mapping added nothing
+    assert np.all(np.abs(margin) < 1e-9) and np.allclose(w, 0.5)
+    assert np.abs(added).max() > 0.0
+    # deep slack: nothing added; at the kink half the taut noise
+    x_slack = x.copy()
+    x_slack[L.rest] += 0.01
+    _, F_slack = pm.step(x_slack, model.input_at(0.0), dt)
+    assert np.abs(pm.noise(dt, F_slack, x_slack) - pm.noise(dt)).max() < 1e-30
