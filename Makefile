@@ -2,6 +2,7 @@
 #   make demo   the paper's D-bar experiment end to end, with logs and plots
 #   make test   every test: lint, Python tests, firmware native tests, AVR build, firmware in the loop
 #   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega
+#   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test, bench
 # and live extras (pyproject.toml) beside it.
@@ -14,7 +15,7 @@ EXTRAS  := $(VENV)/.test-extras-stamp
 DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 
-.PHONY: demo test lint pytest firmware setup clean flash
+.PHONY: demo test lint pytest studies-check study firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
 # it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
@@ -24,7 +25,7 @@ FIRMWARE_ELF := firmware/build/avr/wheelboard.elf
 demo: $(DEMODEBS) $(RUNTIME)
 	$(BIN)/gyrotens demo
 
-test: setup lint firmware pytest
+test: setup lint firmware studies-check pytest
 
 setup: $(DEBS) $(EXTRAS)
 
@@ -58,6 +59,14 @@ firmware:
 
 pytest:
 	$(BIN)/pytest
+
+# The tests never import a study; this keeps each one importable and its options parsed.
+studies-check:
+	$(BIN)/python -m studies --check
+
+study: setup
+	@test -n "$(NAME)" || { $(BIN)/python -m studies; echo "usage: make study NAME=... [ARGS=...]" >&2; exit 2; }
+	$(BIN)/python -m studies $(NAME) $(ARGS)
 
 flash:
 	@test -n "$(PORT)" || { echo "usage: make flash PORT=/dev/ttyACM0 ('gyrotens ports' lists them)" >&2; exit 2; }

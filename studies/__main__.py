@@ -1,12 +1,13 @@
 """Run one study and write its dated report: ``python -m studies NAME [ARGS...]``.
 
-``python -m studies`` alone lists the studies with what each measures and how long its last run
-took;
+``python -m studies GROUP`` (``estimator``, ``identification``) runs each study of the group at
+its defaults into one report, the one the docs quote. ``python -m studies`` alone lists the
+studies with what each measures and how long its last run took;
 ``python -m studies --check`` imports every study and parses its ``--help`` (what ``make test``
 runs, so that a study cannot rot unnoticed while the tests never import one).
 
 A study's printed figures go to the terminal and into ``reports/NAME.md`` (``--reports DIR``
-elsewhere), headed by the date, the command, the machine (CPU, Python, numpy and its BLAS) and
+elsewhere), headed by the date, the machine (CPU, Python, numpy and its BLAS), the command and
 the wall time: a figure is worth only as much as the machine and the command that made it.
 """
 
@@ -14,10 +15,11 @@ import argparse
 import contextlib
 import importlib
 import io
+import os
 import platform
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 STUDIES = {
@@ -34,6 +36,16 @@ STUDIES = {
     "mujoco_peer": "the fast path against MuJoCo on the same scene",
 }
 """Study -> what it measures."""
+GROUPS = {
+    "estimator": (
+        "estimator_sil",
+        "estimator_montecarlo",
+        "estimator_effects",
+        "estimator_benchmark",
+    ),
+    "identification": ("identify_check", "identify_rig"),
+}
+"""Reports that gather several studies, each run at its defaults (the docs quote these)."""
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -48,16 +60,14 @@ def machine() -> str:
             if line.startswith("model name"):
                 cpu = line.split(":", 1)[1].strip()
                 break
-    blas = ""
-    with contextlib.suppress(ImportError):
-        from threadpoolctl import threadpool_info
-
-        blas = ", ".join(
-            f"{i.get('internal_api')} {i.get('architecture', '')}".strip()
-            for i in threadpool_info()
-            if i.get("user_api") == "blas"
-        )
-    return f"{cpu}; Python {platform.python_version()}; numpy {np.__version__}; BLAS {blas or '?'}"
+    config = np.show_config(mode="dicts")
+    blas = config["Build Dependencies"]["blas"]
+    core = os.environ.get("OPENBLAS_CORETYPE", "chosen at load")
+    simd = ",".join(config.get("SIMD Extensions", {}).get("found", []))
+    return (
+        f"{cpu}; Python {platform.python_version()}; numpy {np.__version__} (SIMD {simd}); "
+        f"BLAS {blas['name']} {blas.get('version', '')}, OPENBLAS_CORETYPE {core}"
+    )
 
 
 class Tee(io.TextIOBase):
@@ -75,25 +85,39 @@ class Tee(io.TextIOBase):
         self.terminal.flush()
 
 
-def run_study(name: str, argv: list[str], reports: Path) -> int:
-    """Run study ``name`` with ``argv``, write ``reports/NAME.md``; the study's exit status."""
+def run_one(name: str, argv: list[str]) -> tuple[str, float, int]:
+    """Run study ``name`` with ``argv``: its report section, wall time in s and exit status."""
     module = importlib.import_module(f"studies.{name}")
-    start, when = time.perf_counter(), datetime.now(timezone.utc)
+    start = time.perf_counter()
     tee = Tee(sys.stdout)
     with contextlib.redirect_stdout(tee):
         status = module.main(argv)
     wall_s = time.perf_counter() - start
+    command = " ".join(["python -m studies", name, *argv])
+    section = (
+        f"## {name}: {STUDIES[name]}\n\n- command: `{command}`\n"
+        f"- wall time: {wall_s:.0f} s; exit status {status}\n\n"
+        f"{(module.__doc__ or '').strip()}\n\n```\n{tee.lines.getvalue()}```\n"
+    )
+    return section, wall_s, status
+
+
+def run_report(name: str, argv: list[str], reports: Path) -> int:
+    """Run a study, or each study of a group at its defaults, into ``reports/NAME.md``."""
+    members = GROUPS.get(name, (name,))
+    when, runs = datetime.now(UTC), []
+    for member in members:
+        runs.append(run_one(member, argv if member == name else []))
+    wall_s = sum(r[1] for r in runs)
     reports.mkdir(parents=True, exist_ok=True)
     path = reports / f"{name}.md"
-    command = " ".join(["python -m studies", name, *argv])
     path.write_text(
-        f"# {name}: {STUDIES[name]}\n\n"
-        f"- date: {when:%Y-%m-%d %H:%M} UTC\n- command: `{command}`\n"
-        f"- machine: {machine()}\n- wall time: {wall_s:.0f} s; exit status {status}\n\n"
-        f"{(module.__doc__ or '').strip()}\n\n## Output\n\n```\n{tee.lines.getvalue()}```\n"
+        f"# Report: {name}\n\n"
+        f"- date: {when:%Y-%m-%d %H:%M} UTC\n- machine: {machine()}\n"
+        f"- wall time: {wall_s:.0f} s\n\n" + "\n".join(r[0] for r in runs)
     )
     print(f"report: {path} ({wall_s:.0f} s)", file=sys.stderr)
-    return status
+    return max(r[2] for r in runs)
 
 
 def last_run(report: Path) -> str:
@@ -120,24 +144,29 @@ def check() -> int:
             broken.append(f"{name}: {type(exc).__name__}: {exc}")
     for line in broken:
         print(f"studies: {line}", file=sys.stderr)
-    print(f"studies: {len(STUDIES) - len(broken)} passed, {len(broken)} failed")
+    print(f"studies: {len(STUDIES) - len(broken)} of {len(STUDIES)} import and parse their options")
     return 1 if broken else 0
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m studies", description=__doc__.split("\n")[0])
-    parser.add_argument("name", nargs="?", choices=sorted(STUDIES), help="the study to run")
+    names = sorted(STUDIES) + sorted(GROUPS)
+    parser.add_argument("name", nargs="?", choices=names, help="the study or group to run")
     parser.add_argument("args", nargs=argparse.REMAINDER, help="the study's own options")
     parser.add_argument("--check", action="store_true", help="import and --help every study")
-    parser.add_argument("--reports", type=Path, default=ROOT / "reports", help="report folder")
+    parser.add_argument(
+        "--reports", type=Path, default=ROOT / "reports", help="report folder (before NAME)"
+    )
     args = parser.parse_args(argv)
     if args.check:
         return check()
     if args.name is None:
         for name, what in STUDIES.items():
             print(f"{name:22s} {what}; {last_run(args.reports / f'{name}.md')}")
+        for name, members in GROUPS.items():
+            print(f"{name:22s} {', '.join(members)}; {last_run(args.reports / f'{name}.md')}")
         return 0
-    return run_study(args.name, args.args, args.reports)
+    return run_report(args.name, args.args, args.reports)
 
 
 if __name__ == "__main__":
