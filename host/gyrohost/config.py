@@ -31,7 +31,7 @@ def _spec(*, lo=None, hi=None, choices=None, doc: str = "") -> dict:
 
 @dataclass(frozen=True)
 class StreamFaultConfig:
-    """Faults applied to the bytes an emulator sends (see ``gyrohost.rig.faults``)."""
+    """Faults applied to the bytes an emulator sends (see ``gyrohost.simrig.faults``)."""
 
     corrupt_byte_prob: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
     drop_byte_prob: float = field(default=0.0, metadata=_spec(lo=0.0, hi=1.0))
@@ -185,7 +185,7 @@ class TruthConfig:
 
     ``scene``, ``imu_rotation_deg`` and ``servo_zero_offset_rad`` make the truth differ from what
     the host knows (its scene, ``imu.mounting_rpy_rad``, the servos' ``zero_position``), as a real
-    rig differs from its model; ``gyrohost.rig.truth`` applies them.
+    rig differs from its model; ``gyrohost.simrig.truth`` applies them.
     """
 
     dt_s: float = field(default=0.005, metadata=_spec(lo=1e-4, hi=0.02))

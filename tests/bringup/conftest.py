@@ -6,7 +6,7 @@ import pytest
 
 from gyrohost.config import load_rig_config
 from gyrohost.resources import shipped
-from gyrohost.rig.process import RigProcess
+from gyrohost.simrig.process import RigProcess
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ from bringup_rig import config_text
 from gyrohost.cli import main
 from gyrohost.config import ServoConfig
 from gyrohost.drivers.mx12 import Addr
-from gyrohost.rig.servo_emu import Mx12Bus
+from gyrohost.simrig.servo_emu import Mx12Bus
 
 FAST = ["--scan-ids", "1-10", "--reply-timeout", "0.2"]  # a pty shares the CPU
 

@@ -7,7 +7,7 @@ import pytest
 
 from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.consistency import average_bounds, observed_blocks, observed_nees
-from gyrohost.sil.montecarlo import RunResult, summarise
+from gyrohost.sil.montecarlo import ScoredRun, summarise
 
 
 @pytest.fixture()
@@ -55,7 +55,7 @@ def test_each_block_reports_the_steps_it_spends_below_inside_and_above_its_bound
     lo, hi = average_bounds(2, runs)
     # five steps far under the bounds, three at the dof, two far over, in every run
     rest = np.r_[np.zeros(5), np.full(3, 2.0), np.full(2, 10.0 * hi)]
-    run = RunResult(
+    run = ScoredRun(
         t_s=np.linspace(0.0, 0.9, steps),
         nees=np.full(steps, 14.0),
         nees_dof=14,

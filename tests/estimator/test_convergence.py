@@ -3,7 +3,7 @@
 
 import numpy as np
 
-from gyrohost.estimator import TensegrityEKF, driver
+from gyrohost.estimator import TensegrityEKF, sample_feed
 from gyrohost.estimator.consistency import tilt_error
 from gyrohost.sil.montecarlo import run_monte_carlo, summarise
 
@@ -21,7 +21,7 @@ def test_converges_on_synthetic_data(model, config, synthetic):
             bias_err = np.linalg.norm(e.x[L.bias] - truth.x[k, L.bias])
             trace.append((tilt_error(R, truth.R_ws[k]), bias_err))
 
-    driver.run(ekf, data, score)
+    sample_feed.run(ekf, data, score)
     tilt, bias = np.array(trace).T
     assert np.linalg.norm(truth.x[0, L.bias]) > 0.005  # a bias worth estimating (rad/s)
     assert bias[-1] < 0.3 * bias[0]

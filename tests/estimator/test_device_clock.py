@@ -7,7 +7,7 @@ import pytest
 from fake_loop import Ekf, Stream
 
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.estimator.driver import DeviceClock, device_times, wheel_times
+from gyrohost.estimator.sample_feed import DeviceClock, device_times, wheel_times
 from gyrohost.run.dispatch import WheelHandler
 
 OFFSET_S = 12.345  # the board booted this long before the host's clock reads 0 ... less

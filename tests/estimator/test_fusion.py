@@ -95,9 +95,9 @@ def test_estimate_on_manifold_after_every_update(model, config, synthetic):
             cov_err = 0.0  # P is projected by updates; a prediction adds noise everywhere
         checks.append((length_err.max(), rate_err.max(), cov_err))
 
-    from gyrohost.estimator import driver
+    from gyrohost.estimator import sample_feed
 
-    driver.run(ekf, {k: v[:40] for k, v in data.items()}, check)
+    sample_feed.run(ekf, {k: v[:40] for k, v in data.items()}, check)
     worst = np.max(checks, axis=0)
     assert len(checks) > 80
     assert worst[0] < 1e-12 and worst[1] < 1e-12 and worst[2] < 1e-9

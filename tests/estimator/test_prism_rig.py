@@ -9,7 +9,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx
 from gyrohost.resources import shipped
-from gyrohost.rig.truth import Truth, truth_scene
+from gyrohost.simrig.truth import Truth, truth_scene
 from gyrotensegrity.dynamics import evaluate
 
 SPIN_UP_S = 1.2

@@ -55,7 +55,7 @@ def test_replay_errors_are_clear(log, tmp_path, capsys):
 
 
 def test_regular_times_spread_bursts_and_cap_the_delay():
-    from gyrohost.estimator.driver import regular_times
+    from gyrohost.estimator.sample_feed import regular_times
 
     arrival = np.array([0.0, 0.010, 0.035, 0.035, 0.035, 0.050, 0.2])
     t = regular_times(arrival, 0.01, 0.03)
@@ -67,7 +67,7 @@ def test_regular_times_find_the_grid_again_after_a_lost_sample():
     """A sample lost on the way (a corrupt frame) shifts the slots of the next ones a period
     early; within the clock's window the grid is found again, and a burst after a stall of the
     loop (samples late, none lost) is put back on the grid without such a shift."""
-    from gyrohost.estimator.driver import RegularClock, regular_times
+    from gyrohost.estimator.sample_feed import RegularClock, regular_times
 
     rng = np.random.default_rng(3)
     taken = 0.0037 + 0.01 * np.arange(400)

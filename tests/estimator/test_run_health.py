@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from fake_loop import Ekf, Stream
 
-from gyrohost.estimator.driver import RegularClock, regular_times
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.estimator.fusion import Innovation
+from gyrohost.estimator.sample_feed import RegularClock, regular_times
 from gyrohost.run.dispatch import ImuHandler
 from gyrohost.run.health import (
     DIVERGED_NODE_ERROR_M,

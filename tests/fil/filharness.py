@@ -1,4 +1,4 @@
-"""The FIL suite's view of the simavr harness helper, :mod:`gyrohost.rig.simavr`.
+"""The FIL suite's view of the simavr harness helper, :mod:`gyrohost.simrig.simavr`.
 
 Everything (locating the binaries with a clear error, starting the harness, parsing its ``PTY``,
 ``STATS`` and ``FINAL`` lines, stdin commands, shutdown) lives in the package, which the
@@ -14,8 +14,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from gyrohost.rig import simavr
-from gyrohost.rig.simavr import (
+from gyrohost.simrig import simavr
+from gyrohost.simrig.simavr import (
     Harness,
     HarnessError,
     parse_kv,

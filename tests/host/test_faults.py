@@ -1,7 +1,7 @@
 """Byte-stream fault filter: each fault on explicit times, so nothing here depends on the clock."""
 
 from gyrohost.config import StreamFaultConfig
-from gyrohost.rig.faults import FaultFilter
+from gyrohost.simrig.faults import FaultFilter
 
 DATA = bytes(range(20))
 

@@ -10,8 +10,8 @@ import pytest
 from gyrohost.config import ImuConfig, ImuEmuConfig, StreamFaultConfig
 from gyrohost.drivers.imu import Bwt61Driver, ImuConfigError, ImuError, ImuTimeoutError
 from gyrohost.geometry import euler_zyx, rotation_zyx
-from gyrohost.rig.imu_emu import Bwt61Emulator, ImuTruth
 from gyrohost.run.devices import DeviceFault, ImuReader
+from gyrohost.simrig.imu_emu import Bwt61Emulator, ImuTruth
 
 G = 9.80665
 QUIET = ImuEmuConfig(gyro_bias_std_rad_s=0.0, accel_bias_std_m_s2=0.0)

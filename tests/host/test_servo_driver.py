@@ -15,7 +15,7 @@ from gyrohost.drivers.servos import (
     ServoLimitError,
     StringServoBus,
 )
-from gyrohost.rig.servo_emu import Mx12Bus
+from gyrohost.simrig.servo_emu import Mx12Bus
 
 LEFT = ServoConfig(
     name="left", id=1, pulley_radius_m=0.01, zero_position=0, length_at_zero_m=0.30,

@@ -23,8 +23,8 @@ from gyrohost.drivers.mx12 import (
     word_from_int16,
 )
 from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
-from gyrohost.rig.pty_link import PtyDevice
-from gyrohost.rig.servo_emu import EmulatedMx12, Mx12Bus, Packet, PacketCutter, status_packet
+from gyrohost.simrig.pty_link import PtyDevice
+from gyrohost.simrig.servo_emu import EmulatedMx12, Mx12Bus, Packet, PacketCutter, status_packet
 
 SERVO = ServoConfig(name="left", id=3, pulley_radius_m=0.01, length_at_zero_m=0.3, max_length_m=0.6)
 

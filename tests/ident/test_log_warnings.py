@@ -6,8 +6,8 @@ import pytest
 
 from gyrohost.cli import main
 from gyrohost.ident.logs import log_warnings
-from gyrohost.rig.stats import LATE_SHARE_MAX, RigStats
 from gyrohost.run.log import RunLog
+from gyrohost.simrig.stats import LATE_SHARE_MAX, RigStats
 
 
 def write_log(folder, summary, events):

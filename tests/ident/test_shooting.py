@@ -14,7 +14,7 @@ from gyrohost.ident.logs import load_recording
 from gyrohost.ident.params import parameters
 from gyrohost.ident.shooting import UNPREDICTABLE, predictable, segment_starts
 from gyrohost.ident.simcheck import FACTORS, MOUNTING_RPY_RAD, record_log, write_rigs
-from gyrohost.rig.truth import rig_scene
+from gyrohost.simrig.truth import rig_scene
 from gyrotensegrity import Model, load_scene
 
 SERVO_LAG_S = 0.05  # the rig models' servos (identify_check)

@@ -11,7 +11,7 @@ from gyrohost.geometry import euler_zyx, levelling_rotvec, rotation_zyx, turn_fr
 from gyrohost.ident.forward import tilt_error, tilt_std
 from gyrohost.ident.shooting import anchored
 from gyrohost.resources import shipped
-from gyrohost.rig.truth import Truth
+from gyrohost.simrig.truth import Truth
 from gyrotensegrity import load_scene
 
 STD_RAD = 0.005  # the angles' noise in these tests

@@ -5,7 +5,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from gyrohost.plots.consistency import figure_consistency, plot_consistency
-from gyrohost.sil.montecarlo import RunResult
+from gyrohost.sil.montecarlo import ScoredRun
 from gyrohost.sil.scoring import consistency_series
 
 
@@ -15,7 +15,7 @@ def _runs():
     for k in (50, 48, 52):  # runs of unequal length: the average is over the shortest
         t = 0.01 * np.arange(k)
         nis = {"imu_rate": (1.2 + t, rng.chisquare(3, k), np.full(k, 3))}
-        out.append(RunResult(t, rng.chisquare(14, k), 14, t, t, nis, 0.1))
+        out.append(ScoredRun(t, rng.chisquare(14, k), 14, t, t, nis, 0.1))
     return out
 
 

@@ -11,9 +11,9 @@ import pytest
 
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.estimator.driver import events
 from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.errors import EstimatorError
+from gyrohost.estimator.sample_feed import events
 from gyrohost.resources import shipped
 from gyrohost.run.estimation import EstimatorProcess, EstimatorProcessError, _Filter, start_state
 from gyrohost.sil.synthetic import sensor_streams, simulate_truth

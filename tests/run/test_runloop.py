@@ -199,7 +199,7 @@ def test_the_safe_state_goes_on_whatever_the_truth_probe_raises(tmp_path):
 
 
 def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
-    from gyrohost.rig.process import RigProcess, RigProcessError
+    from gyrohost.simrig.process import RigProcess, RigProcessError
 
     with RigProcess(CONFIG) as rig:
         rig._proc.kill()
@@ -229,7 +229,7 @@ def _interrupt(signum, frame):
 def test_ctrl_c_while_the_truth_is_received_never_breaks_the_pipe():
     """An interrupt inside ``recv`` would leave half a message in the pipe and the next read
     would fail (``EOFError: Ran out of input``) although the rig is alive."""
-    from gyrohost.rig.process import RigProcess
+    from gyrohost.simrig.process import RigProcess
 
     previous = signal.signal(signal.SIGINT, _interrupt)
     stop = threading.Event()

@@ -9,10 +9,10 @@ import pytest
 from gyrohost.config import StartCheckConfig, load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.resources import shipped
-from gyrohost.rig.process import RigProcess
 from gyrohost.run import RunLoop, RunSettings, with_ports
 from gyrohost.run.log import read_stream
 from gyrohost.run.start_check import StartState, differences
+from gyrohost.simrig.process import RigProcess
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
 L0 = 0.43105229381822  # both D-bar strings at rest, m

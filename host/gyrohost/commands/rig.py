@@ -1,10 +1,10 @@
 """``gyrotens rig``: serve the simulated rig's three devices on pseudo-terminals in real time.
 
 Prints the device paths (one ``name: path`` line each) and writes them to a ports file
-(``gyrohost.rig.control``; ``gyrotens run --rig PORTSFILE`` reads it), serves until Ctrl-C (or
-SIGTERM, SIGHUP) or ``--duration``, then prints the measured rates per device and the truth step
-timing. Rig commands (``fault imu silence 2``, ``fault wheels reset``, ``fault servos overload 1
-0.5``, ``stats``, ``reset``: the rig back to the scene's initial state, between two runs;
+(``gyrohost.simrig.control_socket``; ``gyrotens run --rig PORTSFILE`` reads it), serves until
+Ctrl-C (or SIGTERM, SIGHUP) or ``--duration``, then prints the measured rates per device and the
+truth step timing. Rig commands (``fault imu silence 2``, ``fault wheels reset``, ``fault servos
+overload 1 0.5``, ``stats``, ``reset``: the rig back to the scene's initial state, between two runs;
 docs/rig.md) arrive on its control socket (``gyrotens rig --send LINE``) and, while the rig is
 the foreground job of an interactive terminal, as lines typed on standard input. Standard input
 is never read otherwise, so ``gyrotens rig &`` keeps serving in the background.
@@ -70,11 +70,11 @@ def run(args) -> int:
     from gyrohost.commands.errors import CliError
     from gyrohost.config import ConfigError, load_rig_config, with_truth_scene
     from gyrohost.resources import ResourceError, resolve
-    from gyrohost.rig.control import control_path, default_ports_file
-    from gyrohost.rig.sim import SimulatedRig
-    from gyrohost.rig.simavr import HarnessError
-    from gyrohost.rig.truth import RigSetupError
     from gyrohost.sigint import InterruptsRaised, signal_name
+    from gyrohost.simrig.control_socket import control_path, default_ports_file
+    from gyrohost.simrig.sim import SimulatedRig
+    from gyrohost.simrig.simavr import HarnessError
+    from gyrohost.simrig.truth import RigSetupError
 
     ports_file = args.ports_file or default_ports_file()
     if args.send is not None:
@@ -129,7 +129,7 @@ def with_firmware_build(config, build_dir: Path):
     """``config`` with ``[sim.wheels] simavr_elf``/``simavr_harness`` of ``build_dir``."""
     from dataclasses import replace
 
-    from gyrohost.rig.simavr import build_binaries
+    from gyrohost.simrig.simavr import build_binaries
 
     elf, harness = build_binaries(build_dir)
     wheels = replace(
@@ -143,7 +143,7 @@ class _Published:
     ports file only if it is still this rig's)."""
 
     def __init__(self, ports_file: Path):
-        from gyrohost.rig.control import ControlServer, control_path
+        from gyrohost.simrig.control_socket import ControlServer, control_path
 
         self.ports_file = ports_file
         self.server = ControlServer(control_path(ports_file))
@@ -152,7 +152,7 @@ class _Published:
 
     def publish(self, paths: dict) -> None:
         """Write the ports file: the rig's device ``paths`` and the control socket."""
-        from gyrohost.rig.control import write_ports_file
+        from gyrohost.simrig.control_socket import write_ports_file
 
         write_ports_file(self.ports_file, paths, self.path)
         self._text = self.ports_file.read_text()
@@ -183,7 +183,12 @@ def _answers(path: Path) -> bool:
 
 def _send(ports_file: Path, line: str) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.rig.control import ControlError, PortsFileError, read_ports_file, send_command
+    from gyrohost.simrig.control_socket import (
+        ControlError,
+        PortsFileError,
+        read_ports_file,
+        send_command,
+    )
 
     try:
         answer = send_command(read_ports_file(ports_file).control, line)
@@ -241,7 +246,7 @@ def _logged_answer(rig, line: str) -> str:
 
 
 def _answer(rig, line: str) -> str:
-    from gyrohost.rig.sim import FaultCommandError
+    from gyrohost.simrig.sim import FaultCommandError
 
     try:
         return rig.command(line)

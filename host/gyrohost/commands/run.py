@@ -179,8 +179,8 @@ class Progress:
 def _wired(config, args):
     from gyrohost.commands.errors import CliError
     from gyrohost.config import EMULATED_PORT
-    from gyrohost.rig.control import PortsFileError, read_ports_file
     from gyrohost.run import with_ports
+    from gyrohost.simrig.control_socket import PortsFileError, read_ports_file
 
     try:
         ports = {} if args.rig is None else dict(read_ports_file(args.rig).devices)

@@ -1,7 +1,7 @@
 """The Dynamixel MX-12W in Protocol 1.0: control table, status error bits and unit conversions.
 
 Shared by the driver (:mod:`gyrohost.drivers.servos`) and the emulator
-(:mod:`gyrohost.rig.servo_emu`), so both read the same table; imports no SDK. The SDK returns raw
+(:mod:`gyrohost.simrig.servo_emu`), so both read the same table; imports no SDK. The SDK returns raw
 unsigned words: positions are 16-bit two's complement, present speed and load are
 sign-magnitude (bit 10 = clockwise = negative here). A string wound on a pulley of radius ``r``
 in multi-turn mode (4096 steps per turn) has length

@@ -128,7 +128,7 @@ class EstimatorConfig:
     # expected force under the rest-length jitter, rest_jitter_psd_m2_s; the jitter noise then
     # carries only its variance about that mean)
     kink_model: str = field(default="sharp", metadata={"choices": ("sharp", "mean")})
-    # IMU attachment (as the rig's truth, gyrohost.rig.truth): body frame from three scene
+    # IMU attachment (as the rig's truth, gyrohost.simrig.truth): body frame from three scene
     # nodes (the rig's default: the D-bar's), sensor axes turned by mounting_rpy, gravity the
     # sensor feels (world frame)
     imu_frame_nodes: tuple[str, str, str] = TruthConfig.imu_frame_nodes

@@ -1,6 +1,6 @@
 """Where the IMU sits on the structure and what it measures (batched, complex-step-safe).
 
-The attachment is the rig's (``gyrohost.rig.truth``): three scene nodes ``imu_frame_nodes =
+The attachment is the rig's (``gyrohost.simrig.truth``): three scene nodes ``imu_frame_nodes =
 [a, b, c]`` give the body frame, ``x`` along a -> b, ``z`` along ``x cross (c - a)``, ``y = z cross
 x``; the IMU point is the midpoint of a and b. The sensor axes are the body axes turned by
 ``imu_mounting_rpy_rad`` (Z-Y-X), corrected by the mounting state ``d_mount`` where the filter has

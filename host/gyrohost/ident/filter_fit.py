@@ -42,7 +42,7 @@ import numpy as np
 from scipy.linalg import LinAlgWarning
 
 from gyrohost.config import RigConfig
-from gyrohost.estimator import driver, streams
+from gyrohost.estimator import sample_feed, streams
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.estimator.errors import EstimatorError
 from gyrohost.geometry import rotation_zyx, turn_from_first
@@ -367,7 +367,7 @@ def _run(model: Model, est: EstimatorConfig, rec: FilterRecording, data: dict):
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", LinAlgWarning)
         try:
-            driver.run(ekf, samples)
+            sample_feed.run(ekf, samples)
         except EstimatorError as exc:
             return out, f"{rec.name}: {exc}"
     return out, None

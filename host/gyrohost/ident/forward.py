@@ -2,7 +2,7 @@
 
 A recording's servo positions (``servos`` stream, plus each servo's zero offset) become the
 wound strings' rest lengths (through the string lag ``servo_lag_s``), its wheel speeds
-(``wheels`` stream) the wheels' spins; the model (:class:`gyrohost.rig.truth.Truth`: the fast
+(``wheels`` stream) the wheels' spins; the model (:class:`gyrohost.simrig.truth.Truth`: the fast
 path, speed-controlled wheels) is stepped from the scene's initial state at the log's first IMU
 sample, and the IMU frame's rate, specific force and attitude are read at every step and
 interpolated to the IMU's time stamps. :func:`sensor_outputs` turns them into what the IMU
@@ -21,7 +21,7 @@ from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
 from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
-from gyrohost.rig.truth import Truth
+from gyrohost.simrig.truth import Truth
 from gyrotensegrity import Scene
 
 WHEEL_SMOOTHING_S = 0.3

@@ -10,7 +10,7 @@ import numpy as np
 from gyrohost.config import RigConfig
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import for_rig
-from gyrohost.estimator.driver import regular_times, wheel_times
+from gyrohost.estimator.sample_feed import regular_times, wheel_times
 from gyrohost.ident.forward import IdentDataError, Recording, recording
 from gyrohost.run.log import LogError, read_meta, read_stream, read_streams
 from gyrohost.run.summary import real_time_lost

@@ -9,7 +9,7 @@ import queue
 
 import numpy as np
 
-from gyrohost.estimator.driver import DeviceClock, RegularClock
+from gyrohost.estimator.sample_feed import DeviceClock, RegularClock
 from gyrohost.run.devices import Sample
 
 
@@ -17,7 +17,7 @@ class ImuHandler:
     """IMU samples (:class:`~gyrohost.drivers.imu.ImuSample`): the ``imu`` stream, fused.
 
     Logged at their arrival stamps; fused at the times of the IMU's own output grid
-    (:class:`~gyrohost.estimator.driver.RegularClock` over every sample, as ``gyrotens replay``
+    (:class:`~gyrohost.estimator.sample_feed.RegularClock` over every sample, as ``gyrotens replay``
     reconstructs them from the log): an arrival stamp carries the serial link's and the reader
     thread's delay, which the filter would take for motion.
 
@@ -46,7 +46,7 @@ class WheelHandler:
     """Wheel-board telemetry: the ``wheels`` stream; the scene's wheels fused.
 
     Logged at their arrival stamps (and the board's ``t_us``); fused at the board's own time
-    put on the host's clock (:class:`~gyrohost.estimator.driver.DeviceClock`, as ``gyrotens
+    put on the host's clock (:class:`~gyrohost.estimator.sample_feed.DeviceClock`, as ``gyrotens
     replay`` does from the log), unless ``wheel_times`` is ``"arrival"``.
 
     Parameters

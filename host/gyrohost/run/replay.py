@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.estimator import driver, streams
+from gyrohost.estimator import sample_feed, streams
 from gyrohost.estimator.config import EstimatorConfig, config_from_dict
 from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
 from gyrohost.estimator.errors import EstimatorConfigError
@@ -156,7 +156,7 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
 
     The filter runs over the span of the run's estimator (the log's ``estimate`` stream; else
     all samples); the IMU samples at the times of the IMU's grid reconstructed from all their
-    arrival stamps (:func:`~gyrohost.estimator.driver.regular_times`), as the run loop fuses
+    arrival stamps (:func:`~gyrohost.estimator.sample_feed.regular_times`), as the run loop fuses
     them. It starts from the scene's initial state with the last
     wheel speeds, servo lengths and command before that time; earlier samples are left out.
 
@@ -220,14 +220,14 @@ def started(model, config: EstimatorConfig, data: dict):
     imu = data[streams.IMU]
     kept = (imu["t_s"] >= t0) & (imu["t_s"] <= t1)
     after[streams.IMU] = imu[kept].copy()
-    after[streams.IMU]["t_s"] = driver.regular_times(
+    after[streams.IMU]["t_s"] = sample_feed.regular_times(
         imu["t_s"], config.imu_period_s, config.imu_max_delay_s
     )[kept]
     if streams.WHEELS in data:  # on the board's clock, as the run loop fused them
         wheels = data[streams.WHEELS]
         kept = (wheels["t_s"] > t0) & (wheels["t_s"] <= t1)
         after[streams.WHEELS] = wheels[kept].copy()
-        after[streams.WHEELS]["t_s"] = driver.wheel_times(wheels, config)[kept]
+        after[streams.WHEELS]["t_s"] = sample_feed.wheel_times(wheels, config)[kept]
     if live is not None:
         after[streams.ESTIMATE] = live
     return ekf, after
@@ -267,7 +267,7 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
     with RunLog(out, out_meta) as run:
         writer = _Writer(run, ekf)
         ekf.log = writer.innovation
-        driver.run(ekf, data, writer.step)
+        sample_feed.run(ekf, data, writer.step)
         summary = {
             "final_status": int(ekf.status),
             "sources": {s: m.counters() for s, m in ekf.monitors.items()},

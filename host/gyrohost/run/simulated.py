@@ -5,10 +5,10 @@ from pathlib import Path
 
 from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Schedule
-from gyrohost.rig.process import RigProcess
 from gyrohost.run.limits import check_schedule
 from gyrohost.run.sequence import RunLoop
 from gyrohost.run.settings import RunResult, RunSettings
+from gyrohost.simrig.process import RigProcess
 
 
 def run_simulated(

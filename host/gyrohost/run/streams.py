@@ -224,7 +224,7 @@ class TruthProbe:
     Parameters
     ----------
     rig : RigProcess
-        Source of :class:`~gyrohost.rig.process.TruthSample` (``truth()``), node and string
+        Source of :class:`~gyrohost.simrig.process.TruthSample` (``truth()``), node and string
         names, wheel count.
     log : RunLog
     tilt : TiltMeter or None

@@ -3,8 +3,8 @@ once it has reached the safe state."""
 
 from dataclasses import asdict
 
-from gyrohost.rig.process import RigProcessError
 from gyrohost.run.ticker import jitter_line
+from gyrohost.simrig.process import RigProcessError
 from gyrotensegrity import __version__
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from gyrohost.estimator import driver, streams
+from gyrohost.estimator import sample_feed, streams
 from gyrohost.estimator.config import EXACT_IMU_TIMES, config_from_dict, noise_from_rig
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
@@ -54,7 +54,7 @@ class Effects:
     """Which of the run loop's ways differ from the in-process SIL (all False: the SIL)."""
 
     imu_arrival: bool = False  # IMU samples stamped on arrival
-    imu_regrid: bool = False  # ...and put back on the IMU's 10 ms grid (driver.regular_times)
+    imu_regrid: bool = False  # ...and put back on the IMU's 10 ms grid (sample_feed.regular_times)
     wheel_frames: bool = False  # every telemetry frame, stamped on arrival, 4 newest per tick
     wheel_clock: bool = False  # ...stamped by the board's clock, the newest one per tick
     late_ticks: bool = False  # ticks late as the loop's: commands sent then, the filter told
@@ -105,7 +105,7 @@ def loop_streams(data, frames, effects: Effects, rng, delay_s: float):
         arrival[streams.IMU] = imu_t + MIN_DELAY_S + rng.exponential(delay_s, len(imu_t))
         stamps = arrival[streams.IMU]
         if effects.imu_regrid:
-            stamps = driver.regular_times(stamps, TICK_S, 0.03)
+            stamps = sample_feed.regular_times(stamps, TICK_S, 0.03)
         out[streams.IMU] = _with_times(data[streams.IMU], stamps)
     if effects.wheel_frames:
         w = _wheel_frames(frames, len(frames[0]) - 1)
@@ -178,11 +178,11 @@ def ticked_feed(arrival, ticks, effects: Effects):
             prev = tick
             command = part.pop(streams.COMMAND, None)
             if part:
-                driver.run(ekf, part, on_step)
+                sample_feed.run(ekf, part, on_step)
             if command is not None:
                 if effects.command_at_last_sample:
                     command = _with_times(command, np.full(len(command), max(ekf.t, 0.0)))
-                driver.run(ekf, {streams.COMMAND: command}, on_step)
+                sample_feed.run(ekf, {streams.COMMAND: command}, on_step)
             ekf.advance(max(tick, ekf.t))  # the loop's estimate at every tick
 
     return feed

@@ -19,7 +19,7 @@ from functools import partial
 import numpy as np
 
 from gyrohost import parallel
-from gyrohost.estimator import driver, streams
+from gyrohost.estimator import sample_feed, streams
 from gyrohost.estimator.consistency import (
     average_bounds,
     block_nees,
@@ -40,7 +40,7 @@ the truth's and the sensors' noise of the same seed."""
 
 
 @dataclass
-class RunResult:
+class ScoredRun:
     """Per IMU sample of one run: t_s, nees (with nees_dof), tilt_rad, position_m (RMS node
     error of the eta2 coordinates); nis: source -> (times, values, dof); cpu_s: filter CPU time;
     blocks: block -> (values, dof), the marginal NEES of every block of the state
@@ -57,7 +57,7 @@ class RunResult:
     blocks: dict = field(default_factory=dict)
 
 
-def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run, blocks_of=block_nees):
+def score_run(ekf, data, truth_at, nees_of=nees, feed=sample_feed.run, blocks_of=block_nees):
     """Run ``ekf`` over the streams ``data`` and score every IMU sample.
 
     Parameters
@@ -66,7 +66,7 @@ def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run, blocks_of=bloc
         The true filter state and sensor axes at the filter's time.
     nees_of : callable(ekf, x_true) -> (value, dof)
     feed : callable(ekf, data, on_step)
-        What hands the samples to the filter (:func:`gyrohost.estimator.driver.run`: all in
+        What hands the samples to the filter (:func:`gyrohost.estimator.sample_feed.run`: all in
         time order).
     blocks_of : callable(ekf, x_true) -> dict of (value, dof), or None
         The marginal NEES of the state's blocks (None: not scored).
@@ -92,7 +92,7 @@ def score_run(ekf, data, truth_at, nees_of=nees, feed=driver.run, blocks_of=bloc
     t, v, dof, tilt, pos = (np.array(c) for c in zip(*rows, strict=True))
     nis_out = {s: tuple(np.array(c) for c in zip(*vals, strict=True)) for s, vals in nis.items()}
     blocks = {name: (np.array(v), d) for name, (v, d) in blocks.items()}
-    return RunResult(t - t[0], v, int(dof[0]), tilt, pos, nis_out, cpu, blocks)
+    return ScoredRun(t - t[0], v, int(dof[0]), tilt, pos, nis_out, cpu, blocks)
 
 
 def sampled_truth(x, R, dt_s=0.01):

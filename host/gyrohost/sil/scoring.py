@@ -7,7 +7,7 @@ table, the step-by-step figure of NEES and NIS with their bounds
 (:mod:`gyrohost.plots.consistency`) goes to ``--plot``, by default ``OUT/consistency.png``.
 
 In process, on a simulated clock (deterministic timing): the rig's truth model
-(:class:`gyrohost.rig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
+(:class:`gyrohost.simrig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
 and finite-difference rate, gravity felt by the IMU) stepped at its ``dt_s`` under the scene's
 rest-length schedule; the servos follow the command with a first-order lag (``SERVO_LAG_S``)
 and report quantised positions through their calibration; the IMU samples go through the rig's
@@ -54,7 +54,7 @@ from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
 from gyrohost.sil.montecarlo import (
     START_SEED_OFFSET,
-    RunResult,
+    ScoredRun,
     nees_average,
     nis_average,
     sampled_truth,
@@ -135,7 +135,7 @@ def _truth_at(truth, t, columns):
     return np.array([np.interp(t, truth["t_s"], truth[c]) for c in columns])
 
 
-def score_log(folder, estimator=None, config=None, start_seed=None) -> RunResult:
+def score_log(folder, estimator=None, config=None, start_seed=None) -> ScoredRun:
     """Replay a simulated-rig log and score it against its ``truth`` stream (positions, wheel
     speeds and rest lengths: NEES over those, the positions in the tangent space of the bar
     lengths; the velocity entries of ``x_true`` are the estimate's own); ``estimator``: a TOML
@@ -198,8 +198,8 @@ def rig_model_run(
         time (its clock less its time at t = 0), s, and the speeds, rad/s
     dt_s : float, the truth's step, s
     """
-    from gyrohost.rig.imu_emu import Bwt61Emulator
-    from gyrohost.rig.truth import Truth, truth_scene
+    from gyrohost.simrig.imu_emu import Bwt61Emulator
+    from gyrohost.simrig.truth import Truth, truth_scene
     from gyrotensegrity import Model, load_scene
 
     config = seeded(config, seed)
@@ -323,7 +323,7 @@ class _WheelBoard:
 
     def __init__(self, wheels, spins, rng):
         from gyrohost.drivers import wheelproto as wp
-        from gyrohost.rig.wheel_emu import WheelBoardEmulator
+        from gyrohost.simrig.wheel_emu import WheelBoardEmulator
 
         self.wp = wp
         self.sign = np.array(wheels.spin_sign[: len(spins)], float)
@@ -379,7 +379,7 @@ class _WheelBoard:
         self.dev.close()
 
 
-def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> RunResult:
+def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> ScoredRun:
     """Filter one :func:`rig_model_run` and score it against its truth; ``overrides``: estimator
     keys on top of :func:`.config.noise_from_rig`."""
     from gyrohost.estimator.config import config_from_dict, noise_from_rig
@@ -411,7 +411,7 @@ def mounting_error(config, est_cfg) -> np.ndarray:
     """The simulated IMU's true mounting (``[imu] mounting_rpy_rad`` turned by ``[sim.truth]
     imu_rotation_deg``) less the filter's ``imu_mounting_rpy_rad``: roll, pitch, yaw (3,), rad."""
     from gyrohost.geometry import euler_zyx, wrap_angle
-    from gyrohost.rig.imu_emu import sensor_in_body
+    from gyrohost.simrig.imu_emu import sensor_in_body
 
     true = sensor_in_body(config.imu.mounting_rpy_rad, config.sim.truth.imu_rotation_deg)
     return wrap_angle(euler_zyx(true) - np.asarray(est_cfg.imu_mounting_rpy_rad))
@@ -434,7 +434,7 @@ def sil_results(
     (``score_only``: score logs already there) and scored from their logs; ``estimator``: a
     TOML file whose ``[estimator]`` keys the runs use (simulated clock: over :func:`sil_keys`;
     ``score_only``: the replays); ``keys``: estimator keys over those (simulated clock).
-    Returns the :class:`RunResult` list."""
+    Returns the :class:`ScoredRun` list."""
     if not realtime:
         overrides = {**sil_keys(config, estimator), **(keys or {})}
         task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=overrides)

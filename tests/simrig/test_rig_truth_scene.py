@@ -12,10 +12,10 @@ from gyrohost.config import TruthConfig, load_rig_config, with_truth_scene
 from gyrohost.control import load_schedule
 from gyrohost.drivers.imu import RATE_SCALE_RAD_S
 from gyrohost.resources import resolve, shipped
-from gyrohost.rig.imu_emu import Bwt61Emulator, ImuTruth
-from gyrohost.rig.sim import SimulatedRig
-from gyrohost.rig.truth import RigSetupError, Truth, truth_scene
 from gyrohost.run.limits import check_schedule
+from gyrohost.simrig.imu_emu import Bwt61Emulator, ImuTruth
+from gyrohost.simrig.sim import SimulatedRig
+from gyrohost.simrig.truth import RigSetupError, Truth, truth_scene
 from gyrotensegrity import Model, load_scene
 
 SIM_RIG = load_rig_config(shipped("config", "sim-rig"))

@@ -2,7 +2,8 @@
 
 The emulator owns the master side of a pty; the driver under test opens ``slave_path`` like any
 serial port (pyserial or dynamixel-sdk). A pty ignores baud rate and latency, so delays and faults
-are injected on purpose by a :class:`~gyrohost.rig.faults.FaultFilter` on the emulator's write side.
+are injected on purpose by a :class:`~gyrohost.simrig.faults.FaultFilter` on the emulator's write
+side.
 
 An emulator subclasses :class:`PtyDevice` and implements ``handle_rx`` (bytes the driver sent) and
 ``tick`` (periodic work such as emitting samples or moving a servo). It runs either in a background
@@ -19,7 +20,7 @@ import time
 import tty
 
 from gyrohost.errors import GyrohostError
-from gyrohost.rig.faults import FaultFilter
+from gyrohost.simrig.faults import FaultFilter
 
 SWITCH_INTERVAL_S = 0.0005
 """GIL switch interval set while an emulator thread runs, s (see :meth:`PtyDevice.start`)."""

@@ -42,8 +42,8 @@ from gyrohost.drivers.mx12 import (
     steps_to_length,
     word_from_int16,
 )
-from gyrohost.rig.faults import FaultFilter
-from gyrohost.rig.pty_link import PtyDevice
+from gyrohost.simrig.faults import FaultFilter
+from gyrohost.simrig.pty_link import PtyDevice
 
 TABLE_SIZE = 74
 BROADCAST_ID = 0xFE

@@ -23,7 +23,7 @@ nodes, bars, strings and wheels, by name, joining the same nodes), so the device
 positive towards increasing position steps) from its calibrated ``zero_position``: the truth's
 string is ``length_sign * pulley_radius_m * offset`` shorter than the calibration says.
 
-The IMU frame (body axes of :class:`~gyrohost.rig.imu_emu.ImuTruth`) is attached to the structure
+The IMU frame (body axes of :class:`~gyrohost.simrig.imu_emu.ImuTruth`) is attached to the structure
 by three scene nodes ``imu_frame_nodes = [a, b, c]``: x along a -> b, z along x cross (c - a) (the
 normal of the plane of a, b, c), y = z cross x; its origin, where the specific force is taken, is
 the midpoint of a and b. For the D-bar (``["n1", "n3", "n2"]``) that is the centre of the rhombus,
@@ -45,7 +45,7 @@ import numpy as np
 
 from gyrohost.config import RigConfig, ServoConfig, TruthConfig
 from gyrohost.errors import GyrohostError
-from gyrohost.rig.imu_emu import MAX_BACKLOG_S, ImuTruth
+from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
 from gyrotensegrity.schedule import constant

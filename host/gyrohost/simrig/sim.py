@@ -1,6 +1,6 @@
 """The simulated rig: truth model and the three device emulators, served by one thread.
 
-One loop thread owns everything: it steps the truth (:class:`~gyrohost.rig.truth.Truth`) with
+One loop thread owns everything: it steps the truth (:class:`~gyrohost.simrig.truth.Truth`) with
 the emulated servos' string lengths and the emulated wheel board's true speeds, hands the string
 tensions back to the servos, polls the three emulators (input, ticks, output) and applies timed
 faults. The drivers open :attr:`SimulatedRig.paths` exactly as they open hardware.
@@ -32,12 +32,12 @@ import numpy as np
 
 from gyrohost.config import WHEEL_KINDS, RigConfig
 from gyrohost.errors import GyrohostError
-from gyrohost.rig import simavr
-from gyrohost.rig.imu_emu import Bwt61Emulator
-from gyrohost.rig.servo_emu import Mx12Bus
-from gyrohost.rig.stats import RigStats
-from gyrohost.rig.truth import RigSetupError, Truth, TruthRecord, truth_scene
-from gyrohost.rig.wheel_emu import WheelBoardEmulator
+from gyrohost.simrig import simavr
+from gyrohost.simrig.imu_emu import Bwt61Emulator
+from gyrohost.simrig.servo_emu import Mx12Bus
+from gyrohost.simrig.stats import RigStats
+from gyrohost.simrig.truth import RigSetupError, Truth, TruthRecord, truth_scene
+from gyrohost.simrig.wheel_emu import WheelBoardEmulator
 
 DEVICES = ("imu", "wheels", "servos")
 IDLE_WAIT_S = 0.001
@@ -71,7 +71,7 @@ class SimulatedRig:
         ``[sim.truth] scene`` instead when the configuration sets one (checked against this).
     wheels : {"emulator", "simavr"}, optional
         Wheel board: the Python emulator, or the real firmware in the simavr harness (its own
-        pty, paced to wall time; :mod:`gyrohost.rig.simavr`). The configuration's
+        pty, paced to wall time; :mod:`gyrohost.simrig.simavr`). The configuration's
         ``[sim.wheels] kind`` when omitted.
 
     Examples

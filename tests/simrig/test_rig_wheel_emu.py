@@ -11,7 +11,7 @@ import pytest
 from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelboard as wb
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.rig.wheel_emu import STOP_RAD_S, WheelBoardEmulator
+from gyrohost.simrig.wheel_emu import STOP_RAD_S, WheelBoardEmulator
 
 SPIN = 74.87462492  # rad/s, 715 rpm
 PATTERN = [SPIN, -SPIN, -SPIN, SPIN]

@@ -9,7 +9,7 @@ import pytest
 from gyrohost.config import ServoConfig, TruthConfig
 from gyrohost.geometry import rotation_zyx
 from gyrohost.resources import shipped
-from gyrohost.rig.truth import RigSetupError, Truth, rig_scene
+from gyrohost.simrig.truth import RigSetupError, Truth, rig_scene
 from gyrotensegrity import Model, SimulationError, Stepper, load_scene
 from gyrotensegrity.diagnostics import highest_frequency
 from gyrotensegrity.simulate import RK4_STABLE
@@ -100,7 +100,7 @@ def test_imu_truth_between_steps_is_the_motion_then():
 
 
 def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth():
-    from gyrohost.rig.imu_emu import TRUTH_WAIT_S, Bwt61Emulator
+    from gyrohost.simrig.imu_emu import TRUTH_WAIT_S, Bwt61Emulator
 
     asked, known = [], {"until": 0.005}
     emu = Bwt61Emulator(
@@ -125,7 +125,7 @@ def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth():
 def test_a_stalled_imu_emulator_sends_the_missed_samples_and_keeps_its_grid():
     """A rig loop held up sends the samples of the stall late, together, each showing its grid
     time (the host fuses them there); a stall past the backlog loses samples, not the phase."""
-    from gyrohost.rig.imu_emu import MAX_BACKLOG_S, Bwt61Emulator
+    from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, Bwt61Emulator
 
     asked = []
     emu = Bwt61Emulator(

@@ -10,7 +10,7 @@ import pytest
 from rig_host import exercise, start_rig
 
 from gyrohost.cli import main
-from gyrohost.rig.control import default_ports_file, read_ports_file, send_command
+from gyrohost.simrig.control_socket import default_ports_file, read_ports_file, send_command
 
 DURATION_S = 6.0
 

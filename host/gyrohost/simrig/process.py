@@ -70,7 +70,7 @@ class TruthSample:
 
 
 class RigProcess:
-    """A :class:`~gyrohost.rig.sim.SimulatedRig` (real clock) served by a child process.
+    """A :class:`~gyrohost.simrig.sim.SimulatedRig` (real clock) served by a child process.
 
     Parameters
     ----------
@@ -196,7 +196,7 @@ class RigProcess:
 
 def _serve(conn, config, period_s: float) -> None:
     """Child process: build and start the rig, stream the truth, answer requests."""
-    from gyrohost.rig.sim import SimulatedRig
+    from gyrohost.simrig.sim import SimulatedRig
 
     ignore_interrupts()  # Ctrl-C, SIGTERM, SIGHUP are the parent's: it still needs the rig
     try:
@@ -212,7 +212,7 @@ def _serve(conn, config, period_s: float) -> None:
 
 def _start_and_serve(conn, rig, period_s: float) -> None:
     """Start the built rig, report ready, then stream its truth and answer requests."""
-    from gyrohost.rig.sim import FaultCommandError
+    from gyrohost.simrig.sim import FaultCommandError
 
     try:
         t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)

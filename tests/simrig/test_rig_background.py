@@ -22,7 +22,8 @@ from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.plots.log import RunData, plot_compare, plot_node_z
 from gyrohost.resources import shipped
-from gyrohost.rig.control import (
+from gyrohost.run.log import read_meta
+from gyrohost.simrig.control_socket import (
     ControlError,
     ControlServer,
     control_path,
@@ -30,7 +31,6 @@ from gyrohost.rig.control import (
     send_command,
     write_ports_file,
 )
-from gyrohost.run.log import read_meta
 from gyrotensegrity import load_scene
 
 

@@ -47,8 +47,8 @@ import random
 
 from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.rig.faults import FaultFilter
-from gyrohost.rig.pty_link import PtyDevice
+from gyrohost.simrig.faults import FaultFilter
+from gyrohost.simrig.pty_link import PtyDevice
 
 FW_MAJOR, FW_MINOR = 1, 0
 SAVE_TICKS = 300

@@ -32,8 +32,8 @@ from gyrohost.drivers.imu import (
     encode_frame,
 )
 from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
-from gyrohost.rig.faults import FaultFilter
-from gyrohost.rig.pty_link import PtyDevice
+from gyrohost.simrig.faults import FaultFilter
+from gyrohost.simrig.pty_link import PtyDevice
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,9 @@ from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.resources import shipped
-from gyrohost.rig import simavr
-from gyrohost.rig.sim import FaultCommandError, SimulatedRig
-from gyrohost.rig.truth import RigSetupError
+from gyrohost.simrig import simavr
+from gyrohost.simrig.sim import FaultCommandError, SimulatedRig
+from gyrohost.simrig.truth import RigSetupError
 
 pytestmark = pytest.mark.fil
 

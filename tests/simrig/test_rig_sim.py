@@ -12,7 +12,7 @@ from gyrohost.drivers import wheelboard as wb
 from gyrohost.drivers.imu import Bwt61Driver, ImuTimeoutError
 from gyrohost.drivers.mx12 import steps_per_metre
 from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
-from gyrohost.rig.sim import FaultCommandError, RigError, SimulatedRig
+from gyrohost.simrig.sim import FaultCommandError, RigError, SimulatedRig
 
 SPIN = 74.87462492
 L0 = 0.43105229381822  # both D-bar strings at t = 0, m

@@ -7,7 +7,7 @@ from gyrohost.cli import main
 from gyrohost.commands.rig import with_firmware_build
 from gyrohost.config import load_rig_config
 from gyrohost.resources import shipped
-from gyrohost.rig import simavr
+from gyrohost.simrig import simavr
 
 
 def fake_build(root):
