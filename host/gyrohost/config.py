@@ -179,6 +179,11 @@ class WheelEmuConfig:
         return []
 
 
+IMU_FRAME_NODES = ("n1", "n3", "n2")
+"""Where the D-bar's IMU sits: the three scene nodes of its frame (x along n1 -> n3, z along x
+cross (n2 - n1)); the default of the rig's truth and of the estimator alike."""
+
+
 @dataclass(frozen=True)
 class TruthConfig:
     """The rig's truth model: step, IMU attachment and deliberate model mismatch.
@@ -189,7 +194,7 @@ class TruthConfig:
     """
 
     dt_s: float = field(default=0.005, metadata=_spec(lo=1e-4, hi=0.02))
-    imu_frame_nodes: tuple[str, str, str] = ("n1", "n3", "n2")
+    imu_frame_nodes: tuple[str, str, str] = IMU_FRAME_NODES
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
     wheel_inertia_scale: float = field(default=1.0, metadata=_spec(lo=0.1, hi=10.0))
     servo_lag_s: float = field(default=0.0, metadata=_spec(lo=0.0, hi=10.0))

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-from gyrohost.config import LOOP_RATE_HZ, TruthConfig
+from gyrohost.config import IMU_FRAME_NODES, LOOP_RATE_HZ
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.mx12 import steps_per_metre
 from gyrotensegrity.textfile import read_toml
@@ -131,7 +131,7 @@ class EstimatorConfig:
     # IMU attachment (as the rig's truth, gyrohost.simrig.truth): body frame from three scene
     # nodes (the rig's default: the D-bar's), sensor axes turned by mounting_rpy, gravity the
     # sensor feels (world frame)
-    imu_frame_nodes: tuple[str, str, str] = TruthConfig.imu_frame_nodes
+    imu_frame_nodes: tuple[str, str, str] = IMU_FRAME_NODES
     imu_mounting_rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     # how well imu_mounting_rpy_rad is known (1-sigma of roll, pitch, yaw, or their full
     # covariance, e.g. from gyrotens identify): nonzero makes the error of the three angles a
