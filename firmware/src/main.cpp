@@ -112,8 +112,8 @@ int main() {
 
         board_enc_io io;
         // Measured step (make -C firmware cycles: 4 wheels closed loop at 715 rpm, encoder reads
-        // included): docs/hardware.md, "Control-step cycles", has the figures and how each
-        // change to the step moved them.
+        // included): docs/hardware.md, "Control-step cycles", has the figures;
+        // reports/firmware-timing.md how each change to the step moved them.
         BOARD_CYCLE_MARK = 1;
         app_control_step_io(&g_app, io);
         BOARD_CYCLE_MARK = 0;

@@ -32,7 +32,8 @@ SPEED_ERROR_RAD_S = 0.01
 
 def test_j3_and_mounting_within_the_acceptance_where_the_wheels_err(tmp_path):
     """The output-error fit misses J3 by 3 to 6 % and the mounting by degrees on such logs
-    (docs/identification.md); the filter follows the roll mode the wheels' error seeds."""
+    (reports/identification-history.md); the filter follows the roll mode the wheels' error
+    seeds."""
     nominal, truth = write_rigs(
         tmp_path, 3.5, weighed=True, speed_error_std_rad_s=SPEED_ERROR_RAD_S
     )

@@ -49,7 +49,7 @@ def test_weighed_bars_j3_and_mounting_within_the_acceptance(tmp_path):
     """Bars weighed (the nominal scene has their true mass), 3.5 s of log: J3 within 3 % and the
     mounting within 0.3 degrees (10 seeds of 10 in identify_check); stiffness and damping closer
     to the truth than the nominal (their 10 % target holds for 5 of 10 seeds at 3.5 s, so it is
-    not asserted here: docs/identification.md)."""
+    not asserted here: reports/identification-history.md)."""
     nominal, truth = write_rigs(tmp_path, ACCEPTANCE_S, weighed=True)
     log = record_log(truth, 1, tmp_path / "log")
     groups = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")

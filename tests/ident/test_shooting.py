@@ -69,7 +69,7 @@ def test_segments_continue_the_truth_and_start_on_the_manifold(tmp_path):
 
 def test_multiple_shooting_fits_past_the_roll_over_where_single_shooting_does_not(tmp_path):
     """12 s of the excitation played twice and more (bars weighed): the truth rolls over about
-    8 s in, after which no prediction follows the recording (docs/identification.md). One
+    8 s in, after which no prediction follows the recording (reports/identification-history.md). One
     simulation of the whole window is dragged off by it; 4 s segments from the IMU leave the
     segment past the roll-over out and find J3 within 3 %."""
     nominal, truth = write_rigs(tmp_path, 12.0, weighed=True, repeat=3)

@@ -1,9 +1,10 @@
 """``gyrotens bench [--quick] [-o DIR]``: speed against accuracy, peers, scaling, extremes.
 
-Writes DIR/report.md, DIR/bench.json and the plots. ``--quick`` is the smoke version (small
-grids, short runs; under 2 minutes on 2 cores); the full run is what docs/performance.md
-carries. Everything runs serially in this process (timings must not share cores) unless
-``--workers N`` or ``--scheduler ADDRESS`` sends the extremes' cells to Dask (docs/sweeps.md).
+Writes DIR/report.md, DIR/bench.json and the plots. ``--quick`` is the smoke version (small grids,
+short runs; under 2 minutes on 2 cores); the full run is what reports/model-performance.md carries
+(its headline figures in docs/performance.md). Everything runs serially in this process (timings
+must not share cores) unless ``--workers N`` or ``--scheduler ADDRESS`` sends the extremes' cells to
+Dask (docs/sweeps.md).
 """
 
 import sys

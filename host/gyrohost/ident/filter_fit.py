@@ -14,7 +14,7 @@ whitened`: unit variance when the scene is the rig's), of every source, and for 
 square root of its ``log det S`` less the sensor's ``log det R``
 (:attr:`~gyrohost.estimator.fusion.Innovation.spread`, never negative). Without that term a
 scene that widens ``S`` buys a smaller NIS, and the strings' damping falls low
-(docs/identification.md, "Why the likelihood"). The fit is solved as the output-error
+(reports/identification-history.md, "Why the likelihood"). The fit is solved as the output-error
 fit is, and moved to the smooth minimum of the valley where the strings' stiffness and damping
 trade (:func:`.profile.strings_valley`: the cost is as rough along it, some ten units where a string
 goes slack a sample earlier); its statistics are the output-error fit's (:func:`.fit.statistics`).
@@ -69,7 +69,7 @@ ROLLED_OVER_RAD = np.radians(45.0)
 fit warns that the window runs past the D-bar's roll-over: on the real-time simulated rig the
 windows whose sensor turned 6 to 25 degrees (and 9, with exact wheels) fitted every parameter of
 the acceptance, a window to 90 degrees broke the filter and left J3 22 % off
-(docs/identification.md, "On a real-time recording")."""
+(reports/identification-history.md, "On a real-time recording")."""
 SUGGESTED_TURN_RAD = np.radians(30.0)
 """Where the warning suggests ending the window: the largest turn that fitted, rounded up."""
 

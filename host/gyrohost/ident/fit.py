@@ -88,7 +88,7 @@ stiffness and damping; the wheels' mass and transverse inertia, which are kept, 
 SEGMENTED_FTOL = 1e-6
 """Relative change of the cost that ends a fit in segments: some 0.005 cost units on the
 real-time rig's logs, far below the cost's roughness (about 1); the default (1e-8) went on
-for twice the simulations to the same estimates (docs/identification.md)."""
+for twice the simulations to the same estimates (reports/identification-history.md)."""
 BAR_GROUPS = ("bar-mass", "bar-inertia")
 """The scale is only free, and tested, with one of these fitted: weighed bars pin it."""
 

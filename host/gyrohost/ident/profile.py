@@ -6,7 +6,7 @@ parameter values, which is as much as the statistical rise over one or two sigma
 strings' stiffness and damping. The Jacobian at the optimum then reads the curvature of one
 jump rather than of the cost, and the optimum lands anywhere in a band where the cost's smooth
 rise is below its jumps; the residuals themselves stay white (their autocorrelation is at most
-about 0.1 at every lag, docs/identification.md), so a sandwich or effective-sample-size
+about 0.1 at every lag, reports/identification-history.md), so a sandwich or effective-sample-size
 correction of ``s^2 (J^T J)^-1`` would not see it. Two checks on the cost do:
 
 * :func:`secant_sigma`: the cost sampled along a parameter's linearised profile direction (the
@@ -215,8 +215,8 @@ def segment_spread(problem, theta, output: np.ndarray, dt_s: float) -> np.ndarra
     Each later segment starts from the IMU's attitude and rate read with the first pass's
     mounting (:func:`.shooting.anchored`); what that start misses (the shape's own motion) each
     segment's mounting absorbs differently, by more than its noise allows (the yaw by 1e-3 rad
-    between segments whose own sigma is 2e-4, docs/identification.md), which the sigmas from
-    the whole cost do not see.
+    between segments whose own sigma is 2e-4, reports/identification-history.md), which the
+    sigmas from the whole cost do not see.
     """
     segments = [
         np.searchsorted(shooting.edges_s(r, dt_s), r.t_imu_s, "right") - 1 for r in problem.recs

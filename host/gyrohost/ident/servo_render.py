@@ -4,10 +4,10 @@ servo response fitted to the reports.
 The run reads the servos at 25 Hz (docs/run.md). A fast pull's corners, rounded by the servo's
 response, fall between two reads, and straight lines between the reads cut them: the model
 then sees a smoother pull than the rig made, and the fit takes less string damping for it
-(docs/identification.md, "The servos' reports"). The commands come every tick. Put through a
-delay and a first-order lag fitted to the reports (least squares on a grid), they give the
-shape between the reads; the reports' remaining difference, interpolated, gives the level
-(a zero offset, a load's sag: what the response does not model).
+(reports/identification-history.md, "The servos' reports"). The commands come every tick. Put
+through a delay and a first-order lag fitted to the reports (least squares on a grid), they give the
+shape between the reads; the reports' remaining difference, interpolated, gives the level (a zero
+offset, a load's sag: what the response does not model).
 """
 
 from dataclasses import dataclass

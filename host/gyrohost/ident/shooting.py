@@ -8,7 +8,7 @@ turned to the IMU's tilt and rate at its start (:func:`anchored`), or, if asked,
 host estimator's logged state there (:func:`start_states`; far off while the estimator runs a
 scene not yet identified). The parameters are shared across segments; the start states are
 held, not fitted, and segments the prediction does not follow are left out
-(:func:`predictable`); docs/identification.md, "Why the starts are held", has the
+(:func:`predictable`); reports/identification-history.md, "Why the starts are held", has the
 measurements behind both.
 """
 
@@ -27,7 +27,7 @@ fixed step is unstable."""
 UNPREDICTABLE = 2.0
 """A segment whose weighted residual RMS after the first pass exceeds this many times the first
 segment's is left out of the fit (:func:`predictable`). Followed segments are within 1.2 times
-the first's, those past a fold 4.8 times and more (docs/identification.md, "Several
+the first's, those past a fold 4.8 times and more (reports/identification-history.md, "Several
 recordings"): a fold's first segment, kept, drags the strings by tens of percent."""
 ANCHOR_HALF_S = 0.05
 """IMU samples within this of a segment's start are averaged into its anchor, s."""

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 LATE_SHARE_MAX = 0.1
 """Share of the truth's steps that may be late (more than a step behind wall time) for a run to
 count as real time: beyond, the logged streams' stamps and the physics disagree by tens of ms
-and vary, which an identification reads as a mounting or an inertia (docs/identification.md)."""
+and vary, which an identification reads as a mounting or an inertia
+(reports/identification-history.md)."""
 
 
 @dataclass(frozen=True)
