@@ -72,7 +72,7 @@ def test_a_port_of_a_group_you_are_not_in_says_how_to_join_it(tmp_path):
 
 
 def test_the_run_table_of_the_configuration_sets_the_run_loops_limits(tmp_path):
-    from gyrohost.commands.run import load_schedule_arg
+    from gyrohost.run.request import load_schedule_arg
     from gyrohost.config import RunTable, load_rig_config
     from gyrohost.run import RunLoop
 

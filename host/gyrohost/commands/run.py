@@ -90,59 +90,6 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def planned_maneuver(config, args):
-    """The :class:`Maneuver` of ``--target-tilt`` on the configuration's scene and servos."""
-    from gyrohost.control.maneuver import Maneuver, Target
-    from gyrohost.control.schedule import Limits
-    from gyrotensegrity import Model, load_scene
-
-    target = Target(
-        args.target_tilt,
-        args.duration,
-        closed_loop=args.closed_loop,
-        period_s=args.replan_period,
-        threaded=args.replan_thread,
-    )
-    limits = Limits.per_string(config.servos.servo)
-    return Maneuver(Model(load_scene(config.scene_path)), limits, target)
-
-
-def _what_to_run(config, args):
-    """A Schedule (``--schedule``, default the paper preset) or a Maneuver (``--target-tilt``)."""
-    from gyrohost.commands.errors import CliError
-
-    if args.target_tilt is None:
-        if args.closed_loop or args.replan_thread:
-            raise CliError("--closed-loop and --replan-thread need --target-tilt")
-        return load_schedule_arg(args.schedule or "paper", config.scene_path)
-    if args.schedule is not None:
-        raise CliError("give --schedule or --target-tilt, not both")
-    return planned_maneuver(config, args)
-
-
-def load_schedule_arg(text: str, scene_path: Path):
-    """A schedule file, else a preset built for the scene at ``scene_path``, else a shipped
-    schedule of that name.
-
-    Raises
-    ------
-    ScheduleError
-        ``text`` is none of them (the message lists the presets and the shipped schedules).
-    """
-    from gyrohost.control.errors import ScheduleError
-    from gyrohost.control.presets import PRESETS, preset
-    from gyrohost.control.schedule import load_schedule
-    from gyrohost.resources import ResourceError, resolve
-    from gyrotensegrity import Model, load_scene
-
-    if text in PRESETS and not Path(text).is_file():
-        return preset(text, Model(load_scene(scene_path)))
-    try:
-        return load_schedule(resolve("schedule", text))
-    except ResourceError as exc:
-        raise ScheduleError(f"{exc}; presets: {', '.join(PRESETS)}") from None
-
-
 class Progress:
     """One status line on a terminal: phase, time, schedule played, the estimated tilt, the
     measured wheel speeds and the estimator's status; silent otherwise."""
@@ -176,36 +123,6 @@ class Progress:
             self.stream.write("\n")
 
 
-def _wired(config, args):
-    from gyrohost.commands.errors import CliError
-    from gyrohost.config import EMULATED_PORT
-    from gyrohost.run import with_ports
-    from gyrohost.simrig.control_socket import PortsFileError, read_ports_file
-
-    try:
-        ports = {} if args.rig is None else dict(read_ports_file(args.rig).devices)
-    except PortsFileError as exc:
-        raise CliError(str(exc)) from None
-    given = {"imu": args.imu, "wheels": args.wheels, "servos": args.servos}
-    config = with_ports(config, ports | {name: p for name, p in given.items() if p})
-    emulated = [
-        name
-        for name, port in (
-            ("imu", config.imu.port),
-            ("wheels", config.wheelboard.port),
-            ("servos", config.servos.port),
-        )
-        if port == EMULATED_PORT
-    ]
-    if emulated:
-        raise CliError(
-            f"{args.config}: port(s) of {', '.join(emulated)} are '{EMULATED_PORT}': add --sim, "
-            "or --rig PORTSFILE of a running 'gyrotens rig' (or its ptys with "
-            "--imu/--wheels/--servos)"
-        )
-    return config
-
-
 def run(args) -> int:
     from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
 
@@ -219,71 +136,61 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.config import load_with_scenes
     from gyrohost.errors import GyrohostError
-    from gyrohost.estimator.config import for_rig
-    from gyrohost.resources import resolve
-    from gyrohost.run import RunLoop, run_simulated
-    from gyrohost.run.devices import check_real_rig
-    from gyrohost.run.log import LogError, check_new_log_folder
+    from gyrohost.run.request import execute
     from gyrotensegrity import SceneError
 
-    try:
-        if args.truth_scene is not None and not args.sim:
-            raise CliError("--truth-scene is for the simulated rig: add --sim")
-        config = load_with_scenes(
-            resolve("config", args.config), args.overlay, args.scene, args.truth_scene
-        )
-        estimator = for_rig(config, args.estimator)
-        schedule = _what_to_run(config, args)
-    except (GyrohostError, SceneError, OSError) as exc:
-        raise CliError(str(exc)) from None
-    out = args.out or Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{_run_name(schedule)}"
-    if args.sim and args.rig is not None:
-        raise CliError("give --sim (a rig of its own) or --rig PORTSFILE (a running rig), not both")
-    try:
-        check_new_log_folder(out)
-    except LogError as exc:
-        raise CliError(str(exc)) from None
     progress = Progress()
-    options = {"estimator": estimator, "progress": progress, "meta": {"command": sys.argv}}
     try:
-        if args.live:
-            options["live"] = _live_view(config, args.live_port)
-        if args.sim:
-            result = run_simulated(config, schedule, out, **options)
-        else:
-            loop = RunLoop(_wired(config, args), schedule, out, **options)
-            check_real_rig(loop.config)  # after the loop checked the scene, schedule, estimator
-            result = loop.run()
-    except (GyrohostError, SceneError) as exc:
+        result = execute(
+            _request(args),
+            progress,
+            meta={"command": sys.argv},
+            live_port=args.live_port if args.live else None,
+            on_live=_announce_live,
+        )
+    except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
-        if "live" in options:
-            options["live"].close()  # also when the run never started
     return report(result, args.config)
 
 
-def _live_view(config, port: int):
-    """Start the live view's server and print where Foxglove connects."""
-    from gyrohost.run.live import LiveView
-    from gyrotensegrity import load_scene
+def _request(args):
+    """The :class:`RunRequest` of the options; the options only the command line combines
+    checked here."""
+    from gyrohost.commands.errors import CliError
+    from gyrohost.control.maneuver import Target
+    from gyrohost.run.request import RunRequest
 
-    live = LiveView(load_scene(config.scene_path), port)
-    print(f"live: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
-    return live
+    target = None
+    if args.target_tilt is None and (args.closed_loop or args.replan_thread):
+        raise CliError("--closed-loop and --replan-thread need --target-tilt")
+    if args.target_tilt is not None:
+        target = Target(
+            args.target_tilt,
+            args.duration,
+            closed_loop=args.closed_loop,
+            period_s=args.replan_period,
+            threaded=args.replan_thread,
+        )
+    return RunRequest(
+        config=args.config,
+        overlays=tuple(args.overlay),
+        scene=args.scene,
+        truth_scene=args.truth_scene,
+        estimator=args.estimator,
+        schedule=args.schedule,
+        target=target,
+        out=args.out,
+        sim=args.sim,
+        ports_file=args.rig,
+        ports={"imu": args.imu, "wheels": args.wheels, "servos": args.servos},
+    )
 
 
-def _run_name(schedule) -> str:
-    """The run's name in its default log folder: one safe path component (the schedule's name
-    comes from a file)."""
-    from gyrohost.resources import safe_name
-
-    target = getattr(schedule, "target", None)
-    if target is None:
-        return safe_name(schedule.name)
-    return f"tilt{target.tilt_rad:+g}-{'closed' if target.closed_loop else 'open'}"
+def _announce_live(url: str) -> None:
+    print(f"live: {url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
 
 
 def report(result, config: str = "sim-rig") -> int:

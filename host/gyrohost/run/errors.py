@@ -17,3 +17,7 @@ class LimitBreach(RunError):
 
 class ScheduleRefused(GyrohostError, ValueError):
     """The schedule breaks a servo limit or names a string no servo winds (nothing moved)."""
+
+
+class RunRequestError(GyrohostError, ValueError):
+    """A run asked for with options that do not go together or ports it cannot use."""
