@@ -46,10 +46,10 @@ def record(folder: Path, schedule_name: str, seed: int) -> tuple[Path, Path, flo
     rolled_s : float
         When the truth's sensor had turned :data:`ROLLED_RAD` from its start, s (``nan``: never).
     """
-    from gyrohost.run.request import load_schedule_arg
     from gyrohost.config import load_rig_config, with_truth_scene
     from gyrohost.geometry import turn_from_first
     from gyrohost.ident.simcheck import write_log
+    from gyrohost.run.request import load_schedule_arg
     from gyrohost.sil.scoring import rig_model_run
     from studies.identify_rig import write_rig_files
 

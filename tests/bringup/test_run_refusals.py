@@ -72,9 +72,9 @@ def test_a_port_of_a_group_you_are_not_in_says_how_to_join_it(tmp_path):
 
 
 def test_the_run_table_of_the_configuration_sets_the_run_loops_limits(tmp_path):
-    from gyrohost.run.request import load_schedule_arg
     from gyrohost.config import RunTable, load_rig_config
     from gyrohost.run import RunLoop
+    from gyrohost.run.request import load_schedule_arg
 
     config = replace(load_rig_config(shipped("config", "sim-rig")), run=RunTable(max_tilt_rad=0.5))
     loop = RunLoop(config, load_schedule_arg("paper", config.scene_path), tmp_path / "log")

@@ -1,5 +1,6 @@
 """``gyrotens noise LOG [LOG...] [--config C]``: the sensors' noise where the logs hold the rig
-still, as the estimator's noise keys (docs/estimator.md, "The sensors' noise on the rig")."""
+still, as the estimator's noise keys
+(docs/estimator.md#the-sensors-noise-on-the-rig-gyrotens-noise)."""
 
 from pathlib import Path
 

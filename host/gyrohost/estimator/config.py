@@ -296,7 +296,7 @@ def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
     their lag smoothly). A sawtooth of peak to peak ``p`` and period ``P`` is taken as white
     noise of density ``2 (p^2 / 12) P``, and the sum is doubled: with its own density the
     in-process SIL's motion block sat at twice its dof while a string crossed its kink
-    (docs/estimator.md, "The rest-length jitter"). The two spreads add within 3 % for servos
+    (docs/estimator.md#the-rest-length-jitter). The two spreads add within 3 % for servos
     up to twice the pull's speed; servos that jump to their goals step where the truth does,
     and the sum overstates their spread by up to a fifth.
 
@@ -366,13 +366,13 @@ def noise_from_rig(rig) -> dict:
         # reader thread, so it depends on the machine (the positions' NEES fits best at 1.5 ms
         # on one, 0.8 ms on a faster one, and rises by about 10 per ms off in the fastest
         # turn): the middle, with its spread as the samples' time uncertainty
-        # (docs/estimator.md, "The IMU's latency depends on the machine")
+        # (docs/estimator.md#the-imus-latency-depends-on-the-machine)
         "imu_latency_s": 0.0012,
         "imu_time_std_s": 0.001,
         # the node accelerations' noise: the servos' goal steps and the loop's late ticks,
         # which the in-process SIL's 3e-8 does not see; 5e-7 holds the NEES mid-bounds on three
         # idle batches scored from drawn starts, 1e-7 leaves it at the upper bound and 2e-6
-        # at the lower (docs/estimator.md, "Real-time keys by replay")
+        # at the lower (reports/estimator-history.md#scored-from-drawn-starts)
         "accel_psd_m2_s3": 5.0e-7,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
         "imu_accel_std_m_s2": std(accel_white, accel_count, emu.accel_bias_std_m_s2),
@@ -397,7 +397,7 @@ def noise_from_rig(rig) -> dict:
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
         # a resting servo holds within its band of the command's count, and no walk beyond it
         # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
-        # docs/estimator.md, "Resting servos")
+        # docs/estimator.md#resting-servos)
         "rest_psd_m2_s": 0.0,
         "rest_hold_std_m": servo_hold_std(
             max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
@@ -406,7 +406,7 @@ def noise_from_rig(rig) -> dict:
         # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
         # ones which the kink rectifies: the truth's hold over its step and the servos' goal
         # steps, one per tick of the run loop, each covered at the servo's speed (the fastest
-        # servo's: the largest sawtooth; docs/estimator.md, "The rest-length jitter")
+        # servo's: the largest sawtooth; docs/estimator.md#the-rest-length-jitter)
         "rest_jitter_psd_m2_s": sawtooth_psd(
             rig.sim.truth.dt_s,
             1.0 / LOOP_RATE_HZ,
@@ -429,7 +429,7 @@ def noise_from_rig(rig) -> dict:
         "wheel_filter_s": SPEED_FILTER_DELAY_S,
         # with the loop on time the telemetry of a speed step starts when the lags alone say:
         # a delay of 20 ms (what a late loop showed) puts the model behind the board through
-        # every ramp (docs/estimator.md, "Wheel commands")
+        # every ramp (docs/estimator.md#wheel-commands)
         "wheel_delay_s": 0.0,
         # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
         # time (wheel_times "device"), late by the link's shortest delay (about 1 ms) and

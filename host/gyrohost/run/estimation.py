@@ -1,9 +1,9 @@
 """The run's estimator in a child process, so its fusion never delays the loop's commands.
 
-The EKF costs a few ms of CPU per fused sample; in the loop's thread it made the 100 Hz ticks
-late by 5 to 55 ms, and a late tick sends the servos a larger, irregular step that the
-filter's servo model does not know (docs/estimator.md, "The estimator out of the loop"). Here
-the loop hands each tick's stamped samples, commands and truth samples to
+The EKF costs a few ms of CPU per fused sample; in the loop's thread it made the 100 Hz ticks late
+by 5 to 55 ms, and a late tick sends the servos a larger, irregular step that the filter's servo
+model does not know (reports/estimator-history.md#the-estimator-out-of-the-loop). Here the loop
+hands each tick's stamped samples, commands and truth samples to
 :class:`EstimatorProcess`, which sends them down a pipe in one message; the child
 (:func:`_serve`) calls the filter with them in the same order as the loop did, so the result is
 the same filter run, only later. The child's rows (``estimate``, ``nodes``, ``innov_<source>``)
