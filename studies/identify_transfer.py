@@ -63,7 +63,7 @@ def paper_scene(scene, duration_s: float):
     """``scene`` with its strings playing the paper's schedule over ``duration_s`` (s)."""
     from gyrohost.control.presets import paper
     from gyrotensegrity import Model
-    from gyrotensegrity.schedule import Schedule
+    from gyrotensegrity.piecewise import PiecewiseLinear
 
     schedule = paper(Model(scene), duration_s=duration_s)
 
@@ -71,7 +71,7 @@ def paper_scene(scene, duration_s: float):
         if s.name not in schedule.names:
             return s
         column = schedule.rest_length[:, schedule.names.index(s.name)]
-        return replace(s, rest_length=Schedule(schedule.t.copy(), column.copy()))
+        return replace(s, rest_length=PiecewiseLinear(schedule.t.copy(), column.copy()))
 
     return replace(scene, strings=[rest(s) for s in scene.strings], duration=duration_s)
 

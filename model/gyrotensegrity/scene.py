@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SceneError
-from .schedule import Schedule, constant
+from .piecewise import PiecewiseLinear, constant
 from .textfile import read_toml
 
 INTEGRATORS = ("rk4", "rk4-projected", "dop853", "rk45", "radau", "bdf")
@@ -31,8 +31,8 @@ class WheelSpec:
     thickness: float
     mode: str
     spin0: float
-    speed: Schedule | None
-    torque: Schedule | None
+    speed: PiecewiseLinear | None
+    torque: PiecewiseLinear | None
     J3: float | None = None
     J1: float | None = None
 
@@ -57,7 +57,7 @@ class StringSpec:
     end: str
     stiffness: float
     damping: float
-    rest_length: Schedule
+    rest_length: PiecewiseLinear
 
 
 @dataclass(frozen=True)
@@ -233,7 +233,7 @@ class _Parser:
             self.fail(key, f"unknown node '{value}'")
         return value
 
-    def schedule(self, value, key: str, minimum=None, positive=False) -> Schedule:
+    def schedule(self, value, key: str, minimum=None, positive=False) -> PiecewiseLinear:
         """A number (held constant) or a table {t = [...], value = [...]}."""
         if not isinstance(value, dict):
             return constant(self.number(value, key, minimum, positive))
@@ -249,7 +249,7 @@ class _Parser:
         if bad.size:
             i = int(bad[0]) + 1
             self.fail(f"{key}.t[{i}]", f"times must increase strictly ({ts[i - 1]} then {ts[i]})")
-        return Schedule(ts, vs)
+        return PiecewiseLinear(ts, vs)
 
     # -- sections -----------------------------------------------------------------------------
     def scene(self, data: dict) -> Scene:

@@ -4,7 +4,7 @@ for the identified scene: every key the loader reads, numbers in full precision 
 import numpy as np
 
 from gyrotensegrity import Scene
-from gyrotensegrity.schedule import Schedule
+from gyrotensegrity.piecewise import PiecewiseLinear
 
 
 def _num(x) -> str:
@@ -19,7 +19,7 @@ def _str(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def _schedule(s: Schedule) -> str:
+def _schedule(s: PiecewiseLinear) -> str:
     if len(s.t) == 1:
         return _num(s.value[0])
     return f"{{ t = {_vec(s.t)}, value = {_vec(s.value)} }}"

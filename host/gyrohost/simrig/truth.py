@@ -48,7 +48,7 @@ from gyrohost.errors import GyrohostError
 from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
-from gyrotensegrity.schedule import constant
+from gyrotensegrity.piecewise import constant
 from gyrotensegrity.simulate import stable_step
 
 FD_STEP_S = 1e-6

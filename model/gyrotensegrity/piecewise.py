@@ -1,4 +1,6 @@
-"""Piecewise-linear schedules of time, held constant before the first and after the last point."""
+"""Piecewise-linear functions of time (a scene's rest lengths, wheel speeds and torques), held
+constant before the first and after the last point. Not to be confused with the host's experiment
+schedule (:class:`gyrohost.control.schedule.Schedule`), which plays several strings and wheels."""
 
 from dataclasses import dataclass
 
@@ -6,7 +8,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class Schedule:
+class PiecewiseLinear:
     """A piecewise-linear function of time.
 
     Parameters
@@ -27,6 +29,6 @@ class Schedule:
         return {"t": self.t.tolist(), "value": self.value.tolist()}
 
 
-def constant(value: float) -> Schedule:
+def constant(value: float) -> PiecewiseLinear:
     """A schedule that holds ``value`` at every time."""
-    return Schedule(np.array([0.0]), np.array([float(value)]))
+    return PiecewiseLinear(np.array([0.0]), np.array([float(value)]))
