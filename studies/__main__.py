@@ -25,6 +25,7 @@ from pathlib import Path
 STUDIES = {
     "estimator_montecarlo": "the EKF's NEES/NIS on synthetic runs over seeds",
     "estimator_sil": "the EKF's NEES/NIS on the simulated rig's truth and emulators over seeds",
+    "estimator_replay": "the EKF replayed over runs recorded on the real-time simulated rig",
     "estimator_effects": "the run loop's timing effects on consistency, one at a time",
     "estimator_benchmark": "the filter's time per IMU sample and per Jacobian",
     "identify_check": "identification accuracy and coverage over seeds (simulated clock)",
@@ -39,6 +40,7 @@ STUDIES = {
 GROUPS = {
     "estimator": (
         "estimator_sil",
+        "estimator_replay",
         "estimator_montecarlo",
         "estimator_effects",
         "estimator_benchmark",
