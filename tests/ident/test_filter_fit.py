@@ -1,6 +1,8 @@
 """Identification by the filter's prediction error on the simulated rig's models, whose wheels
 err from their setpoints (the speed loop's error, 0.01 rad/s): the truth of
-``identify_check`` (J3 x 1.3, stiffness x 1.25, damping x 0.7, IMU 3 deg off)."""
+``gyrohost.ident.simcheck`` (J3 x 1.3, stiffness x 1.25, damping x 0.7, IMU 3 deg off). How near
+the fit comes over seeds, and how often its sigmas cover the error, is a study
+(``python -m studies identify_check --method filter``); here the fit's machinery."""
 
 import os
 import signal
@@ -21,31 +23,11 @@ from gyrohost.ident.fit import FAILED_RESIDUAL
 from gyrohost.ident.forward import IdentDataError
 from gyrohost.ident.params import parameters
 from gyrohost.ident.simcheck import (
-    errors,
-    identify_filter,
     record_log,
     write_rigs,
 )
 
 SPEED_ERROR_RAD_S = 0.01
-
-
-def test_j3_and_mounting_within_the_acceptance_where_the_wheels_err(tmp_path):
-    """The output-error fit misses J3 by 3 to 6 % and the mounting by degrees on such logs
-    (reports/identification-history.md); the filter follows the roll mode the wheels' error
-    seeds."""
-    nominal, truth = write_rigs(
-        tmp_path, 3.5, weighed=True, speed_error_std_rad_s=SPEED_ERROR_RAD_S
-    )
-    log = record_log(truth, 1, tmp_path / "log")
-    result = identify_filter(nominal, [log], ("J3", "mounting", "accel-bias"))
-    err = errors(result, weighed=True)
-    assert abs(err["J3"][0]) < 0.03, err["J3"]
-    for axis in ("roll", "pitch", "yaw"):
-        assert abs(err[f"mounting.{axis}"][0]) < np.radians(0.3), (axis, err)
-    assert np.all(np.isfinite(result.sigma)) and np.all(result.sigma > 0.0)
-    # the residuals are the IMU's innovations: far smaller at the estimate than at the nominal
-    assert result.rms["gyro"][1] < 0.5 * result.rms["gyro"][0], result.rms
 
 
 def test_the_window_is_the_logs_phases_cut_by_until(tmp_path):
