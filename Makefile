@@ -57,8 +57,10 @@ lint:
 firmware:
 	$(MAKE) -C firmware check
 
+# Two workers: one takes the real-time tests one after the other, the other the rest
+# (tests/conftest.py, pytest_collection_modifyitems).
 pytest:
-	$(BIN)/pytest
+	$(BIN)/pytest -n 2 --dist loadgroup
 
 # The tests never import a study; this keeps each one importable and its options parsed.
 studies-check:

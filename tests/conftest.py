@@ -25,3 +25,32 @@ def private_runtime_dir(tmp_path_factory, monkeypatch):
     """A runtime directory of each test's own: ``gyrotens rig`` writes its default ports file and
     control socket there, so rigs of tests running side by side never meet."""
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path_factory.mktemp("xdg")))
+
+
+REAL_TIME = (
+    "run/",
+    "simrig/",
+    "fil/",
+    "bringup/",
+    "host/test_config_overlay.py",
+    "host/test_input_files.py",
+    "estimator/test_estimator_sil.py",
+    "ident/test_noise.py",
+    "plots/test_log_figures.py",
+    "test_wheel_install.py",
+)
+"""Test files and folders that run the simulated rig or the firmware in real time."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """One real-time rig at a time: ``make test`` runs pytest on two workers (``--dist
+    loadgroup``); the tests that run the simulated rig or the firmware against the wall clock go
+    to one group, run one after the other on one worker, while the other worker takes the tests
+    that only compute. Two rigs side by side on two cores (six processes: truth, run loop,
+    estimator each) starved each other's deadlines; one rig beside one computing test holds
+    them, as a lab laptop holds a run beside other work."""
+    tests = Path(__file__).parent
+    for item in items:
+        where = Path(item.fspath).relative_to(tests).as_posix()
+        if where.startswith(REAL_TIME):
+            item.add_marker(pytest.mark.xdist_group("real-time"))

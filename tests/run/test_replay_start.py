@@ -16,7 +16,7 @@ from gyrohost.resources import shipped
 from gyrohost.run.replay import read_inputs, started
 from gyrotensegrity import Model, load_scene
 
-RUN = Path(__file__).parents[1] / "estimator" / "data" / "realtime-runs-P.tar.xz"
+RUN = Path(__file__).parents[1] / "estimator" / "data" / "realtime-run-P01.tar.xz"
 
 
 @pytest.fixture(scope="module")
