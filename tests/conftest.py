@@ -1,5 +1,6 @@
 """Fixtures shared by every test folder."""
 
+import contextlib
 import os
 import signal
 from pathlib import Path
@@ -47,10 +48,27 @@ def pytest_collection_modifyitems(config, items):
     loadgroup``); the tests that run the simulated rig or the firmware against the wall clock go
     to one group, run one after the other on one worker, while the other worker takes the tests
     that only compute. Two rigs side by side on two cores (six processes: truth, run loop,
-    estimator each) starved each other's deadlines; one rig beside one computing test holds
-    them, as a lab laptop holds a run beside other work."""
-    tests = Path(__file__).parent
+    estimator each) starved each other's deadlines."""
     for item in items:
-        where = Path(item.fspath).relative_to(tests).as_posix()
-        if where.startswith(REAL_TIME):
+        if is_real_time(item):
             item.add_marker(pytest.mark.xdist_group("real-time"))
+
+
+def is_real_time(item) -> bool:
+    where = Path(item.fspath).relative_to(Path(__file__).parent).as_posix()
+    return where.startswith(REAL_TIME)
+
+
+COMPUTING_NICENESS = 10
+"""The niceness of a worker while it runs a test that only computes: the scheduler then gives a
+real-time rig (its truth, run loop and estimator) the CPU it needs when it needs it, and the
+computing test the rest, as a lab laptop runs an experiment beside other work."""
+
+
+def pytest_runtest_setup(item):
+    """Real-time tests at normal priority, the others below it. Lowering a niceness again needs
+    the privilege CI runs with (root); without it a worker that ran a computing test before its
+    real-time ones keeps the lower priority, which only brings back the contention."""
+    niceness = 0 if is_real_time(item) else COMPUTING_NICENESS
+    with contextlib.suppress(PermissionError):
+        os.setpriority(os.PRIO_PROCESS, 0, niceness)
