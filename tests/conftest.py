@@ -48,10 +48,11 @@ def pytest_collection_modifyitems(config, items):
     loadgroup``); the tests that run the simulated rig or the firmware against the wall clock go
     to one group, run one after the other on one worker, while the other worker takes the tests
     that only compute. Two rigs side by side on two cores (six processes: truth, run loop,
-    estimator each) starved each other's deadlines."""
+    estimator each) starved each other's deadlines. The other tests are grouped by module, so
+    that a module's fixtures are built once, on one worker."""
     for item in items:
-        if is_real_time(item):
-            item.add_marker(pytest.mark.xdist_group("real-time"))
+        group = "real-time" if is_real_time(item) else item.module.__name__
+        item.add_marker(pytest.mark.xdist_group(group))
 
 
 def is_real_time(item) -> bool:

@@ -249,7 +249,7 @@ def test_cli_fits_by_the_filter_and_writes_scene_overlay_and_plot(tmp_path, caps
     log = record_log(truth, 2, tmp_path / "log")
     out = tmp_path / "ident" / "rig.toml"
     argv = ["identify", str(log), "-o", str(out), "--config", str(nominal), "--method", "filter"]
-    assert main([*argv, "--params", "J3,mounting,gyro-bias", "--max-evaluations", "8"]) == 0
+    assert main([*argv, "--params", "J3,mounting,gyro-bias", "--max-evaluations", "3"]) == 0
     text = capsys.readouterr().out
     assert "gyro-bias: the filter's own state, not fitted" in text
     assert "by the filter's likelihood" in text
