@@ -57,10 +57,11 @@ lint:
 firmware:
 	$(MAKE) -C firmware check
 
-# Two workers: one takes the real-time tests one after the other, the other the rest
-# (tests/conftest.py, pytest_collection_modifyitems).
+# The computing tests on two workers, then the real-time ones (the simulated rig and the firmware
+# against the wall clock) one after the other, each with the machine to itself (tests/conftest.py).
 pytest:
-	$(BIN)/pytest -n 2 --dist loadgroup
+	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time"
+	$(BIN)/pytest -m real_time
 
 # The tests never import a study; this keeps each one importable and its options parsed.
 studies-check:

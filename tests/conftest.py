@@ -1,6 +1,5 @@
 """Fixtures shared by every test folder."""
 
-import contextlib
 import os
 import signal
 from pathlib import Path
@@ -38,38 +37,23 @@ REAL_TIME = (
     "estimator/test_estimator_sil.py",
     "ident/test_noise.py",
     "plots/test_log_figures.py",
-    "test_wheel_install.py",
 )
 """Test files and folders that run the simulated rig or the firmware in real time."""
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """One real-time rig at a time: ``make test`` runs pytest on two workers (``--dist
-    loadgroup``); the tests that run the simulated rig or the firmware against the wall clock go
-    to one group, run one after the other on one worker, while the other worker takes the tests
-    that only compute. Two rigs side by side on two cores (six processes: truth, run loop,
-    estimator each) starved each other's deadlines. The other tests are grouped by module, so
-    that a module's fixtures are built once, on one worker."""
+    """The tests that run the simulated rig or the firmware against the wall clock are marked
+    ``real_time`` (before ``-m`` selects): ``make test`` runs the others on two workers, a
+    module to a worker (``--dist loadscope``: a module's fixtures are built once), then these
+    one after the other. Beside a computing test, even one at a lower priority, a rig's
+    estimator process fell more than a second behind its loop and the product's own fail-safe
+    stopped the run: a real-time run needs the machine."""
     for item in items:
-        group = "real-time" if is_real_time(item) else item.module.__name__
-        item.add_marker(pytest.mark.xdist_group(group))
+        if is_real_time(item):
+            item.add_marker(pytest.mark.real_time)
 
 
 def is_real_time(item) -> bool:
     where = Path(item.fspath).relative_to(Path(__file__).parent).as_posix()
     return where.startswith(REAL_TIME)
-
-
-COMPUTING_NICENESS = 10
-"""The niceness of a worker while it runs a test that only computes: the scheduler then gives a
-real-time rig (its truth, run loop and estimator) the CPU it needs when it needs it, and the
-computing test the rest, as a lab laptop runs an experiment beside other work."""
-
-
-def pytest_runtest_setup(item):
-    """Real-time tests at normal priority, the others below it. Lowering a niceness again needs
-    the privilege CI runs with (root); without it a worker that ran a computing test before its
-    real-time ones keeps the lower priority, which only brings back the contention."""
-    niceness = 0 if is_real_time(item) else COMPUTING_NICENESS
-    with contextlib.suppress(PermissionError):
-        os.setpriority(os.PRIO_PROCESS, 0, niceness)

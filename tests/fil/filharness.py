@@ -15,13 +15,8 @@ import os
 from pathlib import Path
 
 from gyrohost.simrig import simavr
-from gyrohost.simrig.simavr import (
-    Harness,
-    HarnessError,
-    parse_kv,
-    require_file,
-    stats_rpm,
-)
+from gyrohost.simrig.errors import HarnessError
+from gyrohost.simrig.simavr import Harness, parse_kv, require_file, stats_rpm
 
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"

@@ -15,7 +15,8 @@ import pytest
 from filharness import Harness, firmware_elf, set_offsets
 
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.drivers.wheelboard import DeviceError, WheelBoard
+from gyrohost.drivers.errors import DeviceError
+from gyrohost.drivers.wheelboard import WheelBoard
 
 pytestmark = pytest.mark.fil
 

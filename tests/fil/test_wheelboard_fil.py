@@ -16,7 +16,8 @@ import serial
 from filharness import Harness, firmware_elf, set_offsets, stats_rpm
 
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.drivers.wheelboard import DeviceError, WheelBoard
+from gyrohost.drivers.errors import DeviceError
+from gyrohost.drivers.wheelboard import WheelBoard
 
 pytestmark = pytest.mark.fil
 

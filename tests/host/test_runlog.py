@@ -6,7 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from gyrohost.run.log import LogError, RunLog, read_meta, read_stream
+from gyrohost.run.errors import LogError
+from gyrohost.run.log import RunLog, read_meta, read_stream
 
 
 def _log_with_imu(folder, rows):

@@ -7,14 +7,9 @@ from dataclasses import replace
 import pytest
 
 from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.drivers.errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
 from gyrohost.drivers.mx12 import Addr, string_speed_per_unit
-from gyrohost.drivers.servos import (
-    ServoCommError,
-    ServoError,
-    ServoFaultError,
-    ServoLimitError,
-    StringServoBus,
-)
+from gyrohost.drivers.servos import StringServoBus
 from gyrohost.simrig.servo_emu import Mx12Bus
 
 LEFT = ServoConfig(

@@ -11,6 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.drivers.errors import ServoCommError, ServoFaultError
 from gyrohost.drivers.mx12 import (
     FAULT_BITS,
     Addr,
@@ -22,7 +23,7 @@ from gyrohost.drivers.mx12 import (
     steps_to_length,
     word_from_int16,
 )
-from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
+from gyrohost.drivers.servos import StringServoBus
 from gyrohost.simrig.pty_link import PtyDevice
 from gyrohost.simrig.servo_emu import EmulatedMx12, Mx12Bus, Packet, PacketCutter, status_packet
 

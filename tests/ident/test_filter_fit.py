@@ -19,8 +19,8 @@ import pytest
 
 from gyrohost.cli import main
 from gyrohost.ident import filter_fit
+from gyrohost.ident.errors import IdentDataError
 from gyrohost.ident.fit import FAILED_RESIDUAL
-from gyrohost.ident.forward import IdentDataError
 from gyrohost.ident.params import parameters
 from gyrohost.ident.simcheck import (
     record_log,

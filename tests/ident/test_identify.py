@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
+from gyrohost.ident.errors import ParamsError
 from gyrohost.ident.fit import _determined, uncertainty
-from gyrohost.ident.params import ParamsError, parameters
+from gyrohost.ident.params import parameters
 from gyrohost.ident.simcheck import (
     FACTORS,
     MOUNTING_RPY_RAD,

@@ -14,7 +14,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
 from gyrohost.estimator.config import for_rig
 from gyrohost.ident import noise
-from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.errors import IdentDataError
 from gyrohost.resources import shipped
 
 L0 = 0.43105229381822

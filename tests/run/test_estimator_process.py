@@ -15,7 +15,8 @@ from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.errors import EstimatorError
 from gyrohost.estimator.sample_feed import events
 from gyrohost.resources import shipped
-from gyrohost.run.estimation import EstimatorProcess, EstimatorProcessError, _Filter, start_state
+from gyrohost.run.errors import EstimatorProcessError
+from gyrohost.run.estimation import EstimatorProcess, _Filter, start_state
 from gyrohost.sil.synthetic import sensor_streams, simulate_truth
 from gyrotensegrity import Model, load_scene
 

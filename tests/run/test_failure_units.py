@@ -9,7 +9,8 @@ import pytest
 from test_failures import TinyDisk
 
 from gyrohost.run import log as runlog
-from gyrohost.run.log import LogWriteError, RunLog, read_meta, read_stream
+from gyrohost.run.errors import LogWriteError
+from gyrohost.run.log import RunLog, read_meta, read_stream
 from gyrohost.sigint import InterruptsHandled, InterruptsHeld, InterruptsRaised, exit_status
 
 

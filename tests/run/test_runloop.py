@@ -199,7 +199,8 @@ def test_the_safe_state_goes_on_whatever_the_truth_probe_raises(tmp_path):
 
 
 def test_a_rig_process_whose_child_is_gone_raises_rig_process_errors():
-    from gyrohost.simrig.process import RigProcess, RigProcessError
+    from gyrohost.simrig.errors import RigProcessError
+    from gyrohost.simrig.process import RigProcess
 
     with RigProcess(CONFIG) as rig:
         rig._proc.kill()

@@ -13,8 +13,9 @@ import time
 from dataclasses import replace
 
 from gyrohost.config import load_rig_config
+from gyrohost.drivers.errors import ServoError
 from gyrohost.drivers.imu import Bwt61Driver
-from gyrohost.drivers.servos import ServoError, StringServoBus
+from gyrohost.drivers.servos import StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.resources import resolve
 

@@ -24,13 +24,13 @@ from gyrohost.plots.log import RunData, plot_compare, plot_node_z
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta
 from gyrohost.simrig.control_socket import (
-    ControlError,
     ControlServer,
     control_path,
     read_ports_file,
     send_command,
     write_ports_file,
 )
+from gyrohost.simrig.errors import ControlError
 from gyrotensegrity import load_scene
 
 

@@ -9,10 +9,12 @@ import pytest
 
 from gyrohost.config import ServoBusConfig, rig_config_from_dict
 from gyrohost.drivers import wheelboard as wb
-from gyrohost.drivers.imu import Bwt61Driver, ImuTimeoutError
+from gyrohost.drivers.errors import ImuTimeoutError, ServoCommError, ServoFaultError
+from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.mx12 import steps_per_metre
-from gyrohost.drivers.servos import ServoCommError, ServoFaultError, StringServoBus
-from gyrohost.simrig.sim import FaultCommandError, RigError, SimulatedRig
+from gyrohost.drivers.servos import StringServoBus
+from gyrohost.simrig.errors import FaultCommandError, RigError
+from gyrohost.simrig.sim import SimulatedRig
 
 SPIN = 74.87462492
 L0 = 0.43105229381822  # both D-bar strings at t = 0, m

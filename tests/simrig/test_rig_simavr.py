@@ -19,8 +19,8 @@ from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.resources import shipped
 from gyrohost.simrig import simavr
-from gyrohost.simrig.sim import FaultCommandError, SimulatedRig
-from gyrohost.simrig.truth import RigSetupError
+from gyrohost.simrig.errors import FaultCommandError, RigSetupError
+from gyrohost.simrig.sim import SimulatedRig
 
 pytestmark = pytest.mark.fil
 

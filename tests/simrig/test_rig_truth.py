@@ -9,7 +9,8 @@ import pytest
 from gyrohost.config import ServoConfig, TruthConfig
 from gyrohost.geometry import rotation_zyx
 from gyrohost.resources import shipped
-from gyrohost.simrig.truth import RigSetupError, Truth, rig_scene
+from gyrohost.simrig.errors import RigSetupError
+from gyrohost.simrig.truth import Truth, rig_scene
 from gyrotensegrity import Model, SimulationError, Stepper, load_scene
 from gyrotensegrity.diagnostics import highest_frequency
 from gyrotensegrity.simulate import RK4_STABLE

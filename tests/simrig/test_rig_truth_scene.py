@@ -13,9 +13,10 @@ from gyrohost.control import load_schedule
 from gyrohost.drivers.imu import RATE_SCALE_RAD_S
 from gyrohost.resources import resolve, shipped
 from gyrohost.run.limits import check_schedule
+from gyrohost.simrig.errors import RigSetupError
 from gyrohost.simrig.imu_emu import Bwt61Emulator, ImuTruth
 from gyrohost.simrig.sim import SimulatedRig
-from gyrohost.simrig.truth import RigSetupError, Truth, truth_scene
+from gyrohost.simrig.truth import Truth, truth_scene
 from gyrotensegrity import Model, load_scene
 
 SIM_RIG = load_rig_config(shipped("config", "sim-rig"))

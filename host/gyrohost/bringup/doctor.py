@@ -20,8 +20,9 @@ from gyrohost.bringup.serialports import (
     rfcomm_bound,
 )
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.drivers.errors import ServoLimitError
 from gyrohost.drivers.mx12 import MODEL_MX12W
-from gyrohost.drivers.servos import ServoLimitError, StringServoBus
+from gyrohost.drivers.servos import StringServoBus
 
 IMU_BAUD_FOR_RATE = {100: 115200, 20: 9600}
 """The BWT61CL's output rate, Hz -> the baud rate that carries it."""

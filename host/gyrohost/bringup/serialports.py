@@ -10,17 +10,13 @@ import stat
 from dataclasses import dataclass
 from pathlib import Path
 
-from gyrohost.errors import GyrohostError
+from .errors import PortAccessError
 
 BY_ID = Path("/dev/serial/by-id")
 """Links named after each USB-serial adapter (vendor, product, serial number): stable paths."""
 
 SYS = Path("/sys")
 """Where sysfs is mounted (tests point the checks at a tree of their own)."""
-
-
-class PortAccessError(GyrohostError, ValueError):
-    """One or more configured ports cannot be opened; one line per port in the message."""
 
 
 @dataclass(frozen=True)

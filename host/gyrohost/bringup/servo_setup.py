@@ -15,17 +15,14 @@ from gyrohost.bringup.probe import model_name, ping_ids
 from gyrohost.config import ServoBusConfig, ServoConfig
 from gyrohost.drivers import mx12
 from gyrohost.drivers.servos import PortHandler, StringServoBus
-from gyrohost.errors import GyrohostError
+
+from .errors import ServoSetupError
 
 BAUD_REGISTER = {2_000_000: 0, 1_000_000: 1, 500_000: 3, 115200: 16, 57600: 34}
 """Bus baud rate -> MX-12W baud register (2 Mbps / (value + 1); 57600 is 57142, within 1 %)."""
 ALL_IDS = range(0, 253)
 SETTLE_S = 0.05
 """Wait after an EEPROM write before the servo is asked again, s."""
-
-
-class ServoSetupError(GyrohostError, RuntimeError):
-    """The set-up cannot go on (no servo, several, no confirmation)."""
 
 
 @dataclass(frozen=True)

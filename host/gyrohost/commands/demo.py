@@ -42,7 +42,8 @@ def run(args) -> int:
     from gyrohost.plots.log import plot_compare, plot_log
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.run import ScheduleRefused, run_simulated
-    from gyrohost.run.log import LogError, check_output_folder
+    from gyrohost.run.errors import LogError
+    from gyrohost.run.log import check_output_folder
     from gyrotensegrity import Model, load_scene
 
     start = time.monotonic()

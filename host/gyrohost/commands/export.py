@@ -24,7 +24,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
     from gyrohost.commands.replay import Warnings
-    from gyrohost.run.log import LogError, check_output_folder
+    from gyrohost.run.errors import LogError
+    from gyrohost.run.log import check_output_folder
     from gyrohost.run.mcap import export_mcap
 
     warn = Warnings("export")

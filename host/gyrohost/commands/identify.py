@@ -138,10 +138,10 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report
-    from gyrohost.ident.fit import FitError, fit, nominal_lag, two_passes
-    from gyrohost.ident.forward import IdentDataError
+    from gyrohost.ident.errors import FitError, IdentDataError, ParamsError
+    from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.logs import log_warnings
-    from gyrohost.ident.params import ParamsError, parameters
+    from gyrohost.ident.params import parameters
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, load_scene
 

@@ -28,7 +28,7 @@ def run(args) -> int:
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import noise
-    from gyrohost.ident.forward import IdentDataError
+    from gyrohost.ident.errors import IdentDataError
     from gyrohost.resources import ResourceError, resolve
 
     if not args.accel_bias >= 0.0:

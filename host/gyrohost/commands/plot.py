@@ -56,7 +56,8 @@ PLOTTERS = [(_is_run_file, _plot_run), (_is_log, _plot_log)]
 
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.run.log import LogError, check_output_folder
+    from gyrohost.run.errors import LogError
+    from gyrohost.run.log import check_output_folder
 
     if not args.file.exists():
         raise CliError(f"{args.file}: no such file or folder")

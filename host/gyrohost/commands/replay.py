@@ -50,7 +50,7 @@ def run(args) -> int:
     from gyrohost.commands.errors import CliError
     from gyrohost.estimator import EstimatorConfigError, EstimatorError, load_config
     from gyrohost.estimator.ekf import Status
-    from gyrohost.run.log import LogError
+    from gyrohost.run.errors import LogError
     from gyrohost.run.replay import replay
     from gyrotensegrity import SceneError
 

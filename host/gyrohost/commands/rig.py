@@ -72,9 +72,8 @@ def run(args) -> int:
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.sigint import InterruptsRaised, signal_name
     from gyrohost.simrig.control_socket import control_path, default_ports_file
+    from gyrohost.simrig.errors import HarnessError, RigSetupError
     from gyrohost.simrig.sim import SimulatedRig
-    from gyrohost.simrig.simavr import HarnessError
-    from gyrohost.simrig.truth import RigSetupError
 
     ports_file = args.ports_file or default_ports_file()
     if args.send is not None:
@@ -183,12 +182,8 @@ def _answers(path: Path) -> bool:
 
 def _send(ports_file: Path, line: str) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.simrig.control_socket import (
-        ControlError,
-        PortsFileError,
-        read_ports_file,
-        send_command,
-    )
+    from gyrohost.simrig.control_socket import read_ports_file, send_command
+    from gyrohost.simrig.errors import ControlError, PortsFileError
 
     try:
         answer = send_command(read_ports_file(ports_file).control, line)
@@ -246,7 +241,7 @@ def _logged_answer(rig, line: str) -> str:
 
 
 def _answer(rig, line: str) -> str:
-    from gyrohost.simrig.sim import FaultCommandError
+    from gyrohost.simrig.errors import FaultCommandError
 
     try:
         return rig.command(line)

@@ -23,7 +23,7 @@ def run(args) -> int:
     from gyrohost.estimator.errors import EstimatorConfigError
     from gyrohost.resources import ResourceError
     from gyrohost.run import ScheduleRefused
-    from gyrohost.run.log import LogError
+    from gyrohost.run.errors import LogError
     from gyrohost.sil.scoring import SilError, report
     from gyrotensegrity import SceneError
 

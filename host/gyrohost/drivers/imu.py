@@ -26,7 +26,7 @@ from enum import IntEnum
 import numpy as np
 import serial
 
-from gyrohost.errors import GyrohostError
+from .errors import ImuConfigError, ImuError, ImuTimeoutError
 
 FRAME_LEN = 11
 HEADER = 0x55
@@ -64,18 +64,6 @@ MOUNT_VERTICAL = Command(b"\xff\xaa\x66")
 
 RATE_COMMANDS = {100: (RATE_115200_100HZ, 115200), 20: (RATE_9600_20HZ, 9600)}
 """Output rate, Hz -> (command, baud rate the device switches to)."""
-
-
-class ImuError(GyrohostError, RuntimeError):
-    """The IMU link failed (port error, no data in time)."""
-
-
-class ImuTimeoutError(ImuError):
-    """No complete sample arrived within the timeout."""
-
-
-class ImuConfigError(GyrohostError, ValueError):
-    """An invalid IMU driver setting (rate, mounting)."""
 
 
 def frame_checksum(first10: bytes) -> int:

@@ -31,7 +31,8 @@ import dynamixel_sdk as sdk
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
 from gyrohost.drivers import mx12
-from gyrohost.errors import GyrohostError
+
+from .errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
 
 
 @dataclass(frozen=True)
@@ -67,45 +68,9 @@ class ServoState:
     t_ns: int
 
 
-class ServoError(GyrohostError, RuntimeError):
-    """A servo or its bus failed."""
-
-
-class ServoCommError(ServoError):
-    """No valid status packet (timeout, corrupt packet, port busy or failed)."""
-
-    def __init__(self, message: str, servo_id: int, result: int) -> None:
-        super().__init__(message)
-        self.servo_id = servo_id
-        self.result = result
-
-
-class ServoFaultError(ServoError):
-    """A servo reported faults in its status error byte.
-
-    Attributes
-    ----------
-    servo_id : int
-    faults : tuple of str
-        Names from :data:`gyrohost.drivers.mx12.FAULT_BITS`.
-    states : list of ServoState
-        Everything read in the same call (when raised by :meth:`StringServoBus.read_states`).
-    """
-
-    def __init__(self, message: str, servo_id: int, faults: tuple[str, ...], states=()) -> None:
-        super().__init__(message)
-        self.servo_id = servo_id
-        self.faults = faults
-        self.states = list(states)
-
-
 LENGTH_ROUNDING_M = 1e-9
 """A length commanded this close outside a servo's length limit is rounding (a schedule sampled
 or planned on the limit): it is commanded at the limit. Farther out it is refused."""
-
-
-class ServoLimitError(GyrohostError, ValueError):
-    """A command outside a configured limit was refused; nothing was sent."""
 
 
 class PortHandler(sdk.PortHandler):

@@ -18,58 +18,16 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.errors import GyrohostError
+
+from .errors import (
+    CalibrationError,
+    DeviceError,
+    FirmwareMismatchError,
+    WheelBoardTimeout,
+    WheelFaultError,
+)
 
 BAUD = 1_000_000
-
-
-class WheelBoardError(GyrohostError, RuntimeError):
-    """The board or the link failed (timeouts, refused commands, faults)."""
-
-
-class WheelBoardTimeout(WheelBoardError, TimeoutError):
-    """No reply within the time limit."""
-
-
-class FirmwareMismatchError(WheelBoardError):
-    """The firmware speaks another protocol version than this host."""
-
-
-class DeviceError(WheelBoardError):
-    """The board answered a request with an ERROR reply.
-
-    Attributes: ``request`` (message name), ``code`` (number), ``name``, ``text``, ``detail``,
-    ``latched`` (the faults the board's latest telemetry reported, named in the message when
-    the refusal is FAULT_ACTIVE: the reply itself does not carry them).
-    """
-
-    def __init__(self, request: str, code: int, detail: int, latched: Sequence[str] = ()):
-        self.request, self.code, self.detail = request, code, detail
-        self.name, self.text = wp.error_name(code), wp.error_text(code)
-        self.latched = list(latched)
-        why = f"; latched: {', '.join(self.latched)}" if self.name == "FAULT_ACTIVE" else ""
-        super().__init__(
-            f"{request} refused by the wheel board: {self.name} ({self.text}), detail {detail}"
-            + why
-        )
-
-
-class WheelFaultError(WheelBoardError):
-    """Faults are latched on the board; ``faults`` lists their names."""
-
-    def __init__(self, faults: list[str]):
-        self.faults = faults
-        texts = "; ".join(f"{n}: {wp.fault_text(n)}" for n in faults)
-        super().__init__(f"wheel board faults latched: {texts}")
-
-
-class CalibrationError(WheelBoardError):
-    """CALIBRATE_ENC failed; ``wheel``, ``reason`` (name) and ``text`` say why."""
-
-    def __init__(self, wheel: int, detail: int):
-        self.wheel = wheel
-        self.reason, self.text = wp.cal_failure(detail)
-        super().__init__(f"calibration of wheel {wheel} failed: {self.reason} ({self.text})")
 
 
 class WheelBoard:

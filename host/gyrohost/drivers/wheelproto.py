@@ -12,7 +12,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from gyrohost.errors import GyrohostError
+from .errors import FrameError, ProtocolError
 
 PROTO_VERSION = 3
 MAX_PAYLOAD = 40
@@ -20,22 +20,6 @@ MAX_RAW = 1 + MAX_PAYLOAD + 2
 MAX_ENCODED = MAX_RAW + 1
 N_WHEELS = 4
 TICK_HZ = 1000
-
-
-class ProtocolError(GyrohostError, ValueError):
-    """Bytes or values that do not follow the wheel-board protocol."""
-
-
-class FrameError(ProtocolError):
-    """A received frame was dropped; ``kind`` names the check that failed.
-
-    kind is one of ``bad_crc``, ``short``, ``oversize``, ``bad_cobs``, ``unknown_id``,
-    ``bad_length`` (the same counters the firmware keeps).
-    """
-
-    def __init__(self, kind: str, message: str):
-        super().__init__(f"{kind}: {message}")
-        self.kind = kind
 
 
 @dataclass(frozen=True)

@@ -48,12 +48,14 @@ from gyrohost.estimator.errors import EstimatorError
 from gyrohost.geometry import rotation_zyx, turn_from_first
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
-from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.errors import IdentDataError
 from gyrohost.ident.logs import windowed
 from gyrohost.ident.params import Param, apply
-from gyrohost.run.log import LogError
+from gyrohost.run.errors import LogError
 from gyrohost.run.replay import read_inputs, started
 from gyrotensegrity import Model, Scene
+
+from .errors import FilterFitError
 
 IMU_SOURCES = ("imu_rate", "imu_accel", "imu_angle")
 STATE_GROUPS = ("gyro-bias",)
@@ -72,10 +74,6 @@ the acceptance, a window to 90 degrees broke the filter and left J3 22 % off
 (reports/identification-history.md, "On a real-time recording")."""
 SUGGESTED_TURN_RAD = np.radians(30.0)
 """Where the warning suggests ending the window: the largest turn that fitted, rounded up."""
-
-
-class FilterFitError(output_fit.FitError):
-    """The filter could not run a recording under the nominal parameters."""
 
 
 @dataclass(frozen=True)

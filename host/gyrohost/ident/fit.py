@@ -21,21 +21,18 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gyrohost.config import RigConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.estimator.config import EstimatorConfig
 from gyrohost.ident import forward, lsq, profile, shooting
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 from gyrotensegrity.errors import SimulationError
 
+from .errors import FitError
+
 FAILED_RESIDUAL = 1e3
 """Every residual the model could not give under a parameter vector (a simulation gone
 non-finite; from where a filter broke to the recording's end): a step of the fit into such
 parameters is refused as far worse than any the model runs through."""
-
-
-class FitError(GyrohostError, RuntimeError):
-    """The model could not run a recording under the nominal parameters."""
 
 
 def broken_at(params, theta, what: str) -> str:

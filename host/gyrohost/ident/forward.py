@@ -15,7 +15,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gyrohost.config import RigConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
 from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
@@ -23,6 +22,8 @@ from gyrohost.ident import shooting
 from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
 from gyrohost.simrig.truth import Truth
 from gyrotensegrity import Scene
+
+from .errors import IdentDataError
 
 WHEEL_SMOOTHING_S = 0.3
 """Width of the moving average on the reported wheel speeds, s. The board holds its speeds; the
@@ -33,10 +34,6 @@ WHEEL_SETTLED_RAD_S = 0.5
 the command: the board's speed loop holds it there, while the reports' mean is off by their
 quantisation (about 1e-3 rad/s), and a momentum imbalance that small already grows, over a
 few seconds, in the D-bar's unstable roll mode."""
-
-
-class IdentDataError(GyrohostError, ValueError):
-    """A recording cannot be fitted (a stream missing, too short, or a servo not in it)."""
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,10 @@ from gyrohost.config import RigConfig
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.sample_feed import regular_times, wheel_times
-from gyrohost.ident.forward import IdentDataError, Recording, recording
-from gyrohost.run.log import LogError, read_meta, read_stream, read_streams
+from gyrohost.ident.errors import IdentDataError
+from gyrohost.ident.forward import Recording, recording
+from gyrohost.run.errors import LogError
+from gyrohost.run.log import read_meta, read_stream, read_streams
 from gyrohost.run.summary import real_time_lost
 
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"

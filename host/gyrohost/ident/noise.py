@@ -33,9 +33,10 @@ from scipy.stats import chi2
 
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import EstimatorConfig, imu_wire_counts
-from gyrohost.ident.forward import IdentDataError
+from gyrohost.ident.errors import IdentDataError
 from gyrohost.ident.logs import FIRST_PHASE, phase_starts
-from gyrohost.run.log import LogError, read_streams
+from gyrohost.run.errors import LogError
+from gyrohost.run.log import read_streams
 
 START_PHASE = FIRST_PHASE
 END_PHASES = ("settle", "rampdown")

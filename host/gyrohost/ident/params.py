@@ -12,9 +12,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrohost.config import RigConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.ident.groups import GROUPS
 from gyrotensegrity import Scene
+
+from .errors import ParamsError
 
 STRING_STEP = 0.1
 """Finite-difference step of the strings' stiffness and damping (log factor): their effect is
@@ -22,10 +23,6 @@ small beside the jumps of the cost where a string goes slack a step earlier or l
 Jacobian takes their secant over +-10 %."""
 OUTPUT_GROUPS = ("mounting", "gyro-bias", "accel-bias")
 """Groups that act on the sensor's outputs only: changing them needs no new simulation."""
-
-
-class ParamsError(GyrohostError, ValueError):
-    """An unknown or conflicting parameter group."""
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,9 @@ from dataclasses import dataclass
 from gyrohost.bringup.placeholders import find_placeholders
 from gyrohost.bringup.serialports import check_ports
 from gyrohost.config import ConfigError
-from gyrohost.drivers.servos import ServoCommError
-from gyrohost.errors import GyrohostError
+from gyrohost.drivers.errors import ServoCommError
+
+from .errors import DeviceFault
 
 POLL_IDLE_S = 0.002
 """Sleep of the IMU reader when nothing has arrived, s (at most this much extra latency)."""
@@ -70,14 +71,6 @@ def check_real_rig(config) -> None:
                 + "\n  ".join(unset)
             )
     check_ports(device_ports(config), config.source)
-
-
-class DeviceFault(GyrohostError, RuntimeError):
-    """A device failed during a run; ``device`` names it (``imu``, ``wheels``, ``servos``)."""
-
-    def __init__(self, device: str, message: str):
-        super().__init__(f"{device}: {message}")
-        self.device = device
 
 
 @dataclass(frozen=True)

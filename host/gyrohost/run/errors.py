@@ -21,3 +21,33 @@ class ScheduleRefused(GyrohostError, ValueError):
 
 class RunRequestError(GyrohostError, ValueError):
     """A run asked for with options that do not go together or ports it cannot use."""
+
+
+class StartStateRefused(GyrohostError, ValueError):
+    """The rig is not in the scene's initial state (nothing moved); the message says what
+    differs and by how much."""
+
+
+class LogError(GyrohostError, ValueError):
+    """A log folder or row that does not follow the format; the message names the file and row."""
+
+
+class LogWriteError(GyrohostError, RuntimeError):
+    """Writing the log failed (a full disk, a lost drive); the message says where the log ends."""
+
+
+class LiveUnavailable(GyrohostError, ValueError):
+    """The live view cannot start: the ``foxglove-sdk`` package is missing, or the port is
+    taken."""
+
+
+class EstimatorProcessError(RunError):
+    """The estimator's child process failed to start, fell too far behind or its pipe broke."""
+
+
+class DeviceFault(GyrohostError, RuntimeError):
+    """A device failed during a run; ``device`` names it (``imu``, ``wheels``, ``servos``)."""
+
+    def __init__(self, device: str, message: str):
+        super().__init__(f"{device}: {message}")
+        self.device = device

@@ -31,6 +31,8 @@ from gyrohost.run.errors import RunError
 from gyrohost.run.streams import IMU_FUSIONS
 from gyrohost.sigint import InterruptsHeld, ignore_interrupts
 
+from .errors import EstimatorProcessError
+
 READY_TIMEOUT_S = 60.0
 """Longest wait for the child to import and build the scene's model, s."""
 STOP_TIMEOUT_S = 30.0
@@ -41,10 +43,6 @@ NICE = 15
 (a third of the CPU time of a process at niceness 0 when they compete for a core)."""
 
 _PIPE_ERRORS = (EOFError, OSError)
-
-
-class EstimatorProcessError(RunError):
-    """The estimator's child process failed to start, fell too far behind or its pipe broke."""
 
 
 class EstimatorProcess:

@@ -7,16 +7,12 @@ Foxglove connects to ``ws://127.0.0.1:PORT`` (Open connection, Foxglove WebSocke
 sees the channels open from then on and every message logged after it subscribed.
 """
 
-from gyrohost.errors import GyrohostError
 from gyrohost.run.foxglove import LogChannels
+
+from .errors import LiveUnavailable
 
 DEFAULT_PORT = 8765
 """Foxglove's default WebSocket port."""
-
-
-class LiveUnavailable(GyrohostError, ValueError):
-    """The live view cannot start: the ``foxglove-sdk`` package is missing, or the port is
-    taken."""
 
 
 class LiveView:

@@ -30,21 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.errors import GyrohostError
+from .errors import LogError, LogWriteError
 
 FORMAT = "gyrotens-log"
 FORMAT_VERSION = 1
 RESERVE_BYTES = 65536
 """Disk space a log holds back (the file ``.reserve``) while it is written and gives up when a
 write is refused, so a full disk still takes the summary in ``meta.json`` (about 20 kB)."""
-
-
-class LogError(GyrohostError, ValueError):
-    """A log folder or row that does not follow the format; the message names the file and row."""
-
-
-class LogWriteError(GyrohostError, RuntimeError):
-    """Writing the log failed (a full disk, a lost drive); the message says where the log ends."""
 
 
 class Stream:

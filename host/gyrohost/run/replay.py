@@ -31,7 +31,8 @@ from gyrohost.estimator.ekf import SOURCES, TensegrityEKF
 from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
-from gyrohost.run.log import LogError, RunLog, check_new_log_folder, read_meta, read_streams
+from gyrohost.run.errors import LogError
+from gyrohost.run.log import RunLog, check_new_log_folder, read_meta, read_streams
 from gyrohost.run.streams import INNOVATION_COMPONENTS
 from gyrotensegrity import Model, load_scene
 

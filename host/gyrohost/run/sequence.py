@@ -45,7 +45,7 @@ from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.connect import connect_devices
 from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
-from gyrohost.run.errors import RunError
+from gyrohost.run.errors import RunError, StartStateRefused
 from gyrohost.run.estimation import EstimatorProcess, start_state
 from gyrohost.run.health import fails_run
 from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
@@ -53,7 +53,7 @@ from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
-from gyrohost.run.start_check import StartStateRefused, check_start_state
+from gyrohost.run.start_check import check_start_state
 from gyrohost.run.streams import ReplanWriter, TruthProbe, open_run_streams
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Readout, Ticker, status_words

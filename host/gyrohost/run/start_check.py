@@ -27,14 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrohost.errors import GyrohostError
 from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx
-from gyrohost.run.devices import DeviceFault
+from gyrohost.run.errors import DeviceFault
 
-
-class StartStateRefused(GyrohostError, ValueError):
-    """The rig is not in the scene's initial state (nothing moved); the message says what
-    differs and by how much."""
+from .errors import StartStateRefused
 
 
 @dataclass(frozen=True)

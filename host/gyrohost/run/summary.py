@@ -4,7 +4,7 @@ once it has reached the safe state."""
 from dataclasses import asdict
 
 from gyrohost.run.ticker import jitter_line
-from gyrohost.simrig.process import RigProcessError
+from gyrohost.simrig.errors import RigProcessError
 from gyrotensegrity import __version__
 
 

@@ -22,21 +22,13 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from gyrohost.errors import GyrohostError
 from gyrotensegrity.textfile import read_toml
+
+from .errors import ControlError, PortsFileError
 
 DEVICES = ("imu", "wheels", "servos")
 ANSWER_END = "\n\n"
 """An answer ends with an empty line (answers may hold several lines)."""
-
-
-class PortsFileError(GyrohostError, ValueError):
-    """A ports file that is missing or does not name the rig's ports; the message names the file
-    and the key."""
-
-
-class ControlError(GyrohostError, RuntimeError):
-    """The rig's control socket cannot be reached or stopped answering."""
 
 
 def default_ports_file() -> Path:

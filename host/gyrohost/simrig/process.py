@@ -21,16 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrohost.errors import GyrohostError
 from gyrohost.gcfreeze import heap_frozen
 from gyrohost.sigint import InterruptsHeld, ignore_interrupts
 
+from .errors import RigProcessError
+
 READY_TIMEOUT_S = 60.0
 """Longest wait for the child to import, build the rig and report its ptys, s."""
-
-
-class RigProcessError(GyrohostError, RuntimeError):
-    """The child process failed to start, its rig failed or the pipe to it broke."""
 
 
 _PIPE_ERRORS = (EOFError, OSError)
@@ -212,7 +209,7 @@ def _serve(conn, config, period_s: float) -> None:
 
 def _start_and_serve(conn, rig, period_s: float) -> None:
     """Start the built rig, report ready, then stream its truth and answer requests."""
-    from gyrohost.simrig.sim import FaultCommandError
+    from gyrohost.simrig.errors import FaultCommandError
 
     try:
         t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)

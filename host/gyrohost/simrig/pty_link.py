@@ -19,15 +19,12 @@ import threading
 import time
 import tty
 
-from gyrohost.errors import GyrohostError
 from gyrohost.simrig.faults import FaultFilter
+
+from .errors import PtyLinkError
 
 SWITCH_INTERVAL_S = 0.0005
 """GIL switch interval set while an emulator thread runs, s (see :meth:`PtyDevice.start`)."""
-
-
-class PtyLinkError(GyrohostError, RuntimeError):
-    """The pseudo-terminal pair could not be created or used."""
 
 
 class PtyLink:

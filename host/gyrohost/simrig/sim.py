@@ -31,13 +31,15 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.config import WHEEL_KINDS, RigConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.simrig import simavr
+from gyrohost.simrig.errors import RigSetupError
 from gyrohost.simrig.imu_emu import Bwt61Emulator
 from gyrohost.simrig.servo_emu import Mx12Bus
 from gyrohost.simrig.stats import RigStats
-from gyrohost.simrig.truth import RigSetupError, Truth, TruthRecord, truth_scene
+from gyrohost.simrig.truth import Truth, TruthRecord, truth_scene
 from gyrohost.simrig.wheel_emu import WheelBoardEmulator
+
+from .errors import FaultCommandError, RigError
 
 DEVICES = ("imu", "wheels", "servos")
 IDLE_WAIT_S = 0.001
@@ -47,14 +49,6 @@ MAX_LAG_S = 0.25
 
 STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
 DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
-
-
-class RigError(GyrohostError, RuntimeError):
-    """The rig failed at run time (its loop raised, or it was used the wrong way)."""
-
-
-class FaultCommandError(GyrohostError, ValueError):
-    """A fault request or command line that the rig does not understand."""
 
 
 class SimulatedRig:

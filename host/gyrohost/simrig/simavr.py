@@ -34,7 +34,7 @@ import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
-from gyrohost.errors import GyrohostError
+from .errors import HarnessError
 
 FIRMWARE_BUILD_ENV = "GYROTENS_FIRMWARE_BUILD"
 """Environment variable naming a firmware build directory (``avr/*.elf``, ``sim/fil_harness``)."""
@@ -44,10 +44,6 @@ SPEED_PERIOD_S = 0.01
 """Simulated seconds between the harness's SPEED lines in the rig (100 Hz)."""
 UART_WAIT_MAX_S = 0.2
 """Rig: longest wait of the harness for a pty reader; then, with no host, output is dropped."""
-
-
-class HarnessError(GyrohostError, RuntimeError):
-    """The harness or the firmware ELF is missing, or the harness misbehaved."""
 
 
 def require_file(path: Path, what: str) -> Path:

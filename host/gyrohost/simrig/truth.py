@@ -44,19 +44,16 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.config import RigConfig, ServoConfig, TruthConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
 from gyrotensegrity.piecewise import constant
 from gyrotensegrity.simulate import stable_step
 
+from .errors import RigSetupError
+
 FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
-
-
-class RigSetupError(GyrohostError, ValueError):
-    """The rig configuration does not fit the scene (unknown string or node, bad geometry)."""
 
 
 def truth_scene(config: RigConfig, scene: str | Path | None = None) -> Scene:
