@@ -156,7 +156,8 @@ def test_a_real_time_run_whose_filter_diverged_is_scored(tmp_path, monkeypatch, 
     stopped before its schedule ended is an error naming it."""
     import gyrohost.run
     from gyrohost.run.settings import RunResult
-    from gyrohost.sil.scoring import SilError, record_run
+    from gyrohost.sil.errors import SilError
+    from gyrohost.sil.scoring import record_run
 
     reason = "completed" if completed else "wheel board silent"
     ended = RunResult(completed, reason, 1, tmp_path)

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from gyrohost.sweep.spec import SpecError, apply, cases, load_spec, targets
+from gyrohost.sweep.errors import SpecError
+from gyrohost.sweep.spec import apply, cases, load_spec, targets
 
 HEAD = """
 [sweep]

@@ -17,7 +17,8 @@ import tomllib
 
 import numpy as np
 
-from gyrohost.bench.runner import RunStopped, run_drifts
+from gyrohost.bench.errors import RunStopped
+from gyrohost.bench.runner import run_drifts
 from gyrohost.parallel import Executor
 from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, SimulationError, scene_from_dict

@@ -9,10 +9,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gyrohost.errors import GyrohostError
 from gyrotensegrity import Model, diagnostics
 from gyrotensegrity.fast import FastDynamics, InputTable
 from gyrotensegrity.integrators import ADAPTIVE, RK4, adaptive_solver
+
+from .errors import RunStopped
 
 
 @dataclass
@@ -106,13 +107,6 @@ def integrate(
         counter["n"],
         failure,
     )
-
-
-class RunStopped(GyrohostError, RuntimeError):
-    """The bench stopped an integration early; the message says why.
-
-    Raised over the wall-time budget, on a non-finite state or on a failed solver step.
-    """
 
 
 def _check(x, start, budget_s, t):

@@ -24,7 +24,8 @@ def run(args) -> int:
     from gyrohost.resources import ResourceError
     from gyrohost.run import ScheduleRefused
     from gyrohost.run.errors import LogError
-    from gyrohost.sil.scoring import SilError, report
+    from gyrohost.sil.errors import SilError
+    from gyrohost.sil.scoring import report
     from gyrotensegrity import SceneError
 
     if args.runs < 1:

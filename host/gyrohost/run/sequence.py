@@ -15,7 +15,7 @@
 
 Every exit path, a normal end included, goes through one routine, :meth:`RunLoop.safe_state`
 (:mod:`gyrohost.run.safe_state`). Ctrl-C (``KeyboardInterrupt``), a device fault (a driver
-error, a reader's :class:`~gyrohost.run.devices.DeviceFault`), a limit breach, an estimator
+error, a reader's :class:`~gyrohost.run.errors.DeviceFault`), a limit breach, an estimator
 fault and a time-out all end there; :class:`~gyrohost.run.settings.RunResult` then carries a
 non-zero exit status and the reason.
 

@@ -40,7 +40,6 @@ import numpy as np
 
 from gyrohost import parallel
 from gyrohost.config import TruthConfig
-from gyrohost.errors import GyrohostError
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import EXACT_IMU_TIMES, sawtooth_psd
 from gyrohost.estimator.consistency import (
@@ -61,6 +60,8 @@ from gyrohost.sil.montecarlo import (
     score_run,
     summarise,
 )
+
+from .errors import SilError
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
@@ -89,10 +90,6 @@ RIG_MODEL_KEYS = {
     "kink_model": "mean",
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
-
-
-class SilError(GyrohostError, ValueError):
-    """A SIL run cannot start (its log folder exists) or stopped before its schedule ended."""
 
 
 def seeded(config, seed):

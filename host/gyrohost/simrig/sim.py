@@ -32,14 +32,13 @@ import numpy as np
 
 from gyrohost.config import WHEEL_KINDS, RigConfig
 from gyrohost.simrig import simavr
-from gyrohost.simrig.errors import RigSetupError
 from gyrohost.simrig.imu_emu import Bwt61Emulator
 from gyrohost.simrig.servo_emu import Mx12Bus
 from gyrohost.simrig.stats import RigStats
 from gyrohost.simrig.truth import Truth, TruthRecord, truth_scene
 from gyrohost.simrig.wheel_emu import WheelBoardEmulator
 
-from .errors import FaultCommandError, RigError
+from .errors import FaultCommandError, HarnessError, RigError, RigSetupError
 
 DEVICES = ("imu", "wheels", "servos")
 IDLE_WAIT_S = 0.001
@@ -124,7 +123,7 @@ class SimulatedRig:
             return simavr.simavr_wheel_board(
                 emu.simavr_elf, emu.simavr_harness, emu.simavr_options, config.base_dir
             )
-        except simavr.HarnessError as exc:
+        except HarnessError as exc:
             self.imu.close()
             self.servos.close()
             raise RigSetupError(f"wheels = simavr: {exc}") from exc

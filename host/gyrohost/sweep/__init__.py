@@ -5,7 +5,8 @@ or on a Dask worker), :mod:`.run` runs them through :class:`gyrohost.parallel.Ex
 the results, :mod:`.plots` draws them.
 """
 
+from .errors import SpecError
 from .run import SweepResult, read_table, run_sweep
-from .spec import Spec, SpecError, load_spec
+from .spec import Spec, load_spec
 
 __all__ = ["Spec", "SpecError", "SweepResult", "load_spec", "read_table", "run_sweep"]

@@ -15,12 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.control.attitude import PLANE_NODES
-from gyrohost.errors import GyrohostError
 from gyrohost.resources import ResourceError, resolve
 from gyrotensegrity import SceneError, scene_from_dict
 from gyrotensegrity.integrators import NAMES
 from gyrotensegrity.runfile import RUN_KEYS
 from gyrotensegrity.textfile import read_toml
+
+from .errors import SpecError
 
 OPS = ("set", "scale", "magnitude", "stretch")
 """How an axis value ``v`` changes each number ``x`` at its key: ``set`` x = v, ``scale``
@@ -41,10 +42,6 @@ INTEGRATOR_KEYS = (
     "constraint_tolerance",
 )
 SAMPLINGS = ("grid", "lhs")
-
-
-class SpecError(GyrohostError, ValueError):
-    """A sweep spec is unreadable or wrong; the message names the file and the key."""
 
 
 @dataclass(frozen=True)

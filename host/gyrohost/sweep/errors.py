@@ -1,0 +1,10 @@
+"""Why a sweep specification was refused.
+
+Each subclasses :class:`gyrohost.errors.GyrohostError` and ``ValueError`` (bad input, refused
+before anything moved) or ``RuntimeError`` (a failure while running)."""
+
+from gyrohost.errors import GyrohostError
+
+
+class SpecError(GyrohostError, ValueError):
+    """A sweep spec is unreadable or wrong; the message names the file and the key."""
