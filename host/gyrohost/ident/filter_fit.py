@@ -30,6 +30,7 @@ import os
 import pickle
 import signal
 import tempfile
+import threading
 import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -252,23 +253,34 @@ _worker_problem: FilterProblem | None = None
 
 @contextmanager
 def _interrupts_held():
-    """SIGINT held back (blocked, not ignored) in this thread within the block.
+    """Ctrl-C held back within the block and raised when it ends.
 
     Ctrl-C reaches the whole process group: the parent's interrupt shuts the pool down, and a
-    worker's own would print its traceback and break the pool under it. A process started
-    within the block inherits the blocked signal from its first instruction (the mask survives
-    the spawn's exec), before its imports, which take seconds on a slow machine, and keeps it
-    blocked: the pool's shutdown ends it. The parent's Ctrl-C within the block stays pending
-    and is delivered when the block ends, as the interrupt it is; an ignored one would be lost.
-    The resource tracker unblocks SIGINT when it starts, so it is started before the block."""
+    worker's own would print its traceback and break the pool under it. SIGINT is blocked in
+    this thread, so that a process started within the block inherits the blocked signal from
+    its first instruction (the mask survives the spawn's exec), before its imports, which take
+    seconds on a slow machine, and keeps it: the pool's shutdown ends it. The mask is this
+    thread's only: another thread of the process may take the signal, and Python then runs
+    the handler in the main thread, within the block, where a KeyboardInterrupt halfway
+    through starting a process left it reading a cut-off start-up message (its EOFError
+    traceback on the terminal). So in the main thread the handler only notes the interrupt, and
+    the block's end raises it; an ignored one would be lost. The resource tracker unblocks
+    SIGINT when it starts, so it is started before the block."""
     resource_tracker.ensure_running()
+    noted = []
+    main = threading.current_thread() is threading.main_thread()
+    handler = signal.signal(signal.SIGINT, lambda *_: noted.append(1)) if main else None
     signals = {signal.SIGINT}
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
     try:
         yield
     finally:
         if signal.SIGINT not in previous:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, signals)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, signals)  # a pending one: noted now
+        if main:
+            signal.signal(signal.SIGINT, handler)
+        if noted:
+            raise KeyboardInterrupt
 
 
 def _start_worker(path: str) -> None:
