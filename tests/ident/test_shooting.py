@@ -70,10 +70,12 @@ def test_segments_continue_the_truth_and_start_on_the_manifold(tmp_path):
 def test_segments_past_the_roll_over_are_left_out_of_the_fit(tmp_path):
     """12 s of the excitation played twice and more (bars weighed): the truth rolls over about
     8 s in, after which no prediction follows the recording (reports/identification-history.md).
-    Fitted in 4 s segments started from the IMU, the segment past the roll-over is left out and
-    the others hold J3 near the truth (10 %: far inside what a fit dragged by the roll-over
-    lands at, loose enough for any seed or CPU; how near it comes is the identification
-    study's)."""
+    Fitted in 4 s segments started from the IMU, the segment past the roll-over is left out, the
+    first is kept, and J3 lands near the truth (10 %: far inside what a fit dragged by the
+    roll-over lands at, loose enough for any seed or CPU; how near it comes is the
+    identification study's). Whether the segment before the roll-over is predictable enough to
+    keep depends on round-off: with numpy 2.4 the fit kept it, with numpy 2.5 and scipy 1.18 it
+    left it out."""
     nominal, truth = write_rigs(tmp_path, 12.0, weighed=True, repeat=3)
     log = record_log(truth, 1, tmp_path / "log")
     config = load_rig_config(nominal)
@@ -82,7 +84,8 @@ def test_segments_past_the_roll_over_are_left_out_of_the_fit(tmp_path):
     groups = ["J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias"]
     rec = load_recording(log, config, 4, commanded=True, segment_s=4.0)
     result = fit(scene, config, est, parameters(scene, config, groups, SERVO_LAG_S), [rec])
-    assert [(t0, t1) for _, t0, t1 in result.dropped] == [(8.0, pytest.approx(12.0, abs=0.02))]
+    dropped = [(t0, round(t1, 1)) for _, t0, t1 in result.dropped]
+    assert (8.0, 12.0) in dropped and (0.0, 4.0) not in dropped, dropped
     assert abs(result.theta[0] - np.log(FACTORS["J3"])) < np.log(1.10)
 
 
