@@ -1,7 +1,8 @@
 """One run of a schedule on the rig, from connection to the safe state, logged.
 
-Modules, in the order a run meets them: :mod:`.sequence` (the phases, :class:`RunLoop`),
-:mod:`.limits` (the schedule checked before anything moves, limits every tick),
+Modules, in the order a run meets them: :mod:`.request` (a run as a user asks for it, checked
+before anything opens: what ``gyrotens run`` calls), :mod:`.sequence` (the phases,
+:class:`RunLoop`), :mod:`.limits` (the schedule checked before anything moves, limits every tick),
 :mod:`.devices` (reader threads), :mod:`.ticker` (the clock and fixed tick grid),
 :mod:`.dispatch` (per-device handling of samples), :mod:`.streams` (the log schema),
 :mod:`.log` (the log format), :mod:`.safe_state`, :mod:`.summary`, :mod:`.simulated` (a run on
