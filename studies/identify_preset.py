@@ -46,11 +46,12 @@ def record(folder: Path, schedule_name: str, seed: int) -> tuple[Path, Path, flo
     rolled_s : float
         When the truth's sensor had turned :data:`ROLLED_RAD` from its start, s (``nan``: never).
     """
-    from gyrohost.config import load_rig_config, with_truth_scene
+    from gyrohost.config import load_rig_config
     from gyrohost.geometry import turn_from_first
     from gyrohost.ident.simcheck import write_log
     from gyrohost.run.request import load_schedule_arg
     from gyrohost.sil.scoring import rig_model_run
+    from gyrohost.simrig.config import with_truth_scene
     from studies.identify_rig import write_rig_files
 
     config_path, truth_path = write_rig_files(folder, seed)
@@ -93,7 +94,7 @@ def segment_figures(result, scene, config, est, recs) -> list[tuple]:
     list of (start, end, own, cumulative, rms_truth)
         Times in s; ``own`` and ``cumulative`` map parameter name -> 1-sigma (log factor).
     """
-    from gyrohost.ident import shooting
+    from gyrohost.ident import forward, shooting
     from gyrohost.ident.fit import Problem, anchored
     from gyrohost.ident.params import apply
     from gyrohost.ident.simcheck import FACTORS
@@ -112,7 +113,7 @@ def segment_figures(result, scene, config, est, recs) -> list[tuple]:
     for name in ("J3", "stiffness", "damping"):
         true[names.index(name)] = np.log(FACTORS[name])
     r_true = problem(true).reshape(len(rec.t_imu_s), -1)
-    edges = shooting.edges_s(rec, config.sim.truth.dt_s)
+    edges = shooting.edges_s(rec, forward.STEP_S)
     edges[-1] = rec.t_imu_s[-1]
     idx = [names.index(n) for n in INFORMED]
     out = []

@@ -145,8 +145,8 @@ def sil_config(base, host: Rig, truth: Rig):
     """``base`` with the host's scene and mounting of ``host`` and the truth's scene and true
     mounting of ``truth`` (``[sim.truth] imu_rotation_deg``: the turn from the host's mounting
     to the true one)."""
-    from gyrohost.config import with_truth_scene
     from gyrohost.geometry import euler_zyx, rotation_zyx
+    from gyrohost.simrig.config import with_sim_keys, with_truth_scene
 
     turn = rotation_zyx(*truth.mounting_rpy_rad) @ rotation_zyx(*host.mounting_rpy_rad).T
     config = replace(
@@ -155,8 +155,8 @@ def sil_config(base, host: Rig, truth: Rig):
         imu=replace(base.imu, mounting_rpy_rad=host.mounting_rpy_rad),
     )
     config = with_truth_scene(config, truth.scene_path)
-    sim_truth = replace(config.sim.truth, imu_rotation_deg=tuple(np.degrees(euler_zyx(turn))))
-    return replace(config, sim=replace(config.sim, truth=sim_truth))
+    rotation_deg = [float(a) for a in np.degrees(euler_zyx(turn))]
+    return with_sim_keys(config, "truth", imu_rotation_deg=rotation_deg)
 
 
 def node_tracks(base, host: Rig, scene_path: Path, seed: int, duration_s: float) -> np.ndarray:

@@ -19,8 +19,9 @@ import numpy as np
 
 def mismatched(config, inertia_scale: float):
     """``config`` with the truth's wheel inertia scaled (the planner and EKF keep the scene)."""
-    truth = replace(config.sim.truth, wheel_inertia_scale=inertia_scale)
-    return replace(config, sim=replace(config.sim, truth=truth))
+    from gyrohost.simrig.config import with_sim_keys
+
+    return with_sim_keys(config, "truth", wheel_inertia_scale=inertia_scale)
 
 
 def settled_tilt(folder) -> tuple[float, float]:

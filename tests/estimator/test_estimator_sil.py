@@ -10,6 +10,7 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.resources import shipped
 from gyrohost.sil.scoring import RIG_MODEL_KEYS, score_rig_model_run
+from gyrohost.simrig.config import sim_config
 
 CONFIG = shipped("config", "sim-rig")
 
@@ -45,11 +46,9 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     """``[sim.truth] scene`` and ``imu_rotation_deg``: the truth (wheels 30 % heavier) moves
     otherwise than under the host's scene, which the host's commands and model keep; the true
     sensor axes are the frame's turned by the rotation."""
-    from dataclasses import replace
-
-    from gyrohost.config import with_truth_scene
     from gyrohost.geometry import rotation_zyx
     from gyrohost.sil.scoring import rig_model_run
+    from gyrohost.simrig.config import with_sim_keys, with_truth_scene
 
     scene = Path(shipped("scene", "dbar-gyro")).read_text()
     J3 = 1.3 * 0.5 * 0.05 * 0.031**2
@@ -57,9 +56,7 @@ def test_truth_runs_its_own_scene_and_mounting(tmp_path):
     config = load_rig_config(CONFIG)
     other = with_truth_scene(config, tmp_path / "heavy.toml")
     rotation_deg = (1.0, -2.0, 3.0)
-    other = replace(
-        other, sim=replace(other.sim, truth=replace(other.sim.truth, imu_rotation_deg=rotation_deg))
-    )
+    other = with_sim_keys(other, "truth", imu_rotation_deg=list(rotation_deg))
     model, data, x, R, *_ = rig_model_run(config, 1, 0.5)
     model_o, data_o, x_o, R_o, *_ = rig_model_run(other, 1, 0.5)
     assert model_o.J3[0] == model.J3[0]  # the host's scene
@@ -93,7 +90,7 @@ def test_a_schedule_is_played_with_its_wheel_speeds():
     np.testing.assert_allclose(spins, np.outer(np.interp(command["t_s"], t, factor), w0))
     true = x[:, 2 * 3 * model.layout.m : 2 * 3 * model.layout.m + 4]
     k_step = int(round(0.2 / dt_s))
-    error = 5.0 * config.sim.wheels.speed_error_std_rad_s  # the speed loop's, 5 std
+    error = 5.0 * sim_config(config).wheels.speed_error_std_rad_s  # the speed loop's, 5 std
     np.testing.assert_allclose(true[k_step], w0, atol=error)  # held until the step
     np.testing.assert_allclose(true[-1], 1.1 * w0, atol=0.05 + error)  # ramped within 0.5 s
     reported = data[streams.WHEELS]
@@ -101,28 +98,19 @@ def test_a_schedule_is_played_with_its_wheel_speeds():
     assert np.abs(reported["omega_0_rad_s"][late] - 1.1 * w0[0]).max() < 0.5
 
 
-def _config_with_keys(tmp_path, keys):
-    """The shipped simulated rig's configuration with ``keys`` (TOML lines) in ``[estimator]``."""
-    text = Path(CONFIG).read_text()
-    line = "noise_from_sim = true"
-    assert line in text
-    path = tmp_path / "rig.toml"
-    path.write_text(text.replace(line, f"{line}\n{keys}"))
-    return load_rig_config(path)
-
-
-def test_config_and_file_keys_reach_the_simulated_clock_filter(tmp_path):
-    """A configuration's ``[estimator]`` keys override the SIL's own, ``--estimator``'s override
-    both: a servo noise of 10 mm (the SIL's: 4.4 um) and an angle noise of 1 rad make their NIS
-    vanish in the filter that runs."""
+def test_file_keys_reach_the_simulated_clock_filter_and_the_rig_s_do_not(tmp_path):
+    """``--estimator``'s keys override the SIL's own: a servo noise of 10 mm (the SIL's: 4.4 um)
+    and an angle noise of 1 rad make their NIS vanish in the filter that runs. The rig's own
+    ``[estimator]`` table (its real-time figures) does not reach the simulated clock."""
     from gyrohost.sil.scoring import sil_keys, sil_results
 
-    config = _config_with_keys(tmp_path, "servo_length_std_m = 0.01\nimu_angle_std_rad = 0.5")
+    config = load_rig_config(CONFIG)
     extra = tmp_path / "estimator.toml"
-    extra.write_text("[estimator]\nimu_angle_std_rad = 1.0\n")
-    keys = sil_keys(config, extra)
+    extra.write_text("[estimator]\nservo_length_std_m = 0.01\nimu_angle_std_rad = 1.0\n")
+    keys = sil_keys(extra)
     assert keys["servo_length_std_m"] == 0.01 and keys["imu_angle_std_rad"] == 1.0
     assert keys["accel_psd_m2_s3"] == RIG_MODEL_KEYS["accel_psd_m2_s3"]  # not overridden
+    assert config.estimator["accel_psd_m2_s3"] != RIG_MODEL_KEYS["accel_psd_m2_s3"]
     (result,) = sil_results(config, runs=1, duration_s=0.3, estimator=extra)
     for source in ("servos", "imu_angle"):
         _, nis, dof = result.nis[source]
@@ -131,13 +119,14 @@ def test_config_and_file_keys_reach_the_simulated_clock_filter(tmp_path):
     assert np.mean(nis) > 0.1 * dof[0]
 
 
-def test_a_bad_config_key_names_the_file(tmp_path):
+def test_a_bad_file_key_names_the_file(tmp_path):
     from gyrohost.estimator.errors import EstimatorConfigError
     from gyrohost.sil.scoring import sil_keys
 
-    config = _config_with_keys(tmp_path, "servo_length_sd_m = 0.01")
-    with pytest.raises(EstimatorConfigError, match=r"rig\.toml.*servo_length_sd_m"):
-        sil_keys(config)
+    extra = tmp_path / "estimator.toml"
+    extra.write_text("[estimator]\nservo_length_sd_m = 0.01\n")
+    with pytest.raises(EstimatorConfigError, match=r"estimator\.toml.*servo_length_sd_m"):
+        sil_keys(extra)
 
 
 def test_score_only_without_recorded_runs_says_what_it_reads(tmp_path, capsys):

@@ -13,6 +13,7 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.resources import shipped
 from gyrohost.sil.effects import CASES, score_with_effects
+from gyrohost.simrig.config import truth_scene_path
 
 CONFIG = load_rig_config(shipped("config", "sim-rig"))
 
@@ -97,7 +98,7 @@ def test_gyrotens_sil_takes_the_run_commands_overlay_and_scenes(tmp_path, monkey
     config = seen["config"]
     assert config.imu.mounting_rpy_rad == (0.01, -0.02, 0.03)
     assert Path(config.scene_path) == tmp_path / "host.toml"
-    assert Path(config.truth_scene_path) == Path(shipped("scene", "dbar-rig"))
+    assert Path(truth_scene_path(config)) == Path(shipped("scene", "dbar-rig"))
     assert "captured" in capsys.readouterr().err
     monkeypatch.undo()
     (tmp_path / "broken.toml").write_text("x = [")

@@ -113,12 +113,11 @@ SEEDS = range(1, 4)
 def mis_mounted():
     from gyrohost.config import load_rig_config
     from gyrohost.resources import shipped
+    from gyrohost.simrig.config import with_sim_keys
 
     config = load_rig_config(shipped("config", "sim-rig"))
-    turn = tuple(np.degrees(MOUNTING_ERROR_RAD))
-    return replace(
-        config, sim=replace(config.sim, truth=replace(config.sim.truth, imu_rotation_deg=turn))
-    )
+    turn = [float(a) for a in np.degrees(MOUNTING_ERROR_RAD)]
+    return with_sim_keys(config, "truth", imu_rotation_deg=turn)
 
 
 @pytest.mark.parametrize(("std_rad", "dof"), [(0.0, 25), (3e-4, 28)])

@@ -9,6 +9,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
 from gyrohost.estimator.imu_model import ImuGeometry, euler_zyx
 from gyrohost.resources import shipped
+from gyrohost.simrig.config import sim_config
 from gyrohost.simrig.truth import Truth, truth_scene
 from gyrotensegrity.dynamics import evaluate
 
@@ -19,7 +20,8 @@ SPIN_UP_S = 1.2
 @pytest.fixture(scope="module")
 def rig():
     config = load_rig_config(shipped("config", "prism-sim-rig"))
-    return config, Truth(truth_scene(config), config.sim.truth, config.servos.servo)
+    truth = sim_config(config).truth
+    return config, Truth(truth_scene(config), truth, config.servos.servo)
 
 
 def _angle_rad(R_a, R_b):

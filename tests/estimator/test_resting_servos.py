@@ -11,8 +11,10 @@ import pytest
 from gyrohost.config import load_rig_config
 from gyrohost.drivers.mx12 import steps_per_metre
 from gyrohost.estimator import TensegrityEKF
-from gyrohost.estimator.config import EstimatorConfig, noise_from_rig, servo_hold_std
+from gyrohost.estimator.config import EstimatorConfig, servo_hold_std
 from gyrohost.resources import shipped
+from gyrohost.sil.emulator_keys import emulator_keys
+from gyrohost.simrig.config import sim_config
 
 HOLD_M = 6e-6
 LAG_S = 0.005  # the simulated rig's: shorter than the filter's 10 ms step
@@ -42,9 +44,9 @@ def test_the_hold_is_the_rest_lengths_spread_at_rest_whatever_the_steps(model, m
 
 def test_the_simulated_rig_s_hold_from_its_servos_count_and_band():
     rig = load_rig_config(shipped("config", "sim-rig"))
-    keys = noise_from_rig(rig)
+    keys = emulator_keys(rig)
     count_m = 1.0 / steps_per_metre(rig.servos.servo[0])  # 2 pi 10 mm / 4096 = 15.3 um
-    band = rig.sim.servos.hold_band_steps
+    band = sim_config(rig).servos.hold_band_steps
     assert keys["rest_psd_m2_s"] == 0.0
     assert keys["rest_hold_std_m"] == servo_hold_std(count_m, band)
     rounding_and_band = np.random.default_rng(5).uniform(-0.5, 0.5, (2, 400_000))

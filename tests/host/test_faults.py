@@ -1,6 +1,6 @@
 """Byte-stream fault filter: each fault on explicit times, so nothing here depends on the clock."""
 
-from gyrohost.config import StreamFaultConfig
+from gyrohost.simrig.config import StreamFaultConfig
 from gyrohost.simrig.faults import FaultFilter
 
 DATA = bytes(range(20))

@@ -7,12 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from gyrohost.config import ImuConfig, ImuEmuConfig, StreamFaultConfig
+from gyrohost.config import ImuConfig
 from gyrohost.drivers.errors import ImuConfigError, ImuError, ImuTimeoutError
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrohost.run.devices import ImuReader
 from gyrohost.run.errors import DeviceFault
+from gyrohost.simrig.config import ImuEmuConfig, StreamFaultConfig
 from gyrohost.simrig.imu_emu import Bwt61Emulator, ImuTruth
 
 G = 9.80665

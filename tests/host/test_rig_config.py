@@ -10,20 +10,23 @@ from gyrohost.config import (
     EMULATED_PORT,
     ConfigError,
     ImuConfig,
-    ImuEmuConfig,
     RigConfig,
     ServoBusConfig,
     ServoConfig,
-    ServoEmuConfig,
     StartCheckConfig,
-    StreamFaultConfig,
     WheelboardConfig,
     load_rig_config,
     rig_config_from_dict,
-    with_truth_scene,
 )
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.resources import shipped
+from gyrohost.simrig.config import (
+    ImuEmuConfig,
+    ServoEmuConfig,
+    StreamFaultConfig,
+    truth_scene_path,
+    with_truth_scene,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 SERVO = {"name": "s13", "id": 1, "pulley_radius_m": 0.01, "length_at_zero_m": 0.3}
@@ -42,7 +45,7 @@ def test_lab_rig_template():
     cfg = load_rig_config(shipped("config", "lab-rig"))
     assert cfg.servos.port == "/dev/gyrotens-servos" and cfg.imu.port == "/dev/rfcomm0"
     assert cfg.wheelboard.port == "/dev/gyrotens-wheels"  # the names of tools/udev
-    assert cfg.sim == RigConfig().sim  # untouched defaults
+    assert cfg.sim == {}  # a real rig has no simulated devices
     assert cfg.run == RigConfig().run  # today's limits, written out
     StringServoBus(cfg.servos)
 
@@ -115,7 +118,7 @@ def test_empty_file_gives_the_defaults(tmp_path):
 )
 def test_errors_name_the_file_and_key(data, message):
     with pytest.raises(ConfigError, match=message) as info:
-        assert rig_config_from_dict(data, "my-rig.toml").truth_scene_path
+        assert truth_scene_path(rig_config_from_dict(data, "my-rig.toml"))
     assert str(info.value).startswith("my-rig.toml: ")
 
 
@@ -124,14 +127,14 @@ def test_truth_scene_resolves_as_the_scene_does(tmp_path):
     (tmp_path / "heavier.toml").write_text("")
     path.write_text('scene = "dbar-gyro"\n[sim.truth]\nscene = "heavier.toml"\n')
     cfg = load_rig_config(path)
-    assert cfg.truth_scene_path == tmp_path / "heavier.toml"  # relative to the config
+    assert truth_scene_path(cfg) == tmp_path / "heavier.toml"  # relative to the config
     assert cfg.scene_path == shipped("scene", "dbar-gyro")  # the host keeps its own
     path.write_text('[sim.truth]\nscene = "prism-gyro"\n')
-    assert load_rig_config(path).truth_scene_path == shipped("scene", "prism-gyro")
+    assert truth_scene_path(load_rig_config(path)) == shipped("scene", "prism-gyro")
     path.write_text("")
-    assert load_rig_config(path).truth_scene_path == load_rig_config(path).scene_path
+    assert truth_scene_path(load_rig_config(path)) == load_rig_config(path).scene_path
     flagged = with_truth_scene(load_rig_config(path), tmp_path / "heavier.toml")
-    assert flagged.truth_scene_path == tmp_path / "heavier.toml"
+    assert truth_scene_path(flagged) == tmp_path / "heavier.toml"
 
 
 def test_unreadable_and_invalid_files(tmp_path):

@@ -6,10 +6,11 @@ from dataclasses import replace
 
 import pytest
 
-from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig
 from gyrohost.drivers.errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
 from gyrohost.drivers.mx12 import Addr, string_speed_per_unit
 from gyrohost.drivers.servos import StringServoBus
+from gyrohost.simrig.config import ServoEmuConfig
 from gyrohost.simrig.servo_emu import Mx12Bus
 
 LEFT = ServoConfig(

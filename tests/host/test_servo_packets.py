@@ -10,7 +10,7 @@ import serial
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from gyrohost.config import ServoBusConfig, ServoConfig, ServoEmuConfig
+from gyrohost.config import ServoBusConfig, ServoConfig
 from gyrohost.drivers.errors import ServoCommError, ServoFaultError
 from gyrohost.drivers.mx12 import (
     FAULT_BITS,
@@ -24,6 +24,7 @@ from gyrohost.drivers.mx12 import (
     word_from_int16,
 )
 from gyrohost.drivers.servos import StringServoBus
+from gyrohost.simrig.config import ServoEmuConfig
 from gyrohost.simrig.pty_link import PtyDevice
 from gyrohost.simrig.servo_emu import EmulatedMx12, Mx12Bus, Packet, PacketCutter, status_packet
 

@@ -11,6 +11,7 @@ from gyrohost.geometry import euler_zyx, levelling_rotvec, rotation_zyx, turn_fr
 from gyrohost.ident.forward import tilt_error, tilt_std
 from gyrohost.ident.shooting import anchored
 from gyrohost.resources import shipped
+from gyrohost.simrig.config import sim_config
 from gyrohost.simrig.truth import Truth
 from gyrotensegrity import load_scene
 
@@ -105,7 +106,7 @@ def test_anchored_start_recovers_the_tilt_at_pitch_near_minus_90():
     the samples' mean rotation (scipy's), which is the truth's to the noise, and turned about a
     horizontal axis only (the prediction's yaw kept)."""
     config = load_rig_config(shipped("config", "sim-rig"))
-    truth = Truth(load_scene(config.scene_path), config.sim.truth)
+    truth = Truth(load_scene(config.scene_path), sim_config(config).truth)
     model, L = truth.model, truth.model.layout
     R_bs = rotation_zyx(0.05, -0.03, 0.02)
 

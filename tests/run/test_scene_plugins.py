@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.config import ConfigError, load_rig_config
+from gyrohost.config import load_rig_config
 from gyrohost.estimator import EstimatorConfigError
-from gyrohost.estimator.config import for_rig, noise_from_rig
+from gyrohost.estimator.config import for_rig
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta, read_stream
 
@@ -62,10 +62,8 @@ def test_the_estimator_table_is_used_and_the_file_overrides_it(tmp_path):
     override.write_text("[estimator]\nimu_rate_std_rad_s = 7e-3\n")
     assert for_rig(rig, override).imu_rate_std_rad_s == 7e-3
     assert for_rig(rig, override).imu_frame_nodes == ("n1", "n3", "n2")  # the D-bar's
-    sim = load_rig_config(SIM_CONFIG)  # noise_from_sim = true: the simulated IMU's figures
-    assert for_rig(sim).imu_rate_std_rad_s == noise_from_rig(sim)["imu_rate_std_rad_s"]
-    lab = load_rig_config(LAB_CONFIG)  # its own figures, not the emulator's
-    assert for_rig(lab).imu_rate_std_rad_s == lab.estimator.keys["imu_rate_std_rad_s"]
+    lab = load_rig_config(LAB_CONFIG)  # its own figures
+    assert for_rig(lab).imu_rate_std_rad_s == lab.estimator["imu_rate_std_rad_s"]
 
 
 def test_a_bad_estimator_key_or_attachment_is_refused_naming_it(tmp_path, capsys):
@@ -82,16 +80,17 @@ def test_a_bad_estimator_key_or_attachment_is_refused_naming_it(tmp_path, capsys
 
 
 def test_the_estimator_table_is_checked_like_the_rest_of_the_rig_configuration(tmp_path):
-    path = _with_estimator_table(tmp_path, LAB_CONFIG, 'noise_from_sim = "yes"')
-    with pytest.raises(ConfigError, match=r"key 'estimator.noise_from_sim' must be true or false"):
-        load_rig_config(path)
+    path = _with_estimator_table(tmp_path, LAB_CONFIG, 'imu_rate_std_rad_s = "small"')
+    with pytest.raises(EstimatorConfigError, match=r"'imu_rate_std_rad_s' must be a finite number"):
+        for_rig(load_rig_config(path))
     path = _with_estimator_table(tmp_path, LAB_CONFIG, "imu_period_s = 2.0")
     with pytest.raises(EstimatorConfigError, match=r"estimator key 'imu_period_s' is 2.0"):
         for_rig(load_rig_config(path))
 
 
 def test_the_table_and_the_estimator_file_reach_the_logged_ekf_configuration(tmp_path, capsys):
-    table = "noise_from_sim = true\nwheel_speed_std_rad_s = 0.75\nservo_length_std_m = 2e-3\n"
+    table = 'imu_frame_nodes = ["b1", "t1", "b2"]\nwheel_speed_std_rad_s = 0.75\n'
+    table += "servo_length_std_m = 2e-3\n"
     config = _with_estimator_table(tmp_path, PRISM_CONFIG, table)
     override = tmp_path / "ekf.toml"
     override.write_text("[estimator]\nservo_length_std_m = 3e-3\n")
@@ -101,4 +100,4 @@ def test_the_table_and_the_estimator_file_reach_the_logged_ekf_configuration(tmp
     estimator = read_meta(log)["estimator"]
     assert estimator["wheel_speed_std_rad_s"] == 0.75  # from the table
     assert estimator["servo_length_std_m"] == 3e-3  # the file over the table
-    assert estimator["imu_frame_nodes"] == ["b1", "t1", "b2"]  # noise_from_sim: [sim.truth]
+    assert estimator["imu_frame_nodes"] == ["b1", "t1", "b2"]  # from the table

@@ -8,6 +8,7 @@ from gyrohost.commands.rig import with_firmware_build
 from gyrohost.config import load_rig_config
 from gyrohost.resources import shipped
 from gyrohost.simrig import simavr
+from gyrohost.simrig.config import sim_config
 
 
 def fake_build(root):
@@ -37,8 +38,8 @@ def test_the_environment_variable_names_the_build(tmp_path, monkeypatch):
 def test_firmware_build_option_sets_the_configuration_keys(tmp_path):
     build = fake_build(tmp_path / "build")
     config = with_firmware_build(load_rig_config(shipped("config", "sim-rig")), build)
-    assert config.sim.wheels.simavr_elf == str(build / "avr" / "wheelboard.elf")
-    assert config.sim.wheels.simavr_harness == str(build / "sim" / "fil_harness")
+    assert sim_config(config).wheels.simavr_elf == str(build / "avr" / "wheelboard.elf")
+    assert sim_config(config).wheels.simavr_harness == str(build / "sim" / "fil_harness")
 
 
 def test_gyrotens_rig_names_a_missing_build(tmp_path, capsys):

@@ -13,6 +13,7 @@ from gyrohost.drivers.errors import ImuTimeoutError, ServoCommError, ServoFaultE
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.mx12 import steps_per_metre
 from gyrohost.drivers.servos import StringServoBus
+from gyrohost.simrig.config import sim_config
 from gyrohost.simrig.errors import FaultCommandError, RigError
 from gyrohost.simrig.sim import SimulatedRig
 
@@ -60,7 +61,7 @@ def test_truth_follows_servos_and_wheels_and_the_imu_sees_the_tilt(rig):
     wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
     rig.advance(1.2)  # 0.75 s of ramp at 100 rad/s^2, then the 50 ms motor lag
     # within five times the speed loop's error (std speed_error_std_rad_s) of the setpoints
-    atol = 5.0 * rig.config.sim.wheels.speed_error_std_rad_s
+    atol = 5.0 * sim_config(rig.config).wheels.speed_error_std_rad_s
     np.testing.assert_allclose(rig.truth_wheel_speeds(), [SPIN, -SPIN, -SPIN, SPIN], atol=atol)
     assert np.max(np.abs(rig.truth_nodes()[2])) < 1e-9  # no string moved yet: still planar
     imu.poll()  # discard the samples so far
@@ -73,7 +74,7 @@ def test_truth_follows_servos_and_wheels_and_the_imu_sees_the_tilt(rig):
         rig.advance(0.25)
         samples += imu.poll()
     # the truth's rest length is the shaft's, the read its count: within the hold band
-    band_m = rig.config.sim.servos.hold_band_steps / steps_per_metre(CONFIG.servos.servo[0])
+    band_m = sim_config(rig.config).servos.hold_band_steps / steps_per_metre(CONFIG.servos.servo[0])
     read = list(bus.read_lengths().values())
     np.testing.assert_allclose(rig.truth_rest_lengths(), read, rtol=0, atol=band_m)
     assert rig.truth_rest_lengths()[0] == pytest.approx(goal, abs=1e-3)  # 0.1 m/s: 1.2 s

@@ -8,7 +8,6 @@ the harness is paced to wall time (so are the host's heartbeats).
 import math
 import re
 import time
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +18,7 @@ from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.resources import shipped
 from gyrohost.simrig import simavr
+from gyrohost.simrig.config import sim_config, with_sim_keys
 from gyrohost.simrig.errors import FaultCommandError, RigSetupError
 from gyrohost.simrig.sim import SimulatedRig
 
@@ -32,8 +32,7 @@ REPLY_TIMEOUT_S = 3.0  # a loaded 2-core host can slow the harness's replies (wa
 
 def simavr_config(**wheels):
     base = load_rig_config(shipped("config", "sim-rig"))
-    table = replace(base.sim.wheels, kind="simavr", **wheels)
-    return replace(base, sim=replace(base.sim, wheels=table))
+    return with_sim_keys(base, "wheels", kind="simavr", **wheels)
 
 
 @pytest.fixture(scope="module")
@@ -125,8 +124,11 @@ def test_gyrotens_rig_wheels_simavr_serves_the_wheel_board(binaries, tmp_path):
 
 def test_simavr_wheels_refuse_stream_faults_in_the_configuration():
     with pytest.raises(ConfigError, match=r"f\.toml: key 'sim\.wheels\.faults': .*emulator"):
-        rig_config_from_dict(
-            {"sim": {"wheels": {"kind": "simavr", "faults": {"drop_byte_prob": 0.01}}}}, "f.toml"
+        sim_config(
+            rig_config_from_dict(
+                {"sim": {"wheels": {"kind": "simavr", "faults": {"drop_byte_prob": 0.01}}}},
+                "f.toml",
+            )
         )
 
 

@@ -6,9 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrohost.config import ServoConfig, TruthConfig
+from gyrohost.config import ServoConfig
 from gyrohost.geometry import rotation_zyx
 from gyrohost.resources import shipped
+from gyrohost.simrig.config import TruthConfig
 from gyrohost.simrig.errors import RigSetupError
 from gyrohost.simrig.truth import Truth, rig_scene
 from gyrotensegrity import Model, SimulationError, Stepper, load_scene

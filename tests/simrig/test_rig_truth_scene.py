@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from gyrohost.cli import main
-from gyrohost.config import TruthConfig, load_rig_config, with_truth_scene
+from gyrohost.config import load_rig_config
 from gyrohost.control import load_schedule
 from gyrohost.drivers.imu import RATE_SCALE_RAD_S
 from gyrohost.resources import resolve, shipped
 from gyrohost.run.limits import check_schedule
+from gyrohost.simrig.config import TruthConfig, sim_config, with_truth_scene
 from gyrohost.simrig.errors import RigSetupError
 from gyrohost.simrig.imu_emu import Bwt61Emulator, ImuTruth
 from gyrohost.simrig.sim import SimulatedRig
@@ -46,8 +47,8 @@ def heavy_wheels(tmp_path_factory):
 def drift_from_model(config) -> float:
     """Largest node distance, m, between the rig's truth and the model's own plant after the
     wheels spin up and the n1-n3 string is pulled 5 cm (the same inputs for both)."""
-    rig_truth = Truth(truth_scene(config), config.sim.truth, config.servos.servo)
-    model = Truth(load_scene(config.scene_path), config.sim.truth, config.servos.servo)
+    rig_truth = Truth(truth_scene(config), sim_config(config).truth, config.servos.servo)
+    model = Truth(load_scene(config.scene_path), sim_config(config).truth, config.servos.servo)
     spins = [75.0, -75.0, -75.0, 75.0]
     start = model.rest_length_m[0]
     drift = 0.0
@@ -132,7 +133,9 @@ def test_servo_zero_offset_shortens_the_truths_string():
 def test_imu_rotation_turns_the_sensor_about_the_body_axes():
     omega = np.array([0.0, 0.0, 1.0])  # yaw rate in body axes
     level = ImuTruth(omega_rad_s=omega)
-    quiet = replace(SIM_RIG.sim.imu, gyro_noise_density_rad_s_rthz=0.0, gyro_bias_std_rad_s=0.0)
+    quiet = replace(
+        sim_config(SIM_RIG).imu, gyro_noise_density_rad_s_rthz=0.0, gyro_bias_std_rad_s=0.0
+    )
     emu = Bwt61Emulator(quiet, SIM_RIG.imu, rotation_deg=(3.0, 0.0, 0.0))
     try:
         frames = emu.encode_sample(level)

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelboard as wb
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.simrig.config import WheelEmuConfig
 from gyrohost.simrig.wheel_emu import STOP_RAD_S, WheelBoardEmulator
 
 SPIN = 74.87462492  # rad/s, 715 rpm

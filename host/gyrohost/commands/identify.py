@@ -140,6 +140,7 @@ def run(args) -> int:
     from gyrohost.ident import filter_fit, profile, report
     from gyrohost.ident.errors import FitError, IdentDataError, ParamsError
     from gyrohost.ident.fit import fit, nominal_lag, two_passes
+    from gyrohost.ident.forward import STEP_S
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
     from gyrohost.resources import ResourceError, resolve
@@ -175,7 +176,7 @@ def run(args) -> int:
             params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
         else:
             recs = _recordings(args, config, Model(scene))
-            params = parameters(scene, config, groups, nominal_lag(config, est, recs), len(recs))
+            params = parameters(scene, config, groups, nominal_lag(est, recs), len(recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
     how = {"output": "the output error", "filter": "the filter's likelihood"}[args.method]
@@ -185,7 +186,7 @@ def run(args) -> int:
         fitter = partial(filter_fit.fit, workers=args.workers)
     else:
         _describe(recs)
-        passes = 2 if two_passes(recs, config.sim.truth.dt_s) else 1
+        passes = 2 if two_passes(recs, STEP_S) else 1
         fitter = fit
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:

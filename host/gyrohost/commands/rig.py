@@ -68,9 +68,10 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.config import ConfigError, load_rig_config, with_truth_scene
+    from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.resources import ResourceError, resolve
     from gyrohost.sigint import InterruptsRaised, signal_name
+    from gyrohost.simrig.config import with_truth_scene
     from gyrohost.simrig.control_socket import control_path, default_ports_file
     from gyrohost.simrig.errors import HarnessError, RigSetupError
     from gyrohost.simrig.sim import SimulatedRig
@@ -126,15 +127,13 @@ def run(args) -> int:
 
 def with_firmware_build(config, build_dir: Path):
     """``config`` with ``[sim.wheels] simavr_elf``/``simavr_harness`` of ``build_dir``."""
-    from dataclasses import replace
-
+    from gyrohost.simrig.config import with_sim_keys
     from gyrohost.simrig.simavr import build_binaries
 
     elf, harness = build_binaries(build_dir)
-    wheels = replace(
-        config.sim.wheels, simavr_elf=str(elf.resolve()), simavr_harness=str(harness.resolve())
+    return with_sim_keys(
+        config, "wheels", simavr_elf=str(elf.resolve()), simavr_harness=str(harness.resolve())
     )
-    return replace(config, sim=replace(config.sim, wheels=wheels))
 
 
 class _Published:

@@ -9,9 +9,8 @@ import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-from gyrohost.config import IMU_FRAME_NODES, LOOP_RATE_HZ
+from gyrohost.config import IMU_FRAME_NODES
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.drivers.mx12 import steps_per_metre
 from gyrotensegrity.textfile import read_toml
 
 from .errors import EstimatorConfigError
@@ -204,18 +203,15 @@ def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
     """The EKF's configuration for a run on ``rig`` (a ``gyrohost.config.RigConfig``).
 
     Layers, each overriding the keys it names: the defaults; the IMU's output period, time-out
-    and mounting from ``[imu]`` (:func:`imu_keys`); the simulated rig's noise and attachment
-    (:func:`noise_from_rig`) only if ``[estimator] noise_from_sim = true``; the rig's
-    ``[estimator]`` keys; the ``[estimator]`` table of the file ``path``
-    (``gyrotens run --estimator``).
+    and mounting from ``[imu]`` (:func:`imu_keys`); the rig's ``[estimator]`` keys; the
+    ``[estimator]`` table of the file ``path`` (``gyrotens run --estimator``).
 
     Raises
     ------
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    keys = noise_from_rig(rig) if rig.estimator.noise_from_sim else imu_keys(rig)
-    return config_from_dict({**keys, **rig_overrides(rig, path)}, rig.source)
+    return config_from_dict({**imu_keys(rig), **rig_overrides(rig, path)}, rig.source)
 
 
 def rig_overrides(rig, path: str | Path | None = None) -> dict:
@@ -228,12 +224,23 @@ def rig_overrides(rig, path: str | Path | None = None) -> dict:
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    keys = dict(rig.estimator.keys)
+    keys = dict(rig.estimator)
     config_from_dict(keys, f"{rig.source}: [estimator]")
-    if path is not None:
-        extra = read_table(path)
-        config_from_dict(extra, str(path))
-        keys.update(extra)
+    return {**keys, **file_keys(path)}
+
+
+def file_keys(path: str | Path | None) -> dict:
+    """The keys of the ``[estimator]`` table of the file ``path`` (none for ``None``), checked.
+
+    Raises
+    ------
+    EstimatorConfigError
+        The file is missing or not TOML, or a key is unknown or bad (naming the file).
+    """
+    if path is None:
+        return {}
+    keys = read_table(path)
+    config_from_dict(keys, str(path))
     return keys
 
 
@@ -278,7 +285,7 @@ def imu_keys(rig) -> dict:
 
 EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
 """Keys for IMU samples that carry their own times (in-process runs): no latency, no
-uncertainty about it (:func:`noise_from_rig` sets both for the real-time rig)."""
+uncertainty about it (a real-time rig's configuration gives both)."""
 
 
 PULL_SPEED_M_S = 0.1
@@ -329,118 +336,8 @@ def servo_hold_std(count_m, band_steps):
     return count_m * math.sqrt((1.0 + 4.0 * band_steps**2) / 12.0)
 
 
-MIN_WHEEL_WALK = 1e-6
-"""The wheels' walk (rad^2/s^3) :func:`noise_from_rig` keeps for emulated wheels without a
-speed error: with none the wheel covariance collapses, and the in-process SIL diverged on the
-identification's truth (NEES 3e5 for 28)."""
-
-
 def imu_wire_counts() -> tuple[float, float, float]:
     """One count of the IMU's wire format: rate (rad/s), specific force (m/s^2), angle (rad)."""
     from gyrohost.drivers.imu import ACCEL_SCALE_M_S2, ANGLE_SCALE_RAD, RATE_SCALE_RAD_S
 
     return float(RATE_SCALE_RAD_S), float(ACCEL_SCALE_M_S2), float(ANGLE_SCALE_RAD)
-
-
-def noise_from_rig(rig) -> dict:
-    """IMU noise keys matching a rig configuration's simulated IMU (``gyrohost.config``), with
-    the :func:`imu_keys` and the simulated IMU's attachment (``[sim.truth]``).
-
-    White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
-    format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
-    it away with ``FF AA 67`` where possible) is folded into its noise. Returns a dict for
-    :func:`config_from_dict`.
-    """
-    rate_count, accel_count, angle_count = imu_wire_counts()
-    root = math.sqrt(rig.imu.rate_hz / 2.0)
-    emu = rig.sim.imu
-
-    def std(white, count, bias=0.0):
-        return math.sqrt(white**2 + count**2 / 12.0 + bias**2)
-
-    accel_white = emu.accel_noise_density_m_s2_rthz * root
-    wheels = rig.sim.wheels
-    return {
-        # the grid the host rebuilds from the earliest arrivals lies this much after the
-        # samples: the truth's step computed before the sample goes out, then the pty and the
-        # reader thread, so it depends on the machine (the positions' NEES fits best at 1.5 ms
-        # on one, 0.8 ms on a faster one, and rises by about 10 per ms off in the fastest
-        # turn): the middle, with its spread as the samples' time uncertainty
-        # (docs/estimator.md#the-imus-latency-depends-on-the-machine)
-        "imu_latency_s": 0.0012,
-        "imu_time_std_s": 0.001,
-        # the node accelerations' noise: the servos' goal steps and the loop's late ticks,
-        # which the in-process SIL's 3e-8 does not see; 5e-7 holds the NEES mid-bounds on three
-        # idle batches scored from drawn starts, 1e-7 leaves it at the upper bound and 2e-6
-        # at the lower (reports/estimator-history.md#scored-from-drawn-starts)
-        "accel_psd_m2_s3": 5.0e-7,
-        "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
-        "imu_accel_std_m_s2": std(accel_white, accel_count, emu.accel_bias_std_m_s2),
-        "imu_angle_std_rad": std(emu.angle_noise_std_rad, angle_count),
-        "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
-        **imu_keys(rig),
-        # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
-        # tick it covers the goal step and holds, so it strays from the lag by up to the step,
-        # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
-        # while they move; holding still, they sit within the hold below; its reads scatter
-        # about the truth's 5 ms rest-length steps (docs/estimator.md, "The servos' keys",
-        # "Real-time keys by replay", "Resting servos")
-        "servo_lag_s": 0.005,
-        # a moving servo's read lies anywhere within the truth's 5 ms hold of its rest length
-        # (uniform: dt / sqrt(12) as a time); at rest it reads within a count of where it
-        # holds, and 5e-5 m left for the rest put the servo NIS at 1.8-2.0 of 2 on three
-        # real-time batches (2e-4 and no time: 0.87-1.06, below its bounds on one;
-        # docs/estimator.md, "The servos' reads, moving and at rest")
-        "servo_length_std_m": 5.0e-5,
-        "servo_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
-        "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
-        # a resting servo holds within its band of the command's count, and no walk beyond it
-        # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
-        # docs/estimator.md#resting-servos)
-        "rest_psd_m2_s": 0.0,
-        "rest_hold_std_m": servo_hold_std(
-            max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
-            rig.sim.servos.hold_band_steps,
-        ),
-        # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
-        # ones which the kink rectifies: the truth's hold over its step and the servos' goal
-        # steps, one per tick of the run loop, each covered at the servo's speed (the fastest
-        # servo's: the largest sawtooth; docs/estimator.md#the-rest-length-jitter)
-        "rest_jitter_psd_m2_s": sawtooth_psd(
-            rig.sim.truth.dt_s,
-            1.0 / LOOP_RATE_HZ,
-            max((s.max_speed_m_s for s in rig.servos.servo), default=math.inf),
-        ),
-        "kink_model": "mean",
-        # the wheel board emulator's telemetry: the encoder's quantisation through the
-        # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md), in integer mrad/s on the wire
-        # both ways (commands rounded, readings truncated)
-        "wheel_speed_std_rad_s": 0.0146,
-        "wheel_resolution_rad_s": 1.0e-3,
-        # the emulated motors follow the board's ramped setpoint with their lag, erring from it
-        # by a first-order Gauss-Markov process of that time constant: the lag model's walk
-        # with the same stationary spread (2 std^2 / lag), at least MIN_WHEEL_WALK; the
-        # reported speed trails theirs by the firmware's low-pass
-        "wheel_lag_s": wheels.time_constant_s,
-        "wheel_accel_psd_rad2_s3": max(
-            2.0 * wheels.speed_error_std_rad_s**2 / wheels.time_constant_s, MIN_WHEEL_WALK
-        ),
-        "wheel_filter_s": SPEED_FILTER_DELAY_S,
-        # with the loop on time the telemetry of a speed step starts when the lags alone say:
-        # a delay of 20 ms (what a late loop showed) puts the model behind the board through
-        # every ramp (docs/estimator.md#wheel-commands)
-        "wheel_delay_s": 0.0,
-        # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
-        # time (wheel_times "device"), late by the link's shortest delay (about 1 ms) and
-        # against a truth that picks up the wheel speeds once per 5 ms step: 2 ms (0: the
-        # wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
-        # docs/estimator.md)
-        "wheel_time_std_s": 0.002,
-        # the truth spins its wheels at the board's speeds of its 5 ms step's end: in a speed
-        # step the wheels act on a command at a time uniform over the step (dt / sqrt(12), as
-        # the servos' reads)
-        "wheel_command_time_std_s": rig.sim.truth.dt_s / math.sqrt(12.0),
-        "imu_frame_nodes": tuple(rig.sim.truth.imu_frame_nodes),
-        "imu_gravity_m_s2": tuple(rig.sim.truth.imu_gravity_m_s2),
-    }

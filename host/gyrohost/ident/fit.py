@@ -193,7 +193,8 @@ class Problem(WalledResiduals):
 
     def __init__(self, scene: Scene, config: RigConfig, est: EstimatorConfig, params, recs):
         self.scene, self.config, self.params, self.recs = scene, config, params, recs
-        self.servo_lag_s = nominal_lag(config, est, recs)
+        self.servo_lag_s = nominal_lag(est, recs)
+        self.frame_nodes = est.imu_frame_nodes
         self.weights = [
             forward.noise_std(
                 r, est.imu_rate_std_rad_s, est.imu_accel_std_m_s2, est.imu_angle_std_rad
@@ -214,7 +215,9 @@ class Problem(WalledResiduals):
         if key != self._key:
             a = self.applied(theta)
             self._motions = [
-                forward.simulate(a.scene, self.config, r, a.offsets_m, a.servo_lag_s)
+                forward.simulate(
+                    a.scene, self.config, r, a.offsets_m, a.servo_lag_s, self.frame_nodes
+                )
                 for r in self.recs
             ]
             self._key = key
@@ -251,10 +254,10 @@ class Problem(WalledResiduals):
         return [self(t) for t in thetas]
 
 
-def nominal_lag(config: RigConfig, est: EstimatorConfig, recs) -> float:
+def nominal_lag(est: EstimatorConfig, recs) -> float:
     """The lag to start from, s: the servos' response (the estimator's ``servo_lag_s``) for
-    commanded lengths, else the rig's string lag (``[sim.truth] servo_lag_s``)."""
-    return est.servo_lag_s if any(r.commanded for r in recs) else config.sim.truth.servo_lag_s
+    commanded lengths; none for read positions, which the strings follow as the servos turn."""
+    return est.servo_lag_s if any(r.commanded for r in recs) else 0.0
 
 
 def fit(
@@ -278,7 +281,7 @@ def fit(
     """
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
-    segmented = two_passes(recs, config.sim.truth.dt_s)
+    segmented = two_passes(recs, forward.STEP_S)
     solve = solver(params, progress, max_nfev, SEGMENTED_FTOL if segmented else 1e-8)
 
     theta0, dropped = np.zeros(len(params)), []
@@ -288,7 +291,7 @@ def fit(
             for r in recs
         ]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
-        a = apply(scene, config, params, theta0, nominal_lag(config, est, recs), len(recs))
+        a = apply(scene, config, params, theta0, nominal_lag(est, recs), len(recs))
         recs, dropped = _predictable(Problem(scene, config, est, params, anchored(recs, a)), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
@@ -300,7 +303,7 @@ def fit(
     sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
     widened = {}
     if segmented:
-        ratio = profile.segment_spread(problem, sol.x, ~problem.dynamic, config.sim.truth.dt_s)
+        ratio = profile.segment_spread(problem, sol.x, ~problem.dynamic, forward.STEP_S)
         widened = {p.name: float(r) for p, r in zip(params, ratio, strict=True) if r > 1.0}
         sigma = sigma * ratio
     rms = {
@@ -360,9 +363,8 @@ def _predictable(problem: Problem, theta) -> tuple[list, list]:
     """The recordings of ``problem`` without the segments their prediction at ``theta`` does
     not follow (:func:`.shooting.predictable`), and those left out: (recording, start, end)."""
     recs, dropped = [], []
-    dt_s = problem.config.sim.truth.dt_s
     for rec, err in zip(problem.recs, problem.weighted(theta), strict=True):
-        kept, windows = shooting.predictable(rec, err, dt_s)
+        kept, windows = shooting.predictable(rec, err, forward.STEP_S)
         recs.append(kept)
         dropped += [(rec.name, t0, t1) for t0, t1 in windows]
     return recs, dropped

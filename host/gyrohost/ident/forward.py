@@ -14,16 +14,23 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from gyrohost.config import RigConfig
+from gyrohost.config import IMU_FRAME_NODES, RigConfig
 from gyrohost.estimator import streams
 from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
 from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
+from gyrohost.simrig.config import TruthConfig
 from gyrohost.simrig.truth import Truth
 from gyrotensegrity import Scene
 
 from .errors import IdentDataError
+
+STEP_S = 0.005
+"""The forward model's step, s. Its inputs are held over each step, as the simulated rig's
+truth holds its rest lengths and wheel speeds over its own step (``[sim.truth] dt_s``, 5 ms
+unless set otherwise), so that on the simulated rig the two step alike; a real rig's strings
+move smoothly, and 5 ms is a tenth of their servos' lag."""
 
 WHEEL_SMOOTHING_S = 0.3
 """Width of the moving average on the reported wheel speeds, s. The board holds its speeds; the
@@ -169,9 +176,17 @@ class FrameMotion:
 
 
 def simulate(
-    scene: Scene, config: RigConfig, rec: Recording, offsets_m=None, servo_lag_s=0.0
+    scene: Scene,
+    config: RigConfig,
+    rec: Recording,
+    offsets_m=None,
+    servo_lag_s=0.0,
+    frame_nodes=IMU_FRAME_NODES,
 ) -> FrameMotion:
     """Drive the rig's model of ``scene`` with the inputs of ``rec``.
+
+    The model is the host's: the rig's scene and servos and the estimator's IMU frame, nothing
+    of the simulated rig's truth (its mismatches are what identification must find).
 
     Parameters
     ----------
@@ -179,10 +194,13 @@ def simulate(
         Added to every reported servo length (zero offsets of the servos' calibration).
     servo_lag_s : float, s
         First-order lag from the servo's position to the string's rest length.
+    frame_nodes : tuple of str
+        The scene nodes of the IMU's frame (the estimator's ``imu_frame_nodes``).
     """
     servos = [s for s in config.servos.servo if s.string]
     string_lag_s = 0.0 if rec.commanded else servo_lag_s
-    truth = Truth(scene, replace(config.sim.truth, servo_lag_s=string_lag_s), servos)
+    model = TruthConfig(dt_s=STEP_S, imu_frame_nodes=frame_nodes, servo_lag_s=string_lag_s)
+    truth = Truth(scene, model, servos)
     offsets = np.zeros(len(servos)) if offsets_m is None else np.asarray(offsets_m, float)
     dt = truth.dt_s
     n = int(np.ceil(rec.t_imu_s[-1] / dt)) + 1

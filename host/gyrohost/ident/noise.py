@@ -15,7 +15,7 @@ A channel that reads still as one count scatters by no more than its quantisatio
 to configure is never below one count over ``sqrt(12)``, the spread of the rounding, because a
 zero variance would let one sample pin the filter's state. The filter has no state of the
 accelerometer's bias: its figure folds the bias in (``sqrt(white^2 + bias^2)``, as
-:func:`gyrohost.estimator.config.noise_from_rig` does), the bias left after the device's own
+:func:`gyrohost.sil.emulator_keys.emulator_keys` does), the bias left after the device's own
 calibration (``FF AA 67``), which a still window cannot tell from the mounting's tilt against
 gravity (``gyrotens identify`` fits the two together).
 

@@ -156,15 +156,16 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | No
     for the rig models (:data:`gyrohost.sil.scoring.RIG_MODEL_KEYS`), in ``workers`` processes
     (None: one per usable core)."""
     from gyrohost.config import load_rig_config
-    from gyrohost.estimator.config import config_from_dict, noise_from_rig
+    from gyrohost.estimator.config import config_from_dict
     from gyrohost.ident import filter_fit
     from gyrohost.ident.params import parameters
+    from gyrohost.sil.emulator_keys import emulator_keys
     from gyrohost.sil.scoring import RIG_MODEL_KEYS
     from gyrotensegrity import load_scene
 
     config = load_rig_config(nominal_config)
     scene = load_scene(config.scene_path)
-    est = config_from_dict({**noise_from_rig(config), **RIG_MODEL_KEYS})
+    est = config_from_dict({**emulator_keys(config), **RIG_MODEL_KEYS})
     recs = [filter_fit.load(log) for log in logs]
     groups = [g for g in groups if g not in filter_fit.STATE_GROUPS]
     params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
@@ -195,7 +196,7 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
     recs = [
         load_recording(log, config, n_w, commanded=commanded, segment_s=segment_s) for log in logs
     ]
-    params = parameters(scene, config, list(groups), nominal_lag(config, est, recs), len(recs))
+    params = parameters(scene, config, list(groups), nominal_lag(est, recs), len(recs))
     return scene, config, est, params, recs
 
 

@@ -80,10 +80,11 @@ def prepare(request: RunRequest) -> PreparedRun:
         A bad configuration, scene, schedule, estimator file, port or combination of them, or a
         log folder that exists; the message names the file or option.
     """
-    from gyrohost.config import load_with_scenes
+    from gyrohost.config import load_with_scene
     from gyrohost.estimator.config import for_rig
     from gyrohost.resources import resolve
     from gyrohost.run.log import check_new_log_folder
+    from gyrohost.simrig.config import sim_config, with_truth_scene
 
     if request.truth_scene is not None and not request.sim:
         raise RunRequestError("--truth-scene is for the simulated rig: add --sim")
@@ -91,9 +92,11 @@ def prepare(request: RunRequest) -> PreparedRun:
         raise RunRequestError(
             "give --sim (a rig of its own) or --rig PORTSFILE (a running rig), not both"
         )
-    config = load_with_scenes(
-        resolve("config", request.config), request.overlays, request.scene, request.truth_scene
-    )
+    config = load_with_scene(resolve("config", request.config), request.overlays, request.scene)
+    if request.truth_scene is not None:
+        config = with_truth_scene(config, resolve("scene", request.truth_scene))
+    if request.sim:
+        sim_config(config)  # its [sim] tables checked before anything starts
     estimator = for_rig(config, request.estimator)
     schedule = what_to_play(config, request.schedule, request.target)
     if not request.sim:

@@ -17,9 +17,10 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from gyrohost.estimator import sample_feed, streams
-from gyrohost.estimator.config import EXACT_IMU_TIMES, config_from_dict, noise_from_rig
+from gyrohost.estimator.config import EXACT_IMU_TIMES, config_from_dict
 from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
+from gyrohost.sil.emulator_keys import emulator_keys
 from gyrohost.sil.montecarlo import START_SEED_OFFSET, sampled_truth, score_run
 from gyrohost.sil.scoring import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
 
@@ -208,7 +209,7 @@ def score_with_effects(
     # the real-time rig's noise, these servos' lag, the samples' own times (each delay of
     # this harness is its own and known: no uncertainty about them)
     rig_keys = {"servo_lag_s": SERVO_LAG_S, **EXACT_IMU_TIMES}
-    keys = {**noise_from_rig(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
+    keys = {**emulator_keys(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
         keys["imu_latency_s"] = MIN_DELAY_S
     if effects.late_ticks:

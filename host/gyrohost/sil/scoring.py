@@ -19,8 +19,8 @@ speeds carry the encoder's quantisation noise through the firmware's low-pass. T
 the latest frame at every IMU sample (decimated from 500 Hz to its 100 Hz: the low-pass's 8 ms
 would correlate frames 2 ms apart). Scored at every IMU sample against the truth state: NEES
 (full state, on the constraint manifold), NIS per source, tilt error. The filter's keys: the
-simulated rig's noise (``noise_from_rig``), :data:`RIG_MODEL_KEYS` over them, then the rig
-configuration's ``[estimator]`` keys and ``--estimator FILE``'s (:func:`sil_keys`).
+simulated rig's noise (:func:`.emulator_keys.emulator_keys`), :data:`RIG_MODEL_KEYS` over them,
+then ``--estimator FILE``'s (:func:`sil_keys`).
 
 ``--realtime`` instead plays the schedule on the real-time simulated rig through the run loop
 (``run_simulated``: ptys, drivers, arrival time stamps, the IMU's fused at its reconstructed
@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost import parallel
-from gyrohost.config import TruthConfig
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import EXACT_IMU_TIMES, sawtooth_psd
 from gyrohost.estimator.consistency import (
@@ -49,8 +48,10 @@ from gyrohost.estimator.consistency import (
     sample_initial,
     state_of_truth,
 )
+from gyrohost.resources import resolve
 from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
+from gyrohost.sil.emulator_keys import emulator_keys
 from gyrohost.sil.montecarlo import (
     START_SEED_OFFSET,
     ScoredRun,
@@ -60,13 +61,14 @@ from gyrohost.sil.montecarlo import (
     score_run,
     summarise,
 )
+from gyrohost.simrig.config import TruthConfig, sim_config, with_sim_keys, with_truth_scene
 
 from .errors import SilError
 
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
-# Keys for the in-process SIL (on top of noise_from_rig), each checked by the marginal NEES of its
+# Keys for the in-process SIL (on top of emulator_keys), each checked by the marginal NEES of its
 # block (docs/estimator.md). The rig's truth has no random forces: one filter step from the true
 # state reproduces the truth to round-off except where a string crosses its slack/taut kink within
 # the step (the truth's 5 ms hold of each rest length against the filter's continuous one: a
@@ -94,9 +96,9 @@ RIG_MODEL_KEYS = {
 
 def seeded(config, seed):
     """``config`` with its simulated IMU's and wheels' noise and its servos' stops from ``seed``."""
-    sim = config.sim
-    drawn = {name: replace(getattr(sim, name), seed=seed) for name in ("imu", "wheels", "servos")}
-    return replace(config, sim=replace(sim, **drawn))
+    for table in ("imu", "wheels", "servos"):
+        config = with_sim_keys(config, table, seed=seed)
+    return config
 
 
 def record_run(config, seed, folder, duration_s=3.0, estimator=None):
@@ -201,14 +203,13 @@ def rig_model_run(
 
     config = seeded(config, seed)
     model = Model(load_scene(config.scene_path))
-    sim = replace(config.sim.truth, servo_lag_s=0.0)
-    truth = Truth(truth_scene(config), sim, config.servos.servo)
-    rotation_deg = config.sim.truth.imu_rotation_deg
-    emu = Bwt61Emulator(config.sim.imu, config.imu, rotation_deg=rotation_deg)
+    sim = sim_config(config)
+    truth = Truth(truth_scene(config), replace(sim.truth, servo_lag_s=0.0), config.servos.servo)
+    emu = Bwt61Emulator(sim.imu, config.imu, rotation_deg=sim.truth.imu_rotation_deg)
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in model.scene.strings]
     inputs = _commands(model, schedule)
-    board = _WheelBoard(config.sim.wheels, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
+    board = _WheelBoard(sim.wheels, inputs(0.0)[1], np.random.default_rng(seed + 5_000_003))
     try:
         rows, truth_x, truth_R = _rig_model_rows(
             model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s,
@@ -378,12 +379,12 @@ class _WheelBoard:
 
 def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> ScoredRun:
     """Filter one :func:`rig_model_run` and score it against its truth; ``overrides``: estimator
-    keys on top of :func:`.config.noise_from_rig`."""
-    from gyrohost.estimator.config import config_from_dict, noise_from_rig
+    keys on top of :func:`.emulator_keys.emulator_keys`."""
+    from gyrohost.estimator.config import config_from_dict
     from gyrohost.estimator.ekf import TensegrityEKF
 
     model, data, truth_x, truth_R, _, dt_s = rig_model_run(config, seed, duration_s)
-    est_cfg = config_from_dict({**noise_from_rig(config), **(overrides or {})})
+    est_cfg = config_from_dict({**emulator_keys(config), **(overrides or {})})
     # the initial estimate is drawn around the truth with the filter's initial covariance (an
     # error-free start scores the unobservable centre of mass at zero error for the whole run)
     ekf = TensegrityEKF(model, est_cfg)
@@ -395,13 +396,15 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> ScoredR
     return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
-def sil_keys(config, estimator=None) -> dict:
-    """The simulated clock's filter keys on top of :func:`.config.noise_from_rig`, each layer
-    overriding the keys it names: :data:`RIG_MODEL_KEYS`, the configuration's ``[estimator]``
-    keys, the ``[estimator]`` table of the file ``estimator`` (docs/estimator.md)."""
-    from gyrohost.estimator.config import rig_overrides
+def sil_keys(estimator=None) -> dict:
+    """The simulated clock's filter keys on top of :func:`.emulator_keys.emulator_keys`, each
+    layer overriding the keys it names: :data:`RIG_MODEL_KEYS`, then the ``[estimator]`` table
+    of the file ``estimator`` (docs/estimator.md). The rig configuration's own ``[estimator]``
+    table is left out: it describes the real-time rig (ptys, arrival times, goal steps), which
+    the simulated clock has none of."""
+    from gyrohost.estimator.config import file_keys
 
-    return {**RIG_MODEL_KEYS, **rig_overrides(config, estimator)}
+    return {**RIG_MODEL_KEYS, **file_keys(estimator)}
 
 
 def mounting_error(config, est_cfg) -> np.ndarray:
@@ -410,7 +413,8 @@ def mounting_error(config, est_cfg) -> np.ndarray:
     from gyrohost.geometry import euler_zyx, wrap_angle
     from gyrohost.simrig.imu_emu import sensor_in_body
 
-    true = sensor_in_body(config.imu.mounting_rpy_rad, config.sim.truth.imu_rotation_deg)
+    rotation_deg = sim_config(config).truth.imu_rotation_deg
+    true = sensor_in_body(config.imu.mounting_rpy_rad, rotation_deg)
     return wrap_angle(euler_zyx(true) - np.asarray(est_cfg.imu_mounting_rpy_rad))
 
 
@@ -433,7 +437,7 @@ def sil_results(
     ``score_only``: the replays); ``keys``: estimator keys over those (simulated clock).
     Returns the :class:`ScoredRun` list."""
     if not realtime:
-        overrides = {**sil_keys(config, estimator), **(keys or {})}
+        overrides = {**sil_keys(estimator), **(keys or {})}
         task = partial(score_rig_model_run, config, duration_s=duration_s, overrides=overrides)
         return (executor or parallel.Executor(serial=True)).map(task, range(1, runs + 1))
     results = []
@@ -451,9 +455,11 @@ def sil_results(
 
 def report(args) -> dict:
     """Run and print the SIL table of ``args`` (:func:`add_arguments`); returns the figures."""
-    from gyrohost.config import load_with_scenes
+    from gyrohost.config import load_with_scene
 
-    config = load_with_scenes(args.config, args.overlay, args.scene, args.truth_scene)
+    config = load_with_scene(args.config, args.overlay, args.scene)
+    if args.truth_scene is not None:
+        config = with_truth_scene(config, resolve("scene", args.truth_scene))
     with parallel.from_args(args) as executor:
         results = sil_results(
             config, args.runs, args.duration, args.realtime, args.out, args.score_only,

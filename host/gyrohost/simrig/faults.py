@@ -1,7 +1,7 @@
 """Byte-stream fault injection, applied on an emulator's write side.
 
 One :class:`FaultFilter` sits between an emulator and its pty: every byte the device sends passes
-:meth:`FaultFilter.process`. Configured faults (:class:`~gyrohost.config.StreamFaultConfig`) act
+:meth:`FaultFilter.process`. Configured faults (:class:`.config.StreamFaultConfig`) act
 continuously; run-time hooks act once or until switched off:
 
 - corruption: a byte is XORed with a random non-zero mask (``corrupt_byte_prob``, ``corrupt_next``);
@@ -18,7 +18,7 @@ import random
 import threading
 from dataclasses import dataclass
 
-from gyrohost.config import StreamFaultConfig
+from gyrohost.simrig.config import StreamFaultConfig
 
 
 @dataclass

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gyrohost.config import ImuConfig, ImuEmuConfig
+from gyrohost.config import ImuConfig
 from gyrohost.drivers.imu import (
     ACCEL_SCALE_M_S2,
     ANGLE_SCALE_RAD,
@@ -32,6 +32,7 @@ from gyrohost.drivers.imu import (
     encode_frame,
 )
 from gyrohost.geometry import euler_zyx, rotation_zyx, wrap_angle
+from gyrohost.simrig.config import ImuEmuConfig
 from gyrohost.simrig.faults import FaultFilter
 from gyrohost.simrig.pty_link import PtyDevice
 

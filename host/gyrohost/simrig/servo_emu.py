@@ -28,7 +28,7 @@ import random
 import time
 from dataclasses import dataclass
 
-from gyrohost.config import MX_POSITION_LIMIT, ConfigError, ServoConfig, ServoEmuConfig
+from gyrohost.config import MX_POSITION_LIMIT, ConfigError, ServoConfig
 from gyrohost.drivers.mx12 import (
     LOAD_UNIT,
     MODEL_MX12W,
@@ -42,6 +42,7 @@ from gyrohost.drivers.mx12 import (
     steps_to_length,
     word_from_int16,
 )
+from gyrohost.simrig.config import ServoEmuConfig
 from gyrohost.simrig.faults import FaultFilter
 from gyrohost.simrig.pty_link import PtyDevice
 

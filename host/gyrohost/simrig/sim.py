@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.config import WHEEL_KINDS, RigConfig
+from gyrohost.config import RigConfig
 from gyrohost.simrig import simavr
+from gyrohost.simrig.config import WHEEL_KINDS, sim_config
 from gyrohost.simrig.imu_emu import Bwt61Emulator
 from gyrohost.simrig.servo_emu import Mx12Bus
 from gyrohost.simrig.stats import RigStats
@@ -84,22 +85,23 @@ class SimulatedRig:
     ):
         if clock not in ("real", "sim"):
             raise ValueError(f"clock must be 'real' or 'sim', got {clock!r}")
-        self.wheels_kind = wheels or config.sim.wheels.kind
+        self.sim = sim = sim_config(config)
+        self.wheels_kind = wheels or sim.wheels.kind
         if self.wheels_kind not in WHEEL_KINDS:
             raise ValueError(f"wheels must be one of {WHEEL_KINDS}, got {wheels!r}")
         self.config = config
         self.clock = clock
-        self.truth = Truth(truth_scene(config, scene), config.sim.truth, config.servos.servo)
+        self.truth = Truth(truth_scene(config, scene), sim.truth, config.servos.servo)
         self.imu = Bwt61Emulator(
-            config.sim.imu,
+            sim.imu,
             config.imu,
             truth_source=self._imu_truth,
-            rotation_deg=config.sim.truth.imu_rotation_deg,
+            rotation_deg=sim.truth.imu_rotation_deg,
             truth_ready=self._has_imu_truth,
         )
-        self.servos = Mx12Bus(config.servos.servo, config.sim.servos)
+        self.servos = Mx12Bus(config.servos.servo, sim.servos)
         self.wheels = self._wheel_board(config)
-        self._spin_sign = np.asarray(config.sim.wheels.spin_sign, dtype=float)
+        self._spin_sign = np.asarray(sim.wheels.spin_sign, dtype=float)
         self.devices = {"imu": self.imu, "wheels": self.wheels, "servos": self.servos}
         self.loop_error: BaseException | None = None
         self._lock = threading.RLock()
@@ -116,7 +118,7 @@ class SimulatedRig:
         self._cpu0_s = 0.0
 
     def _wheel_board(self, config: RigConfig):
-        emu = config.sim.wheels
+        emu = self.sim.wheels
         if self.wheels_kind == "emulator":
             return WheelBoardEmulator(emu)
         try:

@@ -45,8 +45,8 @@ setpoints are 0; the wheels keep spinning and coast down.
 import math
 import random
 
-from gyrohost.config import WheelEmuConfig
 from gyrohost.drivers import wheelproto as wp
+from gyrohost.simrig.config import WheelEmuConfig
 from gyrohost.simrig.faults import FaultFilter
 from gyrohost.simrig.pty_link import PtyDevice
 
