@@ -34,44 +34,85 @@ def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:
     return {"lo": lo, "hi": hi, "doc": doc}
 
 
+# The largest figure each kind of key can mean. A standard deviation beyond its sensor's full
+# scale, or a rig's size, says nothing a smaller one would not; a typo of that size (1e300)
+# would overflow the covariances after the wheels spun up. The run refuses it before.
+RATE_FULL_SCALE_RAD_S = math.radians(2000.0)
+"""The BWT61CL's gyro range, +-2000 deg/s."""
+ACCEL_FULL_SCALE_M_S2 = 16.0 * 9.80665
+"""The BWT61CL's accelerometer range, +-16 g."""
+WHEEL_FULL_SCALE_RAD_S = 400.0
+"""The largest SPEED_MAX the wheel board takes (400,000 mrad/s)."""
+RIG_SIZE_M = 10.0
+"""The longest string a servo may wind (``[[servos.servo]] max_length_m``'s maximum)."""
+PSD_MAX = 1.0e4
+"""The largest white-noise density of any process noise key: a walk that carries a state a
+hundred of its units away within a second (m, rad/s) means the model no longer predicts it."""
+
+
+def _std(doc: str, hi: float) -> dict:
+    """A standard deviation, at most ``hi`` (its sensor's full scale or the rig's size)."""
+    return _pos(doc, 0.0, hi)
+
+
+def _psd(doc: str) -> dict:
+    return _pos(doc, 0.0, PSD_MAX)
+
+
 @dataclass(frozen=True)
 class EstimatorConfig:
     """All settings of the EKF. Units are in the names; see docs/estimator.md."""
 
     # measurement noise (standard deviations, white), per component
-    imu_rate_std_rad_s: float = field(default=1.0e-3, metadata=_pos("gyro noise"))
-    imu_accel_std_m_s2: float = field(default=0.03, metadata=_pos("accelerometer noise"))
-    imu_angle_std_rad: float = field(default=0.06 * _DEG, metadata=_pos("Euler angle noise"))
-    wheel_speed_std_rad_s: float = field(default=0.5, metadata=_pos("wheel speed noise"))
+    imu_rate_std_rad_s: float = field(
+        default=1.0e-3, metadata=_std("gyro noise", RATE_FULL_SCALE_RAD_S)
+    )
+    imu_accel_std_m_s2: float = field(
+        default=0.03, metadata=_std("accelerometer noise", ACCEL_FULL_SCALE_M_S2)
+    )
+    imu_angle_std_rad: float = field(
+        default=0.06 * _DEG, metadata=_std("Euler angle noise", math.pi)
+    )
+    wheel_speed_std_rad_s: float = field(
+        default=0.5, metadata=_std("wheel speed noise", WHEEL_FULL_SCALE_RAD_S)
+    )
     # the wheel telemetry's noise from one sample to the next as MA(1), v_k = a_k + theta a_{k-1}
     # (a_k white; the a of the last sample is a state, one per wheel); 0: white
     wheel_noise_ma1: float = field(default=0.0, metadata=_pos("wheel noise MA(1)", -0.99, 0.99))
-    servo_length_std_m: float = field(default=2.0e-4, metadata=_pos("servo length noise"))
+    servo_length_std_m: float = field(default=2.0e-4, metadata=_std("servo noise", RIG_SIZE_M))
     # how far a read's position is off the rest length the strings pull with while the servo
     # moves, as time: adds (d rest/dt)^2 servo_time_std_s^2 to the servo noise, s
     servo_time_std_s: float = field(default=0.0, metadata=_pos("servo read time std", 0.0, 0.1))
     # process noise (white, spectral densities)
-    accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_pos("node acceleration noise"))
-    wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_pos("wheel spin noise"))
-    rest_psd_m2_s: float = field(default=1.0e-6, metadata=_pos("rest length walk"))
+    accel_psd_m2_s3: float = field(default=1.0e-4, metadata=_psd("node acceleration noise"))
+    wheel_accel_psd_rad2_s3: float = field(default=1.0, metadata=_psd("wheel spin noise"))
+    rest_psd_m2_s: float = field(default=1.0e-6, metadata=_psd("rest length walk"))
     # a resting servo's string sits anywhere within this spread of its command (the goal's
     # count, where the servo stops about it): a walk of the rest lengths that keeps it as their
     # spread through the lag, whatever the step, m
-    rest_hold_std_m: float = field(default=0.0, metadata=_pos("resting servo spread"))
+    rest_hold_std_m: float = field(default=0.0, metadata=_std("resting servo spread", RIG_SIZE_M))
     # a servo that covers each goal step at its moving speed strays from the first-order lag
     # within the step by up to the step: std ratio x |goal step|, the spread the rest lengths
     # keep about the lag until the next goal (0: none)
     servo_step_std_ratio: float = field(default=0.0, metadata=_pos("servo in-step std", 0.0, 10.0))
     # white noise of the rest lengths as the string forces see them (the servo's motion within a
     # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
-    rest_jitter_psd_m2_s: float = field(default=0.0, metadata=_pos("rest length jitter"))
-    gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_pos("gyro bias walk"))
+    rest_jitter_psd_m2_s: float = field(default=0.0, metadata=_psd("rest length jitter"))
+    gyro_bias_psd_rad2_s3: float = field(default=1.0e-10, metadata=_psd("gyro bias walk"))
     # initial uncertainty
-    init_position_std_m: float = field(default=2.0e-3, metadata=_pos("initial node position"))
-    init_velocity_std_m_s: float = field(default=5.0e-3, metadata=_pos("initial node velocity"))
-    init_wheel_std_rad_s: float = field(default=2.0, metadata=_pos("initial wheel speed"))
-    init_rest_std_m: float = field(default=1.0e-3, metadata=_pos("initial rest length"))
-    init_gyro_bias_std_rad_s: float = field(default=0.5 * _DEG, metadata=_pos("initial bias"))
+    init_position_std_m: float = field(
+        default=2.0e-3, metadata=_std("initial node position", RIG_SIZE_M)
+    )
+    init_velocity_std_m_s: float = field(
+        default=5.0e-3, metadata=_std("initial node velocity", RIG_SIZE_M)
+    )
+    init_wheel_std_rad_s: float = field(
+        default=2.0, metadata=_std("initial wheel speed", WHEEL_FULL_SCALE_RAD_S)
+    )
+    init_rest_std_m: float = field(default=1.0e-3, metadata=_std("initial rest length", RIG_SIZE_M))
+    init_gyro_bias_std_rad_s: float = field(
+        default=0.5 * _DEG, metadata=_std("initial bias", RATE_FULL_SCALE_RAD_S)
+    )
     # gates: NIS thresholds as chi-square probabilities; time-outs
     gate_probability: float = field(default=0.9999, metadata=_pos("NIS gate", 0.5, 1.0))
     imu_timeout_s: float = field(default=0.1, metadata=_pos("IMU time-out", 1e-3))
@@ -142,6 +183,10 @@ class EstimatorConfig:
 
 def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
     """Build an :class:`EstimatorConfig` from a flat table; ``source`` names it in errors."""
+    if not isinstance(data, dict):
+        raise EstimatorConfigError(
+            f"{source}: the estimator's keys must be a table, got {type(data).__name__} {data!r}"
+        )
     known = {f.name: f for f in fields(EstimatorConfig)}
     values = {}
     for key, value in data.items():
@@ -152,6 +197,11 @@ def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
         values[key] = _check(known[key], value, f"{source}: estimator key '{key}'")
     config = replace(EstimatorConfig(), **values)
     _check_mounting(config, source)
+    if len(set(config.imu_frame_nodes)) != 3:
+        raise EstimatorConfigError(
+            f"{source}: estimator key 'imu_frame_nodes' names {list(config.imu_frame_nodes)}: "
+            "three different nodes make a frame"
+        )
     return config
 
 
@@ -196,7 +246,12 @@ def load_config(path: str | Path) -> EstimatorConfig:
 def read_table(path: str | Path) -> dict:
     """The ``[estimator]`` table of a TOML file (the whole file if it has no such table)."""
     data = read_toml(path, EstimatorConfigError)
-    return data.get("estimator", data)
+    table = data.get("estimator", data)
+    if not isinstance(table, dict):
+        raise EstimatorConfigError(
+            f"{path}: key 'estimator' must be a table, got {type(table).__name__} {table!r}"
+        )
+    return table
 
 
 def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
