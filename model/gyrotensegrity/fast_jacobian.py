@@ -5,8 +5,8 @@ For :class:`gyrotensegrity.fast.FastDynamics` on its dense path without joint mu
 ``z_ddot(q, q_dot, omega_w, rest)`` (3, m') m/s^2 and their derivatives with respect to every
 entry of the coordinates ``q`` (3, m') m, their rates ``q_dot`` (3, m') m/s, the wheel spins
 ``omega_w`` (n_w,) rad/s and the string rest lengths ``rest`` (alpha,) m, by the chain rule
-through the formulation of :mod:`.fast` (docs/model.md, "Closed-form Jacobian of the fast
-path"); the compiled kernel holds the same formulas in C::
+through the formulation of :mod:`.fast` (docs/model.md#closed-form-jacobian-of-the-fast-path);
+the compiled kernel holds the same formulas in C::
 
     z_ddot = f0 M^-1 + (B mu^) E M^-1,     f0 = W U + G E - F E_s,
     mu = Z^-1 r,  Z = Y .* (B^T B),        r_j = -|b_dot_j|^2 - b_j . (f0 M^-1 E^T)_j

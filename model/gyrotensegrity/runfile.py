@@ -36,7 +36,7 @@ RUN_KEYS = (
 
 @dataclass
 class Run:
-    """Arrays of a run (see docs/model.md, "Run files"); ``meta`` is a dict."""
+    """Arrays of a run (docs/model.md#run-files-npz); ``meta`` is a dict."""
 
     arrays: dict
     meta: dict = field(default_factory=dict)

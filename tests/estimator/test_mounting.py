@@ -1,7 +1,7 @@
 """The IMU mounting's error as a filter state: present only when the configuration gives the
 mounting an uncertainty, its measurement Jacobians against the complex step, its keys' errors,
-and the filter's consistency with a mis-identified mounting (docs/estimator.md, "The IMU
-mounting's uncertainty")."""
+and the filter's consistency with a mis-identified mounting
+(docs/estimator.md#the-mountings-uncertainty)."""
 
 from dataclasses import replace
 

@@ -199,7 +199,7 @@ def test_line_rate_burst_in_a_setpoint_stream_nothing_lost_stop_all_within_2_ms(
     2 ms of STOP_ALL's last byte (the harness's RXMARK), while the 220 bytes before it are still
     being dispatched. The longest tick-to-PWM time (step_max_us, the chip's Timer2 count: simulated
     time) stays under 700 us, half as much again as the longest measured. Not under the 400 us
-    target of docs/hardware.md, "Link load": where the burst falls against the tick varies from
+    target of docs/hardware.md#link-load: where the burst falls against the tick varies from
     run to run (the harness queues it when its command arrives), and in 11 of 140 runs the tick
     waited past 400 us for the main loop's work under the burst's interrupts (272-468 us).
     """

@@ -41,8 +41,8 @@ def watch(url: str, got: dict) -> None:
     """Subscribe to every channel the server advertises; keep the first payload per topic and
     count messages, until the server closes. A channel created while the client is connected
     is advertised to it a moment before the server records it for the client (foxglove-sdk
-    0.30: status "Unknown channel ID"; docs/run.md, "The live view"): that subscription is sent
-    again."""
+    0.30: status "Unknown channel ID"; docs/run.md#the-live-view-gyrotens-run---live): that
+    subscription is sent again."""
     topics = {}
     with ws_client.connect(url, subprotocols=["foxglove.sdk.v1"], open_timeout=10) as ws:
         try:

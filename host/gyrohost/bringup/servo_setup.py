@@ -1,5 +1,5 @@
 """Setting up an MX-12W string servo: its ID and baud rate (both ship as ID 1 at 1 Mbps), and the
-zero of its length model (docs/rig-config.md, "Calibrating a servo").
+zero of its length model (docs/bring-up.md).
 
 The ID is changed only when exactly one servo answers on the bus (two servos on one ID would
 both take the new one), and the change is confirmed by a PING at the new ID and baud rate. The

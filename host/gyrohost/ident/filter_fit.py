@@ -4,7 +4,7 @@ The output-error fit (:mod:`.fit`) simulates the rig from the log's inputs and c
 simulation with the IMU; it has to know every input the structure felt. The wheels' speed loop
 leaves each wheel off its setpoint by an error the reports see only through their quantisation
 noise (docs/rig.md), and the D-bar's unstable roll mode grows that unknown input into a motion
-no simulation from the logged speeds follows (docs/identification.md, "The wheels' speed error").
+no simulation from the logged speeds follows (docs/identification.md#limits).
 Here the EKF runs the log instead (:func:`gyrohost.run.replay.started`, gate open), its process
 model the scene of a parameter vector: it carries the wheels' error as the process noise of its
 wheel states and corrects the state at every sample, so each innovation is the one-sample-ahead

@@ -20,8 +20,8 @@ calibration (``FF AA 67``), which a still window cannot tell from the mounting's
 gravity (``gyrotens identify`` fits the two together).
 
 The servos' reads are left out: a held servo reads where it holds (the emulator exactly), and
-``servo_length_std_m`` carries what they do while moving (docs/estimator.md, "The servos' reads,
-moving and at rest").
+``servo_length_std_m`` carries what they do while moving
+(docs/estimator.md#the-servos-reads-moving-and-at-rest).
 """
 
 import math

@@ -99,8 +99,8 @@ def wheel_speed_error(config_text: str, std_rad_s: float) -> str:
 
     The identification's acceptance is taken on wheels that hold their speeds exactly (0): a
     speed error as small as the default 0.01 rad/s excites the D-bar's unstable roll mode in
-    the truth, which a forward model on held speeds does not follow (docs/identification.md,
-    "The wheels' speed error")."""
+    the truth, which a forward model on held speeds does not follow
+    (docs/identification.md#limits)."""
     table = "[sim.wheels]\n"
     if table not in config_text:
         raise ValueError("the sim-rig configuration has no [sim.wheels] table")

@@ -69,14 +69,13 @@ def emulator_keys(rig: RigConfig) -> dict:
         # tick it covers the goal step and holds, so it strays from the lag by up to the step,
         # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
         # while they move; holding still, they sit within the hold below; its reads scatter
-        # about the truth's 5 ms rest-length steps (docs/estimator.md, "The servos' keys",
-        # "Real-time keys by replay", "Resting servos")
+        # about the truth's 5 ms rest-length steps (docs/estimator.md#resting-servos)
         "servo_lag_s": 0.005,
         # a moving servo's read lies anywhere within the truth's 5 ms hold of its rest length
         # (uniform: dt / sqrt(12) as a time); at rest it reads within a count of where it
         # holds, and 5e-5 m left for the rest put the servo NIS at 1.8-2.0 of 2 on three
         # real-time batches (2e-4 and no time: 0.87-1.06, below its bounds on one;
-        # docs/estimator.md, "The servos' reads, moving and at rest")
+        # docs/estimator.md#the-servos-reads-moving-and-at-rest)
         "servo_length_std_m": 5.0e-5,
         "servo_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
