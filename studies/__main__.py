@@ -30,6 +30,7 @@ STUDIES = {
     "estimator_benchmark": "the filter's time per IMU sample and per Jacobian",
     "identify_check": "identification accuracy and coverage over seeds (simulated clock)",
     "identify_rig": "identification end to end on the real-time rig, then a run with it",
+    "identify_heldout": "the default identification on truths drawn from a prior, held out",
     "identify_preset": "identification from the preset schedules, per segment",
     "identify_transfer": "the identified scene on another manoeuvre than its recording",
     "control_compare": "open vs closed loop on a truth with heavier wheels (in process)",
@@ -45,7 +46,7 @@ GROUPS = {
         "estimator_effects",
         "estimator_benchmark",
     ),
-    "identification": ("identify_check", "identify_rig"),
+    "identification": ("identify_check", "identify_rig", "identify_heldout"),
 }
 """Reports that gather several studies, each run at its defaults (the docs quote these)."""
 

@@ -122,10 +122,10 @@ def identified_errors(ident: Path, overlay: Path) -> dict[str, tuple[float, floa
     return out
 
 
-def truth_kept_overlay(overlay: Path, out: Path) -> Path:
+def truth_kept_overlay(overlay: Path, out: Path, truth_deg=IMU_ROTATION_DEG) -> Path:
     """``overlay`` (what ``gyrotens identify`` wrote) with ``[sim.truth] imu_rotation_deg`` set
-    so that the emulated IMU stays at the truth's mounting (:data:`IMU_ROTATION_DEG` from a zero
-    mounting) now that the host's is the identified one, written to ``out``.
+    so that the emulated IMU stays at the truth's mounting (``truth_deg`` from a zero mounting)
+    now that the host's is the identified one, written to ``out``.
 
     The emulator turns the IMU by ``imu_rotation_deg`` from the configuration's mounting:
     without this the overlay would turn the truth's IMU by the identified mounting as well, and
@@ -134,7 +134,7 @@ def truth_kept_overlay(overlay: Path, out: Path) -> Path:
 
     text = overlay.read_text()
     identified = tomllib.loads(text)["imu"]["mounting_rpy_rad"]
-    turn = rotation_zyx(*np.radians(IMU_ROTATION_DEG)) @ rotation_zyx(*identified).T
+    turn = rotation_zyx(*np.radians(truth_deg)) @ rotation_zyx(*identified).T
     deg = ", ".join(repr(float(a)) for a in np.degrees(euler_zyx(turn)))
     out.write_text(text + f"\n[sim.truth]\nimu_rotation_deg = [{deg}]\n")
     return out
