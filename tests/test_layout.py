@@ -61,7 +61,6 @@ LONG_FUNCTIONS = {
     "gyrohost/commands/run.py:register",
     "gyrohost/commands/identify.py:register",
     "gyrohost/bench/peers.py:compare",
-    "gyrotensegrity/simulate.py:simulate",
     "gyrotensegrity/structure.py:compile_structure",
     "gyrotensegrity/generators.py:prism_chain",
 }

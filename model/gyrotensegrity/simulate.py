@@ -304,7 +304,40 @@ def simulate(
     n_samples = int(np.floor(duration / sample_dt + 1e-9))
     samples = np.arange(n_samples + 1) * sample_dt
     rec = _Recorder(model, tol)
-    meta = {
+    meta = _run_meta(model, integrator, rtol, atol, sample_dt, tol, fast)
+    dyn, projector = dynamics_of(model, fast)
+
+    def f(t, x):
+        return dyn(t, x, u_of(t, x))
+
+    report = (lambda t: progress(t, duration)) if progress else (lambda t: None)
+    start = time.perf_counter()
+    try:
+        u0 = u_of(0.0, x)
+        check_step(model, integrator, dt, duration, rtol, x, u0)
+        rec.add(0.0, x, u0)
+        if integrator in FIXED_STEP:
+            h = sample_dt / max(1, int(np.ceil(sample_dt / dt - 1e-9)))  # divides sample_dt
+            meta["dt"] = h
+            _fixed_steps(model, integrator, f, projector, x, samples, h, rec, u_of, report)
+        else:
+            solver = adaptive_solver(
+                integrator, _finite_rates(model, f), 0.0, x, samples[-1], rtol, atol
+            )
+            _adaptive_steps(model, integrator, f, solver, samples, rec, u_of, report)
+            meta["nfev"] = solver.nfev
+    except SimulationError as exc:
+        meta["wall_time_s"] = time.perf_counter() - start
+        meta["error"] = str(exc)
+        exc.partial = rec.run(meta)
+        raise
+    meta["wall_time_s"] = time.perf_counter() - start
+    return rec.run(meta)
+
+
+def _run_meta(model, integrator, rtol, atol, sample_dt, tol, fast) -> dict:
+    """What a run file records of how it was made (docs/model.md#run-files-npz)."""
+    return {
         "integrator": integrator,
         "rtol": rtol,
         "atol": atol,
@@ -318,16 +351,15 @@ def simulate(
             "scipy": scipy.__version__,
             "python": platform.python_version(),
         },
+        "fast": bool(fast),
     }
 
-    dyn, projector = dynamics_of(model, fast)
-    meta["fast"] = bool(fast)
 
-    def f(t, x):
-        return dyn(t, x, u_of(t, x))
+def _finite_rates(model, f):
+    """``f`` that raises :class:`SimulationError` on a non-finite rate: scipy's adaptive solvers
+    loop forever on a NaN error estimate, so the run stops at the source."""
 
-    def f_checked(t, x):
-        # scipy's adaptive solvers loop forever on a NaN error estimate: stop at the source
+    def checked(t, x):
         dx = f(t, x)
         if not np.isfinite(dx).all():
             member = nonfinite_member(model, x) or nonfinite_member(model, dx) or "wheels"
@@ -339,51 +371,43 @@ def simulate(
             )
         return dx
 
-    start = time.perf_counter()
-    try:
-        u0 = u_of(0.0, x)
-        check_step(model, integrator, dt, duration, rtol, x, u0)
-        rec.add(0.0, x, u0)
-        if integrator in FIXED_STEP:
-            steps = max(1, int(np.ceil(sample_dt / dt - 1e-9)))
-            meta["dt"] = h = sample_dt / steps
-            for k in range(1, len(samples)):
-                t = samples[k - 1]
-                for j in range(steps):
-                    x = fixed_step(integrator, model, f, t + j * h, x, h, projector)
-                rec.add(samples[k], x, u_of(samples[k], x))
-                if progress:
-                    progress(samples[k], duration)
-        else:
-            solver = adaptive_solver(integrator, f_checked, 0.0, x, samples[-1], rtol, atol)
-            k = 1
-            while k < len(samples):
-                if solver.status != "running":
-                    raise SimulationError(
-                        f"t = {solver.t:.6g} s: integrator {integrator} failed: {solver.message}"
-                        if hasattr(solver, "message")
-                        else f"integrator {integrator} stopped",
-                        solver.t,
-                        "integrator",
-                    )
-                message = solver.step()
-                if solver.status == "failed":
-                    _adaptive_failure(model, f, solver, integrator, message)
-                dense = solver.dense_output()
-                while k < len(samples) and samples[k] <= solver.t:
-                    xs = dense(samples[k])
-                    rec.add(samples[k], xs, u_of(samples[k], xs))
-                    k += 1
-                if progress:
-                    progress(solver.t, duration)
-            meta["nfev"] = solver.nfev
-    except SimulationError as exc:
-        meta["wall_time_s"] = time.perf_counter() - start
-        meta["error"] = str(exc)
-        exc.partial = rec.run(meta)
-        raise
-    meta["wall_time_s"] = time.perf_counter() - start
-    return rec.run(meta)
+    return checked
+
+
+def _fixed_steps(model, integrator, f, projector, x, samples, h, rec, u_of, report) -> None:
+    """Step a fixed-step integrator by ``h`` (s, a divisor of the sample period) through
+    ``samples``, recording each and reporting its time."""
+    steps = int(round((samples[1] - samples[0]) / h)) if len(samples) > 1 else 0
+    for k in range(1, len(samples)):
+        t = samples[k - 1]
+        for j in range(steps):
+            x = fixed_step(integrator, model, f, t + j * h, x, h, projector)
+        rec.add(samples[k], x, u_of(samples[k], x))
+        report(samples[k])
+
+
+def _adaptive_steps(model, integrator, f, solver, samples, rec, u_of, report) -> None:
+    """Step an adaptive ``solver`` past every sample, recording each from its dense output and
+    reporting the solver's time."""
+    k = 1
+    while k < len(samples):
+        if solver.status != "running":
+            raise SimulationError(
+                f"t = {solver.t:.6g} s: integrator {integrator} failed: {solver.message}"
+                if hasattr(solver, "message")
+                else f"integrator {integrator} stopped",
+                solver.t,
+                "integrator",
+            )
+        message = solver.step()
+        if solver.status == "failed":
+            _adaptive_failure(model, f, solver, integrator, message)
+        dense = solver.dense_output()
+        while k < len(samples) and samples[k] <= solver.t:
+            xs = dense(samples[k])
+            rec.add(samples[k], xs, u_of(samples[k], xs))
+            k += 1
+        report(solver.t)
 
 
 def _adaptive_failure(model, f, solver, integrator, message):
