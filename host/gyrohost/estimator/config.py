@@ -113,6 +113,12 @@ class EstimatorConfig:
     init_gyro_bias_std_rad_s: float = field(
         default=0.5 * _DEG, metadata=_std("initial bias", RATE_FULL_SCALE_RAD_S)
     )
+    # the accelerometer's bias: 0 folds it into imu_accel_std_m_s2 (white noise it is not: it
+    # stays for the run); above 0 it is a state with this prior and walks by its density
+    init_accel_bias_std_m_s2: float = field(
+        default=0.0, metadata=_std("initial accelerometer bias", ACCEL_FULL_SCALE_M_S2)
+    )
+    accel_bias_psd_m2_s5: float = field(default=0.0, metadata=_psd("accelerometer bias walk"))
     # gates: NIS thresholds as chi-square probabilities; time-outs
     gate_probability: float = field(default=0.9999, metadata=_pos("NIS gate", 0.5, 1.0))
     imu_timeout_s: float = field(default=0.1, metadata=_pos("IMU time-out", 1e-3))

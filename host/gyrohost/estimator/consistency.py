@@ -45,6 +45,8 @@ def block_nees(ekf, x_true):
     blocks = [("wheels", L.omega), ("rest", L.rest), ("bias", L.bias)]
     if L.n_mounting and len(x_true) >= L.mounting.stop:
         blocks.append(("mounting", L.mounting))
+    if L.n_accel_bias and len(x_true) >= L.accel_bias.stop:
+        blocks.append(("accel_bias", L.accel_bias))
     return {**out, **_entry_blocks(ekf, x_true, blocks)}
 
 

@@ -145,6 +145,7 @@ class TensegrityEKF:
         std[L.rest] = c.init_rest_std_m
         std[L.bias] = c.init_gyro_bias_std_rad_s
         std[L.mounting] = 0.0
+        std[L.accel_bias] = c.init_accel_bias_std_m_s2
         std[L.wheel_noise] = fuse_wheels.white_std(c)
         P = np.diag(std**2)
         if L.n_mounting:

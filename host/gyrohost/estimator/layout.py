@@ -1,18 +1,21 @@
 """The filter's state vector and its relation to the model's state.
 
 Filter state ``x`` (flat, float64, size ``6 m + n_w + alpha + 3``, 3 more with the IMU
-mounting's error as a state and ``n_w`` more with the wheel telemetry's noise as a state)::
+mounting's error as a state, 3 more with the accelerometer's bias as a state and ``n_w`` more
+with the wheel telemetry's noise as a state)::
 
     x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
           | rest (alpha, m) | b_g (3, rad/s) | d_mount (3, rad, optional)
-          | a_w (n_w, rad/s, optional) ]
+          | b_a (3, m/s^2, optional) | a_w (n_w, rad/s, optional) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
 :mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
 string rest lengths the servos have actually reached (they lag the command), ``b_g`` the gyro
 bias in sensor axes, ``d_mount`` the error of the configured mounting's roll, pitch and yaw (the
 true angles less ``imu_mounting_rpy_rad``; a random constant, present when the configuration
-gives the mounting an uncertainty: :func:`.config.mounting_covariance`), ``a_w`` the white term
+gives the mounting an uncertainty: :func:`.config.mounting_covariance`), ``b_a`` the
+accelerometer's bias in sensor axes (a random constant, present when the configuration gives it
+a prior: ``init_accel_bias_std_m_s2``), ``a_w`` the white term
 of the last wheel sample's noise, which the next sample's noise shares (``wheel_noise_ma1``,
 :mod:`.fuse_wheels`). Wheel angles are left out (nothing observes them, nothing depends on
 them).
@@ -34,6 +37,7 @@ class FilterLayout:
     n_strings: int
     n_wheel_noise: int = 0  # n_wheels with the wheel noise as a state, else 0
     n_mounting: int = 0  # 3 with the mounting's error as a state, else 0
+    n_accel_bias: int = 0  # 3 with the accelerometer's bias as a state, else 0
 
     @property
     def size(self) -> int:
@@ -41,9 +45,9 @@ class FilterLayout:
 
     @property
     def n_base(self) -> int:
-        """Entries of the model's state, the gyro bias and the mounting's error (all but the
-        wheel noise states: those a truth can give)."""
-        return self.n_dynamic + 3 + self.n_mounting
+        """Entries of the model's state, the gyro bias, the mounting's error and the
+        accelerometer's bias (all but the wheel noise states: those a truth can give)."""
+        return self.n_dynamic + 3 + self.n_mounting + self.n_accel_bias
 
     @property
     def n_dynamic(self) -> int:
@@ -72,7 +76,11 @@ class FilterLayout:
 
     @property
     def mounting(self) -> slice:
-        return slice(self.n_dynamic + 3, self.n_base)
+        return slice(self.n_dynamic + 3, self.n_dynamic + 3 + self.n_mounting)
+
+    @property
+    def accel_bias(self) -> slice:
+        return slice(self.mounting.stop, self.n_base)
 
     @property
     def wheel_noise(self) -> slice:
@@ -86,6 +94,7 @@ class FilterLayout:
         names += [f"rest{k}_m" for k in range(self.n_strings)]
         names += [f"gyro_bias_{a}_rad_s" for a in "xyz"]
         names += [f"mounting_{a}_rad" for a in ("roll", "pitch", "yaw")[: self.n_mounting]]
+        names += [f"accel_bias_{a}_m_s2" for a in "xyz"[: self.n_accel_bias]]
         return names + [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
 
 
@@ -97,7 +106,8 @@ def layout_of(model, config=None) -> FilterLayout:
         return FilterLayout(model.m, n_w, model.alpha)
     noise = n_w if config.wheel_noise_ma1 != 0.0 else 0
     mounting = 3 if mounting_covariance(config) is not None else 0
-    return FilterLayout(model.m, n_w, model.alpha, noise, mounting)
+    accel_bias = 3 if config.init_accel_bias_std_m_s2 > 0.0 else 0
+    return FilterLayout(model.m, n_w, model.alpha, noise, mounting, accel_bias)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

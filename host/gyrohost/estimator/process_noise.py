@@ -163,6 +163,8 @@ class ProcessNoise:
         Q[r, r] = c.rest_psd_m2_s * dt + c.rest_hold_std_m**2 * (1.0 - hold * hold)
         b = np.arange(L.bias.start, L.bias.stop)
         Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
+        a = np.arange(L.accel_bias.start, L.accel_bias.stop)
+        Q[a, a] = c.accel_bias_psd_m2_s5 * dt
         if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
             self._noise[dt] = Q
         return Q

@@ -13,11 +13,12 @@ figure per sensor), with the chi-square 95 % interval of the pooled degrees of f
 
 A channel that reads still as one count scatters by no more than its quantisation; the figure
 to configure is never below one count over ``sqrt(12)``, the spread of the rounding, because a
-zero variance would let one sample pin the filter's state. The filter has no state of the
-accelerometer's bias: its figure folds the bias in (``sqrt(white^2 + bias^2)``, as
-:func:`gyrohost.sil.emulator_keys.emulator_keys` does), the bias left after the device's own
-calibration (``FF AA 67``), which a still window cannot tell from the mounting's tilt against
-gravity (``gyrotens identify`` fits the two together).
+zero variance would let one sample pin the filter's state. The accelerometer's bias, which a
+still window cannot tell from the mounting's tilt against gravity (``gyrotens identify`` fits
+the two together), is a state of the filter where ``init_accel_bias_std_m_s2`` gives it a
+prior, and the figure is the white noise alone; a filter without that state folds the bias
+left after the device's own calibration (``FF AA 67``) into the figure
+(``sqrt(white^2 + bias^2)``).
 
 The servos' reads are left out: a held servo reads where it holds (the emulator exactly), and
 ``servo_length_std_m`` carries what they do while moving
@@ -201,7 +202,9 @@ def measure(folders, est: EstimatorConfig, accel_bias_m_s2: float) -> tuple[list
         The estimator of the rig the logs were recorded on (the configured figures, the
         wheels' wire step).
     accel_bias_m_s2 : float
-        The accelerometer's bias (per axis, 1-sigma) its figure folds in, m/s^2.
+        The accelerometer's bias (per axis, 1-sigma) its figure folds in, m/s^2, where the
+        estimator has no state of it (``init_accel_bias_std_m_s2 = 0``); with one, the
+        figure is the white noise alone.
 
     Returns
     -------
@@ -238,7 +241,8 @@ def measure(folders, est: EstimatorConfig, accel_bias_m_s2: float) -> tuple[list
             for c in (c for c in columns if c in rows.dtype.names):
                 v = np.unwrap(rows[c]) if c in streams.IMU_ANGLE else rows[c]
                 pieces[key].append((c, rows["t_s"], np.asarray(v, float)))
-    floors, biases = _floors(est), {"imu_accel_std_m_s2": accel_bias_m_s2}
+    folded = accel_bias_m_s2 if est.init_accel_bias_std_m_s2 == 0.0 else 0.0
+    floors, biases = _floors(est), {"imu_accel_std_m_s2": folded}
     figures = [
         figure(key, unit, pieces[key], floors[key], float(getattr(est, key)), biases.get(key, 0.0))
         for key, unit, *_ in SENSORS

@@ -60,7 +60,9 @@ def emulator_keys(rig: RigConfig) -> dict:
         # at the lower (reports/estimator-history.md#scored-from-drawn-starts)
         "accel_psd_m2_s3": 5.0e-7,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
-        "imu_accel_std_m_s2": std(accel_white, accel_count, emu.accel_bias_std_m_s2),
+        # the bias is a random constant, not white noise: a state with its spread as prior
+        "imu_accel_std_m_s2": std(accel_white, accel_count),
+        "init_accel_bias_std_m_s2": emu.accel_bias_std_m_s2,
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, angle_count),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
         **imu_keys(rig),

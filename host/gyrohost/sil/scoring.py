@@ -393,6 +393,10 @@ def score_rig_model_run(config, seed, duration_s=3.0, overrides=None) -> ScoredR
     if ekf.layout.n_mounting:  # its truth: the configured mounting's error, all run
         error = np.tile(mounting_error(config, est_cfg), (len(truth_x), 1))
         truth_x = np.hstack([truth_x, error])
+    if ekf.layout.n_accel_bias:  # its truth: the emulator's drawn bias, all run
+        truth_x = np.hstack(
+            [truth_x, np.tile(emulated_accel_bias(config, seed), (len(truth_x), 1))]
+        )
     return score_run(ekf, data, sampled_truth(truth_x, truth_R, dt_s))
 
 
@@ -405,6 +409,15 @@ def sil_keys(estimator=None) -> dict:
     from gyrohost.estimator.config import file_keys
 
     return {**RIG_MODEL_KEYS, **file_keys(estimator)}
+
+
+def emulated_accel_bias(config, seed) -> np.ndarray:
+    """The accelerometer bias (3,) m/s^2, sensor axes, that the simulated IMU of ``config``
+    draws with the noise of ``seed`` (:func:`seeded`): the same draw as the run's."""
+    from gyrohost.simrig.imu_emu import Bwt61Emulator
+
+    config = seeded(config, seed)
+    return Bwt61Emulator(sim_config(config).imu, config.imu).accel_bias_m_s2
 
 
 def mounting_error(config, est_cfg) -> np.ndarray:
