@@ -169,7 +169,7 @@ def run(args) -> int:
             recs = [filter_fit.load(log, args.until) for log in args.logs]
             for warning in filter(None, map(filter_fit.roll_over_warning, recs)):
                 print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
-            for g in filter_fit.STATE_GROUPS:
+            for g in filter_fit.state_groups(est):
                 if g in groups:
                     print(f"{g}: the filter's own state, not fitted")
                     groups.remove(g)

@@ -150,7 +150,7 @@ def identify_log(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, comma
 
 
 def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | None = 1):
-    """Fit ``groups`` (less the filter's own states, ``filter_fit.STATE_GROUPS``) to the logs
+    """Fit ``groups`` (less the filter's own states, ``filter_fit.state_groups``) to the logs
     from the nominal configuration by the filter's prediction error
     (:mod:`gyrohost.ident.filter_fit`), the filter tuned as the simulated-clock SIL tunes it
     for the rig models (:data:`gyrohost.sil.scoring.RIG_MODEL_KEYS`), in ``workers`` processes
@@ -167,7 +167,7 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | No
     scene = load_scene(config.scene_path)
     est = config_from_dict({**emulator_keys(config), **RIG_MODEL_KEYS})
     recs = [filter_fit.load(log) for log in logs]
-    groups = [g for g in groups if g not in filter_fit.STATE_GROUPS]
+    groups = [g for g in groups if g not in filter_fit.state_groups(est)]
     params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
     return filter_fit.fit(scene, config, est, params, recs, workers=workers)
 
