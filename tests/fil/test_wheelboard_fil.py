@@ -13,6 +13,7 @@ import time
 
 import pytest
 import serial
+from control_beat import start_control_thread
 from filharness import Harness, firmware_elf, set_offsets, stats_rpm
 
 from gyrohost.drivers import wheelproto as wp
@@ -39,6 +40,7 @@ def rig(harness):
     board = WheelBoard(harness.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
+        start_control_thread(board)
         set_offsets(board)
         yield harness, board
     finally:
@@ -72,7 +74,7 @@ def mean_speeds(samples: list[wp.Telemetry]) -> list[float]:
 
 
 def keep_alive(board: WheelBoard, duration_s: float) -> None:
-    """Wait while the client's heartbeat runs."""
+    """Wait while the test's control thread beats."""
     time.sleep(duration_s)
 
 
@@ -143,33 +145,56 @@ def test_telemetry_rate_at_least_500_hz(rig):
     assert board.telemetry_dropped == 0
 
 
-def test_heartbeat_loss_ramps_down_and_reports(harness):
-    """Heartbeat loss: fault and fail-safe reported, wheels braked along DECEL, outputs off.
+def test_stats_poller_without_heartbeat_stops_the_wheels(harness):
+    """A host whose control thread died while its stats poller lives: the wheels stop.
 
-    With DECEL_RAD_S2 = 200 the modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive)
-    lags the ramp; the firmware brakes on after the ramped setpoint reached zero and disables a
-    wheel once the encoder's last tick shows it below 0.5 rad/s (APP_STOP_Q8): it then coasts at
-    a few rpm at most, hence 3 %.
+    Only HEARTBEAT, SET_SPEEDS and STOP_ALL restart the board's heartbeat count; GET_STATS every
+    50 ms does not. From the last SET_SPEEDS, HEARTBEAT_LOST latches after HEARTBEAT_MS (250 ms)
+    and the wheels are braked along DECEL_RAD_S2 (200 rad/s^2: 0.37 s from 715 rpm) and released
+    once stopped, within APP_STOP_TICKS (0.5 s) of braking more: every driver off within
+    HEARTBEAT_MS + 0.37 s + 0.5 s of it. The reference is the telemetry time seen right after the
+    last SET_SPEEDS, which lags the board's clock, so the measured times are upper bounds; 0.1 s
+    covers the link's latency on a loaded host (1 ms: the telemetry's resolution).
+
+    The modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive) lags the ramp; once the
+    encoder's last tick shows a wheel below 0.5 rad/s (APP_STOP_Q8) it coasts at a few rpm at
+    most, hence 3 %.
     """
     h = harness
-    # A client whose own heartbeat never fires: only the frames the test sends keep it alive.
     board = WheelBoard(h.pty, heartbeat_period_s=3600, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
         set_offsets(board)
-        board.set_speeds([TARGET_RAD_S] * 4)
-        # any valid frame counts as a heartbeat: GET_STATS between the checks
-        wait_true_rpm(h, lambda rpm: all(r > 700 for r in rpm), ping=board.stats)
-        # from here on nothing is sent on this link
-        line = wait_sim_time(h, board.last_telemetry.t_us * 1e-6 + 1.0)
+        board.set_param("HEARTBEAT_MS", 250)
+        board.set_param("DECEL_RAD_S2", 200)
+        speeds = [TARGET_RAD_S] * 4
+        board.set_speeds(speeds)
+        wait_true_rpm(
+            h, lambda rpm: all(r > 700 for r in rpm), ping=lambda: board.set_speeds(speeds, False)
+        )
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_last_s = board.last_telemetry.t_us * 1e-6  # sent before the board gets the next frame
+        board.set_speeds(speeds, confirm=False)  # the control thread's last frame
+        samples = []
+        deadline = time.monotonic() + 30.0
+        while not samples or "OUTPUTS_ENABLED" in samples[-1].status_names:
+            board.stats()  # the poller lives on
+            while not board.telemetry.empty():
+                samples.append(board.telemetry.get_nowait())
+            assert time.monotonic() < deadline, "simulation too slow"
+            time.sleep(0.05)
+        line = wait_sim_time(h, samples[-1].t_us * 1e-6 + 0.5)
         tel = telemetry_at(board, float(line["t_s"]))
         truth = stats_rpm(line)
         pwm = h.command("pwm")
     finally:
         board.close()
-    assert "HEARTBEAT_LOST" in tel.fault_names
+    lost = next(s for s in samples if "HEARTBEAT_LOST" in s.fault_names)
+    off = next(s for s in samples if "OUTPUTS_ENABLED" not in s.status_names)
+    assert 0.25 - 0.001 <= lost.t_us * 1e-6 - t_last_s <= 0.25 + 0.1
+    assert off.t_us * 1e-6 - t_last_s <= 0.25 + TARGET_RAD_S / 200 + 0.5 + 0.1
     assert "FAILSAFE" in tel.status_names
-    assert "OUTPUTS_ENABLED" not in tel.status_names
     assert all(f"m{i}=0/" in pwm for i in range(4)), pwm
     assert all(abs(r) < 0.03 * 715 for r in truth), truth
     for i in range(4):
@@ -319,6 +344,7 @@ def test_stop_all_from_715_rpm_ends_without_reversing():
         board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
         try:
             board.connect()
+            start_control_thread(board)
             set_offsets(board)
             board.set_speeds([s * TARGET_RAD_S for s in signs])
             wait_true_rpm(h, lambda rpm: all(abs(abs(r) - 715) < 0.02 * 715 for r in rpm))

@@ -279,8 +279,14 @@ static void app_send_stats(app_state* a) {
     app_send(a, PROTO_ID_STATS, p, sizeof p);
 }
 
+// Only the frames of the host's control thread keep the wheels alive: a host whose control thread
+// died while a poller (GET_STATS, PARAM_GET, HELLO) lives must still lose its heartbeat.
+static bool app_is_control_frame(uint8_t id) {
+    return id == PROTO_ID_HEARTBEAT || id == PROTO_ID_SET_SPEEDS || id == PROTO_ID_STOP_ALL;
+}
+
 static void app_dispatch(app_state* a, const proto_frame* f) {
-    flt_host_alive(&a->flt);
+    if (app_is_control_frame(f->id)) flt_host_alive(&a->flt);
     switch (f->id) {
         case PROTO_ID_HELLO:
             app_send_hello(a);

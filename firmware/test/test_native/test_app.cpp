@@ -172,6 +172,36 @@ TEST_F(AppTest, HeartbeatsKeepTheWheelsRunning) {
     EXPECT_EQ(app.w[0].sp_mrad_s, 10000);
 }
 
+// A host whose control thread died while its poller lives: queries keep nothing running.
+TEST_F(AppTest, QueriesDoNotFeedTheHeartbeat) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    for (int i = 0; i < 10; i++) {
+        step(10);
+        send(PROTO_ID_GET_STATS);
+        send(PROTO_ID_HELLO);
+        send(PROTO_ID_PARAM_GET, {PRM_KP});
+        send(PROTO_ID_TELEMETRY, Bytes(PROTO_LEN_TELEMETRY, 1));  // device-to-host id
+    }
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+    EXPECT_EQ(app.w[0].target_mrad_s, 0);
+}
+
+TEST_F(AppTest, ControlFramesFeedTheHeartbeat) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    for (int i = 0; i < 10; i++) {
+        step(99);
+        send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    }
+    step(99);
+    send(PROTO_ID_STOP_ALL);
+    step(99);
+    EXPECT_EQ(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+}
+
 TEST_F(AppTest, StopAllRampsWithDecelAndAcks) {
     set_param(PRM_MODE, 1);
     set_param(PRM_DECEL_RAD_S2, 500);

@@ -85,7 +85,8 @@ BY_ID = {m.id: m for m in MESSAGES}
 FAULTS: dict[int, tuple[str, str]] = {
     0: (
         "HEARTBEAT_LOST",
-        "no valid frame from the host within the heartbeat timeout: all wheels ramped to zero",
+        "no control frame (HEARTBEAT, SET_SPEEDS, STOP_ALL) from the host within HEARTBEAT_MS: "
+        "all wheels ramped to zero",
     ),
     **{
         1 + w: (

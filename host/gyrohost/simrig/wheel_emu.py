@@ -6,13 +6,14 @@ from boot on the emulator's clock, so simulated-time runs are exact:
 
 - receiver rules: frames longer than 44 bytes, bad COBS, short frames and bad CRCs are dropped and
   counted; an unknown id or a device-to-host id, or a wrong payload length, gets an ERROR reply;
-  only a frame with a good CRC restarts the heartbeat timer;
+  only a control frame (HEARTBEAT, SET_SPEEDS, STOP_ALL) with a good CRC restarts the heartbeat
+  timer, queries do not;
 - HELLO, SET_SPEEDS (whole message refused above SPEED_MAX or while a blocking fault is latched),
   STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
   after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS (the bits of its mask),
   GET_STATS; CALIBRATE_ENC is answered with an ACK at once, the offset unchanged (the emulated
   board comes calibrated: no electrical model, no PARAMS_DEFAULTED);
-- fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
+- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
   setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
   ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
   in the direction being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
@@ -56,6 +57,8 @@ SAVE_TICKS = 300
 ENCODER_COUNTS = 1 << 14
 """Counts per turn of the AS5048A (14 bits)."""
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
+_CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
+"""Frames that restart the heartbeat timer, as in the firmware (app_is_control_frame)."""
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
 STOP_RAD_S = 0.5
@@ -239,7 +242,8 @@ class WheelBoardEmulator(PtyDevice):
                 return
             raw = wp.cobs_decode(frame)  # the CRC was good: id and length are known
             msg_id, payload_len = raw[0], len(raw) - 3
-        self._since_host_ms = 0  # a frame with a good CRC: the host is alive
+        if msg is not None and msg.name in _CONTROL_FRAMES:
+            self._since_host_ms = 0  # the host's control thread is alive; queries count not
         spec = wp.BY_ID.get(msg_id)
         if spec is None or spec.direction != "H2D":
             self._count("unknown_id")
