@@ -118,7 +118,8 @@ class WheelBoard:
                 f"parameters, this host expects {wp.N_WHEELS} and {len(wp.PARAMS)}"
             )
         self.hello = fields
-        self._last_sent_s = time.monotonic()
+        # HELLO is a query: the board's heartbeat count runs on until this first control frame
+        self._send("HEARTBEAT", {})
         self._heartbeat_on.set()
         return fields
 
