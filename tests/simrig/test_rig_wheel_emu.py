@@ -227,11 +227,12 @@ def _spun_up(emu, w0_mrad_s, ticks):
     ``ticks`` times: (the emulator, wheel 0's true speed after each tick, rad/s)."""
     with WheelBoardEmulator(emu) as dev:
         dev.tick(0.0)  # the board boots when first polled
-        dev.handle_rx(wp.encode("PARAM_SET", param_id=9, value=60000), 0.0)  # 60 s heartbeat
         speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
         dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": w0_mrad_s})), 0.0)
         trace = []
         for k in range(1, ticks + 1):
+            if k % 100 == 0:  # the host's control loop
+                dev.handle_rx(wp.encode("HEARTBEAT"), k * 1e-3)
             dev.tick(k * 1e-3)
             trace.append(dev.wheel_speeds_rad_s()[0])
     return dev, trace

@@ -213,17 +213,17 @@ PARAMS: tuple[ParamSpec, ...] = (
     _p("SLEW_Q15", 5, 1000, 1, 32767, "Q15/tick"),
     _p("SPEED_MAX_MRAD_S", 6, 157080, 0, 400000, "mrad/s"),
     _p("ACCEL_RAD_S2", 7, 100, 1, 10000, "rad/s^2"),
-    _p("DECEL_RAD_S2", 8, 200, 1, 10000, "rad/s^2"),
-    _p("HEARTBEAT_MS", 9, 250, 20, 60000, "ms"),
+    _p("DECEL_RAD_S2", 8, 200, 50, 10000, "rad/s^2"),
+    _p("HEARTBEAT_MS", 9, 250, 20, 1000, "ms"),
     _p("TELEMETRY_DIV", 10, 2, 0, 100, "ticks"),
     _p("SPEED_FILTER_SHIFT", 11, 3, 0, 8, "-"),
     _p("OPEN_LOOP_DRIVE_Q15", 12, 6000, 0, 32767, "Q15"),
     _p("LEAD_Q8", 13, 128, 0, 512, "tick/256"),
     _p("ENC_FAULT_LIMIT", 14, 5, 1, 255, "ticks"),
     *(_p(f"ENC_OFFSET_M{w}", 15 + w, 0, 0, 65535, "turn/65536") for w in range(4)),
-    _p("MOTION_FAULT_MS", 19, 50, 1, 5000, "ms"),
-    _p("STALL_SPEED_MRAD_S", 20, 2000, 0, 100000, "mrad/s"),
-    _p("RUNAWAY_MARGIN_MRAD_S", 21, 10000, 0, 400000, "mrad/s"),
+    _p("MOTION_FAULT_MS", 19, 50, 1, 200, "ms"),
+    _p("STALL_SPEED_MRAD_S", 20, 2000, 1000, 100000, "mrad/s"),
+    _p("RUNAWAY_MARGIN_MRAD_S", 21, 10000, 0, 50000, "mrad/s"),
 )
 PARAM_BY_NAME = {p.name: p for p in PARAMS}
 PARAM_BY_ID = {p.id: p for p in PARAMS}
