@@ -1,4 +1,4 @@
-"""Firmware in the loop: the watchdog and the host link at its line rate.
+"""Firmware in the loop: the watchdog, the parameters at boot and the host link at its line rate.
 
 The client here is raw (frames from :mod:`gyrohost.drivers.wheelproto` on the pty, a reader
 thread decoding the replies), so that the test controls every byte and its timing. The harness
@@ -169,6 +169,59 @@ def test_stopped_tick_trips_the_watchdog_and_the_next_boot_reports_it(beat_link)
     link.request("CLEAR_FAULTS", "ACK", mask=WATCHDOG_RESET)
     later = telemetry(link, lambda m: not m.fields["faults"] & WATCHDOG_RESET, "cleared faults")
     assert later["t_us"] >= after["t_us"]
+
+
+def eeprom_image(**values: int) -> bytes:
+    """An EEPROM with one parameter image in slot 0 (layout 3, docs/protocol.md), written by hand:
+    the defaults with ``values`` on top, CRC good; slot 1 blank."""
+    body = b"GW" + bytes([3, len(wp.PARAMS)]) + (1).to_bytes(2, "little")
+    for spec in wp.PARAMS:
+        body += values.get(spec.name, spec.default).to_bytes(4, "little", signed=True)
+    image = body + wp.crc16(body).to_bytes(2, "little")
+    return image + b"\xff" * (256 - len(image))
+
+
+DISARMING = {  # a value past each fail-safe bound (docs/hardware.md), as the issue measured
+    "HEARTBEAT_MS": 60000,
+    "DECEL_RAD_S2": 1,
+    "STALL_SPEED_MRAD_S": 0,
+    "MOTION_FAULT_MS": 5000,
+    "RUNAWAY_MARGIN_MRAD_S": 400000,
+}
+
+
+@pytest.mark.parametrize("value", [60000, 1000])
+def test_an_eeprom_image_with_a_disarming_value_is_rejected_at_boot(beat_link, tmp_path, value):
+    """A hand-made image whose CRC is good but whose HEARTBEAT_MS is 60 s: the boot loads the
+    defaults and reports PARAMS_DEFAULTED; the same image with 1000 ms loads (KP 77 shows it)."""
+    path = tmp_path / "eeprom.bin"
+    path.write_bytes(eeprom_image(HEARTBEAT_MS=value, KP=77))
+    h, link, _ = beat_link(["--eeprom", str(path)])
+    boot = telemetry(link)
+    loaded = value <= wp.PARAM_BY_NAME["HEARTBEAT_MS"].max
+    defaulted = wp.fault_mask(["PARAMS_DEFAULTED"])
+    assert bool(boot["faults"] & defaulted) != loaded, boot
+    kp = link.request("PARAM_GET", "PARAM_VALUE", param_id=wp.PARAM_BY_NAME["KP"].id)
+    assert kp.fields["value"] == (77 if loaded else wp.PARAM_BY_NAME["KP"].default)
+    beat = link.request("PARAM_GET", "PARAM_VALUE", param_id=wp.PARAM_BY_NAME["HEARTBEAT_MS"].id)
+    assert beat.fields["value"] == (value if loaded else 250)
+
+
+def test_each_disarming_param_set_is_refused(beat_link):
+    h, link, _ = beat_link([])
+    for name, value in DISARMING.items():
+        pid = wp.PARAM_BY_NAME[name].id
+        link.send("PARAM_SET", param_id=pid, value=value)
+        deadline = time.monotonic() + WAIT_S
+        while True:
+            msg = link.messages.get(timeout=max(deadline - time.monotonic(), 0.01))
+            if msg.name in ("ERROR", "PARAM_VALUE"):
+                break
+        assert msg.name == "ERROR", f"{name} = {value} accepted: {msg.fields}"
+        assert (msg.fields["req_id"], msg.fields["detail"]) == (wp.BY_NAME["PARAM_SET"].id, pid)
+        assert wp.error_name(msg.fields["code"]) == "PARAM_OUT_OF_RANGE"
+        held = link.request("PARAM_GET", "PARAM_VALUE", param_id=pid).fields["value"]
+        assert held == wp.PARAM_BY_NAME[name].default, name
 
 
 def wait_sim(h: Harness, t_s: float) -> None:
