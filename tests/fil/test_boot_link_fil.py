@@ -143,32 +143,69 @@ def beat_link():
         h.stop()
 
 
-def test_stopped_tick_trips_the_watchdog_and_the_next_boot_reports_it(beat_link):
-    """Timer2 stopped with four wheels running: no control step, so no watchdog kick.
-
-    The watchdog interrupt comes 16 ms after the last step, the reset 16 ms after it; the harness
-    then clears MCUSR as the stock bootloader does, so WATCHDOG_RESET can only come from the
-    firmware's own .noinit mark. After the reset every output is off.
-    """
-    h, link, beat = beat_link([])
+def hang_and_reset(h: Harness, link: Link, beat: threading.Event, command: str) -> dict:
+    """Four wheels running, then ``command`` (a harness hang); the watchdog's reset follows.
+    Returns the harness's RESET line with ``dt_s``, the simulated time from the hang to it."""
     boot = telemetry(link)
     assert not boot["faults"] & WATCHDOG_RESET, boot
     spin_up(h, link, beat)
-    telemetry(link, lambda m: m.fields["status"] & OUTPUTS_ENABLED, "outputs enabled")
-
-    t_stop_s = float(parse_kv(h.command("tick-stop"))["t_s"])
+    running = telemetry(link, lambda m: m.fields["status"] & OUTPUTS_ENABLED, "outputs enabled")
+    t_hang_s = float(parse_kv(h.command(command))["t_s"])
     reset = harness_line(h, "RESET ")
     assert reset["wdrf"] == "1", reset  # the watchdog's reset, as the chip flags it
-    assert 0.016 <= float(reset["t_s"]) - t_stop_s <= 0.034, (t_stop_s, reset)
+    reset["dt_s"] = float(reset["t_s"]) - t_hang_s
+    reset["t_us_before"] = running["t_us"]
+    return reset
 
-    after = telemetry(link, lambda m: m.fields["faults"] & WATCHDOG_RESET, "WATCHDOG_RESET")
+
+def outputs_off_after_reset(h: Harness, link: Link, reset: dict) -> dict:
+    """Telemetry of the new boot (its clock restarted; the first frame may be lost, joined to
+    the one the reset cut): every output off."""
+    before = reset["t_us_before"]
+    after = telemetry(link, lambda m: m.fields["t_us"] < before, "telemetry after the reset")
     assert not after["status"] & OUTPUTS_ENABLED, after
     pwm = h.command("pwm")
     assert all(f"m{i}=0/" in pwm for i in range(4)), pwm
-    # the mark is spent: a CLEAR_FAULTS clears the bit for good
+    return after
+
+
+@pytest.mark.parametrize("command", ["hang-cli", "tick-stop"])
+def test_a_hang_no_interrupt_sees_resets_within_32_ms_with_every_output_off(beat_link, command):
+    """A hang with interrupts disabled, or with Timer2 stopped (no tick interrupt either): only
+    the watchdog, in plain reset mode, acts. It resets the chip 16 ms after the last step's kick
+    (the hang comes up to one tick after it): the issue's limit is 32 ms. The harness clears
+    MCUSR as the stock bootloader does and no interrupt could leave the mark, so the cause is
+    lost (docs/hardware.md): no WATCHDOG_RESET. After the reset every output is off."""
+    h, link, beat = beat_link([])
+    reset = hang_and_reset(h, link, beat, command)
+    assert 0.014 <= reset["dt_s"] <= 0.032, reset
+    after = outputs_off_after_reset(h, link, reset)
+    assert not after["faults"] & WATCHDOG_RESET, after
+
+
+def test_without_the_bootloader_mcusr_reports_the_watchdog_reset(beat_link):
+    """A board without the stk500v2 bootloader keeps MCUSR: WDRF reports even a hang with
+    interrupts off; CLEAR_FAULTS clears it for good."""
+    h, link, beat = beat_link(["--no-bootloader"])
+    reset = hang_and_reset(h, link, beat, "hang-cli")
+    assert reset["dt_s"] <= 0.032, reset
+    after = outputs_off_after_reset(h, link, reset)
+    assert after["faults"] & WATCHDOG_RESET, after
     link.request("CLEAR_FAULTS", "ACK", mask=WATCHDOG_RESET)
     later = telemetry(link, lambda m: not m.fields["faults"] & WATCHDOG_RESET, "cleared faults")
     assert later["t_us"] >= after["t_us"]
+
+
+def test_a_hang_with_interrupts_on_is_marked_and_reported(beat_link):
+    """A main loop hung with interrupts on: the tick interrupt finds BOARD_HANG_TICKS (8) ticks
+    without a step, switches every output off and leaves the .noinit mark, which survives the
+    stock bootloader: the next boot reports WATCHDOG_RESET. The reset comes from the watchdog,
+    16 ms after the last kick."""
+    h, link, beat = beat_link([])
+    reset = hang_and_reset(h, link, beat, "hang")
+    assert 0.014 <= reset["dt_s"] <= 0.032, reset
+    after = outputs_off_after_reset(h, link, reset)
+    assert after["faults"] & WATCHDOG_RESET, after
 
 
 def eeprom_image(**values: int) -> bytes:

@@ -14,7 +14,7 @@ from typing import Any
 
 from .errors import FrameError, ProtocolError
 
-PROTO_VERSION = 3
+PROTO_VERSION = 4
 MAX_PAYLOAD = 40
 MAX_RAW = 1 + MAX_PAYLOAD + 2
 MAX_ENCODED = MAX_RAW + 1
@@ -98,7 +98,11 @@ FAULTS: dict[int, tuple[str, str]] = {
     },
     5: ("TICK_OVERRUN", "a 1 ms control tick was missed"),
     6: ("PARAMS_DEFAULTED", "EEPROM parameter image invalid at boot: defaults in use"),
-    7: ("WATCHDOG_RESET", "the last reset was caused by the watchdog"),
+    7: (
+        "WATCHDOG_RESET",
+        "the last reset was caused by the watchdog (a hang; behind the stock bootloader only a "
+        "hang with interrupts on is seen)",
+    ),
     8: ("RX_OVERFLOW", "UART receive buffer overflowed: bytes were lost"),
     9: (
         "ENC_STUCK",
@@ -119,6 +123,11 @@ FAULTS: dict[int, tuple[str, str]] = {
         "RUNAWAY",
         "a wheel turned against its setpoint or above SPEED_MAX by more than RUNAWAY_MARGIN for "
         "MOTION_FAULT_MS (a wrong ENC_OFFSET?): all wheels disabled",
+    ),
+    13: (
+        "BROWN_OUT_RESET",
+        "the last reset was a brown-out (supply below the BOD level; seen only where no "
+        "bootloader cleared MCUSR)",
     ),
 }
 # Faults that make the device refuse setpoints until CLEAR_FAULTS (ENC_STUCK and ENC_DIAG come
