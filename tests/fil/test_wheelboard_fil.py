@@ -331,6 +331,65 @@ def test_open_loop_mode_turns_at_field_speed(rig):
         assert got == pytest.approx(want, rel=0.02, abs=1.0), f"wheel {i}"
 
 
+def open_loop_until(board: WheelBoard, fault: str) -> tuple[wp.Telemetry, wp.Telemetry]:
+    """Telemetry until ``fault`` latched and every output is off: (the first sample with the
+    fault, the first with the outputs off after it)."""
+    deadline = time.monotonic() + 60.0
+    lost = None
+    while True:
+        sample = board.telemetry.get(timeout=REPLY_TIMEOUT_S)
+        if lost is None and fault in sample.fault_names:
+            lost = sample
+        if lost is not None and "OUTPUTS_ENABLED" not in sample.status_names:
+            return lost, sample
+        assert time.monotonic() < deadline, f"no {fault} with the outputs off"
+
+
+def test_open_loop_stops_at_its_time_limit_and_on_heartbeat_loss(harness):
+    """Open loop is a bench mode under the same heartbeat as the closed loop and a 10 s limit
+    (APP_OPEN_LOOP_MS) while a wheel runs: OPEN_LOOP_LIMIT latches 10 s after the SET_SPEEDS (the
+    reference is the telemetry seen just before it: 1 ms resolution, plus the link's latency),
+    the wheels ramp to 0 at DECEL and their drivers go off. Then, cleared and restarted, a host
+    whose control thread stops loses its heartbeat (250 ms) and the wheels stop as well."""
+    h = harness
+    board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
+    try:
+        board.connect()
+        control = start_control_thread(board)
+        board.clear_faults(board.latched_faults())
+        board.set_param("MODE", 1)
+        board.set_param("ACCEL_RAD_S2", 20)  # within the open-loop drive's torque
+        speeds = [20.0, -20.0, 0.0, 0.0]
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_start_s = board.last_telemetry.t_us * 1e-6
+        board.set_speeds(speeds)
+        limit, off = open_loop_until(board, "OPEN_LOOP_LIMIT")
+        pwm_limit = h.command("pwm")
+
+        board.clear_faults(["OPEN_LOOP_LIMIT"])
+        board.set_speeds(speeds)
+        deadline = time.monotonic() + 30.0
+        while board.last_telemetry.omega_rad_s[0] < 20.0:  # ramped (the commanded speed)
+            assert time.monotonic() < deadline, board.last_telemetry
+            time.sleep(0.02)
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_hang_s = board.last_telemetry.t_us * 1e-6
+        control.set()  # the control thread hangs
+        lost, lost_off = open_loop_until(board, "HEARTBEAT_LOST")
+        pwm_lost = h.command("pwm")
+    finally:
+        board.close()
+    assert 10.0 - 0.001 <= limit.t_us * 1e-6 - t_start_s <= 10.0 + 0.1, (limit.t_us, t_start_s)
+    assert off.t_us - limit.t_us <= 0.2e6  # 20 rad/s at DECEL 200 rad/s^2: 0.1 s
+    assert all(f"m{i}=0/" in pwm_limit for i in range(4)), pwm_limit
+    # the last HEARTBEAT went out up to heartbeat_period_s (50 ms) before the hang
+    assert 0.25 - 0.05 - 0.001 <= lost.t_us * 1e-6 - t_hang_s <= 0.25 + 0.1
+    assert lost_off.t_us - lost.t_us <= 0.2e6
+    assert all(f"m{i}=0/" in pwm_lost for i in range(4)), pwm_lost
+
+
 def test_stop_all_from_715_rpm_ends_without_reversing():
     """STOP_ALL from +-715 rpm: braking ends when the encoder shows the wheel stopped.
 

@@ -7,7 +7,8 @@
 // After timeout_ms ticks without one, HEARTBEAT_LOST
 // latches and the application forces all setpoints to zero. An ENCODER_Mw bit disables wheel w;
 // STALL or RUNAWAY disables every wheel (the loop itself is suspect). Blocking faults (heartbeat,
-// encoders, stall, runaway) make the device refuse new setpoints until cleared.
+// encoders, stall, runaway, the open-loop time limit) make the device refuse new setpoints until
+// cleared.
 #ifndef FLT_H
 #define FLT_H
 

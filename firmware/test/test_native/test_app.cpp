@@ -207,6 +207,51 @@ TEST_F(AppTest, ControlFramesFeedTheHeartbeat) {
     EXPECT_EQ(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
 }
 
+// Open loop is supervised: its time limit stops it (as the heartbeat does, test above), its
+// drive is capped at DRIVE_MAX, and it is never restored at boot.
+TEST_F(AppTest, OpenLoopStopsAtItsTimeLimit) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_DECEL_RAD_S2, 1000);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, -5000}));
+    step_alive(APP_OPEN_LOOP_MS - 1);
+    EXPECT_EQ(app.flt.faults, 0);
+    EXPECT_EQ(app.enable_mask, 0x9);
+    step_alive(1);  // the ramp down starts in this tick
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_OPEN_LOOP_LIMIT, 0);
+    EXPECT_EQ(app.w[0].sp_mrad_s, 9000);
+    step_alive(11);  // 10 ramp steps, the next step switches the outputs off
+    EXPECT_EQ(app.enable_mask, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+    clear_faults(PROTO_FAULT_OPEN_LOOP_LIMIT);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    EXPECT_EQ(app.w[0].target_mrad_s, 10000);
+    step_alive(APP_OPEN_LOOP_MS - 1);  // the count began again at the stop
+    EXPECT_EQ(app.flt.faults, 0);
+}
+
+TEST_F(AppTest, OpenLoopDriveCappedAtDriveMax) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_OPEN_LOOP_DRIVE_Q15, 16385);
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, PRM_OPEN_LOOP_DRIVE_Q15);
+    set_param(PRM_DRIVE_MAX_Q15, 4000);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    step(2);
+    EXPECT_EQ(app.w[0].drive_q15, 4000);  // OPEN_LOOP_DRIVE 6000 capped
+}
+
+TEST_F(AppTest, OpenLoopIsNeverRestoredAtBoot) {
+    set_param(PRM_MODE, 1);
+    send(PROTO_ID_PARAM_SAVE);
+    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) app_poll(&app);
+    ASSERT_NE(last(PROTO_ID_ACK), nullptr);
+    app_state booted;
+    app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
+    EXPECT_EQ(booted.prm.v[PRM_MODE], 0);
+    EXPECT_EQ(booted.ctl.closed, 1);
+    EXPECT_EQ(booted.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0);  // the image itself loaded
+}
+
 TEST_F(AppTest, StopAllRampsWithDecelAndAcks) {
     set_param(PRM_MODE, 1);
     set_param(PRM_DECEL_RAD_S2, 500);

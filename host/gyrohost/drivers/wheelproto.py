@@ -129,11 +129,24 @@ FAULTS: dict[int, tuple[str, str]] = {
         "the last reset was a brown-out (supply below the BOD level; seen only where no "
         "bootloader cleared MCUSR)",
     ),
+    14: (
+        "OPEN_LOOP_LIMIT",
+        "open loop (MODE 1) drove a wheel for 10 s without a stop: all wheels ramped to zero",
+    ),
 }
 # Faults that make the device refuse setpoints until CLEAR_FAULTS (ENC_STUCK and ENC_DIAG come
 # with the ENCODER_Mw bit of their wheel).
 BLOCKING_FAULTS = frozenset(
-    {"HEARTBEAT_LOST", "ENCODER_M0", "ENCODER_M1", "ENCODER_M2", "ENCODER_M3", "STALL", "RUNAWAY"}
+    {
+        "HEARTBEAT_LOST",
+        "ENCODER_M0",
+        "ENCODER_M1",
+        "ENCODER_M2",
+        "ENCODER_M3",
+        "STALL",
+        "RUNAWAY",
+        "OPEN_LOOP_LIMIT",
+    }
 )
 
 # bit -> (name, text): live status byte of TELEMETRY.
@@ -226,7 +239,7 @@ PARAMS: tuple[ParamSpec, ...] = (
     _p("HEARTBEAT_MS", 9, 250, 20, 1000, "ms"),
     _p("TELEMETRY_DIV", 10, 2, 0, 100, "ticks"),
     _p("SPEED_FILTER_SHIFT", 11, 3, 0, 8, "-"),
-    _p("OPEN_LOOP_DRIVE_Q15", 12, 6000, 0, 32767, "Q15"),
+    _p("OPEN_LOOP_DRIVE_Q15", 12, 6000, 0, 16384, "Q15"),
     _p("LEAD_Q8", 13, 128, 0, 512, "tick/256"),
     _p("ENC_FAULT_LIMIT", 14, 5, 1, 255, "ticks"),
     *(_p(f"ENC_OFFSET_M{w}", 15 + w, 0, 0, 65535, "turn/65536") for w in range(4)),
