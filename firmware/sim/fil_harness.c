@@ -136,6 +136,9 @@ typedef struct {
     double elec_offset_rad;
     int pole_pairs;
     uint32_t model_cycles;
+    double enc_noise_counts; /* rms of the Gaussian noise on every angle read (--enc-noise) */
+    double cogging_nm;       /* amplitude of the cogging torque (--cogging) */
+    int cogging_per_rev;     /* its periods per mechanical turn */
 } params_t;
 
 static params_t g_par = {
@@ -151,7 +154,21 @@ static params_t g_par = {
     .elec_offset_rad = 0.0,
     .pole_pairs = 7,
     .model_cycles = 1000,
+    /* 12 slots and 14 poles (7 pole pairs): the cogging repeats lcm(12, 14) = 84 times a turn */
+    .cogging_per_rev = 84,
 };
+
+/* Noise of the angle reads: xorshift64 and Box-Muller, seeded (--seed) so a run repeats. */
+static uint64_t g_rng = 0x9E3779B97F4A7C15ull;
+static double rng_uniform(void) {
+    g_rng ^= g_rng << 13;
+    g_rng ^= g_rng >> 7;
+    g_rng ^= g_rng << 17;
+    return ((double)(g_rng >> 11) + 0.5) / 9007199254740992.0; /* (0, 1) */
+}
+static double rng_gauss(void) {
+    return sqrt(-2.0 * log(rng_uniform())) * cos(TWO_PI * rng_uniform());
+}
 
 static motor_t g_mot[N_MOTORS];
 static avr_t* g_avr;
@@ -234,6 +251,14 @@ static uint16_t encoder_angle_code(const motor_t* m) {
     return (uint16_t)((int)(turns * ENC_COUNTS) & 0x3FFF);
 }
 
+/* The angle as the sensor reports it: with --enc-noise, plus Gaussian noise of that rms. */
+static uint16_t encoder_read_code(const motor_t* m) {
+    if (g_par.enc_noise_counts <= 0.0) return encoder_angle_code(m);
+    double turns = m->theta_rad / TWO_PI;
+    double code = (turns - floor(turns)) * ENC_COUNTS + g_par.enc_noise_counts * rng_gauss();
+    return (uint16_t)((int)floor(code + 2.0 * ENC_COUNTS) & 0x3FFF);
+}
+
 /* Answer of the frame that starts now, given the command latched in the previous frame. */
 static uint16_t encoder_answer(motor_t* m) {
     switch ((enc_fault_t)m->fault) {
@@ -249,7 +274,7 @@ static uint16_t encoder_answer(motor_t* m) {
     if (cmd == 0x0000) {
         data = 0; /* NOP */
     } else if ((cmd & 0x3FFF) == 0x3FFF && (cmd & 0x4000)) {
-        data = m->fault == ENC_FAULT_FROZEN ? m->frozen : encoder_angle_code(m);
+        data = m->fault == ENC_FAULT_FROZEN ? m->frozen : encoder_read_code(m);
     } else if ((cmd & 0x3FFF) == 0x0001 && (cmd & 0x4000)) {
         data = m->error_flag ? 0x0001 : 0; /* clear error flag register: reading clears it */
         m->error_flag = 0;
@@ -431,6 +456,8 @@ static void motor_step(motor_t* m, double dt) {
         m->enabled ? g_par.k_t_nm_per_v * (m->v_q - g_par.k_e_vs_rad * m->omega_rad_s) : 0;
     double load = m->load_nm;
     if (m->omega_rad_s < 0) load = -load;
+    /* cogging: a torque periodic in the rotor angle, drive or no drive */
+    load += g_par.cogging_nm * sin(g_par.cogging_per_rev * m->theta_rad);
     double acc = (torque - g_par.b_nms * m->omega_rad_s - load) / g_par.j_kgm2;
     m->omega_rad_s += acc * dt; /* semi-implicit Euler */
     m->theta_rad += m->omega_rad_s * dt;
@@ -734,6 +761,10 @@ static void* stdin_thread(void* arg) {
             }
         } else if (n >= 1 && strcmp(cmd, "tick-stop") == 0) {
             g_tick_stop_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "vbus") == 0 && sscanf(line, "%*s %lf", &value) == 1 &&
+                   value > 0.0) {
+            g_par.vbus_v = value; /* a supply sag (or its end), from now on */
+            printf("OK vbus %g t_s=%.6f\n", value, sim_time_s());
         } else if (n >= 1 && strcmp(cmd, "hang") == 0) {
             g_hang_request = 1;
         } else if (n >= 1 && strcmp(cmd, "hang-cli") == 0) {
@@ -804,6 +835,9 @@ static void usage(const char* prog) {
             "                         bytes before the 0x00, e.g. 040474a1) has reached UART0\n"
             "      --eeprom FILE      EEPROM contents from address 0 (at most 4096 bytes)\n"
             "      --no-bootloader    keep MCUSR on a reset (a board without the stk500v2 one)\n"
+            "      --enc-noise COUNTS Gaussian noise of this rms on every angle read (default 0)\n"
+            "      --cogging NM       cogging torque amplitude, 84 periods a turn (default 0)\n"
+            "      --seed N           seed of the angle noise (default fixed)\n"
             "      --profile FILE     sample the PC inside the control step, write FILE at exit\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
             "                         firmware uses their counters or interrupts)\n",
@@ -828,7 +862,10 @@ enum {
     OPT_UART_WAIT,
     OPT_RX_MARK,
     OPT_EEPROM,
-    OPT_NO_BOOTLOADER
+    OPT_NO_BOOTLOADER,
+    OPT_ENC_NOISE,
+    OPT_COGGING,
+    OPT_SEED
 };
 
 typedef struct {
@@ -888,6 +925,9 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"rx-mark", required_argument, 0, OPT_RX_MARK},
         {"eeprom", required_argument, 0, OPT_EEPROM},
         {"no-bootloader", no_argument, 0, OPT_NO_BOOTLOADER},
+        {"enc-noise", required_argument, 0, OPT_ENC_NOISE},
+        {"cogging", required_argument, 0, OPT_COGGING},
+        {"seed", required_argument, 0, OPT_SEED},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -959,6 +999,15 @@ static void parse_options(int argc, char** argv, options_t* o) {
                 break;
             case OPT_NO_BOOTLOADER:
                 g_keep_mcusr = 1;
+                break;
+            case OPT_ENC_NOISE:
+                g_par.enc_noise_counts = parse_double(optarg, "--enc-noise");
+                break;
+            case OPT_COGGING:
+                g_par.cogging_nm = parse_double(optarg, "--cogging");
+                break;
+            case OPT_SEED:
+                g_rng = (uint64_t)parse_double(optarg, "--seed") * 2654435761ull + 1;
                 break;
             case OPT_UART_WAIT:
                 g_uart_wait_max_s = parse_double(optarg, "--uart-wait-max");
