@@ -25,11 +25,12 @@
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
  * (one per line): "fault <motor> <mode>" (modes as --enc-fault), "clear <motor>", "load <motor>
  * <N*m>", "stats", "pwm", "tick-stop" (Timer2's clock off: the firmware's control tick stops),
- * "hang" / "hang-cli" (the CPU jumps into a loop on itself, interrupts left as they are or
- * disabled: a firmware hung in a loop, or hung with interrupts off), "rx
- * HEX" (bytes queued for UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the
- * same every PERIOD_US of simulated time, COUNT times), "quit". The harness never calls
- * uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
+ * "brown-out" (a reset with BORF set, as the brown-out detector gives), "vbus V" (the bridge
+ * supply from now on), "hang" / "hang-cli" (the CPU jumps into a loop on itself, interrupts left as
+ * they are or disabled: a firmware hung in a loop, or hung with interrupts off), "rx HEX" (bytes
+ * queued for UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the same every
+ * PERIOD_US of simulated time, COUNT times), "quit". The harness never calls uart_pty_stop(): it
+ * hangs in pthread_join in simavr 1.6.
  */
 #include <errno.h>
 #include <getopt.h>
@@ -196,6 +197,7 @@ static int g_uart_no_reader;           /* a wait timed out: drop output until th
 static unsigned long long g_frames;    /* 0x00 bytes (COBS frame delimiters) the UART sent */
 static volatile int g_tick_stop_request;
 static volatile int g_hang_request; /* 1: hang, 2: hang with interrupts disabled */
+static volatile int g_brown_out_request;
 static int g_keep_mcusr;            /* --no-bootloader */
 static unsigned long long g_resets; /* resets after power-on (watchdog) */
 
@@ -682,7 +684,7 @@ static avr_cycle_count_t bootloader_timer(avr_t* avr, avr_cycle_count_t when, vo
     (void)param;
     uint8_t mcusr = avr->data[ADDR_MCUSR];
     if (!g_keep_mcusr) avr->data[ADDR_MCUSR] = 0;
-    printf("RESET t_s=%.6f wdrf=%d\n", sim_time_s(), (mcusr >> 3) & 1);
+    printf("RESET t_s=%.6f wdrf=%d borf=%d\n", sim_time_s(), (mcusr >> 3) & 1, (mcusr >> 2) & 1);
     fflush(stdout);
     return 0;
 }
@@ -765,6 +767,8 @@ static void* stdin_thread(void* arg) {
                    value > 0.0) {
             g_par.vbus_v = value; /* a supply sag (or its end), from now on */
             printf("OK vbus %g t_s=%.6f\n", value, sim_time_s());
+        } else if (n >= 1 && strcmp(cmd, "brown-out") == 0) {
+            g_brown_out_request = 1;
         } else if (n >= 1 && strcmp(cmd, "hang") == 0) {
             g_hang_request = 1;
         } else if (n >= 1 && strcmp(cmd, "hang-cli") == 0) {
@@ -1137,6 +1141,13 @@ int main(int argc, char** argv) {
         if (g_tick_stop_request) {
             g_tick_stop_request = 0;
             stop_tick_timer();
+        }
+        if (g_brown_out_request) { /* the supply dipped below the BOD level: reset, BORF set */
+            g_brown_out_request = 0;
+            printf("OK brown-out t_s=%.6f\n", sim_time_s());
+            fflush(stdout);
+            avr_reset(g_avr);
+            g_avr->data[ADDR_MCUSR] = 0x04;
         }
         if (g_hang_request) {
             hang_cpu(g_hang_request == 2);

@@ -143,8 +143,11 @@ def beat_link():
         h.stop()
 
 
-def hang_and_reset(h: Harness, link: Link, beat: threading.Event, command: str) -> dict:
-    """Four wheels running, then ``command`` (a harness hang); the watchdog's reset follows.
+def hang_and_reset(
+    h: Harness, link: Link, beat: threading.Event, command: str, wdrf: str = "1"
+) -> dict:
+    """Four wheels running, then ``command`` (a harness hang: the watchdog's reset follows, or a
+    brown-out).
     Returns the harness's RESET line with ``dt_s``, the simulated time from the hang to it."""
     boot = telemetry(link)
     assert not boot["faults"] & WATCHDOG_RESET, boot
@@ -152,7 +155,7 @@ def hang_and_reset(h: Harness, link: Link, beat: threading.Event, command: str) 
     running = telemetry(link, lambda m: m.fields["status"] & OUTPUTS_ENABLED, "outputs enabled")
     t_hang_s = float(parse_kv(h.command(command))["t_s"])
     reset = harness_line(h, "RESET ")
-    assert reset["wdrf"] == "1", reset  # the watchdog's reset, as the chip flags it
+    assert reset["wdrf"] == wdrf, reset  # the watchdog's reset, as the chip flags it
     reset["dt_s"] = float(reset["t_s"]) - t_hang_s
     reset["t_us_before"] = running["t_us"]
     return reset
@@ -206,6 +209,18 @@ def test_a_hang_with_interrupts_on_is_marked_and_reported(beat_link):
     assert 0.014 <= reset["dt_s"] <= 0.032, reset
     after = outputs_off_after_reset(h, link, reset)
     assert after["faults"] & WATCHDOG_RESET, after
+
+
+def test_a_brown_out_reset_is_reported_where_mcusr_survives(beat_link):
+    """The brown-out detector's reset (BORF set) on a board without the stk500v2 bootloader:
+    BROWN_OUT_RESET in the next boot's fault word, every output off. Behind the stock bootloader
+    MCUSR is cleared and the cause is lost (docs/hardware.md)."""
+    h, link, beat = beat_link(["--no-bootloader"])
+    reset = hang_and_reset(h, link, beat, "brown-out", wdrf="0")
+    assert reset["borf"] == "1", reset
+    after = outputs_off_after_reset(h, link, reset)
+    assert after["faults"] & wp.fault_mask(["BROWN_OUT_RESET"]), after
+    assert not after["faults"] & WATCHDOG_RESET, after
 
 
 def eeprom_image(**values: int) -> bytes:
