@@ -30,6 +30,7 @@ def open_board(h: Harness, offsets: bool = True) -> WheelBoard:
     board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     board.connect()
     start_control_thread(board)
+    board.set_param("HEARTBEAT_MS", 1000)  # a loaded host may pause; the heartbeat is not tested
     board.clear_faults(board.latched_faults())  # the boot's HEARTBEAT_LOST / PARAMS_DEFAULTED
     if offsets:
         set_offsets(board)

@@ -41,6 +41,8 @@ def rig(harness):
     try:
         board.connect()
         start_control_thread(board)
+        # the longest timeout: a loaded host's test thread may pause (the heartbeat has its tests)
+        board.set_param("HEARTBEAT_MS", 1000)
         set_offsets(board)
         yield harness, board
     finally:
