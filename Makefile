@@ -1,7 +1,8 @@
 # Two commands do everything on a fresh Debian/Ubuntu machine:
 #   make demo   the paper's D-bar experiment end to end, with logs and plots
 #   make test   every test: lint, Python tests, firmware native tests, AVR build, firmware in the loop
-#   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega
+#   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega,
+#                                  once its brown-out fuse is checked (tools/check-bod.sh)
 #   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test, bench
@@ -77,6 +78,7 @@ flash:
 	@test -n "$(PORT)" || { echo "usage: make flash PORT=/dev/ttyACM0 ('gyrotens ports' lists them)" >&2; exit 2; }
 	@command -v avrdude >/dev/null || { echo "avrdude is missing: tools/ensure-debs.sh all" >&2; exit 2; }
 	$(MAKE) --no-print-directory -C firmware avr
+	tools/check-bod.sh $(PORT) $(PROGRAMMER)
 	avrdude -p atmega2560 -c $(PROGRAMMER) -P $(PORT) -b 115200 -D -U flash:w:$(FIRMWARE_ELF):e
 
 clean:

@@ -242,6 +242,26 @@ def test_heartbeat_thread_runs_at_its_period(fake):
     assert 10 <= beats <= 30, beats
 
 
+def test_background_heartbeat_only_while_no_wheel_is_commanded(fake):
+    """A turning wheel lives only on the caller's frames: the driver's own thread beats while
+    every commanded speed is zero, and heartbeat() sends at most one frame a period."""
+    with wb.WheelBoard(fake.path, heartbeat_period_s=0.02) as board:
+        time.sleep(0.2)
+        assert len(fake.heartbeats) >= 5  # idle: the background thread beats
+        board.set_speeds([1.0, 0.0, 0.0, 0.0])
+        time.sleep(0.05)  # a beat already on its way lands
+        driving = len(fake.heartbeats)
+        time.sleep(0.3)
+        assert len(fake.heartbeats) == driving
+        board.heartbeat()
+        board.heartbeat()  # within the period of the first: not sent
+        time.sleep(0.1)
+        assert len(fake.heartbeats) == driving + 1
+        board.set_speeds([0.0, 0.0, 0.0, 0.0])
+        time.sleep(0.2)
+        assert len(fake.heartbeats) >= driving + 5  # idle again
+
+
 def test_telemetry_queue_and_fault_events(fake):
     events: queue.Queue = queue.Queue()
     with wb.WheelBoard(fake.path, on_fault=events.put) as board:
@@ -252,7 +272,7 @@ def test_telemetry_queue_and_fault_events(fake):
         samples = [board.telemetry.get(timeout=1) for _ in range(11)]
         assert [s.seq for s in samples] == list(range(11))
         assert samples[0].omega_rad_s == pytest.approx((1.0, 2.0, 3.0, 4.0))
-        with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST: no valid frame"):
+        with pytest.raises(wb.WheelFaultError, match="HEARTBEAT_LOST: no control frame"):
             board.check_faults()
         board.clear_faults(board.faults)
         board.check_faults()

@@ -14,7 +14,9 @@
  *     is lost (data overrun), counted as rx_overrun.
  *   - Resets: the watchdog's reset restarts the firmware as on the chip; the harness then acts as
  *     the stock Mega bootloader (stk500v2) does on a watchdog reset: MCUSR cleared, application
- *     started. A "RESET t_s=... wdrf=1" line reports each one.
+ *     started (with --no-bootloader MCUSR is kept, as on a board flashed without one). A
+ *     "RESET t_s=... wdrf=1" line reports each one.
+ *   - --eeprom FILE loads the EEPROM from FILE (from address 0) before the firmware starts.
  *   - The control step is timed in CPU cycles between the firmware's writes GPIOR0 = 1 and
  *     GPIOR0 = 0; min/mean/max are printed periodically ("STATS ...") and at exit ("FINAL ...").
  *   - With --speed-period, a compact "SPEED t_us w0 w1 w2 w3 frames" line gives the model's true
@@ -22,10 +24,13 @@
  *
  * Simulated time is paced to wall-clock time unless --free is given. Commands on stdin
  * (one per line): "fault <motor> <mode>" (modes as --enc-fault), "clear <motor>", "load <motor>
- * <N*m>", "stats", "pwm", "tick-stop" (Timer2's clock off: the firmware's control tick stops), "rx
- * HEX" (bytes queued for UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the
- * same every PERIOD_US of simulated time, COUNT times), "quit". The harness never calls
- * uart_pty_stop(): it hangs in pthread_join in simavr 1.6.
+ * <N*m>", "stats", "pwm", "tick-stop" (Timer2's clock off: the firmware's control tick stops),
+ * "brown-out" (a reset with BORF set, as the brown-out detector gives), "vbus V" (the bridge
+ * supply from now on), "hang" / "hang-cli" (the CPU jumps into a loop on itself, interrupts left as
+ * they are or disabled: a firmware hung in a loop, or hung with interrupts off), "rx HEX" (bytes
+ * queued for UART0 as if the host wrote them now), "rx-every PERIOD_US COUNT HEX" (the same every
+ * PERIOD_US of simulated time, COUNT times), "quit". The harness never calls uart_pty_stop(): it
+ * hangs in pthread_join in simavr 1.6.
  */
 #include <errno.h>
 #include <getopt.h>
@@ -39,6 +44,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_spi.h>
@@ -131,6 +137,9 @@ typedef struct {
     double elec_offset_rad;
     int pole_pairs;
     uint32_t model_cycles;
+    double enc_noise_counts; /* rms of the Gaussian noise on every angle read (--enc-noise) */
+    double cogging_nm;       /* amplitude of the cogging torque (--cogging) */
+    int cogging_per_rev;     /* its periods per mechanical turn */
 } params_t;
 
 static params_t g_par = {
@@ -146,7 +155,21 @@ static params_t g_par = {
     .elec_offset_rad = 0.0,
     .pole_pairs = 7,
     .model_cycles = 1000,
+    /* 12 slots and 14 poles (7 pole pairs): the cogging repeats lcm(12, 14) = 84 times a turn */
+    .cogging_per_rev = 84,
 };
+
+/* Noise of the angle reads: xorshift64 and Box-Muller, seeded (--seed) so a run repeats. */
+static uint64_t g_rng = 0x9E3779B97F4A7C15ull;
+static double rng_uniform(void) {
+    g_rng ^= g_rng << 13;
+    g_rng ^= g_rng >> 7;
+    g_rng ^= g_rng << 17;
+    return ((double)(g_rng >> 11) + 0.5) / 9007199254740992.0; /* (0, 1) */
+}
+static double rng_gauss(void) {
+    return sqrt(-2.0 * log(rng_uniform())) * cos(TWO_PI * rng_uniform());
+}
 
 static motor_t g_mot[N_MOTORS];
 static avr_t* g_avr;
@@ -173,6 +196,9 @@ static double g_uart_wait_max_s = 2.0; /* longest back-pressure wait for the pty
 static int g_uart_no_reader;           /* a wait timed out: drop output until the FIFO drains */
 static unsigned long long g_frames;    /* 0x00 bytes (COBS frame delimiters) the UART sent */
 static volatile int g_tick_stop_request;
+static volatile int g_hang_request; /* 1: hang, 2: hang with interrupts disabled */
+static volatile int g_brown_out_request;
+static int g_keep_mcusr;            /* --no-bootloader */
 static unsigned long long g_resets; /* resets after power-on (watchdog) */
 
 static double now_s(void) {
@@ -227,6 +253,14 @@ static uint16_t encoder_angle_code(const motor_t* m) {
     return (uint16_t)((int)(turns * ENC_COUNTS) & 0x3FFF);
 }
 
+/* The angle as the sensor reports it: with --enc-noise, plus Gaussian noise of that rms. */
+static uint16_t encoder_read_code(const motor_t* m) {
+    if (g_par.enc_noise_counts <= 0.0) return encoder_angle_code(m);
+    double turns = m->theta_rad / TWO_PI;
+    double code = (turns - floor(turns)) * ENC_COUNTS + g_par.enc_noise_counts * rng_gauss();
+    return (uint16_t)((int)floor(code + 2.0 * ENC_COUNTS) & 0x3FFF);
+}
+
 /* Answer of the frame that starts now, given the command latched in the previous frame. */
 static uint16_t encoder_answer(motor_t* m) {
     switch ((enc_fault_t)m->fault) {
@@ -242,7 +276,7 @@ static uint16_t encoder_answer(motor_t* m) {
     if (cmd == 0x0000) {
         data = 0; /* NOP */
     } else if ((cmd & 0x3FFF) == 0x3FFF && (cmd & 0x4000)) {
-        data = m->fault == ENC_FAULT_FROZEN ? m->frozen : encoder_angle_code(m);
+        data = m->fault == ENC_FAULT_FROZEN ? m->frozen : encoder_read_code(m);
     } else if ((cmd & 0x3FFF) == 0x0001 && (cmd & 0x4000)) {
         data = m->error_flag ? 0x0001 : 0; /* clear error flag register: reading clears it */
         m->error_flag = 0;
@@ -424,6 +458,8 @@ static void motor_step(motor_t* m, double dt) {
         m->enabled ? g_par.k_t_nm_per_v * (m->v_q - g_par.k_e_vs_rad * m->omega_rad_s) : 0;
     double load = m->load_nm;
     if (m->omega_rad_s < 0) load = -load;
+    /* cogging: a torque periodic in the rotor angle, drive or no drive */
+    load += g_par.cogging_nm * sin(g_par.cogging_per_rev * m->theta_rad);
     double acc = (torque - g_par.b_nms * m->omega_rad_s - load) / g_par.j_kgm2;
     m->omega_rad_s += acc * dt; /* semi-implicit Euler */
     m->theta_rad += m->omega_rad_s * dt;
@@ -647,8 +683,8 @@ static avr_cycle_count_t bootloader_timer(avr_t* avr, avr_cycle_count_t when, vo
     (void)when;
     (void)param;
     uint8_t mcusr = avr->data[ADDR_MCUSR];
-    avr->data[ADDR_MCUSR] = 0;
-    printf("RESET t_s=%.6f wdrf=%d\n", sim_time_s(), (mcusr >> 3) & 1);
+    if (!g_keep_mcusr) avr->data[ADDR_MCUSR] = 0;
+    printf("RESET t_s=%.6f wdrf=%d borf=%d\n", sim_time_s(), (mcusr >> 3) & 1, (mcusr >> 2) & 1);
     fflush(stdout);
     return 0;
 }
@@ -664,6 +700,18 @@ static void on_reset(avr_io_t* io) {
 }
 
 static avr_io_t g_reset_io = {.kind = "fil-reset", .reset = on_reset};
+
+/* A hung firmware: the CPU loops on one instruction (rjmp .-2 in the last flash word, which the
+   application never reaches: the bootloader's area), with interrupts disabled for "hang-cli". */
+#define HANG_PC 0x3FFFEu
+static void hang_cpu(int interrupts_off) {
+    g_avr->flash[HANG_PC] = 0xFF; /* rjmp .-2: 0xCFFF, little-endian */
+    g_avr->flash[HANG_PC + 1] = 0xCF;
+    g_avr->pc = HANG_PC;
+    if (interrupts_off) g_avr->sreg[S_I] = 0;
+    printf("OK hang t_s=%.6f interrupts=%s\n", sim_time_s(), interrupts_off ? "off" : "on");
+    fflush(stdout);
+}
 
 /* Timer2's clock off through its register's write handler (simavr then stops the timer), as a
    firmware stuck outside its control tick would leave it. */
@@ -715,6 +763,16 @@ static void* stdin_thread(void* arg) {
             }
         } else if (n >= 1 && strcmp(cmd, "tick-stop") == 0) {
             g_tick_stop_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "vbus") == 0 && sscanf(line, "%*s %lf", &value) == 1 &&
+                   value > 0.0) {
+            g_par.vbus_v = value; /* a supply sag (or its end), from now on */
+            printf("OK vbus %g t_s=%.6f\n", value, sim_time_s());
+        } else if (n >= 1 && strcmp(cmd, "brown-out") == 0) {
+            g_brown_out_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "hang") == 0) {
+            g_hang_request = 1;
+        } else if (n >= 1 && strcmp(cmd, "hang-cli") == 0) {
+            g_hang_request = 2;
         } else if (n >= 1 && strcmp(cmd, "stats") == 0) {
             g_stats_request = 1;
         } else if (n == 3 && strcmp(cmd, "fault") == 0 && motor_ok && parse_fault(mode) >= 0) {
@@ -779,6 +837,11 @@ static void usage(const char* prog) {
             "      --isr-stats        cycles per interrupt vector, printed as ISR lines at exit\n"
             "      --rx-mark HEX      print \"RXMARK t_us=T\" when the received frame HEX (its\n"
             "                         bytes before the 0x00, e.g. 040474a1) has reached UART0\n"
+            "      --eeprom FILE      EEPROM contents from address 0 (at most 4096 bytes)\n"
+            "      --no-bootloader    keep MCUSR on a reset (a board without the stk500v2 one)\n"
+            "      --enc-noise COUNTS Gaussian noise of this rms on every angle read (default 0)\n"
+            "      --cogging NM       cogging torque amplitude, 84 periods a turn (default 0)\n"
+            "      --seed N           seed of the angle noise (default fixed)\n"
             "      --profile FILE     sample the PC inside the control step, write FILE at exit\n"
             "      --sim-pwm-timers   let simavr run Timers 1/3/4/5 (slow; needed only if the\n"
             "                         firmware uses their counters or interrupts)\n",
@@ -801,12 +864,18 @@ enum {
     OPT_ISR,
     OPT_SPEED,
     OPT_UART_WAIT,
-    OPT_RX_MARK
+    OPT_RX_MARK,
+    OPT_EEPROM,
+    OPT_NO_BOOTLOADER,
+    OPT_ENC_NOISE,
+    OPT_COGGING,
+    OPT_SEED
 };
 
 typedef struct {
     const char* elf;
     const char* pty_link;
+    const char* eeprom;
     double run_s;
     uint32_t freq_hz;
 } options_t;
@@ -858,6 +927,11 @@ static void parse_options(int argc, char** argv, options_t* o) {
         {"speed-period", required_argument, 0, OPT_SPEED},
         {"uart-wait-max", required_argument, 0, OPT_UART_WAIT},
         {"rx-mark", required_argument, 0, OPT_RX_MARK},
+        {"eeprom", required_argument, 0, OPT_EEPROM},
+        {"no-bootloader", no_argument, 0, OPT_NO_BOOTLOADER},
+        {"enc-noise", required_argument, 0, OPT_ENC_NOISE},
+        {"cogging", required_argument, 0, OPT_COGGING},
+        {"seed", required_argument, 0, OPT_SEED},
         {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -924,6 +998,21 @@ static void parse_options(int argc, char** argv, options_t* o) {
             case OPT_RX_MARK:
                 sim_rx_parse_mark(optarg);
                 break;
+            case OPT_EEPROM:
+                o->eeprom = optarg;
+                break;
+            case OPT_NO_BOOTLOADER:
+                g_keep_mcusr = 1;
+                break;
+            case OPT_ENC_NOISE:
+                g_par.enc_noise_counts = parse_double(optarg, "--enc-noise");
+                break;
+            case OPT_COGGING:
+                g_par.cogging_nm = parse_double(optarg, "--cogging");
+                break;
+            case OPT_SEED:
+                g_rng = (uint64_t)parse_double(optarg, "--seed") * 2654435761ull + 1;
+                break;
             case OPT_UART_WAIT:
                 g_uart_wait_max_s = parse_double(optarg, "--uart-wait-max");
                 break;
@@ -981,6 +1070,21 @@ static void connect_peripherals(avr_t* avr, const char* pty_link) {
     avr_register_io_write(avr, ADDR_GPIOR0, gpior0_write, NULL);
 }
 
+/* --eeprom: the file's bytes into the EEPROM from address 0. */
+static int load_eeprom(avr_t* avr, const char* path) {
+    static uint8_t buf[4096];
+    FILE* f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "fil_harness: cannot read --eeprom %s\n", path);
+        return -1;
+    }
+    size_t n = fread(buf, 1, sizeof(buf), f);
+    fclose(f);
+    avr_eeprom_desc_t d = {.ee = buf, .offset = 0, .size = (uint32_t)n};
+    avr_ioctl(avr, AVR_IOCTL_EEPROM_SET, &d);
+    return 0;
+}
+
 int main(int argc, char** argv) {
     options_t opt = {0};
     opt.freq_hz = 16000000;
@@ -1004,6 +1108,7 @@ int main(int argc, char** argv) {
     avr_load_firmware(g_avr, &fw);
     g_avr->frequency = opt.freq_hz;
     g_avr->sleep = no_sleep;
+    if (opt.eeprom && load_eeprom(g_avr, opt.eeprom) != 0) return 2;
     g_tick_cycles = opt.freq_hz / 1000;
 
     connect_peripherals(g_avr, opt.pty_link);
@@ -1036,6 +1141,17 @@ int main(int argc, char** argv) {
         if (g_tick_stop_request) {
             g_tick_stop_request = 0;
             stop_tick_timer();
+        }
+        if (g_brown_out_request) { /* the supply dipped below the BOD level: reset, BORF set */
+            g_brown_out_request = 0;
+            printf("OK brown-out t_s=%.6f\n", sim_time_s());
+            fflush(stdout);
+            avr_reset(g_avr);
+            g_avr->data[ADDR_MCUSR] = 0x04;
+        }
+        if (g_hang_request) {
+            hang_cpu(g_hang_request == 2);
+            g_hang_request = 0;
         }
         if (g_pwm_request) {
             g_pwm_request = 0;

@@ -76,12 +76,17 @@
 #define BOARD_TICK_OCR 249
 #define BOARD_TICK_US_PER_COUNT 4
 
-// ---- Watchdog: interrupt-then-reset mode, 16 ms (WDP = 0). Kicked after every completed control
-// step only. 16 ms without a step: the watchdog interrupt switches every output off and leaves
-// BOARD_WDT_MARK in a .noinit word, then waits; 16 ms later the watchdog resets the chip. The
-// mark, not MCUSR, tells the next boot that the watchdog reset it: the stock Mega bootloader
-// (stk500v2) clears MCUSR before it starts the application and passes nothing on.
+// ---- Watchdog: plain system-reset mode, 16 ms (WDE, WDP = 0), kicked after every completed
+// control step only: any hang, interrupts on or off, resets the chip within 16 ms of the last
+// step, and the reset switches every output off (pins inputs, enables held low by their
+// pull-downs) until main_early_init drives them low. The tick interrupt also counts ticks without
+// a completed step: at BOARD_HANG_TICKS it switches every output off, leaves BOARD_WDT_MARK in a
+// .noinit word and waits for the reset. The mark tells the next boot that the watchdog reset it
+// when MCUSR cannot: the stock Mega bootloader (stk500v2) clears MCUSR before it starts the
+// application and passes nothing on. A hang with interrupts off, or with Timer2 stopped, leaves
+// no mark: behind that bootloader its cause is lost (docs/hardware.md).
 #define BOARD_WDT_MARK 0x57444F47UL  // "WDOG"
+#define BOARD_HANG_TICKS 8u          // ticks without a step: half the watchdog's 16 ms
 
 // ---- Host link: UART0 (D0 RX, D1 TX via the USB bridge), 1000000 baud exact: U2X, UBRR0 = 1.
 // A 38-byte telemetry frame takes 380 us, so it is sent before the next control step starts

@@ -9,7 +9,7 @@
 
 // Every output that can move a motor off: the driver enables driven low, the PWM compare outputs
 // disconnected from their pins (TCCRnA = 0) and those pins driven low. Inline with constant
-// addresses only, so that it runs in .init3 (before .data and .bss exist) and in the watchdog
+// addresses only, so that it runs in .init3 (before .data and .bss exist) and in the tick
 // interrupt alike.
 static inline __attribute__((always_inline)) void board_outputs_off() {
     BOARD_EN_PORT &= static_cast<uint8_t>(~BOARD_EN_MASK);
@@ -77,6 +77,11 @@ uint8_t uart_stops_seen();
 
 void tick_init();
 extern volatile uint8_t g_tick_count;  // incremented by the Timer2 compare ISR
+// Ticks since the last completed control step: the tick ISR counts, the main loop zeroes it after
+// each step (board.h, BOARD_HANG_TICKS).
+extern volatile uint8_t g_ticks_since_step;
+// BOARD_WDT_MARK when the tick ISR found the main loop hung (.noinit: kept across the reset).
+extern uint32_t g_wdt_mark;
 
 extern const prm_eeprom_if g_board_eeprom;
 

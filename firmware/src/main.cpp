@@ -26,46 +26,29 @@ static app_state g_app;
 static uint8_t g_rx_fifo[MAIN_RX_FIFO_SIZE];
 static uint16_t g_rx_in;   // bytes put into g_rx_fifo, free-running
 static uint16_t g_rx_out;  // bytes taken from it
-// Kept across resets (.noinit is neither loaded nor cleared at start-up). The stock bootloader
-// uses the bottom of RAM for its few globals and the top for its stack (a 285-byte message
-// buffer), not the addresses after the application's .bss where these lie.
-static uint32_t g_wdt_mark __attribute__((section(".noinit")));
-static uint8_t g_boot_watchdog __attribute__((section(".noinit")));
+// The reset cause (PROTO_FAULT_* bits), found in main_early_init (.noinit: set before .bss).
+static uint16_t g_boot_faults __attribute__((section(".noinit")));
 
 // Runs before main and before .data and .bss are set up (.init3): every output off first, then
-// the reset cause (the watchdog's mark, or WDRF when no bootloader cleared MCUSR), then a watchdog
-// left running by a watchdog reset stopped (it would fire again during start-up).
+// the reset cause, then a watchdog left running by a watchdog reset stopped (it would fire again
+// during start-up). The cause: the tick interrupt's hang mark, or MCUSR where no bootloader
+// cleared it (WDRF; BORF without PORF: a brown-out, the supply below the BOD level).
 extern "C" void main_early_init() __attribute__((naked, used, section(".init3")));
 extern "C" void main_early_init() {
     board_outputs_off();
-    g_boot_watchdog = (g_wdt_mark == BOARD_WDT_MARK || (MCUSR & _BV(WDRF))) ? 1 : 0;
+    const uint8_t mcusr = MCUSR;
+    uint16_t cause = 0;
+    if (g_wdt_mark == BOARD_WDT_MARK || (mcusr & _BV(WDRF))) cause = PROTO_FAULT_WATCHDOG_RESET;
+    if ((mcusr & (_BV(BORF) | _BV(PORF))) == _BV(BORF)) cause |= PROTO_FAULT_BROWN_OUT_RESET;
+    g_boot_faults = cause;
     g_wdt_mark = 0;
     MCUSR = 0;
     wdt_disable();
 }
 
-// 16 ms without a completed control step (board.h): outputs off, the mark for the next boot, and
-// wait for the reset, which the watchdog (now in reset mode: entering this vector cleared WDIE)
-// gives 16 ms later.
-// Naked (it never returns): only __zero_reg__ needs setting, as the interrupted code may have
-// been between a MUL and its clr r1.
-ISR(WDT_vect, ISR_NAKED) {
-    __asm__ __volatile__("clr __zero_reg__");
-    board_outputs_off();
-    g_wdt_mark = BOARD_WDT_MARK;
-    for (;;) {
-    }
-}
-
-// Watchdog in interrupt-then-reset mode, 16 ms. The change sequence must reach WDTCSR within
-// four cycles of WDCE; interrupts are still off here.
+// Watchdog in plain system-reset mode, 16 ms (board.h); interrupts are still off here.
 static void main_watchdog_start() {
-    __asm__ __volatile__(
-        "wdr\n\t"
-        "sts %0, %1\n\t"
-        "sts %0, %2\n\t" ::"n"(_SFR_MEM_ADDR(WDTCSR)),
-        "r"(static_cast<uint8_t>(_BV(WDCE) | _BV(WDE))),
-        "r"(static_cast<uint8_t>(_BV(WDIE) | _BV(WDE))));
+    wdt_enable(WDTO_15MS);
 }
 
 // tick_seen: the tick count the main loop last handled. The encoders are sampled when the step
@@ -88,8 +71,7 @@ static void main_handle_rx(uint8_t tick_seen) {
 int main() {
     pwm_init();
     spi_init();
-    uint16_t boot_faults = g_boot_watchdog ? static_cast<uint16_t>(PROTO_FAULT_WATCHDOG_RESET) : 0u;
-    app_init(&g_app, &g_board_eeprom, uart_tx_frame, boot_faults);
+    app_init(&g_app, &g_board_eeprom, uart_tx_frame, g_boot_faults);
     tick_init();
     main_watchdog_start();
     // The receiver last: enabled earlier, bytes arriving during app_init (interrupts still off)
@@ -122,6 +104,7 @@ int main() {
         // step_max_us: from the tick to the outputs updated, preempting ISRs included
         app_note_step_time(&g_app, static_cast<uint16_t>(TCNT2 * BOARD_TICK_US_PER_COUNT));
         wdt_reset();  // only here: a step that no longer runs (Timer2 stopped, a hang) trips it
+        g_ticks_since_step = 0;
         if (g_app.enc_clear) enc_clear_errors(g_app.enc_clear);  // rare: after a bad word
         // A STOP_ALL the receive interrupt saw since the last tick: taken right before the ramp,
         // so that the next step brakes. Its last byte to the step that brakes: under 2 ms.

@@ -17,6 +17,7 @@ import math
 import sys
 import time
 
+from control_beat import start_control_thread
 from filharness import Harness, firmware_elf, parse_kv, set_offsets, stats_rpm
 
 from gyrohost.drivers.wheelboard import WheelBoard
@@ -34,6 +35,7 @@ def bench_cycles(seconds: float) -> None:
         board = WheelBoard(h.pty)
         try:
             board.connect()
+            start_control_thread(board)
             set_offsets(board)
             board.set_speeds([TARGET_RAD_S] * 4)
             while float(h.latest_stats()["t_s"]) < 3.0:  # ramp and settle first
@@ -92,6 +94,7 @@ def bench_step(accel: int | None, duration_s: float) -> None:
         board = WheelBoard(h.pty, on_telemetry=tel.append)
         try:
             board.connect()
+            start_control_thread(board)
             set_offsets(board)
             if accel is not None:
                 board.set_param("ACCEL_RAD_S2", accel)

@@ -12,6 +12,7 @@ import math
 import time
 
 import pytest
+from control_beat import start_control_thread
 from filharness import Harness, firmware_elf, set_offsets
 
 from gyrohost.drivers import wheelproto as wp
@@ -28,6 +29,8 @@ LATCH_MAX_S = 0.020  # sensor faults latch within 20 ms
 def open_board(h: Harness, offsets: bool = True) -> WheelBoard:
     board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     board.connect()
+    start_control_thread(board)
+    board.set_param("HEARTBEAT_MS", 1000)  # a loaded host may pause; the heartbeat is not tested
     board.clear_faults(board.latched_faults())  # the boot's HEARTBEAT_LOST / PARAMS_DEFAULTED
     if offsets:
         set_offsets(board)

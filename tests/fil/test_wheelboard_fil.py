@@ -13,6 +13,7 @@ import time
 
 import pytest
 import serial
+from control_beat import start_control_thread
 from filharness import Harness, firmware_elf, set_offsets, stats_rpm
 
 from gyrohost.drivers import wheelproto as wp
@@ -39,6 +40,9 @@ def rig(harness):
     board = WheelBoard(harness.pty, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
+        start_control_thread(board)
+        # the longest timeout: a loaded host's test thread may pause (the heartbeat has its tests)
+        board.set_param("HEARTBEAT_MS", 1000)
         set_offsets(board)
         yield harness, board
     finally:
@@ -72,7 +76,7 @@ def mean_speeds(samples: list[wp.Telemetry]) -> list[float]:
 
 
 def keep_alive(board: WheelBoard, duration_s: float) -> None:
-    """Wait while the client's heartbeat runs."""
+    """Wait while the test's control thread beats."""
     time.sleep(duration_s)
 
 
@@ -143,33 +147,56 @@ def test_telemetry_rate_at_least_500_hz(rig):
     assert board.telemetry_dropped == 0
 
 
-def test_heartbeat_loss_ramps_down_and_reports(harness):
-    """Heartbeat loss: fault and fail-safe reported, wheels braked along DECEL, outputs off.
+def test_stats_poller_without_heartbeat_stops_the_wheels(harness):
+    """A host whose control thread died while its stats poller lives: the wheels stop.
 
-    With DECEL_RAD_S2 = 200 the modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive)
-    lags the ramp; the firmware brakes on after the ramped setpoint reached zero and disables a
-    wheel once the encoder's last tick shows it below 0.5 rad/s (APP_STOP_Q8): it then coasts at
-    a few rpm at most, hence 3 %.
+    Only HEARTBEAT, SET_SPEEDS and STOP_ALL restart the board's heartbeat count; GET_STATS every
+    50 ms does not. From the last SET_SPEEDS, HEARTBEAT_LOST latches after HEARTBEAT_MS (250 ms)
+    and the wheels are braked along DECEL_RAD_S2 (200 rad/s^2: 0.37 s from 715 rpm) and released
+    once stopped, within APP_STOP_TICKS (0.5 s) of braking more: every driver off within
+    HEARTBEAT_MS + 0.37 s + 0.5 s of it. The reference is the telemetry time seen right after the
+    last SET_SPEEDS, which lags the board's clock, so the measured times are upper bounds; 0.1 s
+    covers the link's latency on a loaded host (1 ms: the telemetry's resolution).
+
+    The modelled GB54-1 (about 190-275 rad/s^2 of braking at full drive) lags the ramp; once the
+    encoder's last tick shows a wheel below 0.5 rad/s (APP_STOP_Q8) it coasts at a few rpm at
+    most, hence 3 %.
     """
     h = harness
-    # A client whose own heartbeat never fires: only the frames the test sends keep it alive.
     board = WheelBoard(h.pty, heartbeat_period_s=3600, reply_timeout_s=REPLY_TIMEOUT_S)
     try:
         board.connect()
         set_offsets(board)
-        board.set_speeds([TARGET_RAD_S] * 4)
-        # any valid frame counts as a heartbeat: GET_STATS between the checks
-        wait_true_rpm(h, lambda rpm: all(r > 700 for r in rpm), ping=board.stats)
-        # from here on nothing is sent on this link
-        line = wait_sim_time(h, board.last_telemetry.t_us * 1e-6 + 1.0)
+        board.set_param("HEARTBEAT_MS", 250)
+        board.set_param("DECEL_RAD_S2", 200)
+        speeds = [TARGET_RAD_S] * 4
+        board.set_speeds(speeds)
+        wait_true_rpm(
+            h, lambda rpm: all(r > 700 for r in rpm), ping=lambda: board.set_speeds(speeds, False)
+        )
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_last_s = board.last_telemetry.t_us * 1e-6  # sent before the board gets the next frame
+        board.set_speeds(speeds, confirm=False)  # the control thread's last frame
+        samples = []
+        deadline = time.monotonic() + 30.0
+        while not samples or "OUTPUTS_ENABLED" in samples[-1].status_names:
+            board.stats()  # the poller lives on
+            while not board.telemetry.empty():
+                samples.append(board.telemetry.get_nowait())
+            assert time.monotonic() < deadline, "simulation too slow"
+            time.sleep(0.05)
+        line = wait_sim_time(h, samples[-1].t_us * 1e-6 + 0.5)
         tel = telemetry_at(board, float(line["t_s"]))
         truth = stats_rpm(line)
         pwm = h.command("pwm")
     finally:
         board.close()
-    assert "HEARTBEAT_LOST" in tel.fault_names
+    lost = next(s for s in samples if "HEARTBEAT_LOST" in s.fault_names)
+    off = next(s for s in samples if "OUTPUTS_ENABLED" not in s.status_names)
+    assert 0.25 - 0.001 <= lost.t_us * 1e-6 - t_last_s <= 0.25 + 0.1
+    assert off.t_us * 1e-6 - t_last_s <= 0.25 + TARGET_RAD_S / 200 + 0.5 + 0.1
     assert "FAILSAFE" in tel.status_names
-    assert "OUTPUTS_ENABLED" not in tel.status_names
     assert all(f"m{i}=0/" in pwm for i in range(4)), pwm
     assert all(abs(r) < 0.03 * 715 for r in truth), truth
     for i in range(4):
@@ -306,6 +333,65 @@ def test_open_loop_mode_turns_at_field_speed(rig):
         assert got == pytest.approx(want, rel=0.02, abs=1.0), f"wheel {i}"
 
 
+def open_loop_until(board: WheelBoard, fault: str) -> tuple[wp.Telemetry, wp.Telemetry]:
+    """Telemetry until ``fault`` latched and every output is off: (the first sample with the
+    fault, the first with the outputs off after it)."""
+    deadline = time.monotonic() + 60.0
+    lost = None
+    while True:
+        sample = board.telemetry.get(timeout=REPLY_TIMEOUT_S)
+        if lost is None and fault in sample.fault_names:
+            lost = sample
+        if lost is not None and "OUTPUTS_ENABLED" not in sample.status_names:
+            return lost, sample
+        assert time.monotonic() < deadline, f"no {fault} with the outputs off"
+
+
+def test_open_loop_stops_at_its_time_limit_and_on_heartbeat_loss(harness):
+    """Open loop is a bench mode under the same heartbeat as the closed loop and a 10 s limit
+    (APP_OPEN_LOOP_MS) while a wheel runs: OPEN_LOOP_LIMIT latches 10 s after the SET_SPEEDS (the
+    reference is the telemetry seen just before it: 1 ms resolution, plus the link's latency),
+    the wheels ramp to 0 at DECEL and their drivers go off. Then, cleared and restarted, a host
+    whose control thread stops loses its heartbeat (250 ms) and the wheels stop as well."""
+    h = harness
+    board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
+    try:
+        board.connect()
+        control = start_control_thread(board)
+        board.clear_faults(board.latched_faults())
+        board.set_param("MODE", 1)
+        board.set_param("ACCEL_RAD_S2", 20)  # within the open-loop drive's torque
+        speeds = [20.0, -20.0, 0.0, 0.0]
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_start_s = board.last_telemetry.t_us * 1e-6
+        board.set_speeds(speeds)
+        limit, off = open_loop_until(board, "OPEN_LOOP_LIMIT")
+        pwm_limit = h.command("pwm")
+
+        board.clear_faults(["OPEN_LOOP_LIMIT"])
+        board.set_speeds(speeds)
+        deadline = time.monotonic() + 30.0
+        while board.last_telemetry.omega_rad_s[0] < 20.0:  # ramped (the commanded speed)
+            assert time.monotonic() < deadline, board.last_telemetry
+            time.sleep(0.02)
+        while not board.telemetry.empty():
+            board.telemetry.get_nowait()
+        t_hang_s = board.last_telemetry.t_us * 1e-6
+        control.set()  # the control thread hangs
+        lost, lost_off = open_loop_until(board, "HEARTBEAT_LOST")
+        pwm_lost = h.command("pwm")
+    finally:
+        board.close()
+    assert 10.0 - 0.001 <= limit.t_us * 1e-6 - t_start_s <= 10.0 + 0.1, (limit.t_us, t_start_s)
+    assert off.t_us - limit.t_us <= 0.2e6  # 20 rad/s at DECEL 200 rad/s^2: 0.1 s
+    assert all(f"m{i}=0/" in pwm_limit for i in range(4)), pwm_limit
+    # the last HEARTBEAT went out up to heartbeat_period_s (50 ms) before the hang
+    assert 0.25 - 0.05 - 0.001 <= lost.t_us * 1e-6 - t_hang_s <= 0.25 + 0.1
+    assert lost_off.t_us - lost.t_us <= 0.2e6
+    assert all(f"m{i}=0/" in pwm_lost for i in range(4)), pwm_lost
+
+
 def test_stop_all_from_715_rpm_ends_without_reversing():
     """STOP_ALL from +-715 rpm: braking ends when the encoder shows the wheel stopped.
 
@@ -319,6 +405,7 @@ def test_stop_all_from_715_rpm_ends_without_reversing():
         board = WheelBoard(h.pty, reply_timeout_s=REPLY_TIMEOUT_S)
         try:
             board.connect()
+            start_control_thread(board)
             set_offsets(board)
             board.set_speeds([s * TARGET_RAD_S for s in signs])
             wait_true_rpm(h, lambda rpm: all(abs(abs(r) - 715) < 0.02 * 715 for r in rpm))

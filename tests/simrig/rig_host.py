@@ -47,8 +47,8 @@ def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict
         wheels.connect()
         # HEARTBEAT_LOST latches at boot when no host was there yet
         wheels.clear_faults(wheels.latched_faults())
-        wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
         bus.configure()
+        wheels.set_speeds([SPIN, -SPIN, -SPIN, SPIN])
         start = next_s = time.monotonic()
         while time.monotonic() - start < duration_s:
             samples += len(imu.poll())
@@ -57,6 +57,7 @@ def exercise(paths: dict[str, str], config_path: str, duration_s: float) -> dict
                 reads += 1
             except ServoError:  # an injected overload or timeout: count it and go on
                 servo_errors += 1
+            wheels.heartbeat()  # this loop decides the wheel speeds: it keeps them alive
             next_s += SERVO_PERIOD_S
             time.sleep(max(next_s - time.monotonic(), 0.0))
         elapsed = time.monotonic() - start

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 import pytest
+from control_beat import start_control_thread
 
 from gyrohost.config import ServoBusConfig, rig_config_from_dict
 from gyrohost.drivers import wheelboard as wb
@@ -46,7 +47,9 @@ def rig():
         wheels = wb.WheelBoard(rig.paths["wheels"], on_fault=events.put)
         wheels.events = events
         wheels.connect()
-        wheels.set_param("HEARTBEAT_MS", 5000)  # the host beats on wall time, see sim.py
+        # the host beats on wall time, the rig ticks faster (see sim.py): its longest timeout
+        wheels.set_param("HEARTBEAT_MS", 1000)
+        start_control_thread(wheels)
         bus = StringServoBus(ServoBusConfig(port=rig.paths["servos"], servo=CONFIG.servos.servo))
         bus.open().configure()
         yield rig, imu, wheels, bus

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from control_beat import start_control_thread
 from rig_host import start_rig
 
 from gyrohost.config import ConfigError, load_rig_config, rig_config_from_dict
@@ -66,6 +67,7 @@ def test_truth_spins_follow_the_real_firmware_at_715_rpm(binaries):
     with SimulatedRig(simavr_config(spin_sign=SPIN_SIGN), clock="real") as rig:
         assert rig.paths["wheels"] == rig.wheels.harness.pty  # the host talks to simavr directly
         with WheelBoard(rig.paths["wheels"], reply_timeout_s=REPLY_TIMEOUT_S) as board:
+            start_control_thread(board)
             hello = board.hello
             assert hello["n_wheels"] == 4
             board.set_speeds(PATTERN_RAD_S)

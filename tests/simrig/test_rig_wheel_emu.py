@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from control_beat import start_control_thread
 
 from gyrohost.drivers import wheelboard as wb
 from gyrohost.drivers import wheelproto as wp
@@ -24,6 +25,7 @@ def board():
     events: queue.Queue = queue.Queue()
     client = wb.WheelBoard(device.slave_path, on_fault=events.put)
     client.connect()
+    client.control = start_control_thread(client)  # set: the host's control thread hangs
     yield device, client, events
     client.close()
     device.close()
@@ -70,6 +72,7 @@ def test_handshake_setpoints_reached_and_telemetry_rate(board):
 
 def test_the_longest_silence_to_the_board_is_measured(board):
     _, client, _ = board
+    client.control.set()  # the driver's idle heartbeat alone
     time.sleep(0.2)
     assert 0.0 < client.silence_max_s < 0.25  # a beat every 50 ms
     client.heartbeat_period_s = 0.3  # the host pauses once
@@ -84,8 +87,8 @@ def test_heartbeat_loss_ramps_down_and_latches(board):
     client.set_param("HEARTBEAT_MS", 100)
     client.set_speeds([20.0, -20.0, 0.0, 0.0])
     assert wait_for(lambda: abs(client.last_telemetry.omega_rad_s[0] - 20.0) < 0.1)
-    client.heartbeat_period_s = 1.0  # the host "hangs": fewer frames than the timeout needs
-    time.sleep(0.06)  # let the beater pick up its new period
+    client.control.set()  # the control thread hangs; queries go on
+    assert client.get_param("HEARTBEAT_MS") == 100
     assert events.get(timeout=2.0) == ["HEARTBEAT_LOST"]
     assert "FAILSAFE" in client.last_telemetry.status_names
     # DECEL_RAD_S2 = 200: the setpoints reach 0 in 0.1 s; as the firmware, the board brakes on
@@ -102,8 +105,7 @@ def test_heartbeat_loss_ramps_down_and_latches(board):
     with pytest.raises(wb.DeviceError) as err:
         client.set_speeds([1.0, 0.0, 0.0, 0.0])
     assert err.value.name == "FAULT_ACTIVE" and str(err.value).endswith("latched: HEARTBEAT_LOST")
-    client.heartbeat_period_s = 0.02
-    time.sleep(1.05)  # the beater wakes from its 1 s wait and beats every 20 ms again
+    client.control = start_control_thread(client)  # the control thread is back
     assert client.clear_faults(["HEARTBEAT_LOST"]) == ["HEARTBEAT_LOST"]
     client.set_speeds([1.0, 0.0, 0.0, 0.0])
     assert wait_for(lambda: abs(device.wheel_speeds_rad_s()[0] - 1.0) < 0.01)
@@ -225,11 +227,12 @@ def _spun_up(emu, w0_mrad_s, ticks):
     ``ticks`` times: (the emulator, wheel 0's true speed after each tick, rad/s)."""
     with WheelBoardEmulator(emu) as dev:
         dev.tick(0.0)  # the board boots when first polled
-        dev.handle_rx(wp.encode("PARAM_SET", param_id=9, value=60000), 0.0)  # 60 s heartbeat
         speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
         dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": w0_mrad_s})), 0.0)
         trace = []
         for k in range(1, ticks + 1):
+            if k % 100 == 0:  # the host's control loop
+                dev.handle_rx(wp.encode("HEARTBEAT"), k * 1e-3)
             dev.tick(k * 1e-3)
             trace.append(dev.wheel_speeds_rad_s()[0])
     return dev, trace

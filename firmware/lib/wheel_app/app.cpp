@@ -72,7 +72,10 @@ static void app_load_ctl(app_state* a) {
         c->enc_offset[i] = static_cast<uint16_t>(v[PRM_ENC_OFFSET_M0 + i]);
     }
     c->heartbeat_ms = static_cast<uint16_t>(v[PRM_HEARTBEAT_MS]);
-    c->open_loop_drive = static_cast<int16_t>(v[PRM_OPEN_LOOP_DRIVE_Q15]);
+    const int32_t open_drive =
+        v[PRM_OPEN_LOOP_DRIVE_Q15];  // capped at DRIVE_MAX (APP_OPEN_LOOP_MS)
+    c->open_loop_drive =
+        static_cast<int16_t>(open_drive < c->gains.out_max ? open_drive : c->gains.out_max);
     c->closed = v[PRM_MODE] == 0 ? 1 : 0;
     c->loop_mask = c->closed ? static_cast<uint8_t>(FLT_ALL_WHEELS & ~app_cal_bit(a)) : 0;
     grd_limits* g = &c->grd;
@@ -107,10 +110,12 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->cal_wheel = APP_NO_WHEEL;
     a->diag_next = 0;
     a->uncal_mask = 0;
+    a->open_ms = 0;
     if (!prm_init(&a->prm, ee)) {
         boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
         a->uncal_mask = FLT_ALL_WHEELS;
     }
+    a->prm.v[PRM_MODE] = 0;  // open loop is enabled per session (APP_OPEN_LOOP_MS)
     app_load_ctl(a);
     flt_set(&a->flt, boot_faults);
 }
@@ -279,8 +284,14 @@ static void app_send_stats(app_state* a) {
     app_send(a, PROTO_ID_STATS, p, sizeof p);
 }
 
+// Only the frames of the host's control thread keep the wheels alive: a host whose control thread
+// died while a poller (GET_STATS, PARAM_GET, HELLO) lives must still lose its heartbeat.
+static bool app_is_control_frame(uint8_t id) {
+    return id == PROTO_ID_HEARTBEAT || id == PROTO_ID_SET_SPEEDS || id == PROTO_ID_STOP_ALL;
+}
+
 static void app_dispatch(app_state* a, const proto_frame* f) {
-    flt_host_alive(&a->flt);
+    if (app_is_control_frame(f->id)) flt_host_alive(&a->flt);
     switch (f->id) {
         case PROTO_ID_HELLO:
             app_send_hello(a);
@@ -401,9 +412,22 @@ static void app_cal_tick(app_state* a, bool failsafe) {
     }
 }
 
+// Open loop's time limit (APP_OPEN_LOOP_MS): counted while a wheel runs open loop, from 0 again
+// once all have stopped.
+static void app_open_loop_tick(app_state* a) {
+    if (a->ctl.closed || !a->run_mask) {
+        a->open_ms = 0;
+    } else if (++a->open_ms >= APP_OPEN_LOOP_MS) {
+        a->open_ms = APP_OPEN_LOOP_MS;
+        flt_set(&a->flt, PROTO_FAULT_OPEN_LOOP_LIMIT);
+    }
+}
+
 void app_setpoints_tick(app_state* a) {
     if (a->ctl_stale) app_load_ctl(a);
-    const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms);
+    app_open_loop_tick(a);
+    const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms) ||
+                          (a->flt.faults & PROTO_FAULT_OPEN_LOOP_LIMIT);
     if (a->cal_wheel != APP_NO_WHEEL) app_cal_tick(a, failsafe);
     const int32_t step = (failsafe || a->stopping) ? a->ctl.decel : a->ctl.accel;
     for (uint8_t i = 0; i < APP_WHEELS; i++) {

@@ -32,7 +32,15 @@
 #define APP_STOP_Q8 334L
 #define APP_STOP_TICKS 500u
 #define APP_NO_ANGLE 0xFFFFu  // brake_angle not yet taken (angles are 14 bits)
-#define APP_NO_WHEEL 0xFFu    // cal_wheel: no calibration running
+
+// Open loop (MODE 1) is a bench mode with nothing measuring the rotor: a SET_SPEEDS there drives
+// at OPEN_LOOP_DRIVE_Q15, capped at DRIVE_MAX_Q15 (the closed loop's own limit), under the
+// heartbeat as in closed loop, and for at most APP_OPEN_LOOP_MS while any wheel runs; then
+// OPEN_LOOP_LIMIT latches and the wheels ramp to 0 at DECEL. 10 s: a locked rotor at half supply
+// (the default cap: a 3.45 V vector, about 1.2 W into a 10 Ohm winding) takes 12 J, about 0.3 K
+// for the motor's 100 g. MODE 1 is never restored at boot: each session enables it.
+#define APP_OPEN_LOOP_MS 10000u
+#define APP_NO_WHEEL 0xFFu  // cal_wheel: no calibration running
 
 // Enqueue one whole frame for transmission; false if it does not fit (the frame is dropped).
 typedef bool (*app_tx_fn)(const uint8_t* data, uint8_t len);
@@ -117,6 +125,7 @@ struct app_state {
     uint8_t cal_wheel;  // wheel being calibrated (CALIBRATE_ENC), or APP_NO_WHEEL
     uint8_t diag_next;  // wheel whose diagnostics register is read next
     uint8_t ctl_stale;  // prm.v changed since ctl was derived (app_ctl)
+    uint16_t open_ms;   // ticks open loop has driven a wheel without a stop (APP_OPEN_LOOP_MS)
     cal_state cal;
 };
 

@@ -46,6 +46,7 @@ bool flt_heartbeat_tick(flt_state* f, uint16_t timeout_ms) {
 }
 
 bool flt_blocks_setpoints(const flt_state* f) {
-    const uint16_t blocking = PROTO_FAULT_HEARTBEAT_LOST | PROTO_FAULT_STALL | PROTO_FAULT_RUNAWAY;
+    const uint16_t blocking = PROTO_FAULT_HEARTBEAT_LOST | PROTO_FAULT_STALL | PROTO_FAULT_RUNAWAY |
+                              PROTO_FAULT_OPEN_LOOP_LIMIT;
     return f->off_mask != 0 || (f->faults & blocking) != 0;
 }

@@ -2,11 +2,13 @@
 // wheels a latched fault disables.
 //
 // Fault bits are those of proto_codes.def. They latch until flt_clear() names them; a condition
-// still present sets its bit again on the next tick. Heartbeat: any valid frame from the host
-// restarts the timer (flt_host_alive); after timeout_ms ticks without one, HEARTBEAT_LOST
+// still present sets its bit again on the next tick. Heartbeat: a valid control frame from the
+// host (HEARTBEAT, SET_SPEEDS, STOP_ALL) restarts the timer (flt_host_alive); queries do not.
+// After timeout_ms ticks without one, HEARTBEAT_LOST
 // latches and the application forces all setpoints to zero. An ENCODER_Mw bit disables wheel w;
 // STALL or RUNAWAY disables every wheel (the loop itself is suspect). Blocking faults (heartbeat,
-// encoders, stall, runaway) make the device refuse new setpoints until cleared.
+// encoders, stall, runaway, the open-loop time limit) make the device refuse new setpoints until
+// cleared.
 #ifndef FLT_H
 #define FLT_H
 
@@ -20,7 +22,7 @@
 
 struct flt_state {
     uint16_t faults;              // latched PROTO_FAULT_* bits
-    uint16_t since_host_ms;       // ticks since the last valid host frame (saturates)
+    uint16_t since_host_ms;       // ticks since the last host control frame (saturates)
     uint8_t off_mask;             // bit w: wheel w disabled by a latched fault (flt_off_mask)
     uint8_t enc_bad[FLT_WHEELS];  // consecutive bad encoder words per wheel (saturates)
 };

@@ -3,7 +3,7 @@
 #ifndef PROTO_VERSION_H
 #define PROTO_VERSION_H
 
-#define PROTO_VERSION 3
+#define PROTO_VERSION 4
 #define FW_VERSION_MAJOR 1
 #define FW_VERSION_MINOR 0
 

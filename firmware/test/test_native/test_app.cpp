@@ -63,11 +63,16 @@ class AppTest : public ::testing::Test {
                                   enc_make_reply(0, false), enc_make_reply(0, false)};
         for (int i = 0; i < n; i++) app_control_step(&app, zero);
     }
+    void step_alive(int n = 1) {
+        const uint16_t zero[4] = {enc_make_reply(0, false), enc_make_reply(0, false),
+                                  enc_make_reply(0, false), enc_make_reply(0, false)};
+        for (int i = 0; i < n; i++) app_step_alive(&app, zero);
+    }
     // Wheel 0 commanded to 50 rad/s (fast ramps, no heartbeat time-out) while its encoder turns
     // on its own at 49.9 rad/s, whatever the drive: a wheel that does not slow down.
     uint32_t free_angle = 0;
     void command_free_wheel0() {
-        set_param(PRM_HEARTBEAT_MS, 60000);
+        set_param(PRM_HEARTBEAT_MS, 1000);
         set_param(PRM_ACCEL_RAD_S2, 10000);
         set_param(PRM_DECEL_RAD_S2, 10000);
         send(PROTO_ID_SET_SPEEDS, i32s({50000, 0, 0, 0}));
@@ -77,7 +82,7 @@ class AppTest : public ::testing::Test {
         const uint16_t words[4] = {
             enc_make_reply(static_cast<uint16_t>(free_angle & 0x3FFF), bad_word),
             enc_make_reply(0, false), enc_make_reply(0, false), enc_make_reply(0, false)};
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
     }
     const RxFrame* last(uint8_t id) {
         for (auto it = TxCapture::frames.rbegin(); it != TxCapture::frames.rend(); ++it) {
@@ -172,6 +177,81 @@ TEST_F(AppTest, HeartbeatsKeepTheWheelsRunning) {
     EXPECT_EQ(app.w[0].sp_mrad_s, 10000);
 }
 
+// A host whose control thread died while its poller lives: queries keep nothing running.
+TEST_F(AppTest, QueriesDoNotFeedTheHeartbeat) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    for (int i = 0; i < 10; i++) {
+        step(10);
+        send(PROTO_ID_GET_STATS);
+        send(PROTO_ID_HELLO);
+        send(PROTO_ID_PARAM_GET, {PRM_KP});
+        send(PROTO_ID_TELEMETRY, Bytes(PROTO_LEN_TELEMETRY, 1));  // device-to-host id
+    }
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+    EXPECT_EQ(app.w[0].target_mrad_s, 0);
+}
+
+TEST_F(AppTest, ControlFramesFeedTheHeartbeat) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_HEARTBEAT_MS, 100);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    for (int i = 0; i < 10; i++) {
+        step(99);
+        send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    }
+    step(99);
+    send(PROTO_ID_STOP_ALL);
+    step(99);
+    EXPECT_EQ(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+}
+
+// Open loop is supervised: its time limit stops it (as the heartbeat does, test above), its
+// drive is capped at DRIVE_MAX, and it is never restored at boot.
+TEST_F(AppTest, OpenLoopStopsAtItsTimeLimit) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_DECEL_RAD_S2, 1000);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, -5000}));
+    step_alive(APP_OPEN_LOOP_MS - 1);
+    EXPECT_EQ(app.flt.faults, 0);
+    EXPECT_EQ(app.enable_mask, 0x9);
+    step_alive(1);  // the ramp down starts in this tick
+    EXPECT_NE(app.flt.faults & PROTO_FAULT_OPEN_LOOP_LIMIT, 0);
+    EXPECT_EQ(app.w[0].sp_mrad_s, 9000);
+    step_alive(11);  // 10 ramp steps, the next step switches the outputs off
+    EXPECT_EQ(app.enable_mask, 0);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_FAULT_ACTIVE, 0);
+    clear_faults(PROTO_FAULT_OPEN_LOOP_LIMIT);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    EXPECT_EQ(app.w[0].target_mrad_s, 10000);
+    step_alive(APP_OPEN_LOOP_MS - 1);  // the count began again at the stop
+    EXPECT_EQ(app.flt.faults, 0);
+}
+
+TEST_F(AppTest, OpenLoopDriveCappedAtDriveMax) {
+    set_param(PRM_MODE, 1);
+    set_param(PRM_OPEN_LOOP_DRIVE_Q15, 16385);
+    expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, PRM_OPEN_LOOP_DRIVE_Q15);
+    set_param(PRM_DRIVE_MAX_Q15, 4000);
+    send(PROTO_ID_SET_SPEEDS, i32s({10000, 0, 0, 0}));
+    step(2);
+    EXPECT_EQ(app.w[0].drive_q15, 4000);  // OPEN_LOOP_DRIVE 6000 capped
+}
+
+TEST_F(AppTest, OpenLoopIsNeverRestoredAtBoot) {
+    set_param(PRM_MODE, 1);
+    send(PROTO_ID_PARAM_SAVE);
+    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) app_poll(&app);
+    ASSERT_NE(last(PROTO_ID_ACK), nullptr);
+    app_state booted;
+    app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
+    EXPECT_EQ(booted.prm.v[PRM_MODE], 0);
+    EXPECT_EQ(booted.ctl.closed, 1);
+    EXPECT_EQ(booted.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0);  // the image itself loaded
+}
+
 TEST_F(AppTest, StopAllRampsWithDecelAndAcks) {
     set_param(PRM_MODE, 1);
     set_param(PRM_DECEL_RAD_S2, 500);
@@ -224,6 +304,58 @@ TEST_F(AppTest, CorruptFramesDoNotFeedTheHeartbeat) {
         step();
     }
     EXPECT_NE(app.flt.faults & PROTO_FAULT_HEARTBEAT_LOST, 0);
+}
+
+// No value of a fail-safe parameter disarms its fail-safe (params.def, docs/hardware.md): each
+// value beyond the bound is refused and the held value stays; the bound itself is accepted.
+TEST_F(AppTest, DisarmingParamSetsRefused) {
+    struct Case {
+        uint8_t id;
+        int32_t bound, beyond, far;
+    };
+    const Case cases[] = {
+        {PRM_HEARTBEAT_MS, 1000, 1001, 60000},
+        {PRM_DECEL_RAD_S2, 50, 49, 1},
+        {PRM_STALL_SPEED_MRAD_S, 1000, 999, 0},
+        {PRM_MOTION_FAULT_MS, 200, 201, 5000},
+        {PRM_RUNAWAY_MARGIN_MRAD_S, 50000, 50001, 400000},
+    };
+    for (const Case& c : cases) {
+        const int32_t held = app.prm.v[c.id];
+        for (int32_t v : {c.beyond, c.far}) {
+            set_param(c.id, v);
+            expect_error(PROTO_ID_PARAM_SET, PROTO_ERR_PARAM_OUT_OF_RANGE, c.id);
+            EXPECT_EQ(app.prm.v[c.id], held) << int(c.id) << " " << v;
+        }
+        set_param(c.id, c.bound);
+        EXPECT_EQ(proto_get_i32(&last(PROTO_ID_PARAM_VALUE)->payload[1]), c.bound) << int(c.id);
+    }
+}
+
+// An EEPROM image with a good CRC but a disarming value (written by hand, or by firmware with
+// wider ranges) is invalid: the boot loads the defaults and reports PARAMS_DEFAULTED.
+TEST_F(AppTest, EepromImageWithADisarmingValueRejectedAtBoot) {
+    for (uint8_t id : {PRM_HEARTBEAT_MS, PRM_STALL_SPEED_MRAD_S}) {
+        prm_store s;
+        prm_defaults(&s);
+        s.v[PRM_KP] = 77;
+        s.v[id] = id == PRM_HEARTBEAT_MS ? 60000 : 0;  // past prm_set
+        uint8_t img[PRM_IMAGE_SIZE];
+        prm_image_build(&s, 1, img);
+        FakeEeprom::erase();
+        for (int i = 0; i < PRM_IMAGE_SIZE; i++) FakeEeprom::mem[PRM_SLOT_ADDR(0) + i] = img[i];
+        app_state booted;
+        app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
+        EXPECT_NE(booted.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0) << int(id);
+        EXPECT_EQ(booted.prm.v[id], prm_default(id));
+        EXPECT_EQ(booted.prm.v[PRM_KP], prm_default(PRM_KP));
+        s.v[id] = prm_default(id);  // the same image in range loads
+        prm_image_build(&s, 1, img);
+        for (int i = 0; i < PRM_IMAGE_SIZE; i++) FakeEeprom::mem[PRM_SLOT_ADDR(0) + i] = img[i];
+        app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
+        EXPECT_EQ(booted.flt.faults & PROTO_FAULT_PARAMS_DEFAULTED, 0);
+        EXPECT_EQ(booted.prm.v[PRM_KP], 77);
+    }
 }
 
 TEST_F(AppTest, ParamGetSetErrorsAndBusy) {
@@ -329,7 +461,7 @@ struct LatchingSensor {
 };
 
 TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     EXPECT_EQ(app.prm.v[PRM_ENC_FAULT_LIMIT], 5);
     send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, 0, 0}));
     LatchingSensor chip;
@@ -340,7 +472,7 @@ TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
             // Wheel 0 runs (its word turns: a word stuck at 0 while driven latches ENC_STUCK).
             uint16_t words[4] = {enc_make_reply(angle, false), chip.word(angle),
                                  enc_make_reply(0, false), enc_make_reply(0, false)};
-            app_control_step(&app, words);
+            app_step_alive(&app, words);
             chip.after_step((app.enc_clear >> 1) & 1);
         }
     };
@@ -365,14 +497,14 @@ TEST_F(AppTest, TransientErrorFlagIsClearedAndCostsOneSample) {
 }
 
 TEST_F(AppTest, PersistentErrorFlagFaultsAfterTheLimitThenRecoversAfterClear) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     set_param(PRM_ENC_FAULT_LIMIT, 4);
     send(PROTO_ID_SET_SPEEDS, i32s({0, 5000, 0, 0}));
     LatchingSensor chip;
     auto tick = [&]() {
         uint16_t words[4] = {enc_make_reply(0, false), chip.word(100), enc_make_reply(0, false),
                              enc_make_reply(0, false)};
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         chip.after_step((app.enc_clear >> 1) & 1);
     };
     tick();
@@ -410,12 +542,12 @@ TEST_F(AppTest, OverrunAndRxOverflowSetFaults) {
 
 TEST_F(AppTest, OpenLoopAdvancesPhaseAtCommandedSpeed) {
     set_param(PRM_MODE, 1);
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     set_param(PRM_ACCEL_RAD_S2, 10000);
     send(PROTO_ID_SET_SPEEDS, i32s({74870, 0, 0, -74870}));
-    step(100);  // ramp done after 8 ticks
+    step_alive(100);  // ramp done after 8 ticks
     uint32_t p0 = app.w[0].ol_phase;
-    step(1000);
+    step_alive(1000);
     // 1 s at 74.87 rad/s and 7 pole pairs: 7 * 74.87 / (2 pi) = 83.41 electrical turns.
     double turns = 7 * 74.870 / (2 * M_PI);
     double frac = turns - floor(turns);
@@ -429,7 +561,7 @@ TEST_F(AppTest, OpenLoopAdvancesPhaseAtCommandedSpeed) {
 
 TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     Motor m[4];
     const int32_t sp[4] = {74870, -74870, 20000, 0};
     send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
@@ -437,7 +569,7 @@ TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
     for (int t = 0; t < 4000; t++) {
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) {
             m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
             if (t >= 3000) mean[i] += m[i].omega / 1000.0;
@@ -457,7 +589,7 @@ TEST_F(AppTest, ClosedLoopHoldsSpeedOnSimulatedMotor) {
 // and the wheel ran slow).
 TEST_F(AppTest, MissedTicksKeepSpeedEstimateAndLoopRight) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     Motor m[4];
     const int32_t sp[4] = {74870, -74870, 20000, 0};
     send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
@@ -471,7 +603,7 @@ TEST_F(AppTest, MissedTicksKeepSpeedEstimateAndLoopRight) {
         }
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) {
             m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
             if (t >= 4500) mean[i] += m[i].omega;
@@ -546,7 +678,7 @@ TEST_F(AppTest, FailSafeBrakesUntilTheWheelHasStopped) {
 // 0.8 rad/s of zero (the 1-count resolution of one tick's angle change).
 TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     Motor m[4];
     const int32_t sp[4] = {74870, -74870, 20000, -5000};
     send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
@@ -560,7 +692,7 @@ TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
         const uint8_t was = app.enable_mask;
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) {
             if (((was & ~app.enable_mask) >> i) & 1) {
                 t_off[i] = t;
@@ -648,7 +780,7 @@ std::vector<int> expected_calls() {
 }
 
 TEST_F(AppTest, EncoderStagesInOrderOnEveryPath) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, -5000, 0}));  // wheels 1 and 3 stay off
     RecordingIo io;
     for (int i = 0; i < 4; i++) io.words[i] = enc_make_reply(static_cast<uint16_t>(100 * i), false);
@@ -660,7 +792,7 @@ TEST_F(AppTest, EncoderStagesInOrderOnEveryPath) {
 
 TEST_F(AppTest, EncoderStagesInOrderInOpenLoop) {
     set_param(PRM_MODE, 1);
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     send(PROTO_ID_SET_SPEEDS, i32s({5000, 0, 0, 0}));
     RecordingIo io = {};
     app_control_step_io(&app, io);

@@ -228,7 +228,7 @@ TEST_F(AppRules, ClearFaultsClearsOnlyTheNamedBits) {
 }
 
 TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     Motor m[4];
     m[2].elec = 150.0 * M_PI / 180.0;
     send(PROTO_ID_CALIBRATE_ENC, {9});
@@ -242,7 +242,7 @@ TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
     for (; t < CAL_TOTAL_TICKS + 10 && TxCapture::frames.empty(); t++) {
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
         if (t == 10) {
             EXPECT_EQ(app.enable_mask, 0x4);  // only the calibrated wheel
@@ -254,7 +254,7 @@ TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
     EXPECT_EQ(app.uncal_mask, 0x0B);
     for (int k = 0; k < 3; k++) {  // the stop logic sees the wheel at rest within two ticks
         const uint16_t rest[4] = {m[0].word(), m[1].word(), m[2].word(), m[3].word()};
-        app_control_step(&app, rest);
+        app_step_alive(&app, rest);
     }
     EXPECT_EQ(app.enable_mask, 0);
     const double want = 210.0 / 360.0 * 65536.0;
@@ -270,7 +270,7 @@ TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
     for (int k = 0; k < 4000; k++) {
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
         if (k >= 3000) mean += m[2].omega / 1000.0;
     }
@@ -279,7 +279,7 @@ TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
 }
 
 TEST_F(AppRules, WrongOffsetRunsAwayAndLatchesRunawayWithAllDriversOff) {
-    set_param(PRM_HEARTBEAT_MS, 60000);
+    set_param(PRM_HEARTBEAT_MS, 1000);
     set_param(PRM_ENC_OFFSET_M0, 0);
     Motor m[4];
     m[0].elec = 150.0 * M_PI / 180.0;
@@ -288,13 +288,13 @@ TEST_F(AppRules, WrongOffsetRunsAwayAndLatchesRunawayWithAllDriversOff) {
     for (; t < 3000 && !(app.flt.faults & PROTO_FAULT_RUNAWAY); t++) {
         uint16_t words[4];
         for (int i = 0; i < 4; i++) words[i] = m[i].word();
-        app_control_step(&app, words);
+        app_step_alive(&app, words);
         for (int i = 0; i < 4; i++) m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
     }
     ASSERT_TRUE(app.flt.faults & PROTO_FAULT_RUNAWAY) << m[0].omega;
     EXPECT_GT(m[0].omega, -40.0);
     const uint16_t words[4] = {m[0].word(), m[1].word(), m[2].word(), m[3].word()};
-    app_control_step(&app, words);
+    app_step_alive(&app, words);
     EXPECT_EQ(app.enable_mask, 0);
 }
 

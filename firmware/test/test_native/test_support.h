@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "app.h"
 #include "enc.h"
 
 #include "prm.h"
@@ -81,5 +82,12 @@ struct Motor {
         }
     }
 };
+
+// The control step under a host whose control thread is alive (a control frame every tick), for
+// tests that run longer than HEARTBEAT_MS allows (1000 ms at most) and are not about the heartbeat.
+inline void app_step_alive(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
+    flt_host_alive(&a->flt);
+    app_control_step(a, enc_words);
+}
 
 #endif  // TEST_SUPPORT_H

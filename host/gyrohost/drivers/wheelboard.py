@@ -2,8 +2,16 @@
 
 Protocol: docs/protocol.md, codec: :mod:`gyrohost.drivers.wheelproto`. One reader thread decodes
 every frame; telemetry goes to a bounded queue (oldest dropped) and an optional callback,
-replies to the request waiting for them. A heartbeat thread keeps the board's fail-safe from
-firing while the host is alive; if the host dies, the board ramps all wheels to zero on its own.
+replies to the request waiting for them.
+
+Heartbeat: the board restarts its HEARTBEAT_MS count only on the control frames HEARTBEAT,
+SET_SPEEDS and STOP_ALL (docs/protocol.md), so a running wheel must be kept alive by the thread
+that decides its setpoints: :meth:`set_speeds` and :meth:`heartbeat`, called from that thread at
+least every HEARTBEAT_MS. A background thread beats only while every commanded speed is zero
+(after connect, after STOP_ALL or a zero SET_SPEEDS: nothing on the board to stop, and no
+HEARTBEAT_LOST to block the next SET_SPEEDS). If the control thread dies or stalls while a wheel
+is commanded to turn, the board ramps all wheels to zero on its own, whatever other thread still
+polls it.
 
 Speeds are rad/s on this side, mrad/s on the wire.
 """
@@ -28,6 +36,8 @@ from .errors import (
 )
 
 BAUD = 1_000_000
+CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
+"""The frames that restart the board's heartbeat count (the firmware's app_is_control_frame)."""
 
 
 class WheelBoard:
@@ -38,7 +48,8 @@ class WheelBoard:
     port : str or serial-like object
         Device path (opened with pyserial at 1000000 baud) or an object with ``read``/``write``.
     heartbeat_period_s : float, s
-        Period of the background heartbeat; must be well below the board's HEARTBEAT_MS.
+        Period of the idle background heartbeat, and the shortest interval between two frames
+        :meth:`heartbeat` sends; must be well below the board's HEARTBEAT_MS.
     on_telemetry : callable(Telemetry) or None
         Called from the reader thread for every telemetry message.
     on_fault : callable(list[str]) or None
@@ -49,8 +60,8 @@ class WheelBoard:
     Attributes
     ----------
     silence_max_s : float, s
-        Longest interval between two frames to the board since the heartbeat started (the
-        board latches HEARTBEAT_LOST after HEARTBEAT_MS without one).
+        Longest interval between two control frames to the board since the heartbeat started
+        (the board latches HEARTBEAT_LOST after HEARTBEAT_MS without one).
     """
 
     def __init__(
@@ -77,8 +88,9 @@ class WheelBoard:
         self.last_telemetry: wp.Telemetry | None = None
         self.telemetry_dropped = 0
         self.hello: dict[str, int] | None = None
-        self.silence_max_s = 0.0  # longest time without a frame to the board, heartbeat on
-        self._last_sent_s: float | None = None
+        self.silence_max_s = 0.0  # longest time without a control frame, heartbeat on
+        self._last_sent_s: float | None = None  # the last control frame
+        self._driving = False  # a nonzero speed commanded: only the caller's frames keep it
         self._replies: queue.Queue[wp.Message] = queue.Queue()
         self._write_lock = threading.Lock()
         self._request_lock = threading.Lock()
@@ -106,7 +118,8 @@ class WheelBoard:
                 f"parameters, this host expects {wp.N_WHEELS} and {len(wp.PARAMS)}"
             )
         self.hello = fields
-        self._last_sent_s = time.monotonic()
+        # HELLO is a query: the board's heartbeat count runs on until this first control frame
+        self._send("HEARTBEAT", {})
         self._heartbeat_on.set()
         return fields
 
@@ -150,6 +163,7 @@ class WheelBoard:
             if abs(mrad) > 2**31 - 1:
                 raise ValueError(f"set_speeds: wheel {i} speed {w} rad/s out of the int32 range")
             fields[f"w{i}_mrad_s"] = mrad
+        self._driving = any(fields.values())
         if not confirm:
             self._send("SET_SPEEDS", fields)
             return
@@ -161,7 +175,16 @@ class WheelBoard:
 
     def stop_all(self) -> None:
         """Ramp all wheels to zero at DECEL_RAD_S2."""
+        self._driving = False
         self._request("STOP_ALL", {}, ("ACK",))
+
+    def heartbeat(self) -> None:
+        """Tell the board the caller's control thread is alive: a HEARTBEAT, unless a control
+        frame went out within ``heartbeat_period_s``. Call it from the thread that decides the
+        setpoints, every control tick."""
+        last = self._last_sent_s
+        if last is None or time.monotonic() - last >= self.heartbeat_period_s:
+            self._send("HEARTBEAT", {})
 
     def clear_faults(self, names: Sequence[str]) -> list[str]:
         """Clear the latched faults ``names``, and only those; returns them.
@@ -255,11 +278,12 @@ class WheelBoard:
         data = wp.encode(name, **fields)
         with self._write_lock:
             self._port.write(data)
-            self._note_sent(time.monotonic())
+            if name in CONTROL_FRAMES:
+                self._note_sent(time.monotonic())
 
     def _note_sent(self, now_s: float) -> None:
-        """Any frame restarts the board's HEARTBEAT_MS count: the longest gap between two, once
-        the heartbeat runs, says how near a stalled host came to the board's fail-safe."""
+        """A control frame restarts the board's HEARTBEAT_MS count: the longest gap between two,
+        once the heartbeat runs, says how near a stalled host came to the board's fail-safe."""
         if self._heartbeat_on.is_set() and self._last_sent_s is not None:
             self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
         self._last_sent_s = now_s
@@ -345,7 +369,7 @@ class WheelBoard:
 
     def _beat_loop(self) -> None:
         while not self._stop.wait(self.heartbeat_period_s):
-            if self._heartbeat_on.is_set():
+            if self._heartbeat_on.is_set() and not self._driving:
                 try:
                     self._send("HEARTBEAT", {})
                 except OSError:

@@ -14,7 +14,7 @@ from typing import Any
 
 from .errors import FrameError, ProtocolError
 
-PROTO_VERSION = 3
+PROTO_VERSION = 4
 MAX_PAYLOAD = 40
 MAX_RAW = 1 + MAX_PAYLOAD + 2
 MAX_ENCODED = MAX_RAW + 1
@@ -85,7 +85,8 @@ BY_ID = {m.id: m for m in MESSAGES}
 FAULTS: dict[int, tuple[str, str]] = {
     0: (
         "HEARTBEAT_LOST",
-        "no valid frame from the host within the heartbeat timeout: all wheels ramped to zero",
+        "no control frame (HEARTBEAT, SET_SPEEDS, STOP_ALL) from the host within HEARTBEAT_MS: "
+        "all wheels ramped to zero",
     ),
     **{
         1 + w: (
@@ -97,7 +98,11 @@ FAULTS: dict[int, tuple[str, str]] = {
     },
     5: ("TICK_OVERRUN", "a 1 ms control tick was missed"),
     6: ("PARAMS_DEFAULTED", "EEPROM parameter image invalid at boot: defaults in use"),
-    7: ("WATCHDOG_RESET", "the last reset was caused by the watchdog"),
+    7: (
+        "WATCHDOG_RESET",
+        "the last reset was caused by the watchdog (a hang; behind the stock bootloader only a "
+        "hang with interrupts on is seen)",
+    ),
     8: ("RX_OVERFLOW", "UART receive buffer overflowed: bytes were lost"),
     9: (
         "ENC_STUCK",
@@ -119,11 +124,29 @@ FAULTS: dict[int, tuple[str, str]] = {
         "a wheel turned against its setpoint or above SPEED_MAX by more than RUNAWAY_MARGIN for "
         "MOTION_FAULT_MS (a wrong ENC_OFFSET?): all wheels disabled",
     ),
+    13: (
+        "BROWN_OUT_RESET",
+        "the last reset was a brown-out (supply below the BOD level; seen only where no "
+        "bootloader cleared MCUSR)",
+    ),
+    14: (
+        "OPEN_LOOP_LIMIT",
+        "open loop (MODE 1) drove a wheel for 10 s without a stop: all wheels ramped to zero",
+    ),
 }
 # Faults that make the device refuse setpoints until CLEAR_FAULTS (ENC_STUCK and ENC_DIAG come
 # with the ENCODER_Mw bit of their wheel).
 BLOCKING_FAULTS = frozenset(
-    {"HEARTBEAT_LOST", "ENCODER_M0", "ENCODER_M1", "ENCODER_M2", "ENCODER_M3", "STALL", "RUNAWAY"}
+    {
+        "HEARTBEAT_LOST",
+        "ENCODER_M0",
+        "ENCODER_M1",
+        "ENCODER_M2",
+        "ENCODER_M3",
+        "STALL",
+        "RUNAWAY",
+        "OPEN_LOOP_LIMIT",
+    }
 )
 
 # bit -> (name, text): live status byte of TELEMETRY.
@@ -212,17 +235,17 @@ PARAMS: tuple[ParamSpec, ...] = (
     _p("SLEW_Q15", 5, 1000, 1, 32767, "Q15/tick"),
     _p("SPEED_MAX_MRAD_S", 6, 157080, 0, 400000, "mrad/s"),
     _p("ACCEL_RAD_S2", 7, 100, 1, 10000, "rad/s^2"),
-    _p("DECEL_RAD_S2", 8, 200, 1, 10000, "rad/s^2"),
-    _p("HEARTBEAT_MS", 9, 250, 20, 60000, "ms"),
+    _p("DECEL_RAD_S2", 8, 200, 50, 10000, "rad/s^2"),
+    _p("HEARTBEAT_MS", 9, 250, 20, 1000, "ms"),
     _p("TELEMETRY_DIV", 10, 2, 0, 100, "ticks"),
     _p("SPEED_FILTER_SHIFT", 11, 3, 0, 8, "-"),
-    _p("OPEN_LOOP_DRIVE_Q15", 12, 6000, 0, 32767, "Q15"),
+    _p("OPEN_LOOP_DRIVE_Q15", 12, 6000, 0, 16384, "Q15"),
     _p("LEAD_Q8", 13, 128, 0, 512, "tick/256"),
     _p("ENC_FAULT_LIMIT", 14, 5, 1, 255, "ticks"),
     *(_p(f"ENC_OFFSET_M{w}", 15 + w, 0, 0, 65535, "turn/65536") for w in range(4)),
-    _p("MOTION_FAULT_MS", 19, 50, 1, 5000, "ms"),
-    _p("STALL_SPEED_MRAD_S", 20, 2000, 0, 100000, "mrad/s"),
-    _p("RUNAWAY_MARGIN_MRAD_S", 21, 10000, 0, 400000, "mrad/s"),
+    _p("MOTION_FAULT_MS", 19, 50, 1, 200, "ms"),
+    _p("STALL_SPEED_MRAD_S", 20, 2000, 1000, 100000, "mrad/s"),
+    _p("RUNAWAY_MARGIN_MRAD_S", 21, 10000, 0, 50000, "mrad/s"),
 )
 PARAM_BY_NAME = {p.name: p for p in PARAMS}
 PARAM_BY_ID = {p.id: p for p in PARAMS}

@@ -450,6 +450,8 @@ class RunLoop:
                 self.omega_cmd = omega
             if self.ekf is not None:  # from the tick's time on, when the devices get it
                 self.ekf.set_input(rest, t_s, self.omega_cmd[: self.n_wheels])
+        if self.wheels is not None:  # the board's wheels live only while this thread ticks
+            self.wheels.heartbeat()
         self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
 
     # --- the log ------------------------------------------------------------------------------

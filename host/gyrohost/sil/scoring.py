@@ -331,10 +331,7 @@ class _WheelBoard:
         self.decoder = wp.FrameDecoder()
         t0 = -WHEEL_SPIN_UP_S
         self.dev.tick(t0)
-        heartbeat = wp.encode(
-            "PARAM_SET", param_id=wp.PARAM_BY_NAME["HEARTBEAT_MS"].id, value=60000
-        )
-        self.dev.handle_rx(heartbeat, t0)
+        self.heartbeat = wp.encode("HEARTBEAT")
         self.command(spins, t0)
         self.latest = np.zeros(len(spins))
         self.frames: list = []  # (board time since t = 0, s; speeds) of every frame
@@ -350,7 +347,9 @@ class _WheelBoard:
         self.commanded = np.array(spins, float)
 
     def advance(self, t_s):
-        """Tick the board to ``t_s``; return the latest reported speeds (scene order), rad/s."""
+        """Tick the board to ``t_s``; return the latest reported speeds (scene order), rad/s.
+        Each call is a tick of the host's control loop: it keeps the board's heartbeat."""
+        self.dev.handle_rx(self.heartbeat, t_s)
         self.dev.tick(t_s)
         # the pty hands the bytes over asynchronously, later on a loaded machine: wait for every
         # frame the board sent, so the stream is the same at any load (a frame a step late

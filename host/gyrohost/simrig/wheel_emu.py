@@ -6,13 +6,16 @@ from boot on the emulator's clock, so simulated-time runs are exact:
 
 - receiver rules: frames longer than 44 bytes, bad COBS, short frames and bad CRCs are dropped and
   counted; an unknown id or a device-to-host id, or a wrong payload length, gets an ERROR reply;
-  only a frame with a good CRC restarts the heartbeat timer;
+  only a control frame (HEARTBEAT, SET_SPEEDS, STOP_ALL) with a good CRC restarts the heartbeat
+  timer, queries do not;
 - HELLO, SET_SPEEDS (whole message refused above SPEED_MAX or while a blocking fault is latched),
   STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
   after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS (the bits of its mask),
   GET_STATS; CALIBRATE_ENC is answered with an ACK at once, the offset unchanged (the emulated
   board comes calibrated: no electrical model, no PARAMS_DEFAULTED);
-- fail-safe: no valid frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
+- open loop (MODE 1, never restored at boot): OPEN_LOOP_LIMIT after ``OPEN_LOOP_MS`` of a wheel
+  running, then as the fail-safe;
+- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
   setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
   ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
   in the direction being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
@@ -56,6 +59,10 @@ SAVE_TICKS = 300
 ENCODER_COUNTS = 1 << 14
 """Counts per turn of the AS5048A (14 bits)."""
 RAD_PER_COUNT = 2.0 * math.pi / ENCODER_COUNTS
+OPEN_LOOP_MS = 10_000
+"""Longest open-loop run without a stop, as the firmware's APP_OPEN_LOOP_MS."""
+_CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
+"""Frames that restart the heartbeat timer, as in the firmware (app_is_control_frame)."""
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
 STOP_RAD_S = 0.5
@@ -69,6 +76,7 @@ _FAULT_BIT = {name: 1 << bit for bit, (name, _) in wp.FAULTS.items()}
 _STATUS_BIT = {name: 1 << bit for bit, (name, _) in wp.STATUS.items()}
 _ERROR_CODE = {name: code for code, (name, _) in wp.ERRORS.items()}
 _BLOCKING = sum(_FAULT_BIT[n] for n in wp.BLOCKING_FAULTS)
+_FORCED_TO_ZERO = _FAULT_BIT["HEARTBEAT_LOST"] | _FAULT_BIT["OPEN_LOOP_LIMIT"]
 _STATS_FIELDS = wp.BY_NAME["STATS"].fields
 
 
@@ -120,6 +128,8 @@ class WheelBoardEmulator(PtyDevice):
     # --- boot and run-time faults -------------------------------------------------------------
     def _boot(self, boot_faults: int) -> None:
         self.params = dict(self.saved)
+        self.params[_P["MODE"]] = 0  # as the firmware: open loop is enabled per session
+        self._open_ms = 0
         self.fault_word = boot_faults
         self.stats = dict.fromkeys(_STATS_FIELDS, 0)
         self.ticks = 0
@@ -239,7 +249,8 @@ class WheelBoardEmulator(PtyDevice):
                 return
             raw = wp.cobs_decode(frame)  # the CRC was good: id and length are known
             msg_id, payload_len = raw[0], len(raw) - 3
-        self._since_host_ms = 0  # a frame with a good CRC: the host is alive
+        if msg is not None and msg.name in _CONTROL_FRAMES:
+            self._since_host_ms = 0  # the host's control thread is alive; queries count not
         spec = wp.BY_ID.get(msg_id)
         if spec is None or spec.direction != "H2D":
             self._count("unknown_id")
@@ -357,7 +368,11 @@ class WheelBoardEmulator(PtyDevice):
         self._since_host_ms = min(self._since_host_ms + 1, 0xFFFF)
         if self._since_host_ms >= p[_P["HEARTBEAT_MS"]]:
             self.fault_word |= _FAULT_BIT["HEARTBEAT_LOST"]
-        failsafe = bool(self.fault_word & _FAULT_BIT["HEARTBEAT_LOST"])
+        running = any(self.setpoints) or any(self.targets)
+        self._open_ms = self._open_ms + 1 if p[_P["MODE"]] == 1 and running else 0
+        if self._open_ms >= OPEN_LOOP_MS:
+            self.fault_word |= _FAULT_BIT["OPEN_LOOP_LIMIT"]
+        failsafe = bool(self.fault_word & _FORCED_TO_ZERO)
         step = p[_P["DECEL_RAD_S2"]] if failsafe or self._stopping else p[_P["ACCEL_RAD_S2"]]
         for i in range(wp.N_WHEELS):
             if failsafe:
@@ -416,7 +431,8 @@ class WheelBoardEmulator(PtyDevice):
             self._raw_rad_s[i] = raw_rad_s
             if open_loop:
                 self.measured[i] = self.setpoints[i] / 1000.0 if self.enabled[i] else 0.0
-                drive = p[_P["OPEN_LOOP_DRIVE_Q15"]] if self.enabled[i] else 0
+                cap = min(p[_P["OPEN_LOOP_DRIVE_Q15"]], drive_max)
+                drive = cap if self.enabled[i] else 0
                 self.drive[i] = int(math.copysign(drive, self.setpoints[i]))
                 continue
             if raw_rad_s is not None:
