@@ -54,10 +54,11 @@ class ProbeResult:
 
 
 def open_serial(port: str, baud: int):
-    """A pyserial port opened at ``baud`` with short reads."""
-    import serial
+    """A pyserial port opened at ``baud`` with short reads, held exclusively
+    (:class:`gyrohost.drivers.portlock.LockedSerial`)."""
+    from gyrohost.drivers.portlock import LockedSerial
 
-    return serial.Serial(port, baud, timeout=0.02)
+    return LockedSerial(port, baud, timeout=0.02)
 
 
 def listen_wt61(ser, window_s: float) -> float:

@@ -113,7 +113,8 @@ def execute(
     ``on_live(url)`` before the run starts. The result says how the run ended; every exit, an
     exception's too, leaves the rig in the safe state.
     """
-    from gyrohost.run.devices import check_real_rig
+    from gyrohost.drivers.portlock import claim_ports
+    from gyrohost.run.devices import check_real_rig, device_ports
     from gyrohost.run.sequence import RunLoop
     from gyrohost.run.simulated import run_simulated
 
@@ -126,7 +127,8 @@ def execute(
             return run_simulated(run.config, run.schedule, run.out, **options)
         loop = RunLoop(run.config, run.schedule, run.out, **options)
         check_real_rig(loop.config)  # after the loop checked the scene, schedule, estimator
-        return loop.run()
+        with claim_ports(device_ports(loop.config)):  # before a log folder or a byte sent
+            return loop.run()
     finally:
         if "live" in options:
             options["live"].close()  # also when the run never started
