@@ -70,6 +70,27 @@ def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim
     assert not (tmp_path / "y").exists()
 
 
+def test_run_states_the_schedules_duration_and_refuses_one_too_long(tmp_path, capsys):
+    """A schedule ending at 1e9 s (a unit slip) is refused before anything starts; the
+    duration is stated first, against the limit (RunSettings.max_schedule_s, or
+    --max-duration)."""
+    endless = Schedule(("s13",), [0.0, 1e9], [[L0], [L0 - 0.01]], "endless").save(
+        tmp_path / "endless.toml"
+    )
+    argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(endless)]
+    assert main([*argv, "-o", str(tmp_path / "a")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "schedule endless: 1e+09 s (at most 600 s allowed)\n"
+    assert "schedule endless refused, nothing moved: it lasts 1e+09 s, more than the 600 s" in err
+    short = schedule_file(tmp_path, L0 - 0.01, 5.0)
+    argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(short)]
+    assert main([*argv, "--max-duration", "2", "-o", str(tmp_path / "b")]) == 2
+    assert "it lasts 5 s, more than the 2 s a run may play" in capsys.readouterr().err
+    assert main([*argv, "--max-duration", "nan", "-o", str(tmp_path / "c")]) == 2
+    assert "--max-duration nan: must be a positive number" in capsys.readouterr().err
+    assert not any((tmp_path / d).exists() for d in "abc")
+
+
 def test_run_without_the_devices_names_every_missing_port_and_leaves_no_log(tmp_path, capsys):
     calibrated = tmp_path / "rig.toml"
     text = shipped("config", "lab-rig").read_text().replace("# CALIBRATE", "# calibrated")

@@ -1,8 +1,8 @@
 """``gyrotens run --config RIG.toml [--overlay FILE] [--schedule FILE|PRESET | --target-tilt RAD
-[--duration S] [--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim [--truth-scene FILE] |
---rig PORTSFILE] [--live]``: one run of a schedule or a planned tilt maneuver on the rig, from
-connection to the safe state, logged (CSV streams and an MCAP file), optionally served live to
-Foxglove (docs/run.md, docs/schedule.md)."""
+[--duration S] [--closed-loop]] [--max-duration S] [--estimator FILE.toml] [-o LOGDIR]
+[--sim [--truth-scene FILE] | --rig PORTSFILE] [--live]``: one run of a schedule or a planned
+tilt maneuver on the rig, from connection to the safe state, logged (CSV streams and an MCAP
+file), optionally served live to Foxglove (docs/run.md, docs/schedule.md)."""
 
 import sys
 import time
@@ -57,6 +57,12 @@ def register(sub) -> None:
         type=Path,
         metavar="FILE",
         help="TOML with an [estimator] table; its keys override the rig configuration's",
+    )
+    p.add_argument(
+        "--max-duration",
+        type=float,
+        metavar="S",
+        help="refuse a schedule longer than S seconds (default 600)",
     )
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
@@ -148,6 +154,7 @@ def _run(args) -> int:
             meta={"command": sys.argv},
             live_port=args.live_port if args.live else None,
             on_live=_announce_live,
+            announce=lambda line: print(line, flush=True),
         )
     except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -166,6 +173,8 @@ def _request(args):
     target = None
     if args.target_tilt is None and (args.closed_loop or args.replan_thread):
         raise CliError("--closed-loop and --replan-thread need --target-tilt")
+    if args.max_duration is not None and not args.max_duration > 0:  # NaN too
+        raise CliError(f"--max-duration {args.max_duration}: must be a positive number of s")
     if args.target_tilt is not None:
         target = Target(
             args.target_tilt,
@@ -186,6 +195,7 @@ def _request(args):
         sim=args.sim,
         ports_file=args.rig,
         ports={"imu": args.imu, "wheels": args.wheels, "servos": args.servos},
+        max_schedule_s=args.max_duration,
     )
 
 
