@@ -58,6 +58,34 @@ def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
     assert abs(truth["omega_0_rad_s"][-1]) < 25.0  # ramped down: the rig kept running for it
 
 
+def test_ctrl_c_during_spin_up_prints_no_traceback_and_the_safe_state_line(tmp_path):
+    """Ctrl-C to the group while the wheels spin up: the estimator's child is still starting
+    (its interpreter importing) and must not print a KeyboardInterrupt traceback."""
+    log = tmp_path / "log"
+    cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
+    cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
+    proc = subprocess.Popen(
+        cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 60.0
+        while not ((log / "events.csv").exists() and "phase,spinup" in
+                   (log / "events.csv").read_text()):  # fmt: skip
+            assert proc.poll() is None, proc.communicate()[1].decode()
+            assert time.monotonic() < deadline, "no spin-up within 60 s"
+            time.sleep(0.02)
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err.decode()
+    assert b"Traceback" not in err, err.decode()
+    assert b"stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert b"gyrotens run: wheels stopped" in err and b"; servos holding" in err, err.decode()
+    assert read_meta(log)["summary"]["safe_state"]["wheels_stopped"]
+
+
 def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim(tmp_path, capsys):
     bad = schedule_file(tmp_path, 0.05, 5.0)
     argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(bad), "-o", "x"]

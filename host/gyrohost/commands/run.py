@@ -256,8 +256,7 @@ def report(result, config: str = "sim-rig") -> int:
         print(f"gyrotens run: completed, but {what}", file=sys.stderr)
     else:
         print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
-    if not failed:
-        print(f"gyrotens run: {describe(safe)}", file=sys.stderr)
+    print(f"gyrotens run: {describe(safe)}", file=sys.stderr)  # whatever else failed
     return result.exit_status
 
 
