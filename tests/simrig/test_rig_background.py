@@ -137,6 +137,8 @@ def test_a_second_run_on_a_live_rig_is_refused_and_the_first_loses_no_frame(tmp_
     seq = read_stream(log, "wheels")["seq"].astype(int)
     assert len(seq) > 100
     assert np.all(np.diff(seq) % 2**16 == 1), np.flatnonzero(np.diff(seq) % 2**16 != 1)
+    links = read_meta(log)["summary"]["links"]["wheels"]
+    assert links["sequence_gaps"] == links["crc_errors"] == 0, links
 
 
 def wait_for_text(path, text: str, proc, timeout_s: float = 60.0) -> None:

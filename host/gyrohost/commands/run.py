@@ -209,7 +209,7 @@ def report(result, config: str = "sim-rig") -> int:
     from gyrohost.run import jitter_line
     from gyrohost.run.health import fails_run, health_lines
     from gyrohost.run.safe_state import describe, failed_steps
-    from gyrohost.run.summary import real_time_lost
+    from gyrohost.run.summary import link_lines, real_time_lost, sources_line
 
     s = result.summary
     print(f"log: {result.log_folder}")
@@ -229,6 +229,8 @@ def report(result, config: str = "sim-rig") -> int:
     lost = real_time_lost(s)
     if lost:
         print(f"gyrotens run: warning: {lost}", file=sys.stderr)
+    for line in link_lines(s):
+        print(f"gyrotens run: warning: {line}", file=sys.stderr)
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
         if "tilt_end_truth_rad" in s:
@@ -238,6 +240,8 @@ def report(result, config: str = "sim-rig") -> int:
         print(maneuver_line(s))
     for line in health_lines(s.get("estimator", {"nis": {}})):
         print(line)
+    if sources_line(s):
+        print(sources_line(s))
     safe = s["safe_state"]
     failed = failed_steps(safe)  # one line each, what the step reached included
     for line in failed:

@@ -361,6 +361,7 @@ class _Filter:
         return {
             **health(self.innovations.tally, self.estimates.score),
             "not_fused_behind": self.skipped,
+            "sources": {name: m.counters() for name, m in self.ekf.monitors.items()},
         }
 
 
