@@ -33,7 +33,10 @@ def wait_for(path: Path, text: str, timeout_s: float) -> None:
     raise AssertionError(f"{path}: no {text!r} within {timeout_s} s")
 
 
-def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
+def ctrl_c_run(tmp_path, phase: str, after_s: float = 0.0):
+    """``gyrotens run --sim`` in a session of its own, Ctrl-C to its whole group (as a terminal
+    sends it: the CLI, its rig and estimator processes) ``after_s`` after ``phase`` began;
+    returns (exit status, stdout, stderr, log folder)."""
     log = tmp_path / "log"
     cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
     cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
@@ -41,16 +44,26 @@ def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
         cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
     )
     try:
-        wait_for(log / "events.csv", "phase,schedule", 60.0)
-        time.sleep(0.3)
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: the CLI and its rig process
+        deadline = time.monotonic() + 60.0
+        while not ((log / "events.csv").exists() and f"phase,{phase}" in
+                   (log / "events.csv").read_text()):  # fmt: skip
+            assert proc.poll() is None, proc.communicate()[1].decode()
+            assert time.monotonic() < deadline, f"no {phase} within 60 s"
+            time.sleep(0.02)
+        time.sleep(after_s)
+        os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130, err.decode()
-    assert b"stopped in the safe state: interrupted (Ctrl-C)" in err
-    assert f"log: {log}".encode() in out
+    return proc.returncode, out.decode(), err.decode(), log
+
+
+def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
+    status, out, err, log = ctrl_c_run(tmp_path, "schedule", 0.3)
+    assert status == 130, err
+    assert "stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert f"log: {log}" in out
     summary = read_meta(log)["summary"]
     assert summary["safe_state"]["wheels_stopped"] and summary["safe_state"]["servos_holding"]
     truth = read_stream(log, "truth")
@@ -61,28 +74,11 @@ def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
 def test_ctrl_c_during_spin_up_prints_no_traceback_and_the_safe_state_line(tmp_path):
     """Ctrl-C to the group while the wheels spin up: the estimator's child is still starting
     (its interpreter importing) and must not print a KeyboardInterrupt traceback."""
-    log = tmp_path / "log"
-    cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
-    cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
-    proc = subprocess.Popen(
-        cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
-    )
-    try:
-        deadline = time.monotonic() + 60.0
-        while not ((log / "events.csv").exists() and "phase,spinup" in
-                   (log / "events.csv").read_text()):  # fmt: skip
-            assert proc.poll() is None, proc.communicate()[1].decode()
-            assert time.monotonic() < deadline, "no spin-up within 60 s"
-            time.sleep(0.02)
-        os.killpg(proc.pid, signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130, err.decode()
-    assert b"Traceback" not in err, err.decode()
-    assert b"stopped in the safe state: interrupted (Ctrl-C)" in err
-    assert b"gyrotens run: wheels stopped" in err and b"; servos holding" in err, err.decode()
+    status, out, err, log = ctrl_c_run(tmp_path, "spinup")
+    assert status == 130, err
+    assert "Traceback" not in err, err
+    assert "stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert "gyrotens run: wheels stopped" in err and "; servos holding" in err, err
     assert read_meta(log)["summary"]["safe_state"]["wheels_stopped"]
 
 
