@@ -135,6 +135,8 @@ def probe(
     ------
     OSError
         The port cannot be opened (pyserial's ``SerialException`` is one).
+    PortBusyError
+        Another process holds the port (a run under way): nothing was sent.
     """
     with open_serial(port, IMU_BAUD) as ser:
         rate_hz = listen_wt61(ser, imu_window_s)
