@@ -207,7 +207,7 @@ def report(result, config: str = "sim-rig") -> int:
     """Print how a run ended and where its log is (an identification run: the command that
     fits it, with the rig configuration ``config``); returns its exit status."""
     from gyrohost.run import jitter_line
-    from gyrohost.run.health import fails_run, health_lines
+    from gyrohost.run.health import fails_run, health_lines, rejection_warnings
     from gyrohost.run.safe_state import describe, failed_steps
     from gyrohost.run.summary import link_lines, real_time_lost, sources_line
 
@@ -229,7 +229,7 @@ def report(result, config: str = "sim-rig") -> int:
     lost = real_time_lost(s)
     if lost:
         print(f"gyrotens run: warning: {lost}", file=sys.stderr)
-    for line in link_lines(s):
+    for line in link_lines(s) + rejection_warnings(s.get("estimator", {})):
         print(f"gyrotens run: warning: {line}", file=sys.stderr)
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
