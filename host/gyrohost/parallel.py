@@ -88,6 +88,16 @@ class Executor:
             return f"Dask scheduler {self.scheduler}"
         return f"Dask LocalCluster of {self.workers or os.cpu_count()} worker processes"
 
+    def slots(self) -> int:
+        """How many cases run at once: 1 serially, else the Dask workers' threads (a
+        ``LocalCluster``'s planned workers before it starts)."""
+        if self.serial:
+            return 1
+        if self.client is not None:
+            workers = self.client.scheduler_info().get("workers", {})
+            return max(sum(w.get("nthreads", 1) for w in workers.values()), 1)
+        return self.workers or os.cpu_count() or 1
+
     def __enter__(self):
         if self.serial:
             return self

@@ -103,3 +103,24 @@ class InterruptsHeld(InterruptsHandled):
         elif handler == signal.SIG_DFL:
             signal.raise_signal(signum)
         return False
+
+
+class InterruptsBlocked:
+    """Context: the interrupting signals blocked in this thread. A process started inside
+    inherits the block (across ``fork`` and ``exec``), so a Ctrl-C to the process group cannot
+    cut its start short (a traceback from its interpreter's start-up): it unblocks them once it
+    has chosen what to do with them (:func:`unblock_interrupts`)."""
+
+    def __enter__(self):
+        self.previous = signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPTS)
+        return self
+
+    def __exit__(self, *exc):
+        signal.pthread_sigmask(signal.SIG_SETMASK, self.previous)
+        return False
+
+
+def unblock_interrupts() -> None:
+    """Unblock the interrupting signals in this thread (a child started blocked, after it set
+    their handlers)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPTS)

@@ -1,6 +1,9 @@
 """``gyrotens doctor`` against the simulated rig's ptys: every check passing, then each failing
 on purpose; the exit status counts the failures."""
 
+import subprocess
+import sys
+
 from bringup_rig import config_text
 
 from gyrohost.bringup.doctor import Windows, run_checks
@@ -91,3 +94,24 @@ def test_doctor_checks_the_rfcomm_binding_of_the_imu(tmp_path, rig_ports):
     found = checks(tmp_path, text, sys_root=sysfs)
     assert found["imu rfcomm"].ok and found["imu rfcomm"].detail == "rfcomm7 bound"
     assert not found["imu.port /dev/rfcomm7"].ok  # bound here in a fake sysfs only
+
+
+HOLD = (
+    "import sys\nfrom gyrohost.drivers.portlock import PortClaim\n"
+    "claim = PortClaim(sys.argv[1])\nprint('held', flush=True)\nsys.stdin.read()\n"
+)
+
+
+def test_doctor_names_the_process_holding_a_port_and_sends_it_nothing(tmp_path, rig_ports):
+    """A run under way holds the wheel board's port: the doctor's check fails naming it (its
+    HELLO would have reached the board in the middle of the run)."""
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, rig_ports["wheels"]],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert holder.stdout.readline() == "held\n"
+        found = checks(tmp_path, config_text("sim-rig", rig_ports))
+    finally:
+        holder.communicate("", timeout=30)
+    board = found["wheel board"]
+    assert not board.ok and f"is in use by PID {holder.pid} (" in board.detail, board
+    assert found["imu"].ok and found["servos"].ok

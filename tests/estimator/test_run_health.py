@@ -2,6 +2,8 @@
 health table of the run summary (NIS per source, gate rejections, NEES against the simulated
 rig's truth) and the divergence that fails a run."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from fake_loop import Ekf, Stream
@@ -18,6 +20,7 @@ from gyrohost.run.health import (
     fails_run,
     health,
     health_lines,
+    rejection_warnings,
 )
 
 
@@ -117,3 +120,24 @@ def test_the_nees_is_scored_sample_by_sample_not_as_independent_samples(model, c
     assert "bounds95" not in table["nees"]
     (line,) = [line for line in health_lines(table) if "NEES" in line]
     assert "50.0 % of 4 samples inside their 95 % bounds [5.63, 26.12]" in line
+
+
+def test_a_source_refused_at_a_stretch_longer_than_stated_is_warned_about():
+    """An IMU stall's late burst refused by the gate: 0.3 s of rejections (30 samples, fewer
+    than the 50 in a row that make a divergence) is named with its time; 0.2 s is not."""
+
+    def at(source, t_s, accepted):
+        return replace(_innovation(source, accepted), t_s=t_s)
+
+    tally = NisTally()
+    for k in range(100):  # 10 ms apart: rejected from 0.30 s to 0.60 s, then fused again
+        tally.add(at("imu_angle", 0.01 * k, not 30 <= k < 60))
+        tally.add(at("imu_rate", 0.01 * k, not 30 <= k < 50))  # 0.20 s: within the limit
+    table = health(tally, None)
+    assert not table["diverged"]
+    angle = table["nis"]["imu_angle"]
+    assert angle["longest_rejected_s"] == pytest.approx(0.30) and angle["rejected"] == 30
+    assert angle["longest_rejected_from_s"] == pytest.approx(0.30)
+    (line,) = rejection_warnings(table)
+    assert line.startswith("estimator: the gate refused every imu_angle sample for 0.30 s from "
+                           "t = 0.30 s (more than 0.25 s)")  # fmt: skip

@@ -140,3 +140,39 @@ def test_a_damaged_meta_json_is_one_line(content, what, tmp_path):
         read_meta(tmp_path)
     assert str(info.value).startswith(f"{tmp_path / 'meta.json'}: {what}")
     assert "\n" not in str(info.value)
+
+
+def test_a_screen_keeps_bursts_and_leaves_out_rows_that_are_no_samples(tmp_path):
+    """Equal times with other values are a burst (one read's samples share their arrival
+    stamp) and kept; a row repeated, one running back in time and one not finite are left out,
+    counted and warned about once per kind, by file and row."""
+    from gyrohost.run.log_screen import LogScreen
+
+    rows = [(0.0, 1.0, "a"), (0.0, 2.0, "a"), (0.0, 2.0, "a"), (0.01, 3.0, "a"),
+            (0.005, 4.0, "a"), (0.02, float("nan"), "a"), (0.02, 5.0, "a")]  # fmt: skip
+    folder = _log_with_imu(tmp_path / "log", rows)
+    warnings = []
+    screen = LogScreen(["imu"])
+    data = read_stream(folder, "imu", warnings.append, screen)
+    assert data["omega_x_rad_s"].tolist() == [1.0, 2.0, 3.0, 5.0]
+    assert screen.counts() == {
+        "imu": {"rows": 7, "unreadable": 0, "non_finite": 1, "backwards": 1, "repeated": 1}
+    }
+    path = folder / "imu.csv"
+    assert warnings == [
+        f"{path}: 1 of 7 rows with a value that is not finite (NaN, inf) (row 7, the first in "
+        "'omega_x_rad_s': 'nan'); not fused",
+        f"{path}: 1 of 7 rows whose time runs backwards (row 6); not fused",
+        f"{path}: 1 of 7 rows repeating the row before at the same time (row 4); not fused",
+    ]
+    assert len(read_stream(folder, "imu")) == 7  # unscreened: as written
+
+
+def test_a_screen_refuses_a_stream_with_nothing_to_fuse(tmp_path):
+    from gyrohost.run.log_screen import LogScreen, rows_text
+
+    folder = _log_with_imu(tmp_path / "log", [(0.0, float("inf"), "a")])
+    with pytest.raises(LogError, match=r"imu.csv: none of its 1 rows can be fused"):
+        read_stream(folder, "imu", None, LogScreen(["imu"]))
+    assert rows_text([3, 4, 5, 9]) == "rows 3-5, 9"
+    assert rows_text(list(range(1, 40, 2))) == "rows 1, 3, 5, 7, 9, 11, 13, 15 and 12 more"

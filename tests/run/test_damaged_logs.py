@@ -219,3 +219,88 @@ def test_many_bad_rows_print_ten_warnings_and_keep_them_all(log, tmp_path, capsy
         f"{tmp_path / 'r'}/meta.json, summary.warnings)"
     )
     assert len(read_meta(tmp_path / "r")["summary"]["warnings"]) == 12
+
+
+def _insert_rows(path: Path, after: dict) -> None:
+    """Insert rows into a stream file: ``after`` maps a row number (1 the header) to the
+    lines to put after it, each a function of the file's lines."""
+    lines = path.read_text().split("\n")
+    out = []
+    for number, line in enumerate(lines, 1):
+        out.append(line)
+        out += after.get(number, lambda _: [])(lines)
+    path.write_text("\n".join(out))
+
+
+def _with_value(line: str, column: int, value: str) -> str:
+    fields = line.split(",")
+    fields[column] = value
+    return ",".join(fields)
+
+
+def test_non_finite_rows_and_time_running_backwards_are_warned_about_and_never_fused(
+    log, tmp_path, capsys
+):
+    intact = _replayed(shutil.copytree(log, tmp_path / "intact"), tmp_path / "intact-replay")
+    capsys.readouterr()
+    _insert_rows(log / "imu.csv", {
+        40: lambda lines: [_with_value(lines[39], 1, "nan"), _with_value(lines[39], 4, "inf")],
+        80: lambda lines: [_with_value(lines[79], 6, "-1e999")],  # inf when read
+        300: lambda lines: lines[99:199],  # 100 rows written twice: time runs back 2 s
+        350: lambda lines: [lines[349]],  # the same row twice
+    })  # fmt: skip
+    assert main(["replay", str(log), "-o", str(tmp_path / "r")]) == 0
+    out, err = capsys.readouterr()
+    imu = log / "imu.csv"
+    assert err.splitlines() == [
+        f"gyrotens replay: warning: {imu}: 3 of {intact['log_rows']['imu']['rows'] + 104} rows "
+        "with a value that is not finite (NaN, inf) (rows 41-42, 83, the first in "
+        "'omega_x_rad_s': 'nan'); not fused",
+        f"gyrotens replay: warning: {imu}: 100 of {intact['log_rows']['imu']['rows'] + 104} "
+        "rows whose time runs backwards (rows 304-403); not fused",
+        f"gyrotens replay: warning: {imu}: 1 of {intact['log_rows']['imu']['rows'] + 104} rows "
+        "repeating the row before at the same time (row 454); not fused",
+    ]
+    summary = read_meta(tmp_path / "r")["summary"]
+    assert summary["log_rows"]["imu"] == {
+        "rows": intact["log_rows"]["imu"]["rows"] + 104,
+        "unreadable": 0,
+        "non_finite": 3,
+        "backwards": 100,
+        "repeated": 1,
+    }
+    assert "  imu: 104 not fused (3 non-finite, 100 backwards, 1 repeated)" in out
+    # the rows fused are the intact log's: the same counts, the same final status
+    assert summary["sources"] == intact["sources"]
+    assert summary["final_status"] == intact["final_status"]
+
+
+def test_swapped_and_missing_columns_and_a_header_only_stream_are_left_out(log, tmp_path, capsys):
+    imu = (log / "imu.csv").read_text().split("\n")
+    imu[0] = _with_value(_with_value(imu[0], 1, "omega_y_rad_s"), 2, "omega_x_rad_s")
+    (log / "imu.csv").write_text("\n".join(imu))
+    wheels = (log / "wheels.csv").read_text().split("\n")
+    wheels[0] = wheels[0].replace(",seq", "")
+    (log / "wheels.csv").write_text("\n".join(wheels))
+    servos = log / "servos.csv"
+    servos.write_text(servos.read_text().split("\n")[0] + "\n")
+    assert main(["replay", str(log), "-o", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"gyrotens replay: warning: {log / 'imu.csv'}: header differs from meta.json's columns "
+        "(columns 'omega_y_rad_s', 'omega_x_rad_s' swapped); replayed without it",
+        f"gyrotens replay: warning: {log / 'wheels.csv'}: header differs from meta.json's "
+        "columns (missing 'seq'); replayed without it",
+        f"gyrotens replay: warning: {servos}: no rows (header only); replayed without it",
+        f"gyrotens replay: error: {log}: no imu samples to replay",
+    ]
+    assert not (tmp_path / "r").exists()
+
+
+def test_identify_refuses_a_log_with_too_many_bad_rows_naming_them(log, tmp_path, capsys):
+    _insert_rows(log / "imu.csv", {300: lambda lines: lines[99:199]})
+    out = tmp_path / "i.toml"
+    assert main(["identify", str(log), "-o", str(out), "--method", "filter"]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith(f"gyrotens identify: error: {log / 'imu.csv'}: 100 of ")
+    assert "rows cannot be fused (100 backwards: rows 301-400), more than the 1 % " in err
+    assert not out.exists()

@@ -110,8 +110,9 @@ class _File:
 
 
 def test_a_full_disk_ends_the_run_in_the_safe_state_and_says_where_the_log_ends(
-    tmp_path, monkeypatch, capsys
+    tmp_path, monkeypatch, capfd
 ):
+    """capfd: the estimator's child writes to the process's stderr, not to ``sys.stderr``."""
     log = tmp_path / "log"
     log.mkdir()
     disk = TinyDisk(log, 400_000)
@@ -120,9 +121,10 @@ def test_a_full_disk_ends_the_run_in_the_safe_state_and_says_where_the_log_ends(
     argv = ["run", "--config", str(CONFIG_PATH), "--sim", "-o", str(log)]
     argv += ["--schedule", str(schedule_file(tmp_path, L0 - 0.05, 4.0))]
     assert main(argv) == 1
-    err = capsys.readouterr().err
+    err = capfd.readouterr().err
     assert "Traceback" not in err
     assert "LogWriteError" in err and "No space left on device" in err
+    assert "gyrotens run: wheels stopped (" in err and "; servos holding" in err, err
     meta = read_meta(log)
     summary = meta["summary"]
     safe = assert_log(log)

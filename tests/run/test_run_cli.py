@@ -33,7 +33,10 @@ def wait_for(path: Path, text: str, timeout_s: float) -> None:
     raise AssertionError(f"{path}: no {text!r} within {timeout_s} s")
 
 
-def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
+def ctrl_c_run(tmp_path, phase: str, after_s: float = 0.0):
+    """``gyrotens run --sim`` in a session of its own, Ctrl-C to its whole group (as a terminal
+    sends it: the CLI, its rig and estimator processes) ``after_s`` after ``phase`` began;
+    returns (exit status, stdout, stderr, log folder)."""
     log = tmp_path / "log"
     cmd = [sys.executable, "-m", "gyrohost", "run", "--config", str(CONFIG), "--sim"]
     cmd += ["--schedule", str(schedule_file(tmp_path, L0 - 0.1, 2.0)), "-o", str(log)]
@@ -41,21 +44,42 @@ def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
         cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
     )
     try:
-        wait_for(log / "events.csv", "phase,schedule", 60.0)
-        time.sleep(0.3)
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: the CLI and its rig process
+        deadline = time.monotonic() + 60.0
+        while not ((log / "events.csv").exists() and f"phase,{phase}" in
+                   (log / "events.csv").read_text()):  # fmt: skip
+            assert proc.poll() is None, proc.communicate()[1].decode()
+            assert time.monotonic() < deadline, f"no {phase} within 60 s"
+            time.sleep(0.02)
+        time.sleep(after_s)
+        os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130, err.decode()
-    assert b"stopped in the safe state: interrupted (Ctrl-C)" in err
-    assert f"log: {log}".encode() in out
+    return proc.returncode, out.decode(), err.decode(), log
+
+
+def test_ctrl_c_to_the_process_group_ends_in_the_safe_state(tmp_path):
+    status, out, err, log = ctrl_c_run(tmp_path, "schedule", 0.3)
+    assert status == 130, err
+    assert "stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert f"log: {log}" in out
     summary = read_meta(log)["summary"]
     assert summary["safe_state"]["wheels_stopped"] and summary["safe_state"]["servos_holding"]
     truth = read_stream(log, "truth")
     assert np.max(np.abs(truth["omega_0_rad_s"])) > 70.0
     assert abs(truth["omega_0_rad_s"][-1]) < 25.0  # ramped down: the rig kept running for it
+
+
+def test_ctrl_c_during_spin_up_prints_no_traceback_and_the_safe_state_line(tmp_path):
+    """Ctrl-C to the group while the wheels spin up: the estimator's child is still starting
+    (its interpreter importing) and must not print a KeyboardInterrupt traceback."""
+    status, out, err, log = ctrl_c_run(tmp_path, "spinup")
+    assert status == 130, err
+    assert "Traceback" not in err, err
+    assert "stopped in the safe state: interrupted (Ctrl-C)" in err
+    assert "gyrotens run: wheels stopped" in err and "; servos holding" in err, err
+    assert read_meta(log)["summary"]["safe_state"]["wheels_stopped"]
 
 
 def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim(tmp_path, capsys):
@@ -68,6 +92,27 @@ def test_run_refuses_a_schedule_beyond_the_limits_and_emulated_ports_without_sim
     assert main(["run", "--config", str(CONFIG), "--schedule", "nope", "--sim"]) == 2
     assert "nope" in capsys.readouterr().err
     assert not (tmp_path / "y").exists()
+
+
+def test_run_states_the_schedules_duration_and_refuses_one_too_long(tmp_path, capsys):
+    """A schedule ending at 1e9 s (a unit slip) is refused before anything starts; the
+    duration is stated first, against the limit (RunSettings.max_schedule_s, or
+    --max-duration)."""
+    endless = Schedule(("s13",), [0.0, 1e9], [[L0], [L0 - 0.01]], "endless").save(
+        tmp_path / "endless.toml"
+    )
+    argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(endless)]
+    assert main([*argv, "-o", str(tmp_path / "a")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "schedule endless: 1e+09 s (at most 600 s allowed)\n"
+    assert "schedule endless refused, nothing moved: it lasts 1e+09 s, more than the 600 s" in err
+    short = schedule_file(tmp_path, L0 - 0.01, 5.0)
+    argv = ["run", "--config", str(CONFIG), "--sim", "--schedule", str(short)]
+    assert main([*argv, "--max-duration", "2", "-o", str(tmp_path / "b")]) == 2
+    assert "it lasts 5 s, more than the 2 s a run may play" in capsys.readouterr().err
+    assert main([*argv, "--max-duration", "nan", "-o", str(tmp_path / "c")]) == 2
+    assert "--max-duration nan: must be a positive number" in capsys.readouterr().err
+    assert not any((tmp_path / d).exists() for d in "abc")
 
 
 def test_run_without_the_devices_names_every_missing_port_and_leaves_no_log(tmp_path, capsys):

@@ -260,3 +260,32 @@ def test_ctrl_c_while_the_truth_is_received_never_breaks_the_pipe():
     finally:
         signal.signal(signal.SIGINT, previous)
     assert interrupts > 100 and samples > 1000, (interrupts, samples)
+
+
+def test_lost_wheel_frames_are_counted_in_the_summary_and_told(tmp_path, capsys):
+    """Bytes of the wheel board's telemetry corrupted mid-run: the frames it drops (CRC
+    errors) and the gaps they leave in the sequence numbers are in the summary's ``links`` and
+    in a warning line; the estimator's samples per source in the summary and a line."""
+
+    def corrupt(loop, phase, t_s):
+        if phase == "schedule" and not hasattr(loop, "corrupted"):
+            loop.corrupted = True
+            loop.rig.inject("wheels", "corrupt", count=3)  # three bytes: at most three frames
+
+    result, folder = run(tmp_path, on_tick=corrupt)
+    wheels = result.summary["links"]["wheels"]
+    assert 1 <= wheels["sequence_gaps"] <= 3, (wheels, result.reason)
+    assert wheels["sequence_gaps"] <= wheels["frames_lost"]
+    assert sum(wheels["frames_dropped"].values()) >= 1, wheels
+    seq = read_stream(folder, "wheels")["seq"].astype(int)
+    assert int(np.sum(np.diff(seq) % 2**16 != 1)) == wheels["sequence_gaps"]
+    assert result.summary["links"]["imu"] == {
+        "bad_checksums": 0, "unknown_types": 0, "frames_dropped": 0}  # fmt: skip
+    sources = result.summary["estimator"]["sources"]
+    assert set(sources) == {"imu_rate", "imu_accel", "imu_angle", "wheels", "servos"}
+    assert all(c["accepted"] > 0 for c in sources.values()), sources
+    report(result)
+    out, err = capsys.readouterr()
+    assert "gyrotens run: warning: wheel board link: " in err
+    assert f"{wheels['sequence_gaps']} sequence gaps ({wheels['frames_lost']} frames lost)" in err
+    assert "estimator samples: imu_rate " in out and " fused, " in out

@@ -13,6 +13,7 @@ import threading
 import time
 
 import matplotlib.figure
+import numpy as np
 import pytest
 from rig_host import start_rig
 
@@ -22,7 +23,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.control.schedule import Schedule
 from gyrohost.plots.log import RunData, plot_compare, plot_node_z
 from gyrohost.resources import shipped
-from gyrohost.run.log import read_meta
+from gyrohost.run.log import read_meta, read_stream
 from gyrohost.simrig.control_socket import (
     ControlServer,
     control_path,
@@ -105,6 +106,47 @@ def test_background_rig_serves_a_run_through_its_ports_file(tmp_path, capsys, mo
     assert proc.returncode == 0, err
     assert f"ports file: {ports_file}" in out and "control: reset: reset" in out
     assert not ports_file.exists() and not ports.control.exists()
+
+
+def test_a_second_run_on_a_live_rig_is_refused_and_the_first_loses_no_frame(tmp_path, capsys):
+    """The second ``run --rig`` on the same ports exits 2 naming the first run's PID and command
+    before it sends a byte (no log folder either); the first reads every telemetry frame."""
+    ports_file = tmp_path / "ports.toml"
+    proc = start_rig(tmp_path, "--ports-file", str(ports_file))
+    first = None
+    try:
+        wait_for_file(ports_file, proc)
+        log = tmp_path / "first"
+        argv = ["run", "--rig", str(ports_file), "--schedule", str(short_schedule(tmp_path))]
+        first = subprocess.Popen([sys.executable, "-m", "gyrohost", *argv, "-o", str(log)],
+                                 cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True)  # fmt: skip
+        wait_for_text(log / "events.csv", "phase,spinup", first)
+        assert main([*argv, "-o", str(tmp_path / "second")]) == 2
+        err = capsys.readouterr().err
+        assert f"is in use by PID {first.pid} (" in err and "gyrohost run --rig" in err, err
+        assert err.count("\n") == 1 and not (tmp_path / "second").exists(), err
+        out, first_err = first.communicate(timeout=120)
+        assert first.returncode == 0, first_err
+        assert "run completed" in out, out
+    finally:
+        for p in (first, proc):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.communicate()
+    seq = read_stream(log, "wheels")["seq"].astype(int)
+    assert len(seq) > 100
+    assert np.all(np.diff(seq) % 2**16 == 1), np.flatnonzero(np.diff(seq) % 2**16 != 1)
+    links = read_meta(log)["summary"]["links"]["wheels"]
+    assert links["sequence_gaps"] == links["crc_errors"] == 0, links
+
+
+def wait_for_text(path, text: str, proc, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not (path.exists() and text in path.read_text()):
+        assert proc.poll() is None, proc.communicate()[1]
+        assert time.monotonic() < deadline, f"no {text!r} in {path} within {timeout_s} s"
+        time.sleep(0.05)
 
 
 def test_run_rig_refuses_a_missing_ports_file_and_sim_with_rig(tmp_path, capsys):

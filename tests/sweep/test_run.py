@@ -2,6 +2,8 @@
 failed cases are recorded while the others go on; finished cases are kept and not rerun."""
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -147,6 +149,44 @@ def test_cli_sweep_runs_serially_and_a_bad_spec_exits_2(spec, tmp_path, capsys):
     bad.write_text(SPEC.replace('op = "stretch"', 'op = "squash"'))
     assert main(["sweep", str(bad), "-o", str(tmp_path / "bad")]) == 2
     assert "bad.toml: axes[1].op: 'squash'" in capsys.readouterr().err
+
+
+def test_cli_sweep_states_its_cases_and_the_first_ones_time_before_the_rest(spec, tmp_path, capsys):
+    assert main(["sweep", str(spec.path), "-o", str(tmp_path / "out"), "--serial"]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("tiny: dbar-gyro.toml, 2 axes, 4 cases, serial")
+    assert out[1].startswith("4 cases to run; the first took ") and "1 at a time" in out[1]
+    assert main(["sweep", str(spec.path), "-o", str(tmp_path / "b"), "--max-cases", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "4 cases (spin_rad_s 2 x closure_s 2), more than the 3 allowed" in err
+    assert not (tmp_path / "b").exists()
+
+
+REFUSE_IN_2_GB = """
+import resource, sys, time
+resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+from gyrohost.cli import main
+start = time.perf_counter()
+status = main(["sweep", sys.argv[1], "-o", sys.argv[2], "--serial"])
+print(f"refused in {time.perf_counter() - start:.3f} s", file=sys.stderr)
+sys.exit(status)
+"""
+
+
+def test_a_billion_case_sweep_is_refused_at_once_in_bounded_memory(tmp_path):
+    """A ``num`` typed a million times too large: counted, not made (its values alone would
+    take 8 GB), and refused under a 2 GB address-space limit without running a case."""
+    path = tmp_path / "typo.toml"
+    typo = "range = { start = 20.0, stop = 60.0, num = 500000000 }"
+    path.write_text(SPEC.replace("values = [20.0, 60.0]", typo))
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-c", REFUSE_IN_2_GB, str(path), str(out)],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert "1000000000 cases (spin_rad_s 500000000 x closure_s 2), more than the 10000 " in (
+        done.stderr
+    )
+    assert "refused in " in done.stderr and not out.exists()
 
 
 def test_monte_carlo_runs_the_same_on_dask(cluster):

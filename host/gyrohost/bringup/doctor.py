@@ -20,7 +20,7 @@ from gyrohost.bringup.serialports import (
     rfcomm_bound,
 )
 from gyrohost.drivers import wheelproto as wp
-from gyrohost.drivers.errors import ServoLimitError
+from gyrohost.drivers.errors import PortBusyError, ServoLimitError
 from gyrohost.drivers.mx12 import MODEL_MX12W
 from gyrohost.drivers.servos import StringServoBus
 
@@ -65,9 +65,18 @@ def run_checks(config, sys_root: Path = SYS, windows: Windows = Windows()) -> It
     """Every check of ``config`` (a loaded ``RigConfig``) and its devices, in order."""
     yield _placeholders(config)
     yield _limits(config)
-    yield from _imu(config, sys_root, windows)
-    yield from _wheelboard(config, windows)
-    yield from _servos(config, sys_root)
+    yield from _unless_held("imu", _imu(config, sys_root, windows))
+    yield from _unless_held("wheel board", _wheelboard(config, windows))
+    yield from _unless_held("servos", _servos(config, sys_root))
+
+
+def _unless_held(name: str, checks: Iterator[Check]) -> Iterator[Check]:
+    """A device's ``checks``; a port another process holds (a run under way) ends them with one
+    failed check naming the holder (:mod:`gyrohost.drivers.portlock`)."""
+    try:
+        yield from checks
+    except PortBusyError as exc:
+        yield Check(name, False, str(exc))
 
 
 def _placeholders(config) -> Check:

@@ -54,10 +54,11 @@ class ProbeResult:
 
 
 def open_serial(port: str, baud: int):
-    """A pyserial port opened at ``baud`` with short reads."""
-    import serial
+    """A pyserial port opened at ``baud`` with short reads, held exclusively
+    (:class:`gyrohost.drivers.portlock.LockedSerial`)."""
+    from gyrohost.drivers.portlock import LockedSerial
 
-    return serial.Serial(port, baud, timeout=0.02)
+    return LockedSerial(port, baud, timeout=0.02)
 
 
 def listen_wt61(ser, window_s: float) -> float:
@@ -134,6 +135,8 @@ def probe(
     ------
     OSError
         The port cannot be opened (pyserial's ``SerialException`` is one).
+    PortBusyError
+        Another process holds the port (a run under way): nothing was sent.
     """
     with open_serial(port, IMU_BAUD) as ser:
         rate_hz = listen_wt61(ser, imu_window_s)

@@ -135,6 +135,7 @@ class FitProgress:
 
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
+    from gyrohost.commands.replay import Warnings
     from gyrohost.config import ConfigError, load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report
@@ -149,6 +150,7 @@ def run(args) -> int:
     out = args.out
     if out.suffix != ".toml":
         raise CliError(f"-o {out}: the identified scene must be a .toml file")
+    warn = Warnings("identify")
     for log in args.logs:
         for warning in log_warnings(log):
             print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
@@ -166,7 +168,7 @@ def run(args) -> int:
         est = for_rig(config)
         groups = [g.strip() for g in args.params.split(",") if g.strip()]
         if args.method == "filter":
-            recs = [filter_fit.load(log, args.until) for log in args.logs]
+            recs = [filter_fit.load(log, args.until, warn) for log in args.logs]
             for warning in filter(None, map(filter_fit.roll_over_warning, recs)):
                 print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
             for g in filter_fit.state_groups(est):
@@ -175,10 +177,12 @@ def run(args) -> int:
                     groups.remove(g)
             params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
         else:
-            recs = _recordings(args, config, Model(scene))
+            recs = _recordings(args, config, Model(scene), warn)
             params = parameters(scene, config, groups, nominal_lag(est, recs), len(recs))
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
+    finally:
+        warn.close()
     how = {"output": "the output error", "filter": "the filter's likelihood"}[args.method]
     print(f"{len(recs)} recording(s); fitting {len(params)} parameters by {how}")
     if args.method == "filter":
@@ -227,15 +231,16 @@ def _noise_placeholders(config_path) -> list[str]:
     return [p.key for p in find_placeholders(config_path) if p.key in keys]
 
 
-def _recordings(args, config, model) -> list:
-    """The output-error fit's recordings of the logs (:func:`.logs.load_recording`)."""
+def _recordings(args, config, model, warn) -> list:
+    """The output-error fit's recordings of the logs (:func:`.logs.load_recording`), their
+    rows left out told to ``warn``."""
     from gyrohost.ident.logs import load_recording
 
     n_wheels = len(model.wheel_bars)
     commanded = args.lengths == "command"
     return [
         load_recording(
-            log, config, n_wheels, commanded, args.until, args.segment_s, args.segment_start
+            log, config, n_wheels, commanded, args.until, args.segment_s, args.segment_start, warn
         )
         for log in args.logs
     ]

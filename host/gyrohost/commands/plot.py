@@ -5,6 +5,7 @@ folder with ``meta.json``, written by ``gyrotens run``; figures in ``gyrohost.pl
 """
 
 from pathlib import Path
+from zipfile import BadZipFile
 
 
 def register(sub) -> None:
@@ -27,10 +28,18 @@ def _is_run_file(path: Path) -> bool:
 
 
 def _plot_run(args):
-    from gyrohost.plots import model as plots
-    from gyrotensegrity import load_run
+    from gyrohost.commands.errors import CliError
+    from gyrohost.commands.replay import Warnings
+    from gyrohost.plots.errors import PlotError
+    from gyrohost.plots.model import plot_run_file
 
-    return plots.plot_run(load_run(args.file), args.out, animation=not args.no_animation)
+    warn = Warnings("plot")
+    try:
+        paths = plot_run_file(args.file, args.out, not args.no_animation, warn)
+    except PlotError as exc:
+        raise CliError(str(exc)) from None
+    warn.close()
+    return paths
 
 
 def _is_log(path: Path) -> bool:
@@ -64,8 +73,8 @@ def run(args) -> int:
     for accepts, plot in PLOTTERS:
         try:
             ok = accepts(args.file)
-        except (OSError, ValueError) as exc:
-            raise CliError(f"{args.file}: cannot read: {exc}") from None
+        except (OSError, ValueError, EOFError, BadZipFile) as exc:  # a damaged .npz among them
+            raise CliError(f"{args.file}: cannot read: {exc or type(exc).__name__}") from None
         if ok:
             if args.out is None and not args.file.is_dir():
                 raise CliError("give the output folder with -o")

@@ -27,6 +27,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.bringup.probe import probe
     from gyrohost.bringup.serialports import access_problem, list_ports
+    from gyrohost.drivers.errors import PortBusyError
 
     ports = list_ports(tuple(args.paths))
     if not ports:
@@ -51,7 +52,7 @@ def run(args) -> int:
                 hello_timeout_s=args.hello_timeout,
                 reply_timeout_s=args.reply_timeout,
             )
-        except OSError as exc:  # busy, vanished: say so and go on with the next port
+        except (OSError, PortBusyError) as exc:  # busy, vanished: say so, go on with the next
             print(f"  cannot probe: {exc}")
             continue
         print(f"  {result.detail}")

@@ -62,6 +62,8 @@ def run(args) -> int:
     except (LogError, EstimatorConfigError, EstimatorError, SceneError) as exc:
         raise CliError(str(exc)) from None
     warn.close(f"{out}/meta.json, summary.warnings")
+    for line in rows_lines(summary["log_rows"]):
+        print(line)
     for source, c in summary["sources"].items():
         print(
             f"{source:10s} accepted {c['accepted']:6d}  rejected {c['rejected']:5d}  "
@@ -82,3 +84,18 @@ def compare_line(compared: dict) -> str:
         f"{words} {compared[key]:.3g} {unit}" for key, words, unit in COMPARED if key in compared
     )
     return f"against the run's estimate ({compared['rows']} rows), largest difference: {groups}"
+
+
+def rows_lines(log_rows: dict) -> list[str]:
+    """The input rows read per stream; for each stream with rows left out, a line of them by
+    kind."""
+    from gyrohost.run.log_screen import KINDS
+
+    read = ", ".join(f"{stream} {c['rows']}" for stream, c in log_rows.items())
+    lines = [f"log rows read: {read}"]
+    for stream, counts in log_rows.items():
+        left = {kind: counts[kind] for kind in KINDS if counts[kind]}
+        if left:
+            what = ", ".join(f"{n} {kind.replace('_', '-')}" for kind, n in left.items())
+            lines.append(f"  {stream}: {sum(left.values())} not fused ({what})")
+    return lines

@@ -1,8 +1,8 @@
 """``gyrotens run --config RIG.toml [--overlay FILE] [--schedule FILE|PRESET | --target-tilt RAD
-[--duration S] [--closed-loop]] [--estimator FILE.toml] [-o LOGDIR] [--sim [--truth-scene FILE] |
---rig PORTSFILE] [--live]``: one run of a schedule or a planned tilt maneuver on the rig, from
-connection to the safe state, logged (CSV streams and an MCAP file), optionally served live to
-Foxglove (docs/run.md, docs/schedule.md)."""
+[--duration S] [--closed-loop]] [--max-duration S] [--estimator FILE.toml] [-o LOGDIR]
+[--sim [--truth-scene FILE] | --rig PORTSFILE] [--live]``: one run of a schedule or a planned
+tilt maneuver on the rig, from connection to the safe state, logged (CSV streams and an MCAP
+file), optionally served live to Foxglove (docs/run.md, docs/schedule.md)."""
 
 import sys
 import time
@@ -57,6 +57,12 @@ def register(sub) -> None:
         type=Path,
         metavar="FILE",
         help="TOML with an [estimator] table; its keys override the rig configuration's",
+    )
+    p.add_argument(
+        "--max-duration",
+        type=float,
+        metavar="S",
+        help="refuse a schedule longer than S seconds (default 600)",
     )
     p.add_argument("-o", "--out", type=Path, help="log folder (default: out/runs/<time>-<scene>)")
     p.add_argument("--sim", action="store_true", help="start the simulated rig in this process")
@@ -148,6 +154,7 @@ def _run(args) -> int:
             meta={"command": sys.argv},
             live_port=args.live_port if args.live else None,
             on_live=_announce_live,
+            announce=lambda line: print(line, flush=True),
         )
     except (GyrohostError, SceneError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -166,6 +173,8 @@ def _request(args):
     target = None
     if args.target_tilt is None and (args.closed_loop or args.replan_thread):
         raise CliError("--closed-loop and --replan-thread need --target-tilt")
+    if args.max_duration is not None and not args.max_duration > 0:  # NaN too
+        raise CliError(f"--max-duration {args.max_duration}: must be a positive number of s")
     if args.target_tilt is not None:
         target = Target(
             args.target_tilt,
@@ -186,6 +195,7 @@ def _request(args):
         sim=args.sim,
         ports_file=args.rig,
         ports={"imu": args.imu, "wheels": args.wheels, "servos": args.servos},
+        max_schedule_s=args.max_duration,
     )
 
 
@@ -197,9 +207,9 @@ def report(result, config: str = "sim-rig") -> int:
     """Print how a run ended and where its log is (an identification run: the command that
     fits it, with the rig configuration ``config``); returns its exit status."""
     from gyrohost.run import jitter_line
-    from gyrohost.run.health import fails_run, health_lines
+    from gyrohost.run.health import fails_run, health_lines, rejection_warnings
     from gyrohost.run.safe_state import describe, failed_steps
-    from gyrohost.run.summary import real_time_lost
+    from gyrohost.run.summary import link_lines, real_time_lost, sources_line
 
     s = result.summary
     print(f"log: {result.log_folder}")
@@ -219,6 +229,8 @@ def report(result, config: str = "sim-rig") -> int:
     lost = real_time_lost(s)
     if lost:
         print(f"gyrotens run: warning: {lost}", file=sys.stderr)
+    for line in link_lines(s) + rejection_warnings(s.get("estimator", {})):
+        print(f"gyrotens run: warning: {line}", file=sys.stderr)
     if "tilt_end_estimate_rad" in s:
         line = f"tilt at the end of the schedule: estimate {s['tilt_end_estimate_rad']:+.4f} rad"
         if "tilt_end_truth_rad" in s:
@@ -228,6 +240,8 @@ def report(result, config: str = "sim-rig") -> int:
         print(maneuver_line(s))
     for line in health_lines(s.get("estimator", {"nis": {}})):
         print(line)
+    if sources_line(s):
+        print(sources_line(s))
     safe = s["safe_state"]
     failed = failed_steps(safe)  # one line each, what the step reached included
     for line in failed:
@@ -246,8 +260,7 @@ def report(result, config: str = "sim-rig") -> int:
         print(f"gyrotens run: completed, but {what}", file=sys.stderr)
     else:
         print(f"gyrotens run: stopped in the safe state: {result.reason}", file=sys.stderr)
-    if not failed:
-        print(f"gyrotens run: {describe(safe)}", file=sys.stderr)
+    print(f"gyrotens run: {describe(safe)}", file=sys.stderr)  # whatever else failed
     return result.exit_status
 
 

@@ -20,7 +20,8 @@ def register(sub) -> None:
 
 
 def calibrate(args) -> int:
-    from gyrohost.drivers.errors import WheelBoardError
+    from gyrohost.commands.errors import CliError
+    from gyrohost.drivers.errors import PortBusyError, WheelBoardError
     from gyrohost.drivers.wheelboard import WheelBoard
     from gyrohost.run.wheel_faults import clear_reported_faults
 
@@ -34,6 +35,8 @@ def calibrate(args) -> int:
             if not args.no_save:
                 board.save_params()
                 print("saved to EEPROM")
+    except PortBusyError as exc:  # another process (a run) has the board
+        raise CliError(str(exc)) from None
     except (WheelBoardError, OSError) as exc:  # CalibrationError names the wheel and reason
         print(f"gyrotens wheels: {exc}", file=sys.stderr)
         return 1

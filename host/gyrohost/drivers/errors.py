@@ -125,3 +125,23 @@ class ImuTimeoutError(ImuError):
 
 class ImuConfigError(GyrohostError, ValueError):
     """An invalid IMU driver setting (rate, mounting)."""
+
+
+class PortBusyError(GyrohostError, ValueError):
+    """A serial port is held by another process: refused before a byte was sent.
+
+    Attributes: ``port``, ``pid`` and ``command`` of the holder (``""`` when it is a program
+    without a gyrotens lock file that opened the device exclusively), ``lock`` (the lock file),
+    ``key`` (the configuration key or device name of the port, ``""`` when not known).
+    """
+
+    def __init__(self, port: str, pid: str, command: str, lock, key: str = ""):
+        self.port, self.pid, self.command, self.lock, self.key = port, pid, command, lock, key
+        named = f"{port} ({key})" if key else port
+        if pid:
+            shown = command if len(command) <= 200 else command[:200] + "..."
+            holder = f"PID {pid}" + (f" ({shown})" if command else "")
+            where = f"; lock file {lock}"
+        else:
+            holder, where = "another program (it opened the device exclusively)", ""
+        super().__init__(f"{named} is in use by {holder}{where}: wait for it to end or stop it")

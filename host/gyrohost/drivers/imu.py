@@ -27,6 +27,7 @@ import numpy as np
 import serial
 
 from .errors import ImuConfigError, ImuError, ImuTimeoutError
+from .portlock import LockedSerial
 
 FRAME_LEN = 11
 HEADER = 0x55
@@ -288,7 +289,7 @@ class Bwt61Driver:
         """Open the port (idempotent); returns ``self``."""
         if self._serial is None:
             try:
-                self._serial = serial.Serial(self.port, self.baud, timeout=0)
+                self._serial = LockedSerial(self.port, self.baud, timeout=0)
             except (serial.SerialException, OSError) as exc:
                 raise ImuError(f"IMU: cannot open {self.port}: {exc}") from exc
         return self

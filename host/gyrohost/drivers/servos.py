@@ -28,11 +28,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import dynamixel_sdk as sdk
+import serial
 
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
 from gyrohost.drivers import mx12
 
 from .errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
+from .portlock import PortClaim, exclusive_serial
 
 
 @dataclass(frozen=True)
@@ -87,11 +89,40 @@ class PortHandler(sdk.PortHandler):
     def __init__(self, port_name: str, reply_timeout_s: float) -> None:
         super().__init__(port_name)
         self.reply_timeout_ms = reply_timeout_s * 1000.0
+        self._claim: PortClaim | None = None
 
     def setupPort(self, cflag_baud: int) -> bool:
-        ok = super().setupPort(cflag_baud)
-        self.ser.timeout = self.READ_SLICE_S
-        return ok
+        """(Re)open the port at ``self.baudrate``, exclusively (:mod:`gyrohost.drivers.
+        portlock`); the new claim is taken before a reopen drops the old one, so no other
+        process slips in at a baud change.
+
+        Raises
+        ------
+        PortBusyError
+            Another process holds the port.
+        """
+        claim = PortClaim(self.port_name)
+        try:
+            if self.is_open:
+                self.closePort()
+            self.ser = exclusive_serial(
+                self.port_name, self.baudrate, bytesize=serial.EIGHTBITS, timeout=self.READ_SLICE_S
+            )
+        except BaseException:
+            claim.release()
+            raise
+        self._claim, self.is_open = claim, True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+    def closePort(self) -> None:
+        try:
+            super().closePort()
+        finally:
+            if self._claim is not None:
+                self._claim.release()
+                self._claim = None
 
     def setPacketTimeout(self, packet_length: int) -> None:
         self.packet_start_time = self.getCurrentTime()

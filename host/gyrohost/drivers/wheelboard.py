@@ -46,7 +46,8 @@ class WheelBoard:
     Parameters
     ----------
     port : str or serial-like object
-        Device path (opened with pyserial at 1000000 baud) or an object with ``read``/``write``.
+        Device path (opened exclusively at 1000000 baud, :mod:`gyrohost.drivers.portlock`) or
+        an object with ``read``/``write``.
     heartbeat_period_s : float, s
         Period of the idle background heartbeat, and the shortest interval between two frames
         :meth:`heartbeat` sends; must be well below the board's HEARTBEAT_MS.
@@ -74,9 +75,9 @@ class WheelBoard:
         reply_timeout_s: float = 0.5,
     ):
         if isinstance(port, str):
-            import serial
+            from .portlock import LockedSerial
 
-            port = serial.Serial(port, BAUD, timeout=0.01)
+            port = LockedSerial(port, BAUD, timeout=0.01)
         self._port = port
         self.heartbeat_period_s = heartbeat_period_s
         self.reply_timeout_s = reply_timeout_s

@@ -292,6 +292,7 @@ class TensegrityEKF:
             self.advance(t_s)
             self.stale_last = False
             return True
+        self.monitors[source].out_of_order += 1
         self.stale_last = self.t - t_s > self.config.max_lag_s
         if self.stale_last:
             self.monitors[source].stale += 1

@@ -20,6 +20,8 @@ class SourceMonitor:
         Time of the last sample tested (None before the first).
     accepted, rejected, stale, timeouts : int
         Samples fused, samples rejected by the gate, samples too old to fuse, time-outs raised.
+    out_of_order : int
+        Samples older than the filter's time when they came (the stale ones among them).
     timed_out : bool
     """
 
@@ -30,6 +32,7 @@ class SourceMonitor:
     rejected: int = 0
     stale: int = 0
     timeouts: int = 0
+    out_of_order: int = 0
     timed_out: bool = False
     last_rejected: bool = False
 
@@ -63,5 +66,6 @@ class SourceMonitor:
             "accepted": self.accepted,
             "rejected": self.rejected,
             "stale": self.stale,
+            "out_of_order": self.out_of_order,
             "timeouts": self.timeouts,
         }

@@ -50,10 +50,9 @@ from gyrohost.geometry import rotation_zyx, turn_from_first
 from gyrohost.ident import fit as output_fit
 from gyrohost.ident import profile
 from gyrohost.ident.errors import IdentDataError
-from gyrohost.ident.logs import windowed
+from gyrohost.ident.logs import read_fused, windowed
 from gyrohost.ident.params import Param, apply
-from gyrohost.run.errors import LogError
-from gyrohost.run.replay import read_inputs, started
+from gyrohost.run.replay import started
 from gyrotensegrity import Model, Scene
 
 from .errors import FilterFitError
@@ -81,7 +80,7 @@ SUGGESTED_TURN_RAD = np.radians(30.0)
 
 @dataclass(frozen=True)
 class FilterRecording:
-    """A log's streams as the filter fuses them (:func:`gyrohost.run.replay.read_inputs`),
+    """A log's streams as the filter fuses them (:func:`gyrohost.ident.logs.read_fused`),
     from the start of its ``lead_in`` phase (or its first sample) to its ``rampdown`` (or its
     end), at most ``until_s`` long."""
 
@@ -89,19 +88,17 @@ class FilterRecording:
     data: dict
 
 
-def load(folder, until_s: float | None = None) -> FilterRecording:
-    """The :class:`FilterRecording` of the log folder ``folder``.
+def load(folder, until_s: float | None = None, warn=None) -> FilterRecording:
+    """The :class:`FilterRecording` of the log folder ``folder``; rows not to be fused left out
+    and told to ``warn`` (:func:`gyrohost.ident.logs.read_fused`).
 
     Raises
     ------
     IdentDataError
-        The log cannot be read, or holds fewer than two IMU samples in the window.
+        The log cannot be read, too many of its rows are left out, or it holds fewer than two
+        IMU samples in the window.
     """
-    try:
-        data = read_inputs(folder)
-    except LogError as exc:
-        raise IdentDataError(str(exc)) from None
-    data.pop(streams.ESTIMATE, None)  # the span is the phases', not the run estimator's
+    data = read_fused(folder, warn, every=False)  # the span is the phases', not the estimate's
     if streams.IMU not in data:
         raise IdentDataError(f"{folder}: stream '{streams.IMU}' missing")
     data, start = windowed(folder, data, until_s)

@@ -14,10 +14,18 @@ from gyrohost.estimator.sample_feed import regular_times, wheel_times
 from gyrohost.ident.errors import IdentDataError
 from gyrohost.ident.forward import Recording, recording
 from gyrohost.run.errors import LogError
-from gyrohost.run.log import read_meta, read_stream, read_streams
+from gyrohost.run.log import read_meta, read_stream
+from gyrohost.run.log_screen import LogScreen
+from gyrohost.run.replay import FUSED
 from gyrohost.run.summary import real_time_lost
 
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
+MAX_BAD_SHARE = 0.01
+"""Largest share of a fused stream's rows that may be left out (:mod:`gyrohost.run.log_screen`)
+for a log to be identified from. The rows left out are few and scattered in a log a power loss
+or a stray edit damaged, and the fit loses little with them; more points at a recording gone
+wrong as a whole (a disk failing, a stream written twice, a link delivering garbage), whose
+other rows are no longer to be trusted either."""
 
 
 def phase_starts(events: np.ndarray) -> dict[str, float]:
@@ -99,23 +107,22 @@ def load_recording(
     until_s=None,
     segment_s=0.0,
     segment_start="imu",
+    warn=None,
 ) -> Recording:
     """The :class:`Recording` of the log folder ``folder``; with ``until_s``, only its first
     ``until_s`` seconds (from the start of ``lead_in``, else of the log); simulated in
     segments of ``segment_s`` (0: one), a later one started as ``segment_start`` says
-    (:class:`.forward.Recording`; the ``estimate`` stream read where logged).
+    (:class:`.forward.Recording`; the ``estimate`` stream read where logged). Rows not to be
+    fused are left out (:func:`read_fused`).
 
     Raises
     ------
     IdentDataError
-        A stream is missing or unreadable, or the window is shorter than two IMU samples.
+        A stream is missing or unreadable, too many of its rows are left out, or the window is
+        shorter than two IMU samples.
     """
     folder = Path(folder)
-    names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND)
-    try:
-        data = read_streams(folder, names)
-    except LogError as exc:
-        raise IdentDataError(str(exc)) from None
+    data = read_fused(folder, warn)
     est = for_rig(config)
     if streams.IMU in data:
         # sampled on the IMU's grid, arrival-stamped in bursts: the grid back, as the run loop
@@ -150,3 +157,43 @@ def _estimate(folder: Path, t0_s: float) -> tuple[np.ndarray, np.ndarray]:
     names = est.dtype.names
     cols = [c for c in names if c.startswith("q_")] + [c for c in names if c.startswith("qdot_")]
     return est["t_s"] - t0_s, np.column_stack([est[c] for c in cols])
+
+
+def read_fused(folder: Path, warn=None, every: bool = True) -> dict:
+    """The streams of the log ``folder`` the filter fuses (all of them, or with ``every``
+    false those it has), by name; rows not to be fused left out (:mod:`gyrohost.run.log_screen`),
+    each kind told to ``warn`` (without it, a row that cannot be read is an error).
+
+    Raises
+    ------
+    IdentDataError
+        A stream is missing (with ``every``) or cannot be read, or more than
+        :data:`MAX_BAD_SHARE` of its rows were left out (:func:`refuse_damaged`).
+    """
+    screen = LogScreen(FUSED)
+    try:
+        names = FUSED if every else [n for n in FUSED if n in read_meta(folder)["streams"]]
+        data = {name: read_stream(folder, name, warn, screen) for name in names}
+    except LogError as exc:
+        raise IdentDataError(str(exc)) from None
+    refuse_damaged(screen)
+    return data
+
+
+def refuse_damaged(screen: LogScreen) -> None:
+    """Refuse a log of which more than :data:`MAX_BAD_SHARE` of a fused stream's rows were left
+    out by ``screen``, naming the stream, the kinds and the rows.
+
+    Raises
+    ------
+    IdentDataError
+    """
+    for s in screen.screens.values():
+        if s.bad > MAX_BAD_SHARE * s.rows:
+            kinds = ", ".join(f"{n} {k.replace('_', '-')}" for k, n in s.counts().items()
+                              if k != "rows" and n)  # fmt: skip
+            raise IdentDataError(
+                f"{s.path}: {s.bad} of {s.rows} rows cannot be fused ({kinds}: "
+                f"{s.bad_rows_text()}), more than the {100 * MAX_BAD_SHARE:g} % identify "
+                "accepts: record the run again"
+            )

@@ -58,17 +58,33 @@ class WheelHandler:
     """
 
     device = "wheels"
+    SEQ_MOD = 1 << 16
+    """The telemetry's sequence number counts modulo this (docs/protocol.md)."""
 
     def __init__(self, stream, n_wheels: int, config):
         self.stream, self.n_wheels = stream, n_wheels
         self.clock = DeviceClock() if config.wheel_times == "device" else None
+        self.sequence_gaps = 0  # places where telemetry frames went missing
+        self.frames_lost = 0
+        self._last_seq: int | None = None
 
     def take(self, t_s: float, v, ekf) -> None:
         """Log the sample that arrived at host time ``t_s``; fuse it unless ``ekf`` is None."""
+        self._count_gap(v.seq)
         self.stream.write(t_s, *v.omega_rad_s, v.t_us, v.seq, v.status, v.faults, *v.drive)
         t_sample_s = t_s if self.clock is None else self.clock(t_s, v.t_us)
         if ekf is not None:
             ekf.fuse_wheels(t_sample_s, np.array(v.omega_rad_s)[: self.n_wheels])
+
+    def _count_gap(self, seq: int) -> None:
+        """Count the frames missing before the one numbered ``seq`` (a corrupt frame dropped,
+        a byte stream read by another program)."""
+        if self._last_seq is not None:
+            missing = (seq - self._last_seq - 1) % self.SEQ_MOD
+            if missing:
+                self.sequence_gaps += 1
+                self.frames_lost += missing
+        self._last_seq = seq
 
 
 class ServoHandler:

@@ -12,8 +12,9 @@ status word, tilt, state) for the limits, the readout and a maneuver.
 
 A fault in the child (the filter's :class:`~gyrohost.estimator.errors.EstimatorError`) comes back
 and is raised in the loop; the child then only waits to be stopped. The child ignores the
-interrupting signals (the parent stops it after the safe state) and exits when its parent is
-gone.
+interrupting signals (the parent stops it after the safe state; it starts with them blocked, so
+a Ctrl-C during its start-up does not reach it either) and exits quietly when its parent is gone
+or has closed the pipe.
 """
 
 import math
@@ -29,7 +30,12 @@ from gyrohost.estimator.ekf import Status
 from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.errors import RunError
 from gyrohost.run.streams import IMU_FUSIONS
-from gyrohost.sigint import InterruptsHeld, ignore_interrupts
+from gyrohost.sigint import (
+    InterruptsBlocked,
+    InterruptsHeld,
+    ignore_interrupts,
+    unblock_interrupts,
+)
 
 from .errors import EstimatorProcessError
 
@@ -94,7 +100,10 @@ class EstimatorProcess:
         self._conn, child = ctx.Pipe()
         args = (child, str(scene_path), config, list(servo_strings), estimate_max_age_s)
         self._proc = ctx.Process(target=_serve, args=args, name="gyrotens-ekf", daemon=True)
-        self._proc.start()
+        # a Ctrl-C to the process group while the child's interpreter starts would end it with
+        # a traceback; it is born with the interrupts blocked (the parent's one held meanwhile)
+        with InterruptsHeld(), InterruptsBlocked():
+            self._proc.start()
         self._started_s = time.monotonic()
         child.close()
 
@@ -352,6 +361,7 @@ class _Filter:
         return {
             **health(self.innovations.tally, self.estimates.score),
             "not_fused_behind": self.skipped,
+            "sources": {name: m.counters() for name, m in self.ekf.monitors.items()},
         }
 
 
@@ -360,17 +370,18 @@ def _serve(conn, scene_path: str, config, servo_strings, max_age_s: float) -> No
     from gyrotensegrity import Model, load_scene
 
     ignore_interrupts()  # the parent stops the child once the rig is safe
+    unblock_interrupts()  # born blocked (EstimatorProcess): now ignored, they can come
     os.nice(NICE)
     try:
-        model = Model(load_scene(scene_path))
-    except Exception as exc:  # reported to the parent, which raises it
-        conn.send([("fault", EstimatorProcessError(f"estimator process: {exc!r}"))])
-        return
-    conn.send([("ready",)])
-    try:
+        try:
+            model = Model(load_scene(scene_path))
+        except Exception as exc:  # reported to the parent, which raises it
+            conn.send([("fault", EstimatorProcessError(f"estimator process: {exc!r}"))])
+            return
+        conn.send([("ready",)])
         with heap_frozen():
             _Child(conn, model, config, servo_strings, max_age_s).serve()
-    except (EOFError, BrokenPipeError):
+    except (EOFError, OSError):  # the parent closed the pipe (it ended the run) or is gone
         return
 
 

@@ -26,6 +26,11 @@ estimate has diverged: three times the largest seen on a rig whose truth lagged 
 0.25 s (17.7 mm), a quarter of the D-bar's half diagonal (0.22 m)."""
 DIVERGED_REJECTED_IN_A_ROW = 50
 """Gate rejections in a row of one source after which the estimate has diverged (0.5 s of IMU)."""
+REJECTED_WARNING_S = 0.25
+"""A source the gate refused without a break for longer than this, s, is warned about: half the
+silence after which a device ends the run (``[run] imu_silence_s``, 0.5 s), since the estimate
+ran on prediction alone for it as long as for a device half-way to that fault. Divergence
+(:data:`DIVERGED_REJECTED_IN_A_ROW`) is judged at the end only; this is any stretch."""
 RECENT = 50
 MAX_GAP_S = 0.006  # a truth sample further than this from every recent estimate is not scored
 
@@ -52,12 +57,25 @@ class NisTally:
         """Count one :class:`~gyrohost.estimator.fusion.Innovation`."""
         s = self.sources.setdefault(
             inn.source,
-            {"samples": 0, "rejected": 0, "in_a_row": 0, "nis": 0.0, "dof": len(inn.innovation)},
-        )
+            {"samples": 0, "rejected": 0, "in_a_row": 0, "nis": 0.0, "dof": len(inn.innovation),
+             "since_s": None, "longest_s": 0.0, "longest_at_s": None},
+        )  # fmt: skip
         s["samples"] += 1
         s["nis"] += inn.nis
         s["rejected"] += not inn.accepted
         s["in_a_row"] = 0 if inn.accepted else s["in_a_row"] + 1
+        self._stretch(s, inn)
+
+    @staticmethod
+    def _stretch(s: dict, inn) -> None:
+        """The longest stretch of rejections: from the first rejected sample's time to the
+        next accepted one's (to the last rejected one's while it lasts)."""
+        if not inn.accepted and s["since_s"] is None:
+            s["since_s"] = inn.t_s
+        if s["since_s"] is not None and inn.t_s - s["since_s"] > s["longest_s"]:
+            s["longest_s"], s["longest_at_s"] = inn.t_s - s["since_s"], s["since_s"]
+        if inn.accepted:
+            s["since_s"] = None
 
     def table(self) -> dict:
         """Source -> mean NIS with its bounds, samples, rejected, most recent rejections in a
@@ -65,7 +83,9 @@ class NisTally:
         out = {}
         for source, s in self.sources.items():
             row = _mean_row(s["nis"], s["samples"], s["dof"])
-            out[source] = {**row, "rejected": s["rejected"], "rejected_in_a_row": s["in_a_row"]}
+            out[source] = {**row, "rejected": s["rejected"], "rejected_in_a_row": s["in_a_row"],
+                           "longest_rejected_s": s["longest_s"],
+                           "longest_rejected_from_s": s["longest_at_s"]}  # fmt: skip
         return out
 
 
@@ -149,6 +169,18 @@ def health(nis: NisTally | None, truth: TruthScore | None) -> dict:
     out["diverged"] = bool(why)
     out["why"] = "; ".join(why)
     return out
+
+
+def rejection_warnings(table: dict) -> list[str]:
+    """The sources of a :func:`health` table the gate refused for longer than
+    :data:`REJECTED_WARNING_S` at a stretch, one line each."""
+    return [
+        f"estimator: the gate refused every {source} sample for {row['longest_rejected_s']:.2f} s "
+        f"from t = {row['longest_rejected_from_s']:.2f} s (more than {REJECTED_WARNING_S:g} s): "
+        "the estimate ran on prediction for it"
+        for source, row in table.get("nis", {}).items()
+        if row.get("longest_rejected_s", 0.0) > REJECTED_WARNING_S
+    ]
 
 
 def fails_run(table: dict) -> bool:

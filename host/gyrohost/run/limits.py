@@ -11,8 +11,9 @@ from gyrohost.estimator.ekf import Status
 from gyrohost.run.errors import LimitBreach, RunError, ScheduleRefused
 
 
-def check_schedule(schedule: Schedule, servos, run=None) -> None:
-    """Refuse a schedule that breaks any servo's or wheel limit (before anything moves).
+def check_schedule(schedule: Schedule, servos, run=None, max_s: float = math.inf) -> None:
+    """Refuse a schedule that breaks any servo's or wheel limit or lasts longer than ``max_s``
+    seconds (before anything moves).
 
     Each scheduled string must be wound by a configured servo; its rest lengths must lie in
     that servo's ``[min_length_m, max_length_m]`` and change no faster than ``max_speed_m_s``.
@@ -35,6 +36,11 @@ def check_schedule(schedule: Schedule, servos, run=None) -> None:
         one = Schedule((name,), schedule.t, schedule.rest_length[:, [i]], schedule.name)
         problems += one.problems(Limits.from_servos([servo]))
     problems += wheel_problems(schedule, run or RunTable())
+    if schedule.t_end > max_s:
+        problems.append(
+            f"it lasts {schedule.t_end:g} s, more than the {max_s:g} s a run may play "
+            "(gyrotens run --max-duration S allows longer)"
+        )
     if problems:
         raise ScheduleRefused(
             f"schedule {schedule.name} refused, nothing moved: " + "; ".join(problems)

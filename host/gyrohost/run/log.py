@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LogError, LogWriteError
+from .log_screen import LogScreen
 
 FORMAT = "gyrotens-log"
 FORMAT_VERSION = 1
@@ -363,20 +364,26 @@ def read_meta(folder: Path | str) -> dict:
 
 
 def read_stream(
-    folder: Path | str, name: str, warn: Callable[[str], None] | None = None
+    folder: Path | str,
+    name: str,
+    warn: Callable[[str], None] | None = None,
+    screen: LogScreen | None = None,
 ) -> np.ndarray:
     """Read one stream as a structured array (one field per column).
 
     A row that cannot be read (a field that is not a number or not ASCII, too few or too many
     fields: a log damaged on disk or cut by a power loss) raises ``LogError`` naming the file,
     row and column; with ``warn`` given the row is skipped and ``warn`` gets that message. A last
-    row without its newline (cut short by a crash) is dropped, and said so to ``warn``.
+    row without its newline (cut short by a crash) is dropped, and said so to ``warn``. With a
+    ``screen`` that checks this stream (:mod:`gyrohost.run.log_screen`), rows not to be fused
+    are left out and counted there, each kind warned about once.
 
     Raises
     ------
     LogError
         The stream is not in the log (file or schema missing), the file cannot be read or has no
-        header line, or (without ``warn``) a row cannot be read.
+        header line, or (without ``warn``) a row cannot be read; screened: a header other than
+        the declared columns, no rows, or none to fuse.
     """
     path = Path(folder) / f"{name}.csv"
     schema = read_meta(folder).get("streams", {}).get(name)
@@ -391,6 +398,7 @@ def read_stream(
     header = lines[0].split(",")
     if header == [""]:
         raise LogError(f"{path}: empty (no header line)")
+    checks = None if screen is None else screen.stream(name, path, header, schema)
     rows = lines[1:]
     if rows and rows.pop() and warn is not None:
         warn(
@@ -402,11 +410,16 @@ def read_stream(
         fields = line.split(",")
         problem = _row_problem(fields, header, text)
         if problem is None:
-            good.append(fields)
-        elif warn is None:
+            if checks is None or checks.keep(i + 2, line, fields):
+                good.append(fields)
+            continue
+        if warn is None:
             raise LogError(f"{path}: row {i + 2}{problem}")
-        else:
-            warn(f"{path}: row {i + 2}{problem}; row skipped")
+        warn(f"{path}: row {i + 2}{problem}; row skipped")
+        if checks is not None:
+            checks.unreadable(i + 2)
+    if checks is not None:
+        checks.finish(warn)
     width = {c: max((len(f[j]) for f in good), default=1) for j, c in enumerate(header)}
     dtype = [(c, f"U{max(width[c], 1)}" if c in text else "f8") for c in header]
     out = np.empty(len(good), dtype=dtype)
@@ -420,8 +433,10 @@ def read_streams(
     names,
     warn: Callable[[str], None] | None = None,
     without: str = "left out",
+    screen: LogScreen | None = None,
 ) -> dict[str, np.ndarray]:
-    """The streams ``names`` of a log folder (:func:`read_stream` each), by name.
+    """The streams ``names`` of a log folder (:func:`read_stream` each, with ``screen``), by
+    name.
 
     Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
     are skipped and a stream that cannot be read at all is left out, said to ``warn`` as
@@ -430,7 +445,7 @@ def read_streams(
     out = {}
     for name in names:
         try:
-            out[name] = read_stream(folder, name, warn)
+            out[name] = read_stream(folder, name, warn, screen)
         except LogError as exc:
             if warn is None:
                 raise

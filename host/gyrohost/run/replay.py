@@ -4,7 +4,10 @@ Input: a log folder (``gyrohost.run.log``) with the streams of :mod:`.streams` (
 ``wheels``, ``servos``, ``command``; any but ``imu`` may be missing). A damaged log is taken as a
 power loss or a bad disk leaves it: a row that cannot be read is skipped, a stream whose file is
 missing or empty is left out, each with a warning naming the file, row and column (to the
-caller's ``warn`` and into ``summary.warnings`` of the output). The scene comes from ``scene`` in
+caller's ``warn`` and into ``summary.warnings`` of the output). Rows of the fused streams that
+read but are no samples (a value not finite, time running backwards, a repeated row) are left
+out, counted per stream in ``summary.log_rows`` and warned about per kind; so is a stream whose
+header is not its declared columns (:mod:`.log_screen`). The scene comes from ``scene`` in
 ``meta.json`` (a path, relative to the log folder or the working directory) unless given; the
 estimator configuration from ``estimator`` in ``meta.json`` (a table of :mod:`.config` keys)
 unless given.
@@ -33,6 +36,7 @@ from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.errors import LogError
 from gyrohost.run.log import RunLog, check_new_log_folder, read_meta, read_streams
+from gyrohost.run.log_screen import LogScreen
 from gyrohost.run.streams import INNOVATION_COMPONENTS
 from gyrotensegrity import Model, load_scene
 
@@ -140,19 +144,25 @@ def compare_live(live, times, states, layout) -> dict:
     return out
 
 
-def read_inputs(log: Path, warn: Callable[[str], None] | None = None) -> dict:
+FUSED = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND)
+"""The streams the filter fuses: their rows are screened (:mod:`gyrohost.run.log_screen`)."""
+
+
+def read_inputs(log: Path, warn: Callable[[str], None] | None = None, screen=None) -> dict:
     """The input streams of a log folder, as structured arrays.
 
     Without ``warn`` a stream that cannot be read raises ``LogError``; with it, unreadable rows
     are skipped and a stream whose file is missing or empty is left out, each told to ``warn``.
+    ``screen`` (a :class:`~gyrohost.run.log_screen.LogScreen`) leaves out and counts the rows
+    not to be fused; default: one of :data:`FUSED`, its counts then lost.
     """
     meta = read_meta(log)
-    names = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND, streams.ESTIMATE)
-    present = [n for n in names if n in meta.get("streams", {})]
-    return read_streams(log, present, warn, "replayed without it")
+    present = [n for n in (*FUSED, streams.ESTIMATE) if n in meta.get("streams", {})]
+    screen = LogScreen(FUSED) if screen is None else screen
+    return read_streams(log, present, warn, "replayed without it", screen)
 
 
-def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
+def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None, screen=None):
     """Model, configuration, input streams and initial filter of a log folder.
 
     The filter runs over the span of the run's estimator (the log's ``estimate`` stream; else
@@ -161,7 +171,7 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     them. It starts from the scene's initial state with the last
     wheel speeds, servo lengths and command before that time; earlier samples are left out.
 
-    ``warn``: as :func:`read_inputs`.
+    ``warn``, ``screen``: as :func:`read_inputs`.
 
     Returns
     -------
@@ -175,7 +185,7 @@ def prepare(log, scene=None, config: EstimatorConfig | None = None, warn=None):
     if config is None:
         config = config_from_dict(meta.get("estimator", {}), f"{log}/meta.json")
     model = Model(load_scene(scene_path))
-    data = read_inputs(log, warn)
+    data = read_inputs(log, warn, screen)
     if streams.IMU not in data or not len(data[streams.IMU]):
         raise LogError(f"{log}: no imu samples to replay")
     return started(model, config, data)
@@ -243,7 +253,9 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
     Returns
     -------
     dict
-        Counters per source, the final status word, the warnings and the comparison with the
+        Counters per source, the final status word, the warnings, the input rows read and left
+        out per fused stream and kind (``log_rows``, :mod:`gyrohost.run.log_screen`), the
+        comparison with the
         run's estimate (``compare_live``, :func:`compare_live`); also stored in
         ``out/meta.json``.
     """
@@ -257,7 +269,8 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
         if warn is not None:
             warn(message)
 
-    ekf, data = prepare(log, scene, config, note)
+    screen = LogScreen(FUSED)
+    ekf, data = prepare(log, scene, config, note, screen)
     live = data.pop(streams.ESTIMATE, None)
     out_meta = {
         "replay_of": str(log),
@@ -273,6 +286,7 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
             "final_status": int(ekf.status),
             "sources": {s: m.counters() for s, m in ekf.monitors.items()},
             "warnings": warnings,
+            "log_rows": screen.counts(),
             "compare_live": compare_live(live, writer.times, writer.states, ekf.layout),
         }
         run.update_meta(created_unix_s=meta.get("created_unix_s", 0.0), summary=summary)

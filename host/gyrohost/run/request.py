@@ -13,12 +13,12 @@ port is opened or a log folder made.
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gyrohost.control.maneuver import Maneuver, Target
 from gyrohost.run.errors import RunRequestError
-from gyrohost.run.settings import RunResult
+from gyrohost.run.settings import RunResult, RunSettings
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,8 @@ class RunRequest:
     sim : bool
         Start a simulated rig of the run's own; else the configuration's ports, ``ports_file``
         (a running ``gyrotens rig``) and ``ports`` (device -> path) say where the devices are.
+    max_schedule_s : float, optional
+        Longest schedule played, s (default: :attr:`RunSettings.max_schedule_s`).
     """
 
     config: str | Path = "sim-rig"
@@ -58,17 +60,27 @@ class RunRequest:
     sim: bool = False
     ports_file: Path | None = None
     ports: dict[str, str] = field(default_factory=dict)
+    max_schedule_s: float | None = None
 
 
 @dataclass(frozen=True)
 class PreparedRun:
-    """A request loaded and checked: the configuration, the estimator's keys, what to play and
-    the log folder (not yet made)."""
+    """A request loaded and checked: the configuration, the estimator's keys, what to play, the
+    log folder (not yet made) and the run's settings."""
 
     config: object
     estimator: object
     schedule: object
     out: Path
+    settings: RunSettings
+
+    def duration_line(self) -> str:
+        """What will play and for how long, against the longest allowed."""
+        schedule = getattr(self.schedule, "schedule", self.schedule)
+        return (
+            f"schedule {schedule.name}: {schedule.t_end:g} s "
+            f"(at most {self.settings.max_schedule_s:g} s allowed)"
+        )
 
 
 def prepare(request: RunRequest) -> PreparedRun:
@@ -103,25 +115,33 @@ def prepare(request: RunRequest) -> PreparedRun:
         config = wired(config, request)
     out = Path(request.out or default_log_folder(schedule))
     check_new_log_folder(out)
-    return PreparedRun(config, estimator, schedule, out)
+    settings = RunSettings.for_rig(config)
+    if request.max_schedule_s is not None:
+        settings = replace(settings, max_schedule_s=request.max_schedule_s)
+    return PreparedRun(config, estimator, schedule, out, settings)
 
 
 def execute(
-    request: RunRequest, progress=None, meta=None, live_port=None, on_live=None
+    request: RunRequest, progress=None, meta=None, live_port=None, on_live=None, announce=None
 ) -> RunResult:
     """Prepare ``request`` and run it, from connection to the safe state.
 
     ``progress`` is the run loop's status callback; ``meta`` extra keys for the log's
     ``meta.json``; ``live_port`` starts a Foxglove live view there, whose address goes to
-    ``on_live(url)`` before the run starts. The result says how the run ended; every exit, an
-    exception's too, leaves the rig in the safe state.
+    ``on_live(url)`` before the run starts; ``announce`` gets the schedule's duration line
+    (:meth:`PreparedRun.duration_line`) once the request is checked. The result says how the run
+    ended; every exit, an exception's too, leaves the rig in the safe state.
     """
-    from gyrohost.run.devices import check_real_rig
+    from gyrohost.drivers.portlock import claim_ports
+    from gyrohost.run.devices import check_real_rig, device_ports
     from gyrohost.run.sequence import RunLoop
     from gyrohost.run.simulated import run_simulated
 
     run = prepare(request)
+    if announce is not None:
+        announce(run.duration_line())
     options = {"estimator": run.estimator, "progress": progress, "meta": meta or {}}
+    options["settings"] = run.settings
     try:
         if live_port is not None:
             options["live"] = _live_view(run.config, live_port, on_live)
@@ -129,7 +149,8 @@ def execute(
             return run_simulated(run.config, run.schedule, run.out, **options)
         loop = RunLoop(run.config, run.schedule, run.out, **options)
         check_real_rig(loop.config)  # after the loop checked the scene, schedule, estimator
-        return loop.run()
+        with claim_ports(device_ports(loop.config)):  # before a log folder or a byte sent
+            return loop.run()
     finally:
         if "live" in options:
             options["live"].close()  # also when the run never started

@@ -164,7 +164,8 @@ class RunLoop:
         ScheduleRefused
             Before anything is opened or moved.
         """
-        check_schedule(self.schedule, self.config.servos.servo, self.config.run)
+        check_schedule(self.schedule, self.config.servos.servo, self.config.run,
+                       self.settings.max_schedule_s)  # fmt: skip
         with InterruptsRaised():  # SIGTERM, SIGHUP: as Ctrl-C
             self.log = RunLog(self.log_folder, run_meta(self), self.sinks)
             try:

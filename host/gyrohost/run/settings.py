@@ -42,6 +42,11 @@ class RunSettings:
     """The tick logs the estimate at its own time, the newest sample's (a prediction to the
     tick would cost a tenth of the loop); one this much older is predicted to the tick, so
     silent sources time out, s."""
+    max_schedule_s: float = 600.0
+    """Longest schedule a run plays, s (ten minutes: thirty times the longest shipped schedule,
+    ``identify``'s 19.7 s, and about 0.4 GB of log at the simulated rig's 0.6 MB/s); a longer
+    one is refused before anything moves, as more likely a mistake (milliseconds written as
+    seconds) than a plan. ``gyrotens run --max-duration`` sets another."""
     estimator_max_lag_s: float = 1.0
     """The estimator runs in its own process; its newest estimate this far behind the loop
     ends the run (the limits and a maneuver would act on a stale estimate), s."""

@@ -31,9 +31,10 @@ def run_simulated(
     """
     if scene is not None:
         config = replace(config, scene=str(Path(scene).resolve()))
-    check_schedule(getattr(schedule, "schedule", schedule), config.servos.servo, config.run)
-    rate_hz = (kwargs.get("settings") or RunSettings()).rate_hz
-    with RigProcess(config, period_s=1.0 / rate_hz) as rig:
+    settings = kwargs.get("settings") or RunSettings()
+    check_schedule(getattr(schedule, "schedule", schedule), config.servos.servo, config.run,
+                   settings.max_schedule_s)  # fmt: skip
+    with RigProcess(config, period_s=1.0 / settings.rate_hz) as rig:
         return RunLoop(with_ports(config, rig.paths), schedule, log_folder, rig=rig, **kwargs).run()
 
 

@@ -36,6 +36,7 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         "rows": {name: s.rows for name, s in loop.log.streams.items()},
         "not_fused": loop.dispatcher.skipped,
         "servo_comm_retries": getattr(loop.servo_worker, "comm_errors_total", 0),
+        "links": link_counts(loop),
         "duration_s": loop.now(),
         "schedule_purpose": loop.schedule.purpose,
     }
@@ -67,6 +68,65 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
             loop.event("warning", lost)
     loop.event("timing", jitter_line(timing))
     return out
+
+
+def link_counts(loop) -> dict:
+    """What each device's link lost during the run: the IMU parser's bad checksums, unknown
+    frame types and frames missing from its sequence; the wheel board's frames dropped by kind
+    (``bad_crc``, ...), the gaps in its telemetry's sequence numbers (a reboot restarts them:
+    one gap) and the frames missing there, telemetry the client's queue dropped."""
+    out = {}
+    stats = getattr(loop.imu, "stats", None)
+    if stats is not None:
+        out["imu"] = {"bad_checksums": stats.corrupt_frames, "unknown_types": stats.unknown_type,
+                      "frames_dropped": stats.dropped_frames}  # fmt: skip
+    decoder = getattr(loop.wheels, "decoder", None)
+    if decoder is not None:
+        handler = getattr(loop.dispatcher, "handlers", {}).get("wheels")
+        out["wheels"] = {
+            "crc_errors": decoder.dropped.get("bad_crc", 0),
+            "frames_dropped": dict(decoder.dropped),
+            "sequence_gaps": getattr(handler, "sequence_gaps", 0),
+            "frames_lost": getattr(handler, "frames_lost", 0),
+            "queue_dropped": loop.wheels.telemetry_dropped,
+        }
+    return out
+
+
+def link_lines(summary: dict) -> list[str]:
+    """One line per device link that lost frames (a run's ``summary``); none when nothing was
+    lost."""
+    lines = []
+    imu = summary.get("links", {}).get("imu", {})
+    if any(imu.values()):
+        lines.append(f"IMU link: {imu['bad_checksums']} bad checksums, {imu['unknown_types']} "
+                     f"unknown frame types, {imu['frames_dropped']} frames dropped")  # fmt: skip
+    wheels = summary.get("links", {}).get("wheels", {})
+    lost = {k: v for k, v in wheels.items() if k not in ("crc_errors", "frames_dropped") and v}
+    if wheels.get("frames_dropped") or lost:
+        dropped = ", ".join(f"{n} {kind}" for kind, n in wheels["frames_dropped"].items())
+        lines.append(
+            f"wheel board link: {wheels['crc_errors']} CRC errors ({dropped or 'no frame'} "
+            f"dropped), {wheels['sequence_gaps']} sequence gaps ({wheels['frames_lost']} frames "
+            f"lost), {wheels['queue_dropped']} dropped by the host's queue"
+        )
+    if summary.get("servo_comm_retries"):
+        lines.append(f"servo bus: {summary['servo_comm_retries']} reads or writes retried")
+    return lines
+
+
+def sources_line(summary: dict) -> str | None:
+    """The estimator's samples per source (a run's ``summary``): fused, rejected by the gate,
+    out of order (and of those too old to fuse), time-outs; None if the estimator never ran."""
+    sources = summary.get("estimator", {}).get("sources", {})
+    if not sources:
+        return None
+    parts = [
+        f"{name} {c['accepted']} fused, {c['rejected']} rejected, {c['out_of_order']} out of "
+        f"order ({c['stale']} stale), {c['timeouts']} time-outs"
+        for name, c in sources.items()
+    ]
+    return "estimator samples: " + "; ".join(parts)
 
 
 def real_time_lost(summary: dict) -> str | None:

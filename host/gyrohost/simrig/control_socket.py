@@ -18,10 +18,10 @@ Ports file::
 
 import os
 import socket
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from gyrohost.drivers.portlock import runtime_dir
 from gyrotensegrity.textfile import read_toml
 
 from .errors import ControlError, PortsFileError
@@ -35,10 +35,7 @@ def default_ports_file() -> Path:
     """Where ``gyrotens rig`` writes its ports by default: ``$XDG_RUNTIME_DIR/gyrotens/
     rig-ports.toml`` (a per-user runtime directory), else ``<tmp>/gyrotens-<uid>/
     rig-ports.toml``."""
-    runtime = os.environ.get("XDG_RUNTIME_DIR")
-    if runtime:
-        return Path(runtime) / "gyrotens" / "rig-ports.toml"
-    return Path(tempfile.gettempdir()) / f"gyrotens-{os.getuid()}" / "rig-ports.toml"
+    return runtime_dir() / "rig-ports.toml"
 
 
 def control_path(ports_file: Path) -> Path:

@@ -7,6 +7,7 @@ runs the same in this process and on a Dask worker: the model is built inside th
 import hashlib
 import json
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,25 +50,15 @@ class Task:
     source: str
 
 
-def tasks(spec: Spec, values: list) -> list:
-    """The :class:`Task` of every case (``values``: one tuple of axis values per case)."""
-    out = []
+def tasks(spec: Spec, values: Iterable[tuple]) -> Iterator[Task]:
+    """The :class:`Task` of every case, one at a time (``values``: one tuple of axis values
+    per case)."""
     for k, case in enumerate(values):
         scene = apply(spec.scene, spec.axes, case)
         key = json.dumps([scene, spec.integrator, spec.record, __version__], sort_keys=True)
         case_id = hashlib.sha256(key.encode()).hexdigest()[:16]
-        out.append(
-            Task(
-                k,
-                case_id,
-                case,
-                scene,
-                spec.integrator,
-                tuple(spec.record),
-                f"{spec.name} case {k}",
-            )
-        )
-    return out
+        yield Task(k, case_id, case, scene, spec.integrator, tuple(spec.record),
+                   f"{spec.name} case {k}")  # fmt: skip
 
 
 def run_case(task: Task) -> dict:

@@ -8,3 +8,7 @@ from gyrohost.errors import GyrohostError
 
 class SpecError(GyrohostError, ValueError):
     """A sweep spec is unreadable or wrong; the message names the file and the key."""
+
+
+class SweepSizeError(SpecError):
+    """A sweep has more cases than allowed; nothing ran."""

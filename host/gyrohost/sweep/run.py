@@ -9,6 +9,7 @@ failed case is (a lost worker deserves another try).
 
 import json
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,7 +17,35 @@ from gyrohost.parallel import Executor, Failure
 
 from . import plots
 from .case import run_case, tasks
-from .spec import Spec, cases
+from .errors import SweepSizeError
+from .spec import Spec, case_count, cases
+
+MAX_CASES = 10_000
+"""Cases a sweep may have unless the user allows more (``--max-cases``, ``--yes``): every case's
+row (a few kB with its scene) is held until the table is written, and at the shipped sweep's
+fraction of a second a case, ten thousand already take hours on a workstation. A larger count is
+more often a mistyped ``num`` than a plan."""
+
+
+def check_size(spec: Spec, max_cases: int | None) -> int:
+    """The number of cases of ``spec`` (:func:`.spec.case_count`), refused above ``max_cases``
+    (``None``: any number).
+
+    Raises
+    ------
+    SweepSizeError
+        More cases than ``max_cases``; the message says how many, from which axes, and how to
+        allow them.
+    """
+    n = case_count(spec)
+    if max_cases is not None and n > max_cases:
+        sizes = " x ".join(f"{a.name} {len(a.values)}" for a in spec.axes)
+        how = sizes if spec.sampling == "grid" else f"sweep.cases = {n}"
+        raise SweepSizeError(
+            f"{spec.path}: {n} cases ({how}), more than the {max_cases} allowed: check the "
+            "axes' num (a typo?), or allow them with --max-cases N (or --yes)"
+        )
+    return n
 
 
 @dataclass
@@ -30,27 +59,41 @@ class SweepResult:
     files: list = field(default_factory=list)
 
 
-def run_sweep(spec: Spec, out: Path, executor: Executor) -> SweepResult:
+def run_sweep(spec: Spec, out: Path, executor: Executor, on_first=None) -> SweepResult:
     """Run the cases of ``spec`` not yet finished in ``out`` and write the table and figures.
+
+    The caller checks the number of cases first (:func:`.spec.case_count`): every case's row is
+    held until the table is written.
 
     Parameters
     ----------
     executor : gyrohost.parallel.Executor
         Entered (``with``) by the caller; the cases run with ``keep_going``.
+    on_first : callable ``on_first(pending, first_s)``, optional
+        With more than one case to run, the first runs alone; then this gets the number of
+        cases to run and the first one's wall time, s (to estimate the rest's).
     """
     out = Path(out)
     folder = out / "cases"
     folder.mkdir(parents=True, exist_ok=True)
     (out / "spec.toml").write_text(spec.path.read_text())
-    todo = tasks(spec, cases(spec))
+    todo = list(tasks(spec, cases(spec)))
     done = {t.case_id: _read_case(folder / f"{t.case_id}.json") for t in todo}
     pending = [t for t in todo if done[t.case_id] is None or done[t.case_id]["error"]]
 
-    def keep(k, result):
-        task = pending[k]
-        done[task.case_id] = _write_case(folder, spec, task, result)
+    def keeper(offset):
+        def keep(k, result):
+            task = pending[offset + k]
+            done[task.case_id] = _write_case(folder, spec, task, result)
 
-    executor.map(run_case, pending, keep_going=True, on_done=keep)
+        return keep
+
+    first = 1 if on_first is not None and len(pending) > 1 else 0
+    if first:
+        start = time.perf_counter()
+        executor.map(run_case, pending[:1], keep_going=True, on_done=keeper(0))
+        on_first(len(pending), time.perf_counter() - start)
+    executor.map(run_case, pending[first:], keep_going=True, on_done=keeper(first))
     rows = [done[t.case_id] for t in todo]
     result = SweepResult(
         rows,

@@ -2,13 +2,14 @@
 
 :func:`load_spec` reads and checks a spec; every mistake is a :class:`SpecError` naming the file
 and the key (``dbar-turn.toml: axes[1].key: 'bars.*.wheel.spn': no key 'spn' in bars.*.wheel``).
-:func:`cases` expands the axes into the cases (grid or Latin hypercube) and :func:`apply` writes
-one case's values into a copy of the base scene's data by dotted key.
+:func:`case_count` says how many cases a spec has without making them, :func:`cases` expands the
+axes into the cases one at a time (grid or Latin hypercube) and :func:`apply` writes one case's
+values into a copy of the base scene's data by dotted key.
 """
 
 import copy
-import itertools
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,13 +46,41 @@ SAMPLINGS = ("grid", "lhs")
 
 
 @dataclass(frozen=True)
+class Linear(Sequence):
+    """``num`` evenly spaced values from ``start`` to ``stop``, both included: the values of
+    ``numpy.linspace``, bit for bit (case ids hash them), each computed when asked for, so a
+    ``num`` mistyped a thousand times too large costs nothing before the sweep's size is
+    checked (:func:`case_count`)."""
+
+    start: float
+    stop: float
+    num: int
+
+    def __len__(self) -> int:
+        return self.num
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return tuple(self[i] for i in range(*k.indices(self.num)))
+        if k < 0:
+            k += self.num
+        if not 0 <= k < self.num:
+            raise IndexError(f"value {k} of {self.num}")
+        if k == self.num - 1 and self.num > 1:
+            return self.stop
+        step = (self.stop - self.start) / max(self.num - 1, 1)
+        return float(k * step + self.start) if step != 0.0 else self.start
+
+
+@dataclass(frozen=True)
 class Axis:
-    """One swept parameter: ``values`` written at the dotted scene ``key`` by ``op``."""
+    """One swept parameter: ``values`` (a tuple, a :class:`Linear` range, or for a Latin
+    hypercube its interval) written at the dotted scene ``key`` by ``op``."""
 
     name: str
     key: str
     op: str
-    values: tuple
+    values: Sequence[float]
 
 
 @dataclass
@@ -261,8 +290,7 @@ def _range(table, key, sampling, fail) -> tuple:
         if not start < stop:
             fail(key, f"start {start} must be below stop {stop}")
         return (float(start), float(stop))
-    num = _count(table.get("num"), f"{key}.num", fail)
-    return tuple(float(v) for v in np.linspace(start, stop, num))
+    return Linear(float(start), float(stop), _count(table.get("num"), f"{key}.num", fail))
 
 
 def _quantity(value, key, fail) -> str:
@@ -363,14 +391,29 @@ def _changed(old, op, v):
     return v  # set; stretch of a single number sets it
 
 
-def cases(spec: Spec) -> list:
-    """The cases' axis values: tuples in axis order (grid product or Latin hypercube)."""
+def case_count(spec: Spec) -> int:
+    """How many cases ``spec`` has, without making them."""
     if spec.sampling == "grid":
-        return list(itertools.product(*(a.values for a in spec.axes)))
+        return math.prod(len(a.values) for a in spec.axes)
+    return spec.n_cases
+
+
+def cases(spec: Spec) -> Iterator[tuple]:
+    """The cases' axis values, one tuple in axis order at a time (grid product, the last axis
+    fastest, or Latin hypercube); check :func:`case_count` first."""
+    if spec.sampling == "grid":
+        sizes = [len(a.values) for a in spec.axes]
+        for k in range(math.prod(sizes)):
+            digits = []
+            for n in reversed(sizes):
+                k, i = divmod(k, n)
+                digits.append(i)
+            yield tuple(a.values[i] for a, i in zip(spec.axes, reversed(digits), strict=True))
+        return
     from scipy.stats import qmc
 
     unit = qmc.LatinHypercube(d=len(spec.axes), rng=np.random.default_rng(spec.seed))
     points = unit.random(spec.n_cases)
     lo = np.array([a.values[0] for a in spec.axes])
     hi = np.array([a.values[1] for a in spec.axes])
-    return [tuple(float(v) for v in lo + p * (hi - lo)) for p in points]
+    yield from (tuple(float(v) for v in lo + p * (hi - lo)) for p in points)
