@@ -58,10 +58,14 @@ from gyrotensegrity import Model, Scene
 from .errors import FilterFitError
 
 IMU_SOURCES = ("imu_rate", "imu_accel", "imu_angle")
+
+
 def state_groups(est) -> tuple[str, ...]:
     """Parameter groups the filter ``est`` (EstimatorConfig) estimates as its own states: not
     fitted (a parameter and a state of the same bias cannot be told apart)."""
     return ("gyro-bias",) + (("accel-bias",) if est.init_accel_bias_std_m_s2 > 0.0 else ())
+
+
 CHANNELS = tuple(f"{stream} {a}" for stream in ("gyro", "accel", "angle") for a in "xyz")
 STREAMS = {"gyro": slice(0, 3), "accel": slice(3, 6), "angle": slice(6, 9)}
 """The IMU innovations' columns in :attr:`.fit.FitResult.residuals`: rate (rad/s), specific
