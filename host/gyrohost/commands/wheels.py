@@ -20,9 +20,9 @@ def register(sub) -> None:
 
 
 def calibrate(args) -> int:
+    from gyrohost.bringup.wheel_faults import clear_reported_faults
     from gyrohost.drivers.errors import WheelBoardError
     from gyrohost.drivers.wheelboard import WheelBoard
-    from gyrohost.run.wheel_faults import clear_reported_faults
 
     wheels = sorted(set(args.wheel or range(4)))
     try:
