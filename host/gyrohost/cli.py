@@ -27,6 +27,8 @@ COMMANDS = [
     "sil",
     "sweep",
     "wheels",
+    "servos",
+    "imu",
     "identify",
     "noise",
 ]

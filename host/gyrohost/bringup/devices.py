@@ -8,7 +8,7 @@ fix (:class:`SetupInputError`), found before anything is sent.
 
 import time
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 from gyrohost.config import RigConfig, load_rig_config
 from gyrohost.resources import resolve
@@ -20,6 +20,20 @@ from .serialports import access_problem
 
 TABLES = {"imu": "imu", "servos": "servos", "wheels": "wheelboard"}
 """Device -> the configuration table holding its ``port``."""
+
+
+@dataclass(frozen=True)
+class Target:
+    """What a device command was told: ``--config`` and ``--port`` (either may be None), and how
+    long the wheel board's HELLO is repeated for, s."""
+
+    config: str | None
+    port: str | None
+    hello_timeout_s: float = HELLO_TIMEOUT_S
+
+    def rig(self, device: str) -> RigConfig:
+        """The configuration with ``device``'s port set and checked (:func:`with_port`)."""
+        return with_port(load_config(self.config), device, self.port)
 
 
 def load_config(name: str | None) -> RigConfig | None:

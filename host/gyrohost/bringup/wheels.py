@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.errors import DeviceError
 
+from .devices import Target, wheel_board
 from .errors import SetupInputError, WheelSetupError
 from .wheel_faults import clear_reported_faults
 
@@ -78,6 +79,25 @@ def calibrate_wheels(board, wheels: list[int], save: bool, report: Report) -> di
     return offsets
 
 
+def calibrate_target(target: Target, wheels: list[int], save: bool, report: Report) -> None:
+    """:func:`calibrate_wheels` on the board ``target`` names (``gyrotens wheels calibrate``)."""
+    config = target.rig("wheels")
+    with wheel_board(config.wheelboard.port, target.hello_timeout_s) as board:
+        calibrate_wheels(board, wheels, save, report)
+
+
+def spin_target(target: Target, wheel: int, speed_rad_s: float, duration_s: float,
+                report: Report) -> float:  # fmt: skip
+    """:func:`spin_wheel` on the board ``target`` names (``gyrotens wheels spin``), stopped below
+    the configuration's ``run.stop_threshold_rad_s`` within its ``run.rampdown_timeout_s``."""
+    config = target.rig("wheels")
+    run = config.run
+    spin = Spin(wheel, speed_rad_s, duration_s, run.stop_threshold_rad_s, run.rampdown_timeout_s)
+    spin.check()
+    with wheel_board(config.wheelboard.port, target.hello_timeout_s) as board:
+        return spin_wheel(board, spin, report)
+
+
 @dataclass(frozen=True)
 class Spin:
     """One slow spin of one wheel.
@@ -100,6 +120,12 @@ class Spin:
     duration_s: float
     stop_rad_s: float = 3.0
     rampdown_s: float = 5.0
+
+    def check(self) -> None:
+        """Raise :class:`SetupInputError` naming what makes this spin one to refuse."""
+        problems = self.problems()
+        if problems:
+            raise SetupInputError("; ".join(problems))
 
     def problems(self) -> list[str]:
         """What makes this spin one the command refuses, one sentence each."""
@@ -127,9 +153,7 @@ def spin_wheel(board, spin: Spin, report: Report) -> float:
     DeviceError
         The board refused the setpoint (its message names the fix: OFFSET_UNCALIBRATED).
     """
-    problems = spin.problems()
-    if problems:
-        raise SetupInputError("; ".join(problems))
+    spin.check()
     clear_reported_faults(board, report)
     speeds = [0.0] * wp.N_WHEELS
     speeds[spin.wheel] = spin.speed_rad_s
