@@ -12,7 +12,10 @@ def register(sub) -> None:
     p = sub.add_parser("identify", help="estimate the rig's parameters from run logs")
     p.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="run log folders")
     p.add_argument("-o", "--out", type=Path, required=True, help="identified scene file (.toml)")
-    p.add_argument("--config", default="sim-rig", help="rig configuration (file or shipped name)")
+    p.add_argument(
+        "--config",
+        help="rig configuration (file or shipped name; default: the one the logs ran with)",
+    )
     p.add_argument(
         "--overlay",
         type=Path,
@@ -135,15 +138,16 @@ class FitProgress:
 
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
-    from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.config import ConfigError
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report
     from gyrohost.ident.errors import FitError, IdentDataError, ParamsError
     from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import STEP_S
+    from gyrohost.ident.log_config import config_for_logs
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
-    from gyrohost.resources import ResourceError, resolve
+    from gyrohost.resources import ResourceError
     from gyrotensegrity import Model, SceneError, load_scene
 
     out = args.out
@@ -153,13 +157,14 @@ def run(args) -> int:
         for warning in log_warnings(log):
             print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
     try:
-        config_path = resolve("config", args.config)
-        config = load_rig_config(config_path)
-        for key in _noise_placeholders(config_path):
+        config, mismatches = config_for_logs(args.logs, args.config)
+        for warning in mismatches:
+            print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
+        for key in _noise_placeholders(config.source):
             print(
-                f"gyrotens identify: warning: {config_path}: {key} is still the template's "
+                f"gyrotens identify: warning: {config.source}: {key} is still the template's "
                 "datasheet value, and the fit weighs its sensor by it: measure it with "
-                f"'gyrotens noise LOG --config {args.config}' (docs/identification.md, step 2)",
+                "'gyrotens noise LOG' (docs/identification.md, step 2)",
                 file=sys.stderr,
             )
         scene = load_scene(config.scene_path)
@@ -213,16 +218,19 @@ def run(args) -> int:
     plot = out.with_name(out.stem + "-residuals.png")
     report.plot_residuals(result, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
-    print(f"run with it: gyrotens run --config {args.config} --overlay {overlay} --scene {out}")
+    print(f"run with it: gyrotens run --config {config.source} --overlay {overlay} --scene {out}")
     return 0
 
 
-def _noise_placeholders(config_path) -> list[str]:
-    """The estimator's noise keys the configuration still has at the lab-rig template's
-    datasheet values (:mod:`gyrohost.bringup.placeholders`), dotted."""
+def _noise_placeholders(config_path: str) -> list[str]:
+    """The estimator's noise keys the configuration file still has at the lab-rig template's
+    datasheet values (:mod:`gyrohost.bringup.placeholders`), dotted; none when the file is
+    gone (a log of another machine)."""
     from gyrohost.bringup.placeholders import find_placeholders
     from gyrohost.ident.noise import KEYS
 
+    if not Path(config_path).is_file():
+        return []
     keys = {f"estimator.{key}" for key in KEYS}
     return [p.key for p in find_placeholders(config_path) if p.key in keys]
 
