@@ -64,12 +64,23 @@ def with_port(config: RigConfig | None, device: str, port: str | None) -> RigCon
     table = TABLES[device]
     if port is not None:
         config = replace(config, **{table: replace(getattr(config, table), port=port)})
-    path = getattr(config, table).port
+    where = "--port" if port is not None else f"{config.source}: key '{table}.port'"
+    checked_port(getattr(config, table).port, where)
+    return config
+
+
+def checked_port(path: str, where: str = "--port") -> str:
+    """``path`` when it can be opened for reading and writing (``where`` names its origin).
+
+    Raises
+    ------
+    SetupInputError
+        It cannot (missing, no permission: the message says why and how to fix it).
+    """
     problem = access_problem(path)
     if problem is not None:
-        where = "--port" if port is not None else f"{config.source}: key '{table}.port'"
         raise SetupInputError(f"{where} {path}: {problem}")
-    return config
+    return path
 
 
 @contextmanager

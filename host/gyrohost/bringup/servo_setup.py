@@ -101,13 +101,17 @@ def _write_without_reply(port, baud, servo_id, addr, value, reply_timeout_s) -> 
         handler.closePort()
 
 
-def read_zero(bus_config: ServoBusConfig, servo: ServoConfig) -> int:
-    """Switch the servo's torque off (the string is wound by hand) and return its present
-    position, steps: the ``zero_position`` for the length measured there."""
+def read_zero(
+    bus_config: ServoBusConfig, servo: ServoConfig, measured: Callable[[], float]
+) -> tuple[int, float]:
+    """Switch the servo's torque off, let the string be wound by hand (``measured`` returns once
+    it is, with the length measured between its nodes, m) and return the present position,
+    steps, and that length: the ``zero_position`` and its ``length_at_zero_m``."""
     with StringServoBus(replace(bus_config, servo=(servo,))) as bus:
         bus.ping_all()
         bus.set_torque(False)
-        return bus.read_states()[0].position_steps
+        length_m = measured()
+        return bus.read_states()[0].position_steps, length_m
 
 
 def check_sign(

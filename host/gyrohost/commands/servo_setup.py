@@ -2,6 +2,7 @@
 length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
 
 import sys
+from functools import partial
 
 
 def register(sub) -> None:
@@ -42,13 +43,14 @@ def _id_range(text: str) -> range:
 
 
 def run_id(args) -> int:
+    from gyrohost.bringup.devices import checked_port
     from gyrohost.bringup.servo_setup import change_id
     from gyrohost.commands.errors import CliError
     from gyrohost.errors import GyrohostError
 
     ids = _id_range(args.scan_ids)
     try:
-        change = change_id(args.port, args.baud, args.new_id, args.new_baud, ids,
+        change = change_id(checked_port(args.port), args.baud, args.new_id, args.new_baud, ids,
                            args.reply_timeout)  # fmt: skip
     except (GyrohostError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -76,11 +78,7 @@ def run_zero(args) -> int:
         if args.servo not in by_name:
             raise CliError(f"{config.source}: no servo named {args.servo!r} ({sorted(by_name)})")
         index, servo = by_name[args.servo]
-        print(f"servo '{servo.name}' (ID {servo.id}): torque off, wind its string by hand")
-        zero = read_zero(config.servos, servo)
-        length_m = args.length_m
-        if length_m is None:
-            length_m = float(input("length measured between the string's nodes, m: "))
+        zero, length_m = read_zero(config.servos, servo, partial(_measured, servo, args.length_m))
         servo = replace(servo, zero_position=zero, length_at_zero_m=length_m)
         confirm = (lambda _q: True) if args.yes else ask
         goal, moved = check_sign(config.servos, servo, args.check_m, config.run.max_servo_load,
@@ -93,6 +91,14 @@ def run_zero(args) -> int:
     print(f"zero_position = {zero}\nlength_at_zero_m = {length_m:g}\nlength_sign = {sign}")
     sys.stdout.flush()
     return 0
+
+
+def _measured(servo, length_m: float | None) -> float:
+    """Said once the servo's torque is off: the length given, or the one the user measures."""
+    print(f"servo '{servo.name}' (ID {servo.id}): torque off", flush=True)
+    if length_m is not None:
+        return length_m
+    return float(input("wind its string by hand, then the length between its nodes, m: "))
 
 
 def _word(longer: bool) -> str:
