@@ -68,9 +68,7 @@ def jog(target: Target, name: str, by_m: float, report: Report) -> float:
     servo = servo_named(config, name)
     bus_config = replace(config.servos, servo=(servo,))
     with _limited_bus(bus_config, config.run.max_servo_load) as bus:
-        now = bus.read_lengths()[name]
-        report(f"servo '{name}' (ID {servo.id}): {now:.4f} m")
-        return move(bus, {name: now + by_m}, report)[name]
+        return move(bus, {name: bus.read_lengths()[name] + by_m}, report)[name]
 
 
 def home(target: Target, report: Report) -> dict[str, float]:

@@ -40,7 +40,8 @@ def uncalibrated_wheels(board) -> list[int]:
     Raises
     ------
     WheelSetupError
-        Another blocking fault is latched: the board answers FAULT_ACTIVE to any setpoint.
+        Another blocking fault is latched, or latches during the check: the board answers
+        FAULT_ACTIVE to any setpoint.
     """
     latched = board.latched_faults()
     blocking = sorted(wp.BLOCKING_FAULTS.intersection(latched) - {"HEARTBEAT_LOST"})
@@ -56,8 +57,8 @@ def uncalibrated_wheels(board) -> list[int]:
         try:
             board.set_speeds(speeds)
         except DeviceError as exc:
-            if exc.name != "OFFSET_UNCALIBRATED":
-                raise
+            if exc.name != "OFFSET_UNCALIBRATED":  # a fault latched meanwhile: say which
+                raise WheelSetupError(f"offsets not checked: {exc}") from None
             refused.append(wheel)
             continue
         board.set_speeds([0.0] * wp.N_WHEELS)
@@ -159,7 +160,7 @@ def spin_wheel(board, spin: Spin, report: Report) -> float:
     speeds[spin.wheel] = spin.speed_rad_s
     try:
         board.set_speeds(speeds)
-        report(f"wheel {spin.wheel}: {spin.speed_rad_s:g} rad/s for {spin.duration_s:g} s")
+        report(f"wheel {spin.wheel}: spinning at {spin.speed_rad_s:g} rad/s, {spin.duration_s:g} s")
         measured = _mean_speed(board, spin)
         report(f"wheel {spin.wheel}: measured {measured:.2f} rad/s")
     finally:
