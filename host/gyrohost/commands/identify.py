@@ -19,64 +19,55 @@ def register(sub) -> None:
     p.add_argument(
         "--overlay",
         type=Path,
-        help="configuration overlay to write: the fitted IMU mounting and servo zeros, for "
-        "'gyrotens run --config C --overlay FILE' (default: IDENT-config.toml beside -o)",
+        help="configuration overlay to write (default: IDENT-config.toml beside -o)",
     )
     p.add_argument(
         "--params",
         default=",".join(DEFAULT_GROUPS),
-        help="comma-separated parameter groups: "
-        + "; ".join(f"{k}: {v}" for k, v in GROUPS.items()),
+        help=f"comma-separated parameter groups of {', '.join(GROUPS)} (docs/identification.md; "
+        f"default {','.join(DEFAULT_GROUPS)})",
     )
     p.add_argument(
         "--lengths",
         choices=("servos", "command"),
         default="servos",
-        help="string lengths from the servos' reported positions (default; between the reports "
-        "the commands through a response fitted to them) or from the host's commands through "
-        "the servos' lag",
+        help="string lengths from the servos' reports (default) or the commands through the "
+        "servos' lag",
     )
     p.add_argument(
         "--until",
         type=float,
         metavar="S",
-        help="fit only the first S seconds of each log (from its lead-in): output error over a "
-        "long run loses the D-bar's unstable roll mode (docs/identification.md)",
+        help="fit only the first S seconds of each log, from its lead-in",
     )
     p.add_argument(
         "--segment-s",
         type=float,
         default=4.0,
         metavar="S",
-        help="multiple shooting: simulate each log in segments of S seconds, each later one "
-        "from the previous one's end turned to the IMU's attitude and rate (0: one simulation "
-        "from the lead-in; default 4)",
+        help="output error: simulate in segments of S seconds (0: one simulation; 4)",
     )
     p.add_argument(
         "--segment-start",
         choices=("imu", "estimate"),
         default="imu",
-        help="a later segment starts from the previous one's end turned to the IMU (default) "
-        "or from the host estimator's logged state",
+        help="output error: a later segment starts from the IMU (default) or the logged estimate",
     )
     p.add_argument(
         "--method",
         choices=("output", "filter"),
         default="output",
-        help="output error: simulate the rig from the log's inputs (default); filter: the "
-        "host's EKF runs the log and the likelihood of its innovations is fitted, which "
-        "follows a rig whose wheels err from their setpoints, as a real rig's do: use it "
-        "there, with --until ending before the D-bar folds (docs/identification.md, 'The "
-        "filter's prediction error'); --lengths, --segment-s and --segment-start are the "
-        "output error's",
+        help="output error: simulate the log's inputs (default); filter: the EKF's likelihood, "
+        "for a real rig, whose wheels err (docs/identification.md)",
     )
-    p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
+    p.add_argument(
+        "--max-evaluations", type=int, default=40, help="of the residual per pass (default 40)"
+    )
     p.add_argument(
         "--workers",
         type=at_least_one,
         metavar="N",
-        help="--method filter: run the filter under N parameter vectors at once, in N "
-        "processes (default: one per usable core)",
+        help="--method filter: N parameter vectors at once in N processes (default: the cores)",
     )
     p.set_defaults(func=run)
 

@@ -11,12 +11,20 @@ def register(sub) -> None:
     ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
     ids.add_argument("--port", required=True, help="the U2D2's port, one servo connected")
     ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
-    ids.add_argument("--new-id", type=int, required=True, metavar="ID")
-    ids.add_argument("--new-baud", type=int, metavar="BAUD", help="(default: unchanged)")
+    ids.add_argument("--new-id", type=int, required=True, metavar="ID", help="its ID: 0..252")
+    ids.add_argument(
+        "--new-baud", type=int, metavar="BAUD", help="its baud rate afterwards (default: unchanged)"
+    )
     ids.add_argument(
         "--scan-ids", default="0-252", metavar="A-B", help="IDs searched (0-252: every one)"
     )
-    ids.add_argument("--reply-timeout", type=float, default=0.034, metavar="S", help="(0.034 s)")
+    ids.add_argument(
+        "--reply-timeout",
+        type=float,
+        default=0.034,
+        metavar="S",
+        help="wait for each reply beyond its transfer time (0.034 s)",
+    )
     ids.set_defaults(func=run_id)
     zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
     zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
