@@ -1,7 +1,7 @@
 """``gyrotens imu calibrate``: the BWT61CL's accelerometer calibration, the IMU level and still
 (docs/bring-up.md)."""
 
-from gyrohost.commands.wheels import add_device_options
+from gyrohost.commands.devices import add_device_options, say
 
 
 def register(sub) -> None:
@@ -19,7 +19,6 @@ def calibrate(args) -> int:
     from gyrohost.bringup.devices import Target
     from gyrohost.bringup.imu_setup import calibrate_accelerometer
     from gyrohost.commands.errors import device_step
-    from gyrohost.commands.wheels import say
 
     target = Target(args.config, args.port)
     return device_step("imu", lambda: calibrate_accelerometer(target, say, wait_s=args.wait))

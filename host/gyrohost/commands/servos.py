@@ -1,7 +1,7 @@
 """``gyrotens servos jog|home``: one string lengthened or shortened by hand's measure, every
 string driven to the scene's start length; within the configured limits (docs/bring-up.md)."""
 
-from gyrohost.commands.wheels import add_device_options
+from gyrohost.commands.devices import add_device_options, say
 
 
 def register(sub) -> None:
@@ -21,7 +21,6 @@ def jog(args) -> int:
     from gyrohost.bringup import servo_moves
     from gyrohost.bringup.devices import Target
     from gyrohost.commands.errors import device_step
-    from gyrohost.commands.wheels import say
 
     target = Target(args.config, args.port)
     return device_step("servos", lambda: servo_moves.jog(target, args.servo, args.by_m, say))
@@ -31,6 +30,5 @@ def home(args) -> int:
     from gyrohost.bringup import servo_moves
     from gyrohost.bringup.devices import Target
     from gyrohost.commands.errors import device_step
-    from gyrohost.commands.wheels import say
 
     return device_step("servos", lambda: servo_moves.home(Target(args.config, args.port), say))

@@ -4,12 +4,7 @@ spun slowly for a few seconds and ramped down (docs/bring-up.md)."""
 import sys
 
 from gyrohost.bringup import add_hello_timeout
-
-
-def add_device_options(p, device: str) -> None:
-    """``--config`` and ``--port`` of a device command (``device``: what the port leads to)."""
-    p.add_argument("--config", help="rig configuration (a TOML file or shipped name): its port")
-    p.add_argument("--port", help=f"the {device}'s serial port (overrides the configuration's)")
+from gyrohost.commands.devices import add_device_options, say
 
 
 def register(sub) -> None:
@@ -35,11 +30,6 @@ def register(sub) -> None:
     s.add_argument("--speed", type=float, required=True, metavar="S", help="rad/s, |S| <= 20")
     s.add_argument("--time", type=float, default=3.0, metavar="T", help="s at speed (3, <= 10)")
     s.set_defaults(func=spin)
-
-
-def say(line: str) -> None:
-    """One line of a device command's progress, shown at once."""
-    print(line, flush=True)
 
 
 def calibrate(args) -> int:
