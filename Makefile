@@ -1,6 +1,8 @@
 # Two commands do everything on a fresh Debian/Ubuntu machine:
 #   make demo   the paper's D-bar experiment end to end, with logs and plots
 #   make test   every test: lint, Python tests, firmware native tests, AVR build, firmware in the loop
+#   make lab    a lab laptop: gyrotens with its runtime and what flashing needs (AVR toolchain,
+#               avrdude), nothing of the test suite's
 #   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega,
 #                                  once its brown-out fuse is checked (tools/check-bod.sh)
 #   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
@@ -15,8 +17,9 @@ RUNTIME := $(VENV)/.runtime-stamp
 EXTRAS  := $(VENV)/.test-extras-stamp
 DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
+LABDEBS := build/.debs-lab-stamp
 
-.PHONY: demo test lint pytest studies-check study firmware setup clean flash
+.PHONY: demo lab test lint pytest studies-check study firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
 # it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
@@ -25,6 +28,8 @@ FIRMWARE_ELF := firmware/build/avr/wheelboard.elf
 
 demo: $(DEMODEBS) $(RUNTIME)
 	$(BIN)/gyrotens demo
+
+lab: $(LABDEBS) $(RUNTIME)
 
 test: setup lint firmware studies-check pytest
 
@@ -36,6 +41,10 @@ $(DEBS): tools/ensure-debs.sh
 
 $(DEMODEBS): tools/ensure-debs.sh
 	tools/ensure-debs.sh demo
+	@mkdir -p build && touch $@
+
+$(LABDEBS): tools/ensure-debs.sh
+	tools/ensure-debs.sh lab
 	@mkdir -p build && touch $@
 
 $(RUNTIME): pyproject.toml setup.py model/gyrotensegrity/_fastkernel.c
@@ -76,7 +85,7 @@ study: setup
 
 flash:
 	@test -n "$(PORT)" || { echo "usage: make flash PORT=/dev/ttyACM0 ('gyrotens ports' lists them)" >&2; exit 2; }
-	@command -v avrdude >/dev/null || { echo "avrdude is missing: tools/ensure-debs.sh all" >&2; exit 2; }
+	@command -v avrdude >/dev/null || { echo "avrdude is missing: make lab" >&2; exit 2; }
 	$(MAKE) --no-print-directory -C firmware avr
 	tools/check-bod.sh $(PORT) $(PROGRAMMER)
 	avrdude -p atmega2560 -c $(PROGRAMMER) -P $(PORT) -b 115200 -D -U flash:w:$(FIRMWARE_ELF):e

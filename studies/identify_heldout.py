@@ -29,11 +29,11 @@ import argparse
 import sys
 import tempfile
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from gyrohost.resources import shipped
 from studies.identify_rig import estimator_figures, gyrotens, truth_kept_overlay

@@ -39,10 +39,10 @@ import subprocess
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from gyrohost.ident.report import read_identified
 from gyrohost.ident.simcheck import (

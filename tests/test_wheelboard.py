@@ -304,7 +304,7 @@ def test_calibrate_returns_the_offset_saves_and_names_a_failure(fake):
 
 
 def test_run_reports_each_latched_fault_before_clearing_only_those(fake):
-    from gyrohost.run.wheel_faults import clear_reported_faults
+    from gyrohost.bringup.wheel_faults import clear_reported_faults
 
     lines: list[str] = []
     latched = 1 << 0 | 1 << 6  # HEARTBEAT_LOST, PARAMS_DEFAULTED

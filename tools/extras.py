@@ -9,8 +9,9 @@ Usage: ``python tools/extras.py test bench live``.
 
 import re
 import sys
-import tomllib
 from pathlib import Path
+
+from gyrotensegrity.compat import tomllib
 
 PYPROJECT = Path(__file__).resolve().parents[1] / "pyproject.toml"
 

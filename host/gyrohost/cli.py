@@ -27,6 +27,8 @@ COMMANDS = [
     "sil",
     "sweep",
     "wheels",
+    "servos",
+    "imu",
     "identify",
     "noise",
 ]
@@ -54,12 +56,16 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"gyrohost.commands.{name.replace('-', '_')}").register(sub)
+    parser.command_parsers = sub.choices  # name -> its parser, which reports its bad options
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # said by the subcommand's parser: its usage, "gyrotens CMD: error: ..."
+        command = parser.command_parsers.get(args.command, parser)
+        command.error(f"unrecognized arguments: {' '.join(unknown)}")
     if not hasattr(args, "func"):
         parser.print_help()
         return 0

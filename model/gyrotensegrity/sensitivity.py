@@ -13,12 +13,12 @@ with ``d`` half the n1-n3 distance, ``e = sqrt(l^2 - d^2)`` half the n2-n4 dista
 the start), ``omega`` the spin magnitude and ``m_t``, ``J_t`` (kg, Eq. 16) of one bar.
 """
 
-import tomllib
 from importlib import resources
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from .compat import tomllib
 from .model import Model
 from .scene import scene_from_dict
 from .simulate import simulate

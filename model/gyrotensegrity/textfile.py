@@ -6,8 +6,9 @@ A leading UTF-8 byte-order mark, which some editors write, is dropped: the rest 
 were not there.
 """
 
-import tomllib
 from pathlib import Path
+
+from .compat import tomllib
 
 BOM = "\ufeff"
 

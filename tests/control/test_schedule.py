@@ -2,7 +2,6 @@
 
 import json
 import math
-import tomllib
 
 import numpy as np
 import pytest
@@ -10,6 +9,7 @@ import pytest
 from gyrohost.control import Limits, Schedule, ScheduleError, load_schedule, preset
 from gyrohost.control.schedule import schedule_from_dict
 from gyrohost.resources import shipped_dir
+from gyrotensegrity.compat import tomllib
 
 SCENES = shipped_dir("scene")
 

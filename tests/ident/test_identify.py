@@ -2,8 +2,6 @@
 from the nominal scene (J3 x 1.3, bar mass x 0.8, stiffness x 1.25, damping x 0.7, IMU 3 deg
 off), fitted from the nominal configuration. Each test records its own log (nothing cached)."""
 
-import tomllib
-
 import numpy as np
 import pytest
 
@@ -20,6 +18,7 @@ from gyrohost.ident.simcheck import (
     write_rigs,
 )
 from gyrotensegrity import Model, load_scene
+from gyrotensegrity.compat import tomllib
 
 SHORT_S = 2.5  # s of the excitation: the first pulls
 ACCEPTANCE_S = 3.5  # s: three pulls

@@ -50,7 +50,7 @@ def test_bar_length_error_accurate_settings(gyro_run):
 
 
 def test_reversed_spins_reverse_the_tilt(gyro_run):
-    import tomllib
+    from gyrotensegrity.compat import tomllib
 
     data = tomllib.loads((SCENES / "dbar-gyro.toml").read_text())
     for bar in data["bars"]:

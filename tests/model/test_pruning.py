@@ -1,7 +1,6 @@
 """Pruning never changes the answer: wheels spun up by a controller or by ``Stepper.step(u)``
 get their gyroscopic forces, and a term left out on the caller's word raises when needed."""
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +8,7 @@ import pytest
 
 import gyrotensegrity
 from gyrotensegrity import Model, PrunedTermError, Stepper, load_scene, scene_from_dict, simulate
+from gyrotensegrity.compat import tomllib
 from gyrotensegrity.fast import FastDynamics
 
 SCENES = Path(gyrotensegrity.__file__).parent / "scenes"

@@ -13,7 +13,6 @@ error message (stiffness detected, non-finite state with time and member, singul
 """
 
 import time
-import tomllib
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from gyrohost.bench.runner import run_drifts
 from gyrohost.parallel import Executor
 from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, SimulationError, scene_from_dict
+from gyrotensegrity.compat import tomllib
 
 SCENES = shipped_dir("scene")
 SETTINGS = {

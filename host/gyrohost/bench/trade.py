@@ -5,11 +5,11 @@ setting of the grid; a run gives wall time per simulated second, node error agai
 reference, bar-length and joint errors, energy and momentum drift.
 """
 
-import tomllib
 from dataclasses import dataclass
 
 from gyrohost.resources import shipped_dir
 from gyrotensegrity import Model, load_scene, scene_from_dict
+from gyrotensegrity.compat import tomllib
 from gyrotensegrity.generators import prism_chain
 
 from .runner import Variant, errors, integrate

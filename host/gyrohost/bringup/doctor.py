@@ -1,8 +1,12 @@
-"""``gyrotens doctor``: a rig configuration checked against itself and its devices, one PASS or
-FAIL line per check (docs/bring-up.md).
+"""``gyrotens doctor``: a rig configuration checked against itself and its devices, one line per
+item (docs/bring-up.md): PASS; WARN for what a run takes but should be measured (a datasheet
+figure, a lag not yet fitted, a dimension still at the template's value); FAIL for what blocks a
+run (a port missing, a wheel offset uncalibrated, a placeholder the run refuses).
 
 The devices are opened and identified with the probes of :mod:`.probe` (IMU frames listened to,
-HELLO to the wheel board, PING to each configured servo): nothing moves.
+HELLO to the wheel board, PING to each configured servo). The wheel board is asked which
+offsets it holds with a 1 mrad/s setpoint per wheel (:func:`.wheels.uncalibrated_wheels`): the
+drive stays at zero, nothing turns.
 """
 
 import math
@@ -24,21 +28,38 @@ from gyrohost.drivers.errors import PortBusyError, ServoLimitError
 from gyrohost.drivers.mx12 import MODEL_MX12W
 from gyrohost.drivers.servos import StringServoBus
 
+from .errors import WheelSetupError
+from .wheels import uncalibrated_wheels
+
+PLACEHOLDER = "placeholder"
 IMU_BAUD_FOR_RATE = {100: 115200, 20: 9600}
 """The BWT61CL's output rate, Hz -> the baud rate that carries it."""
 
 
+PASS, WARN, FAIL = "PASS", "WARN", "FAIL"
+
+
 @dataclass(frozen=True)
 class Check:
-    """One check: its name, passed or not, what was found (and the fix when it failed)."""
+    """One check: its name, its level (PASS, WARN or FAIL), what was found (and the fix)."""
 
     name: str
-    ok: bool
+    level: str
     detail: str
+
+    @classmethod
+    def of(cls, name: str, ok: bool, detail: str) -> "Check":
+        """PASS when ``ok``, else FAIL."""
+        return cls(name, PASS if ok else FAIL, detail)
+
+    @property
+    def ok(self) -> bool:
+        """Nothing here blocks a run (PASS or WARN)."""
+        return self.level != FAIL
 
     def line(self) -> str:
         """``PASS  name: detail``."""
-        return f"{'PASS' if self.ok else 'FAIL'}  {self.name}: {self.detail}"
+        return f"{self.level}  {self.name}: {self.detail}"
 
 
 @dataclass(frozen=True)
@@ -63,7 +84,7 @@ class Windows:
 
 def run_checks(config, sys_root: Path = SYS, windows: Windows = Windows()) -> Iterator[Check]:
     """Every check of ``config`` (a loaded ``RigConfig``) and its devices, in order."""
-    yield _placeholders(config)
+    yield from _placeholders(config)
     yield _limits(config)
     yield from _unless_held("imu", _imu(config, sys_root, windows))
     yield from _unless_held("wheel board", _wheelboard(config, windows))
@@ -79,19 +100,18 @@ def _unless_held(name: str, checks: Iterator[Check]) -> Iterator[Check]:
         yield Check(name, False, str(exc))
 
 
-def _placeholders(config) -> Check:
+def _placeholders(config) -> Iterator[Check]:
     if not config.source.endswith(".toml"):
-        return Check("placeholders", True, "no configuration file to compare")
+        yield Check(PLACEHOLDER, PASS, "no configuration file to compare")
+        return
     found = find_placeholders(config.source)
     if not found:
-        return Check("placeholders", True, "no MEASURE or CALIBRATE key at its template value")
-    listed = "; ".join(p.describe() for p in found)
-    return Check(
-        "placeholders",
-        False,
-        f"{len(found)} keys still at the lab-rig template's values (measure them, then delete "
-        f"the marker): {listed}",
-    )
+        yield Check(PLACEHOLDER, PASS, "no MEASURE or CALIBRATE key at its template value")
+    for p in found:
+        if p.required:
+            yield Check(PLACEHOLDER, FAIL, f"{p.describe()}; 'gyrotens run' refuses it")
+        else:
+            yield Check(PLACEHOLDER, WARN, f"{p.describe()}; a run takes it until measured")
 
 
 def contradictions(config) -> list[str]:
@@ -124,17 +144,17 @@ def contradictions(config) -> list[str]:
 def _limits(config) -> Check:
     found = contradictions(config)
     if found:
-        return Check("limits", False, "; ".join(found))
+        return Check("limits", FAIL, "; ".join(found))
     tilt = config.run.max_tilt_rad
     tilt_text = "unchecked" if math.isinf(tilt) else f"{tilt:g} rad"
     return Check(
-        "limits", True, f"consistent (servo ranges hold the scene's start; tilt {tilt_text})"
+        "limits", PASS, f"consistent (servo ranges hold the scene's start; tilt {tilt_text})"
     )
 
 
 def _access(key: str, port: str) -> Check:
     problem = access_problem(port)
-    return Check(f"{key} {port}", problem is None, problem or "present, readable and writable")
+    return Check.of(f"{key} {port}", problem is None, problem or "present, readable and writable")
 
 
 def _imu(config, sys_root: Path, windows: Windows) -> Iterator[Check]:
@@ -143,9 +163,9 @@ def _imu(config, sys_root: Path, windows: Windows) -> Iterator[Check]:
     if name.startswith("rfcomm"):
         if not rfcomm_bound(name, sys_root):  # then its port cannot exist: one failure, not two
             fix = f"sudo rfcomm bind {name[6:]} <BWT61CL address> 1 (docs/bring-up.md)"
-            yield Check("imu rfcomm", False, f"{name} not bound: {fix}")
+            yield Check("imu rfcomm", FAIL, f"{name} not bound: {fix}")
             return
-        yield Check("imu rfcomm", True, f"{name} bound")
+        yield Check("imu rfcomm", PASS, f"{name} bound")
     access = _access("imu.port", port)
     yield access
     if not access.ok:
@@ -158,7 +178,7 @@ def _imu(config, sys_root: Path, windows: Windows) -> Iterator[Check]:
         detail = f"no WT61 frame in {windows.imu_s:g} s at {config.imu.baud} baud"
     elif off > windows.imu_rate_tolerance:
         detail += f", configured imu.rate_hz = {config.imu.rate_hz}"
-    yield Check("imu", rate_hz > 0 and off <= windows.imu_rate_tolerance, detail)
+    yield Check.of("imu", rate_hz > 0 and off <= windows.imu_rate_tolerance, detail)
 
 
 def _wheelboard(config, windows: Windows) -> Iterator[Check]:
@@ -168,14 +188,35 @@ def _wheelboard(config, windows: Windows) -> Iterator[Check]:
         return
     with probe.open_serial(config.wheelboard.port, config.wheelboard.baud) as ser:
         fields = probe.hello(ser, windows.hello_s)
-    if fields is None:
-        detail = (
-            f"no HELLO reply in {windows.hello_s:g} s (flashed? 'make flash', docs/bring-up.md)"
-        )
-        yield Check("wheel board", False, detail)
-        return
-    yield Check("wheel board", fields["proto_version"] == wp.PROTO_VERSION,
-                probe.describe_hello(fields))  # fmt: skip
+        if fields is None:
+            detail = (
+                f"no HELLO reply in {windows.hello_s:g} s (flashed? 'make flash', docs/bring-up.md)"
+            )
+            yield Check("wheel board", FAIL, detail)
+            return
+        same = fields["proto_version"] == wp.PROTO_VERSION
+        yield Check.of("wheel board", same, probe.describe_hello(fields))
+        if same:
+            yield _offsets(ser)
+
+
+def _offsets(ser) -> Check:
+    """Which wheels the board refuses to run for their default offset (the port stays open:
+    opening it again would reset the Mega)."""
+    from gyrohost.drivers.wheelboard import WheelBoard
+
+    board = WheelBoard(ser, reply_timeout_s=1.0)
+    try:
+        board.connect()
+        refused = uncalibrated_wheels(board)
+    except WheelSetupError as exc:
+        return Check("wheel offsets", WARN, str(exc))
+    finally:
+        board.close()
+    if refused:
+        fixes = "; ".join(f"gyrotens wheels calibrate --wheel {w}" for w in refused)
+        return Check("wheel offsets", FAIL, f"wheels {refused} uncalibrated: {fixes}")
+    return Check("wheel offsets", PASS, f"all {wp.N_WHEELS} calibrated")
 
 
 def _servos(config, sys_root: Path) -> Iterator[Check]:
@@ -186,10 +227,10 @@ def _servos(config, sys_root: Path) -> Iterator[Check]:
         return
     latency = latency_timer_ms(bus.port, sys_root)
     if latency is None:
-        yield Check("servos latency timer", True, "no FTDI latency timer on this port")
+        yield Check("servos latency timer", PASS, "no FTDI latency timer on this port")
     else:
         fix = "" if latency == 1 else f" (1 ms wanted: {latency_timer_fix(bus.port, sys_root)})"
-        yield Check("servos latency timer", latency == 1, f"{latency} ms{fix}")
+        yield Check.of("servos latency timer", latency == 1, f"{latency} ms{fix}")
     ids = [s.id for s in bus.servo]
     found = probe.ping_ids(bus.port, bus.baud, ids, bus.reply_timeout_s)
     missing = [i for i in ids if i not in found]
@@ -200,4 +241,4 @@ def _servos(config, sys_root: Path) -> Iterator[Check]:
         detail += f"; no reply from ID {', '.join(map(str, missing))} ('gyrotens ports' scans)"
     if wrong:
         detail += f"; not an MX-12W (model {MODEL_MX12W}): {sorted(wrong)}"
-    yield Check("servos", not missing and not wrong, detail)
+    yield Check.of("servos", not missing and not wrong, detail)

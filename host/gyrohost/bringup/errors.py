@@ -12,3 +12,12 @@ class ServoSetupError(GyrohostError, RuntimeError):
 
 class PortAccessError(GyrohostError, ValueError):
     """One or more configured ports cannot be opened; one line per port in the message."""
+
+
+class WheelSetupError(GyrohostError, RuntimeError):
+    """A wheel-board step (offset check, spin) cannot go on or did not end as it should."""
+
+
+class SetupInputError(GyrohostError, ValueError):
+    """A bring-up command was given something it refuses before anything moves (a spin too
+    fast, a jog past a string's limits, no port to open)."""

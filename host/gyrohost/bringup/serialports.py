@@ -1,10 +1,11 @@
 """Serial ports of this machine: which exist, who may open them, how the kernel drives them.
 
 Nothing here opens a port: opening the Mega's port raises DTR and resets the board, so the checks
-made before a run (:func:`check_ports`) read the file system only.
+made before a run (:func:`check_ports`) read the file system only. Those checks are Linux's and
+macOS's (device files, owner groups, sysfs); on Windows a ``COMn`` port has no file to check and
+pyserial's own error names the port when it cannot be opened.
 """
 
-import grp
 import os
 import stat
 from dataclasses import dataclass
@@ -98,8 +99,11 @@ def access_problem(
     Returns
     -------
     str or None
-        ``"no such device"`` (with advice for ``/dev/rfcomm*``) or the permission and its fix.
+        ``"no such device"`` (with advice for ``/dev/rfcomm*``) or the permission and its fix;
+        None where ports are no files (Windows).
     """
+    if os.name != "posix":
+        return None
     try:
         st = os.stat(path)
     except FileNotFoundError:
@@ -127,6 +131,8 @@ def access_problem(
 
 
 def _group_name(gid: int) -> str:
+    import grp  # POSIX only: imported where a POSIX file's group is named
+
     try:
         return grp.getgrgid(gid).gr_name
     except KeyError:

@@ -17,6 +17,7 @@ from gyrohost.drivers import mx12
 from gyrohost.drivers.servos import PortHandler, StringServoBus
 
 from .errors import ServoSetupError
+from .servo_moves import torque_limit
 
 BAUD_REGISTER = {2_000_000: 0, 1_000_000: 1, 500_000: 3, 115200: 16, 57600: 34}
 """Bus baud rate -> MX-12W baud register (2 Mbps / (value + 1); 57600 is 57142, within 1 %)."""
@@ -100,13 +101,17 @@ def _write_without_reply(port, baud, servo_id, addr, value, reply_timeout_s) -> 
         handler.closePort()
 
 
-def read_zero(bus_config: ServoBusConfig, servo: ServoConfig) -> int:
-    """Switch the servo's torque off (the string is wound by hand) and return its present
-    position, steps: the ``zero_position`` for the length measured there."""
+def read_zero(
+    bus_config: ServoBusConfig, servo: ServoConfig, measured: Callable[[], float]
+) -> tuple[int, float]:
+    """Switch the servo's torque off, let the string be wound by hand (``measured`` returns once
+    it is, with the length measured between its nodes, m) and return the present position,
+    steps, and that length: the ``zero_position`` and its ``length_at_zero_m``."""
     with StringServoBus(replace(bus_config, servo=(servo,))) as bus:
         bus.ping_all()
         bus.set_torque(False)
-        return bus.read_states()[0].position_steps
+        length_m = measured()
+        return bus.read_states()[0].position_steps, length_m
 
 
 def check_sign(
@@ -138,7 +143,7 @@ def check_sign(
     if not confirm(question):
         raise ServoSetupError("not confirmed: nothing moved")
     with StringServoBus(replace(bus_config, servo=(servo,))) as bus:
-        limit_before = _torque_limit(bus, servo.id, round(max_load * 1023))
+        limit_before = torque_limit(bus, servo.id, round(max_load * 1023))
         try:
             bus.configure()  # multi-turn mode, torque on, holding where it is
             start = bus.read_states()[0].position_steps
@@ -146,18 +151,8 @@ def check_sign(
             _move(bus, servo, length0, timeout_s)
         finally:
             bus.set_torque(False)
-            _torque_limit(bus, servo.id, limit_before)
+            torque_limit(bus, servo.id, limit_before)
     return goal, moved
-
-
-def _torque_limit(bus: StringServoBus, servo_id: int, value: int) -> int:
-    """Write the torque limit (RAM, reset at power-up); returns the one it replaced."""
-    packets, port = bus.packets, bus.port
-    before, result, _ = packets.read2ByteTxRx(port, servo_id, mx12.Addr.TORQUE_LIMIT)
-    if result != 0:
-        raise ServoSetupError(f"servo ID {servo_id}: torque limit not read ({result})")
-    packets.write2ByteTxRx(port, servo_id, mx12.Addr.TORQUE_LIMIT, value)
-    return before
 
 
 def _move(bus: StringServoBus, servo: ServoConfig, length_m: float, timeout_s: float) -> int:

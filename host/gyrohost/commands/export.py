@@ -1,4 +1,4 @@
-"""``gyrotens export LOG --mcap [-o FILE]``: a log folder's CSV streams as an MCAP file (one
+"""``gyrotens export LOG [-o FILE]``: a log folder's CSV streams as an MCAP file (one
 channel per stream, JSON schemas, the 3D scenes; docs/run.md), e.g. for a run that was killed
 before its own ``run.mcap`` was finished."""
 
@@ -9,7 +9,7 @@ def register(sub) -> None:
     p = sub.add_parser("export", help="convert a run log to another format (MCAP)")
     p.add_argument("log", type=Path, help="log folder (meta.json + CSV streams)")
     p.add_argument(
-        "--mcap", action="store_true", required=True, help="write an MCAP file (Foxglove)"
+        "--mcap", action="store_true", help="write an MCAP file (Foxglove; the only format)"
     )
     p.add_argument(
         "-o",

@@ -12,68 +12,62 @@ def register(sub) -> None:
     p = sub.add_parser("identify", help="estimate the rig's parameters from run logs")
     p.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="run log folders")
     p.add_argument("-o", "--out", type=Path, required=True, help="identified scene file (.toml)")
-    p.add_argument("--config", default="sim-rig", help="rig configuration (file or shipped name)")
+    p.add_argument(
+        "--config",
+        help="rig configuration (file or shipped name; default: the one the logs ran with)",
+    )
     p.add_argument(
         "--overlay",
         type=Path,
-        help="configuration overlay to write: the fitted IMU mounting and servo zeros, for "
-        "'gyrotens run --config C --overlay FILE' (default: IDENT-config.toml beside -o)",
+        help="configuration overlay to write (default: IDENT-config.toml beside -o)",
     )
     p.add_argument(
         "--params",
         default=",".join(DEFAULT_GROUPS),
-        help="comma-separated parameter groups: "
-        + "; ".join(f"{k}: {v}" for k, v in GROUPS.items()),
+        help=f"comma-separated parameter groups of {', '.join(GROUPS)} (docs/identification.md; "
+        f"default {','.join(DEFAULT_GROUPS)})",
     )
     p.add_argument(
         "--lengths",
         choices=("servos", "command"),
         default="servos",
-        help="string lengths from the servos' reported positions (default; between the reports "
-        "the commands through a response fitted to them) or from the host's commands through "
-        "the servos' lag",
+        help="string lengths from the servos' reports (default) or the commands through the "
+        "servos' lag",
     )
     p.add_argument(
         "--until",
         type=float,
         metavar="S",
-        help="fit only the first S seconds of each log (from its lead-in): output error over a "
-        "long run loses the D-bar's unstable roll mode (docs/identification.md)",
+        help="fit only the first S seconds of each log, from its lead-in",
     )
     p.add_argument(
         "--segment-s",
         type=float,
         default=4.0,
         metavar="S",
-        help="multiple shooting: simulate each log in segments of S seconds, each later one "
-        "from the previous one's end turned to the IMU's attitude and rate (0: one simulation "
-        "from the lead-in; default 4)",
+        help="output error: simulate in segments of S seconds (0: one simulation; 4)",
     )
     p.add_argument(
         "--segment-start",
         choices=("imu", "estimate"),
         default="imu",
-        help="a later segment starts from the previous one's end turned to the IMU (default) "
-        "or from the host estimator's logged state",
+        help="output error: a later segment starts from the IMU (default) or the logged estimate",
     )
     p.add_argument(
         "--method",
         choices=("output", "filter"),
         default="output",
-        help="output error: simulate the rig from the log's inputs (default); filter: the "
-        "host's EKF runs the log and the likelihood of its innovations is fitted, which "
-        "follows a rig whose wheels err from their setpoints, as a real rig's do: use it "
-        "there, with --until ending before the D-bar folds (docs/identification.md, 'The "
-        "filter's prediction error'); --lengths, --segment-s and --segment-start are the "
-        "output error's",
+        help="output error: simulate the log's inputs (default); filter: the EKF's likelihood, "
+        "for a real rig, whose wheels err (docs/identification.md)",
     )
-    p.add_argument("--max-evaluations", type=int, default=40, help="of the residual (default 40)")
+    p.add_argument(
+        "--max-evaluations", type=int, default=40, help="of the residual per pass (default 40)"
+    )
     p.add_argument(
         "--workers",
         type=at_least_one,
         metavar="N",
-        help="--method filter: run the filter under N parameter vectors at once, in N "
-        "processes (default: one per usable core)",
+        help="--method filter: N parameter vectors at once in N processes (default: the cores)",
     )
     p.set_defaults(func=run)
 
@@ -136,15 +130,16 @@ class FitProgress:
 def run(args) -> int:
     from gyrohost.commands.errors import CliError
     from gyrohost.commands.replay import Warnings
-    from gyrohost.config import ConfigError, load_rig_config
+    from gyrohost.config import ConfigError
     from gyrohost.estimator.config import for_rig
     from gyrohost.ident import filter_fit, profile, report
     from gyrohost.ident.errors import FitError, IdentDataError, ParamsError
     from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import STEP_S
+    from gyrohost.ident.log_config import config_for_logs
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
-    from gyrohost.resources import ResourceError, resolve
+    from gyrohost.resources import ResourceError
     from gyrotensegrity import Model, SceneError, load_scene
 
     out = args.out
@@ -155,13 +150,14 @@ def run(args) -> int:
         for warning in log_warnings(log):
             print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
     try:
-        config_path = resolve("config", args.config)
-        config = load_rig_config(config_path)
-        for key in _noise_placeholders(config_path):
+        config, mismatches = config_for_logs(args.logs, args.config)
+        for warning in mismatches:
+            print(f"gyrotens identify: warning: {warning}", file=sys.stderr)
+        for key in _noise_placeholders(config.source):
             print(
-                f"gyrotens identify: warning: {config_path}: {key} is still the template's "
+                f"gyrotens identify: warning: {config.source}: {key} is still the template's "
                 "datasheet value, and the fit weighs its sensor by it: measure it with "
-                f"'gyrotens noise LOG --config {args.config}' (docs/identification.md, step 2)",
+                "'gyrotens noise LOG' (docs/identification.md, step 2)",
                 file=sys.stderr,
             )
         scene = load_scene(config.scene_path)
@@ -217,16 +213,19 @@ def run(args) -> int:
     plot = out.with_name(out.stem + "-residuals.png")
     report.plot_residuals(result, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
-    print(f"run with it: gyrotens run --config {args.config} --overlay {overlay} --scene {out}")
+    print(f"run with it: gyrotens run --config {config.source} --overlay {overlay} --scene {out}")
     return 0
 
 
-def _noise_placeholders(config_path) -> list[str]:
-    """The estimator's noise keys the configuration still has at the lab-rig template's
-    datasheet values (:mod:`gyrohost.bringup.placeholders`), dotted."""
+def _noise_placeholders(config_path: str) -> list[str]:
+    """The estimator's noise keys the configuration file still has at the lab-rig template's
+    datasheet values (:mod:`gyrohost.bringup.placeholders`), dotted; none when the file is
+    gone (a log of another machine)."""
     from gyrohost.bringup.placeholders import find_placeholders
     from gyrohost.ident.noise import KEYS
 
+    if not Path(config_path).is_file():
+        return []
     keys = {f"estimator.{key}" for key in KEYS}
     return [p.key for p in find_placeholders(config_path) if p.key in keys]
 

@@ -1,6 +1,6 @@
 """``gyrotens ports [--no-probe] [PATH ...]``: every serial port, what answers on it, and the
 configuration lines to paste (docs/bring-up.md). Probing writes only HELLO and PING: nothing
-moves."""
+moves. A PATH given that is missing or cannot be probed is bad input (exit 2)."""
 
 import sys
 
@@ -27,8 +27,14 @@ def register(sub) -> None:
 def run(args) -> int:
     from gyrohost.bringup.probe import probe
     from gyrohost.bringup.serialports import access_problem, list_ports
+    from gyrohost.commands.errors import CliError
     from gyrohost.drivers.errors import PortBusyError
 
+    for path in args.paths:  # a port named on the command line must be there
+        problem = access_problem(path)
+        if problem is not None:
+            raise CliError(f"{path}: {problem}")
+    unprobed = []
     ports = list_ports(tuple(args.paths))
     if not ports:
         print("no serial port found (plugged in? 'dmesg | tail' shows what the kernel saw)")
@@ -54,6 +60,8 @@ def run(args) -> int:
             )
         except (OSError, PortBusyError) as exc:  # busy, vanished: say so, go on with the next
             print(f"  cannot probe: {exc}")
+            if info.device in args.paths:
+                unprobed.append(f"{info.device}: {exc}")
             continue
         print(f"  {result.detail}")
         if result.config_lines:
@@ -62,4 +70,6 @@ def run(args) -> int:
         print("\nconfiguration lines to paste (docs/rig-config.md):")
         print("\n".join(config_lines[1:]))
     sys.stdout.flush()
+    if unprobed:
+        raise CliError(f"cannot probe {'; '.join(unprobed)}")
     return 0

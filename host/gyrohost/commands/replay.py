@@ -21,7 +21,15 @@ def register(sub) -> None:
     p.add_argument("log", type=Path, help="log folder (meta.json + CSV streams)")
     p.add_argument("-o", "--out", type=Path, help="output log folder (default: LOG-replay)")
     p.add_argument("--scene", type=Path, help="scene file (default: 'scene' in meta.json)")
-    p.add_argument("--config", type=Path, help="TOML with an [estimator] table")
+    p.add_argument(
+        "--estimator",
+        "--config",
+        dest="config",
+        type=Path,
+        metavar="FILE",
+        help="estimator settings: a TOML with an [estimator] table, as 'run --estimator' takes "
+        "(--config: the old name)",
+    )
     p.set_defaults(func=run)
 
 

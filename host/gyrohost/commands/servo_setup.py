@@ -2,6 +2,7 @@
 length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
 
 import sys
+from functools import partial
 
 
 def register(sub) -> None:
@@ -10,12 +11,20 @@ def register(sub) -> None:
     ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
     ids.add_argument("--port", required=True, help="the U2D2's port, one servo connected")
     ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
-    ids.add_argument("--new-id", type=int, required=True, metavar="ID")
-    ids.add_argument("--new-baud", type=int, metavar="BAUD", help="(default: unchanged)")
+    ids.add_argument("--new-id", type=int, required=True, metavar="ID", help="its ID: 0..252")
+    ids.add_argument(
+        "--new-baud", type=int, metavar="BAUD", help="its baud rate afterwards (default: unchanged)"
+    )
     ids.add_argument(
         "--scan-ids", default="0-252", metavar="A-B", help="IDs searched (0-252: every one)"
     )
-    ids.add_argument("--reply-timeout", type=float, default=0.034, metavar="S", help="(0.034 s)")
+    ids.add_argument(
+        "--reply-timeout",
+        type=float,
+        default=0.034,
+        metavar="S",
+        help="wait for each reply beyond its transfer time (0.034 s)",
+    )
     ids.set_defaults(func=run_id)
     zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
     zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
@@ -42,13 +51,14 @@ def _id_range(text: str) -> range:
 
 
 def run_id(args) -> int:
+    from gyrohost.bringup.devices import checked_port
     from gyrohost.bringup.servo_setup import change_id
     from gyrohost.commands.errors import CliError
     from gyrohost.errors import GyrohostError
 
     ids = _id_range(args.scan_ids)
     try:
-        change = change_id(args.port, args.baud, args.new_id, args.new_baud, ids,
+        change = change_id(checked_port(args.port), args.baud, args.new_id, args.new_baud, ids,
                            args.reply_timeout)  # fmt: skip
     except (GyrohostError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -76,11 +86,7 @@ def run_zero(args) -> int:
         if args.servo not in by_name:
             raise CliError(f"{config.source}: no servo named {args.servo!r} ({sorted(by_name)})")
         index, servo = by_name[args.servo]
-        print(f"servo '{servo.name}' (ID {servo.id}): torque off, wind its string by hand")
-        zero = read_zero(config.servos, servo)
-        length_m = args.length_m
-        if length_m is None:
-            length_m = float(input("length measured between the string's nodes, m: "))
+        zero, length_m = read_zero(config.servos, servo, partial(_measured, servo, args.length_m))
         servo = replace(servo, zero_position=zero, length_at_zero_m=length_m)
         confirm = (lambda _q: True) if args.yes else ask
         goal, moved = check_sign(config.servos, servo, args.check_m, config.run.max_servo_load,
@@ -93,6 +99,14 @@ def run_zero(args) -> int:
     print(f"zero_position = {zero}\nlength_at_zero_m = {length_m:g}\nlength_sign = {sign}")
     sys.stdout.flush()
     return 0
+
+
+def _measured(servo, length_m: float | None) -> float:
+    """Said once the servo's torque is off: the length given, or the one the user measures."""
+    print(f"servo '{servo.name}' (ID {servo.id}): torque off", flush=True)
+    if length_m is not None:
+        return length_m
+    return float(input("wind its string by hand, then the length between its nodes, m: "))
 
 
 def _word(longer: bool) -> str:

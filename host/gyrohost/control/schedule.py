@@ -23,12 +23,12 @@ File format (TOML, or the same keys in JSON; ``docs/schedule.md``)::
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from gyrotensegrity.compat import tomllib
 from gyrotensegrity.textfile import TextFileError, read_text
 
 from .errors import ScheduleError

@@ -9,7 +9,6 @@ most ``max_dt_s``) under the schedule's rest lengths held over each control step
 
 import math
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from gyrohost.control.closed_loop import Replanner, TruthPlusNoise
 from gyrohost.control.errors import PlanError
 from gyrohost.control.planner import Plan, Planner
 from gyrotensegrity import Model, Stepper, scene_from_dict, simulate
+from gyrotensegrity.compat import tomllib
 
 
 def scene_with_wheel_inertia(path, factor: float):

@@ -51,6 +51,8 @@ class DeviceError(WheelBoardError):
         self.name, self.text = wp.error_name(code), wp.error_text(code)
         self.latched = list(latched)
         why = f"; latched: {', '.join(self.latched)}" if self.name == "FAULT_ACTIVE" else ""
+        fix = wp.error_fix(code, detail)
+        why += f"; run: {fix}" if fix else ""
         super().__init__(
             f"{request} refused by the wheel board: {self.name} ({self.text}), detail {detail}"
             + why

@@ -445,6 +445,15 @@ def error_text(code: int) -> str:
     return ERRORS[code][1] if code in ERRORS else f"unknown error code {code}"
 
 
+ERROR_FIXES = {"OFFSET_UNCALIBRATED": "gyrotens wheels calibrate --wheel {detail}"}
+"""Error name -> the command that lifts it (the texts above are the firmware's own)."""
+
+
+def error_fix(code: int, detail: int) -> str:
+    """The command that lifts error ``code`` for ``detail``; ``""`` when none does."""
+    return ERROR_FIXES.get(error_name(code), "").format(detail=detail)
+
+
 @dataclass(frozen=True)
 class Telemetry:
     """One TELEMETRY message in SI units.

@@ -2,13 +2,13 @@
 
 import numpy as np
 
+from gyrohost.bringup.wheel_faults import clear_reported_faults
 from gyrohost.drivers.imu import Bwt61Driver
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.drivers.wheelboard import WheelBoard
 from gyrohost.estimator.config import speed_filter_delay_s
 from gyrohost.run.devices import WheelTelemetry
 from gyrohost.run.errors import LimitBreach
-from gyrohost.run.wheel_faults import clear_reported_faults
 
 WHEEL_MODEL_PARAMS = ("ACCEL_RAD_S2", "SPEED_FILTER_SHIFT")
 """The board's parameters the estimator's wheel model repeats (its ramp and its low-pass)."""

@@ -14,7 +14,7 @@ DEFAULT_CONFIG = shipped("config", "sim-rig")
 
 def add_arguments(parser) -> None:
     """The options of ``gyrotens sil`` and of the experiment's command line."""
-    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--runs", type=int, default=20, help="simulated runs scored (20)")
     parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
     parser.add_argument(
         "--overlay", type=Path, action="append", default=[], metavar="FILE",
@@ -28,7 +28,9 @@ def add_arguments(parser) -> None:
     )  # fmt: skip
     parser.add_argument("--duration", type=float, default=3.0, help="schedule length, s")
     parser.add_argument("--realtime", action="store_true", help="real-time rig via the run loop")
-    parser.add_argument("--out", type=Path, default=Path("out/sil"), help="logs (--realtime)")
+    parser.add_argument(
+        "-o", "--out", type=Path, default=Path("out/sil"), help="logs (--realtime; out/sil)"
+    )
     parser.add_argument("--score-only", action="store_true", help="score existing logs in OUT")
     parser.add_argument(
         "--estimator",
