@@ -112,15 +112,19 @@ class InterruptsBlocked:
     has chosen what to do with them (:func:`unblock_interrupts`)."""
 
     def __enter__(self):
-        self.previous = signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPTS)
+        self.previous = None
+        if hasattr(signal, "pthread_sigmask"):  # POSIX
+            self.previous = signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPTS)
         return self
 
     def __exit__(self, *exc):
-        signal.pthread_sigmask(signal.SIG_SETMASK, self.previous)
+        if self.previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self.previous)
         return False
 
 
 def unblock_interrupts() -> None:
     """Unblock the interrupting signals in this thread (a child started blocked, after it set
     their handlers)."""
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPTS)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, INTERRUPTS)

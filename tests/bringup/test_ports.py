@@ -3,6 +3,8 @@ the configuration lines to paste; a port where nothing answers said so."""
 
 import os
 import pty
+import subprocess
+import sys
 
 from gyrohost.bringup.probe import probe
 from gyrohost.cli import main
@@ -41,3 +43,31 @@ def test_probe_writes_only_hello_and_ping_where_nothing_answers():
         rest = rest.replace(ping, b"", 1)
     frames = [f for f in rest.split(b"\x00") if f]
     assert frames and set(frames) == {wp.encode("HELLO")[:-1]}  # HELLO, repeated; nothing else
+
+
+def test_a_port_another_process_holds_is_named_and_not_written_to(capsys):
+    """A run under way holds the port: ``ports`` says who and sends it nothing (a HELLO or a
+    PING would reach the device in the middle of the run)."""
+    master, slave = pty.openpty()
+    path = os.ttyname(slave)
+    hold = (
+        "import sys\nfrom gyrohost.drivers.portlock import PortClaim\n"
+        "claim = PortClaim(sys.argv[1])\nprint('held', flush=True)\nsys.stdin.read()\n"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", hold, path],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert holder.stdout.readline() == "held\n"
+        assert main(["ports", "--hello-timeout", "0.3", "--reply-timeout", "0.05", path]) == 0
+    finally:
+        holder.communicate("", timeout=30)
+    out = capsys.readouterr().out
+    assert f"  cannot probe: {path} is in use by PID {holder.pid} (" in out, out
+    os.set_blocking(master, False)
+    try:
+        written = os.read(master, 4096)
+    except BlockingIOError:
+        written = b""
+    os.close(master)
+    os.close(slave)
+    assert written == b""

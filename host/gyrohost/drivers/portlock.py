@@ -12,11 +12,12 @@ run. So every driver opens its port through this module:
   POSIX), which also keeps out a program that does not know these lock files.
 
 Within one process a port may be claimed again (the run claims all its ports before any driver
-opens one); the lock goes when the last claim is released.
+opens one); the lock goes when the last claim is released. Elsewhere than on POSIX (Windows) a
+serial port is opened exclusively by the system itself and no lock file is kept; ``fcntl`` is
+imported only where it exists.
 """
 
 import errno
-import fcntl
 import os
 import shlex
 import sys
@@ -32,16 +33,19 @@ import serial
 from .errors import PortBusyError
 
 EXCLUSIVE = os.name == "posix"
-"""pyserial's ``exclusive`` option exists on POSIX only (Windows opens ports exclusively)."""
+"""pyserial's ``exclusive`` option and ``flock`` exist on POSIX only (Windows opens ports
+exclusively)."""
 
 
 def runtime_dir() -> Path:
     """The user's runtime directory for gyrotens: ``$XDG_RUNTIME_DIR/gyrotens``, else
-    ``<tmp>/gyrotens-<uid>``."""
+    ``<tmp>/gyrotens-<uid>`` (``<tmp>/gyrotens`` where there are no user ids: Windows' temporary
+    folder is the user's own)."""
     runtime = os.environ.get("XDG_RUNTIME_DIR")
     if runtime:
         return Path(runtime) / "gyrotens"
-    return Path(tempfile.gettempdir()) / f"gyrotens-{os.getuid()}"
+    uid = f"-{os.getuid()}" if hasattr(os, "getuid") else ""
+    return Path(tempfile.gettempdir()) / f"gyrotens{uid}"
 
 
 def lock_path(port: str) -> Path:
@@ -67,12 +71,14 @@ class PortClaim:
     def __init__(self, port: str):
         self.port = str(port)
         self.path = lock_path(self.port)
+        self._released = not EXCLUSIVE  # no lock files there: nothing to hold
+        if self._released:
+            return
         with _held_guard:
             if self.path in _held:
                 _held[self.path][1] += 1
             else:
                 _held[self.path] = [_take(self.path, self.port), 1]
-        self._released = False
 
     def release(self) -> None:
         with _held_guard:
@@ -88,6 +94,8 @@ class PortClaim:
 
 def _take(path: Path, port: str) -> int:
     """Lock the file at ``path`` for this process and write who holds it; its descriptor."""
+    import fcntl  # POSIX only (PortClaim asks for no lock elsewhere)
+
     path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     while True:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
