@@ -275,18 +275,18 @@ class WheelBoard:
         return spec
 
     def _send(self, name: str, fields: dict[str, int]) -> None:
+        """Write one frame. A control frame restarts the board's HEARTBEAT_MS count: the longest
+        gap between two, once the heartbeat runs, says how near a stalled host came to the
+        board's fail-safe."""
         data = wp.encode(name, **fields)
         with self._write_lock:
             self._port.write(data)
-            if name in CONTROL_FRAMES:
-                self._note_sent(time.monotonic())
-
-    def _note_sent(self, now_s: float) -> None:
-        """A control frame restarts the board's HEARTBEAT_MS count: the longest gap between two,
-        once the heartbeat runs, says how near a stalled host came to the board's fail-safe."""
-        if self._heartbeat_on.is_set() and self._last_sent_s is not None:
-            self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
-        self._last_sent_s = now_s
+            if name not in CONTROL_FRAMES:
+                return
+            now_s = time.monotonic()
+            if self._heartbeat_on.is_set() and self._last_sent_s is not None:
+                self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
+            self._last_sent_s = now_s
 
     def _drain_replies(self) -> None:
         while True:
