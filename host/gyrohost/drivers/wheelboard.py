@@ -163,7 +163,7 @@ class WheelBoard:
             if abs(mrad) > 2**31 - 1:
                 raise ValueError(f"set_speeds: wheel {i} speed {w} rad/s out of the int32 range")
             fields[f"w{i}_mrad_s"] = mrad
-        self._driving = any(fields.values())
+        previous, self._driving = self._driving, any(fields.values())
         if not confirm:
             self._send("SET_SPEEDS", fields)
             return
@@ -171,7 +171,11 @@ class WheelBoard:
             self._drain_replies()
             self._send("SET_SPEEDS", fields)
             self._send("GET_STATS", {})
-            self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
+            try:
+                self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
+            except DeviceError:  # refused: the board holds what it held before
+                self._driving = previous
+                raise
 
     def stop_all(self) -> None:
         """Ramp all wheels to zero at DECEL_RAD_S2."""
