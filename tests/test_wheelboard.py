@@ -260,6 +260,11 @@ def test_background_heartbeat_only_while_no_wheel_is_commanded(fake):
         board.set_speeds([0.0, 0.0, 0.0, 0.0])
         time.sleep(0.2)
         assert len(fake.heartbeats) >= driving + 5  # idle again
+        with pytest.raises(wb.DeviceError, match="SETPOINT_ABOVE_MAX"):
+            board.set_speeds([1e3, 0.0, 0.0, 0.0])  # refused: nothing turns
+        idle = len(fake.heartbeats)
+        time.sleep(0.2)
+        assert len(fake.heartbeats) >= idle + 5
 
 
 def test_telemetry_queue_and_fault_events(fake):

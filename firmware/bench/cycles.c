@@ -4,8 +4,9 @@
  * Usage: cycles firmware.elf <TIMER2_COMPA addr> <USART0_RX addr> <USART0_UDRE addr>
  * (byte addresses of the ISR functions, from avr-nm; `make -C firmware cycles` passes them).
  *
- * Drives the firmware like a host would: HELLO, a long heartbeat timeout, closed-loop setpoints
- * at 715 rpm (+ - + - for wheels 0..3), then runs 2 s of simulated time. Encoders answer on SPI
+ * Drives the firmware like a host would: HELLO, HEARTBEAT_MS 1000 (its limit) and a HEARTBEAT
+ * every 100 ms, closed-loop setpoints at 715 rpm (+ - + - for wheels 0..3), then runs 2 s of
+ * simulated time. Encoders answer on SPI
  * with an angle rotating at 195 counts per 1 ms (about 715 rpm) in the direction of their wheel's
  * setpoint (the selected encoder is the one whose chip select, PA4..PA7, is low). Reports the
  * control step (cycles between the writes GPIOR0 = 1 and GPIOR0 = 0: encoder reads, estimator, PI,
@@ -237,8 +238,8 @@ int main(int argc, char** argv) {
     int ntx = 0;
     uint8_t p[16];
     ntx += frame(0x01, p, 0, tx + ntx); /* HELLO */
-    p[0] = 9;                           /* HEARTBEAT_MS = 60000 */
-    put_i32(p + 1, 60000);
+    p[0] = 9;                           /* HEARTBEAT_MS = 1000 */
+    put_i32(p + 1, 1000);
     ntx += frame(0x06, p, 5, tx + ntx);
     for (int i = 0; i < 4; i++) { /* ENC_OFFSET_Mi = 0: a blank EEPROM refuses closed loop */
         p[0] = (uint8_t)(15 + i);
@@ -247,6 +248,10 @@ int main(int argc, char** argv) {
     }
     for (int i = 0; i < 4; i++) put_i32(p + 4 * i, (i & 1) ? -74870 : 74870);
     ntx += frame(0x03, p, 16, tx + ntx); /* SET_SPEEDS 715 rpm */
+    uint8_t beat[8]; /* HEARTBEAT, every 100 ms once the frames above are sent */
+    const int nbeat = frame(0x02, p, 0, beat);
+    int beat_sent = nbeat;
+    uint64_t next_beat = 0;
 
     const char* prof_path = getenv("PROFILE");
     if (prof_path) g_profile = calloc(128 * 1024, sizeof *g_profile);
@@ -254,8 +259,12 @@ int main(int argc, char** argv) {
     int sent = 0;
     uint64_t next_byte = 16000 * 20;
     while (avr->cycle < end) {
-        if (sent < ntx && avr->cycle >= next_byte) {
-            avr_raise_irq(uart_in, tx[sent++]);
+        if (sent == ntx && beat_sent == nbeat && avr->cycle >= next_beat) {
+            beat_sent = 0;
+            next_beat = avr->cycle + 16000 * 100;
+        }
+        if (avr->cycle >= next_byte && (sent < ntx || beat_sent < nbeat)) {
+            avr_raise_irq(uart_in, sent < ntx ? tx[sent++] : beat[beat_sent++]);
             next_byte = avr->cycle + 400; /* 25 us: the host sends little */
         }
         uint32_t pc = avr->pc;

@@ -68,6 +68,7 @@ def test_truth_spins_follow_the_real_firmware_at_715_rpm(binaries):
         assert rig.paths["wheels"] == rig.wheels.harness.pty  # the host talks to simavr directly
         with WheelBoard(rig.paths["wheels"], reply_timeout_s=REPLY_TIMEOUT_S) as board:
             start_control_thread(board)
+            board.set_param("HEARTBEAT_MS", 1000)  # a loaded host may pause; not tested here
             hello = board.hello
             assert hello["n_wheels"] == 4
             board.set_speeds(PATTERN_RAD_S)

@@ -164,7 +164,7 @@ class WheelBoard:
             if abs(mrad) > 2**31 - 1:
                 raise ValueError(f"set_speeds: wheel {i} speed {w} rad/s out of the int32 range")
             fields[f"w{i}_mrad_s"] = mrad
-        self._driving = any(fields.values())
+        previous, self._driving = self._driving, any(fields.values())
         if not confirm:
             self._send("SET_SPEEDS", fields)
             return
@@ -172,7 +172,11 @@ class WheelBoard:
             self._drain_replies()
             self._send("SET_SPEEDS", fields)
             self._send("GET_STATS", {})
-            self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
+            try:
+                self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
+            except DeviceError:  # refused: the board holds what it held before
+                self._driving = previous
+                raise
 
     def stop_all(self) -> None:
         """Ramp all wheels to zero at DECEL_RAD_S2."""
@@ -276,18 +280,18 @@ class WheelBoard:
         return spec
 
     def _send(self, name: str, fields: dict[str, int]) -> None:
+        """Write one frame. A control frame restarts the board's HEARTBEAT_MS count: the longest
+        gap between two, once the heartbeat runs, says how near a stalled host came to the
+        board's fail-safe."""
         data = wp.encode(name, **fields)
         with self._write_lock:
             self._port.write(data)
-            if name in CONTROL_FRAMES:
-                self._note_sent(time.monotonic())
-
-    def _note_sent(self, now_s: float) -> None:
-        """A control frame restarts the board's HEARTBEAT_MS count: the longest gap between two,
-        once the heartbeat runs, says how near a stalled host came to the board's fail-safe."""
-        if self._heartbeat_on.is_set() and self._last_sent_s is not None:
-            self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
-        self._last_sent_s = now_s
+            if name not in CONTROL_FRAMES:
+                return
+            now_s = time.monotonic()
+            if self._heartbeat_on.is_set() and self._last_sent_s is not None:
+                self.silence_max_s = max(self.silence_max_s, now_s - self._last_sent_s)
+            self._last_sent_s = now_s
 
     def _drain_replies(self) -> None:
         while True:

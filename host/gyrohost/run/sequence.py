@@ -357,6 +357,13 @@ class RunLoop:
                 raise fault
             self.event("fault", str(fault))
         self._command(self.now())  # after any fault; stamped when sent
+        if self.wheels is not None:
+            try:  # from the thread that decides the speeds: a loop that stalls stops the wheels
+                self.wheels.heartbeat()
+            except OSError:
+                if strict:
+                    raise
+                # the safe state: its "stop wheels" step reports a dead port
         if self.ekf is not None:
             self.ekf.tick(start)
         if self.truth is not None:
@@ -451,8 +458,6 @@ class RunLoop:
                 self.omega_cmd = omega
             if self.ekf is not None:  # from the tick's time on, when the devices get it
                 self.ekf.set_input(rest, t_s, self.omega_cmd[: self.n_wheels])
-        if self.wheels is not None:  # the board's wheels live only while this thread ticks
-            self.wheels.heartbeat()
         self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
 
     # --- the log ------------------------------------------------------------------------------
