@@ -78,13 +78,16 @@ def test_hand_built_stream_with_garbage_and_corrupt_frames():
 class FakeBoard(threading.Thread):
     """Answers like the firmware's dispatcher on the master side of a pseudo-terminal."""
 
-    def __init__(self, proto_version: int = wp.PROTO_VERSION, silent: bool = False):
+    def __init__(
+        self, proto_version: int = wp.PROTO_VERSION, silent: bool = False, boot_s: float = 0.0
+    ):
         super().__init__(daemon=True)
         self.master, slave = os.openpty()
         tty.setraw(slave)
         self.path = os.ttyname(slave)
         self._slave = slave
         self.proto_version, self.silent = proto_version, silent
+        self.awake_at = time.monotonic() + boot_s  # a bootloader ignores frames until then
         self.params = {p.id: p.default for p in wp.PARAMS}
         self.speeds = [0, 0, 0, 0]
         self.cleared: list[int] = []  # CLEAR_FAULTS masks received
@@ -111,7 +114,7 @@ class FakeBoard(threading.Thread):
                 return
             for msg in dec.feed(data):
                 self.received.append(msg.name)
-                if not self.silent:
+                if not self.silent and time.monotonic() >= self.awake_at:
                     self.handle(msg)
 
     def handle(self, msg: wp.Message) -> None:
@@ -224,13 +227,26 @@ def test_version_mismatch_refused_with_clear_message():
         fake.close()
 
 
-def test_silent_board_times_out():
+def test_silent_board_times_out_after_its_boot_window_of_hellos():
     fake = FakeBoard(silent=True)
     try:
-        board = wb.WheelBoard(fake.path, reply_timeout_s=0.1)
-        with pytest.raises(wb.WheelBoardTimeout, match="no HELLO_REPLY reply to HELLO"):
+        board = wb.WheelBoard(fake.path, reply_timeout_s=0.1, boot_window_s=0.35)
+        with pytest.raises(wb.WheelBoardTimeout, match=r"no HELLO_REPLY .* within 0.35 s"):
             board.connect()
         board.close()
+        assert fake.received.count("HELLO") >= 3  # one every 0.1 s
+    finally:
+        fake.close()
+
+
+def test_a_board_in_its_bootloader_answers_a_later_hello():
+    """Opening the port resets the Mega into its bootloader, which ignores frames for 1-2 s: the
+    client repeats HELLO through the boot window (docs/protocol.md#boot-state)."""
+    fake = FakeBoard(boot_s=0.6)
+    try:
+        with wb.WheelBoard(fake.path) as board:
+            assert board.hello["proto_version"] == wp.PROTO_VERSION
+        assert fake.received.count("HELLO") >= 2
     finally:
         fake.close()
 

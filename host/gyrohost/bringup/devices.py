@@ -6,7 +6,6 @@ port given wins over the configuration's. A missing or unreadable port is the us
 fix (:class:`SetupInputError`), found before anything is sent.
 """
 
-import time
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
@@ -96,22 +95,14 @@ def wheel_board(port: str, hello_timeout_s: float = HELLO_TIMEOUT_S, reply_timeo
     WheelBoardTimeout
         No HELLO reply in ``hello_timeout_s``.
     """
-    from gyrohost.drivers.errors import WheelBoardTimeout
     from gyrohost.drivers.wheelboard import WheelBoard
 
     try:
-        board = WheelBoard(port, reply_timeout_s=HELLO_PERIOD_S)
+        board = WheelBoard(port, reply_timeout_s=HELLO_PERIOD_S, boot_window_s=hello_timeout_s)
     except OSError as exc:  # pyserial's SerialException is an OSError
         raise SetupInputError(f"cannot open {port}: {exc}") from None
     try:
-        deadline = time.monotonic() + hello_timeout_s
-        while True:
-            try:
-                board.connect()
-                break
-            except WheelBoardTimeout:
-                if time.monotonic() >= deadline:
-                    raise
+        board.connect()  # HELLO repeated through the boot window
         board.reply_timeout_s = reply_timeout_s
         yield board
     finally:

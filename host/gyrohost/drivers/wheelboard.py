@@ -36,6 +36,11 @@ from .errors import (
 )
 
 BAUD = 1_000_000
+BOOT_WINDOW_S = 2.5
+"""How long a board may stay silent after its port was opened: opening it resets the Mega into
+its bootloader, which ignores the protocol for 1-2 s (docs/protocol.md#boot-state)."""
+HELLO_RETRY_S = 0.25
+"""The interval between two HELLOs within the boot window, s (as the bring-up probe's)."""
 CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
 """The frames that restart the board's heartbeat count (the firmware's app_is_control_frame)."""
 
@@ -57,6 +62,8 @@ class WheelBoard:
         Called from the reader thread when fault bits newly appear in telemetry.
     telemetry_queue_len : int
         Capacity of :attr:`telemetry`; when full the oldest sample is dropped.
+    boot_window_s : float, s
+        How long :meth:`connect` repeats HELLO before it gives up (:data:`BOOT_WINDOW_S`).
 
     Attributes
     ----------
@@ -73,6 +80,7 @@ class WheelBoard:
         on_fault: Callable[[list[str]], None] | None = None,
         telemetry_queue_len: int = 2000,
         reply_timeout_s: float = 0.5,
+        boot_window_s: float = BOOT_WINDOW_S,
     ):
         if isinstance(port, str):
             from .portlock import LockedSerial
@@ -81,6 +89,7 @@ class WheelBoard:
         self._port = port
         self.heartbeat_period_s = heartbeat_period_s
         self.reply_timeout_s = reply_timeout_s
+        self.boot_window_s = boot_window_s
         self.on_telemetry = on_telemetry
         self.on_fault = on_fault
         self.telemetry: queue.Queue[wp.Telemetry] = queue.Queue(telemetry_queue_len)
@@ -104,8 +113,23 @@ class WheelBoard:
 
     # ------------------------------------------------------------ life cycle
     def connect(self) -> dict[str, int]:
-        """Handshake: HELLO, refuse another protocol version, start the heartbeat."""
-        reply = self._request("HELLO", {}, ("HELLO_REPLY",))
+        """Handshake: HELLO (repeated through the boot window: a board whose port was just
+        opened runs its bootloader first), refuse another protocol version, start the
+        heartbeat."""
+        deadline = time.monotonic() + self.boot_window_s
+        while True:
+            try:
+                reply = self._request(
+                    "HELLO", {}, ("HELLO_REPLY",), min(HELLO_RETRY_S, self.reply_timeout_s)
+                )
+                break
+            except WheelBoardTimeout:
+                if time.monotonic() >= deadline:
+                    raise WheelBoardTimeout(
+                        f"no HELLO_REPLY reply to HELLO within {self.boot_window_s:g} s of "
+                        "HELLOs (a board whose port opens runs its bootloader for 1-2 s first; "
+                        f"is the board connected and running protocol v{wp.PROTO_VERSION}?)"
+                    ) from None
         fields = reply.fields
         if fields["proto_version"] != wp.PROTO_VERSION:
             raise FirmwareMismatchError(
