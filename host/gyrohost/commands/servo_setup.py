@@ -4,12 +4,14 @@ length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config
 import sys
 from functools import partial
 
+from gyrohost.commands.devices import add_device_options
+
 
 def register(sub) -> None:
     p = sub.add_parser("servo-setup", help="set a servo's ID and baud rate, calibrate its zero")
     steps = p.add_subparsers(dest="step", metavar="STEP", required=True)
     ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
-    ids.add_argument("--port", required=True, help="the U2D2's port, one servo connected")
+    add_device_options(ids, "U2D2")  # with one servo on its bus
     ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
     ids.add_argument("--new-id", type=int, required=True, metavar="ID", help="its ID: 0..252")
     ids.add_argument(
@@ -28,6 +30,7 @@ def register(sub) -> None:
     ids.set_defaults(func=run_id)
     zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
     zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
+    zero.add_argument("--port", help="the U2D2's serial port (overrides the configuration's)")
     zero.add_argument("--servo", required=True, metavar="NAME", help="servo name, e.g. s13")
     zero.add_argument("--length-m", type=float, metavar="M", help="the length measured (asked)")
     zero.add_argument(
@@ -51,14 +54,15 @@ def _id_range(text: str) -> range:
 
 
 def run_id(args) -> int:
-    from gyrohost.bringup.devices import checked_port
+    from gyrohost.bringup.devices import Target
     from gyrohost.bringup.servo_setup import change_id
     from gyrohost.commands.errors import CliError
     from gyrohost.errors import GyrohostError
 
     ids = _id_range(args.scan_ids)
     try:
-        change = change_id(checked_port(args.port), args.baud, args.new_id, args.new_baud, ids,
+        port = Target(args.config, args.port).rig("servos").servos.port
+        change = change_id(port, args.baud, args.new_id, args.new_baud, ids,
                            args.reply_timeout)  # fmt: skip
     except (GyrohostError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -74,14 +78,13 @@ def ask(question: str) -> bool:
 def run_zero(args) -> int:
     from dataclasses import replace
 
+    from gyrohost.bringup.devices import Target
     from gyrohost.bringup.servo_setup import check_sign, read_zero
     from gyrohost.commands.errors import CliError
-    from gyrohost.config import load_rig_config
     from gyrohost.errors import GyrohostError
-    from gyrohost.resources import resolve
 
     try:
-        config = load_rig_config(resolve("config", args.config))
+        config = Target(args.config, args.port).rig("servos")
         by_name = {s.name: (i, s) for i, s in enumerate(config.servos.servo)}
         if args.servo not in by_name:
             raise CliError(f"{config.source}: no servo named {args.servo!r} ({sorted(by_name)})")
