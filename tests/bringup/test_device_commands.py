@@ -78,6 +78,15 @@ def test_servos_jog_and_home_move_within_the_limits(tmp_path, servo_bus, capsys)
         assert abs(reached - START_M) < 2e-4, out
 
 
+def test_servos_refuse_to_move_with_uncalibrated_zeros(tmp_path, servo_bus, capsys):
+    path = tmp_path / "lab.toml"
+    path.write_text(config_text("lab-rig", {"imu": "x", "wheels": "x",
+                                            "servos": servo_bus.slave_path}))  # fmt: skip
+    assert main(["servos", "home", "--config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "servos.servo[0].zero_position" in err and "gyrotens servo-setup zero" in err, err
+
+
 def test_imu_calibrate_removes_the_accelerometer_bias(tmp_path, rig_ports, capsys):
     config = write(tmp_path, rig_ports)
     assert main(["imu", "calibrate", "--config", config, "--wait", "0.2"]) == 0

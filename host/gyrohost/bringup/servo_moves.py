@@ -19,6 +19,7 @@ from gyrohost.drivers.servos import StringServoBus
 
 from .devices import Target
 from .errors import ServoSetupError, SetupInputError
+from .placeholders import find_placeholders
 
 ARRIVED_STEPS = 2
 """A servo this close to its goal has arrived, steps (0.18 degrees)."""
@@ -44,6 +45,27 @@ def servo_named(config: RigConfig, name: str):
     raise SetupInputError(f"{config.source}: no servo named {name!r} (configured: {known})")
 
 
+def servos_config(target: Target) -> RigConfig:
+    """The configuration of ``target`` with the servo bus's port, refused while a servo's zero is
+    a placeholder: its lengths, and so its limits, would be wrong.
+
+    Raises
+    ------
+    SetupInputError
+        The port cannot be opened, or a ``zero_position``/``length_at_zero_m`` is still the
+        template's (the message names them and the command that calibrates them).
+    """
+    config = target.rig("servos")
+    if config.source.endswith(".toml"):
+        unset = [p.key for p in find_placeholders(config.source) if p.required]
+        if unset:
+            raise SetupInputError(
+                f"{config.source}: the servos' lengths are not calibrated ({', '.join(unset)}): "
+                "'gyrotens servo-setup zero' first (docs/bring-up.md, step 8)"
+            )
+    return config
+
+
 def start_lengths(config: RigConfig) -> dict[str, float]:
     """Servo name -> the scene's initial rest length of the string it winds, m (servos that
     wind no scene string are left out)."""
@@ -64,7 +86,7 @@ def jog(target: Target, name: str, by_m: float, report: Report) -> float:
     ServoSetupError
         The servo did not arrive in time.
     """
-    config = target.rig("servos")
+    config = servos_config(target)
     servo = servo_named(config, name)
     bus_config = replace(config.servos, servo=(servo,))
     with _limited_bus(bus_config, config.run.max_servo_load) as bus:
@@ -80,7 +102,7 @@ def home(target: Target, report: Report) -> dict[str, float]:
     SetupInputError
         No servo winds a scene string, or a start length is outside a servo's limits.
     """
-    config = target.rig("servos")
+    config = servos_config(target)
     goals = start_lengths(config)
     if not goals:
         raise SetupInputError(f"{config.source}: no servo winds a string of the scene")
