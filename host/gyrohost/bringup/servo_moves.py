@@ -1,6 +1,6 @@
-"""String servos moved by hand on the first day: one string lengthened or shortened by a given
-amount (``gyrotens servos jog``), every string driven to the scene's start length
-(``gyrotens servos home``), as a run's start check wants them (docs/bring-up.md).
+"""String servos moved on the user's command on the first day: one string lengthened or
+shortened by a given amount (``gyrotens servos jog``), every string driven to the scene's start
+length (``gyrotens servos home``), as a run's start check wants them (docs/bring-up.md).
 
 Each move stays within the servo's ``[min_length_m, max_length_m]`` (a goal outside is refused
 before anything moves), at its ``max_speed_m_s``, with the torque limited to the
