@@ -41,8 +41,9 @@ def test_wheels_spin_reaches_the_speed_and_ramps_down(tmp_path, rig_ports, capsy
 
 
 def test_wheels_calibrate_keeps_the_positional_port_with_a_deprecation_line(rig_ports, capsys):
-    assert main(["wheels", "calibrate", rig_ports["wheels"], "--wheel", "1", "--no-save"]) == 0
+    status = main(["wheels", "calibrate", rig_ports["wheels"], "--wheel", "1", "--no-save"])
     captured = capsys.readouterr()
+    assert status == 0, captured.err
     assert "PORT is deprecated, use --port PORT" in captured.err
     assert "wheel 1: ENC_OFFSET_M1 = " in captured.out and "saved" not in captured.out
 
