@@ -4,9 +4,9 @@
 #   make lab    a lab laptop: gyrotens with its runtime and what flashing needs (AVR toolchain,
 #               avrdude), nothing of the test suite's
 #   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega
+#   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
 #   make oldest [PYTHON_OLDEST=python3.10]   the package with its dependency floors on the oldest
 #               supported Python, and the tests that only compute
-#   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test, bench
 # and live extras (pyproject.toml) beside it.
