@@ -22,8 +22,9 @@ class FakeBoard:
     def clear_faults(self, names):
         return list(names)
 
-    def set_speeds(self, speeds):
-        self.sent.append(("SET_SPEEDS", list(speeds)))
+    def set_speeds(self, speeds, confirm=True):
+        if confirm or self.sent[-1] != ("SET_SPEEDS", list(speeds)):  # repeats: one entry
+            self.sent.append(("SET_SPEEDS", list(speeds)))
         self.speeds = list(speeds)
 
     def stop_all(self):

@@ -25,7 +25,10 @@ ARRIVED_STEPS = 2
 """A servo this close to its goal has arrived, steps (0.18 degrees)."""
 POLL_S = 0.02
 SETTLE_MARGIN = 2.0
-"""A move may take this many times its distance over ``max_speed_m_s`` (plus one second)."""
+"""A move may take this many times its distance over ``max_speed_m_s``, plus :data:`SETTLE_S`."""
+SETTLE_S = 3.0
+"""Time a move may take beyond its travel, s: the servo's acceleration and the bus's replies on a
+loaded host; a blocked servo is still found within seconds."""
 
 Report = Callable[[str], None]
 
@@ -129,7 +132,7 @@ def move(bus: StringServoBus, goals_m: dict[str, float], report: Report) -> dict
     for name, goal in goals_m.items():
         report(f"servo '{name}': {before[name]:.4f} m -> {goal:.4f} m")
     travel_s = max(abs(goals_m[n] - before[n]) / bus.servos[n].max_speed_m_s for n in goals_m)
-    deadline = time.monotonic() + SETTLE_MARGIN * travel_s + 1.0
+    deadline = time.monotonic() + SETTLE_MARGIN * travel_s + SETTLE_S
     while True:
         states = {s.name: s for s in bus.read_states()}
         if all(abs(states[n].position_steps - steps[n]) <= ARRIVED_STEPS for n in steps):
