@@ -41,8 +41,8 @@ def argv_for(command: str, config: str, ports: dict[str, str]) -> list[str]:
     argv = [config if a == "my-rig.toml" else a for a in shlex.split(command)[1:]]
     if "--port" in argv:
         argv[argv.index("--port") + 1] = ports[NOUN_PORT[argv[0]]]
-    if argv[0] == "ports":  # the rig's ptys, which no USB listing finds
-        argv = ["ports", *ports.values()]
+    if argv[0] == "ports":  # the rig's ptys, which no USB listing finds; a pty shares the CPU
+        argv = ["ports", *ports.values(), "--reply-timeout", "0.2"]
     return argv + (SLACK if argv[0] == "doctor" else [])
 
 

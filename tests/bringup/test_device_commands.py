@@ -85,7 +85,7 @@ def test_servos_refuse_to_move_with_uncalibrated_zeros(tmp_path, servo_bus, caps
                                             "servos": servo_bus.slave_path}))  # fmt: skip
     assert main(["servos", "home", "--config", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "servos.servo[0].zero_position" in err and "gyrotens servo-setup zero" in err, err
+    assert "servos.servo[0].zero_position" in err and "gyrotens servos zero" in err, err
 
 
 def test_imu_calibrate_removes_the_accelerometer_bias(tmp_path, rig_ports, capsys):

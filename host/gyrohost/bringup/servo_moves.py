@@ -64,7 +64,7 @@ def servos_config(target: Target) -> RigConfig:
         if unset:
             raise SetupInputError(
                 f"{config.source}: the servos' lengths are not calibrated ({', '.join(unset)}): "
-                "'gyrotens servo-setup zero' first (docs/bring-up.md, step 8)"
+                "'gyrotens servos zero' first (docs/bring-up.md, step 8)"
             )
     return config
 

@@ -1,5 +1,6 @@
-"""``gyrotens servo-setup id|zero``: a lone servo's ID and baud rate; the zero of a servo's
-length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
+"""``gyrotens servos id|zero`` (formerly ``gyrotens servo-setup id|zero``, kept with a
+deprecation line): a lone servo's ID and baud rate; the zero of a servo's length model, moved
+only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
 
 import sys
 from functools import partial
@@ -8,8 +9,13 @@ from gyrohost.commands.devices import add_device_options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("servo-setup", help="set a servo's ID and baud rate, calibrate its zero")
-    steps = p.add_subparsers(dest="step", metavar="STEP", required=True)
+    p = sub.add_parser("servo-setup", help="deprecated: gyrotens servos id|zero")
+    add_steps(p.add_subparsers(dest="step", metavar="STEP", required=True), old=True)
+
+
+def add_steps(steps, old: bool = False) -> None:
+    """The ``id`` and ``zero`` verbs on the argparse subparsers ``steps`` (``gyrotens servos``;
+    with ``old``, ``gyrotens servo-setup``, which says it is deprecated when run)."""
     ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
     add_device_options(ids, "U2D2")  # with one servo on its bus
     ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
@@ -27,7 +33,7 @@ def register(sub) -> None:
         metavar="S",
         help="wait for each reply beyond its transfer time (0.034 s)",
     )
-    ids.set_defaults(func=run_id)
+    ids.set_defaults(func=partial(_deprecated, "id", run_id) if old else run_id)
     zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
     zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
     zero.add_argument("--port", help="the U2D2's serial port (overrides the configuration's)")
@@ -37,7 +43,12 @@ def register(sub) -> None:
         "--check-m", type=float, default=0.01, metavar="M", help="length_sign test move (0.01 m)"
     )
     zero.add_argument("--yes", action="store_true", help="move without asking")
-    zero.set_defaults(func=run_zero)
+    zero.set_defaults(func=partial(_deprecated, "zero", run_zero) if old else run_zero)
+
+
+def _deprecated(verb: str, step, args) -> int:
+    print(f"gyrotens servo-setup {verb}: deprecated, use gyrotens servos {verb}", file=sys.stderr)
+    return step(args)
 
 
 def _id_range(text: str) -> range:
