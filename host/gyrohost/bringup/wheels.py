@@ -4,7 +4,7 @@ spun slowly (docs/bring-up.md).
 A board with a blank EEPROM refuses a closed-loop setpoint for a wheel whose ENC_OFFSET is still
 the default (ERROR ``OFFSET_UNCALIBRATED``, docs/protocol.md "Boot state"); that refusal is the
 only way the board tells a wheel's offset state, so :func:`uncalibrated_wheels` asks for it with
-the smallest setpoint there is, 1 mrad/s (0.01 rpm), and sends zero right after one that was taken.
+the smallest setpoint there is, 1 mrad/s (0.01 rpm), and sends zero right after each.
 """
 
 import time
@@ -28,7 +28,7 @@ SPIN_MAX_S = 10.0
 TICK_S = 0.05
 """The spin's loop period, s: a fifth of the board's default HEARTBEAT_MS (250 ms)."""
 SETTLE_SHARE = 0.5
-"""The measured speed is the mean over the last this share of the spin."""
+"""The measured speed is the mean over this last share of the spin."""
 
 Report = Callable[[str], None]
 
@@ -62,8 +62,7 @@ def uncalibrated_wheels(board) -> list[int]:
             if exc.name != "OFFSET_UNCALIBRATED":  # a fault latched meanwhile: say which
                 raise WheelSetupError(f"offsets not checked: {exc}") from None
             refused.append(wheel)
-            continue
-        board.set_speeds([0.0] * wp.N_WHEELS)
+        board.set_speeds([0.0] * wp.N_WHEELS)  # taken or not: nothing is left commanded
     return refused
 
 
