@@ -6,6 +6,8 @@
 #   make flash PORT=/dev/ttyACM0   the wheel-board firmware (the ELF the FIL tests run) onto the Mega,
 #                                  once its brown-out fuse is checked (tools/check-bod.sh)
 #   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
+#   make oldest [PYTHON_OLDEST=python3.10]   the package with its dependency floors on the oldest
+#               supported Python, and the tests that only compute
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test, bench
 # and live extras (pyproject.toml) beside it.
@@ -19,7 +21,7 @@ DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 LABDEBS := build/.debs-lab-stamp
 
-.PHONY: demo lab test lint pytest studies-check study firmware setup clean flash
+.PHONY: demo lab oldest test lint pytest studies-check study firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
 # it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
@@ -30,6 +32,18 @@ demo: $(DEMODEBS) $(RUNTIME)
 	$(BIN)/gyrotens demo
 
 lab: $(LABDEBS) $(RUNTIME)
+
+# The floors of pyproject.toml (tools/oldest-constraints.txt) on Python 3.10, in a venv of its own;
+# the package installed, not editable, so the tests import what a user gets.
+PYTHON_OLDEST ?= python3.10
+OLDEST        := build/venv-oldest
+OLDEST_TESTS  := tests/model tests/host tests/control tests/estimator tests/test_wheelproto.py \
+                 tests/test_wheelboard.py tests/test_cli.py tests/test_errors.py
+oldest: $(DEMODEBS)
+	test -x $(OLDEST)/bin/python || $(PYTHON_OLDEST) -m venv $(OLDEST)
+	$(OLDEST)/bin/pip install -q -c tools/oldest-constraints.txt . pytest hypothesis
+	$(OLDEST)/bin/python -m pytest -q -p no:cacheprovider -m "not real_time and not slow" \
+	    --ignore tests/model/test_rig_fidelity_mujoco.py $(OLDEST_TESTS)
 
 test: setup lint firmware studies-check pytest
 

@@ -41,8 +41,9 @@ def test_wheels_spin_reaches_the_speed_and_ramps_down(tmp_path, rig_ports, capsy
 
 
 def test_wheels_calibrate_keeps_the_positional_port_with_a_deprecation_line(rig_ports, capsys):
-    assert main(["wheels", "calibrate", rig_ports["wheels"], "--wheel", "1", "--no-save"]) == 0
+    status = main(["wheels", "calibrate", rig_ports["wheels"], "--wheel", "1", "--no-save"])
     captured = capsys.readouterr()
+    assert status == 0, captured.err
     assert "PORT is deprecated, use --port PORT" in captured.err
     assert "wheel 1: ENC_OFFSET_M1 = " in captured.out and "saved" not in captured.out
 
@@ -76,6 +77,15 @@ def test_servos_jog_and_home_move_within_the_limits(tmp_path, servo_bus, capsys)
     for name in ("s13", "s24"):
         reached = float(re.search(rf"servo '{name}': at (\S+) m, holding", out).group(1))
         assert abs(reached - START_M) < 2e-4, out
+
+
+def test_servos_refuse_to_move_with_uncalibrated_zeros(tmp_path, servo_bus, capsys):
+    path = tmp_path / "lab.toml"
+    path.write_text(config_text("lab-rig", {"imu": "x", "wheels": "x",
+                                            "servos": servo_bus.slave_path}))  # fmt: skip
+    assert main(["servos", "home", "--config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "servos.servo[0].zero_position" in err and "gyrotens servos zero" in err, err
 
 
 def test_imu_calibrate_removes_the_accelerometer_bias(tmp_path, rig_ports, capsys):

@@ -1,5 +1,6 @@
-"""``gyrotens servo-setup`` against the emulated MX-12W bus: a lone servo's new ID and baud rate
-confirmed by PING, two servos refused, the zero read and the sign checked by a confirmed move."""
+"""``gyrotens servos id|zero`` (and the old ``servo-setup``) against the emulated MX-12W bus: a
+lone servo's new ID and baud rate confirmed by PING, two servos refused, the zero read and the
+sign checked by a confirmed move."""
 
 import pytest
 from bringup_rig import config_text
@@ -30,13 +31,13 @@ def config_on(bus, tmp_path):
     return path
 
 
-ZERO = ["servo-setup", "zero", "--servo", "s13", "--length-m", "0.3", "--config"]
+ZERO = ["servos", "zero", "--servo", "s13", "--length-m", "0.3", "--config"]
 
 
 def test_a_lone_servo_gets_its_new_id_and_baud_confirmed_by_ping(capsys):
     bus = bus_of(1)
     try:
-        argv = ["servo-setup", "id", "--port", bus.slave_path, "--new-id", "4"]
+        argv = ["servos", "id", "--port", bus.slave_path, "--new-id", "4"]
         assert main([*argv, "--new-baud", "57600", *FAST]) == 0
         out = capsys.readouterr().out
         assert "MX-12W: ID 1 at 1000000 baud -> ID 4 at 57600 baud (confirmed by PING)" in out
@@ -50,8 +51,10 @@ def test_two_servos_on_the_bus_are_refused_and_keep_their_ids(capsys):
     bus = bus_of(1, 2)
     try:
         argv = ["servo-setup", "id", "--port", bus.slave_path, "--new-id", "4", *FAST]
-        assert main(argv) == 2
-        assert "IDs [1, 2] answered (IDs 1..10): connect exactly one" in capsys.readouterr().err
+        assert main(argv) == 2  # the old spelling, with its deprecation line
+        err = capsys.readouterr().err
+        assert "IDs [1, 2] answered (IDs 1..10): connect exactly one" in err
+        assert "gyrotens servo-setup id: deprecated, use gyrotens servos id" in err
         assert sorted(bus.servos) == [1, 2]
     finally:
         bus.close()

@@ -59,3 +59,25 @@ def test_the_device_commands_import_and_refuse_a_missing_port_without_grp():
     assert done.stderr.startswith("gyrotens wheels: error: --port /nonexistent/tty: no such"), (
         done.stderr
     )
+
+
+WITHOUT_UNIX = """
+import sys, types
+for name in ("grp", "pwd", "fcntl", "termios", "pty", "tty"):
+    sys.modules[name] = None
+serial = types.ModuleType("serial")  # pyserial's POSIX backend needs fcntl and termios
+serial.SerialException = type("SerialException", (OSError,), {})
+serial.Serial = object
+sys.modules["serial"] = serial
+import gyrohost.cli, gyrohost.run.sequence, gyrohost.run.connect, gyrohost.run.simulated
+import gyrohost.bringup.doctor, gyrohost.bringup.wheels, gyrohost.bringup.servo_moves
+import gyrohost.bringup.imu_setup, gyrohost.drivers.wheelboard, gyrohost.drivers.imu
+gyrohost.cli.build_parser()
+"""
+
+
+def test_run_doctor_and_the_device_commands_import_without_any_unix_only_module():
+    """As on Windows: no grp, pwd, fcntl, termios, pty or tty (pyserial stubbed, as its Windows
+    backend stands in there); the simulated rig alone is left out."""
+    done = subprocess.run([sys.executable, "-c", WITHOUT_UNIX], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr

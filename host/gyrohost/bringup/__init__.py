@@ -1,5 +1,5 @@
 """Bringing up a real rig: serial ports found and probed, the configuration checked against the
-devices (``gyrotens doctor``), servos given their IDs (``gyrotens servo-setup``).
+devices (``gyrotens doctor``), servos given their IDs (``gyrotens servos id``).
 
 - :mod:`.serialports`: every serial port with its USB identity; missing ports and permissions
   (with the ``dialout`` fix), the FTDI latency timer, the rfcomm binding.

@@ -47,6 +47,10 @@ class Check:
     level: str
     detail: str
 
+    def __post_init__(self):
+        if self.level not in (PASS, WARN, FAIL):  # a bool would read as "not FAIL"
+            raise ValueError(f"check {self.name!r}: level {self.level!r} is not PASS, WARN or FAIL")
+
     @classmethod
     def of(cls, name: str, ok: bool, detail: str) -> "Check":
         """PASS when ``ok``, else FAIL."""

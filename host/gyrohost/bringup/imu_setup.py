@@ -18,6 +18,10 @@ STILL_RAD_S = 0.02
 """Largest mean angular rate of a still IMU, rad/s: twice the gyro bias the datasheet gives after
 power-up (0.5 deg/s = 0.0087 rad/s), so a resting sensor passes and a hand-held one does not."""
 
+SAMPLE_WAIT_S = 1.0
+"""Longest wait for one sample at the end of a window, s: twenty of the slower rate's periods
+(20 Hz), so that a link that bunches samples is not taken for a silent IMU."""
+
 Report = Callable[[str], None]
 
 
@@ -35,7 +39,7 @@ def mean_motion(driver, window_s: float) -> tuple[np.ndarray, float]:
     accel, rate = [], []
     deadline = time.monotonic() + window_s
     while time.monotonic() < deadline:
-        sample = driver.read_sample(timeout_s=max(deadline - time.monotonic(), 0.2))
+        sample = driver.read_sample(timeout_s=max(deadline - time.monotonic(), SAMPLE_WAIT_S))
         accel.append(sample.accel_m_s2)
         rate.append(float(np.linalg.norm(sample.omega_rad_s)))
     return np.mean(accel, axis=0), float(np.mean(rate))

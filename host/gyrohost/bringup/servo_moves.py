@@ -1,6 +1,6 @@
-"""String servos moved by hand on the first day: one string lengthened or shortened by a given
-amount (``gyrotens servos jog``), every string driven to the scene's start length
-(``gyrotens servos home``), as a run's start check wants them (docs/bring-up.md).
+"""String servos moved on the user's command on the first day: one string lengthened or
+shortened by a given amount (``gyrotens servos jog``), every string driven to the scene's start
+length (``gyrotens servos home``), as a run's start check wants them (docs/bring-up.md).
 
 Each move stays within the servo's ``[min_length_m, max_length_m]`` (a goal outside is refused
 before anything moves), at its ``max_speed_m_s``, with the torque limited to the
@@ -19,12 +19,16 @@ from gyrohost.drivers.servos import StringServoBus
 
 from .devices import Target
 from .errors import ServoSetupError, SetupInputError
+from .placeholders import find_placeholders
 
 ARRIVED_STEPS = 2
 """A servo this close to its goal has arrived, steps (0.18 degrees)."""
 POLL_S = 0.02
 SETTLE_MARGIN = 2.0
-"""A move may take this many times its distance over ``max_speed_m_s`` (plus one second)."""
+"""A move may take this many times its distance over ``max_speed_m_s``, plus :data:`SETTLE_S`."""
+SETTLE_S = 3.0
+"""Time a move may take beyond its travel, s: the servo's acceleration and the bus's replies on a
+loaded host; a blocked servo is still found within seconds."""
 
 Report = Callable[[str], None]
 
@@ -42,6 +46,27 @@ def servo_named(config: RigConfig, name: str):
             return servo
     known = ", ".join(s.name for s in config.servos.servo) or "none"
     raise SetupInputError(f"{config.source}: no servo named {name!r} (configured: {known})")
+
+
+def servos_config(target: Target) -> RigConfig:
+    """The configuration of ``target`` with the servo bus's port, refused while a servo's zero is
+    a placeholder: its lengths, and so its limits, would be wrong.
+
+    Raises
+    ------
+    SetupInputError
+        The port cannot be opened, or a ``zero_position``/``length_at_zero_m`` is still the
+        template's (the message names them and the command that calibrates them).
+    """
+    config = target.rig("servos")
+    if config.source.endswith(".toml"):
+        unset = [p.key for p in find_placeholders(config.source) if p.required]
+        if unset:
+            raise SetupInputError(
+                f"{config.source}: the servos' lengths are not calibrated ({', '.join(unset)}): "
+                "'gyrotens servos zero' first (docs/bring-up.md, step 8)"
+            )
+    return config
 
 
 def start_lengths(config: RigConfig) -> dict[str, float]:
@@ -64,7 +89,7 @@ def jog(target: Target, name: str, by_m: float, report: Report) -> float:
     ServoSetupError
         The servo did not arrive in time.
     """
-    config = target.rig("servos")
+    config = servos_config(target)
     servo = servo_named(config, name)
     bus_config = replace(config.servos, servo=(servo,))
     with _limited_bus(bus_config, config.run.max_servo_load) as bus:
@@ -80,7 +105,7 @@ def home(target: Target, report: Report) -> dict[str, float]:
     SetupInputError
         No servo winds a scene string, or a start length is outside a servo's limits.
     """
-    config = target.rig("servos")
+    config = servos_config(target)
     goals = start_lengths(config)
     if not goals:
         raise SetupInputError(f"{config.source}: no servo winds a string of the scene")
@@ -107,7 +132,7 @@ def move(bus: StringServoBus, goals_m: dict[str, float], report: Report) -> dict
     for name, goal in goals_m.items():
         report(f"servo '{name}': {before[name]:.4f} m -> {goal:.4f} m")
     travel_s = max(abs(goals_m[n] - before[n]) / bus.servos[n].max_speed_m_s for n in goals_m)
-    deadline = time.monotonic() + SETTLE_MARGIN * travel_s + 1.0
+    deadline = time.monotonic() + SETTLE_MARGIN * travel_s + SETTLE_S
     while True:
         states = {s.name: s for s in bus.read_states()}
         if all(abs(states[n].position_steps - steps[n]) <= ARRIVED_STEPS for n in steps):

@@ -4,7 +4,7 @@ spun slowly (docs/bring-up.md).
 A board with a blank EEPROM refuses a closed-loop setpoint for a wheel whose ENC_OFFSET is still
 the default (ERROR ``OFFSET_UNCALIBRATED``, docs/protocol.md "Boot state"); that refusal is the
 only way the board tells a wheel's offset state, so :func:`uncalibrated_wheels` asks for it with
-the smallest setpoint there is, 1 mrad/s (0.01 rpm), and sends zero right after one that was taken.
+the smallest setpoint there is, 1 mrad/s (0.01 rpm), and sends zero right after each.
 """
 
 import time
@@ -25,8 +25,10 @@ SPIN_MAX_RAD_S = 20.0
 (docs/protocol.md, "Electrical zero"), 191 rpm against the run's 715."""
 SPIN_MAX_S = 10.0
 """Longest first spin, s."""
+TICK_S = 0.05
+"""The spin's loop period, s: a fifth of the board's default HEARTBEAT_MS (250 ms)."""
 SETTLE_SHARE = 0.5
-"""The measured speed is the mean over the last this share of the spin."""
+"""The measured speed is the mean over this last share of the spin."""
 
 Report = Callable[[str], None]
 
@@ -60,8 +62,7 @@ def uncalibrated_wheels(board) -> list[int]:
             if exc.name != "OFFSET_UNCALIBRATED":  # a fault latched meanwhile: say which
                 raise WheelSetupError(f"offsets not checked: {exc}") from None
             refused.append(wheel)
-            continue
-        board.set_speeds([0.0] * wp.N_WHEELS)
+        board.set_speeds([0.0] * wp.N_WHEELS)  # taken or not: nothing is left commanded
     return refused
 
 
@@ -161,21 +162,26 @@ def spin_wheel(board, spin: Spin, report: Report) -> float:
     try:
         board.set_speeds(speeds)
         report(f"wheel {spin.wheel}: spinning at {spin.speed_rad_s:g} rad/s, {spin.duration_s:g} s")
-        measured = _mean_speed(board, spin)
+        measured = _mean_speed(board, spin, speeds)
         report(f"wheel {spin.wheel}: measured {measured:.2f} rad/s")
     finally:
         _ramp_down(board, spin, report)
     return measured
 
 
-def _mean_speed(board, spin: Spin) -> float:
-    """Mean telemetry speed of the wheel over the last part of the spin, rad/s."""
+def _mean_speed(board, spin: Spin, speeds: list[float]) -> float:
+    """Mean telemetry speed of the wheel over the last part of the spin, rad/s.
+
+    The setpoint ``speeds`` is sent again every :data:`TICK_S`: a control frame from the thread
+    that decides it is what keeps the board's heartbeat (docs/protocol.md); were this loop to
+    stall, the board would ramp the wheel down by itself."""
     start = time.monotonic()
     settle_at = start + spin.duration_s * (1.0 - SETTLE_SHARE)
     samples = []
     while (now := time.monotonic()) - start < spin.duration_s:
         board.check_faults()
-        time.sleep(0.05)
+        board.set_speeds(speeds, confirm=False)
+        time.sleep(TICK_S)
         if now >= settle_at:
             tel = board.last_telemetry
             if tel is not None:
@@ -186,15 +192,21 @@ def _mean_speed(board, spin: Spin) -> float:
 
 
 def _ramp_down(board, spin: Spin, report: Report) -> None:
-    """STOP_ALL (the board ramps at DECEL_RAD_S2), then wait for the wheel to stop."""
+    """STOP_ALL (the board ramps at DECEL_RAD_S2), then wait for the wheel to stop: below
+    ``spin.stop_rad_s`` and its driver off (the board brakes a wheel until its encoder shows it
+    at rest, and refuses a calibration meanwhile)."""
     board.stop_all()
     deadline = time.monotonic() + spin.rampdown_s
     while time.monotonic() < deadline:
         tel = board.last_telemetry
-        if tel is not None and abs(tel.omega_rad_s[spin.wheel]) < spin.stop_rad_s:
+        if (
+            tel is not None
+            and abs(tel.omega_rad_s[spin.wheel]) < spin.stop_rad_s
+            and "OUTPUTS_ENABLED" not in tel.status_names
+        ):
             report(f"wheel {spin.wheel}: stopped")
             return
-        time.sleep(0.05)
+        time.sleep(TICK_S)
     raise WheelSetupError(
         f"wheel {spin.wheel} still above {spin.stop_rad_s:g} rad/s {spin.rampdown_s:g} s after "
         "STOP_ALL: switch the motor supply off"

@@ -1,15 +1,23 @@
-"""``gyrotens servo-setup id|zero``: a lone servo's ID and baud rate; the zero of a servo's
-length model, moved only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
+"""``gyrotens servos id|zero`` (formerly ``gyrotens servo-setup id|zero``, kept with a
+deprecation line): a lone servo's ID and baud rate; the zero of a servo's length model, moved
+only after a confirmation (docs/bring-up.md, docs/rig-config.md)."""
 
 import sys
 from functools import partial
 
+from gyrohost.commands.devices import add_device_options
+
 
 def register(sub) -> None:
-    p = sub.add_parser("servo-setup", help="set a servo's ID and baud rate, calibrate its zero")
-    steps = p.add_subparsers(dest="step", metavar="STEP", required=True)
+    p = sub.add_parser("servo-setup", help="deprecated: gyrotens servos id|zero")
+    add_steps(p.add_subparsers(dest="step", metavar="STEP", required=True), old=True)
+
+
+def add_steps(steps, old: bool = False) -> None:
+    """The ``id`` and ``zero`` verbs on the argparse subparsers ``steps`` (``gyrotens servos``;
+    with ``old``, ``gyrotens servo-setup``, which says it is deprecated when run)."""
     ids = steps.add_parser("id", help="give the only servo on the bus a new ID (and baud rate)")
-    ids.add_argument("--port", required=True, help="the U2D2's port, one servo connected")
+    add_device_options(ids, "U2D2")  # with one servo on its bus
     ids.add_argument("--baud", type=int, default=1_000_000, help="its baud rate now (1000000)")
     ids.add_argument("--new-id", type=int, required=True, metavar="ID", help="its ID: 0..252")
     ids.add_argument(
@@ -25,16 +33,22 @@ def register(sub) -> None:
         metavar="S",
         help="wait for each reply beyond its transfer time (0.034 s)",
     )
-    ids.set_defaults(func=run_id)
+    ids.set_defaults(func=partial(_deprecated, "id", run_id) if old else run_id)
     zero = steps.add_parser("zero", help="read a servo's zero_position, check its length_sign")
     zero.add_argument("--config", required=True, help="rig configuration: a TOML file or name")
+    zero.add_argument("--port", help="the U2D2's serial port (overrides the configuration's)")
     zero.add_argument("--servo", required=True, metavar="NAME", help="servo name, e.g. s13")
     zero.add_argument("--length-m", type=float, metavar="M", help="the length measured (asked)")
     zero.add_argument(
         "--check-m", type=float, default=0.01, metavar="M", help="length_sign test move (0.01 m)"
     )
     zero.add_argument("--yes", action="store_true", help="move without asking")
-    zero.set_defaults(func=run_zero)
+    zero.set_defaults(func=partial(_deprecated, "zero", run_zero) if old else run_zero)
+
+
+def _deprecated(verb: str, step, args) -> int:
+    print(f"gyrotens servo-setup {verb}: deprecated, use gyrotens servos {verb}", file=sys.stderr)
+    return step(args)
 
 
 def _id_range(text: str) -> range:
@@ -51,14 +65,15 @@ def _id_range(text: str) -> range:
 
 
 def run_id(args) -> int:
-    from gyrohost.bringup.devices import checked_port
+    from gyrohost.bringup.devices import Target
     from gyrohost.bringup.servo_setup import change_id
     from gyrohost.commands.errors import CliError
     from gyrohost.errors import GyrohostError
 
     ids = _id_range(args.scan_ids)
     try:
-        change = change_id(checked_port(args.port), args.baud, args.new_id, args.new_baud, ids,
+        port = Target(args.config, args.port).rig("servos").servos.port
+        change = change_id(port, args.baud, args.new_id, args.new_baud, ids,
                            args.reply_timeout)  # fmt: skip
     except (GyrohostError, OSError) as exc:
         raise CliError(str(exc)) from None
@@ -74,14 +89,13 @@ def ask(question: str) -> bool:
 def run_zero(args) -> int:
     from dataclasses import replace
 
+    from gyrohost.bringup.devices import Target
     from gyrohost.bringup.servo_setup import check_sign, read_zero
     from gyrohost.commands.errors import CliError
-    from gyrohost.config import load_rig_config
     from gyrohost.errors import GyrohostError
-    from gyrohost.resources import resolve
 
     try:
-        config = load_rig_config(resolve("config", args.config))
+        config = Target(args.config, args.port).rig("servos")
         by_name = {s.name: (i, s) for i, s in enumerate(config.servos.servo)}
         if args.servo not in by_name:
             raise CliError(f"{config.source}: no servo named {args.servo!r} ({sorted(by_name)})")

@@ -1,12 +1,17 @@
-"""``gyrotens servos jog|home``: one string lengthened or shortened by hand's measure, every
-string driven to the scene's start length; within the configured limits (docs/bring-up.md)."""
+"""``gyrotens servos id|zero|jog|home``: a servo's ID and its zero (:mod:`.servo_setup`); one
+string lengthened or shortened by a given length, every string driven to the scene's start
+length, within the configured limits (docs/bring-up.md)."""
 
 from gyrohost.commands.devices import add_device_options, say
+from gyrohost.commands.servo_setup import add_steps
 
 
 def register(sub) -> None:
-    p = sub.add_parser("servos", help="the string servos: jog one, drive all to the start")
+    p = sub.add_parser(
+        "servos", help="the string servos: set an ID, calibrate a zero, jog one, drive all home"
+    )
     actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add_steps(actions)
     j = actions.add_parser("jog", help="lengthen (+) or shorten (-) one string, then hold")
     add_device_options(j, "servo bus (U2D2)")
     j.add_argument("--servo", required=True, metavar="NAME", help="servo name, e.g. s13")
