@@ -11,6 +11,7 @@ from pathlib import Path
 from bringup_rig import config_text
 
 from gyrohost.cli import main
+from gyrohost.drivers import wheelproto as wp
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "bring-up.md"
 BLOCK = re.compile(r"<!-- transcript -->\n```text\n(.*?)```", re.S)
@@ -56,7 +57,9 @@ def test_the_transcripts_are_what_the_commands_print(tmp_path, rig_ports, capsys
     blocks = transcripts()
     assert {c.split()[1] for c, _ in blocks} >= {"ports", "doctor", "imu", "wheels", "servos"}
     for command, expected in blocks:
-        time.sleep(0.3)  # the wheel board's heartbeat lapses between two commands, as by hand
+        # the wheel board's heartbeat (HEARTBEAT_MS, 250 ms) lapses between two commands, as
+        # by hand: four times over, for an emulator thread held up on a loaded machine
+        time.sleep(4 * wp.PARAM_BY_NAME["HEARTBEAT_MS"].default / 1000.0)
         status = main(argv_for(command, str(config), rig_ports))
         captured = capsys.readouterr()
         assert status == 0, (command, captured.out, captured.err)

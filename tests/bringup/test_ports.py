@@ -46,8 +46,9 @@ def test_probe_writes_only_hello_and_ping_where_nothing_answers():
 
 
 def test_a_port_another_process_holds_is_named_and_not_written_to(capsys):
-    """A run under way holds the port: ``ports`` says who and sends it nothing (a HELLO or a
-    PING would reach the device in the middle of the run)."""
+    """A run under way holds the port: ``ports`` says who, exits 2 as for any port it cannot
+    probe, and sends it nothing (a HELLO or a PING would reach the device in the middle of the
+    run)."""
     master, slave = pty.openpty()
     path = os.ttyname(slave)
     hold = (
@@ -58,11 +59,11 @@ def test_a_port_another_process_holds_is_named_and_not_written_to(capsys):
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)  # fmt: skip
     try:
         assert holder.stdout.readline() == "held\n"
-        assert main(["ports", "--hello-timeout", "0.3", "--reply-timeout", "0.05", path]) == 0
+        assert main(["ports", "--hello-timeout", "0.3", "--reply-timeout", "0.05", path]) == 2
     finally:
         holder.communicate("", timeout=30)
-    out = capsys.readouterr().out
-    assert f"  cannot probe: {path} is in use by PID {holder.pid} (" in out, out
+    err = capsys.readouterr().err
+    assert f"cannot probe {path}: {path} is in use by PID {holder.pid} (" in err, err
     os.set_blocking(master, False)
     try:
         written = os.read(master, 4096)

@@ -101,7 +101,7 @@ def _unless_held(name: str, checks: Iterator[Check]) -> Iterator[Check]:
     try:
         yield from checks
     except PortBusyError as exc:
-        yield Check(name, False, str(exc))
+        yield Check(name, FAIL, str(exc))
 
 
 def _placeholders(config) -> Iterator[Check]:
