@@ -120,7 +120,7 @@ class Executor:
                     silence_logs=logging.CRITICAL,  # a failed case is reported by the caller
                 )
                 self.client = Client(self._cluster)
-        except OSError as exc:
+        except (OSError, ValueError) as exc:  # unreachable, or an address Dask cannot parse
             self.close()
             raise ExecutorError(f"Dask scheduler {self.scheduler}: {exc}") from None
         return self

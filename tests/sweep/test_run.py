@@ -132,10 +132,14 @@ def test_serial_executor_raises_the_first_error_unless_keep_going():
     )
 
 
-def test_an_unreachable_scheduler_is_an_executor_error():
+@pytest.mark.parametrize(
+    ("address", "message"),
+    [("tcp://127.0.0.1:9", "tcp://127.0.0.1:9"), ("not an address", "missing port number")],
+)
+def test_an_unreachable_or_malformed_scheduler_is_an_executor_error(address, message):
     with (
-        pytest.raises(ExecutorError, match="tcp://127.0.0.1:9"),
-        Executor(scheduler="tcp://127.0.0.1:9", timeout_s=1.0),
+        pytest.raises(ExecutorError, match=message),
+        Executor(scheduler=address, timeout_s=1.0),
     ):
         pass
 
