@@ -247,16 +247,17 @@ def test_gyrotens_wheels_calibrate_reports_and_clears_the_boot_fault_then_saves(
     device = WheelBoardEmulator().start()
     try:
         time.sleep(0.4)  # no host yet: HEARTBEAT_LOST latches after HEARTBEAT_MS (250 ms)
-        assert main(["wheels", "calibrate", device.slave_path, "--wheel", "1", "--wheel", "3"]) == 0
+        argv = ["wheels", "calibrate", "--port", device.slave_path, "--wheel", "1", "--wheel", "3"]
+        assert main(argv) == 0
     finally:
         device.close()
     out, err = capsys.readouterr()
-    assert err.splitlines() == [
+    assert (err + out).splitlines() == [
         "wheel board: HEARTBEAT_LOST latched at connect: " + wp.FAULTS[0][1],
         "wheel board: cleared HEARTBEAT_LOST",
-    ]
-    assert out.splitlines() == [
+        "wheel 1: calibrating (it turns back and forth by one electrical turn)",
         "wheel 1: ENC_OFFSET_M1 = 0 (0.0 deg)",
+        "wheel 3: calibrating (it turns back and forth by one electrical turn)",
         "wheel 3: ENC_OFFSET_M3 = 0 (0.0 deg)",
         "saved to EEPROM",
     ]
