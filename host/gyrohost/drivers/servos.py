@@ -33,7 +33,13 @@ import serial
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
 from gyrohost.drivers import mx12
 
-from .errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
+from .errors import (
+    ServoCommError,
+    ServoError,
+    ServoFaultError,
+    ServoLimitError,
+    ServoTimeoutError,
+)
 from .portlock import PortClaim, exclusive_serial
 
 
@@ -85,11 +91,19 @@ class PortHandler(sdk.PortHandler):
     """
 
     READ_SLICE_S = 0.0005
+    QUIET_S = 0.002
+    """No byte for this long after a request or a byte: no status packet is under way (a servo
+    answers within its return delay, 0.5 ms at the factory setting, and sends its packet back to
+    back), so :attr:`while_waiting` may write without cutting into one."""
 
     def __init__(self, port_name: str, reply_timeout_s: float) -> None:
         super().__init__(port_name)
         self.reply_timeout_ms = reply_timeout_s * 1000.0
         self._claim: PortClaim | None = None
+        self.while_waiting = None
+        """Callable run while a reply is awaited and the line is quiet (goals that must not
+        wait for a silent servo's time-out); it may write whole packets, never read."""
+        self._last_rx_s = 0.0
 
     def setupPort(self, cflag_baud: int) -> bool:
         """(Re)open the port at ``self.baudrate``, exclusively (:mod:`gyrohost.drivers.
@@ -127,6 +141,41 @@ class PortHandler(sdk.PortHandler):
     def setPacketTimeout(self, packet_length: int) -> None:
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.reply_timeout_ms
+        self._last_rx_s = time.monotonic()
+
+    def readPort(self, length: int) -> bytes:
+        data = super().readPort(length)
+        if data:
+            self._last_rx_s = time.monotonic()
+        return data
+
+    def isPacketTimeout(self) -> bool:
+        """The SDK asks this between reads while it waits for a reply: the quiet line's
+        moment for :attr:`while_waiting` (not re-entered from inside it).
+
+        Bytes waiting in the port are never a time-out, however late it is: a thread held off
+        the CPU past the time-out (a loaded host) would otherwise declare silent a servo whose
+        reply sits unread.
+        """
+        hook = self.while_waiting
+        if hook is not None and time.monotonic() - self._last_rx_s >= self.QUIET_S:
+            self.while_waiting = None
+            try:
+                hook()
+            finally:
+                self.while_waiting = hook
+        return super().isPacketTimeout() and not self.ser.in_waiting
+
+    def write_packet(self, packet: bytes) -> None:
+        """Write a whole packet now, inside a transaction the SDK holds (its ``txPacket`` would
+        refuse it as busy and flush the reply under way)."""
+        written = self.writePort(packet)
+        if written != len(packet):
+            raise ServoCommError(
+                f"servo bus {self.port_name}: wrote {written} of {len(packet)} bytes",
+                sdk.BROADCAST_ID,
+                sdk.COMM_TX_FAIL,
+            )
 
 
 def _set_low_latency(port: sdk.PortHandler) -> bool:
@@ -170,6 +219,11 @@ class StringServoBus:
         if not (math.isfinite(value_s) and value_s > 0):
             raise ServoLimitError(f"servo bus: reply timeout {value_s} s must be positive")
         self.port.reply_timeout_ms = value_s * 1000.0
+
+    def on_reply_wait(self, hook) -> None:
+        """Run ``hook()`` (None: nothing) while a reply is awaited and the line is quiet; it may
+        send goals (:meth:`command_lengths`), which then need not wait for a silent servo."""
+        self.port.while_waiting = hook
 
     def open(self) -> "StringServoBus":
         """Open the port at the configured baud rate (idempotent); returns ``self``."""
@@ -352,6 +406,10 @@ class StringServoBus:
         for name, (steps, speed) in goals.items():
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
+        if self.port.is_using:  # from PortHandler.while_waiting, a reply awaited
+            group.makeParam()
+            self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
+            return
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
@@ -410,6 +468,10 @@ class StringServoBus:
 
     def _check(self, servo: ServoConfig, result: int, error: int, what: str) -> None:
         where = f"servo '{servo.name}' (ID {servo.id}) on {self.config.port}"
+        if result == sdk.COMM_RX_TIMEOUT:
+            text = self.packets.getTxRxResult(result)
+            why = f"{where}: {what}: {text} (none within {self.reply_timeout_s:g} s)"
+            raise ServoTimeoutError(why, servo.id, result)
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
                 f"{where}: {what}: {self.packets.getTxRxResult(result)}", servo.id, result
@@ -417,6 +479,14 @@ class StringServoBus:
         if error:
             faults = mx12.fault_names(error)
             raise ServoFaultError(f"{where}: {what}: {', '.join(faults)}", servo.id, faults)
+
+
+def _sync_write_packet(addr: int, n: int, param: list[int]) -> bytes:
+    """A Protocol 1.0 SYNC WRITE to every servo: header, broadcast ID, length, instruction,
+    start address, bytes per servo, ``param`` (ID and ``n`` bytes per servo), checksum (the
+    inverted low byte of the sum from the ID on)."""
+    body = [sdk.BROADCAST_ID, len(param) + 4, sdk.INST_SYNC_WRITE, addr, n, *param]
+    return bytes([0xFF, 0xFF, *body, ~sum(body) & 0xFF])
 
 
 def _check_config_limits(servo: ServoConfig) -> None:
