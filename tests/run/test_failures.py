@@ -240,4 +240,5 @@ def test_a_silent_servo_is_declared_at_its_first_time_out_while_the_other_follow
     assert abs(s13) < 0.2 * commanded  # the silent servo goes no farther than the goal it had
     safe = assert_log(folder)
     assert not safe["servos"]["s13"]["holding"] and "no read-back" in safe["servos"]["s13"]["why"]
+    assert safe["servos"]["s24"]["holding"]  # held, not stalled behind s13 in a bulk read
     assert "Traceback" not in capfd.readouterr().err

@@ -76,6 +76,8 @@ class ServoState:
     t_ns: int
 
 
+STATE_BYTES = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
+"""Bytes of a servo's state read: present position, speed and load."""
 LENGTH_ROUNDING_M = 1e-9
 """A length commanded this close outside a servo's length limit is rounding (a schedule sampled
 or planned on the limit): it is commanded at the limit. Farther out it is refused."""
@@ -323,19 +325,29 @@ class StringServoBus:
     def hold(self) -> list[ServoState]:
         """Safe state: enable torque and make each present position the goal.
 
-        Fault bits do not stop this (it is what a fault handler calls); communication
-        failures do. Returns the states read, faults included.
+        Fault bits do not stop this (it is what a fault handler calls). Each servo is read on
+        its own, so one that does not answer (a bulk read would stall at it) leaves the others
+        held; its :class:`ServoCommError` is raised after them. Returns the states read,
+        faults included.
         """
         self._release_port()
-        states = self._read_all()
+        states, failed = [], []
+        for servo in self.config.servo:
+            try:
+                states.append(self._read_one(servo))
+            except ServoCommError as exc:
+                failed.append(exc)
         goals = {}
         for state in states:
             servo = self.servos[state.name]
             goals[state.name] = (state.position_steps, _speed_units(servo, servo.max_speed_m_s))
         self._sync_write_goals(goals)
-        for servo in self.config.servo:
+        for state in states:
+            servo = self.servos[state.name]
             result, _ = self.packets.write1ByteTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, 1)
             self._check(servo, result, 0, "write torque enable")
+        if failed:
+            raise failed[0]
         return states
 
     def read_hold(self, name: str) -> tuple[bool, int, ServoState]:
@@ -420,20 +432,19 @@ class StringServoBus:
             )
 
     def _read_all(self) -> list[ServoState]:
-        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
         if self.config.read_mode == "bulk":
-            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, n)
-        else:
-            raw = {}
-            for servo in self.config.servo:
-                sent_ns = time.monotonic_ns()
-                data, result, error = self.packets.readTxRx(
-                    self.port, servo.id, mx12.Addr.PRESENT_POSITION, n
-                )
-                self._check(servo, result, 0, "read present position/speed/load")
-                # the servo samples between our request and its reply
-                raw[servo.name] = (data, error, (sent_ns + time.monotonic_ns()) // 2)
-        return [self._state(self.servos[name], *raw[name]) for name in raw]
+            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, STATE_BYTES)
+            return [self._state(self.servos[name], *raw[name]) for name in raw]
+        return [self._read_one(servo) for servo in self.config.servo]
+
+    def _read_one(self, servo: ServoConfig) -> ServoState:
+        sent_ns = time.monotonic_ns()
+        data, result, error = self.packets.readTxRx(
+            self.port, servo.id, mx12.Addr.PRESENT_POSITION, STATE_BYTES
+        )
+        self._check(servo, result, 0, "read present position/speed/load")
+        # the servo samples between our request and its reply
+        return self._state(servo, data, error, (sent_ns + time.monotonic_ns()) // 2)
 
     def _bulk_read(self, addr: int, n: int) -> dict[str, tuple[list[int], int, int]]:
         group = sdk.GroupBulkRead(self.port, self.packets)
