@@ -106,6 +106,10 @@ class PortHandler(sdk.PortHandler):
         """Callable run while a reply is awaited and the line is quiet (goals that must not
         wait for a silent servo's time-out); it may write whole packets, never read."""
         self._last_rx_s = 0.0
+        self.in_reply_wait = False
+        """True while :attr:`while_waiting` runs: a packet must then go out without the SDK's
+        ``txPacket``, which flushes the input (the reply awaited, or the next one of a bulk
+        read, may be in it already)."""
 
     def setupPort(self, cflag_baud: int) -> bool:
         """(Re)open the port at ``self.baudrate``, exclusively (:mod:`gyrohost.drivers.
@@ -161,11 +165,11 @@ class PortHandler(sdk.PortHandler):
         """
         hook = self.while_waiting
         if hook is not None and time.monotonic() - self._last_rx_s >= self.QUIET_S:
-            self.while_waiting = None
+            self.while_waiting, self.in_reply_wait = None, True
             try:
                 hook()
             finally:
-                self.while_waiting = hook
+                self.while_waiting, self.in_reply_wait = hook, False
         return super().isPacketTimeout() and not self.ser.in_waiting
 
     def write_packet(self, packet: bytes) -> None:
@@ -418,7 +422,7 @@ class StringServoBus:
         for name, (steps, speed) in goals.items():
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
-        if self.port.is_using:  # from PortHandler.while_waiting, a reply awaited
+        if self.port.in_reply_wait:
             group.makeParam()
             self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
             return
