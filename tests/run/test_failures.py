@@ -238,6 +238,8 @@ def test_a_silent_servo_is_declared_at_its_first_time_out_while_the_other_follow
     assert followed > 0.5 * commanded, (followed, commanded)
     s13 = np.diff(np.interp([silent_s, t_end], truth["t_s"], truth["s13_rest_m"]))[0]
     assert abs(s13) < 0.2 * commanded  # the silent servo goes no farther than the goal it had
+    for stream in ("servos", "innov_servos"):  # nothing read after it, so nothing stale fused
+        assert not any(read_stream(folder, stream)["t_s"] > silent_s), stream
     safe = assert_log(folder)
     assert not safe["servos"]["s13"]["holding"] and "no read-back" in safe["servos"]["s13"]["why"]
     assert safe["servos"]["s24"]["holding"]  # held, not stalled behind s13 in a bulk read
