@@ -7,7 +7,13 @@ from dataclasses import replace
 import pytest
 
 from gyrohost.config import ConfigError, ServoBusConfig, ServoConfig
-from gyrohost.drivers.errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
+from gyrohost.drivers.errors import (
+    ServoCommError,
+    ServoError,
+    ServoFaultError,
+    ServoLimitError,
+    ServoTimeoutError,
+)
 from gyrohost.drivers.mx12 import Addr, string_speed_per_unit
 from gyrohost.drivers.servos import StringServoBus
 from gyrohost.simrig.config import ServoEmuConfig
@@ -179,6 +185,38 @@ def test_a_silent_servo_times_out(rig, read_mode):
     device.set_no_reply(1, False)
     bus.reply_timeout_s = PTY_REPLY_TIMEOUT_S
     assert len(bus.read_states()) == 2
+
+
+@pytest.mark.parametrize("read_mode", ["bulk", "per_servo"])
+def test_goals_go_out_while_a_silent_servo_is_awaited(rig, read_mode):
+    device, bus = rig(read_mode)
+    device.set_no_reply(1, True)
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
+    sent = []
+
+    def send_goal():
+        if not sent:
+            sent.append(bus.command_lengths({"right": 0.35}))
+
+    bus.on_reply_wait(send_goal)
+    with pytest.raises(ServoTimeoutError, match=r"'left' \(ID 1\)"):
+        bus.read_states()
+    assert sent and device.servos[2]._goal() == sent[0]["right"]
+    bus.on_reply_wait(None)
+    device.set_no_reply(1, False)
+    bus.reply_timeout_s = PTY_REPLY_TIMEOUT_S
+    assert len(bus.read_states()) == 2  # no packet was cut into
+
+
+@pytest.mark.parametrize("read_mode", ["bulk", "per_servo"])
+def test_hold_holds_the_servos_that_answer_and_names_the_silent_one(rig, read_mode):
+    device, bus = rig(read_mode)
+    bus.set_torque(False)
+    device.set_no_reply(1, True)
+    bus.reply_timeout_s = SHORT_TIMEOUT_S
+    with pytest.raises(ServoTimeoutError, match=r"'left' \(ID 1\).*no status packet"):
+        bus.hold()
+    assert device.servos[2].torque_on and not device.servos[1].torque_on
 
 
 def test_no_reply_by_configuration(rig):

@@ -10,12 +10,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_run_cli import CONFIG as CONFIG_PATH
 from test_run_cli import L0, schedule_file, wait_for
 from test_runloop import SHORT, events, run, short_schedule
 
 from gyrohost.cli import main
+from gyrohost.control.schedule import Schedule
 from gyrohost.run import log as runlog
 from gyrohost.run import mcap as runmcap
 from gyrohost.run.log import read_meta, read_stream
@@ -203,3 +205,42 @@ def test_a_wheel_board_reset_mid_run_is_named_and_its_coasting_wheels_reported(t
     true_fastest = max(abs(truth[f"omega_{i}_rad_s"][-1]) for i in range(4))
     assert fastest > 30.0 and abs(true_fastest - fastest) < 5.0  # measured, coasting
     assert safe["servos_holding"]
+
+
+def test_a_silent_servo_is_declared_at_its_first_time_out_while_the_other_follows(tmp_path, capfd):
+    """Servo s13 (ID 1) stops answering mid-schedule: the run ends after one reply time-out
+    (0.2 s on the simulated rig), naming it; meanwhile s24 keeps receiving its goals."""
+    rate_m_s = 0.05
+    schedule = Schedule(
+        ("s13", "s24"), [0.0, 1.0], [[L0, L0], [L0 - rate_m_s, L0 + rate_m_s]], "both move"
+    )
+
+    times = {"silent_s": None}
+
+    def silence(loop, phase, t_s):
+        if phase == "schedule" and t_s - loop.t_schedule_s > 0.3 and times["silent_s"] is None:
+            loop.rig.inject("servos", "timeout", servo_id=1)
+            times["silent_s"] = loop.now()
+
+    result, folder = run(tmp_path, schedule, SHORT, on_tick=silence)
+    assert times["silent_s"] is not None, f"ended before the servo fell silent: {result.reason}"
+    assert result.exit_status == 1 and "servo 's13' (ID 1)" in result.reason, result.reason
+    assert "silent" in result.reason
+    e = read_stream(folder, "events")
+    t_end = float(e["t_s"][list(e["kind"]).index("end")])
+    silent_s = times["silent_s"]
+    assert 0.0 < t_end - silent_s < 0.3
+    cmd, truth = read_stream(folder, "command"), read_stream(folder, "truth")
+    commanded = np.diff(np.interp([silent_s, t_end], cmd["t_s"], cmd["s24_rest_m"]))[0]
+    assert commanded > 0.5 * rate_m_s * (t_end - silent_s)  # the loop kept commanding
+    followed = np.diff(np.interp([silent_s, t_end], truth["t_s"], truth["s24_rest_m"]))[0]
+    # goals held back for the time-out would leave s24 at the goal it had when s13 fell silent
+    assert followed > 0.5 * commanded, (followed, commanded)
+    s13 = np.diff(np.interp([silent_s, t_end], truth["t_s"], truth["s13_rest_m"]))[0]
+    assert abs(s13) < 0.2 * commanded  # the silent servo goes no farther than the goal it had
+    for stream in ("servos", "innov_servos"):  # nothing read after it, so nothing stale fused
+        assert not any(read_stream(folder, stream)["t_s"] > silent_s), stream
+    safe = assert_log(folder)
+    assert not safe["servos"]["s13"]["holding"] and "no read-back" in safe["servos"]["s13"]["why"]
+    assert safe["servos"]["s24"]["holding"]  # held, not stalled behind s13 in a bulk read
+    assert "Traceback" not in capfd.readouterr().err

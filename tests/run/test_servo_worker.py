@@ -18,6 +18,9 @@ class _Bus:
         self.goals.append(goals)
         self.sent.set()
 
+    def on_reply_wait(self, hook):
+        pass
+
     def read_states(self):
         return [SimpleNamespace(t_ns=1_000), SimpleNamespace(t_ns=3_000)]
 

@@ -94,6 +94,11 @@ class ServoCommError(ServoError):
         self.result = result
 
 
+class ServoTimeoutError(ServoCommError):
+    """Not a byte of the status packet within the reply time-out: the servo is silent (a
+    corrupt or partial packet is a plain :class:`ServoCommError`)."""
+
+
 class ServoFaultError(ServoError):
     """A servo reported faults in its status error byte.
 

@@ -33,7 +33,13 @@ import serial
 from gyrohost.config import MX_POSITION_LIMIT, ServoBusConfig, ServoConfig
 from gyrohost.drivers import mx12
 
-from .errors import ServoCommError, ServoError, ServoFaultError, ServoLimitError
+from .errors import (
+    ServoCommError,
+    ServoError,
+    ServoFaultError,
+    ServoLimitError,
+    ServoTimeoutError,
+)
 from .portlock import PortClaim, exclusive_serial
 
 
@@ -70,6 +76,8 @@ class ServoState:
     t_ns: int
 
 
+STATE_BYTES = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
+"""Bytes of a servo's state read: present position, speed and load."""
 LENGTH_ROUNDING_M = 1e-9
 """A length commanded this close outside a servo's length limit is rounding (a schedule sampled
 or planned on the limit): it is commanded at the limit. Farther out it is refused."""
@@ -85,11 +93,23 @@ class PortHandler(sdk.PortHandler):
     """
 
     READ_SLICE_S = 0.0005
+    QUIET_S = 0.002
+    """No byte for this long after a request or a byte: no status packet is under way (a servo
+    answers within its return delay, 0.5 ms at the factory setting, and sends its packet back to
+    back), so :attr:`while_waiting` may write without cutting into one."""
 
     def __init__(self, port_name: str, reply_timeout_s: float) -> None:
         super().__init__(port_name)
         self.reply_timeout_ms = reply_timeout_s * 1000.0
         self._claim: PortClaim | None = None
+        self.while_waiting = None
+        """Callable run while a reply is awaited and the line is quiet (goals that must not
+        wait for a silent servo's time-out); it may write whole packets, never read."""
+        self._last_rx_s = 0.0
+        self.in_reply_wait = False
+        """True while :attr:`while_waiting` runs: a packet must then go out without the SDK's
+        ``txPacket``, which flushes the input (the reply awaited, or the next one of a bulk
+        read, may be in it already)."""
 
     def setupPort(self, cflag_baud: int) -> bool:
         """(Re)open the port at ``self.baudrate``, exclusively (:mod:`gyrohost.drivers.
@@ -127,6 +147,41 @@ class PortHandler(sdk.PortHandler):
     def setPacketTimeout(self, packet_length: int) -> None:
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.reply_timeout_ms
+        self._last_rx_s = time.monotonic()
+
+    def readPort(self, length: int) -> bytes:
+        data = super().readPort(length)
+        if data:
+            self._last_rx_s = time.monotonic()
+        return data
+
+    def isPacketTimeout(self) -> bool:
+        """The SDK asks this between reads while it waits for a reply: the quiet line's
+        moment for :attr:`while_waiting` (not re-entered from inside it).
+
+        Bytes waiting in the port are never a time-out, however late it is: a thread held off
+        the CPU past the time-out (a loaded host) would otherwise declare silent a servo whose
+        reply sits unread.
+        """
+        hook = self.while_waiting
+        if hook is not None and time.monotonic() - self._last_rx_s >= self.QUIET_S:
+            self.while_waiting, self.in_reply_wait = None, True
+            try:
+                hook()
+            finally:
+                self.while_waiting, self.in_reply_wait = hook, False
+        return super().isPacketTimeout() and not self.ser.in_waiting
+
+    def write_packet(self, packet: bytes) -> None:
+        """Write a whole packet now, inside a transaction the SDK holds (its ``txPacket`` would
+        refuse it as busy and flush the reply under way)."""
+        written = self.writePort(packet)
+        if written != len(packet):
+            raise ServoCommError(
+                f"servo bus {self.port_name}: wrote {written} of {len(packet)} bytes",
+                sdk.BROADCAST_ID,
+                sdk.COMM_TX_FAIL,
+            )
 
 
 def _set_low_latency(port: sdk.PortHandler) -> bool:
@@ -170,6 +225,11 @@ class StringServoBus:
         if not (math.isfinite(value_s) and value_s > 0):
             raise ServoLimitError(f"servo bus: reply timeout {value_s} s must be positive")
         self.port.reply_timeout_ms = value_s * 1000.0
+
+    def on_reply_wait(self, hook) -> None:
+        """Run ``hook()`` (None: nothing) while a reply is awaited and the line is quiet; it may
+        send goals (:meth:`command_lengths`), which then need not wait for a silent servo."""
+        self.port.while_waiting = hook
 
     def open(self) -> "StringServoBus":
         """Open the port at the configured baud rate (idempotent); returns ``self``."""
@@ -269,19 +329,29 @@ class StringServoBus:
     def hold(self) -> list[ServoState]:
         """Safe state: enable torque and make each present position the goal.
 
-        Fault bits do not stop this (it is what a fault handler calls); communication
-        failures do. Returns the states read, faults included.
+        Fault bits do not stop this (it is what a fault handler calls). Each servo is read on
+        its own, so one that does not answer (a bulk read would stall at it) leaves the others
+        held; its :class:`ServoCommError` is raised after them. Returns the states read,
+        faults included.
         """
         self._release_port()
-        states = self._read_all()
+        states, failed = [], []
+        for servo in self.config.servo:
+            try:
+                states.append(self._read_one(servo))
+            except ServoCommError as exc:
+                failed.append(exc)
         goals = {}
         for state in states:
             servo = self.servos[state.name]
             goals[state.name] = (state.position_steps, _speed_units(servo, servo.max_speed_m_s))
         self._sync_write_goals(goals)
-        for servo in self.config.servo:
+        for state in states:
+            servo = self.servos[state.name]
             result, _ = self.packets.write1ByteTxRx(self.port, servo.id, mx12.Addr.TORQUE_ENABLE, 1)
             self._check(servo, result, 0, "write torque enable")
+        if failed:
+            raise failed[0]
         return states
 
     def read_hold(self, name: str) -> tuple[bool, int, ServoState]:
@@ -352,6 +422,10 @@ class StringServoBus:
         for name, (steps, speed) in goals.items():
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
+        if self.port.in_reply_wait:
+            group.makeParam()
+            self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
+            return
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
@@ -362,20 +436,19 @@ class StringServoBus:
             )
 
     def _read_all(self) -> list[ServoState]:
-        n = mx12.Addr.PRESENT_LOAD + 2 - mx12.Addr.PRESENT_POSITION
         if self.config.read_mode == "bulk":
-            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, n)
-        else:
-            raw = {}
-            for servo in self.config.servo:
-                sent_ns = time.monotonic_ns()
-                data, result, error = self.packets.readTxRx(
-                    self.port, servo.id, mx12.Addr.PRESENT_POSITION, n
-                )
-                self._check(servo, result, 0, "read present position/speed/load")
-                # the servo samples between our request and its reply
-                raw[servo.name] = (data, error, (sent_ns + time.monotonic_ns()) // 2)
-        return [self._state(self.servos[name], *raw[name]) for name in raw]
+            raw = self._bulk_read(mx12.Addr.PRESENT_POSITION, STATE_BYTES)
+            return [self._state(self.servos[name], *raw[name]) for name in raw]
+        return [self._read_one(servo) for servo in self.config.servo]
+
+    def _read_one(self, servo: ServoConfig) -> ServoState:
+        sent_ns = time.monotonic_ns()
+        data, result, error = self.packets.readTxRx(
+            self.port, servo.id, mx12.Addr.PRESENT_POSITION, STATE_BYTES
+        )
+        self._check(servo, result, 0, "read present position/speed/load")
+        # the servo samples between our request and its reply
+        return self._state(servo, data, error, (sent_ns + time.monotonic_ns()) // 2)
 
     def _bulk_read(self, addr: int, n: int) -> dict[str, tuple[list[int], int, int]]:
         group = sdk.GroupBulkRead(self.port, self.packets)
@@ -410,6 +483,10 @@ class StringServoBus:
 
     def _check(self, servo: ServoConfig, result: int, error: int, what: str) -> None:
         where = f"servo '{servo.name}' (ID {servo.id}) on {self.config.port}"
+        if result == sdk.COMM_RX_TIMEOUT:
+            text = self.packets.getTxRxResult(result)
+            why = f"{where}: {what}: {text} (none within {self.reply_timeout_s:g} s)"
+            raise ServoTimeoutError(why, servo.id, result)
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
                 f"{where}: {what}: {self.packets.getTxRxResult(result)}", servo.id, result
@@ -417,6 +494,14 @@ class StringServoBus:
         if error:
             faults = mx12.fault_names(error)
             raise ServoFaultError(f"{where}: {what}: {', '.join(faults)}", servo.id, faults)
+
+
+def _sync_write_packet(addr: int, n: int, param: list[int]) -> bytes:
+    """A Protocol 1.0 SYNC WRITE to every servo: header, broadcast ID, length, instruction,
+    start address, bytes per servo, ``param`` (ID and ``n`` bytes per servo), checksum (the
+    inverted low byte of the sum from the ID on)."""
+    body = [sdk.BROADCAST_ID, len(param) + 4, sdk.INST_SYNC_WRITE, addr, n, *param]
+    return bytes([0xFF, 0xFF, *body, ~sum(body) & 0xFF])
 
 
 def _check_config_limits(servo: ServoConfig) -> None:

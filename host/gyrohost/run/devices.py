@@ -9,8 +9,9 @@ time plus the parsed values) on one shared queue; a reader that fails (whatever 
   every TELEMETRY on arrival, notices a board reboot (device time running backwards), latched
   faults and silence.
 - :class:`ServoWorker`: owns the Dynamixel bus while the loop runs (the SDK is not thread-safe):
-  sends the newest length goals as soon as the loop gives them, reads the states back at
-  ``rate_hz``.
+  sends the newest length goals as soon as the loop gives them (also while it waits for a
+  reply), reads the states back at ``rate_hz``; a servo that does not answer is a fault at its
+  first reply time-out.
 
 Before any of them, :func:`check_real_rig` refuses a configuration of real ports that cannot
 run: calibration keys left at the template's values, ports missing or not permitted.
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 from gyrohost.bringup.placeholders import find_placeholders
 from gyrohost.bringup.serialports import check_ports
 from gyrohost.config import ConfigError
-from gyrohost.drivers.errors import ServoCommError
+from gyrohost.drivers.errors import ServoCommError, ServoTimeoutError
 
 from .errors import DeviceFault
 
@@ -225,8 +226,12 @@ class WheelTelemetry(_Reader):
 class ServoWorker(_Reader):
     """Owns the servo bus during the run: newest goals out, states in, at ``rate_hz``.
 
-    A missing or corrupt status packet is retried at the next cycle; ``max_comm_errors`` in a
-    row make a fault. A fault bit in a status packet (overload, ...) is a fault at once.
+    A corrupt status packet is retried at the next cycle; ``max_comm_errors`` in a row make a
+    fault. A servo silent for a whole reply time-out is a fault at once, naming it: a retry
+    would only wait another time-out, with every servo's read-back missing meanwhile. While a
+    reply is awaited, the loop's goals still go out (``PortHandler.while_waiting``), so the other
+    servos follow the schedule until the loop ends the run. A fault bit in a status packet
+    (overload, ...) is a fault at once.
 
     Parameters
     ----------
@@ -250,6 +255,17 @@ class ServoWorker(_Reader):
         self._goals: dict[str, float] | None = None
         self._wake = threading.Event()
         self._next_read_s = 0.0
+        bus.on_reply_wait(self._send_goals)
+
+    def _send_goals(self) -> None:
+        """Send the newest goals, if the loop gave any since the last sent (none once stopped:
+        the safe state holds the servos where they are)."""
+        if self._stop.is_set():
+            return
+        with self._goal_lock:
+            goals, self._goals = self._goals, None
+        if goals:
+            self.bus.command_lengths(goals)
 
     def command(self, lengths_m: dict[str, float]) -> None:
         """Queue string length goals (name -> m); only the newest is sent, at once: the
@@ -263,6 +279,7 @@ class ServoWorker(_Reader):
         self._stop.set()
         self._wake.set()
         super().stop(timeout_s)
+        self.bus.on_reply_wait(None)
 
     def _cycle(self) -> None:
         self._wake.clear()  # before taking the goals: a command after this wakes the next wait
@@ -276,6 +293,8 @@ class ServoWorker(_Reader):
             if read:
                 self._next_read_s = max(self._next_read_s, now) + self.period_s
                 states = self.bus.read_states()
+        except ServoTimeoutError as exc:
+            raise DeviceFault("servos", f"{exc}: silent, declared at its first time-out") from exc
         except ServoCommError:
             self.comm_errors += 1
             self.comm_errors_total += 1

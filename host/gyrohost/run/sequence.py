@@ -154,6 +154,7 @@ class RunLoop:
         self.t_schedule_s = math.nan
         self.estimate = self.replans = self.streams = None
         self._followed_t_s = math.nan
+        self._command_failed = False  # a command or heartbeat failed in the safe state
 
     # --- the sequence -------------------------------------------------------------------------
     def run(self) -> RunResult:
@@ -356,7 +357,14 @@ class RunLoop:
             if strict:
                 raise fault
             self.event("fault", str(fault))
-        self._command(self.now())  # after any fault; stamped when sent
+        try:
+            self._command(self.now())  # after any fault; stamped when sent
+        except Exception as exc:  # the safe state: a port gone; logged once, not every tick
+            if strict:
+                raise
+            if not self._command_failed:
+                self.event("fault", f"command: {failure_text(exc)}")
+            self._command_failed = True
         if self.wheels is not None:
             try:  # from the thread that decides the speeds: a loop that stalls stops the wheels
                 self.wheels.heartbeat()
