@@ -21,7 +21,8 @@ DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 LABDEBS := build/.debs-lab-stamp
 
-.PHONY: demo lab oldest test lint pytest studies-check study firmware setup clean flash
+.PHONY: demo lab oldest test lint pytest pytest-computing pytest-fil pytest-rig studies-check study \
+        firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
 # it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
@@ -45,7 +46,11 @@ oldest: $(DEMODEBS)
 	$(OLDEST)/bin/python -m pytest -q -p no:cacheprovider -m "not real_time and not slow" \
 	    --ignore tests/model/test_rig_fidelity_mujoco.py $(OLDEST_TESTS)
 
-test: setup lint firmware studies-check pytest
+# The firmware builds and runs its native tests (one core, half a minute) beside the computing
+# tests; the firmware-in-the-loop tests beside the simulated rig's: see pytest below.
+test: setup lint studies-check
+	$(MAKE) --no-print-directory -j2 --output-sync=target firmware pytest-computing
+	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-fil pytest-rig
 
 setup: $(DEBS) $(EXTRAS)
 
@@ -83,11 +88,21 @@ lint:
 firmware:
 	$(MAKE) -C firmware check FUZZ_RUNS=50000
 
-# The computing tests on two workers, then the real-time ones (the simulated rig and the firmware
-# against the wall clock) one after the other, each with the machine to itself (tests/conftest.py).
-pytest:
+# The computing tests on two workers, then the real-time ones (tests/conftest.py): those of the
+# simulated rig one after the other (a run needs most of a core: rig, loop and estimator), beside
+# them those of the firmware in the loop (the simavr harness needs about 0.4 of one), never two
+# rig runs at once.
+pytest: pytest-computing
+	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-fil pytest-rig
+
+pytest-computing:
 	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time"
-	$(BIN)/pytest -m real_time
+
+pytest-fil:
+	$(BIN)/pytest -m real_time tests/fil
+
+pytest-rig:
+	$(BIN)/pytest -m real_time --ignore=tests/fil
 
 # The tests never import a study; this keeps each one importable and its options parsed.
 studies-check:

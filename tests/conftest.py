@@ -45,10 +45,12 @@ REAL_TIME = (
 def pytest_collection_modifyitems(config, items):
     """The tests that run the simulated rig or the firmware against the wall clock are marked
     ``real_time`` (before ``-m`` selects): ``make test`` runs the others on two workers, a
-    module to a worker (``--dist loadscope``: a module's fixtures are built once), then these
-    one after the other. Beside a computing test, even one at a lower priority, a rig's
-    estimator process fell more than a second behind its loop and the product's own fail-safe
-    stopped the run: a real-time run needs the machine."""
+    module to a worker (``--dist loadscope``: a module's fixtures are built once), then these:
+    the simulated rig's one after the other, the firmware-in-the-loop ones (``tests/fil``) beside
+    them. Beside a computing test, even one at a lower priority, a rig's estimator process fell
+    more than a second behind its loop and the product's own fail-safe stopped the run: a rig
+    run needs most of the machine, and the simavr harness, about 0.4 of a core, is all that
+    fits beside it."""
     for item in items:
         if is_real_time(item):
             item.add_marker(pytest.mark.real_time)

@@ -58,8 +58,8 @@ def test_the_transcripts_are_what_the_commands_print(tmp_path, rig_ports, capsys
     assert {c.split()[1] for c, _ in blocks} >= {"ports", "doctor", "imu", "wheels", "servos"}
     for command, expected in blocks:
         # the wheel board's heartbeat (HEARTBEAT_MS, 250 ms) lapses between two commands, as
-        # by hand: four times over, for an emulator thread held up on a loaded machine
-        time.sleep(4 * wp.PARAM_BY_NAME["HEARTBEAT_MS"].default / 1000.0)
+        # by hand: twice over, for an emulator thread held up a moment
+        time.sleep(2 * wp.PARAM_BY_NAME["HEARTBEAT_MS"].default / 1000.0)
         status = main(argv_for(command, str(config), rig_ports))
         captured = capsys.readouterr()
         assert status == 0, (command, captured.out, captured.err)
