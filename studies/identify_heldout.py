@@ -36,7 +36,12 @@ import numpy as np
 import tomllib
 
 from gyrohost.resources import shipped
-from studies.identify_rig import estimator_figures, gyrotens, truth_kept_overlay
+from studies.identify_rig import (
+    estimator_figures,
+    gyrotens,
+    seeded_sim_rig,
+    truth_kept_overlay,
+)
 
 HELD_OUT_SEED = 20261129
 """Seeds the draw of the truths; fixed with :data:`PRIOR` before the study was first run."""
@@ -99,13 +104,7 @@ def write_case(folder: Path, truth: Truth, seed: int) -> tuple[Path, Path]:
     text = text.replace("stiffness = 200.0", f"stiffness = {200.0 * f['stiffness']!r}")
     text = text.replace("damping = 2.0", f"damping = {2.0 * f['damping']!r}")
     (folder / "truth.toml").write_text(text)
-    config = Path(shipped("config", "sim-rig")).read_text()
-    config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)  # [sim.imu], the first
-    for table in ("[sim.wheels]\n", "[sim.servos]\n"):
-        config = config.replace(table, f"{table}seed = {seed}\n", 1)
-    config = config.replace(
-        "[sim.wheels]\n", f"[sim.wheels]\nspeed_error_std_rad_s = {truth.speed_error_std_rad_s!r}\n"
-    )
+    config = seeded_sim_rig(seed, truth.speed_error_std_rad_s)
     rotation = ", ".join(repr(a) for a in truth.imu_rotation_deg)
     config += (
         f"\n[sim.truth]\nimu_rotation_deg = [{rotation}]\nimu_latency_s = {truth.imu_latency_s!r}\n"

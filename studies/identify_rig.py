@@ -80,16 +80,23 @@ def write_rig_files(
     truth = truth.replace("damping = 2.0", f"damping = {2.0 * f['damping']!r}")
     truth = truth.replace("spin = ", f"J3 = {J3_NOMINAL * f['J3']!r}, spin = ")
     (folder / "truth.toml").write_text(truth)
-    config = Path(shipped("config", "sim-rig")).read_text()
-    config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)  # [sim.imu], the first
-    config = wheel_speed_error(config, speed_error_rad_s)
-    for table in ("[sim.wheels]\n", "[sim.servos]\n"):
-        config = config.replace(table, f"{table}seed = {seed}\n", 1)
+    config = seeded_sim_rig(seed, speed_error_rad_s)
     config = config.replace('scene = "dbar-gyro"', 'scene = "weighed.toml"')
     rotation = ", ".join(repr(a) for a in IMU_ROTATION_DEG)
     config += f"\n[sim.truth]\nimu_rotation_deg = [{rotation}]\n"
     (folder / "rig.toml").write_text(config)
     return folder / "rig.toml", folder / "truth.toml"
+
+
+def seeded_sim_rig(seed: int, speed_error_rad_s: float) -> str:
+    """The shipped ``sim-rig`` configuration's text with its emulated IMU, wheels and servos
+    seeded with ``seed`` and the wheels erring from their setpoints by ``speed_error_rad_s``."""
+    config = Path(shipped("config", "sim-rig")).read_text()
+    config = config.replace("seed = 1\n", f"seed = {seed}\n", 1)  # [sim.imu], the first
+    config = wheel_speed_error(config, speed_error_rad_s)
+    for table in ("[sim.wheels]\n", "[sim.servos]\n"):
+        config = config.replace(table, f"{table}seed = {seed}\n", 1)
+    return config
 
 
 def gyrotens(args: list[str], nice: bool = False) -> int:
