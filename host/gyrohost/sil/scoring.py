@@ -217,6 +217,7 @@ def rig_model_run(
         )  # fmt: skip
     finally:
         board.close()
+        emu.close()  # its pty pair: only its encoder was used
     n_w = len(model.spin0)
     columns = {
         streams.IMU: streams.imu_columns(),
@@ -416,7 +417,9 @@ def emulated_accel_bias(config, seed) -> np.ndarray:
     from gyrohost.simrig.imu_emu import Bwt61Emulator
 
     config = seeded(config, seed)
-    return Bwt61Emulator(sim_config(config).imu, config.imu).accel_bias_m_s2
+    emu = Bwt61Emulator(sim_config(config).imu, config.imu)
+    emu.close()  # its pty pair: only its draw is wanted
+    return emu.accel_bias_m_s2
 
 
 def mounting_error(config, est_cfg) -> np.ndarray:

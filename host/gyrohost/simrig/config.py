@@ -7,7 +7,7 @@ simulated rig is built from the configuration, before anything starts.
 """
 
 import math
-from dataclasses import dataclass, field, fields, is_dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gyrohost.config import IMU_FRAME_NODES, RigConfig
@@ -155,9 +155,10 @@ def sim_config(rig: RigConfig) -> SimConfig:
     return sim
 
 
-def truth_scene_path(rig: RigConfig) -> Path:
+def truth_scene_path(rig: RigConfig, model_path: Path | None = None) -> Path:
     """Scene the simulated rig's truth runs: ``[sim.truth] scene``, resolved as the rig's
-    ``scene`` is, else the rig's scene (truth and model share it).
+    ``scene`` is, else the model's (``model_path``, default the rig's scene: truth and model
+    share it).
 
     Raises
     ------
@@ -165,7 +166,9 @@ def truth_scene_path(rig: RigConfig) -> Path:
         The truth's ``scene`` names no file and no shipped scene.
     """
     scene = sim_config(rig).truth.scene
-    return rig.resolve_scene("sim.truth.scene", scene) if scene else rig.scene_path
+    if scene:
+        return rig.resolve_scene("sim.truth.scene", scene)
+    return rig.scene_path if model_path is None else model_path
 
 
 def with_truth_scene(rig: RigConfig, scene: str | Path) -> RigConfig:
@@ -177,16 +180,3 @@ def with_truth_scene(rig: RigConfig, scene: str | Path) -> RigConfig:
 def with_sim_keys(rig: RigConfig, table: str, **keys) -> RigConfig:
     """``rig`` with ``keys`` set in its ``[sim.<table>]`` table (checked when read)."""
     return replace(rig, sim={**rig.sim, table: {**rig.sim.get(table, {}), **keys}})
-
-
-def with_sim(rig: RigConfig, sim: SimConfig) -> RigConfig:
-    """``rig`` whose ``[sim]`` tables are ``sim`` (a programme's edit of the settings)."""
-    return replace(rig, sim=_table(sim))
-
-
-def _table(obj) -> dict:
-    return {
-        f.name: _table(v) if is_dataclass(v) else list(v) if isinstance(v, tuple) else v
-        for f in fields(obj)
-        for v in [getattr(obj, f.name)]
-    }

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost.config import RigConfig, ServoConfig
-from gyrohost.simrig.config import TruthConfig, sim_config, truth_scene_path
+from gyrohost.simrig.config import TruthConfig, truth_scene_path
 from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
 from gyrotensegrity.dynamics import evaluate, string_force_densities
@@ -74,7 +74,7 @@ def truth_scene(config: RigConfig, scene: str | Path | None = None) -> Scene:
         A scene does not load, or the two do not have the same members (:func:`check_members`).
     """
     model_path = Path(scene) if scene is not None else config.scene_path
-    truth_path = truth_scene_path(config) if sim_config(config).truth.scene else model_path
+    truth_path = truth_scene_path(config, model_path)
     model = _load(model_path, "rig scene")
     if truth_path == model_path:
         return model
