@@ -298,6 +298,30 @@ def test_the_identify_progress_line_shows_the_statistics_step():
     assert "scale below refit, evaluation 5;    4 in all" in text
 
 
+def test_off_a_terminal_the_identify_progress_is_a_line_every_ten_seconds_with_time_left():
+    """A fit logged to a file shows it lives: one plain line per ``every_s`` of the clock, with
+    the evaluations' budget and at most how long is left at the pace so far."""
+    from io import StringIO
+
+    from gyrohost.commands.identify import FitProgress
+
+    now = [0.0]
+    stream = StringIO()
+    bar = FitProgress(100, stream, clock=lambda: now[0])
+    for k in range(40):
+        now[0] = 0.5 * (k + 1)  # half a second per evaluation
+        bar(k + 1, 3.0)
+    bar.statistics("profile", 1, 8)
+    now[0] = 31.0
+    bar.statistics("profile", 2, 8)
+    bar.close()
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "fit: 20 of at most 100 evaluations, cost 3; 10 s so far, at most 40 s left"
+    assert lines[1].startswith("fit: 40 of at most 100 evaluations") and "30 s left" in lines[1]
+    assert lines[2] == "statistics: cost profile 1, evaluation 2/8;    2 in all; 31 s so far"
+    assert len(lines) == 3 and "\r" not in stream.getvalue()
+
+
 def test_segments_that_disagree_beyond_their_noise_widen_the_sigma():
     """One output parameter seen by four 1 s segments of 100 samples (unit noise each, so a
     segment's own sigma is 0.1) whose optima are 0, +-d: the Birge ratio in closed form; segments

@@ -2,6 +2,7 @@
 fit the rig's parameters to recorded runs (docs/identification.md)."""
 
 import sys
+import time
 from functools import partial
 from pathlib import Path
 
@@ -83,18 +84,40 @@ def at_least_one(text: str) -> int:
 
 
 class FitProgress:
-    """A one-line progress bar on a terminal (evaluations of the budget, cost), then a line of
-    the statistics' counted steps (:meth:`statistics`); silent otherwise."""
+    """Progress of a fit: on a terminal a one-line bar (evaluations of the budget, cost), then a
+    line of the statistics' counted steps (:meth:`statistics`); elsewhere (a log file, a
+    pipe) a plain line every :attr:`every_s` seconds, so that a fit of many minutes shows it
+    lives and about how long it may still take."""
 
-    def __init__(self, budget: int, stream=None):
+    every_s = 10.0
+    """Seconds between the plain lines: the long fits take minutes, a line per evaluation
+    would bury the result."""
+
+    def __init__(self, budget: int, stream=None, clock=time.monotonic):
         self.stream = stream or sys.stderr
-        self.enabled = self.stream.isatty()
+        self.tty = self.stream.isatty()
+        self.clock = clock
+        self.start_s = self.last_s = clock()
         self.budget, self.calls = budget, 0
         self.profiles, self.stats_calls = 0, 0
 
+    def _due(self) -> bool:
+        now = self.clock()
+        if now - self.last_s < self.every_s:
+            return False
+        self.last_s = now
+        return True
+
+    def _left(self) -> str:
+        """At most how long the fit may still take: its budget of evaluations left at the
+        mean time per evaluation so far (the solver usually stops well before the budget)."""
+        elapsed = self.clock() - self.start_s
+        left = elapsed / self.calls * max(self.budget - self.calls, 0)
+        return f"{elapsed:.0f} s so far, at most {left:.0f} s left"
+
     def __call__(self, simulations: int, cost: float) -> None:
         self.calls += 1
-        if self.enabled:
+        if self.tty:
             frac = min(self.calls / self.budget, 1.0)
             bar = "#" * int(25 * frac)
             self.stream.write(
@@ -102,28 +125,37 @@ class FitProgress:
                 f"cost {cost:.6g}  "
             )
             self.stream.flush()
+        elif self._due():
+            self.stream.write(
+                f"fit: {self.calls} of at most {self.budget} evaluations, cost {cost:.6g}; "
+                f"{self._left()}\n"
+            )
+            self.stream.flush()
 
     def statistics(self, step: str, done: int, total: int | None) -> None:
         """After every cost evaluation of the sigmas' profiles and the scale test
         (:func:`gyrohost.ident.profile.observing`): which step, how far."""
-        if self.stats_calls == 0 and self.enabled:
+        if self.stats_calls == 0 and self.tty:
             self.stream.write("\n")  # the fit's bar stays as it ended
         self.stats_calls += 1
         if step == "profile" and done == 1:
             self.profiles += 1
-        if self.enabled:
-            if step.startswith("profile"):
-                what = f"cost {step} {self.profiles}"
-            else:
-                what = f"{step} refit"
-            of = "" if total is None else f"/{total}"
-            self.stream.write(
-                f"\rstatistics: {what}, evaluation {done}{of}; {self.stats_calls:4d} in all  "
-            )
+        if step.startswith("profile"):
+            what = f"cost {step} {self.profiles}"
+        else:
+            what = f"{step} refit"
+        of = "" if total is None else f"/{total}"
+        line = f"statistics: {what}, evaluation {done}{of}; {self.stats_calls:4d} in all"
+        if self.tty:
+            self.stream.write(f"\r{line}  ")
+            self.stream.flush()
+        elif self._due():
+            elapsed = self.clock() - self.start_s
+            self.stream.write(f"{line}; {elapsed:.0f} s so far\n")
             self.stream.flush()
 
     def close(self) -> None:
-        if self.enabled:
+        if self.tty:
             self.stream.write("\n")
 
 
