@@ -8,7 +8,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from gyrohost.ident.groups import DEFAULT_GROUPS, GROUPS
+    from gyrohost.ident.groups import DEFAULT_GROUPS, FILTER_GROUPS, GROUPS
 
     p = sub.add_parser("identify", help="estimate the rig's parameters from run logs")
     p.add_argument("logs", type=Path, nargs="+", metavar="LOG", help="run log folders")
@@ -24,9 +24,9 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--params",
-        default=",".join(DEFAULT_GROUPS),
         help=f"comma-separated parameter groups of {', '.join(GROUPS)} (docs/identification.md; "
-        f"default {','.join(DEFAULT_GROUPS)})",
+        f"default {','.join(DEFAULT_GROUPS)}, with --method filter also "
+        f"{','.join(FILTER_GROUPS)})",
     )
     p.add_argument(
         "--lengths",
@@ -194,7 +194,7 @@ def run(args) -> int:
             )
         scene = load_scene(config.scene_path)
         est = for_rig(config)
-        groups = [g.strip() for g in args.params.split(",") if g.strip()]
+        groups = _groups(args.params, args.method)
         if args.method == "filter":
             recs = [filter_fit.load(log, args.until, warn) for log in args.logs]
             for warning in filter(None, map(filter_fit.roll_over_warning, recs)):
@@ -203,7 +203,7 @@ def run(args) -> int:
                 if g in groups:
                     print(f"{g}: the filter's own state, not fitted")
                     groups.remove(g)
-            params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
+            params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est)
         else:
             recs = _recordings(args, config, Model(scene), warn)
             params = parameters(scene, config, groups, nominal_lag(est, recs), len(recs))
@@ -247,6 +247,15 @@ def run(args) -> int:
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
     print(f"run with it: gyrotens run --config {config.source} --overlay {overlay} --scene {out}")
     return 0
+
+
+def _groups(text: str | None, method: str) -> list[str]:
+    """The parameter groups of ``--params`` (None: the default of ``method``)."""
+    from gyrohost.ident.groups import DEFAULT_GROUPS, FILTER_GROUPS
+
+    if text is None:
+        return list(DEFAULT_GROUPS) + (list(FILTER_GROUPS) if method == "filter" else [])
+    return [g.strip() for g in text.split(",") if g.strip()]
 
 
 def _noise_placeholders(config_path: str) -> list[str]:

@@ -146,13 +146,20 @@ def wheel_times(wheels, config):
     return device_times(wheels["t_s"], wheels[cols.WHEEL_DEVICE_TIME])
 
 
-def events(data):
-    """(t_s, stream, row index) of every sample of the streams in ``data``, merged in order."""
+def events(data, imu_latency_s: float = 0.0):
+    """(t_s, stream, row index) of every sample of the streams in ``data``, merged in order of
+    the time each was taken: an IMU sample ``imu_latency_s`` before its stamp ``t_s`` (the
+    others at their stamps).
+
+    A recording is fused in the order its samples were taken, not stamped: the filter then
+    predicts to each sample's own time and needs no step back along the dynamics, so the
+    likelihood of a replay changes smoothly with the latency (the filter fit fits it)."""
     out = []
     for rank, name in enumerate(_ORDER):
         if name in data:
             t = data[name]["t_s"]
-            out += [(float(t[i]), rank, i) for i in range(len(t))]
+            lead = imu_latency_s if name == cols.IMU else 0.0
+            out += [(float(t[i]) - lead, rank, i) for i in range(len(t))]
     out.sort()
     return [(t, _ORDER[rank], i) for t, rank, i in out]
 
@@ -179,12 +186,13 @@ def run(ekf, data, on_step=None):
     if command is None or any(c not in command.dtype.names for c in cmd_cols):
         cmd_cols = None  # a log without wheel commands: the wheels held
     dt = ekf.config.process_dt_s
-    for t, name, i in events(data):
-        while t - ekf.t > dt * (1.0 + 1e-9):
+    for taken, name, i in events(data, ekf.config.imu_latency_s):
+        while taken - ekf.t > dt * (1.0 + 1e-9):
             ekf.advance(ekf.t + dt)
             if on_step:
                 on_step(ekf, "predict")
         row = data[name][i]
+        t = float(row["t_s"])  # the stamp: the IMU's is taken back by its latency again
         if name == cols.COMMAND:
             wheels = None if cmd_cols is None else [row[c] for c in cmd_cols]
             ekf.set_input([row[c] for c in rest_cols], t, wheels)

@@ -153,7 +153,10 @@ class FilterProblem(output_fit.WalledResiduals):
                 self.est,
                 imu_mounting_rpy_rad=tuple(float(v) for v in a.mounting_rpy_rad),
                 servo_lag_s=float(a.servo_lag_s),
+                accel_psd_m2_s3=self.est.accel_psd_m2_s3 * a.accel_psd_factor,
             )
+            if a.imu_latency_s is not None:
+                est = replace(est, imu_latency_s=float(a.imu_latency_s))
             model = Model(a.scene)
             self._runs = [
                 _run(model, est, rec, _corrected(rec.data, a, i, self.config))

@@ -17,7 +17,15 @@ GROUPS = {
     "servo-offsets": "each string servo's zero offset (m added to its reported length)",
     "servo-lag": "the first-order lag to a string's rest length (s) from its servo's reported "
     "position, or with commanded lengths from the command",
+    "imu-latency": "the IMU's latency from taking a sample to its stamp (s; --method filter)",
+    "process-noise": "one factor on the filter's node-acceleration noise accel_psd_m2_s3 "
+    "(--method filter)",
 }
+FILTER_GROUPS = ("imu-latency", "process-noise")
+"""Groups of the filter's own model: fitted by its likelihood (``--method filter``) only. The
+latency shifts where each IMU sample is fused, the noise scale how far the filter trusts its
+model; the likelihood's ``log det S`` term keeps the scale from buying a small NIS with a wide
+``S``."""
 DEFAULT_GROUPS = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")
 """Without ``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar
 mass; the absolute scale rests on the wheels' mass alone and is not resolved in practice

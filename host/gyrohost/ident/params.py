@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrohost.config import RigConfig
-from gyrohost.ident.groups import GROUPS
+from gyrohost.ident.groups import FILTER_GROUPS, GROUPS
 from gyrotensegrity import Scene
 
 from .errors import ParamsError
@@ -21,6 +21,9 @@ STRING_STEP = 0.1
 """Finite-difference step of the strings' stiffness and damping (log factor): their effect is
 small beside the jumps of the cost where a string goes slack a step earlier or later, so the
 Jacobian takes their secant over +-10 %."""
+LATENCY_STEP_S = 2e-3
+"""Finite-difference step of the IMU's latency, s: a fifth of the 10 ms sample period, where
+the filter's fusion time moves smoothly (the sample is taken back along the dynamics)."""
 OUTPUT_GROUPS = ("mounting", "gyro-bias", "accel-bias")
 """Groups that act on the sensor's outputs only: changing them needs no new simulation."""
 
@@ -88,22 +91,26 @@ def bias_name(group: str, axis: str, recording: int, recordings: int) -> str:
 
 
 def parameters(
-    scene: Scene, config: RigConfig, groups, servo_lag_s: float, recordings: int = 1
+    scene: Scene, config: RigConfig, groups, servo_lag_s: float, recordings: int = 1, est=None
 ) -> list[Param]:
     """The :class:`Param` list of ``groups`` (names of :data:`GROUPS`) for this rig;
     ``servo_lag_s``: the nominal lag (s), the start of its fit; ``recordings``: how many
-    recordings are fitted (the IMU's biases are one set per recording).
+    recordings are fitted (the IMU's biases are one set per recording); ``est``: the filter's
+    EstimatorConfig, whose latency and noise start :data:`FILTER_GROUPS` (None: no filter).
 
     Raises
     ------
     ParamsError
-        An unknown group, or ``J3`` with ``J3-each``.
+        An unknown group, ``J3`` with ``J3-each``, or a filter group without a filter.
     """
     unknown = [g for g in groups if g not in GROUPS]
     if unknown:
         raise ParamsError(f"unknown parameter group(s) {unknown} (known: {', '.join(GROUPS)})")
     if "J3" in groups and "J3-each" in groups:
         raise ParamsError("J3 and J3-each are alternatives: give one")
+    if est is None and (asked := [g for g in groups if g in FILTER_GROUPS]):
+        raise ParamsError(f"{', '.join(asked)}: fitted by the filter's likelihood only "
+                          "(--method filter)")  # fmt: skip
     J3 = wheel_J3(scene)
     if not J3 and ("J3" in groups or "J3-each" in groups):
         raise ParamsError(f"scene {scene.name} has no wheel: J3 cannot be identified")
@@ -141,6 +148,11 @@ def parameters(
                 for s in config.servos.servo
                 if s.string
             ]
+        elif g == "imu-latency":
+            nominal = est.imu_latency_s  # latency >= 0; its step: a fifth of the IMU's period
+            out.append(Param("imu_latency", g, False, nominal, "s", -nominal, LATENCY_STEP_S))
+        elif g == "process-noise":
+            out.append(Param("accel_psd", g, True, est.accel_psd_m2_s3, "m^2/s^3", step=0.3))
         else:
             out.append(Param("servo_lag", g, False, servo_lag_s, "s", -servo_lag_s, 5e-3))
     return out
@@ -163,6 +175,10 @@ class Applied:
     mounting_rpy_rad : ndarray, shape (3,), rad
     gyro_bias_rad_s : ndarray, shape (recordings, 3), rad/s
     accel_bias_m_s2 : ndarray, shape (recordings, 3), m/s^2
+    imu_latency_s : float or None, s
+        None: the filter's own (not fitted).
+    accel_psd_factor : float
+        On the filter's ``accel_psd_m2_s3``.
     """
 
     scene: Scene
@@ -171,6 +187,8 @@ class Applied:
     mounting_rpy_rad: np.ndarray
     gyro_bias_rad_s: np.ndarray
     accel_bias_m_s2: np.ndarray
+    imu_latency_s: float | None = None
+    accel_psd_factor: float = 1.0
 
 
 def apply(
@@ -218,4 +236,6 @@ def apply(
             )
             for g in ("gyro-bias", "accel-bias")
         ),
+        absolute("imu_latency", None),
+        factor("accel_psd"),
     )

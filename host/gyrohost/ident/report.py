@@ -82,22 +82,36 @@ def overlay_toml(result: FitResult, config) -> str:
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
     if "mounting" in fitted:
         out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
-    cov = mounting_covariance(result)
-    if cov is not None:
-        rows = ", ".join(_array(row) for row in cov)
-        out += [
-            "",
-            "[estimator]",
-            "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF estimates",
-            "# its error (docs/estimator.md)",
-            f"imu_mounting_cov_rad2 = [{rows}]",
-        ]
+    estimator = _estimator_keys(result, a, fitted)
+    if estimator:
+        out += ["", "[estimator]", *estimator]
     if "servo-offsets" in fitted:
         servos = [s for s in config.servos.servo if s.string]
         for s, offset in zip(servos, a.offsets_m, strict=True):
             out += ["", "[[servos.servo]]", f'name = "{s.name}"']
             out.append(f"length_at_zero_m = {float(s.length_at_zero_m + offset)!r}")
     return "\n".join(out) + "\n"
+
+
+def _estimator_keys(result: FitResult, a, fitted: set) -> list[str]:
+    """The overlay's ``[estimator]`` lines: the mounting's covariance, and the filter's own
+    latency and noise where the filter fit determined them."""
+    lines = []
+    cov = mounting_covariance(result)
+    if cov is not None:
+        rows = ", ".join(_array(row) for row in cov)
+        lines += [
+            "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF estimates",
+            "# its error (docs/estimator.md)",
+            f"imu_mounting_cov_rad2 = [{rows}]",
+        ]
+    if "imu-latency" in fitted:
+        lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by the likelihood")
+    if "process-noise" in fitted:
+        nominal = next(p.nominal for p in result.params if p.group == "process-noise")
+        psd = float(nominal * a.accel_psd_factor)
+        lines.append(f"accel_psd_m2_s3 = {psd!r}  # fitted by the likelihood")
+    return lines
 
 
 def _array(values) -> str:

@@ -168,7 +168,7 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | No
     est = config_from_dict({**emulator_keys(config), **RIG_MODEL_KEYS})
     recs = [filter_fit.load(log) for log in logs]
     groups = [g for g in groups if g not in filter_fit.state_groups(est)]
-    params = parameters(scene, config, groups, est.servo_lag_s, len(recs))
+    params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est)
     return filter_fit.fit(scene, config, est, params, recs, workers=workers)
 
 
