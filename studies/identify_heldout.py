@@ -1,14 +1,18 @@
 """Identification on truths nobody tuned to: drawn from a stated prior, identified by the
 default command, then run with what it found.
 
-``python -m studies.identify_heldout [--cases 10] [--out DIR] [--steps record,identify,run]``
+``python -m studies.identify_heldout [--cases 10] [--out DIR] [--steps record,identify,run]
+[--clock real|sim]``
 
 The cases are drawn from :data:`PRIOR` with the generator seeded by :data:`HELD_OUT_SEED`, both
 fixed before any tuning against this study: a method tuned until these figures pass would be
 tuned to these truths, and the study would say nothing. Case ``k`` is always the same truth.
 
 Per case, in ``DIR/caseK``, the three commands a lab runs on the shipped ``sim-rig``
-configuration (the nominal D-bar, nothing weighed, the mounting taken as level):
+configuration, the mounting taken as level and the scene's masses weighed as
+docs/identification.md asks (the D-bar's motion fixes J3, stiffness and damping only against
+them): the nominal D-bar with the truth's bar and wheel masses read off a scale of
+:data:`SCALE_KG` resolution:
 
 1. ``record``: ``gyrotens run --sim --config C --truth-scene T --schedule identify -o LOG``, the
    truth ``T`` the drawn D-bar, ``C`` the shipped ``sim-rig`` with the drawn IMU turn, IMU
@@ -17,6 +21,11 @@ configuration (the nominal D-bar, nothing weighed, the mounting taken as level):
    every option at its default;
 3. ``run``: the paper's schedule on the same truth with the identified scene and overlay (the
    emulated IMU kept where the truth has it), whose summary gives the estimator's NEES.
+
+With ``--clock sim`` the recording is made in process on the simulated clock instead
+(:func:`gyrohost.sil.scoring.rig_model_run`: the same truth, emulators, speed error and IMU
+latency, no real-time effects), so it does not depend on the machine's load; the ``run`` step
+then is left out (its NEES is the real-time rig's).
 
 It prints per case the truth's factors, each parameter's error and reported 1-sigma, the
 identification's wall time and the run's NEES with the share of its samples inside their
@@ -60,6 +69,9 @@ PRIOR = {
 stiffness and damping; the IMU's turn from level about each axis, deg; the IMU's latency, s;
 the wheels' speed-loop error, rad/s."""
 
+SCALE_KG = 0.001
+"""A kitchen scale's resolution: the weighed masses are the truth's rounded to it."""
+
 TOLERANCE = {"J3": 0.03, "stiffness": 0.10, "damping": 0.25, "mounting": 0.5}
 """The acceptance: relative for J3, stiffness and damping; degrees for each mounting axis."""
 
@@ -93,21 +105,33 @@ def draw_truths(n: int) -> list[Truth]:
     return truths
 
 
+def _with_masses(text: str, bar_kg: float, wheel_kg: float) -> str:
+    """The shipped D-bar scene's text with every bar's and wheel's mass replaced."""
+    text = text.replace("mass = 0.10", f"mass = {bar_kg!r}")
+    return text.replace("mass = 0.050", f"mass = {wheel_kg!r}")
+
+
 def write_case(folder: Path, truth: Truth, seed: int) -> tuple[Path, Path]:
-    """The truth scene and the host's configuration of ``truth`` in ``folder`` (the emulated
-    devices' noise seeded with ``seed``): (config, truth scene)."""
+    """The truth scene, the lab's weighed nominal scene and the host's configuration of
+    ``truth`` in ``folder`` (the emulated devices' noise seeded with ``seed``): (config, truth
+    scene)."""
     f = truth.factors
-    text = Path(shipped("scene", "dbar-gyro")).read_text().replace('"dbar-gyro"', '"truth"')
-    text = text.replace("mass = 0.10", f"mass = {0.10 * f['bar_mass']!r}")
-    text = text.replace("mass = 0.050", f"mass = {0.050 * f['wheel_mass']!r}")
+    shipped_text = Path(shipped("scene", "dbar-gyro")).read_text()
+    bar_kg, wheel_kg = 0.10 * f["bar_mass"], 0.050 * f["wheel_mass"]
+    text = _with_masses(shipped_text.replace('"dbar-gyro"', '"truth"'), bar_kg, wheel_kg)
     text = text.replace("spin = ", f"J3 = {NOMINAL['J3'] * f['J3']!r}, spin = ")
     text = text.replace("stiffness = 200.0", f"stiffness = {200.0 * f['stiffness']!r}")
     text = text.replace("damping = 2.0", f"damping = {2.0 * f['damping']!r}")
     (folder / "truth.toml").write_text(text)
+    weighed = [round(m / SCALE_KG) * SCALE_KG for m in (bar_kg, wheel_kg)]
+    nominal = _with_masses(shipped_text.replace('"dbar-gyro"', '"weighed"'), *weighed)
+    (folder / "weighed.toml").write_text(nominal)
     config = seeded_sim_rig(seed, truth.speed_error_std_rad_s)
+    config = config.replace('scene = "dbar-gyro"', 'scene = "weighed.toml"', 1)
     rotation = ", ".join(repr(a) for a in truth.imu_rotation_deg)
     config += (
-        f"\n[sim.truth]\nimu_rotation_deg = [{rotation}]\nimu_latency_s = {truth.imu_latency_s!r}\n"
+        f"\n[sim.truth]\nscene = \"truth.toml\"\nimu_rotation_deg = [{rotation}]\n"
+        f"imu_latency_s = {truth.imu_latency_s!r}\n"
     )
     (folder / "rig.toml").write_text(config)
     return folder / "rig.toml", folder / "truth.toml"
@@ -140,8 +164,24 @@ def errors(truth: Truth, ident: Path, overlay: Path) -> dict[str, tuple[float, f
     return out
 
 
-def one_case(root: Path, k: int, truth: Truth, steps) -> dict:
-    """The ``steps`` of case ``k`` in ``root/caseK``; what they gave."""
+def record_simulated_clock(config: Path, seed: int, log: Path) -> int:
+    """The identification schedule played in process on the simulated clock on the rig of
+    ``config`` (its ``[sim.truth] scene`` the truth), written as a run log: exit status 0."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.control.schedule import load_schedule
+    from gyrohost.ident.simcheck import write_log
+    from gyrohost.sil.scoring import rig_model_run
+
+    schedule = load_schedule(shipped("schedule", "identify"))
+    rig = load_rig_config(config)
+    _, data, *_ = rig_model_run(rig, seed, schedule.t_end, schedule=schedule)
+    write_log(data, log)
+    return 0
+
+
+def one_case(root: Path, k: int, truth: Truth, steps, clock: str = "real") -> dict:
+    """The ``steps`` of case ``k`` in ``root/caseK``, recorded on the ``clock``; what they
+    gave."""
     folder = root / f"case{k}"
     folder.mkdir(parents=True, exist_ok=True)
     config, scene = folder / "rig.toml", folder / "truth.toml"
@@ -150,7 +190,10 @@ def one_case(root: Path, k: int, truth: Truth, steps) -> dict:
     out = {}
     if "record" in steps:
         write_case(folder, truth, seed=k)
-        out["record"] = gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])
+        if clock == "sim":
+            out["record"] = record_simulated_clock(config, k, log)
+        else:
+            out["record"] = gyrotens(["run", *rig, "--schedule", "identify", "-o", str(log)])
     if out.get("record", 0) != 0:
         return out  # a recording cut short (a loaded machine): nothing to identify
     if "identify" in steps:
@@ -161,7 +204,7 @@ def one_case(root: Path, k: int, truth: Truth, steps) -> dict:
     if not ident.exists():
         return out
     out["errors"] = errors(truth, ident, overlay)
-    if "run" in steps:
+    if "run" in steps and clock == "real":
         kept = truth_kept_overlay(overlay, folder / "run-overlay.toml", truth.imu_rotation_deg)
         argv = ["run", *rig, "--overlay", str(kept), "--scene", str(ident)]
         out["run"] = gyrotens([*argv, "-o", str(folder / "with-ident")])
@@ -226,12 +269,17 @@ def main(argv=None) -> int:
         "--steps", type=_steps, default=STEPS,
         help="comma-separated, of record,identify,run (default all; the others reuse --out)",
     )  # fmt: skip
+    parser.add_argument(
+        "--clock", choices=("real", "sim"), default="real",
+        help="record on the real-time simulated rig (default) or in process on the simulated "
+        "clock (no run step)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         for k, truth in enumerate(draw_truths(args.cases), start=1):
-            out = one_case(root, k, truth, args.steps)
+            out = one_case(root, k, truth, args.steps, args.clock)
             rows += [out["errors"]] if "errors" in out else []
             print(case_line(k, truth, out), flush=True)
     if rows:
