@@ -32,10 +32,6 @@
 #define CMT_ANGLE_90 0x4000u
 #define CMT_ANGLE_120 21845u
 
-// cmt_drive_avr addresses an entry with the index as the low byte of Z: the rows start on a
-// 256-byte boundary (port-check verifies it in its image; the attribute holds for every image).
-#define CMT_TABLE_ALIGN __attribute__((aligned(256)))
-
 // Row 0 the low bytes, row 1 the high bytes of cmt_svm (two's complement).
 extern const uint8_t cmt_svm_tab[2][CMT_TABLE_SIZE] PORT_PROGMEM;
 
@@ -94,8 +90,7 @@ int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs);
 struct cmt_lead {
     int16_t k;
     int16_t s_max;       // clamp of |speed_q8 >> 6|
-    uint8_t pole_pairs;  // 1..40, as cmt_elec_angle takes it (cmt_drive_c)
-    uint8_t pp4;         // 4 * pole_pairs: cmt_drive_avr's mech * pp4 mod 2^16 ignores bits 14, 15
+    uint8_t pole_pairs;  // 1..40, as cmt_elec_angle takes it (cmt_drive)
 };
 void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
 PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
@@ -120,43 +115,11 @@ PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
 // signed drive (the table is indexed 90 degrees behind the vector, and a negative amplitude turns
 // the vector by 180 degrees): cmt_phases(rotor + 90 deg, drive) == cmt_phases(rotor - 90 deg,
 // -drive) up to the sign flip of the table.
-// cmt_drive_c is the reference in C (what the native tests run); on AVR cmt_drive is
-// cmt_drive_avr (cmt_avr.cpp, assembly with the 16 x 16 multiplies reduced to the bytes used,
-// compared with cmt_drive_c on the chip by `make -C firmware port-check`).
-PORT_INLINE void cmt_drive_c(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
-                             const cmt_lead* l, uint16_t duty[3]) {
+PORT_INLINE void cmt_drive(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
+                           const cmt_lead* l, uint16_t duty[3]) {
     uint16_t rotor = static_cast<uint16_t>(cmt_elec_angle(mech14, l->pole_pairs, offset16) +
                                            cmt_lead_angle(l, speed_q8));
     cmt_svm_duties(rotor, drive, duty);
-}
-
-#if defined(__AVR__)
-// Not an avr-gcc ABI function: r24:r25 mech14, r20..r23 speed_q8, r18:r19 drive, r16:r17
-// offset16, r30:r31 l in; the duties out in r22:r23 (phase a), r20:r21 (b), r24:r25 (c); r0, r2,
-// r3, r16, r17, r26, r27, r30, r31 clobbered (r2, r3 not saved: the control step has them saved
-// in its prologue). Only called through cmt_drive below, which tells the compiler.
-extern "C" void cmt_drive_avr();
-#endif
-
-PORT_INLINE void cmt_drive(uint16_t mech14, int32_t speed_q8, int16_t drive, uint16_t offset16,
-                           const cmt_lead* l, uint16_t duty[3]) {
-#if defined(__AVR__)
-    register uint16_t r_m __asm__("r24") = mech14;  // out: duty[2]
-    register uint32_t r_sp __asm__("r20") =         // out: duty[1] (low), duty[0] (high word)
-        static_cast<uint32_t>(speed_q8);
-    register int16_t r_d __asm__("r18") = drive;
-    register uint16_t r_o __asm__("r16") = offset16;
-    register const cmt_lead* r_l __asm__("r30") = l;
-    __asm__ __volatile__("call cmt_drive_avr"
-                         : "+r"(r_m), "+r"(r_sp), "+r"(r_o), "+r"(r_l)
-                         : "r"(r_d)
-                         : "r0", "r2", "r3", "r26", "r27", "memory");
-    duty[0] = static_cast<uint16_t>(r_sp >> 16);
-    duty[1] = static_cast<uint16_t>(r_sp);
-    duty[2] = r_m;
-#else
-    cmt_drive_c(mech14, speed_q8, drive, offset16, l, duty);
-#endif
 }
 
 #endif  // CMT_H

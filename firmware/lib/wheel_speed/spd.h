@@ -53,12 +53,9 @@ int32_t spd_div_ticks(int32_t x, uint8_t ticks);
 // The delta of a sample after missed ticks, in q8 (rare path, out of line).
 int32_t spd_gap_q8(spd_state* s, int16_t delta);
 
-// Feed one good angle (14 bits; upper bits ignored) with the filter gain k of spd_gain().
-// spd_update_c is the reference in C (what the native tests run). On AVR the common case (primed,
-// no missed tick, k != 0) is spd_update_fast_avr (spd_avr.h, inline assembly, compared with
-// spd_update_c on the chip by `make -C firmware port-check`). Inline: it runs for every wheel in
-// every control step.
-PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
+// Feed one good angle (14 bits; upper bits ignored) with the filter gain k of spd_gain(). Inline:
+// it runs for every wheel in every control step.
+PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
     angle14 = static_cast<uint16_t>(angle14 & 0x3FFFu);
     if (!s->primed) {
         s->primed = 1;
@@ -74,20 +71,6 @@ PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
     } else {
         s->acc += port_mul_s24_u8(x - spd_q8(s), k);
     }
-}
-
-#if defined(__AVR__)
-#include "spd_avr.h"
-#endif
-
-PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
-#if defined(__AVR__)
-    if (s->primed && !s->missed && k != 0) {
-        spd_update_fast_avr(s, angle14, k);
-        return;
-    }
-#endif
-    spd_update_c(s, angle14, k);
 }
 
 // The sample of this tick was bad: hold the estimate, the next good sample spans the gap.
