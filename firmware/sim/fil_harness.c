@@ -151,7 +151,7 @@ static params_t g_par = {
     .b_nms = 2.0e-5,
     .vbus_v = 12.0,
     /* 0: the rotor holds where the applied vector points when pole_pairs * encoder angle equals
-       the vector angle, the convention of the wheel firmware (cmt.h) with ENC_OFFSET = 0 */
+       the vector angle, the convention of the wheel firmware (commut.h) with ENC_OFFSET = 0 */
     .elec_offset_rad = 0.0,
     .pole_pairs = 7,
     .model_cycles = 1000,

@@ -59,7 +59,7 @@ static void app_reset_wheel(app_wheel* w) {
 static void app_load_ctl(app_state* a) {
     const int32_t* v = a->prm.v;  // all within their params.def ranges
     app_ctl* c = &a->ctl;
-    c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (spd.h)
+    c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (speed.h)
     c->gains.ki_q8 = static_cast<uint16_t>(v[PRM_KI]);
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
@@ -378,7 +378,7 @@ void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
-// Supervision of wheel i after its step (grd.h): the faults latch for the next step.
+// Supervision of wheel i after its step (guard.h): the faults latch for the next step.
 static void app_guard(app_state* a, uint8_t i) {
     app_wheel* w = &a->w[i];
     const uint8_t bit = static_cast<uint8_t>(1u << i);

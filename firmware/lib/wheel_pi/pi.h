@@ -1,6 +1,6 @@
 // pi.h - PI speed controller in fixed point with anti-windup, output and slew limits.
 //
-// Units: error e in the controller's error unit (the control step passes q8 speed units, spd.h),
+// Units: error e in the controller's error unit (the control step passes q8 speed units, speed.h),
 // clamped to +-PI_ERR_CLAMP; output u in Q15 drive level (32767 = full supply voltage amplitude).
 // kp_q8: Q15 counts per error unit, times 256.  ki_q8: Q15 counts per error unit per tick, times
 // 256. u = (kp*e)/256 + I/256, I += ki*e each tick. The clamp of e only acts where a sane kp

@@ -1,4 +1,5 @@
-// spd.h - fixed-point wheel speed estimator from 14-bit encoder angles sampled at the control tick.
+// speed.h - fixed-point wheel speed estimator from 14-bit encoder angles sampled at the control
+// tick.
 //
 // Speed unit inside the firmware: encoder counts per 1 ms tick in Q8 ("q8", int32 holding at most
 // 22 bits): 1 unit = 2*pi/16384/256 rad per ms = 1.4980 mrad/s; 715 rpm = 49979 q8. mrad/s only at
@@ -10,8 +11,8 @@
 // which is acc' = acc + x - (acc >> shift) on acc scaled by 2^(8 - shift): the shift only changes
 // the multiplier (one 24 x 8 multiply, no variable shift), and a change of shift leaves the
 // estimate where it was. |x - y| <= 2^22, |k * (x - y)| <= 2^29, |acc| <= 2^29.
-#ifndef SPD_H
-#define SPD_H
+#ifndef SPEED_H
+#define SPEED_H
 
 #include <stdint.h>
 
@@ -87,4 +88,4 @@ void spd_missed_ticks(spd_state* s, uint8_t n);
 int32_t spd_q8_to_mrad_s(int32_t q8);
 int32_t spd_mrad_s_to_q8(int32_t mrad_s);
 
-#endif  // SPD_H
+#endif  // SPEED_H

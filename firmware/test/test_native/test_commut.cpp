@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cmt.h"
+#include "commut.h"
 
 // Ideal SVPWM (sine with min-max zero-sequence injection) of a voltage vector at angle phi (rad)
 // with a phase amplitude of amp counts: the three duties, centred on 400.

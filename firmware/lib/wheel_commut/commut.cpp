@@ -1,6 +1,6 @@
-#include "cmt.h"
+#include "commut.h"
 
-#include "spd.h"
+#include "speed.h"
 
 int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs) {
     int32_t es = speed_mrad_s * static_cast<int32_t>(pole_pairs);
