@@ -290,6 +290,12 @@ static bool app_is_control_frame(uint8_t id) {
     return id == PROTO_ID_HEARTBEAT || id == PROTO_ID_SET_SPEEDS || id == PROTO_ID_STOP_ALL;
 }
 
+// An id not in the table, or one the device only sends: counted and answered UNKNOWN_MESSAGE.
+static void app_on_unknown_id(app_state* a, uint8_t id) {
+    a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
+    app_send_error(a, id, PROTO_ERR_UNKNOWN_MESSAGE, id);
+}
+
 static void app_dispatch(app_state* a, const proto_frame* f) {
     if (app_is_control_frame(f->id)) flt_host_alive(&a->flt);
     switch (f->id) {
@@ -328,8 +334,7 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
             app_on_calibrate(a, f->payload[0]);
             break;
         default:  // a device-to-host id sent to the device
-            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
-            app_send_error(a, f->id, PROTO_ERR_UNKNOWN_MESSAGE, f->id);
+            app_on_unknown_id(a, f->id);
             break;
     }
 }
@@ -355,10 +360,13 @@ void app_rx_byte_end(app_state* a, uint8_t byte) {
             a->cnt.bad_cobs = sat_inc(a->cnt.bad_cobs);
             break;
         case PROTO_RX_UNKNOWN_ID:
-            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
-            app_send_error(a, f.id, PROTO_ERR_UNKNOWN_MESSAGE, f.id);
+            app_on_unknown_id(a, f.id);
             break;
         case PROTO_RX_BAD_LENGTH:
+            if (!proto_to_device(f.id)) {
+                app_on_unknown_id(a, f.id);  // a device-to-host id, whatever its length
+                break;
+            }
             a->cnt.bad_length = sat_inc(a->cnt.bad_length);
             app_send_error(a, f.id, PROTO_ERR_BAD_LENGTH, f.len);
             break;
