@@ -708,7 +708,9 @@ static void hang_cpu(int interrupts_off) {
     g_avr->flash[HANG_PC] = 0xFF; /* rjmp .-2: 0xCFFF, little-endian */
     g_avr->flash[HANG_PC + 1] = 0xCF;
     g_avr->pc = HANG_PC;
-    if (interrupts_off) g_avr->sreg[S_I] = 0;
+    /* Set either way: a command that lands inside an interrupt (I cleared by its entry) would
+       otherwise leave a "hang" with interrupts off. */
+    g_avr->sreg[S_I] = interrupts_off ? 0 : 1;
     printf("OK hang t_s=%.6f interrupts=%s\n", sim_time_s(), interrupts_off ? "off" : "on");
     fflush(stdout);
 }
