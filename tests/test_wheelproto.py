@@ -54,7 +54,7 @@ def test_param_table_matches_firmware():
     fw = {(n, int(i), int(d), int(lo), int(hi), u) for n, i, d, lo, hi, u, _ in rows}
     py = {(p.name, p.id, p.default, p.min, p.max, p.unit) for p in wp.PARAMS}
     assert fw == py, f"only firmware: {fw - py}; only host: {py - fw}"
-    prm_h = (FW / "wheel_params" / "prm.h").read_text()
+    prm_h = (FW / "wheel_params" / "params.h").read_text()
     assert int(re.search(r"#define PRM_COUNT (\d+)", prm_h).group(1)) == len(wp.PARAMS)
 
 

@@ -314,7 +314,7 @@ int main(int argc, char** argv) {
     double mean = (double)g_sum / (double)n;
     printf(
         "control step (4 wheels, closed loop, 715 rpm, encoder reads included): n=%llu min=%llu "
-        "mean=%.0f max=%llu cycles (target <= 2400; %.1f us max at 16 MHz; mean %.1f %%, max "
+        "mean=%.0f max=%llu cycles (%.1f us max at 16 MHz; mean %.1f %%, max "
         "%.1f %% of the %u-cycle tick)\n",
         (unsigned long long)n, (unsigned long long)g_min, mean, (unsigned long long)g_max,
         g_max / 16.0, 100.0 * mean / TICK_CYCLES, 100.0 * (double)g_max / TICK_CYCLES, TICK_CYCLES);

@@ -1,21 +1,15 @@
 // port_check.cpp - runs on the ATmega2560 in simavr: compares the assembly of the control step
 // with C computed by avr-gcc's own 32-bit arithmetic: the multiplies of port_progmem.h over the
 // operand extremes and a sweep, and the PI (pi_step_err_avr, 24-bit integrator) with its C
-// reference pi_step_err_c over gain, limit and error extremes and random sequences, and the
-// commutation (cmt_drive_avr) with cmt_drive_c over angle, speed, drive, lead and pole pairs, and
-// the estimator's common case (spd_update_fast_avr) with spd_update_c, and the link's CRC
-// (crc16_ccitt, table lookups in assembly) with the bit-by-bit division. The
-// native tests cannot see 24-bit overflow; this runs the AVR code itself. Prints "port-check: N
+// reference pi_step_err_c over gain, limit and error extremes and random sequences. The native
+// tests cannot see 24-bit overflow; this runs the AVR code itself. Prints "port-check: N
 // mismatches in M checks" on UART0 and stops (`make -C firmware port-check` fails unless N is 0).
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/sleep.h>
 #include <stdint.h>
 
-#include "cmt.h"
-#include "crc16.h"
 #include "pi.h"
-#include "spd.h"
 #include "port_progmem.h"
 
 static void put(char c) {
@@ -135,108 +129,6 @@ static void check_pi_all() {
     }
 }
 
-// The commutation of a closed-loop wheel in assembly and in C: all three duties.
-static void check_cmt_one(uint16_t mech, int32_t speed_q8, int16_t drive, uint16_t offset,
-                          const cmt_lead* l) {
-    g_n++;
-    uint16_t da[3], dc[3];
-    cmt_drive(mech, speed_q8, drive, offset, l, da);  // the call the control step makes
-    cmt_drive_c(mech, speed_q8, drive, offset, l, dc);
-    if (da[0] != dc[0] || da[1] != dc[1] || da[2] != dc[2]) g_bad++;
-}
-
-static void check_cmt_all() {
-    // cmt_drive_avr addresses the table with the index as the low byte of Z.
-    g_n++;
-    if (reinterpret_cast<uintptr_t>(&cmt_svm_tab[0][0]) & 0xFFu) g_bad++;
-    static const int16_t drives[] = {0,   1,     -1,     2,     -2,     255,   -256,
-                                     256, 16384, -16384, 32767, -32767, -32768};
-    static const int32_t speeds[] = {0,     1,      -1,      63,       64,      -64,     -65,
-                                     49979, -49979, 2097151, -2097152, 2069380, -2069380};
-    static const uint16_t mechs[] = {0, 0x3FFF, 0xFFFF, 0xC000};
-    static const uint16_t leads[] = {0, 1, 128, 511, 512};
-    for (uint8_t pp = 1; pp <= 40; pp++) {
-        for (uint8_t q = 0; q < 5; q++) {
-            cmt_lead l;
-            cmt_lead_init(&l, pp, leads[q]);
-            for (uint8_t d = 0; d < 13; d++) {
-                for (uint8_t v = 0; v < 13; v++) {
-                    check_cmt_one(rnd16(), speeds[v], drives[d], rnd16(), &l);
-                    check_cmt_one(mechs[(d + v) & 3], speeds[v], drives[d], 0, &l);
-                    check_cmt_one(mechs[(d + v + 1) & 3], speeds[v], drives[d], 0xFFFF, &l);
-                }
-            }
-            for (uint16_t k = 0; k < 400; k++) {
-                // speeds within +-2^21 and beyond the clamp, random drives (all signs)
-                int32_t sp =
-                    static_cast<int32_t>((static_cast<uint32_t>(rnd16()) << 16) | rnd16()) >> 10;
-                check_cmt_one(rnd16(), sp, static_cast<int16_t>(rnd16()), rnd16(), &l);
-            }
-        }
-    }
-    // The rotor angle over every table entry and carry of the phase-b/c indices.
-    cmt_lead l;
-    cmt_lead_init(&l, 1, 0);
-    for (uint32_t m = 0; m < 16384; m += 3) {
-        check_cmt_one(static_cast<uint16_t>(m), 0, 32767, 0, &l);
-        check_cmt_one(static_cast<uint16_t>(m), 0, -32768, 0x55, &l);
-    }
-}
-
-// The estimator's common case in assembly and in C from the same state, over angle steps up to
-// the 14-bit wrap, filter gains and accumulators at the q8 extremes.
-static void check_spd_all() {
-    static const uint8_t gains[] = {1, 2, 4, 16, 128};
-    static const int32_t accs[] = {0, 255, -256, 12794624L, -12794624L, 536870656L, -536870912L};
-    for (uint16_t run = 0; run < 4000; run++) {
-        spd_state sa, sc;
-        spd_init(&sc);
-        sc.primed = 1;
-        sc.last_angle = rnd16() & 0x3FFFu;
-        sc.acc = run < 700
-                     ? accs[run % 7]
-                     : static_cast<int32_t>((static_cast<uint32_t>(rnd16()) << 16) | rnd16()) >> 2;
-        sa = sc;
-        const uint8_t k = gains[rnd16() % 5];
-        uint16_t angle = rnd16();
-        if (run % 4 == 0) angle = static_cast<uint16_t>(sc.last_angle + 8191u + (run & 1));
-        g_n++;
-        spd_update_fast_avr(&sa, angle, k);
-        spd_update_c(&sc, angle, k);
-        if (sa.acc != sc.acc || sa.last_angle != sc.last_angle) g_bad++;
-    }
-}
-
-// Bit-by-bit CRC-16/CCITT-FALSE, the definition the table encodes.
-static uint16_t crc16_bitwise(const uint8_t* p, uint8_t len) {
-    uint16_t crc = CRC16_INIT;
-    for (uint8_t i = 0; i < len; i++) {
-        crc ^= static_cast<uint16_t>(static_cast<uint16_t>(p[i]) << 8);
-        for (uint8_t b = 0; b < 8; b++) {
-            crc = (crc & 0x8000u) ? static_cast<uint16_t>((crc << 1) ^ 0x1021u)
-                                  : static_cast<uint16_t>(crc << 1);
-        }
-    }
-    return crc;
-}
-
-// Every length 0..48 of random buffers, plus all-zero and all-0xFF buffers.
-static void check_crc_all() {
-    static uint8_t buf[48];
-    for (uint16_t run = 0; run < 2000; run++) {
-        const uint8_t len = static_cast<uint8_t>(run % (sizeof buf + 1));
-        for (uint8_t i = 0; i < len; i++) {
-            buf[i] = run < 49 ? 0 : run < 98 ? 0xFF : static_cast<uint8_t>(rnd16());
-        }
-        g_n++;
-        if (crc16_ccitt(buf, len) != crc16_bitwise(buf, len)) g_bad++;
-        uint16_t one = CRC16_INIT;
-        for (uint8_t i = 0; i < len; i++) one = crc16_update(one, buf[i]);
-        g_n++;
-        if (one != crc16_bitwise(buf, len)) g_bad++;
-    }
-}
-
 int main() {
     UBRR0 = 3;
     UCSR0A = _BV(U2X0);
@@ -254,9 +146,6 @@ int main() {
         }
     }
     check_pi_all();
-    check_cmt_all();
-    check_spd_all();
-    check_crc_all();
     const char* msg = "port-check: ";
     while (*msg) put(*msg++);
     put_u32(g_bad);

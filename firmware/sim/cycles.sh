@@ -6,6 +6,7 @@ set -eu
 root=$(cd "$(dirname "$0")/../.." && pwd)
 py="$root/.venv/bin/python"
 [ -x "$py" ] || py=python3
+export PYTHONPATH="$root/tests${PYTHONPATH:+:$PYTHONPATH}"  # control_beat.py
 "$py" "$root/tests/fil/fil_bench.py" cycles "$@"
 echo
 "$py" "$root/tests/fil/fil_bench.py" step

@@ -151,7 +151,7 @@ static params_t g_par = {
     .b_nms = 2.0e-5,
     .vbus_v = 12.0,
     /* 0: the rotor holds where the applied vector points when pole_pairs * encoder angle equals
-       the vector angle, the convention of the wheel firmware (cmt.h) with ENC_OFFSET = 0 */
+       the vector angle, the convention of the wheel firmware (commut.h) with ENC_OFFSET = 0 */
     .elec_offset_rad = 0.0,
     .pole_pairs = 7,
     .model_cycles = 1000,
@@ -708,7 +708,9 @@ static void hang_cpu(int interrupts_off) {
     g_avr->flash[HANG_PC] = 0xFF; /* rjmp .-2: 0xCFFF, little-endian */
     g_avr->flash[HANG_PC + 1] = 0xCF;
     g_avr->pc = HANG_PC;
-    if (interrupts_off) g_avr->sreg[S_I] = 0;
+    /* Set either way: a command that lands inside an interrupt (I cleared by its entry) would
+       otherwise leave a "hang" with interrupts off. */
+    g_avr->sreg[S_I] = interrupts_off ? 0 : 1;
     printf("OK hang t_s=%.6f interrupts=%s\n", sim_time_s(), interrupts_off ? "off" : "on");
     fflush(stdout);
 }

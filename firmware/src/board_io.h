@@ -5,7 +5,7 @@
 #include <stdint.h>
 
 #include "board.h"
-#include "prm.h"
+#include "params.h"
 
 // Every output that can move a motor off: the driver enables driven low, the PWM compare outputs
 // disconnected from their pins (TCCRnA = 0) and those pins driven low. Inline with constant

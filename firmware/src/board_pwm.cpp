@@ -1,7 +1,7 @@
 // board_pwm.cpp - 12 PWM channels on Timers 1/3/4/5 and the four driver enables.
 #include "board.h"
 #include "board_io.h"
-#include "cmt.h"
+#include "commut.h"
 
 static_assert(BOARD_PWM_TOP == CMT_PWM_TOP, "commutation and timer TOP differ");
 static_assert(BOARD_PWM_TOP + 1 == (BOARD_PWM0_TOP + 1) << BOARD_PWM0_SHIFT,

@@ -3,7 +3,7 @@
 #include "board.h"
 #include "board_io.h"
 #include "enc.h"
-#include "grd.h"
+#include "guard.h"
 
 // AS5048A timing: CSn high >= 350 ns between frames, CSn low to first clock >= 350 ns.
 // Six NOPs are 375 ns at 16 MHz.

@@ -27,7 +27,7 @@ def test_make_flash_builds_then_writes_the_tested_elf_with_avrdude():
         "-U flash:w:firmware/build/avr/wheelboard.elf:e"
     ]
     build = lines.index("make --no-print-directory -C firmware avr")
-    assert build < lines.index(avrdude[0])  # built (or found up to date) first, size budget too
+    assert build < lines.index(avrdude[0])  # built (or found up to date) first, size report too
     # the brown-out fuse checked before anything is written
     assert lines.index("tools/check-bod.sh /dev/ttyACM0 stk500v2") < lines.index(avrdude[0])
     assert any("build/avr/wheelboard.elf" in line for line in lines[build:])

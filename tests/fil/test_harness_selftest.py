@@ -82,7 +82,7 @@ def test_encoders_follow_open_loop_field(selftest):
 
 def test_held_rotor_sits_at_commutation_zero(selftest):
     """M3 gets a fixed vector at sine phase 0: the rotor must hold at electrical angle 0 of the
-    firmware convention (cmt.h: elec = pole_pairs * encoder angle), the harness default."""
+    firmware convention (commut.h: elec = pole_pairs * encoder angle), the harness default."""
     _, port = selftest
     port.reset_input_buffer()
     frames = angle_frames(read_lines(port, 0.3))

@@ -9,6 +9,7 @@ next to what the firmware reports.
 from __future__ import annotations
 
 import math
+import struct
 import time
 
 import pytest
@@ -223,11 +224,16 @@ def test_corrupt_frames_ignored_and_counted(rig):
     bad_crc[3] ^= 0x55
     bad_length = wp.encode_raw(wp.BY_NAME["SET_SPEEDS"].id, b"\x01\x02\x03")
     unknown = wp.encode_raw(0x7E, b"")
+    # ids the device only sends: unknown to it, whatever their length
+    stats_id = wp.BY_NAME["STATS"].id
+    to_host = [wp.encode_raw(stats_id, bytes(struct.calcsize(wp.BY_NAME["STATS"].fmt)))]
+    to_host.append(wp.encode_raw(stats_id, b"\x01\x02\x03"))
     bad_cobs = b"\x05\x01\x00"  # the code byte runs past the delimiter
     oversize = b"\x01" * (wp.MAX_ENCODED + 10) + b"\x00"
     injector = serial.Serial(h.pty, 500000)
     try:
         injector.write(b"\x00" + bytes(bad_crc) + b"\x00" + bad_length + unknown)
+        injector.write(b"".join(to_host))
         injector.write(bad_cobs + oversize)
         injector.flush()
     finally:
@@ -235,7 +241,7 @@ def test_corrupt_frames_ignored_and_counted(rig):
     time.sleep(0.3)
     after = board.stats()
     assert after["bad_crc"] == before["bad_crc"] + 1
-    assert after["unknown_id"] == before["unknown_id"] + 1
+    assert after["unknown_id"] == before["unknown_id"] + 1 + len(to_host)
     assert after["bad_length"] == before["bad_length"] + 1
     assert after["bad_cobs"] == before["bad_cobs"] + 1
     assert after["oversize"] == before["oversize"] + 1

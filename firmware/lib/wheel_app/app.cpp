@@ -59,7 +59,7 @@ static void app_reset_wheel(app_wheel* w) {
 static void app_load_ctl(app_state* a) {
     const int32_t* v = a->prm.v;  // all within their params.def ranges
     app_ctl* c = &a->ctl;
-    c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (spd.h)
+    c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (speed.h)
     c->gains.ki_q8 = static_cast<uint16_t>(v[PRM_KI]);
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
@@ -290,6 +290,12 @@ static bool app_is_control_frame(uint8_t id) {
     return id == PROTO_ID_HEARTBEAT || id == PROTO_ID_SET_SPEEDS || id == PROTO_ID_STOP_ALL;
 }
 
+// An id not in the table, or one the device only sends: counted and answered UNKNOWN_MESSAGE.
+static void app_on_unknown_id(app_state* a, uint8_t id) {
+    a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
+    app_send_error(a, id, PROTO_ERR_UNKNOWN_MESSAGE, id);
+}
+
 static void app_dispatch(app_state* a, const proto_frame* f) {
     if (app_is_control_frame(f->id)) flt_host_alive(&a->flt);
     switch (f->id) {
@@ -328,8 +334,7 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
             app_on_calibrate(a, f->payload[0]);
             break;
         default:  // a device-to-host id sent to the device
-            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
-            app_send_error(a, f->id, PROTO_ERR_UNKNOWN_MESSAGE, f->id);
+            app_on_unknown_id(a, f->id);
             break;
     }
 }
@@ -355,10 +360,13 @@ void app_rx_byte_end(app_state* a, uint8_t byte) {
             a->cnt.bad_cobs = sat_inc(a->cnt.bad_cobs);
             break;
         case PROTO_RX_UNKNOWN_ID:
-            a->cnt.unknown_id = sat_inc(a->cnt.unknown_id);
-            app_send_error(a, f.id, PROTO_ERR_UNKNOWN_MESSAGE, f.id);
+            app_on_unknown_id(a, f.id);
             break;
         case PROTO_RX_BAD_LENGTH:
+            if (!proto_to_device(f.id)) {
+                app_on_unknown_id(a, f.id);  // a device-to-host id, whatever its length
+                break;
+            }
             a->cnt.bad_length = sat_inc(a->cnt.bad_length);
             app_send_error(a, f.id, PROTO_ERR_BAD_LENGTH, f.len);
             break;
@@ -378,7 +386,7 @@ void app_wheel_off(app_wheel* w, uint16_t pwm[3]) {
     for (uint8_t k = 0; k < 3; k++) pwm[k] = 0;
 }
 
-// Supervision of wheel i after its step (grd.h): the faults latch for the next step.
+// Supervision of wheel i after its step (guard.h): the faults latch for the next step.
 static void app_guard(app_state* a, uint8_t i) {
     app_wheel* w = &a->w[i];
     const uint8_t bit = static_cast<uint8_t>(1u << i);

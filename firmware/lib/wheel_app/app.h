@@ -7,13 +7,13 @@
 #include <stdint.h>
 
 #include "cal.h"
-#include "cmt.h"
-#include "flt.h"
-#include "grd.h"
+#include "commut.h"
+#include "fault.h"
+#include "guard.h"
 #include "pi.h"
-#include "prm.h"
+#include "params.h"
 #include "proto.h"
-#include "spd.h"
+#include "speed.h"
 
 #define APP_WHEELS 4
 #define APP_TICK_HZ 1000
@@ -58,7 +58,7 @@ struct app_counters {
     uint16_t step_max_us;
 };
 
-// Speeds inside the control step are q8 (encoder counts per tick * 256, spd.h); mrad/s only at
+// Speeds inside the control step are q8 (encoder counts per tick * 256, speed.h); mrad/s only at
 // the protocol boundary (setpoints, ramp, telemetry).
 struct app_wheel {
     spd_state spd;
@@ -164,7 +164,7 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 // fail-safe or an encoder fault, the ramp (DECEL while stopping).
 void app_setpoints_tick(app_state* a);
 
-// Sensor and motion supervision of the tick's step (grd.h), in closed loop: faults latch for the
+// Sensor and motion supervision of the tick's step (guard.h), in closed loop: faults latch for the
 // next step. The board runs it after the step's time is taken (about 1,500 cycles for four
 // wheels: not part of step_max_us), before the next tick.
 void app_supervise(app_state* a);

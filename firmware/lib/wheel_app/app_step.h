@@ -1,7 +1,7 @@
 // app_step.h - the 1 kHz control step of four wheels, written for the AVR: one loop over the
 // wheels walking pointers (no index arithmetic), the hot path (encoder word, estimator, PI, lead,
 // commutation) inline, the rare paths (ramp, open loop, wheel off) out of line. Speeds are q8
-// (spd.h) inside the step; mrad/s only at the protocol boundary.
+// (speed.h) inside the step; mrad/s only at the protocol boundary.
 //
 // The step is a template over the encoder reads (Io) so that the board layer can overlap the SPI
 // transfers of encoder i+1 with the arithmetic of wheel i without the portable logic touching a
@@ -17,11 +17,11 @@
 #define APP_STEP_H
 
 #include "app.h"
-#include "cmt.h"
+#include "commut.h"
 #include "enc.h"
-#include "flt.h"
+#include "fault.h"
 #include "pi.h"
-#include "spd.h"
+#include "speed.h"
 
 #define APP_IO_STAGES 5
 

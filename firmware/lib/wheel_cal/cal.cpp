@@ -2,7 +2,7 @@
 
 #include "enc.h"
 #include "proto.h"
-#include "spd.h"
+#include "speed.h"
 
 // One electrical turn in counts, and a quarter of it.
 static int16_t cal_expected(const cal_state* c) {

@@ -16,11 +16,3 @@ int16_t pi_step(pi_state* s, const pi_gains* g, int32_t setpoint, int32_t measur
     const pi_gains gs = pi_gains_sanitize(*g);
     return pi_step_err(s, &gs, setpoint - measured);
 }
-
-#if defined(__AVR__)
-// The rare cases of pi_step_err_avr (out_max shrunk below the state) end here: a tail jump with
-// the arguments in the ABI's registers.
-extern "C" int16_t pi_step_mag_slow(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
-    return pi_step_mag_c(s, g, neg, mag);
-}
-#endif

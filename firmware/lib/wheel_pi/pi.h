@@ -1,6 +1,6 @@
 // pi.h - PI speed controller in fixed point with anti-windup, output and slew limits.
 //
-// Units: error e in the controller's error unit (the control step passes q8 speed units, spd.h),
+// Units: error e in the controller's error unit (the control step passes q8 speed units, speed.h),
 // clamped to +-PI_ERR_CLAMP; output u in Q15 drive level (32767 = full supply voltage amplitude).
 // kp_q8: Q15 counts per error unit, times 256.  ki_q8: Q15 counts per error unit per tick, times
 // 256. u = (kp*e)/256 + I/256, I += ki*e each tick. The clamp of e only acts where a sane kp
@@ -131,31 +131,13 @@ PORT_INLINE int16_t pi_step_err_c(pi_state* s, const pi_gains* g, int32_t e) {
 }
 
 #if defined(__AVR__)
-// Not avr-gcc ABI functions. pi_step_err_avr (pi_avr.cpp) takes s in X (r26:r27), g in Z
-// (r30:r31) and e in r18..r21, returns y in r24:r25 and clobbers r0, r3..r25, X and Z without
-// saving any of them (the control step's caller has the call-saved ones saved in its own prologue
-// anyway; saving them would cost two cycles per register and call). Its rare cases (out_max
-// shrunk below the state) jump to pi_step_mag_slow, the ABI function in pi.cpp that runs
-// pi_step_mag_c. Only called through pi_step_err below, which tells the compiler.
-extern "C" void pi_step_err_avr_entry();
-extern "C" int16_t pi_step_mag_slow(pi_state* s, const pi_gains* g, bool neg, uint16_t mag);
-#endif
-
-PORT_INLINE int16_t pi_step_err(pi_state* s, const pi_gains* g, int32_t e) {
-#if defined(__AVR__)
-    register pi_state* r_s __asm__("r26") = s;
-    register const pi_gains* r_g __asm__("r30") = g;
-    register int32_t r_e __asm__("r18") = e;
-    register int16_t r_y __asm__("r24");
-    __asm__ __volatile__("call pi_step_err_avr_entry"
-                         : "=r"(r_y), "+r"(r_s), "+r"(r_g), "+r"(r_e)
-                         :
-                         : "r0", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12",
-                           "r13", "r14", "r15", "r16", "r17", "r22", "r23", "memory");
-    return r_y;
+// pi_step_err on the chip: the assembly of pi_avr.cpp, which saves about 970 cycles of the
+// 1 ms control step (docs/hardware.md, "Control-step cycles"). Its call convention is in pi_avr.h.
+#include "pi_avr.h"
 #else
+PORT_INLINE int16_t pi_step_err(pi_state* s, const pi_gains* g, int32_t e) {
     return pi_step_err_c(s, g, e);
-#endif
 }
+#endif
 
 #endif  // PI_H

@@ -24,7 +24,7 @@
 //   lo is compared; mirrored for E < 0.
 // The rare cases where the limits or the integrator lie outside the window (out_max shrank below
 // the last output or integrator: lo > hi possible, |integ| > ilim) jump to pi_step_mag_slow
-// (pi.cpp, the C reference) with (s, g, neg, mag) in the ABI's registers.
+// (below: the C reference) with (s, g, neg, mag) in the ABI's registers.
 //
 // One path per sign (entered by the sign bit of e; each has its copy of the multiplies so that
 // every branch stays within reach). Register use: X = s (loads with X+, stores backwards with
@@ -394,5 +394,11 @@ extern "C" __attribute__((naked, used)) void pi_step_err_avr() {
         "brlt .Lneg_slow\n\t"
         "movw r24, r22\n\t"
         "ldi r20, 1\n\t" PI_RETURN_Y("r20")::);
+}
+
+// The rare cases of pi_step_err_avr (out_max shrunk below the state) end here: a tail jump with
+// the arguments in the ABI's registers.
+extern "C" int16_t pi_step_mag_slow(pi_state* s, const pi_gains* g, bool neg, uint16_t mag) {
+    return pi_step_mag_c(s, g, neg, mag);
 }
 #endif

@@ -27,6 +27,20 @@ int16_t proto_payload_len(uint8_t id) {
     }
 }
 
+#define PROTO_TO_DEVICE_H2D true
+#define PROTO_TO_DEVICE_D2H false
+bool proto_to_device(uint8_t id) {
+    switch (id) {
+#define PROTO_MSG(name, id, dir, len, fmt, fields) \
+    case id:                                       \
+        return PROTO_TO_DEVICE_##dir;
+#include "proto_messages.def"
+#undef PROTO_MSG
+        default:
+            return false;
+    }
+}
+
 void proto_rx_init(proto_rx* rx) {
     rx->n = 0;
     rx->overflow = 0;

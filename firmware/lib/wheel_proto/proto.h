@@ -80,6 +80,10 @@ struct proto_rx {
 // Payload length of a message id from the table, or -1 if the id is unknown.
 int16_t proto_payload_len(uint8_t id);
 
+// True for an id of the table that the host sends (H2D). The device answers any other id,
+// whatever its length, with UNKNOWN_MESSAGE.
+bool proto_to_device(uint8_t id);
+
 void proto_rx_init(proto_rx* rx);
 
 // Append a byte inside a frame (nonzero, room left): true. False for a delimiter or a byte past

@@ -283,10 +283,12 @@ TEST_F(AppTest, CorruptFramesCountedDroppedAndReported) {
     expect_error(PROTO_ID_SET_SPEEDS, PROTO_ERR_BAD_LENGTH, 3);
     send(PROTO_ID_TELEMETRY, Bytes(PROTO_LEN_TELEMETRY, 1));  // device-to-host id
     expect_error(PROTO_ID_TELEMETRY, PROTO_ERR_UNKNOWN_MESSAGE, PROTO_ID_TELEMETRY);
+    send(PROTO_ID_STATS, {1, 2, 3});  // device-to-host id with another length: the same
+    expect_error(PROTO_ID_STATS, PROTO_ERR_UNKNOWN_MESSAGE, PROTO_ID_STATS);
     send(PROTO_ID_GET_STATS);
     const RxFrame* s = last(PROTO_ID_STATS);
     ASSERT_NE(s, nullptr);
-    const uint16_t want[] = {1, 1, 1, 1, 2, 1};  // crc short oversize cobs unknown length
+    const uint16_t want[] = {1, 1, 1, 1, 3, 1};  // crc short oversize cobs unknown length
     for (int i = 0; i < 6; i++) EXPECT_EQ(proto_get_u16(&s->payload[2 * i]), want[i]) << i;
     for (int i = 0; i < 4; i++) EXPECT_EQ(app.w[i].target_mrad_s, 0);
 }

@@ -6,9 +6,9 @@
 
 #include "app.h"
 #include "cal.h"
-#include "cmt.h"
+#include "commut.h"
 #include "enc.h"
-#include "grd.h"
+#include "guard.h"
 #include "test_support.h"
 
 namespace {

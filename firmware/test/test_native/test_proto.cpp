@@ -227,6 +227,9 @@ TEST(Proto, UnknownId) {
     EXPECT_EQ(feed(&rx, frame_raw({0x42, 1, 2}), &f), PROTO_RX_UNKNOWN_ID);
     EXPECT_EQ(f.id, 0x42);
     EXPECT_EQ(proto_payload_len(0x42), -1);
+    EXPECT_FALSE(proto_to_device(0x42));
+    EXPECT_TRUE(proto_to_device(PROTO_ID_SET_SPEEDS));
+    EXPECT_FALSE(proto_to_device(PROTO_ID_TELEMETRY));
 }
 
 TEST(Proto, WrongLength) {

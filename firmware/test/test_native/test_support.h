@@ -9,7 +9,7 @@
 #include "app.h"
 #include "enc.h"
 
-#include "prm.h"
+#include "params.h"
 #include "proto.h"
 
 struct FakeEeprom {

@@ -31,7 +31,7 @@ acting on its own quantised estimate) through the motor's response. Without it a
 speed exactly and its encoder walks a fixed quantisation pattern, whose noise averages out like
 no real encoder's. An optional ripple multiplies the true speed by
 ``1 + ripple_fraction * sin(ripple_per_rev * angle)``. The reported speed is measured as the
-firmware measures it (``spd.h``): each tick the wheel angle is read as a 14-bit encoder count, the
+firmware measures it (``speed.h``): each tick the wheel angle is read as a 14-bit encoder count, the
 count difference to the last tick (wrapped at 14 bits) is the raw speed, and the firmware's
 low-pass (1/2^SPEED_FILTER_SHIFT per tick) filters it; the first tick after a boot or a skipped
 stretch of ticks only primes the encoder (estimate held). So the telemetry carries the real
@@ -191,7 +191,7 @@ class WheelBoardEmulator(PtyDevice):
             self.stats["tick_overruns"] = min(self.stats["tick_overruns"] + missed, 0xFFFF)
             self.fault_word |= _FAULT_BIT["TICK_OVERRUN"]
             self._physics(missed / wp.TICK_HZ)
-            self._last_count = [None] * wp.N_WHEELS  # a long gap re-primes, as spd.h
+            self._last_count = [None] * wp.N_WHEELS  # a long gap re-primes, as speed.h
         while self.ticks < due:
             self.ticks += 1
             self._control_tick()
@@ -482,7 +482,7 @@ class WheelBoardEmulator(PtyDevice):
             "faults": self.fault_word,
         }
         for i in range(wp.N_WHEELS):
-            fields[f"w{i}_mrad_s"] = int(self.measured[i] * 1000.0)  # toward zero, as spd.h
+            fields[f"w{i}_mrad_s"] = int(self.measured[i] * 1000.0)  # toward zero, as speed.h
             fields[f"d{i}_q15"] = self.drive[i]
         self.seq = (self.seq + 1) & 0xFFFF
         self.telemetry_sent += 1

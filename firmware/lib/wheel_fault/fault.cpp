@@ -1,4 +1,4 @@
-#include "flt.h"
+#include "fault.h"
 
 #include "proto.h"
 

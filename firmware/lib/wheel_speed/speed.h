@@ -1,4 +1,5 @@
-// spd.h - fixed-point wheel speed estimator from 14-bit encoder angles sampled at the control tick.
+// speed.h - fixed-point wheel speed estimator from 14-bit encoder angles sampled at the control
+// tick.
 //
 // Speed unit inside the firmware: encoder counts per 1 ms tick in Q8 ("q8", int32 holding at most
 // 22 bits): 1 unit = 2*pi/16384/256 rad per ms = 1.4980 mrad/s; 715 rpm = 49979 q8. mrad/s only at
@@ -10,8 +11,8 @@
 // which is acc' = acc + x - (acc >> shift) on acc scaled by 2^(8 - shift): the shift only changes
 // the multiplier (one 24 x 8 multiply, no variable shift), and a change of shift leaves the
 // estimate where it was. |x - y| <= 2^22, |k * (x - y)| <= 2^29, |acc| <= 2^29.
-#ifndef SPD_H
-#define SPD_H
+#ifndef SPEED_H
+#define SPEED_H
 
 #include <stdint.h>
 
@@ -53,12 +54,9 @@ int32_t spd_div_ticks(int32_t x, uint8_t ticks);
 // The delta of a sample after missed ticks, in q8 (rare path, out of line).
 int32_t spd_gap_q8(spd_state* s, int16_t delta);
 
-// Feed one good angle (14 bits; upper bits ignored) with the filter gain k of spd_gain().
-// spd_update_c is the reference in C (what the native tests run). On AVR the common case (primed,
-// no missed tick, k != 0) is spd_update_fast_avr (spd_avr.h, inline assembly, compared with
-// spd_update_c on the chip by `make -C firmware port-check`). Inline: it runs for every wheel in
-// every control step.
-PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
+// Feed one good angle (14 bits; upper bits ignored) with the filter gain k of spd_gain(). Inline:
+// it runs for every wheel in every control step.
+PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
     angle14 = static_cast<uint16_t>(angle14 & 0x3FFFu);
     if (!s->primed) {
         s->primed = 1;
@@ -76,20 +74,6 @@ PORT_INLINE void spd_update_c(spd_state* s, uint16_t angle14, uint8_t k) {
     }
 }
 
-#if defined(__AVR__)
-#include "spd_avr.h"
-#endif
-
-PORT_INLINE void spd_update(spd_state* s, uint16_t angle14, uint8_t k) {
-#if defined(__AVR__)
-    if (s->primed && !s->missed && k != 0) {
-        spd_update_fast_avr(s, angle14, k);
-        return;
-    }
-#endif
-    spd_update_c(s, angle14, k);
-}
-
 // The sample of this tick was bad: hold the estimate, the next good sample spans the gap.
 void spd_skip(spd_state* s);
 
@@ -104,4 +88,4 @@ void spd_missed_ticks(spd_state* s, uint8_t n);
 int32_t spd_q8_to_mrad_s(int32_t q8);
 int32_t spd_mrad_s_to_q8(int32_t mrad_s);
 
-#endif  // SPD_H
+#endif  // SPEED_H

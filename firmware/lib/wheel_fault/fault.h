@@ -1,4 +1,4 @@
-// flt.h - fault logic: latched fault word, heartbeat supervision, encoder fault counting, the
+// fault.h - fault logic: latched fault word, heartbeat supervision, encoder fault counting, the
 // wheels a latched fault disables.
 //
 // Fault bits are those of proto_codes.def. They latch until flt_clear() names them; a condition
@@ -9,8 +9,8 @@
 // STALL or RUNAWAY disables every wheel (the loop itself is suspect). Blocking faults (heartbeat,
 // encoders, stall, runaway, the open-loop time limit) make the device refuse new setpoints until
 // cleared.
-#ifndef FLT_H
-#define FLT_H
+#ifndef FAULT_H
+#define FAULT_H
 
 #include <stdint.h>
 
@@ -64,4 +64,4 @@ PORT_INLINE bool flt_encoder_sample(flt_state* f, uint8_t* bad_count, uint8_t wh
     return (f->off_mask & wheel_bit) != 0;
 }
 
-#endif  // FLT_H
+#endif  // FAULT_H

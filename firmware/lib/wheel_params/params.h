@@ -1,4 +1,4 @@
-// prm.h - parameter store: RAM values, range checks, EEPROM images with sequence number and CRC.
+// params.h - parameter store: RAM values, range checks, EEPROM images with sequence number and CRC.
 //
 // Two EEPROM slots of one image each, at PRM_SLOT_ADDR(0) = 0 and PRM_SLOT_ADDR(1) = 128:
 //   0..1 magic 'G' 'W' | 2 layout version | 3 parameter count | 4..5 sequence number LE |
@@ -12,8 +12,8 @@
 // slot 0 (no sequence number, 82 bytes) is still loaded, as sequence 0.
 // Saving never blocks: prm_save_poll() writes at most one byte per call and only when the EEPROM
 // is ready (one byte takes 3.3 ms on the ATmega2560), skipping equal bytes.
-#ifndef PRM_H
-#define PRM_H
+#ifndef PARAMS_H
+#define PARAMS_H
 
 #include <stdint.h>
 
@@ -84,4 +84,4 @@ void prm_save_begin(prm_store* s);
 // Advance a save by at most one byte; returns true exactly once, when the save completes.
 bool prm_save_poll(prm_store* s);
 
-#endif  // PRM_H
+#endif  // PARAMS_H

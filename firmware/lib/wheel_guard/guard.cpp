@@ -1,4 +1,4 @@
-#include "grd.h"
+#include "guard.h"
 
 #include "enc.h"
 #include "proto.h"

@@ -1,4 +1,4 @@
-#include "prm.h"
+#include "params.h"
 
 #include "crc16.h"
 #include "proto.h"

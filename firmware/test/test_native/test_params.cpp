@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "crc16.h"
-#include "prm.h"
+#include "params.h"
 #include "proto.h"
 #include "test_support.h"
 

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cmt.h"
+#include "commut.h"
 
 // Ideal SVPWM (sine with min-max zero-sequence injection) of a voltage vector at angle phi (rad)
 // with a phase amplitude of amp counts: the three duties, centred on 400.
@@ -251,7 +251,7 @@ TEST(Cmt, DrivePutsVectorAheadOrBehindTheRotor) {
                     cmt_elec_angle(mech, l.pole_pairs, 1234) + cmt_lead_angle(&l, speed_q8));
                 for (int16_t drive : {0, 1, 20000, 32767, -1, -20000, -32767, -32768}) {
                     uint16_t d[3], want[3];
-                    cmt_drive_c(mech, speed_q8, drive, 1234, &l, d);
+                    cmt_drive(mech, speed_q8, drive, 1234, &l, d);
                     const bool pos = drive >= 0;
                     const int32_t mag = pos ? drive : -static_cast<int32_t>(drive);
                     if (mag <= 32767) {  // the same as cmt_phases 90 degrees ahead / behind
@@ -278,13 +278,13 @@ TEST(Cmt, DrivePutsVectorAheadOrBehindTheRotor) {
     cmt_lead l;
     cmt_lead_init(&l, 7, 128);
     uint16_t d[3], e[3];
-    cmt_drive_c(100, 0, 0, 0, &l, d);
+    cmt_drive(100, 0, 0, 0, &l, d);
     EXPECT_EQ(d[0], 400);
     EXPECT_EQ(d[1], 400);
     EXPECT_EQ(d[2], 400);
     // -32768 is the full amplitude behind the rotor: within a count of -32767.
-    cmt_drive_c(100, 0, -32768, 0, &l, d);
-    cmt_drive_c(100, 0, -32767, 0, &l, e);
+    cmt_drive(100, 0, -32768, 0, &l, d);
+    cmt_drive(100, 0, -32767, 0, &l, e);
     for (int k = 0; k < 3; k++) {
         EXPECT_NE(d[k], 400);
         EXPECT_LE(std::abs(d[k] - e[k]), 1);

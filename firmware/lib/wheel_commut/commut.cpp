@@ -1,6 +1,6 @@
-#include "cmt.h"
+#include "commut.h"
 
-#include "spd.h"
+#include "speed.h"
 
 int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs) {
     int32_t es = speed_mrad_s * static_cast<int32_t>(pole_pairs);
@@ -16,7 +16,6 @@ void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8) {
     if (lead_q8 > 512) lead_q8 = 512;
     if (pole_pairs > 40) pole_pairs = 40;
     l->pole_pairs = pole_pairs;
-    l->pp4 = static_cast<uint8_t>(pole_pairs * 4u);                            // <= 160
     l->k = static_cast<int16_t>(static_cast<uint16_t>(pole_pairs) * lead_q8);  // <= 20480
     // Aliasing limit in q8 >> 6 (once per parameter change: the division is not in the step);
     // at most 2069380 >> 6 = 32334 for one pole pair.

@@ -1,4 +1,4 @@
-// grd.h - sensor and motion supervision of one wheel, run once per control tick after the step
+// guard.h - sensor and motion supervision of one wheel, run once per control tick after the step
 // (out of the control law's latency) and once per diagnostics read:
 //   stuck word: the encoder reads 0x0000 or 0x3FFF (MISO stuck low or high with a valid-looking
 //     word) unchanged for dead_ticks (ENC_FAULT_LIMIT) ticks while the wheel is driven at half
@@ -14,8 +14,8 @@
 //     sign by more than RUNAWAY_MARGIN without coming closer to the setpoint, or above
 //     SPEED_MAX + RUNAWAY_MARGIN: RUNAWAY.
 // The functions return the PROTO_FAULT_* bits to latch (0: none); the application latches them.
-#ifndef GRD_H
-#define GRD_H
+#ifndef GUARD_H
+#define GUARD_H
 
 #include <stdint.h>
 
@@ -62,4 +62,4 @@ uint16_t grd_motion(grd_wheel* g, const grd_limits* l, bool looping, bool satura
 // One reply word of a diagnostics register read.
 uint16_t grd_diag(grd_wheel* g, uint16_t word);
 
-#endif  // GRD_H
+#endif  // GUARD_H

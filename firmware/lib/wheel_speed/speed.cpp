@@ -1,4 +1,4 @@
-#include "spd.h"
+#include "speed.h"
 
 void spd_init(spd_state* s) {
     s->acc = 0;

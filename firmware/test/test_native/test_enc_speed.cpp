@@ -5,7 +5,7 @@
 #include <cstdlib>
 
 #include "enc.h"
-#include "spd.h"
+#include "speed.h"
 
 TEST(Enc, ParityOfKnownWords) {
     EXPECT_TRUE(enc_even_parity(0x0000));
