@@ -30,6 +30,9 @@ def test_the_prism_runs_end_to_end_with_nodes_and_estimate_and_no_tilt(tmp_path,
     meta = read_meta(log)
     assert meta["summary"]["completed"]
     assert "tilt_end_estimate_rad" not in meta["summary"]
+    settled = meta["summary"]["attitude_settled"]  # the body frame's, estimate and truth
+    assert np.linalg.norm(settled["truth"]["quaternion"]) == pytest.approx(1.0, abs=1e-12)
+    assert 0.0 <= settled["error_rad"] < np.pi
     nodes, truth = read_stream(log, "nodes"), read_stream(log, "truth")
     assert "tilt_rad" not in nodes.dtype.names and "tilt_rad" not in truth.dtype.names
     assert {"b1_z_m", "t3_z_m"} <= set(nodes.dtype.names)

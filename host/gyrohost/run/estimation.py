@@ -77,8 +77,9 @@ class EstimatorProcess:
         Its status word.
     tilt_rad : float
         Its plane tilt (NaN without an attitude measure or an estimate).
-    rpy_rad : tuple of 3 float or None
-        Its body attitude's roll, pitch, yaw, rad (None without a body frame or an estimate).
+    body : tuple of 7 float or None
+        Its body attitude, quaternion then roll, pitch, yaw, rad
+        (:data:`gyrohost.run.streams.BODY_ATTITUDE`; None without a body frame or an estimate).
     health : dict or None
         The summary's ``estimator`` table (:func:`gyrohost.run.health.health`), once stopped.
     lags_s : list of float, s
@@ -91,7 +92,7 @@ class EstimatorProcess:
         self.x = np.full(0, np.nan)
         self.status = Status(0)
         self.tilt_rad = float("nan")
-        self.rpy_rad: tuple | None = None
+        self.body: tuple | None = None
         self.health: dict | None = None
         self.lags_s: list[float] = []  # the estimate behind the loop at each fed tick, s
         self.log = None
@@ -264,7 +265,7 @@ class EstimatorProcess:
             name, values = body
             self._streams[name].write(*values)
         elif kind == "estimate":
-            self.t, status, self.tilt_rad, self.rpy_rad, x = body
+            self.t, status, self.tilt_rad, self.body, x = body
             self.status, self.x = Status(status), np.asarray(x)
         elif kind == "open":
             name, columns, text_columns, description = body
@@ -344,8 +345,8 @@ class _Filter:
         if kind == "tick":
             if args[0] - ekf.t > self.max_age_s:
                 ekf.advance(args[0])
-            tilt, rpy = self.estimates.write(ekf.t)
-            return ("estimate", ekf.t, int(ekf.status), tilt, rpy, ekf.x.tolist())
+            tilt, body = self.estimates.write(ekf.t)
+            return ("estimate", ekf.t, int(ekf.status), tilt, body, ekf.x.tolist())
         if kind == "truth":
             self.estimates.score.truth(*args)
         else:

@@ -54,7 +54,7 @@ from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import check_start_state
-from gyrohost.run.streams import ReplanWriter, TruthProbe, open_run_streams
+from gyrohost.run.streams import ReplanWriter, TruthProbe, body_summary, open_run_streams
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Readout, Ticker, status_words
 from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
@@ -265,7 +265,12 @@ class RunLoop:
 
     def _record_tilts(self, key: str) -> None:
         """The newest estimate's tilt and the truth's at its time, for the summary (D-bar
-        scenes)."""
+        scenes); its body attitude and the truth's (``attitude_end``, ``attitude_settled``:
+        scenes with a body frame)."""
+        if self.estimator.body is not None:
+            truth = None if self.truth is None else self.truth.body_at(self.estimator.t)
+            name = key.replace("tilt", "attitude")
+            self.final[name] = body_summary(self.estimator.body, truth)
         if self.tilt is None:
             return
         self.final[f"{key}_estimate_rad"] = self.latest_tilt
@@ -407,7 +412,7 @@ class RunLoop:
             self.latest_tilt,
             None if tel is None else tuple(tel.omega_rad_s),
             "off" if self.ekf is None else status_words(self.ekf.status),
-            None if self.ekf is None else self.ekf.rpy_rad,
+            None if self.ekf is None or self.ekf.body is None else self.ekf.body[4:],
         )
 
     def _exchange(self, t_s: float, strict: bool) -> None:

@@ -10,6 +10,7 @@ measure (:func:`gyrohost.control.attitude.attitude_of`, the D-bar) adds a ``tilt
 both. docs/run.md lists them all.
 """
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -77,6 +78,21 @@ def body_values(body: BodyFrame | None, N_scene) -> tuple:
         return ()
     att = body.attitude(N_scene)
     return (*att.quaternion.tolist(), *att.rpy_rad.tolist())
+
+
+def body_summary(estimate: tuple, truth: tuple | None = None) -> dict:
+    """The summary's record of a body attitude: the estimate's quaternion and roll, pitch, yaw
+    (cells of :func:`body_values`) and, given the truth's, the truth's and the rotation angle
+    between the two, rad: twice the angle between the unit quaternions, ``4 atan2(|a - b|,
+    |a + b|)`` with ``b`` the sign of ``q_truth`` nearer ``a = q_estimate`` (accurate also
+    near zero, where ``2 acos <a, b>`` loses half the digits)."""
+    out = {"quaternion": list(estimate[:4]), "rpy_rad": list(estimate[4:])}
+    if truth is not None:
+        a, b = np.asarray(estimate[:4]), np.asarray(truth[:4])
+        b = b if a @ b >= 0.0 else -b
+        out["truth"] = {"quaternion": list(truth[:4]), "rpy_rad": list(truth[4:])}
+        out["error_rad"] = 4.0 * math.atan2(np.linalg.norm(a - b), np.linalg.norm(a + b))
+    return out
 
 
 @dataclass
@@ -194,8 +210,8 @@ class EstimateWriter:
 
     def write(self, t_s: float) -> tuple[float, tuple | None]:
         """Write one row of each stream at host time ``t_s``; returns the plane tilt, rad (NaN
-        without an attitude measure), and the body attitude's roll, pitch, yaw, rad (None
-        without a body frame)."""
+        without an attitude measure), and the body attitude's cells (:data:`BODY_ATTITUDE`;
+        None without a body frame)."""
         ekf = self.ekf
         x = ekf.x
         N_all, _ = ekf.batch_nodes(x[None, :])
@@ -210,7 +226,7 @@ class EstimateWriter:
         self.nodes.write(
             t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt), *body, *node_std, *tilt_std
         )
-        return tilt, (tuple(body[-3:]) if body else None)
+        return tilt, (body or None)
 
 
 class InnovationWriter:
@@ -276,6 +292,7 @@ class TruthProbe:
         self.rig, self.tilt, self.t0_ns, self.body = rig, tilt, t0_ns, body
         self.latest_tilt = float("nan")
         self.recent_tilts: deque = deque(maxlen=RECENT_TILTS)  # (t_s, tilt_rad)
+        self.recent_nodes: deque = deque(maxlen=RECENT_TILTS)  # (t_s, N), with a body frame
         self.stream = log.stream(
             "truth",
             [
@@ -300,6 +317,8 @@ class TruthProbe:
             self.latest_tilt = tilt_of(self.tilt, s.N)
             t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.state_rig_t_s
             self.recent_tilts.append((t_s, self.latest_tilt))
+            if self.body is not None:
+                self.recent_nodes.append((t_s, s.N))
             if score is not None:
                 score.truth(t_s, s.N, s.omega_w_rad_s, s.rest_length_m)
             self.stream.write(
@@ -321,6 +340,18 @@ class TruthProbe:
             return float("nan")
         t, tilt = np.array(self.recent_tilts).T
         return float(np.interp(t_s, t, tilt))
+
+    def body_at(self, t_s: float) -> tuple | None:
+        """The truth's body attitude (cells of :func:`body_values`) at host time ``t_s``, of the
+        node positions interpolated between the recent samples (the nearest outside them);
+        None without a body frame or before any sample."""
+        if not self.recent_nodes:
+            return None
+        t = np.array([sample[0] for sample in self.recent_nodes])
+        N = np.stack([sample[1] for sample in self.recent_nodes])
+        cells = N.reshape(len(t), -1).T
+        N_t = np.array([np.interp(t_s, t, cell) for cell in cells]).reshape(N.shape[1:])
+        return body_values(self.body, N_t)
 
 
 class ReplanWriter:
