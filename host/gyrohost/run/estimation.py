@@ -77,7 +77,7 @@ class EstimatorProcess:
         Its status word.
     tilt_rad : float
         Its plane tilt (NaN without an attitude measure or an estimate).
-    body : tuple of 7 float or None
+    body_attitude : tuple of 7 float or None
         Its body attitude, quaternion then roll, pitch, yaw, rad
         (:data:`gyrohost.run.streams.BODY_ATTITUDE`; None without a body frame or an estimate).
     health : dict or None
@@ -92,7 +92,7 @@ class EstimatorProcess:
         self.x = np.full(0, np.nan)
         self.status = Status(0)
         self.tilt_rad = float("nan")
-        self.body: tuple | None = None
+        self.body_attitude: tuple | None = None
         self.health: dict | None = None
         self.lags_s: list[float] = []  # the estimate behind the loop at each fed tick, s
         self.log = None
@@ -265,7 +265,7 @@ class EstimatorProcess:
             name, values = body
             self._streams[name].write(*values)
         elif kind == "estimate":
-            self.t, status, self.tilt_rad, self.body, x = body
+            self.t, status, self.tilt_rad, self.body_attitude, x = body
             self.status, self.x = Status(status), np.asarray(x)
         elif kind == "open":
             name, columns, text_columns, description = body

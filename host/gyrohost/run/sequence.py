@@ -267,10 +267,10 @@ class RunLoop:
         """The newest estimate's tilt and the truth's at its time, for the summary (D-bar
         scenes); its body attitude and the truth's (``attitude_end``, ``attitude_settled``:
         scenes with a body frame)."""
-        if self.estimator.body is not None:
+        if self.estimator.body_attitude is not None:
             truth = None if self.truth is None else self.truth.body_at(self.estimator.t)
             name = key.replace("tilt", "attitude")
-            self.final[name] = body_summary(self.estimator.body, truth)
+            self.final[name] = body_summary(self.estimator.body_attitude, truth)
         if self.tilt is None:
             return
         self.final[f"{key}_estimate_rad"] = self.latest_tilt
@@ -408,11 +408,12 @@ class RunLoop:
         """Estimated tilt, measured wheel speeds, the estimator's status and the estimated body
         attitude now."""
         tel = self.wheel_reader.latest if self.wheel_reader is not None else None
+        body = None if self.ekf is None else self.ekf.body_attitude
         return Readout(
             self.latest_tilt,
             None if tel is None else tuple(tel.omega_rad_s),
             "off" if self.ekf is None else status_words(self.ekf.status),
-            None if self.ekf is None or self.ekf.body is None else self.ekf.body[4:],
+            None if body is None else body[4:],
         )
 
     def _exchange(self, t_s: float, strict: bool) -> None:
