@@ -126,6 +126,16 @@ def quaternion_from_matrix(R):
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
+def angle_between(q_a, q_b):
+    """Rotation angle, rad, in [0, pi], between attitudes of unit quaternions ``q_a`` and
+    ``q_b`` (..., 4): the geodesic distance of the two rotations, twice the angle between the
+    quaternions once ``q_b`` takes the sign nearer ``q_a``, ``4 atan2(|a - b|, |a + b|)``
+    (accurate also near zero, where ``2 acos <a, b>`` loses half the digits)."""
+    a, b = np.asarray(q_a, float), np.asarray(q_b, float)
+    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
+    return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
+
+
 @dataclass(frozen=True)
 class Attitude:
     """The attitude of one set of node positions (or a batch: leading dimensions).

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 import gyrotensegrity
 from gyrotensegrity import BodyFrame, SceneError, attitude_of, load_scene, scene_from_dict
-from gyrotensegrity.attitude import euler_zyx, quaternion_from_matrix
+from gyrotensegrity.attitude import angle_between, euler_zyx, quaternion_from_matrix
 
 SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 FRAMED = ["dbar-gyro", "dbar-nospin", "dbar-rig", "prism-gyro", "prism-rig", "prism-string-mass"]
@@ -117,6 +117,19 @@ def test_half_turns_give_the_quaternion_of_scipy(axis):
     q = quaternion_from_matrix(turn.as_matrix())
     same_quaternion(q, turn.as_quat(scalar_first=True))
     assert np.linalg.norm(q) == pytest.approx(1.0, abs=TOL)
+
+
+def test_angle_between_is_scipys_relative_rotation_at_every_scale():
+    """From 1e-9 rad (where 2 acos would give about 1e-8 of round-off) to a half turn, either
+    sign of either quaternion."""
+    base = ROTATIONS[1]
+    for angle in (1e-9, 1e-4, 0.3, 2.0, np.pi):
+        other = Rotation.from_rotvec(angle * np.array([0.6, -0.8, 0.0])) * base
+        a, b = base.as_quat(scalar_first=True), other.as_quat(scalar_first=True)
+        for sign in (1.0, -1.0):
+            assert angle_between(a, sign * b) == pytest.approx(angle, rel=1e-5)
+    batch = np.stack([a, b])
+    np.testing.assert_allclose(angle_between(batch, batch[::-1]), [np.pi, np.pi], rtol=1e-6)
 
 
 # --- [attitude] in a scene file --------------------------------------------------------------

@@ -10,7 +10,6 @@ measure (:func:`gyrohost.control.attitude.attitude_of`, the D-bar) adds a ``tilt
 both. docs/run.md lists them all.
 """
 
-import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -23,6 +22,7 @@ from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.run.health import NisTally, TruthScore
 from gyrohost.run.uncertainty import NodeSigma
+from gyrotensegrity.attitude import angle_between
 
 RECENT_TILTS = 100
 """Truth tilts kept (1 s at the rig's 100 Hz), to compare with an estimate that lags."""
@@ -83,15 +83,11 @@ def body_values(body: BodyFrame | None, N_scene) -> tuple:
 def body_summary(estimate: tuple, truth: tuple | None = None) -> dict:
     """The summary's record of a body attitude: the estimate's quaternion and roll, pitch, yaw
     (cells of :func:`body_values`) and, given the truth's, the truth's and the rotation angle
-    between the two, rad: twice the angle between the unit quaternions, ``4 atan2(|a - b|,
-    |a + b|)`` with ``b`` the sign of ``q_truth`` nearer ``a = q_estimate`` (accurate also
-    near zero, where ``2 acos <a, b>`` loses half the digits)."""
+    between the two, rad (:func:`gyrotensegrity.attitude.angle_between`)."""
     out = {"quaternion": list(estimate[:4]), "rpy_rad": list(estimate[4:])}
     if truth is not None:
-        a, b = np.asarray(estimate[:4]), np.asarray(truth[:4])
-        b = b if a @ b >= 0.0 else -b
         out["truth"] = {"quaternion": list(truth[:4]), "rpy_rad": list(truth[4:])}
-        out["error_rad"] = 4.0 * math.atan2(np.linalg.norm(a - b), np.linalg.norm(a + b))
+        out["error_rad"] = float(angle_between(estimate[:4], truth[:4]))
     return out
 
 
