@@ -1,10 +1,15 @@
 """Rotations and plane frames shared by the estimator, the rig and the planner.
 
 Conventions: Z-Y-X Euler angles (roll about x, pitch about y, yaw about z, rad), as the
-BWT61CL reports them; rotation matrices map body (or sensor) axes to world axes, shape (3, 3).
+BWT61CL reports them and as a scene's attitude gives them (``euler_zyx`` and the frame of two
+node pairs come from :mod:`gyrotensegrity.attitude`); rotation matrices map body (or sensor)
+axes to world axes, shape (3, 3).
 """
 
 import numpy as np
+
+from gyrotensegrity.attitude import cross, pair_frame
+from gyrotensegrity.attitude import euler_zyx as euler_zyx
 
 
 def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -20,12 +25,6 @@ def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (Z-Y-X) of rotation ``R`` (3, 3), shape (3,), rad."""
-    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
-
-
 def turn_from_first(R: np.ndarray) -> np.ndarray:
     """How far each rotation of ``R`` (k, 3, 3) has turned from the first, rad, shape (k,): the
     angle of ``R[0]^T R[i]``."""
@@ -38,44 +37,12 @@ def wrap_angle(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _cross(a, b):
-    """Cross product along the last axis (np.cross's argument checks cost more than the product
-    on the small batches here)."""
-    return np.stack(
-        [
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ],
-        axis=-1,
-    )
-
-
 def plane_frame(N, cols):
-    """Frame of a plane spanned by four nodes (the D-bar's rhombus).
-
-    ``e_x`` along node 0 -> node 2 of ``cols``, ``e_y`` along node 3 -> node 1 made orthogonal to
-    ``e_x``, ``e_z = e_x x e_y`` the plane normal.
-
-    Parameters
-    ----------
-    N : ndarray, shape (..., 3, n), m
-        Node positions (a batch of them: any leading dimensions).
-    cols : sequence of 4 int
-        Columns of the four nodes in ``N`` (for the D-bar: n1, n2, n3, n4).
-
-    Returns
-    -------
-    R : ndarray, shape (..., 3, 3)
-        Columns ``e_x, e_y, e_z`` (unit vectors, world frame).
-    """
-    n1, n2, n3, n4 = (N[..., :, c] for c in cols)
-    ex = n3 - n1
-    ex = ex / np.linalg.norm(ex, axis=-1, keepdims=True)
-    ey = n2 - n4
-    ey = ey - np.sum(ey * ex, axis=-1, keepdims=True) * ex
-    ey = ey / np.linalg.norm(ey, axis=-1, keepdims=True)
-    return np.stack([ex, ey, _cross(ex, ey)], axis=-1)
+    """Frame of a plane spanned by four nodes (the D-bar's rhombus), shape (..., 3, 3): ``e_x``
+    along node 0 -> node 2 of ``cols``, ``e_y`` along node 3 -> node 1 made orthogonal to
+    ``e_x``, ``e_z = e_x x e_y`` the plane normal (:func:`gyrotensegrity.attitude.pair_frame`
+    of the pairs (0, 2) and (3, 1); ``N`` (..., 3, n), m, any leading dimensions)."""
+    return pair_frame(N, (cols[0], cols[2], cols[3], cols[1]))
 
 
 def tilt_angle(normal, axis, normal0):
@@ -83,7 +50,7 @@ def tilt_angle(normal, axis, normal0):
     (3,)): a float for one normal, an array of the leading shape for a batch."""
     axis = axis / np.linalg.norm(axis)
     p = normal - (normal @ axis)[..., None] * axis
-    angle = np.arctan2(_cross(normal0, p) @ axis, p @ normal0)
+    angle = np.arctan2(cross(normal0, p) @ axis, p @ normal0)
     return float(angle) if np.ndim(angle) == 0 else angle
 
 

@@ -12,6 +12,7 @@ See docs/model.md for the equations-to-code map and the API.
 
 __version__ = "0.1.0"
 
+from .attitude import BodyFrame, attitude_of  # noqa: E402
 from .dynamics import evaluate, rhs  # noqa: E402
 from .errors import PrunedTermError, SceneError, SimulationError  # noqa: E402
 from .model import Model  # noqa: E402
@@ -20,6 +21,7 @@ from .scene import Scene, load_scene, scene_from_dict  # noqa: E402
 from .simulate import Stepper, simulate  # noqa: E402
 
 __all__ = [
+    "BodyFrame",
     "Model",
     "PrunedTermError",
     "Run",
@@ -27,6 +29,7 @@ __all__ = [
     "SceneError",
     "SimulationError",
     "Stepper",
+    "attitude_of",
     "evaluate",
     "load_run",
     "load_scene",

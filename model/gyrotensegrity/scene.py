@@ -17,6 +17,9 @@ from .piecewise import PiecewiseLinear, constant
 from .textfile import read_toml
 
 INTEGRATORS = ("rk4", "rk4-projected", "dop853", "rk45", "radau", "bdf")
+MIN_FRAME_SINE = 1e-6
+"""Smallest sine of the angle between an attitude frame's two pairs at the start: below it the
+y axis is the round-off of a difference of nearly parallel vectors."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +104,8 @@ class Scene:
     forces: dict[str, np.ndarray] = field(default_factory=dict)
     simulation: SimulationSettings = field(default_factory=SimulationSettings)
     rig: RigFidelitySpec | None = None
+    attitude_frame: tuple[str, str, str, str] | None = None
+    """The body frame's nodes (``[attitude] frame``, :mod:`gyrotensegrity.attitude`), or None."""
 
     def node_index(self, name: str) -> int:
         return self.node_names.index(name)
@@ -157,6 +162,9 @@ class Scene:
             "forces": {k: v.tolist() for k, v in self.forces.items()},
             "simulation": self.simulation.__dict__.copy(),
             "rig_fidelity": None if self.rig is None else self.rig.__dict__.copy(),
+            "attitude": None
+            if self.attitude_frame is None
+            else {"frame": list(self.attitude_frame)},
         }
 
     def to_json(self) -> str:
@@ -264,6 +272,7 @@ class _Parser:
             "forces",
             "simulation",
             "rig_fidelity",
+            "attitude",
         )
         self.table(data, "", top, required=("scene", "nodes"))
         head = self.table(data["scene"], "scene", ("name", "duration", "gravity"))
@@ -293,6 +302,7 @@ class _Parser:
         forces = self.forces(data.get("forces", []), names)
         sim = self.simulation(data.get("simulation", {}))
         rig = self.rig_fidelity(data["rig_fidelity"]) if "rig_fidelity" in data else None
+        frame = self.attitude(data["attitude"], names, positions) if "attitude" in data else None
         self.check_supported(names, bars, strings, fixed, masses)
         return Scene(
             name=name,
@@ -309,6 +319,7 @@ class _Parser:
             forces=forces,
             simulation=sim,
             rig=rig,
+            attitude_frame=frame,
         )
 
     def member_list(self, value, key: str) -> list:
@@ -432,6 +443,27 @@ class _Parser:
         if not isinstance(reaction, bool):
             self.fail("rig_fidelity.motor_reaction", "must be true or false")
         return RigFidelitySpec(joints, inertia, reaction)
+
+    def attitude(self, value, names, positions) -> tuple[str, str, str, str]:
+        """The body frame's nodes: two pairs, each of two nodes apart, not parallel at the start
+        (else the frame has no x or no y axis)."""
+        table = self.table(value, "attitude", ("frame",), required=("frame",))
+        frame = tuple(self.name_list(table["frame"], "attitude.frame", names, length=4))
+        ends = positions[:, [names.index(n) for n in frame]]
+        axes = ends[:, 1::2] - ends[:, 0::2]
+        lengths = np.linalg.norm(axes, axis=0)
+        for k, axis in enumerate("xy"):
+            if lengths[k] <= 1e-9:
+                a, b = frame[2 * k : 2 * k + 2]
+                self.fail("attitude.frame", f"the {axis} pair's nodes {a} and {b} coincide")
+        sine = np.linalg.norm(np.cross(axes[:, 0], axes[:, 1])) / (lengths[0] * lengths[1])
+        if sine < MIN_FRAME_SINE:
+            self.fail(
+                "attitude.frame",
+                f"the pairs {frame[0]}-{frame[1]} and {frame[2]}-{frame[3]} are parallel at the "
+                "start (no y axis)",
+            )
+        return frame
 
     def check_supported(self, names, bars, strings, fixed, masses):
         """Every node must be a bar end, carry a point mass, or be fixed: else it has no inertia."""

@@ -13,18 +13,20 @@ from gyrohost.geometry import euler_zyx, rotation_zyx
 from gyrohost.plots.log import (
     NO_BAND,
     figure_attitude,
+    figure_body_attitude,
     figure_innovations,
     figure_node_z,
     figure_nodes,
     figure_wheels,
     plot_log,
 )
-from gyrohost.plots.run_data import RunData, attitude_lines, sensor_axes
+from gyrohost.plots.run_data import RunData, attitude_lines, body_lines, sensor_axes
 from gyrohost.plots.styles import style
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta
+from gyrohost.run.streams import BODY_ATTITUDE
 from gyrohost.sil.synthetic import write_log
-from gyrotensegrity import Model, load_scene
+from gyrotensegrity import Model, attitude_of, load_scene
 
 SCHEDULE = """[schedule]
 name = "figures"
@@ -144,7 +146,8 @@ def test_a_log_without_standard_deviations_plots_without_bands_and_says_so(data,
         fig = figure(old_data)
         assert NO_BAND in [t.get_text() for t in fig.texts], figure.__name__
         assert not any(ax.collections for ax in fig.axes), figure.__name__
-    assert len(plot_log(tmp_path / "old", tmp_path / "plots")) == 3
+    # node figures, the IMU's attitude and the body frame's (the scene has an [attitude])
+    assert len(plot_log(tmp_path / "old", tmp_path / "plots")) == 4
 
 
 def _pitch_through_minus_90(n=201):
@@ -210,3 +213,36 @@ def test_plane_tilt_and_its_band_are_unwrapped_across_180_degrees(tmp_path):
     assert np.allclose(lower, np.degrees(turned - 0.02)) and np.allclose(
         upper, np.degrees(turned + 0.02)
     )
+
+
+def test_body_attitude_is_drawn_unwrapped_with_its_turn_from_the_start(tmp_path):
+    """The D-bar turned about its frame's z axis (yaw) through +-180 degrees: yaw drawn without
+    the jump the logged angle has, and the turn from the start climbing to pi and back."""
+    scene = load_scene(shipped("scene", "dbar-gyro"))
+    yaw = np.linspace(0.0, np.radians(300.0), 121)
+    N = np.stack([rotation_zyx(0.0, 0.0, a) @ scene.positions for a in yaw])
+    att = attitude_of(scene, N)
+    rows = np.empty(len(yaw), dtype=[(c, "f8") for c in ("t_s", *BODY_ATTITUDE)])
+    rows["t_s"] = np.linspace(0.0, 3.0, len(yaw))
+    for k, c in enumerate(BODY_ATTITUDE):
+        rows[c] = np.column_stack([att.quaternion, att.rpy_rad])[:, k]
+    assert np.max(np.abs(np.diff(rows["body_yaw_rad"]))) > np.pi  # as logged: wrapped
+    write_log(tmp_path / "log", {"nodes": rows, "truth": rows}, shipped("scene", "dbar-gyro"))
+    data = RunData(tmp_path / "log")
+    assert data.body
+    line = body_lines(data)["estimate"]
+    assert np.allclose(line.rpy_rad[:, 2], yaw, atol=1e-9)
+    assert np.allclose(line.rpy_rad[:, :2], 0.0, atol=1e-9)
+    assert np.allclose(line.turn_rad, np.minimum(yaw, 2 * np.pi - yaw), atol=1e-6)
+    fig = figure_body_attitude(data)
+    yaw_lines = [ln for ln in fig.axes[2].get_lines() if not ln.get_label().startswith("_")]
+    assert [ln.get_label() for ln in yaw_lines] == ["estimate", "truth"]
+    assert np.allclose(yaw_lines[0].get_ydata(), np.degrees(yaw), atol=1e-7)
+
+
+def test_a_log_without_a_body_frame_gets_no_body_figure(tmp_path):
+    rows = np.empty(3, dtype=[(c, "f8") for c in ("t_s", "b1_x_m", "b1_y_m", "b1_z_m")])
+    rows["t_s"], rows["b1_x_m"], rows["b1_y_m"], rows["b1_z_m"] = [0, 1, 2], 0.1, 0.2, 0.3
+    write_log(tmp_path / "log", {"nodes": rows}, shipped("scene", "prism-gyro"))
+    written = [p.name for p in plot_log(tmp_path / "log", tmp_path / "plots")]
+    assert "fig7-nodes.png" in written and "body-attitude.png" not in written

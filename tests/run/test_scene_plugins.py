@@ -1,11 +1,13 @@
 """A scene without the D-bar runs on the simulated rig end to end (node positions, the estimate
-and its covariance, no tilt), and the estimator takes its own configuration from the rig
-configuration's ``[estimator]`` table, overridden by ``--estimator``."""
+and its covariance, its body frame's attitude, no tilt), and the estimator takes its own
+configuration from the rig configuration's ``[estimator]`` table, overridden by
+``--estimator``."""
 
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from gyrohost.cli import main
 from gyrohost.config import load_rig_config
@@ -13,6 +15,7 @@ from gyrohost.estimator import EstimatorConfigError
 from gyrohost.estimator.config import for_rig
 from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta, read_stream
+from gyrohost.run.streams import BODY_ATTITUDE
 
 PRISM_CONFIG = shipped("config", "prism-sim-rig")
 PRISM_SCHEDULE = shipped("schedule", "prism-s7")
@@ -27,10 +30,19 @@ def test_the_prism_runs_end_to_end_with_nodes_and_estimate_and_no_tilt(tmp_path,
     meta = read_meta(log)
     assert meta["summary"]["completed"]
     assert "tilt_end_estimate_rad" not in meta["summary"]
+    settled = meta["summary"]["attitude_settled"]  # the body frame's, estimate and truth
+    assert np.linalg.norm(settled["truth"]["quaternion"]) == pytest.approx(1.0, abs=1e-12)
+    assert 0.0 <= settled["error_rad"] < np.pi
     nodes, truth = read_stream(log, "nodes"), read_stream(log, "truth")
     assert "tilt_rad" not in nodes.dtype.names and "tilt_rad" not in truth.dtype.names
     assert {"b1_z_m", "t3_z_m"} <= set(nodes.dtype.names)
     assert len(nodes) > 20 and np.all(np.isfinite(nodes["t2_z_m"]))
+    for stream in (nodes, truth):  # the [attitude] frame's: a unit quaternion and its angles
+        q = np.column_stack([stream[c] for c in BODY_ATTITUDE[:4]])
+        rpy = np.column_stack([stream[c] for c in BODY_ATTITUDE[4:]])
+        assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
+        angles = Rotation.from_quat(q, scalar_first=True).as_euler("ZYX")[:, ::-1]
+        assert np.allclose(rpy, angles, atol=1e-9)
     estimate = read_stream(log, "estimate")
     stds = [c for c in estimate.dtype.names if c.startswith("std_")]
     assert stds and np.all(np.isfinite(estimate[stds[0]]))
@@ -39,6 +51,7 @@ def test_the_prism_runs_end_to_end_with_nodes_and_estimate_and_no_tilt(tmp_path,
     assert main(["plot", str(log)]) == 0
     written = sorted(p.name for p in (log / "plots").iterdir())
     assert "fig7-nodes.png" in written and "attitude.png" in written
+    assert "body-attitude.png" in written
     assert "fig8-node-z.png" not in written  # the D-bar's plane nodes only
 
 

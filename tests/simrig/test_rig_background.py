@@ -88,6 +88,8 @@ def test_background_rig_serves_a_run_through_its_ports_file(tmp_path, capsys, mo
         assert re.search(r"tilt [+-]0\.\d{3} rad \| wheels( [+-]\s*\d+\.\d){4} rad/s \| EKF ",
                          schedule[-1]), schedule[-1]  # fmt: skip
         assert "+74.9" in schedule[-1] or "+74.8" in schedule[-1], schedule[-1]
+        # and the body frame's attitude (the scene's [attitude]), degrees
+        assert re.search(r"\| EKF \S+ \| roll pitch yaw( \s*[+-]\d+\.\d){3} deg$", schedule[-1])
         assert any(line.endswith("| EKF off") for line in lines if "] spinup " in line)
         meta = read_meta(log)
         assert "truth" not in meta["streams"]

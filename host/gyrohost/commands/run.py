@@ -4,6 +4,7 @@
 tilt maneuver on the rig, from connection to the safe state, logged (CSV streams and an MCAP
 file), optionally served live to Foxglove (docs/run.md, docs/schedule.md)."""
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -98,7 +99,8 @@ def register(sub) -> None:
 
 class Progress:
     """One status line on a terminal: phase, time, schedule played, the estimated tilt, the
-    measured wheel speeds and the estimator's status; silent otherwise."""
+    measured wheel speeds, the estimator's status and the estimated body attitude (roll, pitch,
+    yaw of the scene's ``[attitude]`` frame); silent otherwise."""
 
     def __init__(self, label: str = "", stream=None):
         self.label, self.stream = label, stream or sys.stderr
@@ -122,7 +124,11 @@ class Progress:
             text += f" | tilt {readout.tilt_rad:+.3f} rad"
         if readout.omega_rad_s is not None:
             text += " | wheels " + " ".join(f"{w:+5.1f}" for w in readout.omega_rad_s) + " rad/s"
-        return text + f" | EKF {readout.estimator}"
+        text += f" | EKF {readout.estimator}"
+        if readout.rpy_rad is not None:  # a scene with a body frame, estimated
+            angles = " ".join(f"{math.degrees(a):+6.1f}" for a in readout.rpy_rad)
+            text += f" | roll pitch yaw {angles} deg"
+        return text
 
     def close(self) -> None:
         if self.enabled:

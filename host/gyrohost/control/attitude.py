@@ -20,11 +20,17 @@ A rotation of the whole structure by ``+phi`` about ``a`` gives ``tilt = +phi``.
 The D-bar is a plug-in of the run, the planner and the plots: :func:`attitude_of` gives a scene's
 attitude measure, ``None`` for a scene without the plane nodes (a prism), which then runs and
 plots with node positions and the estimate only.
+
+Any scene whose file names a body frame (``[attitude]``) also has a three-axis attitude, the
+frame's rotation from its start (:func:`body_frame_of`, :mod:`gyrotensegrity.attitude`); for the
+D-bar's frame (x along n1 -> n3, y along n4 -> n2) a rotation about the n2-n4 axis is a tilt and
+a pitch of the same angle.
 """
 
 import numpy as np
 
 from gyrohost.geometry import plane_frame, tilt_angle
+from gyrotensegrity import BodyFrame
 
 from .errors import PlanError
 
@@ -108,6 +114,11 @@ class TiltMeter:
         (..., 3, n_scene) an array of the leading shape."""
         normal = plane_frame(N_scene, self.cols)[..., :, 2]
         return tilt_angle(normal, self.attitude.axis, self.attitude.normal0)
+
+
+def body_frame_of(model) -> BodyFrame | None:
+    """The body frame of ``model``'s scene (its ``[attitude]`` table), None without one."""
+    return None if model.scene.attitude_frame is None else BodyFrame(model.scene)
 
 
 def attitude_of(model) -> TiltMeter | None:

@@ -74,6 +74,8 @@ def scene_toml(scene: Scene, header: str = "") -> str:
         out += ["", "[rig_fidelity]", f"joints = {_str(r.joints)}"]
         out += [f"stator_inertia = {_num(r.stator_inertia)}"]
         out += [f"motor_reaction = {'true' if r.motor_reaction else 'false'}"]
+    if scene.attitude_frame is not None:
+        out += ["", "[attitude]", "frame = [" + ", ".join(map(_str, scene.attitude_frame)) + "]"]
     sim = scene.simulation
     out += ["", "[simulation]", f"integrator = {_str(sim.integrator)}"]
     out += [f"{k} = {_num(getattr(sim, k))}" for k in ("dt", "rtol", "atol", "sample_dt")]

@@ -10,10 +10,11 @@ separate rig process, real hardware) is titled "estimate" only.
 The figures follow the scene, as the log holds it: a D-bar log (its ``nodes`` stream has a
 ``tilt_rad`` column) gets the paper's figures of the plane nodes and the tilt; any other scene
 gets every node's coordinates, the IMU's attitude, wheels, innovations and loop timing
-(:func:`plots_for`). A figure whose streams are all missing or empty (a replay's log, a damaged
-log) is left out and said so: no figure is written empty. Each ``figure_*`` function returns the
-figure unsaved (what the tests inspect); :func:`plot_log` saves them. What they draw is computed
-in :mod:`.run_data`.
+(:func:`plots_for`); a log of a scene with a body frame (``[attitude]``) also the frame's roll,
+pitch, yaw and turn from the start. A figure whose streams are all missing or empty (a replay's
+log, a damaged log) is left out and said so: no figure is written empty. Each ``figure_*``
+function returns the figure unsaved (what the tests inspect); :func:`plot_log` saves them. What
+they draw is computed in :mod:`.run_data`.
 """
 
 from collections.abc import Callable
@@ -31,6 +32,7 @@ from gyrohost.plots.run_data import (  # noqa: E402
     RunData,
     attitude_lines,
     band,
+    body_lines,
     normalised_innovations,
 )
 from gyrohost.plots.styles import MARKERS, style  # noqa: E402
@@ -171,6 +173,26 @@ def figure_attitude(data: RunData):
     return _finish(fig, axes, data)
 
 
+def figure_body_attitude(data: RunData):
+    """The scene's body frame (``[attitude]``): roll, pitch, yaw (intrinsic Z-Y-X about the
+    frame's start axes, unwrapped) and the rotation angle from the start, deg; estimate, truth
+    dashed."""
+    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(7.5, 8.5))
+    lines = body_lines(data)
+    for label, line in lines.items():
+        kw = ATTITUDE_STYLES[label]
+        for k, ax in enumerate(axes[:3]):
+            ax.plot(line.t_s, np.degrees(line.rpy_rad[:, k]), label=label, **kw)
+        axes[3].plot(line.t_s, np.degrees(line.turn_rad), label=label, **kw)
+    for ax, what in zip(axes, ("roll", "pitch", "yaw", "turn from\nthe start"), strict=True):
+        ax.set_ylabel(f"{what} (deg)")
+    if lines:
+        axes[0].legend(fontsize="small", ncol=2)
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle(f"{data.title}: body frame attitude")
+    return _finish(fig, axes, data)
+
+
 def figure_wheels(data: RunData):
     """Wheel speeds: measured by the board (a dash pattern and marker per wheel), commanded
     (thin dotted)."""
@@ -248,6 +270,7 @@ PLOTS = {
     "fig7-nodes.png": figure_nodes,
     "fig8-node-z.png": figure_node_z,
     "attitude.png": figure_attitude,
+    "body-attitude.png": figure_body_attitude,
     "wheels.png": figure_wheels,
     "innovations.png": figure_innovations,
     "loop-jitter.png": figure_jitter,
@@ -257,6 +280,7 @@ NEEDS = {
     "fig7-nodes.png": ("nodes", "truth"),
     "fig8-node-z.png": ("nodes", "truth"),
     "attitude.png": ("nodes", "truth", "imu", "estimate"),
+    "body-attitude.png": ("nodes", "truth"),
     "wheels.png": ("wheels", "command"),
     "innovations.png": tuple(f"innov_{s}" for s in INNOVATION_SOURCES),
     "loop-jitter.png": ("loop",),
@@ -266,12 +290,18 @@ NEEDS = {
 
 DBAR_ONLY = ("fig8-node-z.png",)
 """Figures of the D-bar's plane nodes, made for D-bar logs only."""
+BODY_ONLY = ("body-attitude.png",)
+"""Figures of a body frame's attitude, made for logs that have it only."""
 
 
 def plots_for(data: RunData) -> dict:
-    """The figures (file name -> function) of a log: all of :data:`PLOTS` for a D-bar, all but
-    :data:`DBAR_ONLY` for any other scene."""
-    return {name: fig for name, fig in PLOTS.items() if data.dbar or name not in DBAR_ONLY}
+    """The figures (file name -> function) of a log: :data:`PLOTS` but :data:`DBAR_ONLY` for a
+    scene other than the D-bar and :data:`BODY_ONLY` for a scene without a body frame."""
+    return {
+        name: fig
+        for name, fig in PLOTS.items()
+        if (data.dbar or name not in DBAR_ONLY) and (data.body or name not in BODY_ONLY)
+    }
 
 
 def plot_log(folder, out, warn: Callable[[str], None] | None = None) -> list[Path]:

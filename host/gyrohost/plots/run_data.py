@@ -1,5 +1,6 @@
 """What the figures of a run log draw, read from its streams: the log itself, the ±2σ bands of
-the estimate, the attitude as angles without jumps, the normalised innovations.
+the estimate, the attitude as angles without jumps, the body frame's attitude, the normalised
+innovations.
 
 No drawing here, so that tests check the data a figure draws without reading images.
 """
@@ -14,6 +15,7 @@ from gyrohost.control.attitude import PLANE_NODES
 from gyrohost.geometry import rotation_zyx
 from gyrohost.run.health import nis_row
 from gyrohost.run.log import read_meta, read_streams
+from gyrohost.run.streams import BODY_ATTITUDE
 
 BAND_SIGMAS = 2.0
 """Half width of the estimate's uncertainty band, standard deviations."""
@@ -50,6 +52,8 @@ class RunData:
         ]
         self.nodes = PLANE_NODES if self.dbar else tuple(scene_nodes)
         """The nodes the figures show: the D-bar's plane nodes, else every scene node."""
+        self.body = BODY_ATTITUDE[0] in columns
+        """The log has the attitude of the scene's body frame (its ``[attitude]`` table)."""
 
     def get(self, name):
         s = self.streams.get(name)
@@ -128,6 +132,31 @@ def attitude_lines(data: RunData) -> dict:
     R_true = truth_axes(data)
     if R_true is not None:
         lines["truth"] = (truth["t_s"], *tilt_heading(R_true))
+    return lines
+
+
+@dataclass
+class BodyLine:
+    """The body frame's attitude in one stream, as :func:`body_lines` draws it."""
+
+    t_s: np.ndarray
+    rpy_rad: np.ndarray
+    """(K, 3) roll, pitch, yaw, rad, each unwrapped over time"""
+    turn_rad: np.ndarray
+    """(K,) the rotation angle from the start, rad, in [0, pi]: ``2 acos |w|``"""
+
+
+def body_lines(data: RunData) -> dict:
+    """The body frame's attitude of the estimate (``nodes``) and of the truth, those the log
+    has: label -> :class:`BodyLine`."""
+    lines = {}
+    for label, name in (("estimate", "nodes"), ("truth", "truth")):
+        stream = data.get(name)
+        if stream is None or BODY_ATTITUDE[0] not in stream.dtype.names:
+            continue
+        rpy = np.column_stack([stream[c] for c in BODY_ATTITUDE[4:]])
+        w = np.clip(np.abs(stream[BODY_ATTITUDE[0]]), 0.0, 1.0)
+        lines[label] = BodyLine(stream["t_s"], np.unwrap(rpy, axis=0), 2.0 * np.arccos(w))
     return lines
 
 

@@ -8,7 +8,7 @@ hands each tick's stamped samples, commands and truth samples to
 (:func:`_serve`) calls the filter with them in the same order as the loop did, so the result is
 the same filter run, only later. The child's rows (``estimate``, ``nodes``, ``innov_<source>``)
 come back and are written by the loop into the run's log, with the newest estimate (time,
-status word, tilt, state) for the limits, the readout and a maneuver.
+status word, tilt, body attitude, state) for the limits, the readout and a maneuver.
 
 A fault in the child (the filter's :class:`~gyrohost.estimator.errors.EstimatorError`) comes back
 and is raised in the loop; the child then only waits to be stopped. The child ignores the
@@ -77,6 +77,9 @@ class EstimatorProcess:
         Its status word.
     tilt_rad : float
         Its plane tilt (NaN without an attitude measure or an estimate).
+    body_attitude : tuple of 7 float or None
+        Its body attitude, quaternion then roll, pitch, yaw, rad
+        (:data:`gyrohost.run.streams.BODY_ATTITUDE`; None without a body frame or an estimate).
     health : dict or None
         The summary's ``estimator`` table (:func:`gyrohost.run.health.health`), once stopped.
     lags_s : list of float, s
@@ -89,6 +92,7 @@ class EstimatorProcess:
         self.x = np.full(0, np.nan)
         self.status = Status(0)
         self.tilt_rad = float("nan")
+        self.body_attitude: tuple | None = None
         self.health: dict | None = None
         self.lags_s: list[float] = []  # the estimate behind the loop at each fed tick, s
         self.log = None
@@ -261,7 +265,7 @@ class EstimatorProcess:
             name, values = body
             self._streams[name].write(*values)
         elif kind == "estimate":
-            self.t, status, self.tilt_rad, x = body
+            self.t, status, self.tilt_rad, self.body_attitude, x = body
             self.status, self.x = Status(status), np.asarray(x)
         elif kind == "open":
             name, columns, text_columns, description = body
@@ -325,13 +329,13 @@ class _Filter:
     """The child's filter with its estimate and innovation writers."""
 
     def __init__(self, model, config, servo_strings, x0, t0_s, out, max_age_s):
-        from gyrohost.control.attitude import attitude_of
+        from gyrohost.control.attitude import attitude_of, body_frame_of
         from gyrohost.estimator.ekf import TensegrityEKF
         from gyrohost.run.streams import EstimateWriter, InnovationWriter
 
         self.innovations = InnovationWriter(out, servo_strings)
         self.ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0_s, log=self.innovations)
-        self.estimates = EstimateWriter(out, self.ekf, attitude_of(model))
+        self.estimates = EstimateWriter(out, self.ekf, attitude_of(model), body_frame_of(model))
         self.max_age_s = max_age_s
         self.skipped = 0  # samples left unfused to catch up
 
@@ -341,8 +345,8 @@ class _Filter:
         if kind == "tick":
             if args[0] - ekf.t > self.max_age_s:
                 ekf.advance(args[0])
-            _, tilt = self.estimates.write(ekf.t)
-            return ("estimate", ekf.t, int(ekf.status), tilt, ekf.x.tolist())
+            tilt, body = self.estimates.write(ekf.t)
+            return ("estimate", ekf.t, int(ekf.status), tilt, body, ekf.x.tolist())
         if kind == "truth":
             self.estimates.score.truth(*args)
         else:

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.control.attitude import attitude_of
+from gyrohost.control.attitude import attitude_of, body_frame_of
 from gyrohost.control.closed_loop import ekf_estimate
 from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Schedule
@@ -54,7 +54,7 @@ from gyrohost.run.mcap import McapSink
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import check_start_state
-from gyrohost.run.streams import ReplanWriter, TruthProbe, open_run_streams
+from gyrohost.run.streams import ReplanWriter, TruthProbe, body_summary, open_run_streams
 from gyrohost.run.summary import run_meta, run_summary
 from gyrohost.run.ticker import Readout, Ticker, status_words
 from gyrohost.sigint import InterruptsRaised, exit_status, signal_name
@@ -125,6 +125,7 @@ class RunLoop:
         self.schedule.bind(self.model)
         self.wheel_index = self.schedule.bind_wheels(self.model)  # board wheel i = scene wheel i
         self.tilt = attitude_of(self.model)
+        self.body = body_frame_of(self.model)
         ImuGeometry(self.model, self.estimator_config)  # attached to nodes of this scene?
         self.strings = [s.name for s in self.model.scene.strings]
         self.servo_strings = [s.string or s.name for s in config.servos.servo]
@@ -264,7 +265,12 @@ class RunLoop:
 
     def _record_tilts(self, key: str) -> None:
         """The newest estimate's tilt and the truth's at its time, for the summary (D-bar
-        scenes)."""
+        scenes); its body attitude and the truth's (``attitude_end``, ``attitude_settled``:
+        scenes with a body frame)."""
+        if self.estimator.body_attitude is not None:
+            truth = None if self.truth is None else self.truth.body_at(self.estimator.t)
+            name = key.replace("tilt", "attitude")
+            self.final[name] = body_summary(self.estimator.body_attitude, truth)
         if self.tilt is None:
             return
         self.final[f"{key}_estimate_rad"] = self.latest_tilt
@@ -399,12 +405,15 @@ class RunLoop:
         return default_s if ns is None else (ns - self.ticker.t0_ns) * 1e-9
 
     def readout(self) -> Readout:
-        """Estimated tilt, measured wheel speeds and the estimator's status now."""
+        """Estimated tilt, measured wheel speeds, the estimator's status and the estimated body
+        attitude now."""
         tel = self.wheel_reader.latest if self.wheel_reader is not None else None
+        body = None if self.ekf is None else self.ekf.body_attitude
         return Readout(
             self.latest_tilt,
             None if tel is None else tuple(tel.omega_rad_s),
             "off" if self.ekf is None else status_words(self.ekf.status),
+            None if body is None else body[4:],
         )
 
     def _exchange(self, t_s: float, strict: bool) -> None:
@@ -481,7 +490,7 @@ class RunLoop:
         ]
         self.dispatcher = Dispatcher(self.queue, handlers, self.settings.max_fused_per_tick)
         if self.rig is not None:
-            self.truth = TruthProbe(self.rig, log, self.tilt, self.ticker.t0_ns)
+            self.truth = TruthProbe(self.rig, log, self.tilt, self.ticker.t0_ns, self.body)
         if self.maneuver is not None:
             self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
             self.replans.write(self.maneuver.records)  # the first plan, made before the run

@@ -5,7 +5,9 @@ Stream columns of the estimator's inputs and outputs come from
 streams (``events``, ``loop``, ``nodes``, ``truth``, ``replan``) and extra columns after the
 estimator's (device clock and status words), which a replay ignores. A scene with an attitude
 measure (:func:`gyrohost.control.attitude.attitude_of`, the D-bar) adds a ``tilt_rad`` column to
-``nodes`` and ``truth``. docs/run.md lists them all.
+``nodes`` and ``truth``; a scene with a body frame (``[attitude]``,
+:func:`gyrohost.control.attitude.body_frame_of`) adds its attitude (:data:`BODY_ATTITUDE`) to
+both. docs/run.md lists them all.
 """
 
 from collections import deque
@@ -13,13 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrohost.control.attitude import TiltMeter, node_columns
+from gyrohost.control.attitude import BodyFrame, TiltMeter, node_columns
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
 from gyrohost.estimator import streams as cols
 from gyrohost.estimator.imu_model import tilt as sensor_tilt
 from gyrohost.run.health import NisTally, TruthScore
 from gyrohost.run.uncertainty import NodeSigma
+from gyrotensegrity.attitude import angle_between
 
 RECENT_TILTS = 100
 """Truth tilts kept (1 s at the rig's 100 Hz), to compare with an estimate that lags."""
@@ -48,6 +51,44 @@ def tilt_of(tilt: TiltMeter | None, N_scene) -> float:
 def tilt_value(tilt: TiltMeter | None, value: float) -> tuple:
     """The row cells of :func:`tilt_column`."""
     return () if tilt is None else (value,)
+
+
+BODY_ATTITUDE = (
+    "body_qw",
+    "body_qx",
+    "body_qy",
+    "body_qz",
+    "body_roll_rad",
+    "body_pitch_rad",
+    "body_yaw_rad",
+)
+"""Columns of a scene's body-frame attitude (:mod:`gyrotensegrity.attitude`): the frame's
+rotation from its start as a quaternion (w first, w >= 0) and as roll, pitch, yaw (intrinsic
+Z-Y'-X'', about the start frame's axes), rad."""
+
+
+def body_columns(body: BodyFrame | None) -> list[str]:
+    """The :data:`BODY_ATTITUDE` columns given a body frame, none without."""
+    return [] if body is None else list(BODY_ATTITUDE)
+
+
+def body_values(body: BodyFrame | None, N_scene) -> tuple:
+    """The row cells of :func:`body_columns` for scene node positions ``N_scene`` (3, n), m."""
+    if body is None:
+        return ()
+    att = body.attitude(N_scene)
+    return (*att.quaternion.tolist(), *att.rpy_rad.tolist())
+
+
+def body_summary(estimate: tuple, truth: tuple | None = None) -> dict:
+    """The summary's record of a body attitude: the estimate's quaternion and roll, pitch, yaw
+    (cells of :func:`body_values`) and, given the truth's, the truth's and the rotation angle
+    between the two, rad (:func:`gyrotensegrity.attitude.angle_between`)."""
+    out = {"quaternion": list(estimate[:4]), "rpy_rad": list(estimate[4:])}
+    if truth is not None:
+        out["truth"] = {"quaternion": list(truth[:4]), "rpy_rad": list(truth[4:])}
+        out["error_rad"] = float(angle_between(estimate[:4], truth[:4]))
+    return out
 
 
 @dataclass
@@ -123,8 +164,9 @@ class EstimateWriter:
     ``estimate`` is the estimator's own row (as ``gyrotens replay`` writes it; its ``tilt_rad``
     is the angle of the sensor z axis from the vertical, unsigned). ``nodes`` holds the scene
     node positions and, given an attitude measure, the signed tilt of the D-bar plane about the
-    n2-n4 axis (as in the ``truth`` stream), then the standard deviation of each (``std_``
-    prefix, :class:`~gyrohost.run.uncertainty.NodeSigma`).
+    n2-n4 axis (as in the ``truth`` stream), given a body frame its attitude
+    (:data:`BODY_ATTITUDE`), then the standard deviation of the positions and the tilt
+    (``std_`` prefix, :class:`~gyrohost.run.uncertainty.NodeSigma`).
 
     Parameters
     ----------
@@ -132,10 +174,12 @@ class EstimateWriter:
     ekf : TensegrityEKF
     tilt : TiltMeter or None
         The scene's attitude measure (None: no tilt column).
+    body : BodyFrame or None
+        The scene's body frame (None: no body attitude columns).
     """
 
-    def __init__(self, log, ekf, tilt: TiltMeter | None):
-        self.ekf, self.tilt = ekf, tilt
+    def __init__(self, log, ekf, tilt: TiltMeter | None, body: BodyFrame | None = None):
+        self.ekf, self.tilt, self.body = ekf, tilt, body
         self.score = TruthScore(ekf)  # the estimate at the simulated rig's truth samples
         model = ekf.model
         self.names = list(model.scene.node_names)
@@ -151,17 +195,19 @@ class EstimateWriter:
                 "t_s",
                 *node_columns_of(self.names),
                 *tilt_column(tilt),
+                *body_columns(body),
                 *node_columns_of(self.names, "std_"),
                 *tilt_column(tilt, "std_"),
             ],
-            description="scene node positions of the estimate, m; plane tilt, rad; the standard "
-            "deviation of each (std_)",
+            description="scene node positions of the estimate, m; plane tilt, rad; body attitude "
+            "(quaternion, roll/pitch/yaw rad); the standard deviation of positions and tilt (std_)",
         )
         self.sigma = NodeSigma(ekf, self.scene_cols, tilt)
 
-    def write(self, t_s: float) -> tuple[np.ndarray, float]:
-        """Write one row of each stream at host time ``t_s``; returns (N (3, n) m, plane tilt rad,
-        NaN without an attitude measure)."""
+    def write(self, t_s: float) -> tuple[float, tuple | None]:
+        """Write one row of each stream at host time ``t_s``; returns the plane tilt, rad (NaN
+        without an attitude measure), and the body attitude's cells (:data:`BODY_ATTITUDE`;
+        None without a body frame)."""
         ekf = self.ekf
         x = ekf.x
         N_all, _ = ekf.batch_nodes(x[None, :])
@@ -172,8 +218,11 @@ class EstimateWriter:
         self.estimate.write(t_s, int(ekf.status), *x, *std, *euler, sensor_tilt(R))
         self.score.estimate()
         node_std, tilt_std = self.sigma.std(N, ekf.P)
-        self.nodes.write(t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt), *node_std, *tilt_std)
-        return N, tilt
+        body = body_values(self.body, N)
+        self.nodes.write(
+            t_s, *N.T.ravel(), *tilt_value(self.tilt, tilt), *body, *node_std, *tilt_std
+        )
+        return tilt, (body or None)
 
 
 class InnovationWriter:
@@ -231,12 +280,15 @@ class TruthProbe:
         The scene's attitude measure (None: no tilt column).
     t0_ns : int
         ``time.monotonic_ns`` of the run's time zero, ns.
+    body : BodyFrame or None
+        The scene's body frame (None: no body attitude columns).
     """
 
-    def __init__(self, rig, log, tilt: TiltMeter | None, t0_ns: int):
-        self.rig, self.tilt, self.t0_ns = rig, tilt, t0_ns
+    def __init__(self, rig, log, tilt: TiltMeter | None, t0_ns: int, body: BodyFrame | None = None):
+        self.rig, self.tilt, self.t0_ns, self.body = rig, tilt, t0_ns, body
         self.latest_tilt = float("nan")
         self.recent_tilts: deque = deque(maxlen=RECENT_TILTS)  # (t_s, tilt_rad)
+        self.recent_nodes: deque = deque(maxlen=RECENT_TILTS)  # (t_s, N), with a body frame
         self.stream = log.stream(
             "truth",
             [
@@ -246,6 +298,7 @@ class TruthProbe:
                 "wall_t_s",
                 *node_columns_of(rig.node_names),
                 *tilt_column(tilt),
+                *body_columns(body),
                 *(f"omega_{i}_rad_s" for i in range(rig.n_wheels)),
                 *(cols.rest_column(s) for s in rig.string_names),
             ],
@@ -260,6 +313,8 @@ class TruthProbe:
             self.latest_tilt = tilt_of(self.tilt, s.N)
             t_s = (self.rig.t0_ns - self.t0_ns) * 1e-9 + s.state_rig_t_s
             self.recent_tilts.append((t_s, self.latest_tilt))
+            if self.body is not None:
+                self.recent_nodes.append((t_s, s.N))
             if score is not None:
                 score.truth(t_s, s.N, s.omega_w_rad_s, s.rest_length_m)
             self.stream.write(
@@ -269,6 +324,7 @@ class TruthProbe:
                 (s.t_ns - self.t0_ns) * 1e-9,
                 *s.N.T.ravel(),
                 *tilt_value(self.tilt, self.latest_tilt),
+                *body_values(self.body, s.N),
                 *s.omega_w_rad_s,
                 *s.rest_length_m,
             )
@@ -280,6 +336,18 @@ class TruthProbe:
             return float("nan")
         t, tilt = np.array(self.recent_tilts).T
         return float(np.interp(t_s, t, tilt))
+
+    def body_at(self, t_s: float) -> tuple | None:
+        """The truth's body attitude (cells of :func:`body_values`) at host time ``t_s``, of the
+        node positions interpolated between the recent samples (the nearest outside them);
+        None without a body frame or before any sample."""
+        if not self.recent_nodes:
+            return None
+        t = np.array([sample[0] for sample in self.recent_nodes])
+        N = np.stack([sample[1] for sample in self.recent_nodes])
+        cells = N.reshape(len(t), -1).T
+        N_t = np.array([np.interp(t_s, t, cell) for cell in cells]).reshape(N.shape[1:])
+        return body_values(self.body, N_t)
 
 
 class ReplanWriter:

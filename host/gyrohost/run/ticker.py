@@ -26,11 +26,15 @@ class Readout:
     estimator : str
         ``off`` before the estimator starts, ``ok``, or its status bits by name
         (``WHEELS_TIMEOUT|IMU_RATE_REJECTED``).
+    rpy_rad : tuple of 3 float or None, rad
+        The estimated roll, pitch, yaw of the scene's body frame (None: no ``[attitude]``, or no
+        estimate yet).
     """
 
     tilt_rad: float
     omega_rad_s: tuple | None
     estimator: str
+    rpy_rad: tuple | None = None
 
 
 def status_words(status) -> str:
