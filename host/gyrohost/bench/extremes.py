@@ -87,6 +87,7 @@ def near_flat_dbar(height_ratio: float) -> dict:
     (the four bars almost collinear); the n1-n3 string then pulls it open by 10 % over 0.5 s,
     through the near-singular start."""
     data = with_spin(74.87462492)
+    data.pop("attitude", None)  # folded flat, n2 and n4 meet: the D-bar's frame has no y axis
     half = 0.3048  # bar length; n1, n3 at +-half*cos, n2, n4 at +-half*sin
     angle = np.arcsin(height_ratio)
     data["nodes"] = {
