@@ -52,7 +52,7 @@ def _problem(tmp_path, workers=1, groups=("J3",)):
     log = record_log(truth, 3, tmp_path / "log")
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
-    params = parameters(scene, config, list(groups), est.servo_lag_s, 1, est)
+    params = parameters(scene, config, list(groups), est.servo_lag_s, 1, est, True)
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
 
 
@@ -76,7 +76,7 @@ def test_the_likelihood_is_lowest_near_the_imus_true_latency(tmp_path):
     config = load_rig_config(nominal)
     scene = load_scene(config.scene_path)
     est = config_from_dict({**emulator_keys(config), **RIG_MODEL_KEYS})
-    params = parameters(scene, config, ["imu-latency"], est.servo_lag_s, 1, est)
+    params = parameters(scene, config, ["imu-latency"], est.servo_lag_s, 1, est, True)
     problem = filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)])
 
     def cost(latency_s):

@@ -157,8 +157,8 @@ def test_unknown_or_conflicting_groups_are_refused(tmp_path):
         parameters(scene, config, ["mass"], 0.05)
     with pytest.raises(ParamsError, match="alternatives"):
         parameters(scene, config, ["J3", "J3-each"], 0.05)
-    with pytest.raises(ParamsError, match=r"imu-latency: fitted by the filter.*--method filter"):
-        parameters(scene, config, ["J3", "imu-latency"], 0.05)
+    with pytest.raises(ParamsError, match=r"process-noise: fitted by the filter.*--method filt"):
+        parameters(scene, config, ["J3", "process-noise"], 0.05)
 
 
 def test_each_recording_has_its_own_imu_biases(tmp_path):

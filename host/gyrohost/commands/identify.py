@@ -203,10 +203,10 @@ def run(args) -> int:
                 if g in groups:
                     print(f"{g}: the filter's own state, not fitted")
                     groups.remove(g)
-            params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est)
+            params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est, True)
         else:
             recs = _recordings(args, config, Model(scene), warn)
-            params = parameters(scene, config, groups, nominal_lag(est, recs), len(recs))
+            params = parameters(scene, config, groups, nominal_lag(est, recs), len(recs), est)
     except (ConfigError, ResourceError, SceneError, IdentDataError, ParamsError) as exc:
         raise CliError(str(exc)) from None
     finally:

@@ -194,6 +194,7 @@ class Problem(WalledResiduals):
     def __init__(self, scene: Scene, config: RigConfig, est: EstimatorConfig, params, recs):
         self.scene, self.config, self.params, self.recs = scene, config, params, recs
         self.servo_lag_s = nominal_lag(est, recs)
+        self.imu_latency_s = est.imu_latency_s
         self.frame_nodes = est.imu_frame_nodes
         self.weights = [
             forward.noise_std(
@@ -214,9 +215,10 @@ class Problem(WalledResiduals):
         key = tuple(np.asarray(theta)[self.dynamic])
         if key != self._key:
             a = self.applied(theta)
+            latency = self.imu_latency_s if a.imu_latency_s is None else a.imu_latency_s
             self._motions = [
                 forward.simulate(
-                    a.scene, self.config, r, a.offsets_m, a.servo_lag_s, self.frame_nodes
+                    a.scene, self.config, r, a.offsets_m, a.servo_lag_s, self.frame_nodes, latency
                 )
                 for r in self.recs
             ]

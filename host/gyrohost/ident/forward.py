@@ -182,6 +182,7 @@ def simulate(
     offsets_m=None,
     servo_lag_s=0.0,
     frame_nodes=IMU_FRAME_NODES,
+    imu_latency_s=0.0,
 ) -> FrameMotion:
     """Drive the rig's model of ``scene`` with the inputs of ``rec``.
 
@@ -196,6 +197,9 @@ def simulate(
         First-order lag from the servo's position to the string's rest length.
     frame_nodes : tuple of str
         The scene nodes of the IMU's frame (the estimator's ``imu_frame_nodes``).
+    imu_latency_s : float, s
+        How long before its stamp each IMU sample was taken: the motion is read then (the
+        first samples of a segment at most its start).
     """
     servos = [s for s in config.servos.servo if s.string]
     string_lag_s = 0.0 if rec.commanded else servo_lag_s
@@ -248,7 +252,8 @@ def simulate(
         motion = _run(truth, t_steps, lengths, speeds, k0, k1)
         last = k1 == n
         keep = (rec.t_imu_s >= t_steps[k0]) & ((rec.t_imu_s < t_steps[k1]) | last)
-        parts.append([_interp(rec.t_imu_s[keep], t_steps[k0 : k1 + 1], v) for v in motion])
+        taken = rec.t_imu_s[keep] - imu_latency_s
+        parts.append([_interp(taken, t_steps[k0 : k1 + 1], v) for v in motion])
     omega, force, R = (np.concatenate(v) for v in zip(*parts, strict=True))
     return FrameMotion(omega, force, R.reshape(-1, 3, 3), tuple(jumps))
 

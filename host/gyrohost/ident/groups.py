@@ -17,16 +17,19 @@ GROUPS = {
     "servo-offsets": "each string servo's zero offset (m added to its reported length)",
     "servo-lag": "the first-order lag to a string's rest length (s) from its servo's reported "
     "position, or with commanded lengths from the command",
-    "imu-latency": "the IMU's latency from taking a sample to its stamp (s; --method filter)",
+    "imu-latency": "the IMU's latency from taking a sample to its stamp (s)",
     "process-noise": "one factor on the filter's node-acceleration noise accel_psd_m2_s3 "
     "(--method filter)",
 }
-FILTER_GROUPS = ("imu-latency", "process-noise")
+FILTER_GROUPS = ("process-noise",)
 """Groups of the filter's own model: fitted by its likelihood (``--method filter``) only. The
-latency shifts where each IMU sample is fused, the noise scale how far the filter trusts its
-model; the likelihood's ``log det S`` term keeps the scale from buying a small NIS with a wide
-``S``."""
-DEFAULT_GROUPS = ("J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias")
-"""Without ``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar
-mass; the absolute scale rests on the wheels' mass alone and is not resolved in practice
+noise scale sets how far the filter trusts its model; the likelihood's ``log det S`` term keeps
+it from buying a small NIS with a wide ``S``."""
+DEFAULT_GROUPS = (
+    "J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias", "imu-latency",
+)  # fmt: skip
+"""With ``imu-latency``: a sensor that stamps its samples late shows the structure's response
+later than the model does, and a fit without it reads the delay as extra damping. Without
+``bar-mass``: the D-bar's motion fixes J3, stiffness and damping relative to the bar mass; the
+absolute scale rests on the wheels' mass alone and is not resolved in practice
 (docs/identification.md): weigh the bars and give their mass in the scene."""

@@ -22,8 +22,9 @@ STRING_STEP = 0.1
 small beside the jumps of the cost where a string goes slack a step earlier or later, so the
 Jacobian takes their secant over +-10 %."""
 LATENCY_STEP_S = 2e-3
-"""Finite-difference step of the IMU's latency, s: a fifth of the 10 ms sample period, where
-the filter's fusion time moves smoothly (the sample is taken back along the dynamics)."""
+"""Finite-difference step of the IMU's latency, s: a fifth of the 10 ms sample period; the
+predicted samples move smoothly with it (interpolated between the model's steps, or fused at
+their own time by the filter)."""
 OUTPUT_GROUPS = ("mounting", "gyro-bias", "accel-bias")
 """Groups that act on the sensor's outputs only: changing them needs no new simulation."""
 
@@ -91,24 +92,32 @@ def bias_name(group: str, axis: str, recording: int, recordings: int) -> str:
 
 
 def parameters(
-    scene: Scene, config: RigConfig, groups, servo_lag_s: float, recordings: int = 1, est=None
+    scene: Scene,
+    config: RigConfig,
+    groups,
+    servo_lag_s: float,
+    recordings: int = 1,
+    est=None,
+    by_filter: bool = False,
 ) -> list[Param]:
     """The :class:`Param` list of ``groups`` (names of :data:`GROUPS`) for this rig;
     ``servo_lag_s``: the nominal lag (s), the start of its fit; ``recordings``: how many
-    recordings are fitted (the IMU's biases are one set per recording); ``est``: the filter's
-    EstimatorConfig, whose latency and noise start :data:`FILTER_GROUPS` (None: no filter).
+    recordings are fitted (the IMU's biases are one set per recording); ``est``: the
+    EstimatorConfig whose IMU latency and noise start ``imu-latency`` and ``process-noise``
+    (None: the latency from 0); ``by_filter``: fitted by the filter's likelihood, which alone
+    fits :data:`FILTER_GROUPS`.
 
     Raises
     ------
     ParamsError
-        An unknown group, ``J3`` with ``J3-each``, or a filter group without a filter.
+        An unknown group, ``J3`` with ``J3-each``, or a filter group fitted otherwise.
     """
     unknown = [g for g in groups if g not in GROUPS]
     if unknown:
         raise ParamsError(f"unknown parameter group(s) {unknown} (known: {', '.join(GROUPS)})")
     if "J3" in groups and "J3-each" in groups:
         raise ParamsError("J3 and J3-each are alternatives: give one")
-    if est is None and (asked := [g for g in groups if g in FILTER_GROUPS]):
+    if not by_filter and (asked := [g for g in groups if g in FILTER_GROUPS]):
         raise ParamsError(f"{', '.join(asked)}: fitted by the filter's likelihood only "
                           "(--method filter)")  # fmt: skip
     J3 = wheel_J3(scene)
@@ -149,7 +158,7 @@ def parameters(
                 if s.string
             ]
         elif g == "imu-latency":
-            nominal = est.imu_latency_s  # latency >= 0; its step: a fifth of the IMU's period
+            nominal = 0.0 if est is None else est.imu_latency_s  # latency >= 0
             out.append(Param("imu_latency", g, False, nominal, "s", -nominal, LATENCY_STEP_S))
         elif g == "process-noise":
             out.append(Param("accel_psd", g, True, est.accel_psd_m2_s3, "m^2/s^3", step=0.3))

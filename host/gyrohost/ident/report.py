@@ -106,7 +106,7 @@ def _estimator_keys(result: FitResult, a, fitted: set) -> list[str]:
             f"imu_mounting_cov_rad2 = [{rows}]",
         ]
     if "imu-latency" in fitted:
-        lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by the likelihood")
+        lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by gyrotens identify")
     if "process-noise" in fitted:
         nominal = next(p.nominal for p in result.params if p.group == "process-noise")
         psd = float(nominal * a.accel_psd_factor)

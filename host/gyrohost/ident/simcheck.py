@@ -168,7 +168,7 @@ def identify_filter(nominal_config: Path, logs, groups=GROUPS, workers: int | No
     est = config_from_dict({**emulator_keys(config), **RIG_MODEL_KEYS})
     recs = [filter_fit.load(log) for log in logs]
     groups = [g for g in groups if g not in filter_fit.state_groups(est)]
-    params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est)
+    params = parameters(scene, config, groups, est.servo_lag_s, len(recs), est, True)
     return filter_fit.fit(scene, config, est, params, recs, workers=workers)
 
 
@@ -182,7 +182,7 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
     scene, config, est, params, recs
     """
     from gyrohost.config import load_rig_config
-    from gyrohost.estimator.config import for_rig
+    from gyrohost.estimator.config import EXACT_IMU_TIMES, for_rig
     from gyrohost.ident.fit import nominal_lag
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import parameters
@@ -191,12 +191,13 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
 
     config = load_rig_config(nominal_config)
     scene = load_scene(config.scene_path)
-    est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S)  # the rig models' servos
+    # the rig models' servos, and their IMU samples stamped when taken
+    est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S, **EXACT_IMU_TIMES)
     n_w = len(Model(scene).wheel_bars)
     recs = [
         load_recording(log, config, n_w, commanded=commanded, segment_s=segment_s) for log in logs
     ]
-    params = parameters(scene, config, list(groups), nominal_lag(est, recs), len(recs))
+    params = parameters(scene, config, list(groups), nominal_lag(est, recs), len(recs), est)
     return scene, config, est, params, recs
 
 
