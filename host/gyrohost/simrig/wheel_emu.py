@@ -15,10 +15,12 @@ from boot on the emulator's clock, so simulated-time runs are exact:
   board comes calibrated: no electrical model, no PARAMS_DEFAULTED);
 - open loop (MODE 1, never restored at boot): OPEN_LOOP_LIMIT after ``OPEN_LOOP_MS`` of a wheel
   running, then as the fail-safe;
-- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
-  setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
-  ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
-  in the direction being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
+- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST (frames that came while the
+  emulator was held up are placed among its catch-up ticks by ``PtyDevice.poll``: the emulator's
+  delay is not the host's silence), all targets become 0 and the setpoints ramp down at
+  DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel ramped to rest brakes
+  on until its encoder shows it stopped (the last tick's count difference, in the direction
+  being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
   status and fault word.
 
@@ -105,6 +107,8 @@ class WheelBoardEmulator(PtyDevice):
     telemetry_sent : int
         TELEMETRY frames produced since construction (over all boots).
     """
+
+    FRAME_END = 0  # COBS: every frame ends in 0x00
 
     def __init__(self, emu: WheelEmuConfig | None = None) -> None:
         emu = emu if emu is not None else WheelEmuConfig()
