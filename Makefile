@@ -7,7 +7,7 @@
 #                                  once its brown-out fuse is checked (tools/check-bod.sh)
 #   make study NAME=estimator [ARGS=...]   a study or group of studies/ into reports/NAME.md
 #   make oldest [PYTHON_OLDEST=python3.10]   the package with its dependency floors on the oldest
-#               supported Python, and the tests that only compute
+#               supported Python found (tools/oldest-python.sh), and the tests that only compute
 # Both set up what they need (Debian packages, .venv) once; a second run reinstalls nothing.
 # make demo installs the package with its runtime dependencies only; make test adds the test, bench
 # and live extras (pyproject.toml) beside it.
@@ -21,8 +21,8 @@ DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 LABDEBS := build/.debs-lab-stamp
 
-.PHONY: demo lab oldest test lint pytest pytest-computing pytest-fil pytest-rig studies-check study \
-        firmware setup clean flash
+.PHONY: demo lab oldest floors test lint pytest pytest-computing pytest-fil pytest-rig studies-check \
+        study firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
 # it. -D: the bootloader cannot erase the chip, it rewrites the pages it is given.
@@ -36,21 +36,31 @@ lab: $(LABDEBS) $(RUNTIME)
 
 # The floors of pyproject.toml (tools/oldest-constraints.txt) on Python 3.10, in a venv of its own;
 # the package installed, not editable, so the tests import what a user gets.
-PYTHON_OLDEST ?= python3.10
+PYTHON_OLDEST ?= $(shell tools/oldest-python.sh)
 OLDEST        := build/venv-oldest
 OLDEST_TESTS  := tests/model tests/host tests/control tests/estimator tests/test_wheelproto.py \
                  tests/test_wheelboard.py tests/test_cli.py tests/test_errors.py
 oldest: $(DEMODEBS)
+	@test -n "$(PYTHON_OLDEST)" || { echo "make oldest PYTHON_OLDEST=/path/to/python3.10" >&2; exit 2; }
 	test -x $(OLDEST)/bin/python || $(PYTHON_OLDEST) -m venv $(OLDEST)
 	$(OLDEST)/bin/pip install -q -c tools/oldest-constraints.txt . pytest hypothesis
 	$(OLDEST)/bin/python -m pytest -q -p no:cacheprovider -m "not real_time and not slow" \
 	    --ignore tests/model/test_rig_fidelity_mujoco.py $(OLDEST_TESTS)
 
 # The firmware builds and runs its native tests (one core, half a minute) beside the computing
-# tests; the firmware-in-the-loop tests beside the simulated rig's: see pytest below.
+# tests, then the floors check (floors below) takes its place; the firmware-in-the-loop tests
+# beside the simulated rig's: see pytest below.
 test: setup lint studies-check
-	$(MAKE) --no-print-directory -j2 --output-sync=target firmware pytest-computing
+	$(MAKE) --no-print-directory -j2 --output-sync=target firmware pytest-computing floors
 	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-fil pytest-rig
+
+# The floors as a user installs them on the oldest Python found (or PYTHON_OLDEST), and one
+# simulation from outside the checkout (tools/check-floors.sh): about a minute, half of it
+# download; its 20-25 s of CPU, shared with the computing tests' two workers, add about half that
+# to their stage (reports/portability.md). Not beside the real-time tests: a rig run needs most
+# of the machine (tests/conftest.py).
+floors:
+	tools/check-floors.sh
 
 setup: $(DEBS) $(EXTRAS)
 

@@ -79,9 +79,14 @@ class FakeBoard(threading.Thread):
     """Answers like the firmware's dispatcher on the master side of a pseudo-terminal."""
 
     def __init__(
-        self, proto_version: int = wp.PROTO_VERSION, silent: bool = False, boot_s: float = 0.0
+        self,
+        proto_version: int = wp.PROTO_VERSION,
+        silent: bool = False,
+        boot_s: float = 0.0,
+        stats_delay_s: float = 0.0,
     ):
         super().__init__(daemon=True)
+        self.stats_delay_s = stats_delay_s  # a STATS reply takes this long (a slow link)
         self.master, slave = os.openpty()
         tty.setraw(slave)
         self.path = os.ttyname(slave)
@@ -159,6 +164,7 @@ class FakeBoard(threading.Thread):
             self.params[f["param_id"]] = f["value"]
             self.send("PARAM_VALUE", param_id=f["param_id"], value=f["value"])
         elif msg.name == "GET_STATS":
+            time.sleep(self.stats_delay_s)
             self.send("STATS", **dict.fromkeys(wp.BY_NAME["STATS"].fields, 0))
 
     def close(self) -> None:
@@ -199,6 +205,23 @@ def test_refused_setpoint_raises_named_device_error(fake):
         board.set_speeds([1.0, 0, 0, 0])
         with pytest.raises(wb.DeviceError, match="BUSY"):
             board.set_param("MODE", 1)
+
+
+def test_a_refusal_is_raised_by_the_call_it_refuses_when_replies_come_late():
+    """A refused SET_SPEEDS still gets the STATS of its confirming GET_STATS, 0.2 s after the
+    refusal: the call takes it before it raises, so the next calls pair with their own replies
+    (the next refusal is raised by its own call, not one call later)."""
+    board_sim = FakeBoard(stats_delay_s=0.2)
+    try:
+        with wb.WheelBoard(board_sim.path) as board:
+            with pytest.raises(wb.DeviceError, match="SETPOINT_ABOVE_MAX"):
+                board.set_speeds([500.0, 0.0, 0.0, 0.0])
+            board.set_speeds([1.0, 0.0, 0.0, 0.0])
+            with pytest.raises(wb.DeviceError) as err:
+                board.set_speeds([0.0, 0.0, 500.0, 0.0])
+            assert err.value.detail == 2
+    finally:
+        board_sim.close()
 
 
 def test_host_side_checks_before_sending(fake):

@@ -1,8 +1,32 @@
-"""Rig configurations pointing at the simulated rig's ptys, for the bring-up tests."""
+"""The simulated rig for the bring-up tests, and rig configurations pointing at its ptys."""
 
 import re
+import threading
+from contextlib import contextmanager
 
 from gyrohost.resources import shipped
+from gyrohost.simrig.process import RigProcess
+
+
+@contextmanager
+def served_rig(config):
+    """A simulated rig on ``config`` in a process of its own; yields its device name -> pty
+    path. The truth it sends is read and dropped (the tests want none), so its pipe never fills
+    up."""
+    with RigProcess(config) as rig:
+        done = threading.Event()
+        drain = threading.Thread(target=_drain_truth, args=(rig, done), daemon=True)
+        drain.start()
+        try:
+            yield dict(rig.paths)
+        finally:
+            done.set()
+            drain.join()
+
+
+def _drain_truth(rig: RigProcess, done: threading.Event) -> None:
+    while not done.wait(0.05):
+        rig.truth()
 
 
 def config_text(name: str, ports: dict[str, str], **replace: str) -> str:

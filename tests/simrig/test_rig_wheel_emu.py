@@ -1,7 +1,10 @@
 """The wheel-board client (drivers.wheelboard) against the wheel-board emulator over a pty."""
 
+import array
+import fcntl
 import os
 import queue
+import termios
 import time
 from dataclasses import replace
 
@@ -194,6 +197,51 @@ def test_reset_is_seen_as_a_restarted_sequence_and_watchdog_fault(board):
     # Outputs off: the wheel coasts (5 s time constant), it does not stop at once.
     assert 20.0 < device.wheel_speeds_rad_s()[0] < 30.0
     assert client.hello is not None and client.connect()["proto_version"] == wp.PROTO_VERSION
+
+
+def test_frames_sent_while_the_emulator_was_held_up_keep_their_time():
+    """Polled on its own clock: heartbeats sent every 50 ms while the emulator was held up for
+    0.6 s (a loaded CPU) keep it alive, as they would keep the board; the timer then runs from the
+    last of them. A lone heartbeat after a held-up 0.6 s ends a silence the board did see."""
+    beats = wp.encode("HEARTBEAT") * 12  # 0.6 s of the driver's 50 ms beat
+    # HEARTBEAT_MS 250 from the last beat, taken at 0.61 s: still alive at 0.85 s, lost at 0.87
+    assert _faults_held_up(beats, [0.61, 0.85, 0.87]) == [[], [], ["HEARTBEAT_LOST"]]
+    assert _faults_held_up(wp.encode("HEARTBEAT"), [0.61]) == [["HEARTBEAT_LOST"]]
+    assert _faults_held_up(b"", [0.25, 0.27]) == [[], ["HEARTBEAT_LOST"]]  # from the 10 ms beat
+
+
+def _faults_held_up(frames: bytes, polls_s: list[float]) -> list[list[str]]:
+    """An emulator polled at 0 s (boot), at 10 ms after the driver's first heartbeat, then at
+    each of ``polls_s``, ``frames`` sent before the first of those: its latched faults after
+    each."""
+    with WheelBoardEmulator() as dev:
+        host = os.open(dev.slave_path, os.O_WRONLY | os.O_NOCTTY)
+        try:
+            dev.poll(now_s=0.0)
+            for sent, now_s in ((wp.encode("HEARTBEAT"), 0.01), (frames, polls_s[0])):
+                os.write(host, sent)
+                _until_pending(dev, len(sent))
+                dev.poll(now_s=now_s)
+            faults = [wp.fault_names(dev.fault_word)]
+            for now_s in polls_s[1:]:
+                dev.poll(now_s=now_s)
+                faults.append(wp.fault_names(dev.fault_word))
+            return faults
+        finally:
+            os.close(host)
+
+
+def _until_pending(dev: WheelBoardEmulator, n_bytes: int) -> None:
+    """Wait until the pty holds ``n_bytes`` for the emulator (the kernel passes them on later
+    than the write returns)."""
+    count = array.array("i", [0])
+    deadline = time.monotonic() + 2.0
+    while time.monotonic() < deadline:
+        fcntl.ioctl(dev.link.fileno(), termios.FIONREAD, count)
+        if count[0] >= n_bytes:
+            return
+        time.sleep(0.001)
+    raise AssertionError(f"the pty holds {count[0]} of {n_bytes} bytes")
 
 
 def test_ripple_and_lag_on_the_emulator_clock():

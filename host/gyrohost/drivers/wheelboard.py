@@ -18,6 +18,7 @@ Speeds are rad/s on this side, mrad/s on the wire.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import threading
@@ -200,6 +201,10 @@ class WheelBoard:
                 self._await(("STATS",), ("SET_SPEEDS", "GET_STATS"))
             except DeviceError:  # refused: the board holds what it held before
                 self._driving = previous
+                # the STATS comes after the refusal: taken here, or the next request could
+                # take it for its own reply and pass a refusal of its own on to the one after
+                with contextlib.suppress(WheelBoardTimeout):
+                    self._await(("STATS",), ("GET_STATS",))
                 raise
 
     def stop_all(self) -> None:

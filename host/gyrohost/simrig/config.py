@@ -75,7 +75,7 @@ class WheelEmuConfig:
     """Simulated wheel board: which one, speed response of the motors, ripple, stream faults.
 
     ``kind = "simavr"`` runs the real firmware in the FIL harness (docs/fil.md); the emulator's
-    motor and fault keys then do not apply, ``spin_sign`` does for both kinds.
+    motor, EEPROM and fault keys then do not apply, ``spin_sign`` does for both kinds.
     """
 
     time_constant_s: float = field(default=0.05, metadata=spec(lo=1e-4, hi=10.0))
@@ -86,6 +86,9 @@ class WheelEmuConfig:
         default=0.01, metadata=spec(lo=0.0, hi=10.0, doc="the speed loop's error, stationary std")
     )
     seed: int = field(default=2, metadata=spec(lo=0, doc="of the speed error"))
+    blank_eeprom: bool = field(
+        default=False, metadata=spec(doc="the emulator boots as a new board, uncalibrated")
+    )
     faults: StreamFaultConfig = StreamFaultConfig()
     kind: str = field(default="emulator", metadata=spec(choices=WHEEL_KINDS))
     spin_sign: tuple[int, int, int, int] = field(

@@ -103,12 +103,17 @@ class PtyDevice:
         Filter applied to every byte the device sends; a transparent filter by default.
     """
 
+    FRAME_END: int | None = None
+    """The byte that ends every frame the driver sends, for a protocol that has one (COBS'
+    0x00); it places the frames read at once in time (:meth:`poll`)."""
+
     def __init__(self, faults: FaultFilter | None = None) -> None:
         self.link = PtyLink()
         self.faults = faults if faults is not None else FaultFilter()
         self.lock = threading.RLock()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._polled_s: float | None = None
         self.loop_error: BaseException | None = None
 
     @property
@@ -133,6 +138,20 @@ class PtyDevice:
     def poll(self, now_s: float | None = None, timeout_s: float = 0.0) -> None:
         """Run one iteration: read input (waiting up to ``timeout_s`` s), tick, release stalls.
 
+        The bytes read came in since the last poll. As on a board whose tick interrupt and UART
+        run side by side, the ticks run up to each frame's arrival before the frame is handled.
+        A pty keeps no arrival times: with :attr:`FRAME_END` set, a frame is taken as arrived
+        when its last byte did, the bytes spread evenly over the time since the last poll (a
+        steady sender's); otherwise all at the start of that time, so that a command takes
+        effect for everything the device does in it (an IMU's samples, a servo's motion). Over
+        a usual poll interval (about a millisecond) either is as good as exact. After the
+        emulator was held up (a loaded CPU), delimited frames the driver sent meanwhile keep
+        their spacing among the ticks instead of all arriving after the whole gap: a board's
+        heartbeat timer, say, counts the silence between them, not the emulator's. A silence of
+        the driver within such a gap is seen where the frames of the gap are too few to cover
+        it (a lone frame after a long gap arrives at its end), not where they crowd at one end
+        of it.
+
         Parameters
         ----------
         now_s : float, optional
@@ -143,10 +162,25 @@ class PtyDevice:
         data = self.link.read(timeout_s)
         t = time.monotonic() if now_s is None else now_s
         with self.lock:
-            if data:
-                self.handle_rx(data, t)
+            since = t if self._polled_s is None else min(self._polled_s, t)
+            self._polled_s = t
+            for arrived_s, frames in self._arrivals(data, since, t):
+                self.tick(arrived_s)
+                self.handle_rx(frames, arrived_s)
             self.tick(t)
             self.link.write(self.faults.release(t))
+
+    def _arrivals(self, data: bytes, since_s: float, now_s: float) -> list[tuple[float, bytes]]:
+        """``data`` cut after each :attr:`FRAME_END`, each piece with the time its last byte is
+        taken to have arrived, s (see :meth:`poll`)."""
+        if self.FRAME_END is None:
+            return [(since_s, data)] if data else []
+        pieces, start, n = [], 0, len(data)
+        while start < n:
+            end = data.find(self.FRAME_END, start) + 1 or n
+            pieces.append((since_s + (now_s - since_s) * end / n, data[start:end]))
+            start = end
+        return pieces
 
     def start(self, period_s: float = 0.0005) -> "PtyDevice":
         """Run :meth:`poll` in a daemon thread until :meth:`stop`; returns ``self``.

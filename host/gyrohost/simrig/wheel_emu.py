@@ -11,14 +11,20 @@ from boot on the emulator's clock, so simulated-time runs are exact:
 - HELLO, SET_SPEEDS (whole message refused above SPEED_MAX or while a blocking fault is latched),
   STOP_ALL, PARAM_GET/SET (range, BUSY for MODE/POLE_PAIRS while outputs are on), PARAM_SAVE (ACK
   after 300 ticks, SAVING status meanwhile), PARAM_DEFAULTS, CLEAR_FAULTS (the bits of its mask),
-  GET_STATS; CALIBRATE_ENC is answered with an ACK at once, the offset unchanged (the emulated
-  board comes calibrated: no electrical model, no PARAMS_DEFAULTED);
+  GET_STATS; CALIBRATE_ENC is answered with an ACK at once, the offset unchanged (no electrical
+  model);
+- EEPROM: the board comes calibrated, unless ``blank_eeprom``: it then boots as a new board,
+  defaults with PARAMS_DEFAULTED latched, and refuses a nonzero closed-loop setpoint of a wheel
+  with OFFSET_UNCALIBRATED until CALIBRATE_ENC or a PARAM_SET of its ENC_OFFSET (PARAM_DEFAULTS
+  makes all four uncalibrated again); after a PARAM_SAVE it boots from the saved image;
 - open loop (MODE 1, never restored at boot): OPEN_LOOP_LIMIT after ``OPEN_LOOP_MS`` of a wheel
   running, then as the fail-safe;
-- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST, all targets become 0 and the
-  setpoints ramp down at DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel
-  ramped to rest brakes on until its encoder shows it stopped (the last tick's count difference,
-  in the direction being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
+- fail-safe: no control frame for HEARTBEAT_MS latches HEARTBEAT_LOST (frames that came while the
+  emulator was held up are placed among its catch-up ticks by ``PtyDevice.poll``: the emulator's
+  delay is not the host's silence), all targets become 0 and the setpoints ramp down at
+  DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel ramped to rest brakes
+  on until its encoder shows it stopped (the last tick's count difference, in the direction
+  being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
   status and fault word.
 
@@ -78,6 +84,12 @@ _ERROR_CODE = {name: code for code, (name, _) in wp.ERRORS.items()}
 _BLOCKING = sum(_FAULT_BIT[n] for n in wp.BLOCKING_FAULTS)
 _FORCED_TO_ZERO = _FAULT_BIT["HEARTBEAT_LOST"] | _FAULT_BIT["OPEN_LOOP_LIMIT"]
 _STATS_FIELDS = wp.BY_NAME["STATS"].fields
+_ENC_OFFSET_IDS = [_P[f"ENC_OFFSET_M{i}"] for i in range(wp.N_WHEELS)]
+
+
+def _defaults() -> dict[int, int]:
+    """Every parameter at its default: id -> value."""
+    return {p.id: p.default for p in wp.PARAMS}
 
 
 def ramp_step(value: int, target: int, step: int) -> int:
@@ -106,11 +118,14 @@ class WheelBoardEmulator(PtyDevice):
         TELEMETRY frames produced since construction (over all boots).
     """
 
+    FRAME_END = 0  # COBS: every frame ends in 0x00
+
     def __init__(self, emu: WheelEmuConfig | None = None) -> None:
         emu = emu if emu is not None else WheelEmuConfig()
         super().__init__(FaultFilter(emu.faults))
         self.emu = emu
-        self.saved = {p.id: p.default for p in wp.PARAMS}
+        # the EEPROM's parameter image; None: no valid slot
+        self.saved = None if emu.blank_eeprom else _defaults()
         self.omega_rad_s = [0.0] * wp.N_WHEELS
         self.angle_rad = [0.0] * wp.N_WHEELS
         self._base_rad_s = [0.0] * wp.N_WHEELS
@@ -127,7 +142,11 @@ class WheelBoardEmulator(PtyDevice):
 
     # --- boot and run-time faults -------------------------------------------------------------
     def _boot(self, boot_faults: int) -> None:
-        self.params = dict(self.saved)
+        self.params = _defaults() if self.saved is None else dict(self.saved)
+        # wheels whose ENC_OFFSET is a default that fits no motor, as the firmware's uncal_mask
+        self._uncalibrated = set() if self.saved is not None else set(range(wp.N_WHEELS))
+        if self.saved is None:
+            boot_faults |= _FAULT_BIT["PARAMS_DEFAULTED"]
         self.params[_P["MODE"]] = 0  # as the firmware: open loop is enabled per session
         self._open_ms = 0
         self.fault_word = boot_faults
@@ -289,10 +308,14 @@ class WheelBoardEmulator(PtyDevice):
             self._error(wp.BY_NAME["SET_SPEEDS"].id, "FAULT_ACTIVE", 0)
             return
         vmax = self.params[_P["SPEED_MAX_MRAD_S"]]
+        closed_loop = self.params[_P["MODE"]] == 0
         speeds = [fields[f"w{i}_mrad_s"] for i in range(wp.N_WHEELS)]
         for i, value in enumerate(speeds):
             if abs(value) > vmax:
                 self._error(wp.BY_NAME["SET_SPEEDS"].id, "SETPOINT_ABOVE_MAX", i)
+                return
+            if value and closed_loop and i in self._uncalibrated:
+                self._error(wp.BY_NAME["SET_SPEEDS"].id, "OFFSET_UNCALIBRATED", i)
                 return
         self.targets = speeds
         self._stopping = False
@@ -321,6 +344,8 @@ class WheelBoardEmulator(PtyDevice):
             self._error(req, "PARAM_OUT_OF_RANGE", pid)
         else:
             self.params[pid] = value
+            if pid in _ENC_OFFSET_IDS:
+                self._uncalibrated.discard(_ENC_OFFSET_IDS.index(pid))
             if structural:
                 self._reset_wheels()
             self._send_msg("PARAM_VALUE", param_id=pid, value=value)
@@ -335,7 +360,8 @@ class WheelBoardEmulator(PtyDevice):
         if any(self.enabled) or self._save_done_tick is not None:
             self._error(wp.BY_NAME["PARAM_DEFAULTS"].id, "BUSY", 0)
             return
-        self.params = {p.id: p.default for p in wp.PARAMS}
+        self.params = _defaults()
+        self._uncalibrated = set(range(wp.N_WHEELS))
         self._reset_wheels()
         self._ack("PARAM_DEFAULTS")
 
@@ -352,6 +378,7 @@ class WheelBoardEmulator(PtyDevice):
         elif any(self.enabled) or any(self.targets) or self._save_done_tick is not None:
             self._error(req, "BUSY", fields["wheel"])
         else:
+            self._uncalibrated.discard(fields["wheel"])
             self._ack("CALIBRATE_ENC")
 
     def _on_get_stats(self, _fields: dict) -> None:
