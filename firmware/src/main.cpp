@@ -113,14 +113,14 @@ static void main_tick(uint8_t elapsed, uint32_t t_ms) {
     g_after = MAIN_AFTER_CTL;
 }
 
-// One job of the tick's work after its step (about 1,500 cycles for the parameters, 375 for a
-// wheel's supervision, 400 for the diagnostics read), then the telemetry frame's slices. False
-// when none is left.
+// One job of the tick's work after its step (a half of the parameters' derivation, a wheel's
+// supervision or the diagnostics read; docs/hardware.md has their cycles), then the telemetry
+// frame's slices. False when none is left.
 static bool main_after_work() {
     const uint8_t job = g_after;
     if (job != MAIN_AFTER_NONE) {
         if (job == MAIN_AFTER_CTL) {
-            app_derive_ctl(&g_app);
+            if (app_derive_ctl(&g_app)) return true;  // the second half in the next job
         } else if (job < MAIN_AFTER_DIAG) {
             app_supervise(&g_app, static_cast<uint8_t>(job - MAIN_AFTER_SUPERVISE));
         } else {

@@ -67,8 +67,11 @@ static void app_reset_wheel(app_wheel* w) {
     grd_reset(&w->grd);
 }
 
-static void app_load_ctl(app_state* a) {
-    const int32_t* v = a->prm.v;  // all within their params.def ranges
+// The parameters of the drive (gains, lead, ramp, offsets, heartbeat, mode), then those of the
+// supervision (guard.h, the speed filter): two halves, so that a PARAM_SET's derivation is two
+// jobs of the board's main loop (app_derive_ctl). All prm.v are within their params.def ranges.
+static void app_load_drive(app_state* a) {
+    const int32_t* v = a->prm.v;
     app_ctl* c = &a->ctl;
     c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (speed.h)
     c->gains.ki_q8 = static_cast<uint16_t>(v[PRM_KI]);
@@ -89,6 +92,11 @@ static void app_load_ctl(app_state* a) {
         static_cast<int16_t>(open_drive < c->gains.out_max ? open_drive : c->gains.out_max);
     c->closed = v[PRM_MODE] == 0 ? 1 : 0;
     c->loop_mask = c->closed ? static_cast<uint8_t>(FLT_ALL_WHEELS & ~app_cal_bit(a)) : 0;
+}
+
+static void app_load_guard(app_state* a) {
+    const int32_t* v = a->prm.v;
+    app_ctl* c = &a->ctl;
     grd_limits* g = &c->grd;
     g->drive_min_q15 = static_cast<int16_t>(c->gains.out_max / 2);
     g->fault_ticks = static_cast<uint16_t>(v[PRM_MOTION_FAULT_MS]);
@@ -98,7 +106,12 @@ static void app_load_ctl(app_state* a) {
     g->over_q8 = spd_mrad_s_to_q8(v[PRM_SPEED_MAX_MRAD_S] + v[PRM_RUNAWAY_MARGIN_MRAD_S]);
     c->spd_k = spd_gain(static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
     c->enc_fault_limit = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
-    a->ctl_stale = 0;
+    a->ctl_stale = APP_CTL_FRESH;
+}
+
+static void app_load_ctl(app_state* a) {
+    app_load_drive(a);
+    app_load_guard(a);
 }
 
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults) {
@@ -188,7 +201,7 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
         if (structural) {
             app_load_ctl(a);
         } else {
-            a->ctl_stale = 1;
+            a->ctl_stale = APP_CTL_STALE;
         }
         if (id >= PRM_ENC_OFFSET_M0 && id <= PRM_ENC_OFFSET_M3) {
             a->uncal_mask &= static_cast<uint8_t>(~(1u << (id - PRM_ENC_OFFSET_M0)));
@@ -451,8 +464,14 @@ static void app_open_loop_tick(app_state* a) {
     }
 }
 
-void app_derive_ctl(app_state* a) {
-    if (a->ctl_stale) app_load_ctl(a);
+bool app_derive_ctl(app_state* a) {
+    if (a->ctl_stale == APP_CTL_STALE) {
+        app_load_drive(a);
+        a->ctl_stale = APP_CTL_HALF;
+        return true;
+    }
+    if (a->ctl_stale == APP_CTL_HALF) app_load_guard(a);
+    return false;
 }
 
 void app_setpoints_tick(app_state* a) {
@@ -507,7 +526,8 @@ struct app_words_io {
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     app_words_io io = {enc_words};
     app_control_step_io(a, io);
-    app_derive_ctl(a);
+    while (app_derive_ctl(a)) {
+    }
     app_setpoints_tick(a);
     for (uint8_t i = 0; i < APP_WHEELS; i++) app_supervise(a, i);
 }

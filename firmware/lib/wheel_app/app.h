@@ -75,11 +75,11 @@ struct app_wheel {
 
 // Parameters in the form the control step uses them, derived from prm.v once per change so that
 // the 1 kHz step converts nothing. A PARAM_SET only marks them stale (ctl_stale): app_derive_ctl
-// derives them (about 1,500 cycles: a 32-bit division, four speed conversions), which the board
-// runs as a job of its own after the next step, outside step_max_us, and which a burst of them
-// runs once a tick. The new value takes effect in the ramp and the step of the tick after. MODE
-// and POLE_PAIRS (accepted only with the drivers off), app_init, PARAM_DEFAULTS and the
-// calibration derive at once.
+// derives them (about 1,750 cycles: a 32-bit division, four speed conversions), which the board
+// runs as two jobs after the next step, outside step_max_us, and a burst of them once a tick. The
+// new value takes effect in the ramp and the step of the tick after. MODE and POLE_PAIRS (accepted
+// only with the drivers off), app_init, PARAM_DEFAULTS and the calibration derive at once.
+enum : uint8_t { APP_CTL_FRESH, APP_CTL_STALE, APP_CTL_HALF };  // app_state.ctl_stale
 struct app_ctl {
     pi_gains gains;
     cmt_lead lead;
@@ -134,7 +134,7 @@ struct app_state {
     uint8_t uncal_mask;
     uint8_t cal_wheel;  // wheel being calibrated (CALIBRATE_ENC), or APP_NO_WHEEL
     uint8_t diag_next;  // wheel whose diagnostics register is read next
-    uint8_t ctl_stale;  // prm.v changed since ctl was derived (app_ctl)
+    uint8_t ctl_stale;  // APP_CTL_*: prm.v changed since ctl was derived (app_ctl)
     uint16_t open_ms;   // ticks open loop has driven a wheel without a stop (APP_OPEN_LOOP_MS)
     cal_state cal;
     app_telem tm;
@@ -182,8 +182,9 @@ void app_poll(app_state* a);
 // wheel, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 
-// The parameters a PARAM_SET left stale derived (app_ctl).
-void app_derive_ctl(app_state* a);
+// The parameters a PARAM_SET left stale derived (app_ctl), in two halves of about 900 cycles:
+// the drive's, then the supervision's. One half a call; true when the second is left.
+bool app_derive_ctl(app_state* a);
 
 // Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
 // supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
