@@ -13,10 +13,10 @@
  * commutation of all four wheels), the same without the ISRs that preempted it, the main-loop rate
  * (control steps per simulated second), each ISR from its first instruction to its reti inclusive
  * (the interrupt response and vector jump add 8 cycles on the ATmega2560, not included), the bytes
- * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, telemetry
- * frame), the telemetry frame alone (GPIOR2 = 1 .. 0 around the telemetry call), the ISR load
- * per tick and the CPU load per tick (that work plus the ISRs outside it), and the deepest stack
- * (lowest SP after every instruction).
+ * and frames sent on UART0, the main loop's work per tick (GPIOR1 = 1 .. 0: step, PWM, the jobs
+ * after it to the last telemetry slice), a telemetry slice (GPIOR2 = 1 .. 0 around the call),
+ * the ISR load per tick and the CPU load per tick (that work plus the ISRs outside it), and the
+ * deepest stack (lowest SP after every instruction).
  *
  * UART timing: simavr 1.6 sends a byte every 22 us at UBRR0 = 1 with U2X (it ignores U2X and
  * counts 11 bits), where the ATmega2560 takes 10 us (1 Mbaud): the bench sets the chip's byte
@@ -100,13 +100,13 @@ typedef struct {
     uint64_t start, n, sum, max, min;
 } window_t;
 
-/* GPIOR1: the main loop's work on a tick (step, PWM, telemetry frame). */
+/* GPIOR1: the main loop's work on a tick (step, PWM, the jobs after it, telemetry slices). */
 static window_t g_tick = {0, 0, 0, 0, 0, UINT64_MAX};
 
-/* GPIOR2: the telemetry call. A window longer than 1000 cycles built and queued a frame
- * (payload, CRC, COBS, TX ring copy: over 3000); the others only counted the divider (about 20
- * cycles, more when an interrupt lands in them). */
-static window_t g_telem = {1000u, 0, 0, 0, 0, UINT64_MAX};
+/* GPIOR2: one call for a telemetry slice (app_telemetry_work). A window longer than 100 cycles
+ * did a slice (speed conversions, CRC, COBS or the TX ring copy); the others found none to do
+ * (about 20 cycles, more when an interrupt lands in them). */
+static window_t g_telem = {100u, 0, 0, 0, 0, UINT64_MAX};
 
 static void window_write(avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
     window_t* w = (window_t*)param;
@@ -340,7 +340,7 @@ int main(int argc, char** argv) {
            (unsigned)(RAMEND - g_sp_min), (unsigned)g_sp_min);
     if (g_telem.n > 0) {
         printf(
-            "telemetry frame (GPIOR2: payload, CRC, COBS, TX ring; ISRs inside included): n=%llu "
+            "telemetry slice (GPIOR2: speeds, CRC, COBS or TX ring; ISRs inside included): n=%llu "
             "min=%llu mean=%.0f max=%llu cycles\n",
             (unsigned long long)g_telem.n, (unsigned long long)g_telem.min,
             (double)g_telem.sum / (double)g_telem.n, (unsigned long long)g_telem.max);
@@ -349,7 +349,7 @@ int main(int argc, char** argv) {
         double ticks = (double)(g_last_mark - g_first_mark) / TICK_CYCLES;
         double work = (double)g_tick.sum / (double)g_tick.n;
         printf(
-            "tick work (GPIOR1: step, PWM, telemetry frame; ISRs inside included): n=%llu "
+            "tick work (GPIOR1: step, PWM, jobs, telemetry slices; ISRs inside included): n=%llu "
             "min=%llu mean=%.0f max=%llu cycles\n",
             (unsigned long long)g_tick.n, (unsigned long long)g_tick.min, work,
             (unsigned long long)g_tick.max);

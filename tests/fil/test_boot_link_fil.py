@@ -27,6 +27,11 @@ OUTPUTS_ENABLED = 1 << 0
 SPEED_MRAD_S = [75000, -75000, 75000, -75000]  # about 716 rpm
 WAIT_S = 20.0  # wall-clock limit of every wait: generous for a loaded 2-core host
 STATS_PERIOD_S = 0.0005
+# Tick to PWM under the flood, from docs/hardware.md#link-load: the longest job of the main loop
+# (1,475 cycles) and the PWM update (131) stretched by the receive interrupt (160 / 103), the step
+# under the burst (4,081 cycles with it), the tick interrupt and the loop's test (85): 6,660
+# cycles, 416 us, and Timer2's count of 4 us.
+STEP_BOUND_US = 420
 
 
 def wire(name: str, **fields: int) -> bytes:
@@ -305,10 +310,9 @@ def test_line_rate_burst_in_a_setpoint_stream_nothing_lost_stop_all_within_2_ms(
     or bad frames moves, the UART never overruns (harness rx_overrun), and the drive brakes within
     2 ms of STOP_ALL's last byte (the harness's RXMARK), while the 220 bytes before it are still
     being dispatched. The longest tick-to-PWM time (step_max_us, the chip's Timer2 count: simulated
-    time) stays under 700 us. Not under the 400 us target of docs/hardware.md#link-load: where
-    the burst falls against the tick varies from run to run (the harness queues it when its
-    command arrives), and in 14 of 24 runs the tick waited past 400 us for the main loop's work
-    under the burst's interrupts (312-568 us).
+    time) stays within STEP_BOUND_US, the bound docs/hardware.md#link-load derives from the main
+    loop's jobs (a step waits for at most the rest of one job); where the burst falls against the
+    tick varies from run to run (the harness queues it when its command arrives).
     """
 
     h, link, beat = beat_link(
@@ -340,7 +344,7 @@ def test_line_rate_burst_in_a_setpoint_stream_nothing_lost_stop_all_within_2_ms(
     stats = link.request("GET_STATS", "STATS").fields
     lost = {k: v for k, v in stats.items() if k != "step_max_us" and v}
     assert not lost, stats
-    assert stats["step_max_us"] < 700, stats
+    assert stats["step_max_us"] <= STEP_BOUND_US, stats
     assert h.latest_stats()["rx_overrun"] == "0"
 
     # wheel 0's applied q voltage: its mean over the 20 ms before the mark, then the first sample

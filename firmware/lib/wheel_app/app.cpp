@@ -1,8 +1,19 @@
 #include "app.h"
 
 #include "app_step.h"
+#include "crc16.h"
 
 #include "ramp.h"
+
+// The slices of a telemetry frame, in order (app_telem.stage).
+enum : uint8_t {
+    APP_TELEM_IDLE,
+    APP_TELEM_SPEEDS_01,
+    APP_TELEM_SPEEDS_23,
+    APP_TELEM_CRC,
+    APP_TELEM_COBS,
+    APP_TELEM_QUEUE
+};
 
 static uint16_t sat_inc(uint16_t x) {
     return x < 0xFFFFu ? static_cast<uint16_t>(x + 1) : x;
@@ -56,8 +67,11 @@ static void app_reset_wheel(app_wheel* w) {
     grd_reset(&w->grd);
 }
 
-static void app_load_ctl(app_state* a) {
-    const int32_t* v = a->prm.v;  // all within their params.def ranges
+// The parameters of the drive (gains, lead, ramp, offsets, heartbeat, mode), then those of the
+// supervision (guard.h, the speed filter): two halves, so that a PARAM_SET's derivation is two
+// jobs of the board's main loop (app_derive_ctl). All prm.v are within their params.def ranges.
+static void app_load_drive(app_state* a) {
+    const int32_t* v = a->prm.v;
     app_ctl* c = &a->ctl;
     c->gains.kp_q8 = static_cast<uint16_t>(v[PRM_KP]);  // error unit: q8 (speed.h)
     c->gains.ki_q8 = static_cast<uint16_t>(v[PRM_KI]);
@@ -78,6 +92,11 @@ static void app_load_ctl(app_state* a) {
         static_cast<int16_t>(open_drive < c->gains.out_max ? open_drive : c->gains.out_max);
     c->closed = v[PRM_MODE] == 0 ? 1 : 0;
     c->loop_mask = c->closed ? static_cast<uint8_t>(FLT_ALL_WHEELS & ~app_cal_bit(a)) : 0;
+}
+
+static void app_load_guard(app_state* a) {
+    const int32_t* v = a->prm.v;
+    app_ctl* c = &a->ctl;
     grd_limits* g = &c->grd;
     g->drive_min_q15 = static_cast<int16_t>(c->gains.out_max / 2);
     g->fault_ticks = static_cast<uint16_t>(v[PRM_MOTION_FAULT_MS]);
@@ -87,7 +106,12 @@ static void app_load_ctl(app_state* a) {
     g->over_q8 = spd_mrad_s_to_q8(v[PRM_SPEED_MAX_MRAD_S] + v[PRM_RUNAWAY_MARGIN_MRAD_S]);
     c->spd_k = spd_gain(static_cast<uint8_t>(v[PRM_SPEED_FILTER_SHIFT]));
     c->enc_fault_limit = static_cast<uint8_t>(v[PRM_ENC_FAULT_LIMIT]);
-    a->ctl_stale = 0;
+    a->ctl_stale = APP_CTL_FRESH;
+}
+
+static void app_load_ctl(app_state* a) {
+    app_load_drive(a);
+    app_load_guard(a);
 }
 
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults) {
@@ -111,6 +135,8 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     a->diag_next = 0;
     a->uncal_mask = 0;
     a->open_ms = 0;
+    a->tm.stage = APP_TELEM_IDLE;
+    a->rx_result = PROTO_RX_NONE;
     if (!prm_init(&a->prm, ee)) {
         boot_faults |= PROTO_FAULT_PARAMS_DEFAULTED;
         a->uncal_mask = FLT_ALL_WHEELS;
@@ -175,7 +201,7 @@ static void app_on_param_set(app_state* a, const uint8_t* p) {
         if (structural) {
             app_load_ctl(a);
         } else {
-            a->ctl_stale = 1;
+            a->ctl_stale = APP_CTL_STALE;
         }
         if (id >= PRM_ENC_OFFSET_M0 && id <= PRM_ENC_OFFSET_M3) {
             a->uncal_mask &= static_cast<uint8_t>(~(1u << (id - PRM_ENC_OFFSET_M0)));
@@ -339,13 +365,18 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
     }
 }
 
-void app_rx_byte_end(app_state* a, uint8_t byte) {
-    proto_frame f;
-    switch (proto_rx_push(&a->rx, byte, &f)) {
-        case PROTO_RX_NONE:
-            break;
+bool app_rx_decode_end(app_state* a, uint8_t byte) {
+    a->rx_result = proto_rx_push(&a->rx, byte, &a->rx_frame);
+    return a->rx_result != PROTO_RX_NONE;
+}
+
+void app_rx_act(app_state* a) {
+    const proto_frame* f = &a->rx_frame;
+    const uint8_t result = a->rx_result;
+    a->rx_result = PROTO_RX_NONE;
+    switch (result) {
         case PROTO_RX_FRAME:
-            app_dispatch(a, &f);
+            app_dispatch(a, f);
             break;
         case PROTO_RX_BAD_CRC:
             a->cnt.bad_crc = sat_inc(a->cnt.bad_crc);
@@ -360,15 +391,17 @@ void app_rx_byte_end(app_state* a, uint8_t byte) {
             a->cnt.bad_cobs = sat_inc(a->cnt.bad_cobs);
             break;
         case PROTO_RX_UNKNOWN_ID:
-            app_on_unknown_id(a, f.id);
+            app_on_unknown_id(a, f->id);
             break;
         case PROTO_RX_BAD_LENGTH:
-            if (!proto_to_device(f.id)) {
-                app_on_unknown_id(a, f.id);  // a device-to-host id, whatever its length
+            if (!proto_to_device(f->id)) {
+                app_on_unknown_id(a, f->id);  // a device-to-host id, whatever its length
                 break;
             }
             a->cnt.bad_length = sat_inc(a->cnt.bad_length);
-            app_send_error(a, f.id, PROTO_ERR_BAD_LENGTH, f.len);
+            app_send_error(a, f->id, PROTO_ERR_BAD_LENGTH, f->len);
+            break;
+        default:
             break;
     }
 }
@@ -431,8 +464,17 @@ static void app_open_loop_tick(app_state* a) {
     }
 }
 
+bool app_derive_ctl(app_state* a) {
+    if (a->ctl_stale == APP_CTL_STALE) {
+        app_load_drive(a);
+        a->ctl_stale = APP_CTL_HALF;
+        return true;
+    }
+    if (a->ctl_stale == APP_CTL_HALF) app_load_guard(a);
+    return false;
+}
+
 void app_setpoints_tick(app_state* a) {
-    if (a->ctl_stale) app_load_ctl(a);
     app_open_loop_tick(a);
     const bool failsafe = flt_heartbeat_tick(&a->flt, a->ctl.heartbeat_ms) ||
                           (a->flt.faults & PROTO_FAULT_OPEN_LOOP_LIMIT);
@@ -484,13 +526,14 @@ struct app_words_io {
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     app_words_io io = {enc_words};
     app_control_step_io(a, io);
+    while (app_derive_ctl(a)) {
+    }
     app_setpoints_tick(a);
-    app_supervise(a);
+    for (uint8_t i = 0; i < APP_WHEELS; i++) app_supervise(a, i);
 }
 
-void app_supervise(app_state* a) {
-    if (!a->ctl.closed) return;
-    for (uint8_t i = 0; i < APP_WHEELS; i++) app_guard(a, i);
+void app_supervise(app_state* a, uint8_t i) {
+    if (a->ctl.closed) app_guard(a, i);
 }
 
 int32_t app_speed_mrad_s(const app_state* a, uint8_t i) {
@@ -524,21 +567,71 @@ uint8_t app_status(const app_state* a) {
     return s;
 }
 
-void app_telemetry(app_state* a, uint32_t t_us) {
+void app_telemetry_begin(app_state* a, uint32_t t_us) {
     uint8_t div = static_cast<uint8_t>(a->prm.v[PRM_TELEMETRY_DIV]);
     if (div == 0) return;
     if (++a->telem_count < div) return;
     a->telem_count = 0;
-    uint8_t p[PROTO_LEN_TELEMETRY];
+    app_telem* tm = &a->tm;
+    if (tm->stage !=
+        APP_TELEM_IDLE) {  // the last frame is still in the making: due again next tick
+        a->telem_count = static_cast<uint8_t>(div - 1);
+        return;
+    }
+    uint8_t* p = &tm->raw[1];
+    tm->raw[0] = PROTO_ID_TELEMETRY;
     proto_put_u32(&p[0], t_us);
     proto_put_u16(&p[4], a->seq++);
+    tm->convert = a->ctl.closed;
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
-        proto_put_i32(&p[6 + 4 * i], app_speed_mrad_s(a, i));
+        const int32_t v = tm->convert ? spd_q8(&a->w[i].spd) : a->w[i].sp_mrad_s;
+        proto_put_i32(&p[6 + 4 * i], v);
         proto_put_u16(&p[22 + 2 * i], static_cast<uint16_t>(a->w[i].drive_q15));
     }
     p[30] = app_status(a);
     proto_put_u16(&p[31], a->flt.faults);
-    app_send(a, PROTO_ID_TELEMETRY, p, sizeof p);
+    tm->stage = APP_TELEM_SPEEDS_01;
+}
+
+// Wheel i's speed in the frame from q8 to mrad/s, in place.
+static void app_telem_convert(app_telem* tm, uint8_t i) {
+    uint8_t* v = &tm->raw[1 + 6 + 4 * i];
+    if (tm->convert) proto_put_i32(v, spd_q8_to_mrad_s(proto_get_i32(v)));
+}
+
+bool app_telemetry_work(app_state* a) {
+    app_telem* tm = &a->tm;
+    const uint8_t body = 1 + PROTO_LEN_TELEMETRY;
+    switch (tm->stage) {
+        case APP_TELEM_IDLE:
+            return false;
+        case APP_TELEM_SPEEDS_01:
+            app_telem_convert(tm, 0);
+            app_telem_convert(tm, 1);
+            break;
+        case APP_TELEM_SPEEDS_23:
+            app_telem_convert(tm, 2);
+            app_telem_convert(tm, 3);
+            break;
+        case APP_TELEM_CRC:
+            proto_put_u16(&tm->raw[body], crc16_ccitt(tm->raw, body));
+            break;
+        case APP_TELEM_COBS:
+            tm->wire[cobs_encode(tm->raw, APP_TELEM_RAW, tm->wire)] = 0;
+            break;
+        default:  // APP_TELEM_QUEUE
+            if (!a->tx(tm->wire, sizeof tm->wire)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+            tm->stage = APP_TELEM_IDLE;
+            return true;
+    }
+    tm->stage++;
+    return true;
+}
+
+void app_telemetry(app_state* a, uint32_t t_us) {
+    app_telemetry_begin(a, t_us);
+    while (app_telemetry_work(a)) {
+    }
 }
 
 void app_note_overrun(app_state* a, uint8_t missed_ticks) {

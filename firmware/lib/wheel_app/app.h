@@ -74,13 +74,12 @@ struct app_wheel {
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change so that
-// the 1 kHz step converts nothing. A PARAM_SET only marks them stale (ctl_stale): they are derived
-// at the start of app_setpoints_tick, right after the next step and outside step_max_us, so a
-// PARAM_SET's dispatch (which may be running when the tick comes) skips the derivation (about
-// 1,500 cycles: a 32-bit division, four speed conversions), and a burst of them derives once. The
-// new value takes effect in that tick's ramp and supervision and in the next step. MODE and
-// POLE_PAIRS (accepted only with the drivers off), app_init, PARAM_DEFAULTS and the calibration
-// derive at once.
+// the 1 kHz step converts nothing. A PARAM_SET only marks them stale (ctl_stale): app_derive_ctl
+// derives them (about 1,750 cycles: a 32-bit division, four speed conversions), which the board
+// runs as two jobs after the next step, outside step_max_us, and a burst of them once a tick. The
+// new value takes effect in the ramp and the step of the tick after. MODE and POLE_PAIRS (accepted
+// only with the drivers off), app_init, PARAM_DEFAULTS and the calibration derive at once.
+enum : uint8_t { APP_CTL_FRESH, APP_CTL_STALE, APP_CTL_HALF };  // app_state.ctl_stale
 struct app_ctl {
     pi_gains gains;
     cmt_lead lead;
@@ -95,6 +94,17 @@ struct app_ctl {
     uint8_t pole_pairs;
     uint8_t spd_k;  // speed filter gain, spd_gain(SPEED_FILTER_SHIFT)
     uint8_t enc_fault_limit;
+};
+
+// A telemetry frame in the making (app_telemetry_begin, app_telemetry_work): raw is the id, the
+// payload and the CRC; the speeds are taken as the step left them (q8 in closed loop) and
+// converted to mrad/s in a later slice.
+#define APP_TELEM_RAW (1 + PROTO_LEN_TELEMETRY + 2)
+struct app_telem {
+    uint8_t stage;    // next slice (APP_TELEM_*), APP_TELEM_IDLE when no frame is in the making
+    uint8_t convert;  // the speeds are q8 (closed loop), not yet mrad/s
+    uint8_t raw[APP_TELEM_RAW];
+    uint8_t wire[COBS_ENCODED_SIZE(APP_TELEM_RAW) + 1];
 };
 
 struct app_state {
@@ -124,19 +134,31 @@ struct app_state {
     uint8_t uncal_mask;
     uint8_t cal_wheel;  // wheel being calibrated (CALIBRATE_ENC), or APP_NO_WHEEL
     uint8_t diag_next;  // wheel whose diagnostics register is read next
-    uint8_t ctl_stale;  // prm.v changed since ctl was derived (app_ctl)
+    uint8_t ctl_stale;  // APP_CTL_*: prm.v changed since ctl was derived (app_ctl)
     uint16_t open_ms;   // ticks open loop has driven a wheel without a stop (APP_OPEN_LOOP_MS)
     cal_state cal;
+    app_telem tm;
+    // A received frame (or a decoding error) that app_rx_decode completed and app_rx_act has not
+    // acted on yet; rx_frame's payload points into rx.buf, which stays intact until then.
+    uint8_t rx_result;  // proto_rx_result, PROTO_RX_NONE when nothing waits
+    proto_frame rx_frame;
 };
 
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
 
-// Feed one byte received from the host; complete frames are dispatched at once. Inline: a byte
-// inside a frame is one store, without the call into the dispatcher and its stack frame.
-void app_rx_byte_end(app_state* a, uint8_t byte);
+// Received bytes in two parts, so that the board can run a control step between a frame's
+// decoding (COBS and CRC, at its delimiter) and its dispatch with the reply: app_rx_decode feeds
+// one byte and returns true when a frame or an error waits for app_rx_act; feed no byte until
+// then. Inline: a byte inside a frame is one store, without the call and its stack frame.
+bool app_rx_decode_end(app_state* a, uint8_t byte);
+inline bool app_rx_decode(app_state* a, uint8_t byte) {
+    return !proto_rx_append(&a->rx, byte) && app_rx_decode_end(a, byte);
+}
+void app_rx_act(app_state* a);
+// Both at once: a complete frame is dispatched as its delimiter is fed (native tests, fuzzing).
 inline void app_rx_byte(app_state* a, uint8_t byte) {
-    if (!proto_rx_append(&a->rx, byte)) app_rx_byte_end(a, byte);
+    if (app_rx_decode(a, byte)) app_rx_act(a);
 }
 
 // STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and
@@ -156,25 +178,35 @@ void app_note_stops_seen(app_state* a, uint8_t stops_seen);
 void app_poll(app_state* a);
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
-// Runs the step (app_step.h), app_setpoints_tick and app_supervise, as the board does every tick.
+// Runs the step (app_step.h), app_derive_ctl, app_setpoints_tick and app_supervise of every
+// wheel, as the board does every tick.
 void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]);
 
-// Setpoint work of a tick, after its control step (not in the control law's latency): the
-// parameters a PARAM_SET left stale derived (app_ctl), heartbeat supervision, targets to 0 on the
-// fail-safe or an encoder fault, the ramp (DECEL while stopping).
+// The parameters a PARAM_SET left stale derived (app_ctl), in two halves of about 900 cycles:
+// the drive's, then the supervision's. One half a call; true when the second is left.
+bool app_derive_ctl(app_state* a);
+
+// Setpoint work of a tick, after its control step (not in the control law's latency): heartbeat
+// supervision, targets to 0 on the fail-safe or an encoder fault, the ramp (DECEL while stopping).
 void app_setpoints_tick(app_state* a);
 
-// Sensor and motion supervision of the tick's step (guard.h), in closed loop: faults latch for the
-// next step. The board runs it after the step's time is taken (about 1,500 cycles for four
-// wheels: not part of step_max_us), before the next tick.
-void app_supervise(app_state* a);
+// Sensor and motion supervision of wheel i after the tick's step (guard.h), in closed loop: faults
+// latch for the next step. The board runs it after the step's time is taken (about 375 cycles a
+// wheel: not part of step_max_us), one wheel a job.
+void app_supervise(app_state* a, uint8_t i);
 
 // Diagnostics registers, read round robin in the tick's spare time after the step: the wheel
 // whose register to read now (APP_WHEELS: none, open loop), then its reply word.
 uint8_t app_diag_wheel(app_state* a);
 void app_diag_result(app_state* a, uint8_t wheel, uint16_t word);
 
-// Send telemetry if this tick is due (TELEMETRY_DIV); t_us: time stamp of the step.
+// Telemetry in slices, so that no part of a frame delays a control step by more than one slice
+// (the board runs the next step between them): app_telemetry_begin takes the tick's values if
+// this tick is due (TELEMETRY_DIV; t_us: time stamp of the step) and a frame is not still in the
+// making; each app_telemetry_work does one slice (speed conversions, CRC, COBS, queueing) and
+// returns false when no slice was left. app_telemetry does both at once.
+void app_telemetry_begin(app_state* a, uint32_t t_us);
+bool app_telemetry_work(app_state* a);
 void app_telemetry(app_state* a, uint32_t t_us);
 
 // Board events. app_note_overrun: missed_ticks control ticks passed without a step (the tick
