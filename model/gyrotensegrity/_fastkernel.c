@@ -12,6 +12,7 @@
 #include <Python.h>
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 typedef struct {
     const double *EE_T, *off, *k_s, *c_s, *w2b, *tsel, *smask, *tgain, *WU, *Ef, *Minv, *MinvET,
@@ -414,20 +415,671 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
     return 0;
 }
 
-/* The six buffers of a call: the first four read, the last two written. */
-static int get_buffers(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, const char* use) {
-    if (nargs != 6) {
+/* ---- The estimator's lean prediction step (gyrohost.estimator.process_model, "lean") ----
+ * State z = [q, q_dot, omega_w, rest] (D = 6 m + n_w + alpha entries), then n - D entries the
+ * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
+ * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
+ * start (n_w), commands (n_w)]. follow = 0: the wheels accelerate at the given constant
+ * accelerations; 1: they lag (wheel_lag) behind setpoints ramping at wheel_accel from the start
+ * setpoints towards the commands. */
+typedef struct {
+    double dt, servo_lag, wheel_lag, wheel_accel;
+    int follow, have_A;
+    const double *rest_cmd, *wheel_acc, *sp0, *cmd;
+} StepSpec;
+
+static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
+    int64_t alpha = d[2], nw = d[3];
+    p->dt = s[0];
+    p->servo_lag = s[1];
+    p->wheel_lag = s[2];
+    p->wheel_accel = s[3];
+    p->follow = s[4] != 0.0;
+    p->have_A = s[5] != 0.0;
+    p->rest_cmd = s + 6;
+    p->wheel_acc = p->rest_cmd + alpha;
+    p->sp0 = p->wheel_acc + nw;
+    p->cmd = p->sp0 + nw;
+}
+
+static int64_t step_spec_size(const int64_t* d) {
+    return 6 + d[2] + 3 * d[3];
+}
+
+/* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
+ * (work); w: the kernel's work. */
+static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSpec* p,
+                                 const double* z, double tau, double* dz, double* xm, double* um,
+                                 double* out, double* w) {
+    int64_t m = d[0], alpha = d[2], nw = d[3], ntq = d[4];
+    const double *om = z + 6 * m, *rest = om + nw;
+    for (int64_t i = 0; i < 6 * m; i++) xm[i] = z[i];
+    for (int64_t i = 0; i < nw; i++) xm[6 * m + i] = 0.0; /* wheel angles: no force sees them */
+    for (int64_t t = 0; t < ntq; t++) {
+        double s = 0.0;
+        for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
+        xm[6 * m + nw + t] = s;
+    }
+    for (int64_t i = 0; i < alpha; i++) um[i] = rest[i];
+    for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
+    int64_t status = evaluate(k, d, xm, um, out, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m; i++) {
+        dz[i] = z[3 * m + i];
+        dz[3 * m + i] = out[3 * m + i];
+    }
+    double reach = p->wheel_accel * tau;
+    for (int64_t i = 0; i < nw; i++) {
+        if (p->follow) {
+            double step = p->cmd[i] - p->sp0[i];
+            step = step > reach ? reach : (step < -reach ? -reach : step);
+            dz[6 * m + i] = (p->sp0[i] + step - om[i]) / p->wheel_lag;
+        } else {
+            dz[6 * m + i] = p->wheel_acc[i];
+        }
+    }
+    for (int64_t i = 0; i < alpha; i++)
+        dz[6 * m + nw + i] = (p->rest_cmd[i] - rest[i]) / p->servo_lag;
+    return 0;
+}
+
+/* BLAS's dgemm (column-major), handed over by use_blas() (scipy's cython_blas: the BLAS numpy
+ * and scipy use); without it, plain loops. At the filter's sizes (30 to 40) the library's
+ * products take a third of the loops' time (SSE2 only: the build targets any x86-64). */
+typedef void (*dgemm_fn)(char*, char*, int*, int*, int*, double*, double*, int*, double*, int*,
+                         double*, double*, int*);
+static dgemm_fn blas_dgemm = NULL;
+
+/* C = a op(A) op(B) + b C, row-major: op(A) r x k (A itself r x k, or k x r transposed,
+ * trans_a; leading dimension lda), op(B) k x c (B k x c, or c x k transposed, trans_b), C r x c
+ * (ldc). */
+static void gemm2(int trans_a, int trans_b, int r, int c, int k, double a, const double* A, int lda,
+                  const double* B, int ldb, double b, double* C, int ldc) {
+    if (blas_dgemm) { /* column-major: C^T = op(B)^T op(A)^T */
+        char tb = trans_b ? 'T' : 'N', ta = trans_a ? 'T' : 'N';
+        blas_dgemm(&tb, &ta, &c, &r, &k, &a, (double*)B, &ldb, (double*)A, &lda, &b, C, &ldc);
+        return;
+    }
+    for (int i = 0; i < r; i++) {
+        double* row = C + (int64_t)i * ldc;
+        for (int j = 0; j < c; j++) row[j] = b == 0.0 ? 0.0 : b * row[j];
+        for (int l = 0; l < k; l++) {
+            double f = a * (trans_a ? A[(int64_t)l * lda + i] : A[(int64_t)i * lda + l]);
+            if (f == 0.0) continue;
+            if (trans_b) {
+                for (int j = 0; j < c; j++) row[j] += f * B[(int64_t)j * ldb + l];
+            } else {
+                const double* src = B + (int64_t)l * ldb;
+                for (int j = 0; j < c; j++) row[j] += f * src[j];
+            }
+        }
+    }
+}
+
+static void gemm(int trans_b, int r, int c, int k, double a, const double* A, int lda,
+                 const double* B, int ldb, double b, double* C, int ldc) {
+    gemm2(0, trans_b, r, c, k, a, A, lda, B, ldb, b, C, ldc);
+}
+
+/* C = h A B + c0 I for the lean step's A (D x D): rows of q take B's q_dot rows, rows of
+ * q_dot the accelerations' Jacobian Jq (3 m x D) times B, the wheels' and rest lengths' rows
+ * their diagonal slopes; B is D x D. */
+static void apply_A(const int64_t* d, const double* restrict Jq, double h, double wslope,
+                    double rslope, double c0, const double* restrict B, double* restrict C) {
+    int64_t m = d[0], nw = d[3], D = 6 * m + nw + d[2];
+    for (int64_t i = 0; i < 3 * m; i++)
+        for (int64_t c = 0; c < D; c++) C[i * D + c] = h * B[(3 * m + i) * D + c];
+    gemm(0, (int)(3 * m), (int)D, (int)D, h, Jq, (int)D, B, (int)D, 0.0, C + 3 * m * D, (int)D);
+    for (int64_t i = 6 * m; i < D; i++) {
+        double g = h * (i < 6 * m + nw ? wslope : rslope);
+        for (int64_t c = 0; c < D; c++) C[i * D + c] = g * B[i * D + c];
+    }
+    for (int64_t i = 0; i < D; i++) C[i * D + i] += c0;
+}
+
+/* Po = F P F^T for F (D x D) on the leading D entries of the n-entry state, the identity
+ * beyond: FP = F P[:D, :] (D x n), then FP F^T. */
+static void propagate(int64_t D, int64_t n, const double* restrict F, const double* restrict P,
+                      double* restrict FP, double* restrict Po) {
+    int iD = (int)D, in = (int)n;
+    gemm(0, iD, in, iD, 1.0, F, iD, P, in, 0.0, FP, in);
+    gemm(1, iD, iD, iD, 1.0, FP, in, F, iD, 0.0, Po, in);
+    for (int64_t i = 0; i < D; i++)
+        for (int64_t c = D; c < n; c++) Po[i * n + c] = Po[c * n + i] = FP[i * n + c];
+    for (int64_t i = D; i < n; i++)
+        for (int64_t c = D; c < n; c++) Po[i * n + c] = P[i * n + c];
+}
+
+/* Work entries lean_step() needs (doubles). */
+static int64_t lean_work(const int64_t* d, int64_t n) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
+    int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
+    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = jacobian_work(d);
+    int64_t sz = 6 * m + nw + ntq;
+    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n +
+           (ev > jw ? ev : jw);
+}
+
+/* One lean step: z' by one classic RK4 step, F = I + Ad + Ad^2/2 + Ad^3/6 + Ad^4/24 with
+ * Ad = A dt (A given in Ain, D x D, or made at z), Po = F P F^T (F the identity beyond D; n x
+ * n). F (D x D) is returned for the process noise. Status as evaluate(). */
+static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
+                         const double* x, const double* P, const double* Ain, double* xo,
+                         double* Po, double* F, double* w) {
+    int64_t m = d[0], nw = d[3], ntq = d[4], D = 6 * m + nw + d[2], sz = 6 * m + nw + ntq;
+    double *k1 = w, *k2 = k1 + D, *k3 = k2 + D, *k4 = k3 + D, *zs = k4 + D;
+    double *xm = zs + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
+    double *Jq = acc + 3 * m, *T1 = Jq + 3 * m * D, *T2 = T1 + D * D, *T3 = T2 + D * D;
+    double *FP = T3 + D * D, *kw = FP + D * n;
+    double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
+    double dt = p->dt;
+    int64_t status;
+    if (p->have_A) {
+        for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
+        if (nw) wslope = Ain[(6 * m) * D + 6 * m];
+    } else {
+        status = jacobian(k, d, x, acc, Jq, kw);
+        if (status) return status;
+    }
+    /* RK4 for the state */
+    status = filter_derivative(k, d, p, x, 0.0, k1, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k1[i];
+    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k2, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k2[i];
+    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k3, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + dt * k3[i];
+    if (!status) status = filter_derivative(k, d, p, zs, dt, k4, xm, um, out, kw);
+    if (status) return status;
+    for (int64_t i = 0; i < D; i++)
+        xo[i] = x[i] + (dt / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (int64_t i = D; i < n; i++) xo[i] = x[i];
+    /* F by the Taylor series, nested: I + Ad (I + Ad/2 (I + Ad/3 (I + Ad/4))), Ad = A dt */
+    for (int64_t i = 0; i < D * D; i++) T3[i] = 0.0;
+    for (int64_t i = 0; i < D; i++) T3[i * D + i] = 1.0;
+    apply_A(d, Jq, dt / 4.0, wslope, rslope, 1.0, T3, T1);
+    apply_A(d, Jq, dt / 3.0, wslope, rslope, 1.0, T1, T2);
+    apply_A(d, Jq, dt / 2.0, wslope, rslope, 1.0, T2, T1);
+    apply_A(d, Jq, dt, wslope, rslope, 1.0, T1, F);
+    propagate(D, n, F, P, FP, Po);
+    return 0;
+}
+
+/* ---- The filter's constraint manifold (gyrohost.estimator.manifold) ----
+ * Bars B = B0 + q E^T (3 x beta) and their rates B_dot = q_dot E^T of a filter state whose
+ * first 6 m entries are q, q_dot (3 x m each, row by row); E beta x m, l2 the bars' squared
+ * lengths. */
+typedef struct {
+    int64_t m, beta, n;
+    const double *E, *B0, *l2;
+} Bars;
+
+static void bar_vectors(const Bars* b, const double* x, double* B, double* Bd) {
+    int64_t m = b->m, beta = b->beta;
+    for (int64_t a = 0; a < 3; a++) {
+        for (int64_t i = 0; i < beta; i++) {
+            double p = b->B0[a * beta + i], v = 0.0;
+            for (int64_t l = 0; l < m; l++) {
+                p += x[a * m + l] * b->E[i * m + l];
+                v += x[3 * m + a * m + l] * b->E[i * m + l];
+            }
+            B[a * beta + i] = p;
+            Bd[a * beta + i] = v;
+        }
+    }
+}
+
+/* rows i of D (leading dimension ld, from column c0): d(b_i . V_i)/dq = s V[:, i] x E[i, :]
+ * (the bar's vector moves with the coordinates its row of E names). */
+static void bar_rows(const Bars* b, const double* V, double s, double* D, int64_t ld, int64_t c0) {
+    int64_t m = b->m, beta = b->beta;
+    for (int64_t i = 0; i < beta; i++)
+        for (int64_t a = 0; a < 3; a++)
+            for (int64_t l = 0; l < m; l++)
+                D[i * ld + c0 + a * m + l] = s * V[a * beta + i] * b->E[i * m + l];
+}
+
+/* x[0:nc] -= G^T (G G^T)^-1 r, the minimum-norm step that zeroes the linearised residual r (k
+ * rows of G, k x nc; gram k x k work). Status as cholesky_factor. */
+static int64_t min_norm_step(int64_t k, int64_t nc, const double* G, double* r, double* x,
+                             double* gram) {
+    gemm(1, (int)k, (int)k, (int)nc, 1.0, G, (int)nc, G, (int)nc, 0.0, gram, (int)k);
+    int64_t status = cholesky_solve(gram, r, k);
+    if (status) return status;
+    for (int64_t i = 0; i < k; i++)
+        for (int64_t c = 0; c < nc; c++) x[c] -= G[i * nc + c] * r[i];
+    return 0;
+}
+
+/* The state x moved onto the constraints: Gauss-Newton steps on q until every |b|^2 - l^2 is
+ * within rtol of l^2 (at most iterations), then q_dot. Work: manifold_work(). */
+static int64_t project_bars(const Bars* b, double* x, double rtol, int64_t iterations, double* w) {
+    int64_t m = b->m, beta = b->beta;
+    double *B = w, *Bd = B + 3 * beta, *g = Bd + 3 * beta, *G = g + beta, *gram = G + 3 * m * beta;
+    int64_t status;
+    for (int64_t it = 0; it < iterations; it++) {
+        bar_vectors(b, x, B, Bd);
+        double worst = 0.0;
+        for (int64_t i = 0; i < beta; i++) {
+            double bb = B[i] * B[i] + B[beta + i] * B[beta + i] + B[2 * beta + i] * B[2 * beta + i];
+            g[i] = bb - b->l2[i];
+            double rel = fabs(g[i]) / b->l2[i];
+            if (rel > worst || isnan(rel)) worst = rel;
+        }
+        if (worst <= rtol) break;
+        bar_rows(b, B, 2.0, G, 3 * m, 0);
+        status = min_norm_step(beta, 3 * m, G, g, x, gram);
+        if (status) return status;
+    }
+    bar_vectors(b, x, B, Bd);
+    for (int64_t i = 0; i < beta; i++) {
+        double s = 0.0;
+        for (int64_t a = 0; a < 3; a++) s += B[a * beta + i] * Bd[a * beta + i];
+        g[i] = s;
+    }
+    bar_rows(b, B, 1.0, G, 3 * m, 0);
+    return min_norm_step(beta, 3 * m, G, g, x + 3 * m, gram);
+}
+
+static int64_t manifold_work(int64_t m, int64_t beta, int64_t n) {
+    int64_t k = 2 * beta;
+    return 8 * beta + 3 * m * beta + k * k + 4 * k * n + 2 * n * n + k;
+}
+
+/* x projected (project_bars) and Po = Pi P Pi^T symmetrised, Pi = I - G^T (G G^T)^-1 G the
+ * projector onto the constraints' tangent space at x (G: 2 beta x n, positions' then
+ * velocities' constraints): with Y = (G G^T)^-1 G, Pi P = P - G^T (Y P) and Pi P Pi^T =
+ * Pi P - (Pi P Y^T) G. */
+static int64_t condition_bars(const Bars* b, double* x, const double* P, double* Po, double rtol,
+                              int64_t iterations, double* w) {
+    int64_t m = b->m, beta = b->beta, n = b->n, k = 2 * beta;
+    int64_t status = project_bars(b, x, rtol, iterations, w);
+    if (status) return status;
+    double *B = w, *Bd = B + 3 * beta, *gram = Bd + 3 * beta, *G = gram + k * k, *Y = G + k * n;
+    double *YP = Y + k * n, *PiP = YP + k * n, *T = PiP + n * n, *col = T + n * n;
+    bar_vectors(b, x, B, Bd);
+    for (int64_t i = 0; i < k * n; i++) G[i] = 0.0;
+    bar_rows(b, B, 2.0, G, n, 0);
+    bar_rows(b, Bd, 1.0, G + beta * n, n, 0);
+    bar_rows(b, B, 1.0, G + beta * n, n, 3 * m);
+    gemm(1, (int)k, (int)k, (int)n, 1.0, G, (int)n, G, (int)n, 0.0, gram, (int)k);
+    status = cholesky_factor(gram, k);
+    if (status) return status;
+    for (int64_t c = 0; c < n; c++) {
+        for (int64_t i = 0; i < k; i++) col[i] = G[i * n + c];
+        cholesky_subst(gram, col, k);
+        for (int64_t i = 0; i < k; i++) Y[i * n + c] = col[i];
+    }
+    int in = (int)n, ik = (int)k;
+    gemm(0, ik, in, in, 1.0, Y, in, P, in, 0.0, YP, in);
+    for (int64_t i = 0; i < n * n; i++) PiP[i] = P[i];
+    gemm2(1, 0, in, in, ik, -1.0, G, in, YP, in, 1.0, PiP, in);
+    gemm(1, in, ik, in, 1.0, PiP, in, Y, in, 0.0, T, ik);
+    for (int64_t i = 0; i < n * n; i++) Po[i] = PiP[i];
+    gemm(0, in, in, ik, -1.0, T, ik, G, in, 1.0, Po, in);
+    for (int64_t i = 0; i < n; i++) {
+        for (int64_t j = 0; j < i; j++) {
+            double s = 0.5 * (Po[i * n + j] + Po[j * n + i]);
+            Po[i * n + j] = Po[j * n + i] = s;
+        }
+    }
+    return 0;
+}
+
+/* ---- The IMU's prediction (gyrohost.estimator.imu_prediction, closed form) ----
+ * The sensor frame of three nodes a, b, c (x along a -> b, z along x cross (c - a)) and its
+ * angular rate, differentiated in forward mode: a dual number carries one directional
+ * derivative. */
+typedef struct {
+    double v, d;
+} Dual;
+
+static Dual dmul(Dual a, Dual b) {
+    Dual r = {a.v * b.v, a.d * b.v + a.v * b.d};
+    return r;
+}
+static Dual dsub(Dual a, Dual b) {
+    Dual r = {a.v - b.v, a.d - b.d};
+    return r;
+}
+static Dual ddiv(Dual a, Dual b) {
+    Dual r = {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
+    return r;
+}
+static Dual ddot(const Dual* a, const Dual* b) {
+    Dual r = dmul(a[0], b[0]), t;
+    for (int i = 1; i < 3; i++) {
+        t = dmul(a[i], b[i]);
+        r.v += t.v;
+        r.d += t.d;
+    }
+    return r;
+}
+static void dcross(const Dual* a, const Dual* b, Dual* c) {
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        c[i] = dsub(dmul(a[j], b[k]), dmul(a[k], b[j]));
+    }
+}
+static Dual dsqrt(Dual a) {
+    double r = sqrt(a.v);
+    Dual o = {r, a.d / (2.0 * r)};
+    return o;
+}
+/* u = v / len and u_dot = (v_dot - u (u . v_dot)) / len: a unit vector and its rate. */
+static void unit_and_rate(const Dual* v, const Dual* v_dot, Dual* u, Dual* u_dot) {
+    Dual len = dsqrt(ddot(v, v));
+    for (int i = 0; i < 3; i++) u[i] = ddiv(v[i], len);
+    Dual p = ddot(u, v_dot);
+    for (int i = 0; i < 3; i++) u_dot[i] = ddiv(dsub(v_dot[i], dmul(u[i], p)), len);
+}
+
+/* in = [d1, d2, d1_dot, d2_dot] (d1 = N_b - N_a, d2 = N_c - N_a): R_ws (3 x 3, row-major) =
+ * [ex ey ez] R_bs and omega_s = omega_b R_bs, omega_b = (-ey . ez_dot, ex . ez_dot, ey . ex_dot).
+ */
+static void sensor_frame(const Dual* in, const double* Rbs, Dual* R, Dual* om) {
+    Dual ex[3], ex_dot[3], c[3], c_dot[3], t[3], ez[3], ez_dot[3], ey[3], ob[3], zero = {0.0, 0.0};
+    unit_and_rate(in, in + 6, ex, ex_dot);
+    dcross(in, in + 3, c);
+    dcross(in + 6, in + 3, c_dot);
+    dcross(in, in + 9, t);
+    for (int i = 0; i < 3; i++) {
+        c_dot[i].v += t[i].v;
+        c_dot[i].d += t[i].d;
+    }
+    unit_and_rate(c, c_dot, ez, ez_dot);
+    dcross(ez, ex, ey);
+    ob[0] = dsub(zero, ddot(ey, ez_dot));
+    ob[1] = ddot(ex, ez_dot);
+    ob[2] = ddot(ey, ex_dot);
+    for (int r = 0; r < 3; r++) {
+        const Dual col[3] = {ex[r], ey[r], ez[r]};
+        for (int j = 0; j < 3; j++) {
+            Dual s = zero;
+            for (int i = 0; i < 3; i++) {
+                s.v += col[i].v * Rbs[i * 3 + j];
+                s.d += col[i].d * Rbs[i * 3 + j];
+            }
+            R[r * 3 + j] = s;
+        }
+    }
+    for (int j = 0; j < 3; j++) {
+        Dual s = zero;
+        for (int i = 0; i < 3; i++) {
+            s.v += ob[i].v * Rbs[i * 3 + j];
+            s.d += ob[i].d * Rbs[i * 3 + j];
+        }
+        om[j] = s;
+    }
+}
+
+/* spec (doubles): [servo_lag, wheel slope, rest command (alpha), wheel accelerations (n_w),
+ * gravity (3), R_bs (9), node rows of U for a, b, c (3 x m), N_fix at a, b, c (3 x 3: node,
+ * then axis)]. */
+static int64_t imu_spec_size(const int64_t* d) {
+    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9;
+}
+
+static int64_t imu_work(const int64_t* d) {
+    return jacobian_work(d);
+}
+
+/* The IMU's values and Jacobians at the filter state x (its first D = 6 m + n_w + alpha
+ * entries): f = dx/dt (D), A = df/dx (D x D), R (9) and dR (9 x D), omega (3) and its
+ * Jacobian (3 x D), the specific force (3) and its Jacobian (3 x D). Status as evaluate(). */
+static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec, const double* x,
+                           double* f, double* A, double* R, double* dR, double* om, double* dom,
+                           double* fs, double* dfs, double* w) {
+    int64_t m = d[0], alpha = d[2], nw = d[3], D = 6 * m + nw + alpha;
+    const double *rest_cmd = spec + 2, *wacc = rest_cmd + alpha, *g = wacc + nw, *Rbs = g + 3;
+    const double *ua = Rbs + 9, *ub = ua + m, *uc = ub + m, *Nf = uc + m;
+    double acc[3 * 100], *J = A + 3 * m * D; /* the q_dot rows of A */
+    int64_t status = jacobian(k, d, x, acc, J, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m * D; i++) A[i] = 0.0;
+    for (int64_t i = 6 * m * D; i < D * D; i++) A[i] = 0.0;
+    for (int64_t i = 0; i < 3 * m; i++) A[i * D + 3 * m + i] = 1.0;
+    for (int64_t i = 6 * m; i < 6 * m + nw; i++) A[i * D + i] = spec[1];
+    for (int64_t i = 6 * m + nw; i < D; i++) A[i * D + i] = -1.0 / spec[0];
+    for (int64_t i = 0; i < 3 * m; i++) {
+        f[i] = x[3 * m + i];
+        f[3 * m + i] = acc[i];
+    }
+    for (int64_t i = 0; i < nw; i++) f[6 * m + i] = wacc[i];
+    for (int64_t i = 0; i < alpha; i++)
+        f[6 * m + nw + i] = (rest_cmd[i] - x[6 * m + nw + i]) / spec[0];
+    /* the frame's inputs and their derivatives, one direction at a time */
+    Dual in[12], Rd[9], omd[3];
+    double e1[100], e2[100], v[12], dRin[12][9], domin[12][3];
+    for (int64_t l = 0; l < m; l++) {
+        e1[l] = ub[l] - ua[l];
+        e2[l] = uc[l] - ua[l];
+    }
+    for (int r = 0; r < 3; r++) {
+        double pa = Nf[r], pb = Nf[3 + r], pc = Nf[6 + r], va = 0.0, vb = 0.0, vc = 0.0;
+        for (int64_t l = 0; l < m; l++) {
+            pa += x[r * m + l] * ua[l];
+            pb += x[r * m + l] * ub[l];
+            pc += x[r * m + l] * uc[l];
+            va += x[3 * m + r * m + l] * ua[l];
+            vb += x[3 * m + r * m + l] * ub[l];
+            vc += x[3 * m + r * m + l] * uc[l];
+        }
+        v[r] = pb - pa;
+        v[3 + r] = pc - pa;
+        v[6 + r] = vb - va;
+        v[9 + r] = vc - va;
+    }
+    for (int dir = 0; dir < 12; dir++) {
+        for (int i = 0; i < 12; i++) {
+            in[i].v = v[i];
+            in[i].d = i == dir;
+        }
+        sensor_frame(in, Rbs, Rd, omd);
+        for (int i = 0; i < 9; i++) dRin[dir][i] = Rd[i].d;
+        for (int i = 0; i < 3; i++) domin[dir][i] = omd[i].d;
+    }
+    for (int i = 0; i < 9; i++) R[i] = Rd[i].v;
+    for (int i = 0; i < 3; i++) om[i] = omd[i].v;
+    for (int64_t i = 0; i < 9 * D; i++) dR[i] = 0.0;
+    for (int64_t i = 0; i < 3 * D; i++) dom[i] = 0.0;
+    /* q_{r,l} moves d1[r] by e1[l] and d2[r] by e2[l]; q_dot_{r,l} the rates alike */
+    for (int r = 0; r < 3; r++) {
+        for (int64_t l = 0; l < m; l++) {
+            int64_t cq = r * m + l, cv = 3 * m + r * m + l;
+            for (int i = 0; i < 9; i++)
+                dR[i * D + cq] = e1[l] * dRin[r][i] + e2[l] * dRin[3 + r][i];
+            for (int i = 0; i < 3; i++) {
+                dom[i * D + cq] = e1[l] * domin[r][i] + e2[l] * domin[3 + r][i];
+                dom[i * D + cv] = e1[l] * domin[6 + r][i] + e2[l] * domin[9 + r][i];
+            }
+        }
+    }
+    /* a = (N_ddot_a + N_ddot_b) / 2 - g, f_s = R^T a, df = R^T da + dR^T a */
+    double a[3];
+    for (int r = 0; r < 3; r++) {
+        double s = 0.0;
+        for (int64_t l = 0; l < m; l++) s += acc[r * m + l] * 0.5 * (ua[l] + ub[l]);
+        a[r] = s - g[r];
+    }
+    for (int i = 0; i < 3; i++) {
+        fs[i] = R[i] * a[0] + R[3 + i] * a[1] + R[6 + i] * a[2];
+        for (int64_t c = 0; c < D; c++) {
+            double s = 0.0;
+            for (int r = 0; r < 3; r++) {
+                double da = 0.0;
+                for (int64_t l = 0; l < m; l++)
+                    da += J[(r * m + l) * D + c] * 0.5 * (ua[l] + ub[l]);
+                s += R[r * 3 + i] * da + dR[(r * 3 + i) * D + c] * a[r];
+            }
+            dfs[i * D + c] = s;
+        }
+    }
+    return 0;
+}
+
+/* The buffers of a call: the first n_read read, the rest up to n written. */
+static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
+                           int n, const char* use) {
+    if (nargs != n) {
         PyErr_SetString(PyExc_TypeError, use);
         return -1;
     }
     int got = 0;
-    for (; got < 6; got++) {
-        int flags = (got >= 4) ? PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS : PyBUF_C_CONTIGUOUS;
+    for (; got < n; got++) {
+        int flags = (got >= n_read) ? PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS : PyBUF_C_CONTIGUOUS;
         if (PyObject_GetBuffer(args[got], &buf[got], flags) < 0) break;
     }
-    if (got == 6) return 0;
+    if (got == n) return 0;
     for (int i = 0; i < got; i++) PyBuffer_Release(&buf[i]);
     return -1;
+}
+
+/* The six buffers of a call: the first four read, the last two written. */
+static int get_buffers(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, const char* use) {
+    return get_buffer_list(args, nargs, buf, 4, 6, use);
+}
+
+#define LEAN_USE "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) takes 10 buffers"
+
+static PyObject* kernel_lean_step(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer buf[10];
+    if (get_buffer_list(args, nargs, buf, 6, 10, LEAN_USE) < 0) return NULL;
+    const int64_t* dims = (const int64_t*)buf[1].buf;
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2];
+    int64_t n = (int64_t)(buf[3].len / (Py_ssize_t)sizeof(double)), status = -1;
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    if (dims[5] != 0 || n < D || buf[2].len < step_spec_size(dims) * w || buf[4].len < n * n * w ||
+        buf[5].len < D * D * w || buf[6].len < n * w || buf[7].len < n * n * w ||
+        buf[8].len < D * D * w || buf[9].len < lean_work(dims, n) * w) {
+        PyErr_SetString(PyExc_ValueError, "lean_step: joints, or a buffer is too small");
+    } else {
+        Consts k;
+        StepSpec spec;
+        layout((const double*)buf[0].buf, dims, &k);
+        step_spec((const double*)buf[2].buf, dims, &spec);
+        Py_BEGIN_ALLOW_THREADS status =
+            lean_step(&k, dims, &spec, n, (const double*)buf[3].buf, (const double*)buf[4].buf,
+                      (const double*)buf[5].buf, (double*)buf[6].buf, (double*)buf[7].buf,
+                      (double*)buf[8].buf, (double*)buf[9].buf);
+        Py_END_ALLOW_THREADS
+    }
+    for (int i = 0; i < 10; i++) PyBuffer_Release(&buf[i]);
+    return status < 0 ? NULL : PyLong_FromLongLong(status);
+}
+
+/* use_blas(capsule): take dgemm from scipy.linalg.cython_blas.__pyx_capi__["dgemm"]. */
+static PyObject* kernel_use_blas(PyObject* self, PyObject* capsule) {
+    (void)self;
+    const char* name = PyCapsule_GetName(capsule);
+    if (!name) return NULL;
+    const char* want = "void (char *, char *, int *, int *, int *, ";
+    if (strncmp(name, want, strlen(want)) != 0 || !strstr(name, "_d *")) {
+        PyErr_Format(PyExc_ValueError, "use_blas: not a double dgemm: %s", name);
+        return NULL;
+    }
+    void* fn = PyCapsule_GetPointer(capsule, name);
+    if (!fn) return NULL;
+    blas_dgemm = (dgemm_fn)fn;
+    Py_RETURN_NONE;
+}
+
+#define MANIFOLD_USE                                                                         \
+    "manifold(E, B0, l2, spec, P, x, P_out, work) takes 8 buffers (P, P_out empty: project " \
+    "the state alone)"
+
+/* manifold(E, B0, l2, spec, P, x, P_out, work) -> status: x projected in place onto the bars'
+ * constraints and, unless P is empty, P_out = Pi P Pi^T; spec = [rtol, iterations]. */
+static PyObject* kernel_manifold(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer buf[8];
+    if (get_buffer_list(args, nargs, buf, 5, 8, MANIFOLD_USE) < 0) return NULL;
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    Bars b;
+    b.beta = (int64_t)(buf[2].len / w);
+    b.m = b.beta ? (int64_t)(buf[0].len / w) / b.beta : 0;
+    b.n = (int64_t)(buf[5].len / w);
+    b.E = (const double*)buf[0].buf;
+    b.B0 = (const double*)buf[1].buf;
+    b.l2 = (const double*)buf[2].buf;
+    const double* spec = (const double*)buf[3].buf;
+    int with_P = buf[4].len > 0;
+    int64_t status = -1;
+    if (b.beta == 0 || b.n < 6 * b.m || buf[1].len < 3 * b.beta * w || buf[3].len < 2 * w ||
+        (with_P && (buf[4].len < b.n * b.n * w || buf[6].len < b.n * b.n * w)) ||
+        buf[7].len < manifold_work(b.m, b.beta, b.n) * w) {
+        PyErr_SetString(PyExc_ValueError, "manifold: a buffer is too small");
+    } else {
+        double* x = (double*)buf[5].buf;
+        double* work = (double*)buf[7].buf;
+        int64_t iterations = (int64_t)spec[1];
+        Py_BEGIN_ALLOW_THREADS if (with_P) status = condition_bars(
+            &b, x, (const double*)buf[4].buf, (double*)buf[6].buf, spec[0], iterations, work);
+        else status = project_bars(&b, x, spec[0], iterations, work);
+        Py_END_ALLOW_THREADS
+    }
+    for (int i = 0; i < 8; i++) PyBuffer_Release(&buf[i]);
+    return status < 0 ? NULL : PyLong_FromLongLong(status);
+}
+
+static PyObject* kernel_manifold_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    long long v[3];
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "manifold_work(m, beta, n) takes 3 integers");
+        return NULL;
+    }
+    for (int i = 0; i < 3; i++) {
+        v[i] = PyLong_AsLongLong(args[i]);
+        if (v[i] == -1 && PyErr_Occurred()) return NULL;
+    }
+    return PyLong_FromLongLong(manifold_work(v[0], v[1], v[2]));
+}
+
+#define IMU_USE                                                                               \
+    "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) takes 13 " \
+    "buffers"
+
+static PyObject* kernel_imu(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer buf[13];
+    if (get_buffer_list(args, nargs, buf, 4, 13, IMU_USE) < 0) return NULL;
+    const int64_t* dims = (const int64_t*)buf[1].buf;
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status = -1;
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    const int64_t need[13] = {0, 0,     imu_spec_size(dims), D, D, D * D, 9, 9 * D, 3, 3 * D,
+                              3, 3 * D, imu_work(dims)};
+    int ok = dims[5] == 0 && m <= 100;
+    for (int i = 2; i < 13; i++) ok = ok && buf[i].len >= need[i] * w;
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "imu: joints, over 100 coordinates or a small buffer");
+    } else {
+        Consts k;
+        double* o[9];
+        for (int i = 0; i < 9; i++) o[i] = (double*)buf[4 + i].buf;
+        layout((const double*)buf[0].buf, dims, &k);
+        Py_BEGIN_ALLOW_THREADS status =
+            imu_predict(&k, dims, (const double*)buf[2].buf, (const double*)buf[3].buf, o[0], o[1],
+                        o[2], o[3], o[4], o[5], o[6], o[7], o[8]);
+        Py_END_ALLOW_THREADS
+    }
+    for (int i = 0; i < 13; i++) PyBuffer_Release(&buf[i]);
+    return status < 0 ? NULL : PyLong_FromLongLong(status);
+}
+
+static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer dims;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "lean_work(dims, n) takes 2 arguments");
+        return NULL;
+    }
+    long long n = PyLong_AsLongLong(args[1]);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    int64_t size = lean_work((const int64_t*)dims.buf, (int64_t)n);
+    PyBuffer_Release(&dims);
+    return PyLong_FromLongLong(size);
 }
 
 static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
@@ -484,6 +1136,21 @@ static PyMethodDef methods[] = {
     {"jacobian", (PyCFunction)(void (*)(void))kernel_jacobian, METH_FASTCALL,
      "jacobian(consts, dims, state, acc, J, work) -> status: accelerations and their Jacobian "
      "(dense path without joints; state [q, q_dot, omega_w, rest])"},
+    {"lean_step", (PyCFunction)(void (*)(void))kernel_lean_step, METH_FASTCALL,
+     "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) -> status: the estimator's "
+     "lean prediction step (RK4 state, Taylor-series F, F P F^T)"},
+    {"lean_work", (PyCFunction)(void (*)(void))kernel_lean_work, METH_FASTCALL,
+     "lean_work(dims, n) -> doubles of work lean_step() needs for an n-entry filter state"},
+    {"manifold", (PyCFunction)(void (*)(void))kernel_manifold, METH_FASTCALL,
+     "manifold(E, B0, l2, spec, P, x, P_out, work) -> status: the filter state onto the bars' "
+     "constraints (in place), P_out = Pi P Pi^T unless P is empty"},
+    {"manifold_work", (PyCFunction)(void (*)(void))kernel_manifold_work, METH_FASTCALL,
+     "manifold_work(m, beta, n) -> doubles of work manifold() needs"},
+    {"imu", (PyCFunction)(void (*)(void))kernel_imu, METH_FASTCALL,
+     "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) -> status: "
+     "the IMU's prediction and Jacobians with the dynamics' (the estimator's closed form)"},
+    {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
+     "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's)"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
     {NULL, NULL, 0, NULL},

@@ -24,6 +24,7 @@ from gyrotensegrity import SimulationError
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import mounting_covariance
 from .errors import EstimatorError
+from .fast_prediction import fast_prediction
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
@@ -91,13 +92,19 @@ class TensegrityEKF:
     t0_s : float, s
     log : callable(Innovation), optional
         Receives every fusion attempt (accepted or rejected).
+    fast : bool
+        Predict through the compiled kernel where it covers the configuration
+        (:mod:`.fast_prediction`) and fuse in fewer numpy operations (:func:`.fusion.fuse`);
+        False: the reference path (filterpy) everywhere.
     """
 
-    def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None):
+    def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None, fast=True):
         check_model(model)
         self.model, self.config = model, config
         self.layout = L = layout_of(model, config)
         self.process = ProcessModel(model, config)
+        self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
+        self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
         self.manifold = Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
@@ -252,21 +259,34 @@ class TensegrityEKF:
         """One prediction step of ``dt`` s with the held input."""
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
             try:
-                x_next, F = self.process.step(self.x, self.u, dt, self._A)
+                if self.fast_step is not None:
+                    self._predict_fast(dt)
+                else:
+                    self._predict_reference(dt)
             except SimulationError as exc:  # the model's fast path refuses a singular state
                 raise _failed(self.t + dt, f"prediction failed: {exc}", exc.member) from None
         self._A = None
+        self.t += dt
+        self._check_finite("prediction")
+        # the state back onto the constraints (RK4 drifts ~1e-9 m per step); P keeps the
+        # process noise in all directions until the next update projects it
+        self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
+
+    def _predict_reference(self, dt: float) -> None:
+        x_next, F = self.process.step(self.x, self.u, dt, self._A)
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
         Q = self.process.noise(dt, F, self.x)
         self.kf.Q = np.zeros_like(F)  # the wheel noise states change at wheel samples only
         self.kf.Q[: len(Q), : len(Q)] = Q
         self.kf.predict()
-        self.t += dt
-        self._check_finite("prediction")
-        # the state back onto the constraints (RK4 drifts ~1e-9 m per step); P keeps the
-        # process noise in all directions until the next update projects it
-        self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
+
+    def _predict_fast(self, dt: float) -> None:
+        """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
+        x_next, P, F = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
+        Q = self.process.noise(dt, F, self.x)
+        P[: len(Q), : len(Q)] += Q
+        self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 
     def _check_finite(self, what: str) -> None:
         # a non-finite covariance entry reaches the diagonal within one step: the diagonal will do
