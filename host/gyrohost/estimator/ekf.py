@@ -24,6 +24,7 @@ from gyrotensegrity import SimulationError
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import mounting_covariance
 from .errors import EstimatorError
+from .fast_manifold import fast_manifold
 from .fast_prediction import fast_prediction
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
@@ -94,8 +95,9 @@ class TensegrityEKF:
         Receives every fusion attempt (accepted or rejected).
     fast : bool
         Predict through the compiled kernel where it covers the configuration
-        (:mod:`.fast_prediction`) and fuse in fewer numpy operations (:func:`.fusion.fuse`);
-        False: the reference path (filterpy) everywhere.
+        (:mod:`.fast_prediction`), project onto the constraints there (:mod:`.fast_manifold`)
+        and fuse in fewer numpy operations (:func:`.fusion.fuse`); False: the reference path
+        (filterpy) everywhere.
     """
 
     def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None, fast=True):
@@ -106,7 +108,7 @@ class TensegrityEKF:
         self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
-        self.manifold = Manifold(model, L)
+        self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
         self.dynamic_columns = np.arange(L.n_dynamic)
