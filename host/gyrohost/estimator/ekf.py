@@ -24,6 +24,7 @@ from gyrotensegrity import SimulationError
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import mounting_covariance
 from .errors import EstimatorError
+from .fast_imu import fast_imu
 from .fast_manifold import fast_manifold
 from .fast_prediction import fast_prediction
 from .fusion import fuse
@@ -94,10 +95,10 @@ class TensegrityEKF:
     log : callable(Innovation), optional
         Receives every fusion attempt (accepted or rejected).
     fast : bool
-        Predict through the compiled kernel where it covers the configuration
-        (:mod:`.fast_prediction`), project onto the constraints there (:mod:`.fast_manifold`)
-        and fuse in fewer numpy operations (:func:`.fusion.fuse`); False: the reference path
-        (filterpy) everywhere.
+        The compiled prediction step and IMU prediction (:mod:`.fast_prediction`,
+        :mod:`.fast_imu`) where they cover the configuration, the compiled manifold
+        (:mod:`.fast_manifold`) and the fusion without filterpy (:func:`.fusion.fuse`); False:
+        the reference path everywhere.
     """
 
     def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None, fast=True):
@@ -108,6 +109,7 @@ class TensegrityEKF:
         self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
+        self.fast_imu = fast_imu(self)
         self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
@@ -354,7 +356,10 @@ class TensegrityEKF:
         the angle's rotation would fail on it."""
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
             try:
-                pred = predict_imu(self, self.x, self.u)
+                if self.fast_imu is not None:
+                    pred = self.fast_imu(self.x, self.u)
+                else:
+                    pred = predict_imu(self, self.x, self.u)
             except SimulationError as exc:
                 raise _failed(self.t, f"the IMU's prediction failed: {exc}", exc.member) from None
         for name, value in vars(pred).items():
