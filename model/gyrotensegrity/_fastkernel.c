@@ -419,12 +419,13 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
  * State z = [q, q_dot, omega_w, rest] (D = 6 m + n_w + alpha entries), then n - D entries the
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
- * start (n_w), commands (n_w)]. follow = 0: the wheels accelerate at the given constant
- * accelerations; 1: they lag (wheel_lag) behind setpoints ramping at wheel_accel from the start
- * setpoints towards the commands. */
+ * start (n_w), commands (n_w), jitter density (m^2 s)]. follow = 0: the wheels accelerate at
+ * the given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at
+ * wheel_accel from the start setpoints towards the commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
     int follow, have_A;
+    double jitter;
     const double *rest_cmd, *wheel_acc, *sp0, *cmd;
 } StepSpec;
 
@@ -440,10 +441,11 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->wheel_acc = p->rest_cmd + alpha;
     p->sp0 = p->wheel_acc + nw;
     p->cmd = p->sp0 + nw;
+    p->jitter = p->cmd[nw];
 }
 
 static int64_t step_spec_size(const int64_t* d) {
-    return 6 + d[2] + 3 * d[3];
+    return 7 + d[2] + 3 * d[3];
 }
 
 /* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
@@ -556,8 +558,57 @@ static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
     int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
-    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n +
-           (ev > jw ? ev : jw);
+    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + D + 3 * m +
+           9 * m * alpha + alpha + (ev > jw ? ev : jw);
+}
+
+/* Mean square of max(a - Z, 0) - max(a, 0), Z standard normal (gyrohost.estimator.kink). */
+static double kink_weight(double a) {
+    double Phi = 0.5 * erfc(-a / sqrt(2.0)),
+           phi = exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846);
+    return a <= 0.0 ? (a * a + 1.0) * Phi + a * phi : Phi - a * phi + a * a * (1.0 - Phi);
+}
+
+/* Po[:6m, :6m] += (q / dt) sum_i w_i G_i G_i^T, the rest-length jitter of density q through
+ * each string's kink (gyrohost.estimator.process_noise.jitter_noise, sharp kink): G_i = dt/2
+ * (b_i + F b_i), b_i = (0, d acc / d rest_i) with string i held taut, w_i = kink_weight(mu_i /
+ * sqrt(q / dt)), mu_i the tension margin as a length at x. Jt: 3 m x D work. */
+static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
+                            const double* x, const double* F, double* Po, double* Jt, double* v,
+                            double* w) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], K = beta + alpha;
+    int64_t D = 6 * m + nw + alpha, r0 = 6 * m + nw;
+    double *pos = v, *vel = pos + 3 * K, *z = vel + 3 * K, *acc = z + D, *b = acc + 3 * m;
+    double *G = b + 3 * m * alpha, *wt = G + 6 * m * alpha, dt = p->dt, q = p->jitter;
+    member_vectors(k, d, x, x + 3 * m, pos, vel);
+    for (int64_t i = 0; i < D; i++) z[i] = x[i];
+    for (int64_t i = 0; i < alpha; i++) {
+        int64_t j = beta + i;
+        double S0 = pos[j], S1 = pos[K + j], S2 = pos[2 * K + j];
+        double s = sqrt(S0 * S0 + S1 * S1 + S2 * S2);
+        double sdot = (S0 * vel[j] + S1 * vel[K + j] + S2 * vel[2 * K + j]) / s;
+        double stretch = s - x[r0 + i], damped = stretch + k->c_s[i] / k->k_s[i] * sdot;
+        double margin = stretch < damped ? stretch : damped;
+        /* any taut point gives the column: the force is affine in the rest length there */
+        z[r0 + i] = x[r0 + i] - (margin < 0.0 ? -margin : 0.0) - 1e-3;
+        wt[i] = kink_weight(margin / sqrt(q / dt));
+    }
+    int64_t status = jacobian(k, d, z, acc, Jt, w);
+    if (status) return status;
+    for (int64_t r = 0; r < 3 * m; r++)
+        for (int64_t i = 0; i < alpha; i++) b[r * alpha + i] = Jt[r * D + r0 + i];
+    /* G = dt/2 (F[:6m, q_dot] b + (0; b)) */
+    gemm(0, (int)(6 * m), (int)alpha, (int)(3 * m), 0.5 * dt, F + 3 * m, (int)D, b, (int)alpha, 0.0,
+         G, (int)alpha);
+    for (int64_t r = 0; r < 3 * m * alpha; r++) G[3 * m * alpha + r] += 0.5 * dt * b[r];
+    for (int64_t r = 0; r < 6 * m; r++) {
+        for (int64_t c = 0; c < 6 * m; c++) {
+            double s = 0.0;
+            for (int64_t i = 0; i < alpha; i++) s += G[r * alpha + i] * wt[i] * G[c * alpha + i];
+            Po[r * n + c] += (q / dt) * s;
+        }
+    }
+    return 0;
 }
 
 /* One lean step: z' by one classic RK4 step, F = I + Ad + Ad^2/2 + Ad^3/6 + Ad^4/24 with
@@ -570,7 +621,7 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
     double *k1 = w, *k2 = k1 + D, *k3 = k2 + D, *k4 = k3 + D, *zs = k4 + D;
     double *xm = zs + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
     double *Jq = acc + 3 * m, *T1 = Jq + 3 * m * D, *T2 = T1 + D * D, *T3 = T2 + D * D;
-    double *FP = T3 + D * D, *kw = FP + D * n;
+    double *FP = T3 + D * D, *kw = FP + D * n + 6 * (d[1] + d[2]) + D + 3 * m + 9 * m * d[2] + d[2];
     double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
     double dt = p->dt;
     int64_t status;
@@ -601,6 +652,7 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
     apply_A(d, Jq, dt / 2.0, wslope, rslope, 1.0, T2, T1);
     apply_A(d, Jq, dt, wslope, rslope, 1.0, T1, F);
     propagate(D, n, F, P, FP, Po);
+    if (p->jitter > 0.0) return jitter_noise(k, d, p, n, x, F, Po, Jq, FP + D * n, kw);
     return 0;
 }
 

@@ -287,8 +287,8 @@ class TensegrityEKF:
 
     def _predict_fast(self, dt: float) -> None:
         """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
-        x_next, P, F = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
-        Q = self.process.noise(dt, F, self.x)
+        x_next, P, _ = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
+        Q = self.process.noise(dt, None, self.x)  # the jitter's term is in P already
         P[: len(Q), : len(Q)] += Q
         self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 

@@ -4,10 +4,10 @@ The reference is :meth:`.process_model.ProcessModel.step` (``process_method = "l
 by filterpy's ``F P F^T``: Python around small numpy operations, each costing more than the
 arithmetic it does. ``gyrotensegrity._fastkernel.lean_step`` does the same arithmetic (the RK4
 step through the kernel's accelerations, ``A`` from the kernel's closed-form Jacobian unless the
-IMU prediction made one, ``F`` by the same Taylor series, ``F P F^T``) in one call; the process
-noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step, or needing
-this ``F`` for the rest-length jitter). tests/estimator/test_fast_prediction.py holds the two
-equal to round-off.
+IMU prediction made one, ``F`` by the same Taylor series, ``F P F^T`` and the rest-length
+jitter's noise through the strings' kinks, which needs this ``F``) in one call; the rest of the
+process noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step).
+tests/estimator/test_fast_prediction.py holds the two equal to round-off.
 
 Covered: the lean model with the closed-form Jacobian, the sharp string kink, a model that omits
 no term (the omitted-term check looks at every stage's spins) and the kernel built; elsewhere
@@ -49,14 +49,16 @@ class FastPrediction:
         L = process.layout
         self.n, self.nd, self.alpha, self.nw = n, L.n_dynamic, L.n_strings, L.n_wheels
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
-        # accelerations, setpoints, commands] (the kernel's StepSpec)
-        self._spec = np.zeros(6 + self.alpha + 3 * self.nw)
+        # accelerations, setpoints, commands, jitter density] (the kernel's StepSpec)
+        self._spec = np.zeros(7 + self.alpha + 3 * self.nw)
+        self._spec[-1] = process.config.rest_jitter_psd_m2_s
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
 
     def __call__(self, x, P, u, dt, A=None):
-        """The state (n,) and covariance (n, n) ``dt`` s on, without process noise, and the
-        step's Jacobian ``F`` (n_dynamic, n_dynamic) over the dynamic states (the identity
+        """The state (n,) and covariance (n, n) ``dt`` s on, with the process noise of the
+        rest-length jitter (:meth:`.process_noise.ProcessNoise.jitter_noise`) but no other, and
+        the step's Jacobian ``F`` (n_dynamic, n_dynamic) over the dynamic states (the identity
         beyond them), from ``x`` (n,) and ``P`` (n, n) under the input ``u``; ``A`` as
         :meth:`.process_model.ProcessModel.step`. Moves the wheels' setpoints on as the step
         does."""
@@ -68,7 +70,7 @@ class FastPrediction:
         spec[6:a] = u[: self.alpha]
         if follow:
             spec[a + nw : a + 2 * nw] = sp0
-            spec[a + 2 * nw :] = p.wheel_command_rad_s
+            spec[a + 2 * nw : a + 3 * nw] = p.wheel_command_rad_s
         else:
             spec[a : a + nw] = p.wheel_acceleration(np.zeros((1, nw)), u)[0]
         x_out, P_out, F = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.nd,) * 2)
