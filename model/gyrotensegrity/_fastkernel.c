@@ -969,6 +969,109 @@ static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec
     return 0;
 }
 
+/* ---- The estimator's measurement update (gyrohost.estimator.fusion, fast path) ---- */
+
+/* In-place Cholesky factor as numpy's (any positive, finite pivot); row + 1 where it fails. */
+static int64_t cholesky_plain(double* A, int64_t n) {
+    for (int64_t j = 0; j < n; j++) {
+        double d = A[j * n + j];
+        for (int64_t k = 0; k < j; k++) d -= A[j * n + k] * A[j * n + k];
+        if (!(d > 0.0) || !isfinite(d)) return j + 1;
+        d = sqrt(d);
+        A[j * n + j] = d;
+        for (int64_t i = j + 1; i < n; i++) {
+            double s = A[i * n + j];
+            for (int64_t k = 0; k < j; k++) s -= A[i * n + k] * A[j * n + k];
+            A[i * n + j] = s / d;
+        }
+    }
+    return 0;
+}
+
+/* log det of the k x k block of A (leading dimension ld) at (o, o), factored into blk: NaN
+ * where it is not positive definite. */
+static double block_log_det(const double* A, int64_t ld, int64_t o, int64_t k, double* blk) {
+    for (int64_t i = 0; i < k; i++)
+        for (int64_t j = 0; j < k; j++) blk[i * k + j] = A[(o + i) * ld + o + j];
+    if (cholesky_plain(blk, k)) return NAN;
+    double s = 0.0;
+    for (int64_t i = 0; i < k; i++) s += log(blk[i * k + i]);
+    return 2.0 * s;
+}
+
+#define MAX_ROWS 64 /* measurement rows of one update */
+
+static int64_t update_work(int64_t n, int64_t M) {
+    return 5 * n * M + 4 * M * M + 2 * M + 3 * n * n;
+}
+
+/* The gated update of k measurements stacked (sizes[i] rows each; M in all): H (M x n),
+ * innovations y (M), block-diagonal noise R (M x M), gates (k, the NIS thresholds). Per
+ * measurement: S_i = H_i P H_i^T + R_i, its diagonal (Sd), whitened innovation w_i = L_i^-1 y_i
+ * (S_i = L_i L_i^T; NaN where not positive definite), stats[3 i ..] = (NIS, log det S_i - log
+ * det R_i, accepted: NIS <= gate). The accepted ones are fused in one update: gain K = P H^T
+ * S^-1 by one Cholesky of their S, x + K y, Joseph form (I - K H) P (I - K H)^T + K R K^T.
+ * Status 0; k > 0: their S was not positive definite (xo, Po unset). */
+static int64_t kalman_update(int64_t k, const int64_t* sizes, const double* gates, int64_t n,
+                             int64_t M, const double* H, const double* y, const double* R,
+                             const double* P, const double* x, double* Sd, double* w, double* stats,
+                             double* xo, double* Po, double* work) {
+    double *PHt = work, *S = PHt + n * M, *blk = S + M * M, *Sa = blk + M * M, *Ra = Sa + M * M;
+    double *Ha = Ra + M * M, *PHa = Ha + M * n, *ya = PHa + n * M, *K = ya + M, *IKH = K + n * M;
+    double *T = IKH + n * n, *KR = T + n * n;
+    int64_t rows[MAX_ROWS], na = 0, o = 0;
+    int in = (int)n, iM = (int)M;
+    gemm(1, in, iM, in, 1.0, P, in, H, in, 0.0, PHt, iM);
+    gemm(0, iM, iM, in, 1.0, H, in, PHt, iM, 0.0, S, iM);
+    for (int64_t i = 0; i < M * M; i++) S[i] += R[i];
+    for (int64_t i = 0; i < k; i++) {
+        int64_t ki = sizes[i];
+        for (int64_t r = 0; r < ki; r++) Sd[o + r] = S[(o + r) * M + o + r];
+        double log_det_S = block_log_det(S, M, o, ki, blk), nis = 0.0;
+        for (int64_t r = 0; r < ki; r++) { /* forward substitution, blk = L_i */
+            double v = y[o + r];
+            for (int64_t c = 0; c < r; c++) v -= blk[r * ki + c] * w[o + c];
+            w[o + r] = isnan(log_det_S) ? NAN : v / blk[r * ki + r];
+            nis += w[o + r] * w[o + r];
+        }
+        double ratio = nis / gates[i];
+        int accepted = isfinite(ratio) && ratio <= 1.0;
+        stats[3 * i] = nis;
+        stats[3 * i + 1] = log_det_S - block_log_det(R, M, o, ki, blk);
+        stats[3 * i + 2] = accepted;
+        for (int64_t r = 0; accepted && r < ki; r++) rows[na++] = o + r;
+        o += ki;
+    }
+    for (int64_t i = 0; i < n; i++) xo[i] = x[i];
+    for (int64_t i = 0; i < n * n; i++) Po[i] = P[i];
+    if (!na) return 0;
+    for (int64_t a = 0; a < na; a++) {
+        ya[a] = y[rows[a]];
+        for (int64_t b = 0; b < na; b++) {
+            Sa[a * na + b] = S[rows[a] * M + rows[b]];
+            Ra[a * na + b] = R[rows[a] * M + rows[b]];
+        }
+        for (int64_t c = 0; c < n; c++) Ha[a * n + c] = H[rows[a] * n + c];
+    }
+    for (int64_t r = 0; r < n; r++)
+        for (int64_t a = 0; a < na; a++) PHa[r * na + a] = PHt[r * M + rows[a]];
+    int64_t status = cholesky_plain(Sa, na);
+    if (status) return status;
+    for (int64_t r = 0; r < n; r++) { /* K = P H^T S^-1, row by row (S symmetric) */
+        for (int64_t a = 0; a < na; a++) K[r * na + a] = PHa[r * na + a];
+        cholesky_subst(Sa, K + r * na, na);
+        for (int64_t a = 0; a < na; a++) xo[r] += K[r * na + a] * ya[a];
+    }
+    int ia = (int)na;
+    gemm(0, in, in, ia, -1.0, K, ia, Ha, in, 0.0, IKH, in);
+    for (int64_t i = 0; i < n; i++) IKH[i * n + i] += 1.0;
+    gemm(0, in, in, in, 1.0, IKH, in, P, in, 0.0, T, in);
+    gemm(1, in, in, in, 1.0, T, in, IKH, in, 0.0, Po, in);
+    gemm(0, in, ia, ia, 1.0, K, ia, Ra, ia, 0.0, KR, ia);
+    gemm(1, in, in, ia, 1.0, KR, ia, K, ia, 1.0, Po, in);
+    return 0;
+}
+
 /* The buffers of a call: the first n_read read, the rest up to n written. */
 static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
                            int n, const char* use) {
@@ -1119,6 +1222,52 @@ static PyObject* kernel_imu(PyObject* self, PyObject* const* args, Py_ssize_t na
     return status < 0 ? NULL : PyLong_FromLongLong(status);
 }
 
+#define UPDATE_USE                                                                               \
+    "update(sizes, gates, H, y, R, P, x, S_diag, whitened, stats, x_out, P_out, work) takes 13 " \
+    "buffers"
+
+static PyObject* kernel_update(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer buf[13];
+    if (get_buffer_list(args, nargs, buf, 7, 13, UPDATE_USE) < 0) return NULL;
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), M = 0, status = -1;
+    int64_t n = (int64_t)(buf[6].len / w);
+    const int64_t* sizes = (const int64_t*)buf[0].buf;
+    for (int64_t i = 0; i < k; i++) M += sizes[i] > 0 ? sizes[i] : MAX_ROWS + 1;
+    const int64_t need[13] = {
+        0, k, M * n, M, M * M, n * n, n, M, M, 3 * k, n, n * n, update_work(n, M)};
+    int ok = M <= MAX_ROWS && buf[1].len >= k * w;
+    for (int i = 2; i < 13; i++) ok = ok && buf[i].len >= need[i] * w;
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "update: over 64 rows, or a buffer is too small");
+    } else {
+        const double* in[6];
+        double* out[6];
+        for (int i = 0; i < 6; i++) {
+            in[i] = (const double*)buf[1 + i].buf;
+            out[i] = (double*)buf[7 + i].buf;
+        }
+        Py_BEGIN_ALLOW_THREADS status =
+            kalman_update(k, sizes, in[0], n, M, in[1], in[2], in[3], in[4], in[5], out[0], out[1],
+                          out[2], out[3], out[4], out[5]);
+        Py_END_ALLOW_THREADS
+    }
+    for (int i = 0; i < 13; i++) PyBuffer_Release(&buf[i]);
+    return status < 0 ? NULL : PyLong_FromLongLong(status);
+}
+
+static PyObject* kernel_update_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "update_work(n, rows) takes 2 integers");
+        return NULL;
+    }
+    long long n = PyLong_AsLongLong(args[0]), M = PyLong_AsLongLong(args[1]);
+    if (PyErr_Occurred()) return NULL;
+    return PyLong_FromLongLong(update_work(n, M));
+}
+
 static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
     Py_buffer dims;
@@ -1201,6 +1350,11 @@ static PyMethodDef methods[] = {
     {"imu", (PyCFunction)(void (*)(void))kernel_imu, METH_FASTCALL,
      "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) -> status: "
      "the IMU's prediction and Jacobians with the dynamics' (the estimator's closed form)"},
+    {"update", (PyCFunction)(void (*)(void))kernel_update, METH_FASTCALL,
+     "update(sizes, gates, H, y, R, P, x, S_diag, whitened, stats, x_out, P_out, work) -> "
+     "status: the gated Kalman update of stacked measurements (the estimator's fast path)"},
+    {"update_work", (PyCFunction)(void (*)(void))kernel_update_work, METH_FASTCALL,
+     "update_work(n, rows) -> doubles of work update() needs"},
     {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
      "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's)"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import chi2
 
+from gyrotensegrity.fast import _fastkernel
+
 
 @dataclass(frozen=True)
 class Innovation:
@@ -92,21 +94,25 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     and angles); fusing them together is the same as fusing them one after the other without
     relinearising. The estimate is then put back on the constraint manifold.
 
-    With ``ekf.fast`` the same in fewer, larger numpy operations (:func:`_fuse_fast`).
+    With ``ekf.fast`` the same in the compiled kernel (:func:`_fuse_fast`).
 
     Returns
     -------
     list of Innovation, one per measurement, in order
     """
-    if getattr(ekf, "fast", False):
+    if getattr(ekf, "fast", False) and _fastkernel is not None:
         return _fuse_fast(ekf, measurements)
+    return _fuse_reference(ekf, measurements)
+
+
+def _fuse_reference(ekf, measurements) -> list[Innovation]:
     kf = ekf.kf
     results, keep = [], []
     for meas in measurements:
         y = meas.residual(meas.z, meas.hx)
         S = meas.H @ kf.P @ meas.H.T + meas.R
         w, log_det_S = whitened(S, y)
-        result = judge(ekf, meas, y, S, w, log_det_S - log_det(meas.R))
+        result = judge(ekf, meas, y, np.diag(S), w, log_det_S - log_det(meas.R))
         results.append(result)
         if result.accepted:
             keep.append((y, meas))
@@ -129,69 +135,46 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
 
 
 def _fuse_fast(ekf, measurements) -> list[Innovation]:
-    """:func:`fuse` without filterpy: ``P H^T`` and ``S`` once for all measurements stacked,
-    the Cholesky factors of every measurement's ``S`` and ``R`` in one batched call (NIS,
-    whitened innovation, spread), one solve with the accepted measurements' ``S`` for the gain
-    (filterpy inverts it) and the Joseph form as filterpy writes it. Equal to :func:`fuse` to
-    round-off (tests/estimator/test_fast_fusion.py)."""
+    """:func:`fuse` in one call of the compiled kernel (``_fastkernel.update``) where filterpy
+    and numpy take a few dozen: the measurements stacked, each one's ``S`` factored once by
+    Cholesky (NIS, gate, whitened innovation, spread), the accepted ones' ``S`` once more for
+    the gain where filterpy inverts it, the Joseph form as filterpy writes it. Equal to the
+    reference to round-off (tests/estimator/test_fast_fusion.py); where the accepted
+    measurements' ``S`` is not positive definite the reference takes the sample."""
     kf = ekf.kf
-    P = kf.P
     ys = [meas.residual(meas.z, meas.hx) for meas in measurements]
+    sizes = np.array([len(y) for y in ys], np.int64)
+    ends = np.cumsum(sizes)
+    R = np.zeros((ends[-1], ends[-1]))
+    for e, k, meas in zip(ends, sizes, measurements, strict=True):
+        R[e - k : e, e - k : e] = meas.R
+    probability = ekf.config.gate_probability
+    gates = np.array([gate(probability, k) for k in sizes])
+    n, y = len(kf.P), np.concatenate(ys)
+    S_diag, w, stats = np.empty(len(y)), np.empty(len(y)), np.empty((len(ys), 3))
+    x, P = np.empty(n), np.empty((n, n))
     H = np.vstack([meas.H for meas in measurements])
-    PHt = P @ H.T
-    S = H @ PHt
-    ends = np.cumsum([len(y) for y in ys])
-    starts = ends - [len(y) for y in ys]
-    blocks = [S[a:e, a:e] + m.R for a, e, m in zip(starts, ends, measurements, strict=True)]
-    w, spread = _whitened_all(blocks, ys, [m.R for m in measurements])
-    results, rows, keep = [], [], []
-    for i, meas in enumerate(measurements):
-        results.append(judge(ekf, meas, ys[i], blocks[i], w[i], spread[i]))
-        if results[-1].accepted:
-            rows.extend(range(starts[i], ends[i]))
-            keep.append(i)
-    if keep:
-        y = np.concatenate([ys[i] for i in keep])
-        R = np.zeros((len(y), len(y)))
-        i = 0
-        for j in keep:
-            k = len(ys[j])
-            R[i : i + k, i : i + k] = measurements[j].R
-            i += k
-        H_acc, PHt_acc = H[rows], PHt[:, rows]
-        K = np.linalg.solve(S[np.ix_(rows, rows)] + R, PHt_acc.T).T
-        I_KH = np.eye(len(P)) - K @ H_acc
-        kf.x = kf.x + (K @ y)[:, None]
-        kf.P = I_KH @ P @ I_KH.T + K @ R @ K.T
+    work = np.empty(_fastkernel.update_work(n, len(y)))
+    prior = np.ascontiguousarray(kf.P), np.ascontiguousarray(kf.x[:, 0])
+    if _fastkernel.update(sizes, gates, H, y, R, *prior, S_diag, w, stats, x, P, work):
+        return _fuse_reference(ekf, measurements)
+    results = [
+        judge(ekf, meas, ys[i], S_diag[e - k : e], w[e - k : e], stats[i, 1], stats[i, 0])
+        for i, (e, k, meas) in enumerate(zip(ends, sizes, measurements, strict=True))
+    ]
+    if stats[:, 2].any():
+        kf.x, kf.P = x.reshape(-1, 1), P
         ekf.constrain()
     for r in results:
         ekf.emit(r)
     return results
 
 
-def _whitened_all(blocks, ys, Rs):
-    """:func:`whitened` of every ``(S, y)`` and the spreads ``log det S - log det R``: in one
-    batched Cholesky where the blocks are alike in size and all positive definite, else one by
-    one (then NaN where :func:`whitened` and :func:`log_det` give it)."""
-    if len({len(y) for y in ys}) == 1:
-        try:
-            L = np.linalg.cholesky(np.stack(blocks + Rs))
-        except np.linalg.LinAlgError:
-            L = None
-        if L is not None and np.all(np.isfinite(L)):
-            n = len(ys)
-            w = np.linalg.solve(L[:n], np.stack(ys)[..., None])[..., 0]
-            log_dets = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
-            return w, log_dets[:n] - log_dets[n:]
-    pairs = [whitened(S, y) for S, y in zip(blocks, ys, strict=True)]
-    spread = [log_det_S - log_det(R) for (_, log_det_S), R in zip(pairs, Rs, strict=True)]
-    return [w for w, _ in pairs], spread
-
-
-def judge(ekf, meas: Measurement, y, S, w, spread: float) -> Innovation:
-    """The gate's verdict on one measurement (innovation ``y``, its covariance ``S``, whitened
-    ``w``, ``spread``), counted in its source's monitor."""
-    nis = float(w @ w)
+def judge(ekf, meas: Measurement, y, variance, w, spread: float, nis=None) -> Innovation:
+    """The gate's verdict on one measurement (innovation ``y``, the diagonal ``variance`` of its
+    covariance, whitened ``w``, ``spread``; ``nis`` given or ``w . w``), counted in its source's
+    monitor."""
+    nis = float(w @ w) if nis is None else float(nis)
     ratio = nis / gate(ekf.config.gate_probability, len(y))
     accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
     monitor = ekf.monitors[meas.source]
@@ -200,12 +183,12 @@ def judge(ekf, meas: Measurement, y, S, w, spread: float) -> Innovation:
         meas.source,
         ekf.t,
         y,
-        np.diag(S).copy(),
+        np.array(variance),
         nis,
         ratio,
         accepted,
         monitor.rejected,
-        w,
+        np.array(w),
         float(spread),
     )
 
