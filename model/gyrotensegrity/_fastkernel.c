@@ -969,6 +969,127 @@ static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec
     return 0;
 }
 
+/* ---- The IMU's three measurements (gyrohost.estimator.fuse_imu_*, fast path) ---- */
+
+/* Rotation vector (3) of the rotation R (3 x 3, row-major), as geometry.rotation_vector. */
+static void rotation_log(const double* R, double* v) {
+    double tr = R[0] + R[4] + R[8], q[4];
+    int i = 0;
+    for (int j = 1; j < 3; j++)
+        if (R[j * 4] > R[i * 4]) i = j;
+    if (tr >= R[i * 4]) {
+        q[0] = R[7] - R[5];
+        q[1] = R[2] - R[6];
+        q[2] = R[3] - R[1];
+        q[3] = 1.0 + tr;
+    } else {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        q[i] = 1.0 - tr + 2.0 * R[i * 4];
+        q[j] = R[j * 3 + i] + R[i * 3 + j];
+        q[k] = R[k * 3 + i] + R[i * 3 + k];
+        q[3] = R[k * 3 + j] - R[j * 3 + k];
+    }
+    double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    double sign = q[3] < 0.0 ? -1.0 : 1.0;
+    for (int j = 0; j < 4; j++) q[j] *= sign / norm;
+    double sine = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+    double angle = 2.0 * atan2(sine, q[3]), scale;
+    if (angle <= 1e-3)
+        scale = 2.0 + angle * angle / 12.0 + 7.0 * angle * angle * angle * angle / 2880.0;
+    else
+        scale = angle / sin(angle / 2.0);
+    for (int j = 0; j < 3; j++) v[j] = scale * q[j];
+}
+
+/* One IMU measurement's rows (3) of H (n columns: the Jacobian J (3 x k) at the columns cols,
+ * the identity at bias, if >= 0), its prediction taken back by lag (hx = h - lag J x_dot), and
+ * its noise std^2 I + tau^2 h_dot h_dot^T into the 3 x 3 block of Rm (ld 9) at (o, o). */
+static void imu_rows(int64_t n, int64_t k, const int64_t* cols, const double* J, const double* h,
+                     const double* xdot, double lag, double tau, double std, int64_t bias,
+                     const double* x, int64_t o, double* H, double* hx, double* Rm) {
+    double hd[3];
+    for (int r = 0; r < 3; r++) {
+        double* row = H + (o + r) * n;
+        for (int64_t c = 0; c < n; c++) row[c] = 0.0;
+        double s = 0.0;
+        for (int64_t c = 0; c < k; c++) {
+            row[cols[c]] = J[r * k + c];
+            s += J[r * k + c] * xdot[c];
+        }
+        hd[r] = s;
+        if (bias >= 0) row[bias + r] = 1.0;
+        hx[o + r] = h[r] - lag * s + (bias >= 0 ? x[bias + r] : 0.0);
+    }
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            Rm[(o + r) * 9 + o + c] = (r == c ? std * std : 0.0) + tau * tau * hd[r] * hd[c];
+}
+
+/* The rate (rows 0-2), specific force (3-5) and attitude (6-8) measurements of an IMU sample
+ * z = (omega, accel, Z-Y-X angles) from the prediction (R, dR 9 x k, om, dom, f, df, x_dot
+ * over the state columns cols): H (9 x n), hx, z_out (the angle's as the rotation vector
+ * log(R_m R^T) + lag w, its hx 0) and R (9 x 9; zero off the blocks). spec: [lag, tau, std of
+ * rate, accel, angle, floor, bias column, accelerometer bias column or -1]. */
+static void imu_measurements(int64_t n, int64_t k, const int64_t* cols, const double* spec,
+                             const double* const* pred, const double* x, const double* z, double* H,
+                             double* hx, double* zo, double* Rm) {
+    const double *R = pred[0], *dR = pred[1], *om = pred[2], *dom = pred[3], *f = pred[4];
+    const double *df = pred[5], *xdot = pred[6];
+    double lag = spec[0], tau = spec[1], sa = spec[4], floor_ = spec[5];
+    for (int i = 0; i < 81; i++) Rm[i] = 0.0;
+    for (int i = 0; i < 6; i++) zo[i] = z[i];
+    imu_rows(n, k, cols, dom, om, xdot, lag, tau, spec[2], (int64_t)spec[6], x, 0, H, hx, Rm);
+    imu_rows(n, k, cols, df, f, xdot, lag, tau, spec[3], (int64_t)spec[7], x, 3, H, hx, Rm);
+    /* attitude: J = vee(dR_j R^T) per column, w = J x_dot */
+    double J[3 * 256], w[3] = {0.0, 0.0, 0.0};
+    for (int64_t c = 0; c < k; c++) {
+        double M[9];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                double s = 0.0;
+                for (int j = 0; j < 3; j++) s += dR[(a * 3 + j) * k + c] * R[b * 3 + j];
+                M[a * 3 + b] = s;
+            }
+        J[c] = 0.5 * (M[7] - M[5]);
+        J[k + c] = 0.5 * (M[2] - M[6]);
+        J[2 * k + c] = 0.5 * (M[3] - M[1]);
+        for (int r = 0; r < 3; r++) w[r] += J[r * k + c] * xdot[c];
+    }
+    double cr = cos(z[6]), sr = sin(z[6]), cp = cos(z[7]), sp = sin(z[7]);
+    double cy = cos(z[8]), sy = sin(z[8]);
+    double Rmeas[9] = {cy * cp,
+                       cy * sp * sr - sy * cr,
+                       cy * sp * cr + sy * sr,
+                       sy * cp,
+                       sy * sp * sr + cy * cr,
+                       sy * sp * cr - cy * sr,
+                       -sp,
+                       cp * sr,
+                       cp * cr};
+    double T[9], v[3];
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double s = 0.0;
+            for (int j = 0; j < 3; j++) s += Rmeas[a * 3 + j] * R[b * 3 + j];
+            T[a * 3 + b] = s;
+        }
+    rotation_log(T, v);
+    double E[9] = {cy * cp, -sy, 0.0, sy * cp, cy, 0.0, -sp, 0.0, 1.0};
+    for (int r = 0; r < 3; r++) {
+        double* row = H + (6 + r) * n;
+        for (int64_t c = 0; c < n; c++) row[c] = 0.0;
+        for (int64_t c = 0; c < k; c++) row[cols[c]] = J[r * k + c];
+        zo[6 + r] = v[r] + lag * w[r];
+        hx[6 + r] = 0.0;
+        for (int c = 0; c < 3; c++) {
+            double ee =
+                E[r * 3] * E[c * 3] + E[r * 3 + 1] * E[c * 3 + 1] + E[r * 3 + 2] * E[c * 3 + 2];
+            Rm[(6 + r) * 9 + 6 + c] =
+                sa * sa * (ee + (r == c ? floor_ * floor_ : 0.0)) + tau * tau * w[r] * w[c];
+        }
+    }
+}
+
 /* ---- The estimator's measurement update (gyrohost.estimator.fusion, fast path) ---- */
 
 /* In-place Cholesky factor as numpy's (any positive, finite pivot); row + 1 where it fails. */
@@ -1268,6 +1389,35 @@ static PyObject* kernel_update_work(PyObject* self, PyObject* const* args, Py_ss
     return PyLong_FromLongLong(update_work(n, M));
 }
 
+#define IMU_MEAS_USE                                                                           \
+    "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, " \
+    "z_out, R_out) takes 15 buffers"
+
+static PyObject* kernel_imu_measurements(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer buf[15];
+    if (get_buffer_list(args, nargs, buf, 11, 15, IMU_MEAS_USE) < 0) return NULL;
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), n = (int64_t)(buf[9].len / w);
+    const int64_t need[15] = {0, 8, 9, 9 * k, 3, 3 * k, 3, 3 * k, k, n, 9, 9 * n, 9, 9, 81};
+    int ok = k <= 256;
+    for (int i = 1; i < 15; i++) ok = ok && buf[i].len >= need[i] * w;
+    const int64_t* cols = (const int64_t*)buf[0].buf;
+    for (int64_t c = 0; ok && c < k; c++) ok = cols[c] >= 0 && cols[c] < n;
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "imu_measurements: a buffer too small or a column off");
+    } else {
+        const double* pred[7];
+        for (int i = 0; i < 7; i++) pred[i] = (const double*)buf[2 + i].buf;
+        imu_measurements(n, k, cols, (const double*)buf[1].buf, pred, (const double*)buf[9].buf,
+                         (const double*)buf[10].buf, (double*)buf[11].buf, (double*)buf[12].buf,
+                         (double*)buf[13].buf, (double*)buf[14].buf);
+    }
+    for (int i = 0; i < 15; i++) PyBuffer_Release(&buf[i]);
+    if (!ok) return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
     Py_buffer dims;
@@ -1355,6 +1505,10 @@ static PyMethodDef methods[] = {
      "status: the gated Kalman update of stacked measurements (the estimator's fast path)"},
     {"update_work", (PyCFunction)(void (*)(void))kernel_update_work, METH_FASTCALL,
      "update_work(n, rows) -> doubles of work update() needs"},
+    {"imu_measurements", (PyCFunction)(void (*)(void))kernel_imu_measurements, METH_FASTCALL,
+     "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, "
+     "z_out, R_out): the IMU's rate, specific force and attitude measurements (the estimator's "
+     "fast path)"},
     {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
      "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's)"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,

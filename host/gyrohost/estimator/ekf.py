@@ -109,13 +109,13 @@ class TensegrityEKF:
         self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
-        self.fast_imu = fast_imu(self)
         self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
         self.dynamic_columns = np.arange(L.n_dynamic)
         # the columns the IMU prediction's Jacobians are over
         self.imu_columns = np.r_[self.dynamic_columns, L.mounting.start : L.mounting.stop]
+        self.fast_imu = fast_imu(self)
         self.t = float(t0_s)
         self.t_start = self.t
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
@@ -342,6 +342,8 @@ class TensegrityEKF:
             return []
         pred = self._imu_prediction()
         self._A = pred.A  # the lean process model's next linearisation
+        if self.fast_imu is not None:
+            return fuse(self, *self.fast_imu.measurements(pred, omega_rad_s, accel_m_s2, euler_rad))
         return fuse(
             self,
             fuse_imu_rate.measurement(self, pred, omega_rad_s),

@@ -6,12 +6,15 @@ and velocities (24 perturbed states on the D-bar, batched in numpy); the kernel 
 forward mode (dual numbers) over the frame's twelve inputs, the two edge vectors of its nodes
 and their rates, and chains them to the states, whose effect on those vectors is linear. Both
 are exact to round-off; tests/estimator/test_fast_imu.py holds them equal. The mounting's
-columns, where the mounting is a state, are added as the reference adds them. Covered as
-:mod:`.fast_prediction`; elsewhere :func:`fast_imu` gives None.
+columns, where the mounting is a state, are added as the reference adds them. The three
+measurements of a sample (:meth:`FastImu.measurements`, the ``fuse_imu_*`` modules' in one
+kernel call) follow. Covered as :mod:`.fast_prediction`; elsewhere :func:`fast_imu` gives None.
 """
 
 import numpy as np
 
+from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
+from .fusion import Measurement
 from .imu_prediction import ImuPrediction, with_mounting
 
 
@@ -38,6 +41,7 @@ class FastImu:
                                      N_fix.ravel()])  # fmt: skip
         self._R_bs = slice(head + 3, head + 12)
         self._work = np.empty(self.kernel.jacobian_work(self.dyn._dims))
+        self._columns = np.asarray(ekf.imu_columns, np.int64)
 
     def __call__(self, x, u) -> ImuPrediction:
         """The IMU's prediction at the filter state ``x`` (n,) under ``u``, as
@@ -62,3 +66,25 @@ class FastImu:
             self.dyn._singular(float("nan"), status - 1)
         pred = ImuPrediction(R, dR, om, dom, force, dforce, A, f)
         return pred if dR_bs is None else with_mounting(pred, R_bs, dR_bs)
+
+    def measurements(self, pred: ImuPrediction, omega_rad_s, accel_m_s2, euler_rad):
+        """The rate, specific-force and attitude measurements of one IMU sample, as
+        ``fuse_imu_rate``, ``fuse_imu_accel`` and ``fuse_imu_angle`` make them from ``pred``."""
+        ekf, c = self.ekf, self.ekf.config
+        L, n = ekf.layout, ekf.layout.size
+        accel_bias = L.accel_bias.start if L.n_accel_bias else -1
+        spec = np.array([ekf.imu_lag_s, c.imu_time_std_s, c.imu_rate_std_rad_s,
+                         c.imu_accel_std_m_s2, c.imu_angle_std_rad, fuse_imu_angle.FLOOR,
+                         L.bias.start, accel_bias])  # fmt: skip
+        z = np.concatenate([omega_rad_s, accel_m_s2, euler_rad]).astype(float)
+        H, hx, z_out, R = np.empty((9, n)), np.empty(9), np.empty(9), np.empty((9, 9))
+        fields = (pred.R_ws, pred.dR_ws, pred.omega, pred.d_omega, pred.specific_force,
+                  pred.d_specific_force, pred.x_dot)  # fmt: skip
+        fields = [np.ascontiguousarray(f, float) for f in fields]
+        x = np.ascontiguousarray(ekf.x)
+        self.kernel.imu_measurements(self._columns, spec, *fields, x, z, H, hx, z_out, R)
+        sources = (fuse_imu_rate.SOURCE, fuse_imu_accel.SOURCE, fuse_imu_angle.SOURCE)
+        return [
+            Measurement(s, z_out[i : i + 3], hx[i : i + 3], H[i : i + 3], R[i : i + 3, i : i + 3])
+            for s, i in zip(sources, (0, 3, 6), strict=True)
+        ]
