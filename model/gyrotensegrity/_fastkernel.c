@@ -526,8 +526,8 @@ static void gemm(int trans_b, int r, int c, int k, double a, const double* A, in
 /* C = h A B + c0 I for the lean step's A (D x D): rows of q take B's q_dot rows, rows of
  * q_dot the accelerations' Jacobian Jq (3 m x D) times B, the wheels' and rest lengths' rows
  * their diagonal slopes; B is D x D. */
-static void apply_A(const int64_t* d, const double* restrict Jq, double h, double wslope,
-                    double rslope, double c0, const double* restrict B, double* restrict C) {
+static void apply_A(const int64_t* d, const double* Jq, double h, double wslope, double rslope,
+                    double c0, const double* B, double* C) {
     int64_t m = d[0], nw = d[3], D = 6 * m + nw + d[2];
     for (int64_t i = 0; i < 3 * m; i++)
         for (int64_t c = 0; c < D; c++) C[i * D + c] = h * B[(3 * m + i) * D + c];
@@ -541,8 +541,8 @@ static void apply_A(const int64_t* d, const double* restrict Jq, double h, doubl
 
 /* Po = F P F^T for F (D x D) on the leading D entries of the n-entry state, the identity
  * beyond: FP = F P[:D, :] (D x n), then FP F^T. */
-static void propagate(int64_t D, int64_t n, const double* restrict F, const double* restrict P,
-                      double* restrict FP, double* restrict Po) {
+static void propagate(int64_t D, int64_t n, const double* F, const double* P, double* FP,
+                      double* Po) {
     int iD = (int)D, in = (int)n;
     gemm(0, iD, in, iD, 1.0, F, iD, P, in, 0.0, FP, in);
     gemm(1, iD, iD, iD, 1.0, FP, in, F, iD, 0.0, Po, in);
@@ -1215,38 +1215,65 @@ static int get_buffers(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, 
     return get_buffer_list(args, nargs, buf, 4, 6, use);
 }
 
-#define LEAN_USE "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) takes 10 buffers"
+/* A call's body: it checks its buffers (-1 with a Python error where they do not fit) and
+ * computes; the status it returns goes back to Python. */
+typedef int64_t (*CallBody)(Py_buffer* buf);
 
-static PyObject* kernel_lean_step(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
-    Py_buffer buf[10];
-    if (get_buffer_list(args, nargs, buf, 6, 10, LEAN_USE) < 0) return NULL;
-    const int64_t* dims = (const int64_t*)buf[1].buf;
-    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2];
-    int64_t n = (int64_t)(buf[3].len / (Py_ssize_t)sizeof(double)), status = -1;
-    Py_ssize_t w = (Py_ssize_t)sizeof(double);
-    if (dims[5] != 0 || n < D || buf[2].len < step_spec_size(dims) * w || buf[4].len < n * n * w ||
-        buf[5].len < D * D * w || buf[6].len < n * w || buf[7].len < n * n * w ||
-        buf[8].len < D * D * w || buf[9].len < lean_work(dims, n) * w) {
-        PyErr_SetString(PyExc_ValueError, "lean_step: joints, or a buffer is too small");
-    } else {
-        Consts k;
-        StepSpec spec;
-        layout((const double*)buf[0].buf, dims, &k);
-        step_spec((const double*)buf[2].buf, dims, &spec);
-        Py_BEGIN_ALLOW_THREADS status =
-            lean_step(&k, dims, &spec, n, (const double*)buf[3].buf, (const double*)buf[4].buf,
-                      (const double*)buf[5].buf, (double*)buf[6].buf, (double*)buf[7].buf,
-                      (double*)buf[8].buf, (double*)buf[9].buf);
-        Py_END_ALLOW_THREADS
-    }
-    for (int i = 0; i < 10; i++) PyBuffer_Release(&buf[i]);
+static PyObject* buffer_call(PyObject* const* args, Py_ssize_t nargs, int n_read, int n,
+                             const char* use, CallBody body) {
+    Py_buffer buf[16];
+    if (get_buffer_list(args, nargs, buf, n_read, n, use) < 0) return NULL;
+    int64_t status = body(buf);
+    for (int i = 0; i < n; i++) PyBuffer_Release(&buf[i]);
     return status < 0 ? NULL : PyLong_FromLongLong(status);
 }
+
+/* A module function taking n buffers (the first n_read read) into body. */
+#define BUFFER_CALL(name, n_read, n, use, body)                                      \
+    static PyObject* name(PyObject* self, PyObject* const* args, Py_ssize_t nargs) { \
+        (void)self;                                                                  \
+        return buffer_call(args, nargs, n_read, n, use, body);                       \
+    }
+
+/* Whether ok and buffers from..n-1 hold need[i] doubles each; a ValueError saying what where
+ * not. */
+static int fits(const Py_buffer* buf, const int64_t* need, int from, int n, int ok,
+                const char* what) {
+    for (int i = from; i < n; i++) ok = ok && buf[i].len >= need[i] * (Py_ssize_t)sizeof(double);
+    if (!ok) PyErr_SetString(PyExc_ValueError, what);
+    return ok;
+}
+
+#define LEAN_USE "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) takes 10 buffers"
+
+static int64_t lean_body(Py_buffer* buf) {
+    const int64_t* dims = (const int64_t*)buf[1].buf;
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status;
+    int64_t n = (int64_t)(buf[3].len / (Py_ssize_t)sizeof(double));
+    const int64_t need[10] = {0,     0,     step_spec_size(dims), n, n * n, D * D, n,
+                              n * n, D * D, lean_work(dims, n)};
+    if (!fits(buf, need, 2, 10, dims[5] == 0 && n >= D, "lean_step: joints, or a small buffer"))
+        return -1;
+    Consts k;
+    StepSpec spec;
+    layout((const double*)buf[0].buf, dims, &k);
+    step_spec((const double*)buf[2].buf, dims, &spec);
+    Py_BEGIN_ALLOW_THREADS status =
+        lean_step(&k, dims, &spec, n, (const double*)buf[3].buf, (const double*)buf[4].buf,
+                  (const double*)buf[5].buf, (double*)buf[6].buf, (double*)buf[7].buf,
+                  (double*)buf[8].buf, (double*)buf[9].buf);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_lean_step, 6, 10, LEAN_USE, lean_body)
 
 /* use_blas(capsule): take dgemm from scipy.linalg.cython_blas.__pyx_capi__["dgemm"]. */
 static PyObject* kernel_use_blas(PyObject* self, PyObject* capsule) {
     (void)self;
+    if (capsule == Py_None) { /* back to the loops */
+        blas_dgemm = NULL;
+        Py_RETURN_NONE;
+    }
     const char* name = PyCapsule_GetName(capsule);
     if (!name) return NULL;
     const char* want = "void (char *, char *, int *, int *, int *, ";
@@ -1266,10 +1293,7 @@ static PyObject* kernel_use_blas(PyObject* self, PyObject* capsule) {
 
 /* manifold(E, B0, l2, spec, P, x, P_out, work) -> status: x projected in place onto the bars'
  * constraints and, unless P is empty, P_out = Pi P Pi^T; spec = [rtol, iterations]. */
-static PyObject* kernel_manifold(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
-    Py_buffer buf[8];
-    if (get_buffer_list(args, nargs, buf, 5, 8, MANIFOLD_USE) < 0) return NULL;
+static int64_t manifold_body(Py_buffer* buf) {
     Py_ssize_t w = (Py_ssize_t)sizeof(double);
     Bars b;
     b.beta = (int64_t)(buf[2].len / w);
@@ -1280,35 +1304,38 @@ static PyObject* kernel_manifold(PyObject* self, PyObject* const* args, Py_ssize
     b.l2 = (const double*)buf[2].buf;
     const double* spec = (const double*)buf[3].buf;
     int with_P = buf[4].len > 0;
-    int64_t status = -1;
-    if (b.beta == 0 || b.n < 6 * b.m || buf[1].len < 3 * b.beta * w || buf[3].len < 2 * w ||
-        (with_P && (buf[4].len < b.n * b.n * w || buf[6].len < b.n * b.n * w)) ||
-        buf[7].len < manifold_work(b.m, b.beta, b.n) * w) {
-        PyErr_SetString(PyExc_ValueError, "manifold: a buffer is too small");
-    } else {
-        double* x = (double*)buf[5].buf;
-        double* work = (double*)buf[7].buf;
-        int64_t iterations = (int64_t)spec[1];
-        Py_BEGIN_ALLOW_THREADS if (with_P) status = condition_bars(
-            &b, x, (const double*)buf[4].buf, (double*)buf[6].buf, spec[0], iterations, work);
-        else status = project_bars(&b, x, spec[0], iterations, work);
-        Py_END_ALLOW_THREADS
+    int64_t nn = with_P ? b.n * b.n : 0, status;
+    const int64_t need[8] = {0, 3 * b.beta, 0, 2, nn, b.n, nn, manifold_work(b.m, b.beta, b.n)};
+    if (!fits(buf, need, 1, 8, b.beta > 0 && b.n >= 6 * b.m, "manifold: a buffer is too small"))
+        return -1;
+    double* x = (double*)buf[5].buf;
+    double* work = (double*)buf[7].buf;
+    int64_t iterations = (int64_t)spec[1];
+    Py_BEGIN_ALLOW_THREADS if (with_P) status = condition_bars(
+        &b, x, (const double*)buf[4].buf, (double*)buf[6].buf, spec[0], iterations, work);
+    else status = project_bars(&b, x, spec[0], iterations, work);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_manifold, 5, 8, MANIFOLD_USE, manifold_body)
+
+/* The n integers of a call into v; 0, or -1 with a Python error. */
+static int int_args(PyObject* const* args, Py_ssize_t nargs, int n, long long* v, const char* use) {
+    if (nargs != n) {
+        PyErr_SetString(PyExc_TypeError, use);
+        return -1;
     }
-    for (int i = 0; i < 8; i++) PyBuffer_Release(&buf[i]);
-    return status < 0 ? NULL : PyLong_FromLongLong(status);
+    for (int i = 0; i < n; i++) {
+        v[i] = PyLong_AsLongLong(args[i]);
+        if (v[i] == -1 && PyErr_Occurred()) return -1;
+    }
+    return 0;
 }
 
 static PyObject* kernel_manifold_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
     long long v[3];
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "manifold_work(m, beta, n) takes 3 integers");
-        return NULL;
-    }
-    for (int i = 0; i < 3; i++) {
-        v[i] = PyLong_AsLongLong(args[i]);
-        if (v[i] == -1 && PyErr_Occurred()) return NULL;
-    }
+    if (int_args(args, nargs, 3, v, "manifold_work(m, beta, n) takes 3 integers")) return NULL;
     return PyLong_FromLongLong(manifold_work(v[0], v[1], v[2]));
 }
 
@@ -1316,107 +1343,82 @@ static PyObject* kernel_manifold_work(PyObject* self, PyObject* const* args, Py_
     "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) takes 13 " \
     "buffers"
 
-static PyObject* kernel_imu(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
-    Py_buffer buf[13];
-    if (get_buffer_list(args, nargs, buf, 4, 13, IMU_USE) < 0) return NULL;
+static int64_t imu_body(Py_buffer* buf) {
     const int64_t* dims = (const int64_t*)buf[1].buf;
-    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status = -1;
-    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status;
     const int64_t need[13] = {0, 0,     imu_spec_size(dims), D, D, D * D, 9, 9 * D, 3, 3 * D,
                               3, 3 * D, imu_work(dims)};
-    int ok = dims[5] == 0 && m <= 100;
-    for (int i = 2; i < 13; i++) ok = ok && buf[i].len >= need[i] * w;
-    if (!ok) {
-        PyErr_SetString(PyExc_ValueError, "imu: joints, over 100 coordinates or a small buffer");
-    } else {
-        Consts k;
-        double* o[9];
-        for (int i = 0; i < 9; i++) o[i] = (double*)buf[4 + i].buf;
-        layout((const double*)buf[0].buf, dims, &k);
-        Py_BEGIN_ALLOW_THREADS status =
-            imu_predict(&k, dims, (const double*)buf[2].buf, (const double*)buf[3].buf, o[0], o[1],
-                        o[2], o[3], o[4], o[5], o[6], o[7], o[8]);
-        Py_END_ALLOW_THREADS
-    }
-    for (int i = 0; i < 13; i++) PyBuffer_Release(&buf[i]);
-    return status < 0 ? NULL : PyLong_FromLongLong(status);
+    if (!fits(buf, need, 2, 13, dims[5] == 0 && m <= 100,
+              "imu: joints, over 100 coordinates or a small buffer"))
+        return -1;
+    Consts k;
+    double* o[9];
+    for (int i = 0; i < 9; i++) o[i] = (double*)buf[4 + i].buf;
+    layout((const double*)buf[0].buf, dims, &k);
+    Py_BEGIN_ALLOW_THREADS status =
+        imu_predict(&k, dims, (const double*)buf[2].buf, (const double*)buf[3].buf, o[0], o[1],
+                    o[2], o[3], o[4], o[5], o[6], o[7], o[8]);
+    Py_END_ALLOW_THREADS return status;
 }
+
+BUFFER_CALL(kernel_imu, 4, 13, IMU_USE, imu_body)
 
 #define UPDATE_USE                                                                               \
     "update(sizes, gates, H, y, R, P, x, S_diag, whitened, stats, x_out, P_out, work) takes 13 " \
     "buffers"
 
-static PyObject* kernel_update(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
-    Py_buffer buf[13];
-    if (get_buffer_list(args, nargs, buf, 7, 13, UPDATE_USE) < 0) return NULL;
-    Py_ssize_t w = (Py_ssize_t)sizeof(double);
-    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), M = 0, status = -1;
-    int64_t n = (int64_t)(buf[6].len / w);
+static int64_t update_body(Py_buffer* buf) {
+    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), M = 0, status;
+    int64_t n = (int64_t)(buf[6].len / (Py_ssize_t)sizeof(double));
     const int64_t* sizes = (const int64_t*)buf[0].buf;
     for (int64_t i = 0; i < k; i++) M += sizes[i] > 0 ? sizes[i] : MAX_ROWS + 1;
     const int64_t need[13] = {
         0, k, M * n, M, M * M, n * n, n, M, M, 3 * k, n, n * n, update_work(n, M)};
-    int ok = M <= MAX_ROWS && buf[1].len >= k * w;
-    for (int i = 2; i < 13; i++) ok = ok && buf[i].len >= need[i] * w;
-    if (!ok) {
-        PyErr_SetString(PyExc_ValueError, "update: over 64 rows, or a buffer is too small");
-    } else {
-        const double* in[6];
-        double* out[6];
-        for (int i = 0; i < 6; i++) {
-            in[i] = (const double*)buf[1 + i].buf;
-            out[i] = (double*)buf[7 + i].buf;
-        }
-        Py_BEGIN_ALLOW_THREADS status =
-            kalman_update(k, sizes, in[0], n, M, in[1], in[2], in[3], in[4], in[5], out[0], out[1],
-                          out[2], out[3], out[4], out[5]);
-        Py_END_ALLOW_THREADS
+    if (!fits(buf, need, 1, 13, M <= MAX_ROWS, "update: over 64 rows, or a small buffer"))
+        return -1;
+    const double* in[6];
+    double* out[6];
+    for (int i = 0; i < 6; i++) {
+        in[i] = (const double*)buf[1 + i].buf;
+        out[i] = (double*)buf[7 + i].buf;
     }
-    for (int i = 0; i < 13; i++) PyBuffer_Release(&buf[i]);
-    return status < 0 ? NULL : PyLong_FromLongLong(status);
+    Py_BEGIN_ALLOW_THREADS status =
+        kalman_update(k, sizes, in[0], n, M, in[1], in[2], in[3], in[4], in[5], out[0], out[1],
+                      out[2], out[3], out[4], out[5]);
+    Py_END_ALLOW_THREADS return status;
 }
+
+BUFFER_CALL(kernel_update, 7, 13, UPDATE_USE, update_body)
 
 static PyObject* kernel_update_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "update_work(n, rows) takes 2 integers");
-        return NULL;
-    }
-    long long n = PyLong_AsLongLong(args[0]), M = PyLong_AsLongLong(args[1]);
-    if (PyErr_Occurred()) return NULL;
-    return PyLong_FromLongLong(update_work(n, M));
+    long long v[2];
+    if (int_args(args, nargs, 2, v, "update_work(n, rows) takes 2 integers")) return NULL;
+    return PyLong_FromLongLong(update_work(v[0], v[1]));
 }
 
 #define IMU_MEAS_USE                                                                           \
     "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, " \
     "z_out, R_out) takes 15 buffers"
 
-static PyObject* kernel_imu_measurements(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
-    Py_buffer buf[15];
-    if (get_buffer_list(args, nargs, buf, 11, 15, IMU_MEAS_USE) < 0) return NULL;
+static int64_t imu_measurements_body(Py_buffer* buf) {
     Py_ssize_t w = (Py_ssize_t)sizeof(double);
     int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), n = (int64_t)(buf[9].len / w);
     const int64_t need[15] = {0, 8, 9, 9 * k, 3, 3 * k, 3, 3 * k, k, n, 9, 9 * n, 9, 9, 81};
-    int ok = k <= 256;
-    for (int i = 1; i < 15; i++) ok = ok && buf[i].len >= need[i] * w;
     const int64_t* cols = (const int64_t*)buf[0].buf;
+    int ok = k <= 256;
     for (int64_t c = 0; ok && c < k; c++) ok = cols[c] >= 0 && cols[c] < n;
-    if (!ok) {
-        PyErr_SetString(PyExc_ValueError, "imu_measurements: a buffer too small or a column off");
-    } else {
-        const double* pred[7];
-        for (int i = 0; i < 7; i++) pred[i] = (const double*)buf[2 + i].buf;
-        imu_measurements(n, k, cols, (const double*)buf[1].buf, pred, (const double*)buf[9].buf,
-                         (const double*)buf[10].buf, (double*)buf[11].buf, (double*)buf[12].buf,
-                         (double*)buf[13].buf, (double*)buf[14].buf);
-    }
-    for (int i = 0; i < 15; i++) PyBuffer_Release(&buf[i]);
-    if (!ok) return NULL;
-    Py_RETURN_NONE;
+    if (!fits(buf, need, 1, 15, ok, "imu_measurements: a buffer too small or a column off"))
+        return -1;
+    const double* pred[7];
+    for (int i = 0; i < 7; i++) pred[i] = (const double*)buf[2 + i].buf;
+    imu_measurements(n, k, cols, (const double*)buf[1].buf, pred, (const double*)buf[9].buf,
+                     (const double*)buf[10].buf, (double*)buf[11].buf, (double*)buf[12].buf,
+                     (double*)buf[13].buf, (double*)buf[14].buf);
+    return 0;
 }
+
+BUFFER_CALL(kernel_imu_measurements, 11, 15, IMU_MEAS_USE, imu_measurements_body)
 
 static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
@@ -1510,7 +1512,8 @@ static PyMethodDef methods[] = {
      "z_out, R_out): the IMU's rate, specific force and attitude measurements (the estimator's "
      "fast path)"},
     {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
-     "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's)"},
+     "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's); None: the "
+     "kernel's own loops"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
     {NULL, NULL, 0, NULL},

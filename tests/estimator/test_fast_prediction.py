@@ -15,6 +15,7 @@ import pytest
 
 from gyrohost.estimator import TensegrityEKF
 from gyrohost.estimator.fast_prediction import fast_prediction
+from gyrohost.estimator.imu_model import euler_zyx
 
 RTOL = 1e-10
 STEPS = 5
@@ -91,3 +92,25 @@ def test_uncovered_configurations_take_the_reference_path(model, config, keys):
     ekf = TensegrityEKF(model, replace(config, **keys))
     assert ekf.fast_step is None
     assert fast_prediction(ekf.process, ekf.layout.size) is None
+
+
+def test_the_kernels_own_loops_equal_blas(model, config, moving_state):
+    """The kernel's products without BLAS (a build whose scipy hands no dgemm over): a
+    prediction and an IMU fusion as with BLAS, to round-off."""
+    from scipy.linalg import cython_blas
+
+    from gyrotensegrity.fast import _fastkernel
+
+    x, _, _ = moving_state
+    config = replace(config, rest_jitter_psd_m2_s=2e-10)
+    runs = []
+    try:
+        for dgemm in (None, cython_blas.__pyx_capi__["dgemm"]):
+            _fastkernel.use_blas(dgemm)
+            ekf = TensegrityEKF(model, config, x0=x)
+            R, _ = ekf.attitude()
+            ekf.fuse_imu(0.01, np.zeros(3), np.array([0.0, 0.0, 9.8]), euler_zyx(R[None])[0])
+            runs.append(ekf)
+    finally:
+        _fastkernel.use_blas(cython_blas.__pyx_capi__["dgemm"])
+    assert_equal_to_round_off(*runs)
