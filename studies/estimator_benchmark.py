@@ -6,7 +6,10 @@ model), for the lean and the rk4 process models, each with the dynamics' Jacobia
 complex step and in closed form (``--jacobian``, default both), with the rest-length jitter
 through the strings' kinks (``--rest-jitter-psd``, default the SIL's 2e-10 m^2 s; 0 leaves it
 out), next to one evaluation of the reference right-hand side (:func:`gyrotensegrity.rhs`) as
-the baseline measured in the same run."""
+the baseline measured in the same run. The filters time the reference path (``fast=False``);
+the lean model with the closed-form Jacobian runs a second time on the fast path (the
+compiled prediction, :mod:`gyrohost.estimator.fast_prediction`), its cycles interleaved with
+the reference's, and their ratio is printed."""
 
 import argparse
 import time
@@ -26,24 +29,29 @@ DEFAULT_SCENE = shipped("scene", "dbar-gyro")
 JACOBIANS = ("complex-step", "analytic")
 
 
-def cycle_times(model, configs, cycles=200, start_s=0.5):
+def cycle_times(model, variants, cycles=200, start_s=0.5):
     """Times of ``cycles`` EKF cycles on noise-free IMU samples of the scene's manoeuvre, one
-    filter per configuration, their cycles interleaved (so that a change of the machine's
-    load during the run falls on all of them alike).
+    filter per variant ``(config, fast)`` (:class:`TensegrityEKF`'s arguments), their cycles
+    interleaved (so that a change of the machine's load during the run falls on all of them
+    alike).
 
     Returns
     -------
-    wall, cpu : ndarray, shape (len(configs), cycles), s
+    wall, cpu : ndarray, shape (len(variants), cycles), s
         Wall-clock and thread CPU time per cycle (the CPU time is what the cycle costs when
         other processes share the cores).
-    accepted : ndarray, shape (len(configs),)
+    accepted : ndarray, shape (len(variants),)
         Share of the IMU measurements the gates let through (the cycles timed did fuse).
     """
+    configs = [config for config, _ in variants]
     truth = simulate_truth(
         model, configs[0], start_s + cycles * 0.01, seed=0, dt_s=0.01, accel_psd_m2_s3=0.0
     )
     k0 = int(round(start_s / 0.01))
-    ekfs = [TensegrityEKF(model, c, x0=truth.x[k0], t0_s=truth.t_s[k0]) for c in configs]
+    ekfs = [
+        TensegrityEKF(model, c, x0=truth.x[k0], t0_s=truth.t_s[k0], fast=fast)
+        for c, fast in variants
+    ]
     logs = [[] for _ in configs]
     for ekf, log in zip(ekfs, logs, strict=True):
         ekf.log = log.append
@@ -109,20 +117,31 @@ def main(argv=None) -> int:
             )
             for jacobian in jacobians
         ]
+        variants = [(c, False) for c in configs]
+        labels = list(jacobians)
+        if method == "lean" and "analytic" in jacobians:
+            variants.append((configs[jacobians.index("analytic")], True))
+            labels.append("analytic,fast")
         n = args.cycles if method == "lean" else max(args.cycles // 20, 5)
-        wall, cpu, accepted = cycle_times(model, configs, n)
-        for i, jacobian in enumerate(jacobians):
+        wall, cpu, accepted = cycle_times(model, variants, n)
+        for i, label in enumerate(labels):
             print(
-                f"EKF cycle ({method:4s}, {jacobian:12s}): CPU median "
+                f"EKF cycle ({method:4s}, {label:13s}): CPU median "
                 f"{np.median(cpu[i]) * 1e3:.3f} ms (p90 {np.percentile(cpu[i], 90) * 1e3:.3f} "
                 f"ms), wall median {np.median(wall[i]) * 1e3:.3f} ms = "
                 f"{np.median(wall[i]) / base:.1f} rhs evaluations; "
                 f"{100 * accepted[i]:.0f} % of the IMU measurements fused"
             )
         if len(jacobians) > 1:
-            ratios = np.median(cpu[1:] / cpu[0], axis=1)
+            ratios = np.median(cpu[1 : len(jacobians)] / cpu[0], axis=1)
             pairs = ", ".join(f"{j} {r:.2f}" for j, r in zip(jacobians[1:], ratios, strict=True))
             print(f"  CPU per cycle against {jacobians[0]} (median of the cycles' ratios): {pairs}")
+        if labels[-1] == "analytic,fast":
+            ratio = np.median(cpu[-1] / cpu[jacobians.index("analytic")])
+            print(
+                f"  fast path against the reference (lean, analytic), median of the cycles' CPU "
+                f"ratios: {ratio:.3f} ({1 / ratio:.1f} times faster)"
+            )
     return 0
 
 

@@ -72,3 +72,29 @@ def levelling_rotvec(up):
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(s > 1e-12, angle / s, np.where(up[..., 2:3] > 0.0, 1.0, 0.0))
     return axis * scale
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (3,) rad of the rotation ``R`` (3, 3), angle in [0, pi]: by its unit
+    quaternion, built from the largest of ``1 + trace`` and ``1 - trace + 2 R_ii`` (Shepperd's
+    choice, no division by a small number), then ``angle / sin(angle / 2)`` times its vector
+    part (a series below 1e-3 rad, where that ratio loses digits)."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    i = int(np.argmax(np.diag(R)))
+    if trace >= R[i, i]:
+        q = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1], 1.0 + trace])
+    else:
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q = np.empty(4)
+        q[i] = 1.0 - trace + 2.0 * R[i, i]
+        q[j] = R[j, i] + R[i, j]
+        q[k] = R[k, i] + R[i, k]
+        q[3] = R[k, j] - R[j, k]
+    q = q * (np.sign(q[3]) or 1.0) / np.sqrt(q @ q)
+    sine = np.sqrt(q[:3] @ q[:3])
+    angle = 2.0 * np.arctan2(sine, q[3])
+    if angle <= 1e-3:
+        scale = 2.0 + angle**2 / 12.0 + 7.0 * angle**4 / 2880.0
+    else:
+        scale = angle / np.sin(angle / 2.0)
+    return scale * q[:3]

@@ -12,6 +12,7 @@
 #include <Python.h>
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 typedef struct {
     const double *EE_T, *off, *k_s, *c_s, *w2b, *tsel, *smask, *tgain, *WU, *Ef, *Minv, *MinvET,
@@ -414,20 +415,1024 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
     return 0;
 }
 
-/* The six buffers of a call: the first four read, the last two written. */
-static int get_buffers(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, const char* use) {
-    if (nargs != 6) {
+/* ---- The estimator's lean prediction step (gyrohost.estimator.process_model, "lean") ----
+ * State z = [q, q_dot, omega_w, rest] (D = 6 m + n_w + alpha entries), then n - D entries the
+ * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
+ * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
+ * start (n_w), commands (n_w), jitter density (m^2 s)]. follow = 0: the wheels accelerate at
+ * the given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at
+ * wheel_accel from the start setpoints towards the commands. */
+typedef struct {
+    double dt, servo_lag, wheel_lag, wheel_accel;
+    int follow, have_A;
+    double jitter;
+    const double *rest_cmd, *wheel_acc, *sp0, *cmd;
+} StepSpec;
+
+static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
+    int64_t alpha = d[2], nw = d[3];
+    p->dt = s[0];
+    p->servo_lag = s[1];
+    p->wheel_lag = s[2];
+    p->wheel_accel = s[3];
+    p->follow = s[4] != 0.0;
+    p->have_A = s[5] != 0.0;
+    p->rest_cmd = s + 6;
+    p->wheel_acc = p->rest_cmd + alpha;
+    p->sp0 = p->wheel_acc + nw;
+    p->cmd = p->sp0 + nw;
+    p->jitter = p->cmd[nw];
+}
+
+static int64_t step_spec_size(const int64_t* d) {
+    return 7 + d[2] + 3 * d[3];
+}
+
+/* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
+ * (work); w: the kernel's work. */
+static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSpec* p,
+                                 const double* z, double tau, double* dz, double* xm, double* um,
+                                 double* out, double* w) {
+    int64_t m = d[0], alpha = d[2], nw = d[3], ntq = d[4];
+    const double *om = z + 6 * m, *rest = om + nw;
+    for (int64_t i = 0; i < 6 * m; i++) xm[i] = z[i];
+    for (int64_t i = 0; i < nw; i++) xm[6 * m + i] = 0.0; /* wheel angles: no force sees them */
+    for (int64_t t = 0; t < ntq; t++) {
+        double s = 0.0;
+        for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
+        xm[6 * m + nw + t] = s;
+    }
+    for (int64_t i = 0; i < alpha; i++) um[i] = rest[i];
+    for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
+    int64_t status = evaluate(k, d, xm, um, out, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m; i++) {
+        dz[i] = z[3 * m + i];
+        dz[3 * m + i] = out[3 * m + i];
+    }
+    double reach = p->wheel_accel * tau;
+    for (int64_t i = 0; i < nw; i++) {
+        if (p->follow) {
+            double step = p->cmd[i] - p->sp0[i];
+            step = step > reach ? reach : (step < -reach ? -reach : step);
+            dz[6 * m + i] = (p->sp0[i] + step - om[i]) / p->wheel_lag;
+        } else {
+            dz[6 * m + i] = p->wheel_acc[i];
+        }
+    }
+    for (int64_t i = 0; i < alpha; i++)
+        dz[6 * m + nw + i] = (p->rest_cmd[i] - rest[i]) / p->servo_lag;
+    return 0;
+}
+
+/* BLAS's dgemm (column-major), handed over by use_blas() (scipy's cython_blas: the BLAS numpy
+ * and scipy use); without it, plain loops. At the filter's sizes (30 to 40) the library's
+ * products take a third of the loops' time (SSE2 only: the build targets any x86-64). */
+typedef void (*dgemm_fn)(char*, char*, int*, int*, int*, double*, double*, int*, double*, int*,
+                         double*, double*, int*);
+static dgemm_fn blas_dgemm = NULL;
+
+/* C = a op(A) op(B) + b C, row-major: op(A) r x k (A itself r x k, or k x r transposed,
+ * trans_a; leading dimension lda), op(B) k x c (B k x c, or c x k transposed, trans_b), C r x c
+ * (ldc). */
+static void gemm2(int trans_a, int trans_b, int r, int c, int k, double a, const double* A, int lda,
+                  const double* B, int ldb, double b, double* C, int ldc) {
+    if (blas_dgemm) { /* column-major: C^T = op(B)^T op(A)^T */
+        char tb = trans_b ? 'T' : 'N', ta = trans_a ? 'T' : 'N';
+        blas_dgemm(&tb, &ta, &c, &r, &k, &a, (double*)B, &ldb, (double*)A, &lda, &b, C, &ldc);
+        return;
+    }
+    for (int i = 0; i < r; i++) {
+        double* row = C + (int64_t)i * ldc;
+        for (int j = 0; j < c; j++) row[j] = b == 0.0 ? 0.0 : b * row[j];
+        for (int l = 0; l < k; l++) {
+            double f = a * (trans_a ? A[(int64_t)l * lda + i] : A[(int64_t)i * lda + l]);
+            if (f == 0.0) continue;
+            if (trans_b) {
+                for (int j = 0; j < c; j++) row[j] += f * B[(int64_t)j * ldb + l];
+            } else {
+                const double* src = B + (int64_t)l * ldb;
+                for (int j = 0; j < c; j++) row[j] += f * src[j];
+            }
+        }
+    }
+}
+
+static void gemm(int trans_b, int r, int c, int k, double a, const double* A, int lda,
+                 const double* B, int ldb, double b, double* C, int ldc) {
+    gemm2(0, trans_b, r, c, k, a, A, lda, B, ldb, b, C, ldc);
+}
+
+/* C = h A B + c0 I for the lean step's A (D x D): rows of q take B's q_dot rows, rows of
+ * q_dot the accelerations' Jacobian Jq (3 m x D) times B, the wheels' and rest lengths' rows
+ * their diagonal slopes; B is D x D. */
+static void apply_A(const int64_t* d, const double* Jq, double h, double wslope, double rslope,
+                    double c0, const double* B, double* C) {
+    int64_t m = d[0], nw = d[3], D = 6 * m + nw + d[2];
+    for (int64_t i = 0; i < 3 * m; i++)
+        for (int64_t c = 0; c < D; c++) C[i * D + c] = h * B[(3 * m + i) * D + c];
+    gemm(0, (int)(3 * m), (int)D, (int)D, h, Jq, (int)D, B, (int)D, 0.0, C + 3 * m * D, (int)D);
+    for (int64_t i = 6 * m; i < D; i++) {
+        double g = h * (i < 6 * m + nw ? wslope : rslope);
+        for (int64_t c = 0; c < D; c++) C[i * D + c] = g * B[i * D + c];
+    }
+    for (int64_t i = 0; i < D; i++) C[i * D + i] += c0;
+}
+
+/* Po = F P F^T for F (D x D) on the leading D entries of the n-entry state, the identity
+ * beyond: FP = F P[:D, :] (D x n), then FP F^T. */
+static void propagate(int64_t D, int64_t n, const double* F, const double* P, double* FP,
+                      double* Po) {
+    int iD = (int)D, in = (int)n;
+    gemm(0, iD, in, iD, 1.0, F, iD, P, in, 0.0, FP, in);
+    gemm(1, iD, iD, iD, 1.0, FP, in, F, iD, 0.0, Po, in);
+    for (int64_t i = 0; i < D; i++)
+        for (int64_t c = D; c < n; c++) Po[i * n + c] = Po[c * n + i] = FP[i * n + c];
+    for (int64_t i = D; i < n; i++)
+        for (int64_t c = D; c < n; c++) Po[i * n + c] = P[i * n + c];
+}
+
+/* Work entries lean_step() needs (doubles). */
+static int64_t lean_work(const int64_t* d, int64_t n) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
+    int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
+    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = jacobian_work(d);
+    int64_t sz = 6 * m + nw + ntq;
+    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + D + 3 * m +
+           9 * m * alpha + alpha + (ev > jw ? ev : jw);
+}
+
+/* Mean square of max(a - Z, 0) - max(a, 0), Z standard normal (gyrohost.estimator.kink). */
+static double kink_weight(double a) {
+    double Phi = 0.5 * erfc(-a / sqrt(2.0)),
+           phi = exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846);
+    return a <= 0.0 ? (a * a + 1.0) * Phi + a * phi : Phi - a * phi + a * a * (1.0 - Phi);
+}
+
+/* Po[:6m, :6m] += (q / dt) sum_i w_i G_i G_i^T, the rest-length jitter of density q through
+ * each string's kink (gyrohost.estimator.process_noise.jitter_noise, sharp kink): G_i = dt/2
+ * (b_i + F b_i), b_i = (0, d acc / d rest_i) with string i held taut, w_i = kink_weight(mu_i /
+ * sqrt(q / dt)), mu_i the tension margin as a length at x. Jt: 3 m x D work. */
+static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
+                            const double* x, const double* F, double* Po, double* Jt, double* v,
+                            double* w) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], K = beta + alpha;
+    int64_t D = 6 * m + nw + alpha, r0 = 6 * m + nw;
+    double *pos = v, *vel = pos + 3 * K, *z = vel + 3 * K, *acc = z + D, *b = acc + 3 * m;
+    double *G = b + 3 * m * alpha, *wt = G + 6 * m * alpha, dt = p->dt, q = p->jitter;
+    member_vectors(k, d, x, x + 3 * m, pos, vel);
+    for (int64_t i = 0; i < D; i++) z[i] = x[i];
+    for (int64_t i = 0; i < alpha; i++) {
+        int64_t j = beta + i;
+        double S0 = pos[j], S1 = pos[K + j], S2 = pos[2 * K + j];
+        double s = sqrt(S0 * S0 + S1 * S1 + S2 * S2);
+        double sdot = (S0 * vel[j] + S1 * vel[K + j] + S2 * vel[2 * K + j]) / s;
+        double stretch = s - x[r0 + i], damped = stretch + k->c_s[i] / k->k_s[i] * sdot;
+        double margin = stretch < damped ? stretch : damped;
+        /* any taut point gives the column: the force is affine in the rest length there */
+        z[r0 + i] = x[r0 + i] - (margin < 0.0 ? -margin : 0.0) - 1e-3;
+        wt[i] = kink_weight(margin / sqrt(q / dt));
+    }
+    int64_t status = jacobian(k, d, z, acc, Jt, w);
+    if (status) return status;
+    for (int64_t r = 0; r < 3 * m; r++)
+        for (int64_t i = 0; i < alpha; i++) b[r * alpha + i] = Jt[r * D + r0 + i];
+    /* G = dt/2 (F[:6m, q_dot] b + (0; b)) */
+    gemm(0, (int)(6 * m), (int)alpha, (int)(3 * m), 0.5 * dt, F + 3 * m, (int)D, b, (int)alpha, 0.0,
+         G, (int)alpha);
+    for (int64_t r = 0; r < 3 * m * alpha; r++) G[3 * m * alpha + r] += 0.5 * dt * b[r];
+    for (int64_t r = 0; r < 6 * m; r++) {
+        for (int64_t c = 0; c < 6 * m; c++) {
+            double s = 0.0;
+            for (int64_t i = 0; i < alpha; i++) s += G[r * alpha + i] * wt[i] * G[c * alpha + i];
+            Po[r * n + c] += (q / dt) * s;
+        }
+    }
+    return 0;
+}
+
+/* One lean step: z' by one classic RK4 step, F = I + Ad + Ad^2/2 + Ad^3/6 + Ad^4/24 with
+ * Ad = A dt (A given in Ain, D x D, or made at z), Po = F P F^T (F the identity beyond D; n x
+ * n). F (D x D) is returned for the process noise. Status as evaluate(). */
+static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
+                         const double* x, const double* P, const double* Ain, double* xo,
+                         double* Po, double* F, double* w) {
+    int64_t m = d[0], nw = d[3], ntq = d[4], D = 6 * m + nw + d[2], sz = 6 * m + nw + ntq;
+    double *k1 = w, *k2 = k1 + D, *k3 = k2 + D, *k4 = k3 + D, *zs = k4 + D;
+    double *xm = zs + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
+    double *Jq = acc + 3 * m, *T1 = Jq + 3 * m * D, *T2 = T1 + D * D, *T3 = T2 + D * D;
+    double *FP = T3 + D * D, *kw = FP + D * n + 6 * (d[1] + d[2]) + D + 3 * m + 9 * m * d[2] + d[2];
+    double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
+    double dt = p->dt;
+    int64_t status;
+    if (p->have_A) {
+        for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
+        if (nw) wslope = Ain[(6 * m) * D + 6 * m];
+    } else {
+        status = jacobian(k, d, x, acc, Jq, kw);
+        if (status) return status;
+    }
+    /* RK4 for the state */
+    status = filter_derivative(k, d, p, x, 0.0, k1, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k1[i];
+    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k2, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k2[i];
+    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k3, xm, um, out, kw);
+    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + dt * k3[i];
+    if (!status) status = filter_derivative(k, d, p, zs, dt, k4, xm, um, out, kw);
+    if (status) return status;
+    for (int64_t i = 0; i < D; i++)
+        xo[i] = x[i] + (dt / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (int64_t i = D; i < n; i++) xo[i] = x[i];
+    /* F by the Taylor series, nested: I + Ad (I + Ad/2 (I + Ad/3 (I + Ad/4))), Ad = A dt */
+    for (int64_t i = 0; i < D * D; i++) T3[i] = 0.0;
+    for (int64_t i = 0; i < D; i++) T3[i * D + i] = 1.0;
+    apply_A(d, Jq, dt / 4.0, wslope, rslope, 1.0, T3, T1);
+    apply_A(d, Jq, dt / 3.0, wslope, rslope, 1.0, T1, T2);
+    apply_A(d, Jq, dt / 2.0, wslope, rslope, 1.0, T2, T1);
+    apply_A(d, Jq, dt, wslope, rslope, 1.0, T1, F);
+    propagate(D, n, F, P, FP, Po);
+    if (p->jitter > 0.0) return jitter_noise(k, d, p, n, x, F, Po, Jq, FP + D * n, kw);
+    return 0;
+}
+
+/* ---- The filter's constraint manifold (gyrohost.estimator.manifold) ----
+ * Bars B = B0 + q E^T (3 x beta) and their rates B_dot = q_dot E^T of a filter state whose
+ * first 6 m entries are q, q_dot (3 x m each, row by row); E beta x m, l2 the bars' squared
+ * lengths. */
+typedef struct {
+    int64_t m, beta, n;
+    const double *E, *B0, *l2;
+} Bars;
+
+static void bar_vectors(const Bars* b, const double* x, double* B, double* Bd) {
+    int64_t m = b->m, beta = b->beta;
+    for (int64_t a = 0; a < 3; a++) {
+        for (int64_t i = 0; i < beta; i++) {
+            double p = b->B0[a * beta + i], v = 0.0;
+            for (int64_t l = 0; l < m; l++) {
+                p += x[a * m + l] * b->E[i * m + l];
+                v += x[3 * m + a * m + l] * b->E[i * m + l];
+            }
+            B[a * beta + i] = p;
+            Bd[a * beta + i] = v;
+        }
+    }
+}
+
+/* rows i of D (leading dimension ld, from column c0): d(b_i . V_i)/dq = s V[:, i] x E[i, :]
+ * (the bar's vector moves with the coordinates its row of E names). */
+static void bar_rows(const Bars* b, const double* V, double s, double* D, int64_t ld, int64_t c0) {
+    int64_t m = b->m, beta = b->beta;
+    for (int64_t i = 0; i < beta; i++)
+        for (int64_t a = 0; a < 3; a++)
+            for (int64_t l = 0; l < m; l++)
+                D[i * ld + c0 + a * m + l] = s * V[a * beta + i] * b->E[i * m + l];
+}
+
+/* x[0:nc] -= G^T (G G^T)^-1 r, the minimum-norm step that zeroes the linearised residual r (k
+ * rows of G, k x nc; gram k x k work). Status as cholesky_factor. */
+static int64_t min_norm_step(int64_t k, int64_t nc, const double* G, double* r, double* x,
+                             double* gram) {
+    gemm(1, (int)k, (int)k, (int)nc, 1.0, G, (int)nc, G, (int)nc, 0.0, gram, (int)k);
+    int64_t status = cholesky_solve(gram, r, k);
+    if (status) return status;
+    for (int64_t i = 0; i < k; i++)
+        for (int64_t c = 0; c < nc; c++) x[c] -= G[i * nc + c] * r[i];
+    return 0;
+}
+
+/* The state x moved onto the constraints: Gauss-Newton steps on q until every |b|^2 - l^2 is
+ * within rtol of l^2 (at most iterations), then q_dot. Work: manifold_work(). */
+static int64_t project_bars(const Bars* b, double* x, double rtol, int64_t iterations, double* w) {
+    int64_t m = b->m, beta = b->beta;
+    double *B = w, *Bd = B + 3 * beta, *g = Bd + 3 * beta, *G = g + beta, *gram = G + 3 * m * beta;
+    int64_t status;
+    for (int64_t it = 0; it < iterations; it++) {
+        bar_vectors(b, x, B, Bd);
+        double worst = 0.0;
+        for (int64_t i = 0; i < beta; i++) {
+            double bb = B[i] * B[i] + B[beta + i] * B[beta + i] + B[2 * beta + i] * B[2 * beta + i];
+            g[i] = bb - b->l2[i];
+            double rel = fabs(g[i]) / b->l2[i];
+            if (rel > worst || isnan(rel)) worst = rel;
+        }
+        if (worst <= rtol) break;
+        bar_rows(b, B, 2.0, G, 3 * m, 0);
+        status = min_norm_step(beta, 3 * m, G, g, x, gram);
+        if (status) return status;
+    }
+    bar_vectors(b, x, B, Bd);
+    for (int64_t i = 0; i < beta; i++) {
+        double s = 0.0;
+        for (int64_t a = 0; a < 3; a++) s += B[a * beta + i] * Bd[a * beta + i];
+        g[i] = s;
+    }
+    bar_rows(b, B, 1.0, G, 3 * m, 0);
+    return min_norm_step(beta, 3 * m, G, g, x + 3 * m, gram);
+}
+
+static int64_t manifold_work(int64_t m, int64_t beta, int64_t n) {
+    int64_t k = 2 * beta;
+    return 8 * beta + 3 * m * beta + k * k + 4 * k * n + 2 * n * n + k;
+}
+
+/* x projected (project_bars) and Po = Pi P Pi^T symmetrised, Pi = I - G^T (G G^T)^-1 G the
+ * projector onto the constraints' tangent space at x (G: 2 beta x n, positions' then
+ * velocities' constraints): with Y = (G G^T)^-1 G, Pi P = P - G^T (Y P) and Pi P Pi^T =
+ * Pi P - (Pi P Y^T) G. */
+static int64_t condition_bars(const Bars* b, double* x, const double* P, double* Po, double rtol,
+                              int64_t iterations, double* w) {
+    int64_t m = b->m, beta = b->beta, n = b->n, k = 2 * beta;
+    int64_t status = project_bars(b, x, rtol, iterations, w);
+    if (status) return status;
+    double *B = w, *Bd = B + 3 * beta, *gram = Bd + 3 * beta, *G = gram + k * k, *Y = G + k * n;
+    double *YP = Y + k * n, *PiP = YP + k * n, *T = PiP + n * n, *col = T + n * n;
+    bar_vectors(b, x, B, Bd);
+    for (int64_t i = 0; i < k * n; i++) G[i] = 0.0;
+    bar_rows(b, B, 2.0, G, n, 0);
+    bar_rows(b, Bd, 1.0, G + beta * n, n, 0);
+    bar_rows(b, B, 1.0, G + beta * n, n, 3 * m);
+    gemm(1, (int)k, (int)k, (int)n, 1.0, G, (int)n, G, (int)n, 0.0, gram, (int)k);
+    status = cholesky_factor(gram, k);
+    if (status) return status;
+    for (int64_t c = 0; c < n; c++) {
+        for (int64_t i = 0; i < k; i++) col[i] = G[i * n + c];
+        cholesky_subst(gram, col, k);
+        for (int64_t i = 0; i < k; i++) Y[i * n + c] = col[i];
+    }
+    int in = (int)n, ik = (int)k;
+    gemm(0, ik, in, in, 1.0, Y, in, P, in, 0.0, YP, in);
+    for (int64_t i = 0; i < n * n; i++) PiP[i] = P[i];
+    gemm2(1, 0, in, in, ik, -1.0, G, in, YP, in, 1.0, PiP, in);
+    gemm(1, in, ik, in, 1.0, PiP, in, Y, in, 0.0, T, ik);
+    for (int64_t i = 0; i < n * n; i++) Po[i] = PiP[i];
+    gemm(0, in, in, ik, -1.0, T, ik, G, in, 1.0, Po, in);
+    for (int64_t i = 0; i < n; i++) {
+        for (int64_t j = 0; j < i; j++) {
+            double s = 0.5 * (Po[i * n + j] + Po[j * n + i]);
+            Po[i * n + j] = Po[j * n + i] = s;
+        }
+    }
+    return 0;
+}
+
+/* ---- The IMU's prediction (gyrohost.estimator.imu_prediction, closed form) ----
+ * The sensor frame of three nodes a, b, c (x along a -> b, z along x cross (c - a)) and its
+ * angular rate, differentiated in forward mode: a dual number carries one directional
+ * derivative. */
+typedef struct {
+    double v, d;
+} Dual;
+
+static Dual dmul(Dual a, Dual b) {
+    Dual r = {a.v * b.v, a.d * b.v + a.v * b.d};
+    return r;
+}
+static Dual dsub(Dual a, Dual b) {
+    Dual r = {a.v - b.v, a.d - b.d};
+    return r;
+}
+static Dual ddiv(Dual a, Dual b) {
+    Dual r = {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
+    return r;
+}
+static Dual ddot(const Dual* a, const Dual* b) {
+    Dual r = dmul(a[0], b[0]), t;
+    for (int i = 1; i < 3; i++) {
+        t = dmul(a[i], b[i]);
+        r.v += t.v;
+        r.d += t.d;
+    }
+    return r;
+}
+static void dcross(const Dual* a, const Dual* b, Dual* c) {
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        c[i] = dsub(dmul(a[j], b[k]), dmul(a[k], b[j]));
+    }
+}
+static Dual dsqrt(Dual a) {
+    double r = sqrt(a.v);
+    Dual o = {r, a.d / (2.0 * r)};
+    return o;
+}
+/* u = v / len and u_dot = (v_dot - u (u . v_dot)) / len: a unit vector and its rate. */
+static void unit_and_rate(const Dual* v, const Dual* v_dot, Dual* u, Dual* u_dot) {
+    Dual len = dsqrt(ddot(v, v));
+    for (int i = 0; i < 3; i++) u[i] = ddiv(v[i], len);
+    Dual p = ddot(u, v_dot);
+    for (int i = 0; i < 3; i++) u_dot[i] = ddiv(dsub(v_dot[i], dmul(u[i], p)), len);
+}
+
+/* in = [d1, d2, d1_dot, d2_dot] (d1 = N_b - N_a, d2 = N_c - N_a): R_ws (3 x 3, row-major) =
+ * [ex ey ez] R_bs and omega_s = omega_b R_bs, omega_b = (-ey . ez_dot, ex . ez_dot, ey . ex_dot).
+ */
+static void sensor_frame(const Dual* in, const double* Rbs, Dual* R, Dual* om) {
+    Dual ex[3], ex_dot[3], c[3], c_dot[3], t[3], ez[3], ez_dot[3], ey[3], ob[3], zero = {0.0, 0.0};
+    unit_and_rate(in, in + 6, ex, ex_dot);
+    dcross(in, in + 3, c);
+    dcross(in + 6, in + 3, c_dot);
+    dcross(in, in + 9, t);
+    for (int i = 0; i < 3; i++) {
+        c_dot[i].v += t[i].v;
+        c_dot[i].d += t[i].d;
+    }
+    unit_and_rate(c, c_dot, ez, ez_dot);
+    dcross(ez, ex, ey);
+    ob[0] = dsub(zero, ddot(ey, ez_dot));
+    ob[1] = ddot(ex, ez_dot);
+    ob[2] = ddot(ey, ex_dot);
+    for (int r = 0; r < 3; r++) {
+        const Dual col[3] = {ex[r], ey[r], ez[r]};
+        for (int j = 0; j < 3; j++) {
+            Dual s = zero;
+            for (int i = 0; i < 3; i++) {
+                s.v += col[i].v * Rbs[i * 3 + j];
+                s.d += col[i].d * Rbs[i * 3 + j];
+            }
+            R[r * 3 + j] = s;
+        }
+    }
+    for (int j = 0; j < 3; j++) {
+        Dual s = zero;
+        for (int i = 0; i < 3; i++) {
+            s.v += ob[i].v * Rbs[i * 3 + j];
+            s.d += ob[i].d * Rbs[i * 3 + j];
+        }
+        om[j] = s;
+    }
+}
+
+/* spec (doubles): [servo_lag, wheel slope, rest command (alpha), wheel accelerations (n_w),
+ * gravity (3), R_bs (9), node rows of U for a, b, c (3 x m), N_fix at a, b, c (3 x 3: node,
+ * then axis)]. */
+static int64_t imu_spec_size(const int64_t* d) {
+    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9;
+}
+
+static int64_t imu_work(const int64_t* d) {
+    return jacobian_work(d);
+}
+
+/* The IMU's values and Jacobians at the filter state x (its first D = 6 m + n_w + alpha
+ * entries): f = dx/dt (D), A = df/dx (D x D), R (9) and dR (9 x D), omega (3) and its
+ * Jacobian (3 x D), the specific force (3) and its Jacobian (3 x D). Status as evaluate(). */
+static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec, const double* x,
+                           double* f, double* A, double* R, double* dR, double* om, double* dom,
+                           double* fs, double* dfs, double* w) {
+    int64_t m = d[0], alpha = d[2], nw = d[3], D = 6 * m + nw + alpha;
+    const double *rest_cmd = spec + 2, *wacc = rest_cmd + alpha, *g = wacc + nw, *Rbs = g + 3;
+    const double *ua = Rbs + 9, *ub = ua + m, *uc = ub + m, *Nf = uc + m;
+    double acc[3 * 100], *J = A + 3 * m * D; /* the q_dot rows of A */
+    int64_t status = jacobian(k, d, x, acc, J, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m * D; i++) A[i] = 0.0;
+    for (int64_t i = 6 * m * D; i < D * D; i++) A[i] = 0.0;
+    for (int64_t i = 0; i < 3 * m; i++) A[i * D + 3 * m + i] = 1.0;
+    for (int64_t i = 6 * m; i < 6 * m + nw; i++) A[i * D + i] = spec[1];
+    for (int64_t i = 6 * m + nw; i < D; i++) A[i * D + i] = -1.0 / spec[0];
+    for (int64_t i = 0; i < 3 * m; i++) {
+        f[i] = x[3 * m + i];
+        f[3 * m + i] = acc[i];
+    }
+    for (int64_t i = 0; i < nw; i++) f[6 * m + i] = wacc[i];
+    for (int64_t i = 0; i < alpha; i++)
+        f[6 * m + nw + i] = (rest_cmd[i] - x[6 * m + nw + i]) / spec[0];
+    /* the frame's inputs and their derivatives, one direction at a time */
+    Dual in[12], Rd[9], omd[3];
+    double e1[100], e2[100], v[12], dRin[12][9], domin[12][3];
+    for (int64_t l = 0; l < m; l++) {
+        e1[l] = ub[l] - ua[l];
+        e2[l] = uc[l] - ua[l];
+    }
+    for (int r = 0; r < 3; r++) {
+        double pa = Nf[r], pb = Nf[3 + r], pc = Nf[6 + r], va = 0.0, vb = 0.0, vc = 0.0;
+        for (int64_t l = 0; l < m; l++) {
+            pa += x[r * m + l] * ua[l];
+            pb += x[r * m + l] * ub[l];
+            pc += x[r * m + l] * uc[l];
+            va += x[3 * m + r * m + l] * ua[l];
+            vb += x[3 * m + r * m + l] * ub[l];
+            vc += x[3 * m + r * m + l] * uc[l];
+        }
+        v[r] = pb - pa;
+        v[3 + r] = pc - pa;
+        v[6 + r] = vb - va;
+        v[9 + r] = vc - va;
+    }
+    for (int dir = 0; dir < 12; dir++) {
+        for (int i = 0; i < 12; i++) {
+            in[i].v = v[i];
+            in[i].d = i == dir;
+        }
+        sensor_frame(in, Rbs, Rd, omd);
+        for (int i = 0; i < 9; i++) dRin[dir][i] = Rd[i].d;
+        for (int i = 0; i < 3; i++) domin[dir][i] = omd[i].d;
+    }
+    for (int i = 0; i < 9; i++) R[i] = Rd[i].v;
+    for (int i = 0; i < 3; i++) om[i] = omd[i].v;
+    for (int64_t i = 0; i < 9 * D; i++) dR[i] = 0.0;
+    for (int64_t i = 0; i < 3 * D; i++) dom[i] = 0.0;
+    /* q_{r,l} moves d1[r] by e1[l] and d2[r] by e2[l]; q_dot_{r,l} the rates alike */
+    for (int r = 0; r < 3; r++) {
+        for (int64_t l = 0; l < m; l++) {
+            int64_t cq = r * m + l, cv = 3 * m + r * m + l;
+            for (int i = 0; i < 9; i++)
+                dR[i * D + cq] = e1[l] * dRin[r][i] + e2[l] * dRin[3 + r][i];
+            for (int i = 0; i < 3; i++) {
+                dom[i * D + cq] = e1[l] * domin[r][i] + e2[l] * domin[3 + r][i];
+                dom[i * D + cv] = e1[l] * domin[6 + r][i] + e2[l] * domin[9 + r][i];
+            }
+        }
+    }
+    /* a = (N_ddot_a + N_ddot_b) / 2 - g, f_s = R^T a, df = R^T da + dR^T a */
+    double a[3];
+    for (int r = 0; r < 3; r++) {
+        double s = 0.0;
+        for (int64_t l = 0; l < m; l++) s += acc[r * m + l] * 0.5 * (ua[l] + ub[l]);
+        a[r] = s - g[r];
+    }
+    for (int i = 0; i < 3; i++) {
+        fs[i] = R[i] * a[0] + R[3 + i] * a[1] + R[6 + i] * a[2];
+        for (int64_t c = 0; c < D; c++) {
+            double s = 0.0;
+            for (int r = 0; r < 3; r++) {
+                double da = 0.0;
+                for (int64_t l = 0; l < m; l++)
+                    da += J[(r * m + l) * D + c] * 0.5 * (ua[l] + ub[l]);
+                s += R[r * 3 + i] * da + dR[(r * 3 + i) * D + c] * a[r];
+            }
+            dfs[i * D + c] = s;
+        }
+    }
+    return 0;
+}
+
+/* ---- The IMU's three measurements (gyrohost.estimator.fuse_imu_*, fast path) ---- */
+
+/* Rotation vector (3) of the rotation R (3 x 3, row-major), as geometry.rotation_vector. */
+static void rotation_log(const double* R, double* v) {
+    double tr = R[0] + R[4] + R[8], q[4];
+    int i = 0;
+    for (int j = 1; j < 3; j++)
+        if (R[j * 4] > R[i * 4]) i = j;
+    if (tr >= R[i * 4]) {
+        q[0] = R[7] - R[5];
+        q[1] = R[2] - R[6];
+        q[2] = R[3] - R[1];
+        q[3] = 1.0 + tr;
+    } else {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        q[i] = 1.0 - tr + 2.0 * R[i * 4];
+        q[j] = R[j * 3 + i] + R[i * 3 + j];
+        q[k] = R[k * 3 + i] + R[i * 3 + k];
+        q[3] = R[k * 3 + j] - R[j * 3 + k];
+    }
+    double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    double sign = q[3] < 0.0 ? -1.0 : 1.0;
+    for (int j = 0; j < 4; j++) q[j] *= sign / norm;
+    double sine = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+    double angle = 2.0 * atan2(sine, q[3]), scale;
+    if (angle <= 1e-3)
+        scale = 2.0 + angle * angle / 12.0 + 7.0 * angle * angle * angle * angle / 2880.0;
+    else
+        scale = angle / sin(angle / 2.0);
+    for (int j = 0; j < 3; j++) v[j] = scale * q[j];
+}
+
+/* One IMU measurement's rows (3) of H (n columns: the Jacobian J (3 x k) at the columns cols,
+ * the identity at bias, if >= 0), its prediction taken back by lag (hx = h - lag J x_dot), and
+ * its noise std^2 I + tau^2 h_dot h_dot^T into the 3 x 3 block of Rm (ld 9) at (o, o). */
+static void imu_rows(int64_t n, int64_t k, const int64_t* cols, const double* J, const double* h,
+                     const double* xdot, double lag, double tau, double std, int64_t bias,
+                     const double* x, int64_t o, double* H, double* hx, double* Rm) {
+    double hd[3];
+    for (int r = 0; r < 3; r++) {
+        double* row = H + (o + r) * n;
+        for (int64_t c = 0; c < n; c++) row[c] = 0.0;
+        double s = 0.0;
+        for (int64_t c = 0; c < k; c++) {
+            row[cols[c]] = J[r * k + c];
+            s += J[r * k + c] * xdot[c];
+        }
+        hd[r] = s;
+        if (bias >= 0) row[bias + r] = 1.0;
+        hx[o + r] = h[r] - lag * s + (bias >= 0 ? x[bias + r] : 0.0);
+    }
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            Rm[(o + r) * 9 + o + c] = (r == c ? std * std : 0.0) + tau * tau * hd[r] * hd[c];
+}
+
+/* The rate (rows 0-2), specific force (3-5) and attitude (6-8) measurements of an IMU sample
+ * z = (omega, accel, Z-Y-X angles) from the prediction (R, dR 9 x k, om, dom, f, df, x_dot
+ * over the state columns cols): H (9 x n), hx, z_out (the angle's as the rotation vector
+ * log(R_m R^T) + lag w, its hx 0) and R (9 x 9; zero off the blocks). spec: [lag, tau, std of
+ * rate, accel, angle, floor, bias column, accelerometer bias column or -1]. */
+static void imu_measurements(int64_t n, int64_t k, const int64_t* cols, const double* spec,
+                             const double* const* pred, const double* x, const double* z, double* H,
+                             double* hx, double* zo, double* Rm) {
+    const double *R = pred[0], *dR = pred[1], *om = pred[2], *dom = pred[3], *f = pred[4];
+    const double *df = pred[5], *xdot = pred[6];
+    double lag = spec[0], tau = spec[1], sa = spec[4], floor_ = spec[5];
+    for (int i = 0; i < 81; i++) Rm[i] = 0.0;
+    for (int i = 0; i < 6; i++) zo[i] = z[i];
+    imu_rows(n, k, cols, dom, om, xdot, lag, tau, spec[2], (int64_t)spec[6], x, 0, H, hx, Rm);
+    imu_rows(n, k, cols, df, f, xdot, lag, tau, spec[3], (int64_t)spec[7], x, 3, H, hx, Rm);
+    /* attitude: J = vee(dR_j R^T) per column, w = J x_dot */
+    double J[3 * 256], w[3] = {0.0, 0.0, 0.0};
+    for (int64_t c = 0; c < k; c++) {
+        double M[9];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                double s = 0.0;
+                for (int j = 0; j < 3; j++) s += dR[(a * 3 + j) * k + c] * R[b * 3 + j];
+                M[a * 3 + b] = s;
+            }
+        J[c] = 0.5 * (M[7] - M[5]);
+        J[k + c] = 0.5 * (M[2] - M[6]);
+        J[2 * k + c] = 0.5 * (M[3] - M[1]);
+        for (int r = 0; r < 3; r++) w[r] += J[r * k + c] * xdot[c];
+    }
+    double cr = cos(z[6]), sr = sin(z[6]), cp = cos(z[7]), sp = sin(z[7]);
+    double cy = cos(z[8]), sy = sin(z[8]);
+    double Rmeas[9] = {cy * cp,
+                       cy * sp * sr - sy * cr,
+                       cy * sp * cr + sy * sr,
+                       sy * cp,
+                       sy * sp * sr + cy * cr,
+                       sy * sp * cr - cy * sr,
+                       -sp,
+                       cp * sr,
+                       cp * cr};
+    double T[9], v[3];
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double s = 0.0;
+            for (int j = 0; j < 3; j++) s += Rmeas[a * 3 + j] * R[b * 3 + j];
+            T[a * 3 + b] = s;
+        }
+    rotation_log(T, v);
+    double E[9] = {cy * cp, -sy, 0.0, sy * cp, cy, 0.0, -sp, 0.0, 1.0};
+    for (int r = 0; r < 3; r++) {
+        double* row = H + (6 + r) * n;
+        for (int64_t c = 0; c < n; c++) row[c] = 0.0;
+        for (int64_t c = 0; c < k; c++) row[cols[c]] = J[r * k + c];
+        zo[6 + r] = v[r] + lag * w[r];
+        hx[6 + r] = 0.0;
+        for (int c = 0; c < 3; c++) {
+            double ee =
+                E[r * 3] * E[c * 3] + E[r * 3 + 1] * E[c * 3 + 1] + E[r * 3 + 2] * E[c * 3 + 2];
+            Rm[(6 + r) * 9 + 6 + c] =
+                sa * sa * (ee + (r == c ? floor_ * floor_ : 0.0)) + tau * tau * w[r] * w[c];
+        }
+    }
+}
+
+/* ---- The estimator's measurement update (gyrohost.estimator.fusion, fast path) ---- */
+
+/* In-place Cholesky factor as numpy's (any positive, finite pivot); row + 1 where it fails. */
+static int64_t cholesky_plain(double* A, int64_t n) {
+    for (int64_t j = 0; j < n; j++) {
+        double d = A[j * n + j];
+        for (int64_t k = 0; k < j; k++) d -= A[j * n + k] * A[j * n + k];
+        if (!(d > 0.0) || !isfinite(d)) return j + 1;
+        d = sqrt(d);
+        A[j * n + j] = d;
+        for (int64_t i = j + 1; i < n; i++) {
+            double s = A[i * n + j];
+            for (int64_t k = 0; k < j; k++) s -= A[i * n + k] * A[j * n + k];
+            A[i * n + j] = s / d;
+        }
+    }
+    return 0;
+}
+
+/* log det of the k x k block of A (leading dimension ld) at (o, o), factored into blk: NaN
+ * where it is not positive definite. */
+static double block_log_det(const double* A, int64_t ld, int64_t o, int64_t k, double* blk) {
+    for (int64_t i = 0; i < k; i++)
+        for (int64_t j = 0; j < k; j++) blk[i * k + j] = A[(o + i) * ld + o + j];
+    if (cholesky_plain(blk, k)) return NAN;
+    double s = 0.0;
+    for (int64_t i = 0; i < k; i++) s += log(blk[i * k + i]);
+    return 2.0 * s;
+}
+
+#define MAX_ROWS 64 /* measurement rows of one update */
+
+static int64_t update_work(int64_t n, int64_t M) {
+    return 5 * n * M + 4 * M * M + 2 * M + 3 * n * n;
+}
+
+/* The gated update of k measurements stacked (sizes[i] rows each; M in all): H (M x n),
+ * innovations y (M), block-diagonal noise R (M x M), gates (k, the NIS thresholds). Per
+ * measurement: S_i = H_i P H_i^T + R_i, its diagonal (Sd), whitened innovation w_i = L_i^-1 y_i
+ * (S_i = L_i L_i^T; NaN where not positive definite), stats[3 i ..] = (NIS, log det S_i - log
+ * det R_i, accepted: NIS <= gate). The accepted ones are fused in one update: gain K = P H^T
+ * S^-1 by one Cholesky of their S, x + K y, Joseph form (I - K H) P (I - K H)^T + K R K^T.
+ * Status 0; k > 0: their S was not positive definite (xo, Po unset). */
+static int64_t kalman_update(int64_t k, const int64_t* sizes, const double* gates, int64_t n,
+                             int64_t M, const double* H, const double* y, const double* R,
+                             const double* P, const double* x, double* Sd, double* w, double* stats,
+                             double* xo, double* Po, double* work) {
+    double *PHt = work, *S = PHt + n * M, *blk = S + M * M, *Sa = blk + M * M, *Ra = Sa + M * M;
+    double *Ha = Ra + M * M, *PHa = Ha + M * n, *ya = PHa + n * M, *K = ya + M, *IKH = K + n * M;
+    double *T = IKH + n * n, *KR = T + n * n;
+    int64_t rows[MAX_ROWS], na = 0, o = 0;
+    int in = (int)n, iM = (int)M;
+    gemm(1, in, iM, in, 1.0, P, in, H, in, 0.0, PHt, iM);
+    gemm(0, iM, iM, in, 1.0, H, in, PHt, iM, 0.0, S, iM);
+    for (int64_t i = 0; i < M * M; i++) S[i] += R[i];
+    for (int64_t i = 0; i < k; i++) {
+        int64_t ki = sizes[i];
+        for (int64_t r = 0; r < ki; r++) Sd[o + r] = S[(o + r) * M + o + r];
+        double log_det_S = block_log_det(S, M, o, ki, blk), nis = 0.0;
+        for (int64_t r = 0; r < ki; r++) { /* forward substitution, blk = L_i */
+            double v = y[o + r];
+            for (int64_t c = 0; c < r; c++) v -= blk[r * ki + c] * w[o + c];
+            w[o + r] = isnan(log_det_S) ? NAN : v / blk[r * ki + r];
+            nis += w[o + r] * w[o + r];
+        }
+        double ratio = nis / gates[i];
+        int accepted = isfinite(ratio) && ratio <= 1.0;
+        stats[3 * i] = nis;
+        stats[3 * i + 1] = log_det_S - block_log_det(R, M, o, ki, blk);
+        stats[3 * i + 2] = accepted;
+        for (int64_t r = 0; accepted && r < ki; r++) rows[na++] = o + r;
+        o += ki;
+    }
+    for (int64_t i = 0; i < n; i++) xo[i] = x[i];
+    for (int64_t i = 0; i < n * n; i++) Po[i] = P[i];
+    if (!na) return 0;
+    for (int64_t a = 0; a < na; a++) {
+        ya[a] = y[rows[a]];
+        for (int64_t b = 0; b < na; b++) {
+            Sa[a * na + b] = S[rows[a] * M + rows[b]];
+            Ra[a * na + b] = R[rows[a] * M + rows[b]];
+        }
+        for (int64_t c = 0; c < n; c++) Ha[a * n + c] = H[rows[a] * n + c];
+    }
+    for (int64_t r = 0; r < n; r++)
+        for (int64_t a = 0; a < na; a++) PHa[r * na + a] = PHt[r * M + rows[a]];
+    int64_t status = cholesky_plain(Sa, na);
+    if (status) return status;
+    for (int64_t r = 0; r < n; r++) { /* K = P H^T S^-1, row by row (S symmetric) */
+        for (int64_t a = 0; a < na; a++) K[r * na + a] = PHa[r * na + a];
+        cholesky_subst(Sa, K + r * na, na);
+        for (int64_t a = 0; a < na; a++) xo[r] += K[r * na + a] * ya[a];
+    }
+    int ia = (int)na;
+    gemm(0, in, in, ia, -1.0, K, ia, Ha, in, 0.0, IKH, in);
+    for (int64_t i = 0; i < n; i++) IKH[i * n + i] += 1.0;
+    gemm(0, in, in, in, 1.0, IKH, in, P, in, 0.0, T, in);
+    gemm(1, in, in, in, 1.0, T, in, IKH, in, 0.0, Po, in);
+    gemm(0, in, ia, ia, 1.0, K, ia, Ra, ia, 0.0, KR, ia);
+    gemm(1, in, in, ia, 1.0, KR, ia, K, ia, 1.0, Po, in);
+    return 0;
+}
+
+/* The buffers of a call: the first n_read read, the rest up to n written. */
+static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
+                           int n, const char* use) {
+    if (nargs != n) {
         PyErr_SetString(PyExc_TypeError, use);
         return -1;
     }
     int got = 0;
-    for (; got < 6; got++) {
-        int flags = (got >= 4) ? PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS : PyBUF_C_CONTIGUOUS;
+    for (; got < n; got++) {
+        int flags = (got >= n_read) ? PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS : PyBUF_C_CONTIGUOUS;
         if (PyObject_GetBuffer(args[got], &buf[got], flags) < 0) break;
     }
-    if (got == 6) return 0;
+    if (got == n) return 0;
     for (int i = 0; i < got; i++) PyBuffer_Release(&buf[i]);
     return -1;
+}
+
+/* The six buffers of a call: the first four read, the last two written. */
+static int get_buffers(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, const char* use) {
+    return get_buffer_list(args, nargs, buf, 4, 6, use);
+}
+
+/* A call's body: it checks its buffers (-1 with a Python error where they do not fit) and
+ * computes; the status it returns goes back to Python. */
+typedef int64_t (*CallBody)(Py_buffer* buf);
+
+static PyObject* buffer_call(PyObject* const* args, Py_ssize_t nargs, int n_read, int n,
+                             const char* use, CallBody body) {
+    Py_buffer buf[16];
+    if (get_buffer_list(args, nargs, buf, n_read, n, use) < 0) return NULL;
+    int64_t status = body(buf);
+    for (int i = 0; i < n; i++) PyBuffer_Release(&buf[i]);
+    return status < 0 ? NULL : PyLong_FromLongLong(status);
+}
+
+/* A module function taking n buffers (the first n_read read) into body. */
+#define BUFFER_CALL(name, n_read, n, use, body)                                      \
+    static PyObject* name(PyObject* self, PyObject* const* args, Py_ssize_t nargs) { \
+        (void)self;                                                                  \
+        return buffer_call(args, nargs, n_read, n, use, body);                       \
+    }
+
+/* Whether ok and buffers from..n-1 hold need[i] doubles each; a ValueError saying what where
+ * not. */
+static int fits(const Py_buffer* buf, const int64_t* need, int from, int n, int ok,
+                const char* what) {
+    for (int i = from; i < n; i++) ok = ok && buf[i].len >= need[i] * (Py_ssize_t)sizeof(double);
+    if (!ok) PyErr_SetString(PyExc_ValueError, what);
+    return ok;
+}
+
+#define LEAN_USE "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) takes 10 buffers"
+
+static int64_t lean_body(Py_buffer* buf) {
+    const int64_t* dims = (const int64_t*)buf[1].buf;
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status;
+    int64_t n = (int64_t)(buf[3].len / (Py_ssize_t)sizeof(double));
+    const int64_t need[10] = {0,     0,     step_spec_size(dims), n, n * n, D * D, n,
+                              n * n, D * D, lean_work(dims, n)};
+    if (!fits(buf, need, 2, 10, dims[5] == 0 && n >= D, "lean_step: joints, or a small buffer"))
+        return -1;
+    Consts k;
+    StepSpec spec;
+    layout((const double*)buf[0].buf, dims, &k);
+    step_spec((const double*)buf[2].buf, dims, &spec);
+    Py_BEGIN_ALLOW_THREADS status =
+        lean_step(&k, dims, &spec, n, (const double*)buf[3].buf, (const double*)buf[4].buf,
+                  (const double*)buf[5].buf, (double*)buf[6].buf, (double*)buf[7].buf,
+                  (double*)buf[8].buf, (double*)buf[9].buf);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_lean_step, 6, 10, LEAN_USE, lean_body)
+
+/* use_blas(capsule): take dgemm from scipy.linalg.cython_blas.__pyx_capi__["dgemm"]. */
+static PyObject* kernel_use_blas(PyObject* self, PyObject* capsule) {
+    (void)self;
+    if (capsule == Py_None) { /* back to the loops */
+        blas_dgemm = NULL;
+        Py_RETURN_NONE;
+    }
+    const char* name = PyCapsule_GetName(capsule);
+    if (!name) return NULL;
+    const char* want = "void (char *, char *, int *, int *, int *, ";
+    if (strncmp(name, want, strlen(want)) != 0 || !strstr(name, "_d *")) {
+        PyErr_Format(PyExc_ValueError, "use_blas: not a double dgemm: %s", name);
+        return NULL;
+    }
+    void* fn = PyCapsule_GetPointer(capsule, name);
+    if (!fn) return NULL;
+    blas_dgemm = (dgemm_fn)fn;
+    Py_RETURN_NONE;
+}
+
+#define MANIFOLD_USE                                                                         \
+    "manifold(E, B0, l2, spec, P, x, P_out, work) takes 8 buffers (P, P_out empty: project " \
+    "the state alone)"
+
+/* manifold(E, B0, l2, spec, P, x, P_out, work) -> status: x projected in place onto the bars'
+ * constraints and, unless P is empty, P_out = Pi P Pi^T; spec = [rtol, iterations]. */
+static int64_t manifold_body(Py_buffer* buf) {
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    Bars b;
+    b.beta = (int64_t)(buf[2].len / w);
+    b.m = b.beta ? (int64_t)(buf[0].len / w) / b.beta : 0;
+    b.n = (int64_t)(buf[5].len / w);
+    b.E = (const double*)buf[0].buf;
+    b.B0 = (const double*)buf[1].buf;
+    b.l2 = (const double*)buf[2].buf;
+    const double* spec = (const double*)buf[3].buf;
+    int with_P = buf[4].len > 0;
+    int64_t nn = with_P ? b.n * b.n : 0, status;
+    const int64_t need[8] = {0, 3 * b.beta, 0, 2, nn, b.n, nn, manifold_work(b.m, b.beta, b.n)};
+    if (!fits(buf, need, 1, 8, b.beta > 0 && b.n >= 6 * b.m, "manifold: a buffer is too small"))
+        return -1;
+    double* x = (double*)buf[5].buf;
+    double* work = (double*)buf[7].buf;
+    int64_t iterations = (int64_t)spec[1];
+    Py_BEGIN_ALLOW_THREADS if (with_P) status = condition_bars(
+        &b, x, (const double*)buf[4].buf, (double*)buf[6].buf, spec[0], iterations, work);
+    else status = project_bars(&b, x, spec[0], iterations, work);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_manifold, 5, 8, MANIFOLD_USE, manifold_body)
+
+/* The n integers of a call into v; 0, or -1 with a Python error. */
+static int int_args(PyObject* const* args, Py_ssize_t nargs, int n, long long* v, const char* use) {
+    if (nargs != n) {
+        PyErr_SetString(PyExc_TypeError, use);
+        return -1;
+    }
+    for (int i = 0; i < n; i++) {
+        v[i] = PyLong_AsLongLong(args[i]);
+        if (v[i] == -1 && PyErr_Occurred()) return -1;
+    }
+    return 0;
+}
+
+static PyObject* kernel_manifold_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    long long v[3];
+    if (int_args(args, nargs, 3, v, "manifold_work(m, beta, n) takes 3 integers")) return NULL;
+    return PyLong_FromLongLong(manifold_work(v[0], v[1], v[2]));
+}
+
+#define IMU_USE                                                                               \
+    "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) takes 13 " \
+    "buffers"
+
+static int64_t imu_body(Py_buffer* buf) {
+    const int64_t* dims = (const int64_t*)buf[1].buf;
+    int64_t m = dims[0], D = 6 * m + dims[3] + dims[2], status;
+    const int64_t need[13] = {0, 0,     imu_spec_size(dims), D, D, D * D, 9, 9 * D, 3, 3 * D,
+                              3, 3 * D, imu_work(dims)};
+    if (!fits(buf, need, 2, 13, dims[5] == 0 && m <= 100,
+              "imu: joints, over 100 coordinates or a small buffer"))
+        return -1;
+    Consts k;
+    double* o[9];
+    for (int i = 0; i < 9; i++) o[i] = (double*)buf[4 + i].buf;
+    layout((const double*)buf[0].buf, dims, &k);
+    Py_BEGIN_ALLOW_THREADS status =
+        imu_predict(&k, dims, (const double*)buf[2].buf, (const double*)buf[3].buf, o[0], o[1],
+                    o[2], o[3], o[4], o[5], o[6], o[7], o[8]);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_imu, 4, 13, IMU_USE, imu_body)
+
+#define UPDATE_USE                                                                               \
+    "update(sizes, gates, H, y, R, P, x, S_diag, whitened, stats, x_out, P_out, work) takes 13 " \
+    "buffers"
+
+static int64_t update_body(Py_buffer* buf) {
+    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), M = 0, status;
+    int64_t n = (int64_t)(buf[6].len / (Py_ssize_t)sizeof(double));
+    const int64_t* sizes = (const int64_t*)buf[0].buf;
+    for (int64_t i = 0; i < k; i++) M += sizes[i] > 0 ? sizes[i] : MAX_ROWS + 1;
+    const int64_t need[13] = {
+        0, k, M * n, M, M * M, n * n, n, M, M, 3 * k, n, n * n, update_work(n, M)};
+    if (!fits(buf, need, 1, 13, M <= MAX_ROWS, "update: over 64 rows, or a small buffer"))
+        return -1;
+    const double* in[6];
+    double* out[6];
+    for (int i = 0; i < 6; i++) {
+        in[i] = (const double*)buf[1 + i].buf;
+        out[i] = (double*)buf[7 + i].buf;
+    }
+    Py_BEGIN_ALLOW_THREADS status =
+        kalman_update(k, sizes, in[0], n, M, in[1], in[2], in[3], in[4], in[5], out[0], out[1],
+                      out[2], out[3], out[4], out[5]);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_update, 7, 13, UPDATE_USE, update_body)
+
+static PyObject* kernel_update_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    long long v[2];
+    if (int_args(args, nargs, 2, v, "update_work(n, rows) takes 2 integers")) return NULL;
+    return PyLong_FromLongLong(update_work(v[0], v[1]));
+}
+
+#define IMU_MEAS_USE                                                                           \
+    "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, " \
+    "z_out, R_out) takes 15 buffers"
+
+static int64_t imu_measurements_body(Py_buffer* buf) {
+    Py_ssize_t w = (Py_ssize_t)sizeof(double);
+    int64_t k = (int64_t)(buf[0].len / (Py_ssize_t)sizeof(int64_t)), n = (int64_t)(buf[9].len / w);
+    const int64_t need[15] = {0, 8, 9, 9 * k, 3, 3 * k, 3, 3 * k, k, n, 9, 9 * n, 9, 9, 81};
+    const int64_t* cols = (const int64_t*)buf[0].buf;
+    int ok = k <= 256;
+    for (int64_t c = 0; ok && c < k; c++) ok = cols[c] >= 0 && cols[c] < n;
+    if (!fits(buf, need, 1, 15, ok, "imu_measurements: a buffer too small or a column off"))
+        return -1;
+    const double* pred[7];
+    for (int i = 0; i < 7; i++) pred[i] = (const double*)buf[2 + i].buf;
+    imu_measurements(n, k, cols, (const double*)buf[1].buf, pred, (const double*)buf[9].buf,
+                     (const double*)buf[10].buf, (double*)buf[11].buf, (double*)buf[12].buf,
+                     (double*)buf[13].buf, (double*)buf[14].buf);
+    return 0;
+}
+
+BUFFER_CALL(kernel_imu_measurements, 11, 15, IMU_MEAS_USE, imu_measurements_body)
+
+static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer dims;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "lean_work(dims, n) takes 2 arguments");
+        return NULL;
+    }
+    long long n = PyLong_AsLongLong(args[1]);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    int64_t size = lean_work((const int64_t*)dims.buf, (int64_t)n);
+    PyBuffer_Release(&dims);
+    return PyLong_FromLongLong(size);
 }
 
 static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
@@ -484,6 +1489,31 @@ static PyMethodDef methods[] = {
     {"jacobian", (PyCFunction)(void (*)(void))kernel_jacobian, METH_FASTCALL,
      "jacobian(consts, dims, state, acc, J, work) -> status: accelerations and their Jacobian "
      "(dense path without joints; state [q, q_dot, omega_w, rest])"},
+    {"lean_step", (PyCFunction)(void (*)(void))kernel_lean_step, METH_FASTCALL,
+     "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) -> status: the estimator's "
+     "lean prediction step (RK4 state, Taylor-series F, F P F^T)"},
+    {"lean_work", (PyCFunction)(void (*)(void))kernel_lean_work, METH_FASTCALL,
+     "lean_work(dims, n) -> doubles of work lean_step() needs for an n-entry filter state"},
+    {"manifold", (PyCFunction)(void (*)(void))kernel_manifold, METH_FASTCALL,
+     "manifold(E, B0, l2, spec, P, x, P_out, work) -> status: the filter state onto the bars' "
+     "constraints (in place), P_out = Pi P Pi^T unless P is empty"},
+    {"manifold_work", (PyCFunction)(void (*)(void))kernel_manifold_work, METH_FASTCALL,
+     "manifold_work(m, beta, n) -> doubles of work manifold() needs"},
+    {"imu", (PyCFunction)(void (*)(void))kernel_imu, METH_FASTCALL,
+     "imu(consts, dims, spec, x, f, A, R, dR, omega, d_omega, force, d_force, work) -> status: "
+     "the IMU's prediction and Jacobians with the dynamics' (the estimator's closed form)"},
+    {"update", (PyCFunction)(void (*)(void))kernel_update, METH_FASTCALL,
+     "update(sizes, gates, H, y, R, P, x, S_diag, whitened, stats, x_out, P_out, work) -> "
+     "status: the gated Kalman update of stacked measurements (the estimator's fast path)"},
+    {"update_work", (PyCFunction)(void (*)(void))kernel_update_work, METH_FASTCALL,
+     "update_work(n, rows) -> doubles of work update() needs"},
+    {"imu_measurements", (PyCFunction)(void (*)(void))kernel_imu_measurements, METH_FASTCALL,
+     "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, "
+     "z_out, R_out): the IMU's rate, specific force and attitude measurements (the estimator's "
+     "fast path)"},
+    {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
+     "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's); None: the "
+     "kernel's own loops"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
     {NULL, NULL, 0, NULL},

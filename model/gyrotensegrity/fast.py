@@ -35,6 +35,13 @@ try:  # the optional compiled kernel (setup.py); the numpy path below is the fal
     from . import _fastkernel
 except ImportError:  # pragma: no cover - depends on the build
     _fastkernel = None
+else:  # its matrix products through scipy's BLAS (the kernel's loops without it)
+    from scipy.linalg import cython_blas
+
+    try:
+        _fastkernel.use_blas(cython_blas.__pyx_capi__["dgemm"])
+    except (AttributeError, KeyError, ValueError):  # pragma: no cover - depends on scipy
+        pass
 
 DENSE_LIMIT = 100  # coordinates m' up to which the dense path (and the compiled kernel) is used
 FULL_LIMIT = 400  # full coordinates with joints: dense only, up to this many coordinates

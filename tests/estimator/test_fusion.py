@@ -170,21 +170,24 @@ def test_a_finite_state_the_imu_cannot_see_raises_with_member(model, config):
     assert exc.value.member and exc.value.t_s == 0.0
 
 
-def test_predicted_axes_that_are_not_a_rotation_raise_with_member(model, config, monkeypatch):
+@pytest.mark.parametrize("fast", [True, False])
+def test_predicted_axes_that_are_not_a_rotation_raise_with_member(model, config, monkeypatch, fast):
     """Finite axes that are no rotation (a frame whose nodes overflowed) are refused by name
     before the angle's rotation would reject them with a bare ValueError."""
     from dataclasses import replace
 
     from gyrohost.estimator import ekf as ekf_module
 
-    predict = ekf_module.predict_imu
     squashed = np.diag([1.0, 1.0, 0.01])
-    monkeypatch.setattr(
-        ekf_module,
-        "predict_imu",
-        lambda *a: (lambda p: replace(p, R_ws=p.R_ws @ squashed))(predict(*a)),
-    )
-    ekf = TensegrityEKF(model, config)
+
+    def squashing(predict):
+        return lambda *a: replace(predict(*a), R_ws=predict(*a).R_ws @ squashed)
+
+    monkeypatch.setattr(ekf_module, "predict_imu", squashing(ekf_module.predict_imu))
+    ekf = TensegrityEKF(model, config, fast=fast)
+    assert (ekf.fast_imu is not None) == fast
+    if fast:
+        monkeypatch.setattr(ekf, "fast_imu", squashing(ekf.fast_imu))
     rate, accel, angle = imu_sample(ekf)
     with pytest.raises(EstimatorError, match=r"not a rotation \(R\^T R off the identity by 1\)"):
         ekf.fuse_imu(ekf.t + config.imu_latency_s, rate, accel, angle)

@@ -24,6 +24,9 @@ from gyrotensegrity import SimulationError
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import mounting_covariance
 from .errors import EstimatorError
+from .fast_imu import fast_imu
+from .fast_manifold import fast_manifold
+from .fast_prediction import fast_prediction
 from .fusion import fuse
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
@@ -91,20 +94,28 @@ class TensegrityEKF:
     t0_s : float, s
     log : callable(Innovation), optional
         Receives every fusion attempt (accepted or rejected).
+    fast : bool
+        The compiled prediction step and IMU prediction (:mod:`.fast_prediction`,
+        :mod:`.fast_imu`) where they cover the configuration, the compiled manifold
+        (:mod:`.fast_manifold`) and the fusion without filterpy (:func:`.fusion.fuse`); False:
+        the reference path everywhere.
     """
 
-    def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None):
+    def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None, fast=True):
         check_model(model)
         self.model, self.config = model, config
         self.layout = L = layout_of(model, config)
         self.process = ProcessModel(model, config)
+        self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
+        self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
-        self.manifold = Manifold(model, L)
+        self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
         self.dynamic_columns = np.arange(L.n_dynamic)
         # the columns the IMU prediction's Jacobians are over
         self.imu_columns = np.r_[self.dynamic_columns, L.mounting.start : L.mounting.stop]
+        self.fast_imu = fast_imu(self)
         self.t = float(t0_s)
         self.t_start = self.t
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
@@ -252,21 +263,34 @@ class TensegrityEKF:
         """One prediction step of ``dt`` s with the held input."""
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
             try:
-                x_next, F = self.process.step(self.x, self.u, dt, self._A)
+                if self.fast_step is not None:
+                    self._predict_fast(dt)
+                else:
+                    self._predict_reference(dt)
             except SimulationError as exc:  # the model's fast path refuses a singular state
                 raise _failed(self.t + dt, f"prediction failed: {exc}", exc.member) from None
         self._A = None
+        self.t += dt
+        self._check_finite("prediction")
+        # the state back onto the constraints (RK4 drifts ~1e-9 m per step); P keeps the
+        # process noise in all directions until the next update projects it
+        self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
+
+    def _predict_reference(self, dt: float) -> None:
+        x_next, F = self.process.step(self.x, self.u, dt, self._A)
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
         Q = self.process.noise(dt, F, self.x)
         self.kf.Q = np.zeros_like(F)  # the wheel noise states change at wheel samples only
         self.kf.Q[: len(Q), : len(Q)] = Q
         self.kf.predict()
-        self.t += dt
-        self._check_finite("prediction")
-        # the state back onto the constraints (RK4 drifts ~1e-9 m per step); P keeps the
-        # process noise in all directions until the next update projects it
-        self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
+
+    def _predict_fast(self, dt: float) -> None:
+        """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
+        x_next, P, _ = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
+        Q = self.process.noise(dt, None, self.x)  # the jitter's term is in P already
+        P[: len(Q), : len(Q)] += Q
+        self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 
     def _check_finite(self, what: str) -> None:
         # a non-finite covariance entry reaches the diagonal within one step: the diagonal will do
@@ -318,6 +342,8 @@ class TensegrityEKF:
             return []
         pred = self._imu_prediction()
         self._A = pred.A  # the lean process model's next linearisation
+        if self.fast_imu is not None:
+            return fuse(self, *self.fast_imu.measurements(pred, omega_rad_s, accel_m_s2, euler_rad))
         return fuse(
             self,
             fuse_imu_rate.measurement(self, pred, omega_rad_s),
@@ -332,7 +358,10 @@ class TensegrityEKF:
         the angle's rotation would fail on it."""
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # checked below
             try:
-                pred = predict_imu(self, self.x, self.u)
+                if self.fast_imu is not None:
+                    pred = self.fast_imu(self.x, self.u)
+                else:
+                    pred = predict_imu(self, self.x, self.u)
             except SimulationError as exc:
                 raise _failed(self.t, f"the IMU's prediction failed: {exc}", exc.member) from None
         for name, value in vars(pred).items():

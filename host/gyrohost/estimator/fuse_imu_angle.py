@@ -20,7 +20,7 @@ axes), as for the other IMU measurements.
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from gyrohost.geometry import rotation_zyx
+from gyrohost.geometry import rotation_vector, rotation_zyx
 
 from .fusion import Measurement
 from .imu_prediction import ImuPrediction, full_jacobian
@@ -54,7 +54,11 @@ def measurement(ekf, pred: ImuPrediction, euler_rad) -> Measurement:
     J = rotation_jacobian(pred.R_ws, pred.dR_ws)
     w = J @ pred.x_dot  # angular velocity of the sensor axes, world axes, rad/s
     R_m = rotation_zyx(*np.asarray(euler_rad, float))
-    y = Rotation.from_matrix(R_m @ pred.R_ws.T).as_rotvec() + ekf.imu_lag_s * w
+    turn = R_m @ pred.R_ws.T
+    # scipy's Rotation costs more than the rest of this fusion; the fast path's log map is
+    # equal to it to round-off (tests/test_geometry.py)
+    log = rotation_vector(turn) if ekf.fast else Rotation.from_matrix(turn).as_rotvec()
+    y = log + ekf.imu_lag_s * w
     c = ekf.config
     E = euler_rate_matrix(*euler_rad)
     R = c.imu_angle_std_rad**2 * (E @ E.T + FLOOR**2 * np.eye(3))

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import chi2
 
+from gyrotensegrity.fast import _fastkernel
+
 
 @dataclass(frozen=True)
 class Innovation:
@@ -92,36 +94,27 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     and angles); fusing them together is the same as fusing them one after the other without
     relinearising. The estimate is then put back on the constraint manifold.
 
+    With ``ekf.fast`` the same in the compiled kernel (:func:`_fuse_fast`).
+
     Returns
     -------
     list of Innovation, one per measurement, in order
     """
+    if getattr(ekf, "fast", False) and _fastkernel is not None:
+        return _fuse_fast(ekf, measurements)
+    return _fuse_reference(ekf, measurements)
+
+
+def _fuse_reference(ekf, measurements) -> list[Innovation]:
     kf = ekf.kf
     results, keep = [], []
     for meas in measurements:
         y = meas.residual(meas.z, meas.hx)
         S = meas.H @ kf.P @ meas.H.T + meas.R
-        w, log_det = _whitened(S, y)
-        nis = float(w @ w)
-        ratio = nis / gate(ekf.config.gate_probability, len(y))
-        accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
-        monitor = ekf.monitors[meas.source]
-        monitor.record(ekf.t, accepted)
-        results.append(
-            Innovation(
-                meas.source,
-                ekf.t,
-                y,
-                np.diag(S).copy(),
-                nis,
-                ratio,
-                accepted,
-                monitor.rejected,
-                w,
-                log_det - _log_det(meas.R),
-            )  # fmt: skip
-        )
-        if accepted:
+        w, log_det_S = whitened(S, y)
+        result = judge(ekf, meas, y, np.diag(S), w, log_det_S - log_det(meas.R))
+        results.append(result)
+        if result.accepted:
             keep.append((y, meas))
     if keep:
         y = np.concatenate([k[0] for k in keep])
@@ -141,25 +134,84 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     return results
 
 
-def _whitened(S: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+def _fuse_fast(ekf, measurements) -> list[Innovation]:
+    """:func:`fuse` in one call of the compiled kernel (``_fastkernel.update``) where filterpy
+    and numpy take a few dozen: the measurements stacked, each one's ``S`` factored once by
+    Cholesky (NIS, gate, whitened innovation, spread), the accepted ones' ``S`` once more for
+    the gain where filterpy inverts it, the Joseph form as filterpy writes it. Equal to the
+    reference to round-off (tests/estimator/test_fast_fusion.py); where the accepted
+    measurements' ``S`` is not positive definite the reference takes the sample."""
+    kf = ekf.kf
+    ys = [meas.residual(meas.z, meas.hx) for meas in measurements]
+    sizes = np.array([len(y) for y in ys], np.int64)
+    ends = np.cumsum(sizes)
+    R = np.zeros((ends[-1], ends[-1]))
+    for e, k, meas in zip(ends, sizes, measurements, strict=True):
+        R[e - k : e, e - k : e] = meas.R
+    probability = ekf.config.gate_probability
+    gates = np.array([gate(probability, k) for k in sizes])
+    n, y = len(kf.P), np.concatenate(ys)
+    S_diag, w, stats = np.empty(len(y)), np.empty(len(y)), np.empty((len(ys), 3))
+    x, P = np.empty(n), np.empty((n, n))
+    H = np.vstack([meas.H for meas in measurements])
+    work = np.empty(_fastkernel.update_work(n, len(y)))
+    prior = np.ascontiguousarray(kf.P), np.ascontiguousarray(kf.x[:, 0])
+    if _fastkernel.update(sizes, gates, H, y, R, *prior, S_diag, w, stats, x, P, work):
+        return _fuse_reference(ekf, measurements)
+    results = [
+        judge(ekf, meas, ys[i], S_diag[e - k : e], w[e - k : e], stats[i, 1], stats[i, 0])
+        for i, (e, k, meas) in enumerate(zip(ends, sizes, measurements, strict=True))
+    ]
+    if stats[:, 2].any():
+        kf.x, kf.P = x.reshape(-1, 1), P
+        ekf.constrain()
+    for r in results:
+        ekf.emit(r)
+    return results
+
+
+def judge(ekf, meas: Measurement, y, variance, w, spread: float, nis=None) -> Innovation:
+    """The gate's verdict on one measurement (innovation ``y``, the diagonal ``variance`` of its
+    covariance, whitened ``w``, ``spread``; ``nis`` given or ``w . w``), counted in its source's
+    monitor."""
+    nis = float(w @ w) if nis is None else float(nis)
+    ratio = nis / gate(ekf.config.gate_probability, len(y))
+    accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
+    monitor = ekf.monitors[meas.source]
+    monitor.record(ekf.t, accepted)
+    return Innovation(
+        meas.source,
+        ekf.t,
+        y,
+        np.array(variance),
+        nis,
+        ratio,
+        accepted,
+        monitor.rejected,
+        np.array(w),
+        float(spread),
+    )
+
+
+def whitened(S: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     """``L^-1 y`` for the Cholesky factor ``L`` of ``S``, and ``log det S``; NaN (so NIS NaN,
     the sample rejected) where ``S`` is not positive definite or not finite."""
     try:
         L = np.linalg.cholesky(S)
-        return solve_triangular(L, y, lower=True), _log_det_of_factor(L)
+        return solve_triangular(L, y, lower=True), log_det_of_factor(L)
     except (np.linalg.LinAlgError, ValueError):
         return np.full(len(y), np.nan), float("nan")
 
 
-def _log_det(R: np.ndarray) -> float:
+def log_det(R: np.ndarray) -> float:
     """``log det R`` of a sensor's noise covariance; NaN where it is not positive definite (an
     attitude's noise turned by a prediction that is no rotation)."""
     try:
-        return _log_det_of_factor(np.linalg.cholesky(R))
+        return log_det_of_factor(np.linalg.cholesky(R))
     except (np.linalg.LinAlgError, ValueError):
         return float("nan")
 
 
-def _log_det_of_factor(L: np.ndarray) -> float:
+def log_det_of_factor(L: np.ndarray) -> float:
     """``log det (L L^T)`` of a Cholesky factor ``L``."""
     return 2.0 * float(np.sum(np.log(np.diag(L))))

@@ -6,7 +6,7 @@ next prediction of the lean process model). With ``jacobian = "analytic"`` the d
 part is in closed form (:meth:`.process_model.ProcessModel.closed_form`) and only the frame
 (a function of the node positions and velocities alone) goes through the complex step. With
 the mounting's error as a state (``layout.mounting``) the frame uses the estimated mounting and
-the Jacobians get its three columns in closed form (:func:`_with_mounting`).
+the Jacobians get its three columns in closed form (:func:`with_mounting`).
 """
 
 from dataclasses import dataclass, replace
@@ -42,7 +42,7 @@ def predict_imu(ekf, x, u) -> ImuPrediction:
     if not L.n_mounting:
         return _predict(ekf, x, u, ekf.imu.R_bs)
     R_bs, dR_bs = ekf.imu.mounting(x[L.mounting])
-    return _with_mounting(_predict(ekf, x, u, R_bs), R_bs, dR_bs)
+    return with_mounting(_predict(ekf, x, u, R_bs), R_bs, dR_bs)
 
 
 def _predict(ekf, x, u, R_bs) -> ImuPrediction:
@@ -84,7 +84,7 @@ def _closed_form(ekf, x, u, R_bs) -> ImuPrediction:
     return ImuPrediction(R, dR, w, dw, R.T @ a, df, A, x_dot)
 
 
-def _with_mounting(pred: ImuPrediction, R_bs, dR_bs) -> ImuPrediction:
+def with_mounting(pred: ImuPrediction, R_bs, dR_bs) -> ImuPrediction:
     """``pred`` with three more Jacobian columns, by the mounting's roll, pitch and yaw error
     (``dR_bs`` (3, 3, 3) the derivatives of the sensor axes in body axes ``R_bs``): with
     ``R_ws = R_wb R_bs``, ``omega_s = R_bs^T omega_b`` and ``f = R_ws^T a``, the derivative by

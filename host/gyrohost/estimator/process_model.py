@@ -302,11 +302,15 @@ class ProcessModel(ProcessNoise):
             xd, Fd = self._rk4(x[:nd], u, dt, sp0)
         else:
             xd, Fd = self._lean(x[:nd], u, dt, A, sp0)
-        self._aim(sp0, dt)
-        self.wheel_setpoint_rad_s = self.wheel_target_rad_s
+        self.setpoints_moved(sp0, dt)
         F = np.eye(x.size)
         F[:nd, :nd] = Fd
         return np.concatenate([xd, x[nd:]]), F
+
+    def setpoints_moved(self, sp0, dt) -> None:
+        """The board's setpoints ``dt`` s after they were ``sp0`` (a step's end)."""
+        self._aim(sp0, dt)
+        self.wheel_setpoint_rad_s = self.wheel_target_rad_s
 
     def _lean(self, xd, u, dt, A, sp0):
         if A is None:
