@@ -130,7 +130,7 @@ def write_case(folder: Path, truth: Truth, seed: int) -> tuple[Path, Path]:
     config = config.replace('scene = "dbar-gyro"', 'scene = "weighed.toml"', 1)
     rotation = ", ".join(repr(a) for a in truth.imu_rotation_deg)
     config += (
-        f"\n[sim.truth]\nscene = \"truth.toml\"\nimu_rotation_deg = [{rotation}]\n"
+        f'\n[sim.truth]\nscene = "truth.toml"\nimu_rotation_deg = [{rotation}]\n'
         f"imu_latency_s = {truth.imu_latency_s!r}\n"
     )
     (folder / "rig.toml").write_text(config)
