@@ -186,7 +186,7 @@ def test_plot_of_a_damaged_log_draws_what_it_can(log, tmp_path, capsys):
     _damage_row(log / "wheels.csv", 5, 1, "")
     assert main(["plot", str(log), "-o", str(tmp_path / "p")]) == 0
     out, err = capsys.readouterr()
-    assert len(out.split()) == 5 and "loop-jitter.png" not in out
+    assert len(out.split()) == 6 and "loop-jitter.png" not in out
     assert err.splitlines() == [
         f"gyrotens plot: warning: {log}: no stream 'loop' (loop.csv or its schema missing); "
         "left out",

@@ -129,7 +129,7 @@ def test_the_process_gives_the_filter_run_of_the_loop_thread(model, config, call
     for name, rows in reference.rows.items():
         assert len(rows) > 5, name
         assert np.array_equal(np.array(log.rows[name]), np.array(rows)), name
-    assert proc.t == last[1] and np.array_equal(proc.x, last[4])  # the newest estimate
+    assert proc.t == last[1] and np.array_equal(proc.x, last[-1])  # the newest estimate
     assert (
         proc.health["nis"]["imu_rate"]["samples"]
         == filt.innovations.tally.table()["imu_rate"]["samples"]

@@ -138,15 +138,15 @@ def test_demo_writes_both_logs_all_figures_and_a_summary(tmp_path, capsys):
         assert read_meta(out / run)["summary"]["completed"]
         pngs = sorted(p.name for p in (out / run / "plots").glob("*.png"))
         assert pngs == sorted(
-            ["fig7-nodes.png", "fig8-node-z.png", "attitude.png", "wheels.png",
-             "innovations.png", "loop-jitter.png"]
+            ["fig7-nodes.png", "fig8-node-z.png", "attitude.png", "body-attitude.png",
+             "wheels.png", "innovations.png", "loop-jitter.png"]
         )  # fmt: skip
     assert (out / "fig7-spin-vs-nospin.png").stat().st_size > 10_000
     summary = (out / "summary.md").read_text()
     assert "| wheels at 715 rpm |" in summary and "| no spin |" in summary
     assert "loop at 100 Hz" in summary
     assert main(["plot", str(out / "nospin"), "-o", str(tmp_path / "again")]) == 0
-    assert len(list((tmp_path / "again").glob("*.png"))) == 6
+    assert len(list((tmp_path / "again").glob("*.png"))) == 7
 
 
 def test_run_target_tilt_options_are_checked_before_anything_moves(tmp_path, capsys):
