@@ -364,7 +364,7 @@ def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
     their lag smoothly). A sawtooth of peak to peak ``p`` and period ``P`` is taken as white
     noise of density ``2 (p^2 / 12) P``, and the sum is doubled: with its own density the
     in-process SIL's motion block sat at twice its dof while a string crossed its kink
-    (docs/estimator.md#the-rest-length-jitter). The two spreads add within 3 % for servos
+    (docs/estimator-noise.md#the-rest-length-jitter). The two spreads add within 3 % for servos
     up to twice the pull's speed; servos that jump to their goals step where the truth does,
     and the sum overstates their spread by up to a fifth.
 

@@ -22,7 +22,7 @@ left after the device's own calibration (``FF AA 67``) into the figure
 
 The servos' reads are left out: a held servo reads where it holds (the emulator exactly), and
 ``servo_length_std_m`` carries what they do while moving
-(docs/estimator.md#the-servos-reads-moving-and-at-rest).
+(docs/estimator-noise.md#the-servos-reads-moving-and-at-rest).
 """
 
 import math

@@ -51,7 +51,7 @@ def emulator_keys(rig: RigConfig) -> dict:
         # reader thread, so it depends on the machine (the positions' NEES fits best at 1.5 ms
         # on one, 0.8 ms on a faster one, and rises by about 10 per ms off in the fastest
         # turn): the middle, with its spread as the samples' time uncertainty
-        # (docs/estimator.md#the-imus-latency-depends-on-the-machine)
+        # (docs/estimator-noise.md#the-imus-latency-depends-on-the-machine)
         "imu_latency_s": 0.0012,
         "imu_time_std_s": 0.001,
         # the node accelerations' noise: the servos' goal steps and the loop's late ticks,
@@ -71,19 +71,19 @@ def emulator_keys(rig: RigConfig) -> dict:
         # tick it covers the goal step and holds, so it strays from the lag by up to the step,
         # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
         # while they move; holding still, they sit within the hold below; its reads scatter
-        # about the truth's 5 ms rest-length steps (docs/estimator.md#resting-servos)
+        # about the truth's 5 ms rest-length steps (docs/estimator-noise.md#resting-servos)
         "servo_lag_s": 0.005,
         # a moving servo's read lies anywhere within the truth's 5 ms hold of its rest length
         # (uniform: dt / sqrt(12) as a time); at rest it reads within a count of where it
         # holds, and 5e-5 m left for the rest put the servo NIS at 1.8-2.0 of 2 on three
         # real-time batches (2e-4 and no time: 0.87-1.06, below its bounds on one;
-        # docs/estimator.md#the-servos-reads-moving-and-at-rest)
+        # docs/estimator-noise.md#the-servos-reads-moving-and-at-rest)
         "servo_length_std_m": 5.0e-5,
         "servo_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
         # a resting servo holds within its band of the command's count, and no walk beyond it
         # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
-        # docs/estimator.md#resting-servos)
+        # docs/estimator-noise.md#resting-servos)
         "rest_psd_m2_s": 0.0,
         "rest_hold_std_m": servo_hold_std(
             max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
@@ -92,7 +92,7 @@ def emulator_keys(rig: RigConfig) -> dict:
         # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
         # ones which the kink rectifies: the truth's hold over its step and the servos' goal
         # steps, one per tick of the run loop, each covered at the servo's speed (the fastest
-        # servo's: the largest sawtooth; docs/estimator.md#the-rest-length-jitter)
+        # servo's: the largest sawtooth; docs/estimator-noise.md#the-rest-length-jitter)
         "rest_jitter_psd_m2_s": sawtooth_psd(
             sim.truth.dt_s,
             1.0 / LOOP_RATE_HZ,
