@@ -65,16 +65,27 @@ TEST(Prm, SaveIsNonBlockingAndReloads) {
     FakeEeprom::busy_polls = 0;
 }
 
-TEST(Prm, CorruptImagesRejected) {
+// An EEPROM image of the defaults with one value set directly (bypassing prm_set's range check,
+// as a corrupted or hand-made image would), saved as sequence number `seq`.
+static void image_with(uint8_t param, int32_t value, uint16_t seq, uint8_t* image) {
     prm_store s;
     prm_defaults(&s);
-    s.v[PRM_KI] = 77;
+    s.v[param] = value;
+    prm_image_build(&s, seq, image);
+}
+
+// A boot's read of `image` into a store that starts from the defaults.
+static bool parse_over_defaults(const uint8_t* image, prm_store* s, uint16_t* seq) {
+    prm_defaults(s);
+    return prm_image_parse(s, image, seq);
+}
+
+TEST(Prm, CorruptImagesRejected) {
     uint8_t good[PRM_IMAGE_SIZE];
-    prm_image_build(&s, 513, good);
+    image_with(PRM_KI, 77, 513, good);
     prm_store t;
-    prm_defaults(&t);
     uint16_t seq = 0;
-    ASSERT_TRUE(prm_image_parse(&t, good, &seq));
+    ASSERT_TRUE(parse_over_defaults(good, &t, &seq));
     EXPECT_EQ(t.v[PRM_KI], 77);
     EXPECT_EQ(seq, 513);
     for (int i = 0; i < PRM_IMAGE_SIZE; i++) {  // any flipped byte (magic, version, count,
@@ -82,22 +93,17 @@ TEST(Prm, CorruptImagesRejected) {
         for (int k = 0; k < PRM_IMAGE_SIZE; k++) bad[k] = good[k];
         bad[i] ^= 0x10;
         prm_store u;
-        prm_defaults(&u);
-        EXPECT_FALSE(prm_image_parse(&u, bad, &seq)) << "byte " << i;
+        EXPECT_FALSE(parse_over_defaults(bad, &u, &seq)) << "byte " << i;
         EXPECT_EQ(u.v[PRM_KI], prm_default(PRM_KI));
     }
 }
 
 TEST(Prm, ValidCrcButValueOutOfRangeRejected) {
-    prm_store s;
-    prm_defaults(&s);
-    s.v[PRM_POLE_PAIRS] = 99;  // bypass prm_set
     uint8_t img[PRM_IMAGE_SIZE];
-    prm_image_build(&s, 1, img);
+    image_with(PRM_POLE_PAIRS, 99, 1, img);
     prm_store t;
-    prm_defaults(&t);
     uint16_t seq = 0;
-    EXPECT_FALSE(prm_image_parse(&t, img, &seq));
+    EXPECT_FALSE(parse_over_defaults(img, &t, &seq));
     EXPECT_EQ(t.v[PRM_POLE_PAIRS], 7);
 }
 
