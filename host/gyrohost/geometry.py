@@ -78,7 +78,9 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     """Rotation vector (3,) rad of the rotation ``R`` (3, 3), angle in [0, pi]: by its unit
     quaternion, built from the largest of ``1 + trace`` and ``1 - trace + 2 R_ii`` (Shepperd's
     choice, no division by a small number), then ``angle / sin(angle / 2)`` times its vector
-    part (a series below 1e-3 rad, where that ratio loses digits)."""
+    part (a series below 1e-3 rad, where that ratio loses digits). The same choice as the
+    batched :func:`gyrotensegrity.attitude.quaternion_from_matrix`, written for one matrix: the
+    fast filter takes one per IMU sample, and the batched form costs it twice as long."""
     trace = R[0, 0] + R[1, 1] + R[2, 2]
     i = int(np.argmax(np.diag(R)))
     if trace >= R[i, i]:

@@ -141,7 +141,8 @@ class FilterProblem(output_fit.WalledResiduals):
         self._spreads = None  # which of them are the spreads' square roots
 
     def applied(self, theta):
-        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
+        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s,
+                     len(self.recs), self.est.imu_latency_s)  # fmt: skip
 
     def runs(self, theta) -> list:
         """Per recording, the innovations in fusion order and where the filter broke, or None
@@ -154,9 +155,8 @@ class FilterProblem(output_fit.WalledResiduals):
                 imu_mounting_rpy_rad=tuple(float(v) for v in a.mounting_rpy_rad),
                 servo_lag_s=float(a.servo_lag_s),
                 accel_psd_m2_s3=self.est.accel_psd_m2_s3 * a.accel_psd_factor,
+                imu_latency_s=float(a.imu_latency_s),
             )
-            if a.imu_latency_s is not None:
-                est = replace(est, imu_latency_s=float(a.imu_latency_s))
             model = Model(a.scene)
             self._runs = [
                 _run(model, est, rec, _corrected(rec.data, a, i, self.config))

@@ -209,16 +209,22 @@ class Problem(WalledResiduals):
         self._length = None  # residuals per evaluation, as the first one gave
 
     def applied(self, theta):
-        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s, len(self.recs))
+        return apply(self.scene, self.config, self.params, theta, self.servo_lag_s,
+                     len(self.recs), self.imu_latency_s)  # fmt: skip
 
     def motions(self, theta) -> list:
         key = tuple(np.asarray(theta)[self.dynamic])
         if key != self._key:
             a = self.applied(theta)
-            latency = self.imu_latency_s if a.imu_latency_s is None else a.imu_latency_s
             self._motions = [
                 forward.simulate(
-                    a.scene, self.config, r, a.offsets_m, a.servo_lag_s, self.frame_nodes, latency
+                    a.scene,
+                    self.config,
+                    r,
+                    a.offsets_m,
+                    a.servo_lag_s,
+                    self.frame_nodes,
+                    a.imu_latency_s,
                 )
                 for r in self.recs
             ]

@@ -184,8 +184,7 @@ class Applied:
     mounting_rpy_rad : ndarray, shape (3,), rad
     gyro_bias_rad_s : ndarray, shape (recordings, 3), rad/s
     accel_bias_m_s2 : ndarray, shape (recordings, 3), m/s^2
-    imu_latency_s : float or None, s
-        None: the filter's own (not fitted).
+    imu_latency_s : float, s
     accel_psd_factor : float
         On the filter's ``accel_psd_m2_s3``.
     """
@@ -196,16 +195,22 @@ class Applied:
     mounting_rpy_rad: np.ndarray
     gyro_bias_rad_s: np.ndarray
     accel_bias_m_s2: np.ndarray
-    imu_latency_s: float | None = None
-    accel_psd_factor: float = 1.0
+    imu_latency_s: float
+    accel_psd_factor: float
 
 
 def apply(
-    scene: Scene, config: RigConfig, params: list[Param], theta, servo_lag_s, recordings: int = 1
+    scene: Scene,
+    config: RigConfig,
+    params: list[Param],
+    theta,
+    servo_lag_s,
+    recordings: int = 1,
+    imu_latency_s: float = 0.0,
 ) -> Applied:
     """The rig of parameter vector ``theta`` (shape (len(params),)) for ``recordings``
     recordings; groups not estimated keep the configuration's values (biases zero, the lag
-    ``servo_lag_s``)."""
+    ``servo_lag_s``, the IMU's latency ``imu_latency_s``, the filter's noise)."""
     by = {p.name: (p, float(t)) for p, t in zip(params, theta, strict=True)}
 
     def factor(name):
@@ -245,6 +250,6 @@ def apply(
             )
             for g in ("gyro-bias", "accel-bias")
         ),
-        absolute("imu_latency", None),
+        absolute("imu_latency", imu_latency_s),
         factor("accel_psd"),
     )
