@@ -95,7 +95,7 @@ def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
     nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
     log = record_log(truth, 2, tmp_path / "log")
     out = tmp_path / "ident" / "rig.toml"
-    argv = ["identify", str(log), "-o", str(out), "--config", str(nominal)]
+    argv = ["identify", str(log), "-o", str(out), "--config", str(nominal), "--method", "output"]
     argv += ["--params", "J3,mounting", "--lengths", "command", "--max-evaluations", "8"]
     assert main(argv) == 0
     text = capsys.readouterr().out
@@ -112,6 +112,33 @@ def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
     merged = for_rig(load_rig_config(nominal, [out.parent / "rig-config.toml"]))
     assert np.array_equal(merged.imu_mounting_cov_rad2, cov)
     assert (out.parent / "rig-residuals.png").stat().st_size > 10_000
+
+
+def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_path, capsys):
+    """The default method: the output error, then the filter's likelihood for the mounting,
+    the latency and its noise, started from the output error's values. The scene is the first
+    stage's (its J3), its header both reports, the overlay the second stage's mounting and
+    noise; the filter's innovations are plotted beside the residuals."""
+    from gyrohost.ident.report import read_identified
+
+    nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
+    log = record_log(truth, 2, tmp_path / "log")
+    out = tmp_path / "ident.toml"
+    argv = ["identify", str(log), "-o", str(out), "--config", str(nominal), "--workers", "1"]
+    argv += ["--params", "J3,mounting,imu-latency", "--until", "1.0", "--max-evaluations", "3"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    first, _, second = text.partition("then the sensor by the filter's likelihood: 5 parameters")
+    assert "by the output error" in first and "J3" in first and "accel_psd" not in first
+    assert "accel_psd" in second and "mounting.yaw" in second and "J3 " not in second
+    header = out.read_text()
+    assert header.count("mounting.yaw") == 2
+    overlay = tomllib.loads((tmp_path / "ident-config.toml").read_text())
+    yaw = overlay["imu"]["mounting_rpy_rad"][2]
+    reported = read_identified(header)
+    assert yaw == pytest.approx(reported["mounting.yaw"][0], rel=1e-5)  # the second stage's
+    assert {"imu_latency_s", "accel_psd_m2_s3"} <= set(overlay["estimator"])
+    assert (tmp_path / "ident-innovations.png").stat().st_size > 10_000
 
 
 def test_cli_refuses_a_log_without_streams(tmp_path, capsys):

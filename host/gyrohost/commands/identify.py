@@ -3,7 +3,6 @@ fit the rig's parameters to recorded runs (docs/identification.md)."""
 
 import sys
 import time
-from functools import partial
 from pathlib import Path
 
 
@@ -56,10 +55,11 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--method",
-        choices=("output", "filter"),
-        default="output",
-        help="output error: simulate the log's inputs (default); filter: the EKF's likelihood, "
-        "for a real rig, whose wheels err (docs/identification.md)",
+        choices=("staged", "output", "filter"),
+        default="staged",
+        help="staged (default): the output error, then the filter's likelihood for the IMU's "
+        "mounting and latency and its own noise; output: the output error alone (simulate the "
+        "log's inputs); filter: the filter's likelihood for every group (docs/identification.md)",
     )
     p.add_argument(
         "--max-evaluations", type=int, default=40, help="of the residual per pass (default 40)"
@@ -68,7 +68,8 @@ def register(sub) -> None:
         "--workers",
         type=at_least_one,
         metavar="N",
-        help="--method filter: N parameter vectors at once in N processes (default: the cores)",
+        help="the filter's likelihood: N parameter vectors at once in N processes (default: the "
+        "cores)",
     )
     p.set_defaults(func=run)
 
@@ -164,8 +165,8 @@ def run(args) -> int:
     from gyrohost.commands.replay import Warnings
     from gyrohost.config import ConfigError
     from gyrohost.estimator.config import for_rig
-    from gyrohost.ident import filter_fit, profile, report
-    from gyrohost.ident.errors import FitError, IdentDataError, ParamsError
+    from gyrohost.ident import filter_fit, report
+    from gyrohost.ident.errors import IdentDataError, ParamsError
     from gyrohost.ident.fit import fit, nominal_lag, two_passes
     from gyrohost.ident.forward import STEP_S
     from gyrohost.ident.log_config import config_for_logs
@@ -211,24 +212,70 @@ def run(args) -> int:
         raise CliError(str(exc)) from None
     finally:
         warn.close()
-    how = {"output": "the output error", "filter": "the filter's likelihood"}[args.method]
+    how = {"filter": "the filter's likelihood"}.get(args.method, "the output error")
     print(f"{len(recs)} recording(s); fitting {len(params)} parameters by {how}")
     if args.method == "filter":
-        passes = 2 + len(profile.VALLEY_STEPS)
-        fitter = partial(filter_fit.fit, workers=args.workers)
+        result = _fit(filter_fit.fit, (scene, config, est, params, recs), args, workers=True)
     else:
         _describe(recs)
-        passes = 2 if two_passes(recs, STEP_S) else 1
-        fitter = fit
+        result = _fit(fit, (scene, config, est, params, recs), args, two_passes(recs, STEP_S))
+    print("\n".join(report.report_lines(result)))
+    _warn_undetermined(result)
+    structure, config_used = None, config
+    if args.method == "staged":
+        structure, (result, config_used) = result, _refine(result, config, groups, args)
+    _write(args, result, config_used, structure)
+    return 0
+
+
+def _fit(fitter, problem: tuple, args, two: bool = False, workers: bool = False):
+    """Run ``fitter`` on ``problem`` (scene, config, est, params, recs) with a progress line;
+    ``two``: an output-error fit in two passes; ``workers``: a filter fit, on ``--workers``."""
+    from gyrohost.commands.errors import CliError
+    from gyrohost.ident import profile
+    from gyrohost.ident.errors import FitError
+
+    params = problem[3]
+    passes = 2 + len(profile.VALLEY_STEPS) if workers else (2 if two else 1)
+    kwargs = {"workers": args.workers} if workers else {}
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         with profile.observing(progress.statistics):
-            result = fitter(scene, config, est, params, recs, progress, args.max_evaluations)
+            return fitter(*problem, progress, args.max_evaluations, **kwargs)
     except FitError as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
+
+
+def _refine(structure, config, groups, args):
+    """The staged method's second stage (:mod:`gyrohost.ident.staged`): the filter's likelihood
+    for the sensor from the output error's ``structure``; its result and the configuration it
+    started from. The logs' rows left out were told by the first stage."""
+    from gyrohost.commands.errors import CliError
+    from gyrohost.config import ConfigError
+    from gyrohost.estimator.errors import EstimatorConfigError
+    from gyrohost.ident import filter_fit, report, staged
+    from gyrohost.ident.errors import IdentDataError, ParamsError
+
+    try:
+        problem = staged.sensor_problem(structure, config, args.logs, groups, args.until)
+    except (ConfigError, EstimatorConfigError, IdentDataError, ParamsError) as exc:
+        raise CliError(str(exc)) from None
+    span = min(args.until or staged.SENSOR_WINDOW_S, staged.SENSOR_WINDOW_S)
+    print(
+        f"then the sensor by the filter's likelihood: {len(problem[3])} parameters over the "
+        f"first {span:g} s of each log"
+    )
+    result = _fit(filter_fit.fit, problem, args, workers=True)
     print("\n".join(report.report_lines(result)))
+    _warn_undetermined(result)
+    return result, problem[1]
+
+
+def _warn_undetermined(result) -> None:
+    from gyrohost.ident import report
+
     loose = report.undetermined(result)
     if loose:
         print(
@@ -237,16 +284,30 @@ def run(args) -> int:
             "nominal values",
             file=sys.stderr,
         )
+
+
+def _write(args, result, config, structure=None) -> None:
+    """Write the identified scene (``structure``'s when the fit was staged, its header both
+    stages' reports), the configuration overlay (``result``'s, on ``config``; a staged fit's
+    keeps what the first stage determined and the second left) and the residuals' plots."""
+    from gyrohost.ident import report
+
+    out = args.out
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(report.identified_scene(result, config, args.logs))
+    first = structure if structure is not None else result
+    later = result if structure is not None else None
+    out.write_text(report.identified_scene(first, config, args.logs, later))
     overlay = args.overlay or out.with_name(out.stem + "-config.toml")
     overlay.parent.mkdir(parents=True, exist_ok=True)
-    overlay.write_text(report.overlay_toml(result, config))
+    overlay.write_text(report.overlay_toml(result, config, structure))
     plot = out.with_name(out.stem + "-residuals.png")
-    report.plot_residuals(result, plot)
+    report.plot_residuals(first, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")
+    if later is not None:
+        sensor_plot = out.with_name(out.stem + "-innovations.png")
+        report.plot_residuals(later, sensor_plot)
+        print(f"the filter's innovations: {sensor_plot}")
     print(f"run with it: gyrotens run --config {config.source} --overlay {overlay} --scene {out}")
-    return 0
 
 
 def _groups(text: str | None, method: str) -> list[str]:

@@ -73,16 +73,20 @@ def _combination(v: np.ndarray, names: list[str]) -> str:
     return " ".join(terms)
 
 
-def overlay_toml(result: FitResult, config) -> str:
+def overlay_toml(result: FitResult, config, before: FitResult | None = None) -> str:
     """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
     ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
-    (:func:`mounting_covariance`). Determined parameters only."""
+    (:func:`mounting_covariance`). Determined parameters only, or those of ``before`` (an
+    earlier stage, whose values ``config`` carries) where ``result`` leaves them."""
     a = apply_result(result, config)
-    fitted = {p.group for p, ok in zip(result.params, result.determined, strict=True) if ok}
+    fitted = _determined_groups(result) | _determined_groups(before)
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
     if "mounting" in fitted:
         out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
-    estimator = _estimator_keys(result, a, fitted)
+    cov = mounting_covariance(result)
+    if cov is None and before is not None:
+        cov = mounting_covariance(before)
+    estimator = _estimator_keys(result, a, fitted, cov)
     if estimator:
         out += ["", "[estimator]", *estimator]
     if "servo-offsets" in fitted:
@@ -93,11 +97,16 @@ def overlay_toml(result: FitResult, config) -> str:
     return "\n".join(out) + "\n"
 
 
-def _estimator_keys(result: FitResult, a, fitted: set) -> list[str]:
-    """The overlay's ``[estimator]`` lines: the mounting's covariance, and the filter's own
-    latency and noise where the filter fit determined them."""
+def _determined_groups(result: FitResult | None) -> set:
+    if result is None:
+        return set()
+    return {p.group for p, ok in zip(result.params, result.determined, strict=True) if ok}
+
+
+def _estimator_keys(result: FitResult, a, fitted: set, cov) -> list[str]:
+    """The overlay's ``[estimator]`` lines: the mounting's covariance ``cov`` (or None), and
+    the filter's own latency and noise where the fit determined them."""
     lines = []
-    cov = mounting_covariance(result)
     if cov is not None:
         rows = ", ".join(_array(row) for row in cov)
         lines += [
@@ -144,13 +153,16 @@ def apply_result(result: FitResult, config):
     return apply(result.scene, config, result.params, theta, result.servo_lag_s)
 
 
-def identified_scene(result: FitResult, config, logs) -> str:
-    """The complete scene file of the estimate (parameters not determined left nominal)."""
+def identified_scene(result: FitResult, config, logs, later: FitResult | None = None) -> str:
+    """The complete scene file of the estimate (parameters not determined left nominal); its
+    header the fit's report, then that of a ``later`` stage, which refined the sensor only
+    (:func:`read_identified` reads the later value of a parameter both give)."""
     scene = apply_result(result, config).scene
-    header = "\n".join(
-        [f"Identified by gyrotens identify from {', '.join(map(str, logs))}", *report_lines(result)]
-    )
-    return scene_toml(scene, header)
+    lines = [f"Identified by gyrotens identify from {', '.join(map(str, logs))}"]
+    lines += report_lines(result)
+    if later is not None:
+        lines += ["then the sensor by the filter's likelihood:", *report_lines(later)]
+    return scene_toml(scene, "\n".join(lines))
 
 
 def read_identified(text: str) -> dict[str, tuple[float, float]]:

@@ -1,0 +1,54 @@
+"""The default identification: the output error for the structure, then the filter's likelihood
+for the sensor.
+
+The output error (:mod:`.fit`) simulates the log's inputs: quick, and smooth in J3, the strings'
+stiffness and damping. But a motion nothing recorded, such as a fold of the D-bar growing from
+its wheels' speed errors, is a residual it explains with whatever parameter correlates with it:
+the IMU's yaw took up the roll such a fold adds to the gyro's reading during the pulls, a degree
+off on held-out truths (reports/identification-heldout.md). The filter follows such motion (its
+process noise lets the measurements steer it), so its likelihood (:mod:`.filter_fit`) measures
+the IMU's mounting and latency without it, and the noise scale the filter needs with the
+identified structure; it is too slow and its cost too rough to fit the structure as well. So
+the filter refines only :data:`SENSOR_GROUPS`, from the output error's values, over the first
+:data:`SENSOR_WINDOW_S` of each log.
+"""
+
+from dataclasses import replace
+
+from gyrohost.estimator.config import for_rig
+from gyrohost.ident import filter_fit
+from gyrohost.ident.params import parameters
+from gyrohost.ident.report import apply_result
+
+SENSOR_GROUPS = ("mounting", "imu-latency", "process-noise")
+"""What the filter refines: the IMU's mounting and latency, and its own noise scale. The IMU's
+biases are the filter's states."""
+SENSOR_WINDOW_S = 5.0
+"""Seconds of each log, from its lead-in, the filter refines over: the identify schedule's
+first block of pulls, whose pitch rates carry the yaw, before the D-bar rolls over (past which
+the filter's linearisation no longer holds it, :func:`.filter_fit.roll_over_warning`); about
+a second per filter pass on the 2-core machine."""
+
+
+def sensor_start(structure, config):
+    """The rig configuration the filter starts from: ``config`` with the IMU's mounting and
+    latency the output error found (:func:`.report.apply_result` of ``structure``; its
+    nominal values where it left them undetermined), and the scene it identified."""
+    a = apply_result(structure, config)
+    estimator = {**config.estimator, "imu_latency_s": float(a.imu_latency_s)}
+    imu = replace(config.imu, mounting_rpy_rad=tuple(float(v) for v in a.mounting_rpy_rad))
+    return a.scene, replace(config, imu=imu, estimator=estimator)
+
+
+def sensor_problem(structure, config, logs, groups, until_s=None, warn=None):
+    """What the filter fits after ``structure`` (the output error's :class:`.fit.FitResult`):
+    ``(scene, config, est, params, recs)`` for :func:`.filter_fit.fit`, the parameters those of
+    :data:`SENSOR_GROUPS` in ``groups`` (the filter's own process noise always), the logs
+    ``logs`` read over :data:`SENSOR_WINDOW_S` (or ``until_s`` if shorter)."""
+    scene, start = sensor_start(structure, config)
+    est = for_rig(start)
+    window = SENSOR_WINDOW_S if until_s is None else min(until_s, SENSOR_WINDOW_S)
+    recs = [filter_fit.load(log, window, warn) for log in logs]
+    refined = [g for g in SENSOR_GROUPS if g in groups or g == "process-noise"]
+    params = parameters(scene, start, refined, est.servo_lag_s, len(recs), est, True)
+    return scene, start, est, params, recs
