@@ -26,6 +26,7 @@ WHEEL_DEVICE_TIME = "device_t_us"  # the board's own clock at the sample, us
 SERVOS = "servos"
 COMMAND = "command"
 ESTIMATE = "estimate"
+TRUTH = "truth"  # the simulated rig's, scored by a replay (gyrohost.run.replay)
 IMU_RATE = ("omega_x_rad_s", "omega_y_rad_s", "omega_z_rad_s")
 IMU_ACCEL = ("accel_x_m_s2", "accel_y_m_s2", "accel_z_m_s2")
 IMU_ANGLE = ("roll_rad", "pitch_rad", "yaw_rad")

@@ -19,7 +19,10 @@ Output: a new log folder with the streams ``estimate`` and ``innov_<source>`` (c
 :mod:`.streams`) and a ``meta.json`` whose creation time is the input's, so that two replays of
 one log are identical byte for byte. Its summary compares the replay's estimate with the run's
 own (the input's ``estimate`` stream): the largest difference per group of the filter state
-(:data:`GROUPS`) at the run's estimate rows.
+(:data:`GROUPS`) at the run's estimate rows. A log of the simulated rig holds its truth
+(``truth``): the summary then scores the replay against it as the run scores its own estimate
+(``nees``, :class:`gyrohost.run.health.TruthScore`), so that another scene or estimator
+configuration is judged on the same recorded run, whatever the machine's load was.
 """
 
 from collections.abc import Callable
@@ -35,9 +38,10 @@ from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.errors import LogError
-from gyrohost.run.log import RunLog, check_new_log_folder, read_meta, read_streams
+from gyrohost.run.health import MAX_GAP_S, TruthScore
+from gyrohost.run.log import RunLog, check_new_log_folder, read_meta, read_stream, read_streams
 from gyrohost.run.log_screen import LogScreen
-from gyrohost.run.streams import INNOVATION_COMPONENTS
+from gyrohost.run.streams import INNOVATION_COMPONENTS, node_columns_of
 from gyrotensegrity import Model, load_scene
 
 GROUPS = {
@@ -74,8 +78,8 @@ def _components(source, model):
 class _Writer:
     """Writes the estimate after every step and every innovation as it comes."""
 
-    def __init__(self, out: RunLog, ekf):
-        self.ekf = ekf
+    def __init__(self, out: RunLog, ekf, truth=None):
+        self.ekf, self.truth = ekf, truth
         self.times, self.states = [], []
         self.estimate = out.stream(
             streams.ESTIMATE,
@@ -107,6 +111,51 @@ class _Writer:
         self.estimate.write(ekf.t, int(ekf.status), *ekf.x, *std, *euler, tilt(R))
         self.times.append(ekf.t)
         self.states.append(ekf.x.copy())
+        if self.truth is not None:
+            self.truth.step()
+
+
+class _Truth:
+    """The simulated rig's truth samples of a log, each scored against the replay's estimate
+    nearest to it in time (:class:`TruthScore`) once the estimate has passed it."""
+
+    def __init__(self, ekf, rows: np.ndarray):
+        scene = ekf.model.scene
+        self.score = TruthScore(ekf)
+        self.t_s = rows["t_s"]
+        nodes = [rows[c] for c in node_columns_of(scene.node_names)]
+        self.N = np.reshape(np.column_stack(nodes), (len(rows), -1, 3)).transpose(0, 2, 1)
+        n_w = layout_of(ekf.model).n_wheels
+        self.omega = np.column_stack([rows[f"omega_{i}_rad_s"] for i in range(n_w)])
+        self.rest = np.column_stack([rows[streams.rest_column(s.name)] for s in scene.strings])
+        self.next = 0
+
+    @classmethod
+    def of(cls, log: Path, ekf, note):
+        """The truth of ``log``, or None (no ``truth`` stream, or not of this scene: said to
+        ``note``)."""
+        if not (log / f"{streams.TRUTH}.csv").is_file():
+            return None
+        try:
+            return cls(ekf, read_stream(log, streams.TRUTH))
+        except (LogError, ValueError) as exc:  # a column of another scene: no field
+            note(f"{log / streams.TRUTH}.csv: not scored ({exc})")
+            return None
+
+    def step(self) -> None:
+        self.score.estimate()
+        self._score_until(self.score.ekf.t - MAX_GAP_S)
+
+    def finish(self) -> bool:
+        """Score what is left; whether anything was scored."""
+        self._score_until(np.inf)
+        return bool(self.score.nees)
+
+    def _score_until(self, t_s: float) -> None:
+        while self.next < len(self.t_s) and self.t_s[self.next] <= t_s:
+            k = self.next
+            self.score.truth(self.t_s[k], self.N[k], self.omega[k], self.rest[k])
+            self.next += 1
 
 
 def compare_live(live, times, states, layout) -> dict:
@@ -278,8 +327,9 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
         "estimator": asdict(ekf.config),
         "source_created_unix_s": meta.get("created_unix_s"),
     }
+    truth = _Truth.of(log, ekf, note)
     with RunLog(out, out_meta) as run:
-        writer = _Writer(run, ekf)
+        writer = _Writer(run, ekf, truth)
         ekf.log = writer.innovation
         sample_feed.run(ekf, data, writer.step)
         summary = {
@@ -289,5 +339,7 @@ def replay(log, out, scene=None, config: EstimatorConfig | None = None, warn=Non
             "log_rows": screen.counts(),
             "compare_live": compare_live(live, writer.times, writer.states, ekf.layout),
         }
+        if truth is not None and truth.finish():
+            summary["nees"] = truth.score.table()
         run.update_meta(created_unix_s=meta.get("created_unix_s", 0.0), summary=summary)
     return summary
