@@ -1,7 +1,7 @@
 """Identification on truths nobody tuned to: drawn from a stated prior, identified by the
 default command, then run with what it found.
 
-``python -m studies.identify_heldout [--cases 10] [--out DIR] [--steps record,identify,run]
+``python -m studies.identify_heldout [--cases 10] [--out DIR] [--steps record,identify,run,replay]
 [--clock real|sim]``
 
 The cases are drawn from :data:`PRIOR` with the generator seeded by :data:`HELD_OUT_SEED`, both
@@ -20,7 +20,11 @@ them): the nominal D-bar with the truth's bar and wheel masses read off a scale 
 2. ``identify``: ``gyrotens identify LOG -o IDENT.toml --overlay OVERLAY.toml --config C``,
    every option at its default;
 3. ``run``: the paper's schedule on the same truth with the identified scene and overlay (the
-   emulated IMU kept where the truth has it), whose summary gives the estimator's NEES.
+   emulated IMU kept where the truth has it), whose summary gives the estimator's NEES;
+4. ``replay`` (not by default): the estimator of the identified scene and overlay replayed over
+   the run an earlier ``run`` step recorded (``gyrotens replay``, the NEES against the
+   recorded truth), for a new identification judged on the same real-time run whatever the
+   machine's load is now.
 
 With ``--clock sim`` the recording is made in process on the simulated clock instead
 (:func:`gyrohost.sil.scoring.rig_model_run`: the same truth, emulators, speed error and IMU
@@ -78,7 +82,7 @@ TOLERANCE = {"J3": 0.03, "stiffness": 0.10, "damping": 0.25, "mounting": 0.5}
 NOMINAL = {"J3": 0.5 * 0.050 * 0.031**2, "stiffness": 200.0, "damping": 2.0}
 """The shipped D-bar's wheel J3 (kg m^2), string stiffness (N/m) and damping (N s/m)."""
 
-STEPS = ("record", "identify", "run")
+STEPS = ("record", "identify", "run", "replay")
 
 
 @dataclass(frozen=True)
@@ -210,7 +214,22 @@ def one_case(root: Path, k: int, truth: Truth, steps, clock: str = "real") -> di
         out["run"] = gyrotens([*argv, "-o", str(folder / "with-ident")])
         if out["run"] == 0:
             out["nees"] = estimator_figures(folder / "with-ident")["nees"]
+    if "replay" in steps and (folder / "with-ident").is_dir():
+        out["nees"] = replayed_nees(folder / "with-ident", ident, config, overlay)
     return out
+
+
+def replayed_nees(run: Path, ident: Path, config: Path, overlay: Path) -> tuple[float, float]:
+    """NEES mean and the share of its samples inside their bounds of the estimator a run with
+    ``ident`` and ``overlay`` on ``config`` has, replayed over the recorded ``run``."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.run.replay import replay
+
+    est = for_rig(load_rig_config(config, [overlay]))
+    with tempfile.TemporaryDirectory() as tmp:
+        nees = replay(run, Path(tmp) / "replay", ident, est)["nees"]
+    return nees["mean"], nees["inside"]
 
 
 def within(name: str, error: float) -> bool:
@@ -245,7 +264,7 @@ def case_line(k: int, truth: Truth, out: dict) -> str:
         else f"{name} {100 * e:+.1f} % ({100 * s:.1f})"
         for name, (e, s) in out.get("errors", {}).items()
     )  # fmt: skip
-    status = {k: v for k, v in out.items() if k in ("record", "identify", "run")}
+    status = {k: v for k, v in out.items() if k in STEPS}
     if status.get("record", 0) != 0:
         return f"{head}\n  the recording stopped (exit {status['record']}): not identified"
     figures = f"exit {status}; identify {out.get('identify_s', float('nan')):.0f} s"
@@ -266,8 +285,9 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", type=int, default=10, help="truths drawn (10)")
     parser.add_argument("--out", type=Path, help="keep everything here (default: temporary)")
     parser.add_argument(
-        "--steps", type=_steps, default=STEPS,
-        help="comma-separated, of record,identify,run (default all; the others reuse --out)",
+        "--steps", type=_steps, default=STEPS[:3],
+        help="comma-separated, of record,identify,run,replay (default record,identify,run; "
+        "the others reuse --out)",
     )  # fmt: skip
     parser.add_argument(
         "--clock", choices=("real", "sim"), default="real",
