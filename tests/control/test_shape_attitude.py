@@ -3,6 +3,7 @@ against the one-axis planner's model and the full model's simulation."""
 
 import numpy as np
 import pytest
+from prism_variants import prism
 from scipy.spatial.transform import Rotation
 
 from gyrohost.control import PlanError
@@ -10,9 +11,8 @@ from gyrohost.control.attitude_model import centre_of_mass
 from gyrohost.control.reduced import DBarReduced
 from gyrohost.control.shape_attitude import AttitudeModel, rotation_batch
 from gyrohost.resources import shipped
-from gyrotensegrity import BodyFrame, Model, diagnostics, load_scene, scene_from_dict
+from gyrotensegrity import BodyFrame, Model, diagnostics, load_scene
 from gyrotensegrity.attitude import angle_between
-from gyrotensegrity.compat import tomllib
 from gyrotensegrity.simulate import Stepper
 
 
@@ -25,15 +25,6 @@ def rk4_step(am, x, u_of, t, h, H0):
     k3 = f(t + h / 2, x + h / 2 * k2)
     k4 = f(t + h, x + h * k3)
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-
-def prism(stiffness_factor=1.0, spins=None):
-    data = tomllib.loads(shipped("scene", "prism-rig").read_text())
-    for string in data["strings"]:
-        string["stiffness"] *= stiffness_factor
-    for bar, spin in zip(data["bars"], spins or [], strict=False):
-        bar["wheel"]["spin"] = spin
-    return Model(scene_from_dict(data, "prism.toml"))
 
 
 @pytest.fixture(scope="module")

@@ -119,18 +119,17 @@ class ShapeTable:
         r = np.asarray(r)
         if not self.a:  # one shape: the terms are constants
             return np.broadcast_to(self.values, r.shape[:-1] + self.values.shape)
-        index, weights = [], []
-        for k in range(self.a):
+        lead, a = r.shape[:-1], self.a
+        index, weights = [], np.ones(lead + (1,), dtype=r.dtype)
+        for k in range(a):
             u = (r[..., k] - self.lo[k]) / self.step[k]
             i = np.clip(np.floor(np.real(u)).astype(int), 0, self.points - 2)
-            index.append(i)
-            weights.append(_catmull_rom(u - i))
-        out = 0.0
-        for offsets in itertools.product(range(4), repeat=self.a):
-            w = np.prod([weights[k][..., o] for k, o in enumerate(offsets)], axis=0)
-            cell = self.values[tuple(index[k] + o for k, o in enumerate(offsets))]
-            out = out + w[..., None] * cell
-        return out
+            shape = lead + (1,) * k + (4,) + (1,) * (a - k - 1)
+            index.append(i.reshape(lead + (1,) * a) + np.arange(4).reshape(shape[len(lead) :]))
+            w = _catmull_rom(u - i)  # (..., 4): the weight tensor grows by this axis
+            weights = (weights[..., :, None] * w[..., None, :]).reshape(lead + (-1,))
+        block = self.values[tuple(index)].reshape(lead + (4**a, -1))
+        return (weights[..., None, :] @ block)[..., 0, :]
 
     def split(self, values):
         """``(I_b (..., 3, 3), h_b (..., 3, n_w), B_b (..., 3, a), L (..., alpha))``."""
