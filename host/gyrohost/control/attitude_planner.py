@@ -323,7 +323,7 @@ class _Problem:
         """Each string's length minus its rest length (m) at the quasi-static shapes ``r``."""
         model = self.p.model
         _, _, _, L = model.terms(r)
-        rest = np.broadcast_to(model.shape.rest_all, L.shape).astype(L.dtype)
+        rest = np.broadcast_to(model.shape.rest_all, L.shape).astype(np.result_type(L, r))
         rest[..., model.shape.idx] = r
         return L - rest
 
