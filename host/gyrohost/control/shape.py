@@ -113,7 +113,6 @@ class StaticShape:
         st, n = model.structure, model.structure.n
         self.C_s, self.C_b = st.C_s.toarray(), st.C_b.toarray()
         self.P = np.kron(np.eye(3), model.U2.toarray())  # vec(N) = vec(N_fixed) + P vec(q)
-        self.N_fixed = np.asarray(model.N_fixed_T).T
         mass = st.C_r.toarray().T @ model.m_t + model.m_node
         frame = BodyFrame.of_model(model)
         a, b, c, d = frame.cols
