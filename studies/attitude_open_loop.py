@@ -4,7 +4,8 @@ full model: the landing error the plan predicts against the one the simulation g
 Cases:
 
 - ``prism``: prism-rig with strings 100 times stiffer (the quasi-static shape holds; the
-  shipped prism's 10 N/m strings ring at a few hertz, slower than a shape change of seconds),
+  shipped prism's 10 N/m strings ring at about 1 Hz, sqrt(k / m) on 0.16 kg bars, too near a
+  shape change of a second or two for the shape to sit at its equilibrium),
   wheels at +-150 rad/s held (they give the momentum the strings steer), strings s7 and s8
   actuated; the target a turn about the total momentum (rolling, pitching and yawing at once).
   Wheels are held because the full model of an unjointed prism has no way for a wheel's

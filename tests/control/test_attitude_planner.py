@@ -9,6 +9,7 @@ from prism_variants import prism
 
 from gyrohost.control import Limits, PlanError
 from gyrohost.control.attitude_planner import (
+    LANDING_RATE_RAD_S,
     AttitudePlanner,
     plan_attitude,
     target_quaternion,
@@ -38,7 +39,7 @@ def test_a_prism_reaches_a_three_axis_target_within_the_limits(prism_plan):
     plan = prism_plan
     assert plan.success, plan.message
     assert plan.landing_error_rad < 0.005
-    assert plan.landing_rate_rad_s <= 2e-3 * (1 + 1e-6)
+    assert plan.landing_rate_rad_s <= LANDING_RATE_RAD_S * (1 + 1e-6)
     s = plan.schedule
     assert s.names == ("s7", "s8") and s.wheels == ("bar1", "bar2", "bar3")
     assert np.max(np.abs(s.wheel_speed)) <= 100.0 + 1e-9

@@ -42,6 +42,9 @@ from .shape import RhombusShape
 from .shape_attitude import AttitudeModel
 
 MODES = ("both", "strings", "wheels")
+LANDING_RATE_RAD_S = 5e-4
+"""Largest body rate a plan leaves at its landing (0.03 deg/s: it drifts less than the refusal's
+0.005 rad in 10 s after it)."""
 MAX_ITER = 100
 """SLSQP iterations of one plan (a reachable target converges in tens; an unreachable one
 stops here and is refused)."""
@@ -127,7 +130,7 @@ class AttitudePlanner:
         knots=8,
         substeps=2,
         mode="both",
-        landing_rate_rad_s=2e-3,
+        landing_rate_rad_s=LANDING_RATE_RAD_S,
         sample_dt_s=0.05,
         weights=None,
     ):
