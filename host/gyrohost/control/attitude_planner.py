@@ -290,11 +290,13 @@ class _Problem:
         return self._value_grad(self._landing(X) + self._effort(Z))
 
     def twist(self, z, sign):
-        """``-sign`` times the landing rotation about ``axis`` (rad), and its gradient."""
+        """``-sign`` times ``sin(phi / 2)`` of the landing rotation ``phi`` about ``axis`` (its
+        quaternion's component along it), and its gradient: smooth and bounded, so that the
+        extremes stop at a half turn instead of running off where ``phi`` wraps."""
         X, Z = self.trajectory(z)
         q = X[..., -1, :4]
-        angle = 2.0 * np.arctan((q[..., 1:] @ self.axis) / q[..., 0])
-        return self._value_grad(-sign * angle + self._effort(Z))
+        along = (q[..., 1:] @ self.axis) / np.sqrt(np.sum(q * q, axis=-1))
+        return self._value_grad(-sign * along + self._effort(Z))
 
     def twist_value(self, z):
         X, _ = self.trajectory(z)
