@@ -102,6 +102,8 @@ class AttitudePlan:
 
 
 def conjugate(q):
+    """Conjugates (..., 4) of quaternions (..., 4), w first: the inverse rotations of unit
+    ones (complex-step safe)."""
     return np.concatenate([q[..., :1], -q[..., 1:]], axis=-1)
 
 
@@ -208,8 +210,7 @@ class AttitudePlanner:
         problem = self._problem(target_q, knot_t_s, t_start_s, x0, H0)
         z0 = problem.guess(warm)
         z, ok, message = problem.solve(z0, problem.cost)
-        plan = problem.result(z, ok, message, time.perf_counter() - start)
-        return plan
+        return problem.result(z, ok, message, time.perf_counter() - start)
 
     def reach(self, axis, knot_t_s, t_start_s, x0, H0):
         """The smallest and largest rotation (rad) about the unit ``axis`` (3,), start frame,
