@@ -214,13 +214,23 @@ class AttitudePlanner:
 
     def reach(self, axis, knot_t_s, t_start_s, x0, H0):
         """The smallest and largest rotation (rad) about the unit ``axis`` (3,), start frame,
-        that a plan can land at within the limits (each an optimisation of that angle)."""
+        that a plan can land at within the limits: each the furthest of the iterates of an
+        optimisation of that angle that keep every limit (NaN: none does; from rest, holding
+        still does, so the range holds 0)."""
         problem = self._problem(np.array([1.0, 0.0, 0.0, 0.0]), knot_t_s, t_start_s, x0, H0)
         problem.axis = np.asarray(axis, float) / np.linalg.norm(axis)
         bounds = []
         for sign in (-1.0, 1.0):
-            z, _, _ = problem.solve(problem.guess(None), lambda z, s=sign: problem.twist(z, s))
-            bounds.append(problem.twist_value(z) if problem.feasible(z) else np.nan)
+            best = [np.nan, None]
+
+            def keep(z, sign=sign, best=best):
+                if problem.feasible(z) and not sign * problem.twist_value(z) <= sign * best[0]:
+                    best[:] = [problem.twist_value(z), z.copy()]
+
+            z0 = problem.guess(None)
+            keep(z0)
+            keep(problem.solve(z0, lambda z, s=sign: problem.twist(z, s), keep)[0])
+            bounds.append(best[0])
         return tuple(bounds)
 
     def _problem(self, target_q, knot_t_s, t_start_s, x0, H0):
@@ -346,7 +356,7 @@ class _Problem:
             worst = max(worst, float(np.max(np.abs(self.equalities(z)[0]))))
         return worst <= FEASIBLE
 
-    def solve(self, z0, cost):
+    def solve(self, z0, cost, callback=None):
         if self.n_z == 0:
             return z0, True, "no interval left: the schedule runs to its end"
         constraints = [
@@ -366,6 +376,7 @@ class _Problem:
             bounds=[(-1.0, 1.0)] * self.n_z,
             constraints=constraints,
             options={"maxiter": MAX_ITER, "ftol": 1e-12},
+            callback=callback,
         )
         return np.clip(res.x, -1.0, 1.0), bool(res.success), str(res.message)
 
