@@ -154,3 +154,11 @@ def test_a_stiff_prism_changing_shape_turns_as_the_quasi_static_model_says():
 def test_more_than_three_actuated_strings_are_refused():
     with pytest.raises(PlanError, match="at most 3"):
         AttitudeModel(prism(), ["s1", "s2", "s3", "s7"])
+
+
+def test_a_scene_its_strings_cannot_hold_is_refused_naming_it():
+    """dbar-rig: one string across a rhombus of ball-jointed bars (its hinges are rig fidelity,
+    not statics) folds freely: no quasi-static shape."""
+    model = Model(load_scene(shipped("scene", "dbar-rig")))
+    with pytest.raises(PlanError, match="dbar-rig: at its rest lengths, its strings hold no shape"):
+        AttitudeModel(model)

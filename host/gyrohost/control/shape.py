@@ -164,8 +164,8 @@ class StaticShape:
         kkt = np.block([[self.P.T @ hess @ self.P, G.T], [G, np.zeros((k, k))]])
         if np.linalg.cond(kkt) > MAX_CONDITION:
             raise PlanError(
-                f"scene {self.model.scene.name}: rest lengths {np.round(rest[self.idx], 4)} m of "
-                f"{', '.join(self.names)} leave no shape the strings hold (slack strings)"
+                f"scene {self.model.scene.name}: {self._where(rest[self.idx])} its strings hold "
+                "no shape (slack strings or too few of them leave it a mechanism)"
             )
         return kkt, np.concatenate([self.P.T @ grad, c])
 
@@ -184,8 +184,15 @@ class StaticShape:
             if np.max(np.abs(dy)) < NEWTON_TOL * self.scale:
                 return N, self._tangent(N, rest, lam)
         raise PlanError(
-            f"scene {self.model.scene.name}: no equilibrium found for rest lengths "
-            f"{np.round(np.asarray(r), 4)} m of {', '.join(self.names)}"
+            f"scene {self.model.scene.name}: {self._where(r)} Newton's method finds no equilibrium"
+        )
+
+    def _where(self, r):
+        """``at rest lengths ... m of s7, s8,`` (or ``at its rest lengths,``) for messages."""
+        if not len(self.idx):
+            return "at its rest lengths,"
+        return (
+            f"at rest lengths {np.round(np.asarray(r), 4).tolist()} m of {', '.join(self.names)},"
         )
 
     def _tangent(self, N, rest, lam):

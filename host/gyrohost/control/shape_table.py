@@ -91,6 +91,7 @@ class ShapeTable:
         """The coordinates' box: the shape's, shrunk towards the rest lengths until every
         corner has a shape the strings hold."""
         lo, hi = np.array(shape.lo, float), np.array(shape.hi, float)
+        shape.solve(shape.rest)  # no shape at the start: its error, not a box's
         for _ in range(SHRINK_TRIES):
             try:
                 for corner in itertools.product(*zip(lo, hi, strict=True)):
