@@ -310,8 +310,10 @@ class _Problem:
         return self._value_grad(-sign * along + self._effort(Z))
 
     def twist_value(self, z):
+        """The landing rotation about ``axis``, rad, in [-pi, pi]."""
         X, _ = self.trajectory(z)
         q = np.real(X[0, -1, :4])
+        q = -q if q[0] < 0.0 else q  # the same rotation, its angle within a half turn
         return float(2.0 * np.arctan2(q[1:] @ self.axis, q[0]))
 
     def inequalities(self, z):
