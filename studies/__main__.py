@@ -35,6 +35,7 @@ STUDIES = {
     "identify_transfer": "the identified scene on another manoeuvre than its recording",
     "control_compare": "open vs closed loop on a truth with heavier wheels (in process)",
     "rig_sil": "open vs closed loop on the real-time simulated rig",
+    "attitude_open_loop": "three-axis plans played open loop on the full model (prism, dbar-rig)",
     "mujoco_peer": "the fast path against MuJoCo on the same scene",
 }
 """Study -> what it measures."""

@@ -15,6 +15,7 @@ from gyrohost.commands.errors import CliError
 COMMANDS = [
     "demo",
     "simulate",
+    "plan",
     "plot",
     "rig",
     "run",

@@ -85,6 +85,18 @@ def test_limits_problems_and_validation():
         Limits(min_length_m=0.5, max_length_m=0.4)
 
 
+def test_wheel_speeds_and_accelerations_beyond_the_limits_are_problems():
+    """The board's SPEED_MAX (157.08 rad/s) and setpoint ramp (100 rad/s^2) by default."""
+    s = Schedule((), [0.0, 1.0, 1.5], np.zeros((3, 0)), "w", ("b12",), [[0.0], [90.0], [150.0]])
+    assert s.problems(Limits()) == ["wheel b12: 120 rad/s^2 exceeds 100"]
+    assert s.problems(Limits(max_wheel_accel_rad_s2=120.0)) == []
+    assert s.problems(Limits(max_wheel_speed_rad_s=140.0, max_wheel_accel_rad_s2=200.0)) == [
+        "wheel b12: 150 rad/s exceeds 140"
+    ]
+    with pytest.raises(ScheduleError, match="max_wheel_speed_rad_s"):
+        Limits(max_wheel_speed_rad_s=float("nan"))
+
+
 def test_splice_keeps_the_command_continuous():
     a = simple()
     b = Schedule(a.names, [0.5, 3.0], [a(0.5), [0.3, 0.5]], "b")

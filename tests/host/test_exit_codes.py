@@ -12,6 +12,7 @@ NO = "/nonexistent/gyrotens"
 MISSING_FILE = {
     "demo": ["demo", "--config", f"{NO}/rig.toml", "-o", f"{NO}/out"],
     "simulate": ["simulate", f"{NO}/scene.toml", "-o", f"{NO}/run.npz"],
+    "plan": ["plan", f"{NO}/scene.toml", "--target-attitude", "0,0,10", "-o", f"{NO}/plan.toml"],
     "plot": ["plot", f"{NO}/run.npz"],
     "rig": ["rig", "--config", f"{NO}/rig.toml"],
     "run": ["run", "--config", f"{NO}/rig.toml", "-o", f"{NO}/out"],

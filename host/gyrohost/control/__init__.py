@@ -15,16 +15,21 @@ See ``docs/schedule.md``. ``python -m studies.control_compare`` prints the SIL f
 """
 
 from .attitude import Attitude
+from .attitude_planner import AttitudePlan, AttitudePlanner, plan_attitude
 from .closed_loop import Replanner, ReplanRecord, TruthPlusNoise, ekf_estimate
 from .errors import PlanError, ScheduleError
 from .planner import Plan, Planner, Weights, plan
 from .presets import PRESETS, preset
 from .reduced import DBarReduced
 from .schedule import Limits, Schedule, load_schedule, schedule_from_dict
+from .shape_attitude import AttitudeModel
 
 __all__ = [
     "PRESETS",
     "Attitude",
+    "AttitudeModel",
+    "AttitudePlan",
+    "AttitudePlanner",
     "DBarReduced",
     "Limits",
     "Plan",
@@ -39,6 +44,7 @@ __all__ = [
     "ekf_estimate",
     "load_schedule",
     "plan",
+    "plan_attitude",
     "preset",
     "schedule_from_dict",
 ]

@@ -31,7 +31,7 @@ from scipy import optimize
 
 from .attitude import Attitude
 from .errors import PlanError
-from .reduced import DBarReduced
+from .reduced import DBarReduced, rhombus_range
 from .schedule import Limits, Schedule
 
 
@@ -123,29 +123,10 @@ class Planner:
         self.sample_dt_s, self.quad_dt_s = float(sample_dt_s), float(quad_dt_s)
         self.weights = weights or Weights()
         self.names = tuple(model.scene.strings[i].name for i in (self.dbar.i13, self.dbar.i24))
-        self.d_lo, self.d_hi = self._range()
+        self.d_lo, self.d_hi = rhombus_range(self.dbar, self.limits, self.names)
         dt = np.gradient(self.dbar.d_table)
         self._dinertia = np.gradient(self.dbar.inertia_table) / dt
         self._dwheel = np.gradient(self.dbar.wheel_table, axis=0) / dt[:, None]
-
-    def _range(self):
-        """Allowed n1-n3 rest lengths (m): both diagonals >= min_diagonal_m, both rest
-        lengths within the servo range."""
-        lim, l2 = self.limits, 4.0 * self.dbar.l**2
-        lo13, hi13 = lim.range_of(self.names[0])
-        lo24, hi24 = lim.range_of(self.names[1])
-        short13, short24 = max(lim.min_diagonal_m, lo13), max(lim.min_diagonal_m, lo24)
-        # the follower's rest length is sqrt(l2 - d^2): its range bounds d the other way
-        lo = max(short13, np.sqrt(max(l2 - hi24**2, 0.0)))
-        hi = min(hi13, np.sqrt(max(l2 - short24**2, 0.0)))
-        if not lo < hi:
-            raise PlanError(f"limits leave no n1-n3 length to command ({lo:.4g}..{hi:.4g} m)")
-        if not lo <= self.dbar.d_rest <= hi:  # a maneuver starts and lands at rest
-            raise PlanError(
-                f"limits leave the n1-n3 length {lo:.4g}..{hi:.4g} m, without the rest "
-                f"shape {self.dbar.d_rest:.4g} m"
-            )
-        return lo, hi
 
     def knot_times(self, t0_s, t_end_s):
         """The maneuver's knot times (knots + 1,), s."""

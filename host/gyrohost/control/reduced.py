@@ -140,3 +140,24 @@ class DBarReduced:
         times ``t`` (k,) s (trapezoidal quadrature of the tilt rate)."""
         w = self.tilt_rates(d, H_a, omega_w)
         return tilt0 + float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(t)))
+
+
+def rhombus_range(dbar: DBarReduced, limits, names):
+    """Allowed n1-n3 rest lengths ``(lo, hi)``, m, of the D-bar ``dbar``: both diagonals at
+    least ``limits.min_diagonal_m``, both rest lengths (strings ``names``: n1-n3, n2-n4) within
+    their servo ranges, the rest shape inside (a maneuver starts and lands at rest)."""
+    l2 = 4.0 * dbar.l**2
+    lo13, hi13 = limits.range_of(names[0])
+    lo24, hi24 = limits.range_of(names[1])
+    short13, short24 = max(limits.min_diagonal_m, lo13), max(limits.min_diagonal_m, lo24)
+    # the follower's rest length is sqrt(l2 - d^2): its range bounds d the other way
+    lo = max(short13, np.sqrt(max(l2 - hi24**2, 0.0)))
+    hi = min(hi13, np.sqrt(max(l2 - short24**2, 0.0)))
+    if not lo < hi:
+        raise PlanError(f"limits leave no n1-n3 length to command ({lo:.4g}..{hi:.4g} m)")
+    if not lo <= dbar.d_rest <= hi:
+        raise PlanError(
+            f"limits leave the n1-n3 length {lo:.4g}..{hi:.4g} m, without the rest "
+            f"shape {dbar.d_rest:.4g} m"
+        )
+    return lo, hi

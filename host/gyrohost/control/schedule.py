@@ -55,6 +55,12 @@ class Limits:
     string_ranges_m : tuple of (str, float, float)
         ``(string, min_length_m, max_length_m)`` of strings with a range of their own (each
         servo's); it replaces the common range for that string.
+    max_wheel_speed_rad_s : float, rad/s
+        Largest |spin| a schedule commands: the wheel board's default SPEED_MAX, 157.08 rad/s
+        (docs/hardware.md); a run's ``max_wheel_speed_rad_s`` may set less.
+    max_wheel_accel_rad_s2 : float, rad/s^2
+        Largest rate of change of a commanded spin: the board's setpoint ramp ACCEL_RAD_S2,
+        100 rad/s^2 by default (it brakes at DECEL 200; the motor manages 190 at full drive).
     """
 
     max_speed_m_s: float = 0.05
@@ -62,9 +68,17 @@ class Limits:
     max_length_m: float = 1.0
     min_diagonal_m: float = 0.124
     string_ranges_m: tuple = ()
+    max_wheel_speed_rad_s: float = 157.08
+    max_wheel_accel_rad_s2: float = 100.0
 
     def __post_init__(self):
-        for key in ("max_speed_m_s", "max_length_m", "min_diagonal_m"):
+        for key in (
+            "max_speed_m_s",
+            "max_length_m",
+            "min_diagonal_m",
+            "max_wheel_speed_rad_s",
+            "max_wheel_accel_rad_s2",
+        ):
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0.0):
                 raise ScheduleError(f"limits: {key} must be a positive number, got {value}")
@@ -195,8 +209,9 @@ class Schedule:
         return np.max(np.abs(rates), axis=0)
 
     def problems(self, limits: Limits) -> list[str]:
-        """Violations of the servo limits (speed and length range), as messages."""
-        out = []
+        """Violations of the servo limits (speed and length range) and of the wheels' (speed
+        and acceleration), as messages."""
+        out = self._wheel_problems(limits)
         for name, speed in zip(self.names, self.max_speeds(), strict=True):
             if speed > limits.max_speed_m_s * (1.0 + 1e-9):
                 out.append(f"{name}: speed {speed:.4g} m/s exceeds {limits.max_speed_m_s:g} m/s")
@@ -205,6 +220,24 @@ class Schedule:
             low, high = limits.range_of(name)
             if a < low - 1e-12 or b > high + 1e-12:  # a plan clipped to a bound ends on it
                 out.append(f"{name}: rest length {a:.4g}..{b:.4g} m outside [{low:g}, {high:g}] m")
+        return out
+
+    def _wheel_problems(self, limits: Limits) -> list[str]:
+        out = []
+        if not self.wheels:
+            return out
+        fastest = np.max(np.abs(self.wheel_speed), axis=0)
+        accel = np.zeros(len(self.wheels))
+        if self.t.size > 1:
+            rates = np.diff(self.wheel_speed, axis=0) / np.diff(self.t)[:, None]
+            accel = np.max(np.abs(rates), axis=0)
+        for name, w, a in zip(self.wheels, fastest, accel, strict=True):
+            if w > limits.max_wheel_speed_rad_s * (1.0 + 1e-9):
+                out.append(f"wheel {name}: {w:.4g} rad/s exceeds {limits.max_wheel_speed_rad_s:g}")
+            if a > limits.max_wheel_accel_rad_s2 * (1.0 + 1e-9):
+                out.append(
+                    f"wheel {name}: {a:.4g} rad/s^2 exceeds {limits.max_wheel_accel_rad_s2:g}"
+                )
         return out
 
     def bind(self, model):

@@ -1,0 +1,40 @@
+"""``gyrotens plan``: a schedule file from a target attitude; bad input and unreachable targets
+exit 2 with the reason, nothing written."""
+
+import pytest
+
+from gyrohost.cli import main
+from gyrohost.control import load_schedule
+
+
+def test_a_wheels_only_plan_is_written_and_reported(tmp_path, capsys):
+    out = tmp_path / "roll.toml"
+    argv = ["plan", "prism-rig", "--target-attitude", "5,0,0", "--wheels-only", "-o", str(out)]
+    assert main(argv) == 0
+    schedule = load_schedule(out)
+    assert schedule.names == () and schedule.wheels == ("bar1", "bar2", "bar3")
+    assert schedule.t[-1] == pytest.approx(4.0)
+    report = capsys.readouterr().out
+    assert "lands at roll, pitch, yaw +5.00" in report and "peak wheel speed bar1" in report
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--target-attitude", "5,0"], "need three numbers"),
+        (["--target-attitude", "5,nan,0"], "need three numbers"),
+        (["--target-attitude", "0,-20,0", "--strings-only"], "out of reach"),
+        (["--target-attitude", "0,0,5", "--strings", "s99"], "no string s99"),
+        (["--target-attitude", "0,0,5", "--duration", "-1"], "duration must be positive"),
+        (
+            ["--target-attitude", "0,0,5", "--max-speed", "0"],
+            "--max-speed 0.0: must be a positive number",
+        ),
+    ],
+)
+def test_bad_input_exits_2_before_writing(tmp_path, capsys, extra, message):
+    out = tmp_path / "plan.toml"
+    assert main(["plan", "dbar-gyro", *extra, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gyrotens plan: error: ") and message in err, err
+    assert not out.exists()
