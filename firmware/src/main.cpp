@@ -161,7 +161,8 @@ int main() {
         }
         main_move_rx(last_tick);
         if (main_after_work()) continue;
-        if (g_app.rx_result != PROTO_RX_NONE) {
+        if (app_reply_work(&g_app)) continue;
+        if (app_rx_waits(&g_app)) {
             app_rx_act(&g_app);
             continue;
         }

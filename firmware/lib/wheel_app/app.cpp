@@ -19,10 +19,31 @@ static uint16_t sat_inc(uint16_t x) {
     return x < 0xFFFFu ? static_cast<uint16_t>(x + 1) : x;
 }
 
-static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+static void app_send_now(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
     uint8_t wire[PROTO_MAX_WIRE];
     uint8_t n = proto_build(id, payload, len, wire);
     if (n == 0 || !a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+}
+
+bool app_reply_work(app_state* a) {
+    app_reply* r = &a->reply;
+    if (r->id == 0) return false;
+    app_send_now(a, r->id, r->payload, r->len);
+    r->id = 0;
+    return true;
+}
+
+// Held for app_reply_work. A second reply before it ran (a calibration ending in the tick's work,
+// a save finished) sends the first and then itself at once: replies stay in order.
+static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+    if (app_reply_work(a) || len > APP_REPLY_MAX) {
+        app_send_now(a, id, payload, len);
+        return;
+    }
+    app_reply* r = &a->reply;
+    r->id = id;
+    r->len = len;
+    for (uint8_t i = 0; i < len; i++) r->payload[i] = payload[i];
 }
 
 static void app_send_ack(app_state* a, uint8_t req_id) {
@@ -69,7 +90,16 @@ static void app_reset_wheel(app_wheel* w) {
 
 // The parameters of the drive (gains, lead, ramp, offsets, heartbeat, mode), then those of the
 // supervision (guard.h, the speed filter): two halves, so that a PARAM_SET's derivation is two
-// jobs of the board's main loop (app_derive_ctl). All prm.v are within their params.def ranges.
+// jobs of the board's main loop (app_derive_ctl). The pole pairs only change with a structural
+// PARAM_SET (wheels off), PARAM_DEFAULTS or at boot, which derive everything at once
+// (app_load_ctl): the lead's division stays out of the halves. All prm.v are within their
+// params.def ranges.
+static void app_load_poles(app_state* a) {
+    app_ctl* c = &a->ctl;
+    c->pole_pairs = static_cast<uint8_t>(a->prm.v[PRM_POLE_PAIRS]);
+    cmt_lead_poles(&c->lead, c->pole_pairs);
+}
+
 static void app_load_drive(app_state* a) {
     const int32_t* v = a->prm.v;
     app_ctl* c = &a->ctl;
@@ -78,8 +108,7 @@ static void app_load_drive(app_state* a) {
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
     c->gains = pi_gains_sanitize(c->gains);
-    c->pole_pairs = static_cast<uint8_t>(v[PRM_POLE_PAIRS]);
-    cmt_lead_init(&c->lead, c->pole_pairs, static_cast<uint16_t>(v[PRM_LEAD_Q8]));
+    cmt_lead_time(&c->lead, static_cast<uint16_t>(v[PRM_LEAD_Q8]));
     c->accel = v[PRM_ACCEL_RAD_S2];
     c->decel = v[PRM_DECEL_RAD_S2];
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
@@ -110,6 +139,7 @@ static void app_load_guard(app_state* a) {
 }
 
 static void app_load_ctl(app_state* a) {
+    app_load_poles(a);
     app_load_drive(a);
     app_load_guard(a);
 }
@@ -121,6 +151,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     }
     flt_init(&a->flt);
     proto_rx_init(&a->rx);
+    a->reply.id = 0;
     a->cnt = app_counters();
     a->tx = tx;
     a->seq = 0;
@@ -366,13 +397,17 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
 }
 
 bool app_rx_decode_end(app_state* a, uint8_t byte) {
-    a->rx_result = proto_rx_push(&a->rx, byte, &a->rx_frame);
+    a->rx_result = proto_rx_end(&a->rx, byte);
     return a->rx_result != PROTO_RX_NONE;
 }
 
 void app_rx_act(app_state* a) {
     const proto_frame* f = &a->rx_frame;
     const uint8_t result = a->rx_result;
+    if (result == PROTO_RX_CHECK) {  // a job of its own: the dispatch follows in the next
+        a->rx_result = proto_rx_check(&a->rx, &a->rx_frame);
+        return;
+    }
     a->rx_result = PROTO_RX_NONE;
     switch (result) {
         case PROTO_RX_FRAME:
@@ -530,6 +565,7 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     }
     app_setpoints_tick(a);
     for (uint8_t i = 0; i < APP_WHEELS; i++) app_supervise(a, i);
+    app_reply_work(a);
 }
 
 void app_supervise(app_state* a, uint8_t i) {

@@ -107,6 +107,16 @@ struct app_telem {
     uint8_t wire[COBS_ENCODED_SIZE(APP_TELEM_RAW) + 1];
 };
 
+// A reply held for a job of its own (app_reply_work): its encoding (CRC, COBS) and the copy into
+// the TX ring would make a frame's dispatch the main loop's longest job. The longest reply
+// payload is STATS.
+#define APP_REPLY_MAX PROTO_LEN_STATS
+struct app_reply {
+    uint8_t id;  // 0 (no message id) when none waits
+    uint8_t len;
+    uint8_t payload[APP_REPLY_MAX];
+};
+
 struct app_state {
     app_wheel w[APP_WHEELS];
     app_ctl ctl;
@@ -142,23 +152,34 @@ struct app_state {
     // acted on yet; rx_frame's payload points into rx.buf, which stays intact until then.
     uint8_t rx_result;  // proto_rx_result, PROTO_RX_NONE when nothing waits
     proto_frame rx_frame;
+    app_reply reply;
 };
 
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
 
-// Received bytes in two parts, so that the board can run a control step between a frame's
-// decoding (COBS and CRC, at its delimiter) and its dispatch with the reply: app_rx_decode feeds
-// one byte and returns true when a frame or an error waits for app_rx_act; feed no byte until
-// then. Inline: a byte inside a frame is one store, without the call and its stack frame.
+// Received bytes in three jobs, so that the board can run a control step between a frame's
+// COBS (at its delimiter), its CRC and checks, and its dispatch: app_rx_decode feeds one byte and
+// returns true when a frame or an error waits for app_rx_act; then call app_rx_act while
+// app_rx_waits, and feed no byte until it is false. Inline: a byte inside a frame is one store,
+// without the call and its stack frame.
 bool app_rx_decode_end(app_state* a, uint8_t byte);
 inline bool app_rx_decode(app_state* a, uint8_t byte) {
     return !proto_rx_append(&a->rx, byte) && app_rx_decode_end(a, byte);
 }
+inline bool app_rx_waits(const app_state* a) {
+    return a->rx_result != PROTO_RX_NONE;
+}
 void app_rx_act(app_state* a);
-// Both at once: a complete frame is dispatched as its delimiter is fed (native tests, fuzzing).
+// A reply the dispatch (or the tick's work) left in a->reply encoded and queued: true if there
+// was one. The board runs it as a job before the next frame's; app_rx_byte right away.
+bool app_reply_work(app_state* a);
+// All at once: a complete frame is dispatched and answered as its delimiter is fed (native tests,
+// fuzzing).
 inline void app_rx_byte(app_state* a, uint8_t byte) {
-    if (app_rx_decode(a, byte)) app_rx_act(a);
+    if (!app_rx_decode(a, byte)) return;
+    while (app_rx_waits(a)) app_rx_act(a);
+    app_reply_work(a);
 }
 
 // STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and

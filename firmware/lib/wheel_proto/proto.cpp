@@ -46,19 +46,32 @@ void proto_rx_init(proto_rx* rx) {
     rx->overflow = 0;
 }
 
-static proto_rx_result proto_rx_finish(proto_rx* rx, proto_frame* out) {
-    if (rx->overflow) return PROTO_RX_OVERSIZE;
-    if (rx->n == 0) return PROTO_RX_NONE;
-    int16_t n = cobs_decode(rx->buf, rx->n, rx->buf);
-    if (n < 0) return PROTO_RX_BAD_COBS;
-    if (n < 3) return PROTO_RX_SHORT;
-    uint8_t body = static_cast<uint8_t>(n - 2);
-    uint16_t crc = proto_get_u16(&rx->buf[body]);
-    if (crc16_ccitt(rx->buf, body) != crc) return PROTO_RX_BAD_CRC;
+proto_rx_result proto_rx_end(proto_rx* rx, uint8_t byte) {
+    if (byte != 0) {
+        rx->overflow = 1;  // past PROTO_MAX_ENCODED: keep discarding until the next delimiter
+        return PROTO_RX_NONE;
+    }
+    const uint8_t overflow = rx->overflow;
+    const uint8_t n = rx->n;
+    rx->n = 0;
+    rx->overflow = 0;
+    if (overflow) return PROTO_RX_OVERSIZE;
+    if (n == 0) return PROTO_RX_NONE;
+    const int16_t decoded = cobs_decode(rx->buf, n, rx->buf);
+    if (decoded < 0) return PROTO_RX_BAD_COBS;
+    if (decoded < 3) return PROTO_RX_SHORT;
+    rx->n = static_cast<uint8_t>(decoded);
+    return PROTO_RX_CHECK;
+}
+
+proto_rx_result proto_rx_check(proto_rx* rx, proto_frame* out) {
+    const uint8_t body = static_cast<uint8_t>(rx->n - 2);
+    rx->n = 0;
+    if (crc16_ccitt(rx->buf, body) != proto_get_u16(&rx->buf[body])) return PROTO_RX_BAD_CRC;
     out->id = rx->buf[0];
     out->len = static_cast<uint8_t>(body - 1);
     out->payload = &rx->buf[1];
-    int16_t expect = proto_payload_len(out->id);
+    const int16_t expect = proto_payload_len(out->id);
     if (expect < 0) return PROTO_RX_UNKNOWN_ID;
     if (expect != out->len) return PROTO_RX_BAD_LENGTH;
     return PROTO_RX_FRAME;
@@ -66,14 +79,8 @@ static proto_rx_result proto_rx_finish(proto_rx* rx, proto_frame* out) {
 
 proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out) {
     if (proto_rx_append(rx, byte)) return PROTO_RX_NONE;
-    if (byte == 0) {
-        proto_rx_result r = proto_rx_finish(rx, out);
-        rx->n = 0;
-        rx->overflow = 0;
-        return r;
-    }
-    rx->overflow = 1;  // past PROTO_MAX_ENCODED: keep discarding until the next delimiter
-    return PROTO_RX_NONE;
+    const proto_rx_result r = proto_rx_end(rx, byte);
+    return r == PROTO_RX_CHECK ? proto_rx_check(rx, out) : r;
 }
 
 uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out) {

@@ -237,7 +237,10 @@ TEST_F(AppTest, OpenLoopDriveCappedAtDriveMax) {
 TEST_F(AppTest, OpenLoopIsNeverRestoredAtBoot) {
     set_param(PRM_MODE, 1);
     send(PROTO_ID_PARAM_SAVE);
-    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) app_poll(&app);
+    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) {
+        app_poll(&app);
+        app_reply_work(&app);
+    }
     ASSERT_NE(last(PROTO_ID_ACK), nullptr);
     app_state booted;
     app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
@@ -381,7 +384,10 @@ TEST_F(AppTest, SaveAcksWhenWrittenAndSurvivesReboot) {
     EXPECT_NE(app_status(&app) & PROTO_STATUS_SAVING, 0);
     send(PROTO_ID_PARAM_SAVE);
     expect_error(PROTO_ID_PARAM_SAVE, PROTO_ERR_BUSY, 0);
-    for (int i = 0; i < 2000 && count(PROTO_ID_ACK) == 0; i++) app_poll(&app);
+    for (int i = 0; i < 2000 && count(PROTO_ID_ACK) == 0; i++) {
+        app_poll(&app);
+        app_reply_work(&app);
+    }
     ASSERT_EQ(count(PROTO_ID_ACK), 1);
     EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_PARAM_SAVE);
     app_state again;
