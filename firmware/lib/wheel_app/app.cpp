@@ -19,31 +19,41 @@ static uint16_t sat_inc(uint16_t x) {
     return x < 0xFFFFu ? static_cast<uint16_t>(x + 1) : x;
 }
 
-static void app_send_now(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+// Its own function: the 45-byte wire buffer's stack frame stays out of app_reply_step's early
+// exit, which every pass of the board's main loop takes.
+__attribute__((noinline)) static void app_reply_queue(app_state* a) {
+    app_reply* r = &a->reply;
     uint8_t wire[PROTO_MAX_WIRE];
-    uint8_t n = proto_build(id, payload, len, wire);
-    if (n == 0 || !a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+    const uint8_t n = proto_wire(r->raw, static_cast<uint8_t>(r->body + 2), wire);
+    if (!a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
 }
 
-bool app_reply_work(app_state* a) {
+bool app_reply_step(app_state* a) {
     app_reply* r = &a->reply;
-    if (r->id == 0) return false;
-    app_send_now(a, r->id, r->payload, r->len);
-    r->id = 0;
+    if (r->stage == APP_REPLY_CRC) {
+        proto_seal(r->raw, r->body);
+        r->stage = APP_REPLY_SEND;
+    } else {
+        app_reply_queue(a);
+        r->stage = APP_REPLY_NONE;
+    }
     return true;
 }
 
-// Held for app_reply_work. A second reply before it ran (a calibration ending in the tick's work,
-// a save finished) sends the first and then itself at once: replies stay in order.
+// Held for app_reply_work. A reply still held (a calibration ending in the tick's work, a save
+// finished, before the main loop ran its jobs) is sent first: replies stay in order.
 static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
-    if (app_reply_work(a) || len > APP_REPLY_MAX) {
-        app_send_now(a, id, payload, len);
-        return;
+    static_assert(PROTO_LEN_ACK <= APP_REPLY_MAX && PROTO_LEN_ERROR <= APP_REPLY_MAX &&
+                      PROTO_LEN_PARAM_VALUE <= APP_REPLY_MAX &&
+                      PROTO_LEN_HELLO_REPLY <= APP_REPLY_MAX,
+                  "every reply fits the reply slot");
+    while (app_reply_work(a)) {
     }
     app_reply* r = &a->reply;
-    r->id = id;
-    r->len = len;
-    for (uint8_t i = 0; i < len; i++) r->payload[i] = payload[i];
+    r->raw[0] = id;
+    for (uint8_t i = 0; i < len; i++) r->raw[1 + i] = payload[i];
+    r->body = static_cast<uint8_t>(len + 1);
+    r->stage = APP_REPLY_CRC;
 }
 
 static void app_send_ack(app_state* a, uint8_t req_id) {
@@ -151,7 +161,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     }
     flt_init(&a->flt);
     proto_rx_init(&a->rx);
-    a->reply.id = 0;
+    a->reply.stage = APP_REPLY_NONE;
     a->cnt = app_counters();
     a->tx = tx;
     a->seq = 0;
@@ -565,7 +575,8 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     }
     app_setpoints_tick(a);
     for (uint8_t i = 0; i < APP_WHEELS; i++) app_supervise(a, i);
-    app_reply_work(a);
+    while (app_reply_work(a)) {
+    }
 }
 
 void app_supervise(app_state* a, uint8_t i) {
@@ -650,10 +661,10 @@ bool app_telemetry_work(app_state* a) {
             app_telem_convert(tm, 3);
             break;
         case APP_TELEM_CRC:
-            proto_put_u16(&tm->raw[body], crc16_ccitt(tm->raw, body));
+            proto_seal(tm->raw, body);
             break;
         case APP_TELEM_COBS:
-            tm->wire[cobs_encode(tm->raw, APP_TELEM_RAW, tm->wire)] = 0;
+            (void)proto_wire(tm->raw, APP_TELEM_RAW, tm->wire);
             break;
         default:  // APP_TELEM_QUEUE
             if (!a->tx(tm->wire, sizeof tm->wire)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);

@@ -107,14 +107,15 @@ struct app_telem {
     uint8_t wire[COBS_ENCODED_SIZE(APP_TELEM_RAW) + 1];
 };
 
-// A reply held for a job of its own (app_reply_work): its encoding (CRC, COBS) and the copy into
-// the TX ring would make a frame's dispatch the main loop's longest job. The longest reply
-// payload is STATS.
+// A reply held for two jobs of its own (app_reply_work: the CRC, then the COBS and the copy into
+// the TX ring), which would otherwise make a frame's dispatch the main loop's longest job. The
+// longest reply payload is STATS.
 #define APP_REPLY_MAX PROTO_LEN_STATS
+enum : uint8_t { APP_REPLY_NONE, APP_REPLY_CRC, APP_REPLY_SEND };
 struct app_reply {
-    uint8_t id;  // 0 (no message id) when none waits
-    uint8_t len;
-    uint8_t payload[APP_REPLY_MAX];
+    uint8_t stage;  // APP_REPLY_*: none waits, its CRC next, its COBS and queueing next
+    uint8_t body;   // id and payload bytes in raw
+    uint8_t raw[1 + APP_REPLY_MAX + 2];
 };
 
 struct app_state {
@@ -171,15 +172,20 @@ inline bool app_rx_waits(const app_state* a) {
     return a->rx_result != PROTO_RX_NONE;
 }
 void app_rx_act(app_state* a);
-// A reply the dispatch (or the tick's work) left in a->reply encoded and queued: true if there
-// was one. The board runs it as a job before the next frame's; app_rx_byte right away.
-bool app_reply_work(app_state* a);
+// One part of the reply the dispatch (or the tick's work) left in a->reply: its CRC, then its COBS
+// and the copy into the TX ring. False when none was left. The board runs them as jobs before the
+// next frame's; app_rx_byte right away.
+bool app_reply_step(app_state* a);
+inline bool app_reply_work(app_state* a) {
+    return a->reply.stage != APP_REPLY_NONE && app_reply_step(a);
+}
 // All at once: a complete frame is dispatched and answered as its delimiter is fed (native tests,
 // fuzzing).
 inline void app_rx_byte(app_state* a, uint8_t byte) {
     if (!app_rx_decode(a, byte)) return;
     while (app_rx_waits(a)) app_rx_act(a);
-    app_reply_work(a);
+    while (app_reply_work(a)) {
+    }
 }
 
 // STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and

@@ -83,16 +83,24 @@ proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out) {
     return r == PROTO_RX_CHECK ? proto_rx_check(rx, out) : r;
 }
 
+void proto_seal(uint8_t* raw, uint8_t body) {
+    proto_put_u16(&raw[body], crc16_ccitt(raw, body));
+}
+
+uint8_t proto_wire(const uint8_t* raw, uint8_t raw_len, uint8_t* out) {
+    const uint8_t n = cobs_encode(raw, raw_len, out);
+    out[n] = 0;
+    return static_cast<uint8_t>(n + 1);
+}
+
 uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out) {
     if (len > PROTO_MAX_PAYLOAD) return 0;
     uint8_t raw[PROTO_MAX_RAW];
     raw[0] = id;
     for (uint8_t i = 0; i < len; i++) raw[1 + i] = payload[i];
-    uint8_t body = static_cast<uint8_t>(len + 1);
-    proto_put_u16(&raw[body], crc16_ccitt(raw, body));
-    uint8_t n = cobs_encode(raw, static_cast<uint8_t>(body + 2), out);
-    out[n] = 0;
-    return static_cast<uint8_t>(n + 1);
+    const uint8_t body = static_cast<uint8_t>(len + 1);
+    proto_seal(raw, body);
+    return proto_wire(raw, static_cast<uint8_t>(body + 2), out);
 }
 
 void proto_put_u16(uint8_t* p, uint16_t v) {

@@ -110,6 +110,11 @@ proto_rx_result proto_rx_check(proto_rx* rx, proto_frame* out);
 // Build the wire bytes (COBS + trailing 0x00) of a message into out (PROTO_MAX_WIRE bytes).
 // Returns the number of bytes, or 0 if len > PROTO_MAX_PAYLOAD.
 uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out);
+// proto_build in two parts, for a frame built in slices: raw holds id | payload (body bytes) and
+// room for the CRC, which proto_seal appends; proto_wire then writes the COBS and the delimiter
+// of the body + 2 raw bytes into out and returns the wire length.
+void proto_seal(uint8_t* raw, uint8_t body);
+uint8_t proto_wire(const uint8_t* raw, uint8_t raw_len, uint8_t* out);
 
 // Little-endian packing.
 void proto_put_u16(uint8_t* p, uint16_t v);
