@@ -539,16 +539,17 @@ void app_setpoints_tick(app_state* a) {
 
 bool app_brake_on(app_wheel* w, bool was_enabled) {
     if (!was_enabled || w->stop_ticks >= APP_STOP_TICKS) return false;
-    // The first braking tick, and the tick after a bad word, only take the angle.
-    const uint16_t prev = w->stop_ticks ? w->brake_angle : APP_NO_ANGLE;
+    // This tick's slot of the ring holds the angle of APP_STOP_WINDOW braking ticks ago.
+    uint16_t* slot = &w->brake_angles[w->stop_ticks & (APP_STOP_WINDOW - 1)];
+    const uint16_t then = w->stop_ticks >= APP_STOP_WINDOW ? *slot : APP_NO_ANGLE;
     const bool fresh = w->spd.primed && !w->spd.missed;  // last_angle sampled in this tick
-    w->brake_angle = fresh ? w->spd.last_angle : APP_NO_ANGLE;
+    *slot = fresh ? w->spd.last_angle : APP_NO_ANGLE;
     w->stop_ticks++;
-    if (prev == APP_NO_ANGLE || !fresh) return true;
-    // Measured speed of the last tick in q8, signed in the direction the wheel was turning.
-    int32_t moved = static_cast<int32_t>(spd_wrap_delta(prev, w->brake_angle)) * SPD_Q8_PER_COUNT;
+    if (then == APP_NO_ANGLE || !fresh) return true;
+    // The window's angle change in q8, signed in the direction the wheel was turning.
+    int32_t moved = static_cast<int32_t>(spd_wrap_delta(then, *slot)) * SPD_Q8_PER_COUNT;
     if (spd_q8(&w->spd) < 0) moved = -moved;
-    return moved >= APP_STOP_Q8;
+    return moved >= static_cast<int32_t>(APP_STOP_WINDOW) * APP_STOP_Q8;
 }
 
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]) {

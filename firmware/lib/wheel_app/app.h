@@ -20,18 +20,30 @@
 
 // Stopping in closed loop: when a running wheel's ramped setpoint and target reach 0 (STOP_ALL,
 // fail-safe, SET_SPEEDS 0), the loop keeps driving (braking towards 0) until the wheel has
-// stopped, then disables the wheel's driver. Stopped is judged on the encoder's angle change over
-// the last tick, not on the filtered estimate: the filter lags a braking wheel by a few rad/s, so
-// braking until it read zero drove the wheel backwards. The end: the last tick's angle change in
-// the direction being braked (the sign of the lagging estimate) is below APP_STOP_Q8 (334 q8 =
-// 1.3 counts per tick = 0.50 rad/s = 4.8 rpm), which also ends it the tick the wheel reverses;
-// a tick with a bad encoder word is not judged. With the 1-count resolution a wheel is released at
-// 0.38 rad/s or less measured (below about 0.8 rad/s true; it then coasts, drivers off), never
-// after it turned backwards by more than a tick's worth of braking. APP_STOP_TICKS (500 ms) bounds
-// a wheel that cannot be stopped (a load, a frozen encoder); a wheel already off stays off.
+// stopped, then disables the wheel's driver. Stopped is judged on the encoder's angles, not on the
+// filtered estimate: the filter lags a braking wheel by a few rad/s, so braking until it read zero
+// drove the wheel backwards. The test: the angle change over the last APP_STOP_WINDOW ticks, D,
+// signed in the direction being braked (the sign of the lagging estimate), below APP_STOP_WINDOW *
+// APP_STOP_Q8 (334 q8 = 1.3 counts per tick = 0.50 rad/s = 4.8 rpm, as a mean over the window);
+// a wheel that reversed shows a D below it as well. A window with a bad encoder word at either end
+// is not judged.
+// Why a window of 4: the AS5048A reads with about 2 counts rms of noise (sigma), so any change of
+// two reads has sqrt(2) * 2 = 2.83 counts rms, over one tick or over N. On one tick's change
+// against 1.3 counts that let a wheel go at up to 1.3 + 4 * 2.83 = 12.6 counts a tick (4.8 rad/s)
+// at 4 sigma; over N ticks the mean speed at release is at most (1.3 * N + 4 * 2.83) / N counts a
+// tick: 4.1 (1.58 rad/s) for N = 4. The window's price is its lag: braking at a counts per tick^2
+// the window's mean runs a * N / 2 ahead of the present speed, and the brake holds until the mean
+// is below 1.3. At the strongest braking of the motor (275 rad/s^2 at full drive, 0.72 counts per
+// tick^2) that is 1.43 counts a tick for N = 4: without noise the wheel is released before it
+// turns backwards faster than 1.3 - 1.43 = -0.13 counts a tick (0.05 rad/s; at the default DECEL
+// of 200 rad/s^2 it is still turning forwards at 0.26). N = 6 would bound the release at
+// 1.42 rad/s but allow 0.22 rad/s backwards; 4 is a power of two (the ring's index is a mask).
+// APP_STOP_TICKS (500 ms) bounds a wheel that cannot be stopped (a load, a frozen encoder); a
+// wheel already off stays off.
 #define APP_STOP_Q8 334L
+#define APP_STOP_WINDOW 4u  // power of two
 #define APP_STOP_TICKS 500u
-#define APP_NO_ANGLE 0xFFFFu  // brake_angle not yet taken (angles are 14 bits)
+#define APP_NO_ANGLE 0xFFFFu  // no angle in a brake_angles slot (angles are 14 bits)
 
 // Open loop (MODE 1) is a bench mode with nothing measuring the rotor: a SET_SPEEDS there drives
 // at OPEN_LOOP_DRIVE_Q15, capped at DRIVE_MAX_Q15 (the closed loop's own limit), under the
@@ -69,8 +81,10 @@ struct app_wheel {
     uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
     int16_t drive_q15;      // signed drive level
     uint16_t stop_ticks;    // ticks braking at setpoint 0 (APP_STOP_TICKS)
-    uint16_t brake_angle;   // encoder angle at the last braking tick, or APP_NO_ANGLE
-    grd_wheel grd;          // sensor and motion supervision
+    // Encoder angles of the last APP_STOP_WINDOW braking ticks, a ring indexed by stop_ticks;
+    // APP_NO_ANGLE for a tick with a bad word.
+    uint16_t brake_angles[APP_STOP_WINDOW];
+    grd_wheel grd;  // sensor and motion supervision
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change so that
