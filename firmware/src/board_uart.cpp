@@ -166,12 +166,6 @@ bool uart_tx_frame(const uint8_t* data, uint8_t len) {
     return true;
 }
 
-bool uart_rx_take_overflow() {
-    if (!board_rx_overflow) return false;
-    board_rx_overflow = 0;
-    return true;
-}
-
 uint8_t uart_stops_seen() {
     return board_stops_seen;
 }  // one byte: read atomically

@@ -451,7 +451,7 @@ void app_rx_act(app_state* a) {
     }
 }
 
-void app_poll(app_state* a) {
+void app_poll_save(app_state* a) {
     if (prm_save_poll(&a->prm)) app_send_ack(a, PROTO_ID_PARAM_SAVE);
 }
 

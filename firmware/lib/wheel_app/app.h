@@ -215,8 +215,13 @@ void app_stop_all(app_state* a);
 // cancel a SET_SPEEDS sent after it) and never leaves setpoints dropped.
 void app_note_stops_seen(app_state* a, uint8_t stops_seen);
 
-// Background work of the main loop (EEPROM save progress).
-void app_poll(app_state* a);
+// Background work of the main loop (EEPROM save progress). The test inline: the board's main
+// loop passes here on every idle or decoding pass, and a call with its register saves there cost
+// more of the CPU than a SET_SPEEDS stream leaves (reports/firmware-timing.md).
+void app_poll_save(app_state* a);
+inline void app_poll(app_state* a) {
+    if (a->prm.saving) app_poll_save(a);
+}
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
 // Runs the step (app_step.h), app_derive_ctl, app_setpoints_tick and app_supervise of every
