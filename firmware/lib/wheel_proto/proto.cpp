@@ -1,6 +1,7 @@
 #include "proto.h"
 
 #include "crc16.h"
+#include "port_progmem.h"
 
 // Compile-time check that each payload length matches its struct format in the table.
 static constexpr uint8_t proto_char_size(char c) {
@@ -15,30 +16,35 @@ static constexpr uint8_t proto_fmt_size(const char* f) {
 #include "proto_messages.def"
 #undef PROTO_MSG
 
-int16_t proto_payload_len(uint8_t id) {
-    switch (id) {
-#define PROTO_MSG(name, id, dir, len, fmt, fields) \
-    case id:                                       \
-        return len;
+// The message table in flash, searched in its order (the host's messages first): a switch over
+// the ids compiled into a 134-byte lookup table that avr-gcc keeps in RAM (.data).
+struct proto_row {
+    uint8_t id, len, to_device;
+};
+#define PROTO_TO_DEVICE_H2D 1
+#define PROTO_TO_DEVICE_D2H 0
+static const proto_row proto_rows[] PORT_PROGMEM = {
+#define PROTO_MSG(name, id, dir, len, fmt, fields) {id, len, PROTO_TO_DEVICE_##dir},
 #include "proto_messages.def"
 #undef PROTO_MSG
-        default:
-            return -1;
-    }
+};
+#define PROTO_ROWS (sizeof proto_rows / sizeof proto_rows[0])
+
+// The row of a message id, or PROTO_ROWS.
+static uint8_t proto_row_of(uint8_t id) {
+    uint8_t i = 0;
+    while (i < PROTO_ROWS && PORT_READ_U8(&proto_rows[i].id) != id) i++;
+    return i;
 }
 
-#define PROTO_TO_DEVICE_H2D true
-#define PROTO_TO_DEVICE_D2H false
+int16_t proto_payload_len(uint8_t id) {
+    const uint8_t i = proto_row_of(id);
+    return i < PROTO_ROWS ? PORT_READ_U8(&proto_rows[i].len) : -1;
+}
+
 bool proto_to_device(uint8_t id) {
-    switch (id) {
-#define PROTO_MSG(name, id, dir, len, fmt, fields) \
-    case id:                                       \
-        return PROTO_TO_DEVICE_##dir;
-#include "proto_messages.def"
-#undef PROTO_MSG
-        default:
-            return false;
-    }
+    const uint8_t i = proto_row_of(id);
+    return i < PROTO_ROWS && PORT_READ_U8(&proto_rows[i].to_device);
 }
 
 void proto_rx_init(proto_rx* rx) {
