@@ -70,7 +70,13 @@ static inline void uart_tx_release() {
     board_tx_held = 0;
     UCSR0B |= _BV(UDRIE0);  // an empty ring: the interrupt clears it again at once
 }
-bool uart_rx_take_overflow();  // true once after the RX ring overflowed
+// True once after the RX ring overflowed. Inline: the main loop asks on every pass.
+extern "C" volatile uint8_t board_rx_overflow;
+static inline bool uart_rx_take_overflow() {
+    if (!board_rx_overflow) return false;
+    board_rx_overflow = 0;
+    return true;
+}
 // STOP_ALL frames the receive interrupt has seen whole (board_uart.cpp), free-running; each frame
 // also goes through the ring and is dispatched (and acknowledged) in order.
 uint8_t uart_stops_seen();

@@ -11,10 +11,14 @@ static_assert(BOARD_UART_RX_SIZE == 256, "RX ring: free-running 8-bit indices, a
 static_assert(BOARD_UART_TX_SIZE == 256, "TX ring: free-running 8-bit indices, aligned");
 
 // The rings are aligned to 256 bytes so that an index is the low byte of the address: the
-// interrupts then form the pointer with one LDI. extern "C": the assembly names them.
+// interrupts then form the pointer with one LDI. extern "C": the assembly names them. In the
+// plain .data section, which the linker puts first in RAM, at 0x200: aligned there, they need no
+// padding, where after the other variables up to 255 bytes of RAM would go to it. The price is
+// their 512 zero bytes in flash, copied at boot.
+#define BOARD_UART_RING __attribute__((section(".data"), aligned(256)))
 extern "C" {
-volatile uint8_t board_rx_buf[BOARD_UART_RX_SIZE] __attribute__((aligned(256)));
-volatile uint8_t board_tx_buf[BOARD_UART_TX_SIZE] __attribute__((aligned(256)));
+volatile uint8_t board_rx_buf[BOARD_UART_RX_SIZE] BOARD_UART_RING;
+volatile uint8_t board_tx_buf[BOARD_UART_TX_SIZE] BOARD_UART_RING;
 volatile uint8_t board_rx_head;  // written by the RX ISR
 volatile uint8_t board_rx_tail;  // written by the main loop
 volatile uint8_t board_rx_overflow;
@@ -163,12 +167,6 @@ bool uart_tx_frame(const uint8_t* data, uint8_t len) {
     cli();
     if (!board_tx_held) UCSR0B |= _BV(UDRIE0);
     SREG = sreg;
-    return true;
-}
-
-bool uart_rx_take_overflow() {
-    if (!board_rx_overflow) return false;
-    board_rx_overflow = 0;
     return true;
 }
 

@@ -11,15 +11,17 @@
 // The main loop runs one bounded job at a time and, before each, the control step if a tick is
 // pending: a step waits for at most the rest of one job, whatever the link brings. The jobs: the
 // tick's own work after the step (supervision, one encoder's diagnostics read, a telemetry frame
-// in slices: app.h), a received frame's dispatch with its reply, the decoding of up to
-// MAIN_RX_BYTES_PER_PASS received bytes (at most one frame's COBS and CRC), and the move of the
-// receive interrupt's ring into g_rx_fifo (about 12 cycles a byte, stopped at a pending tick).
+// in slices: app.h), a reply's CRC and then its COBS and queueing, a received frame's CRC and
+// checks and then its dispatch (app_rx_act), the decoding of up to MAIN_RX_BYTES_PER_PASS
+// received bytes (at most one frame's COBS, at its delimiter), and the move of the receive
+// interrupt's ring into g_rx_fifo (about 12 cycles a byte, stopped at a pending tick). Each job is
+// a pass of the loop, so what a pass tests when it finds nothing to do is inline.
 // docs/hardware.md ("Link load") has the longest job and the bound it gives the step.
 #define MAIN_RX_BYTES_PER_PASS 8
 // Received bytes wait here between the interrupt's 256-byte ring and the decoder. A burst at the
-// line rate comes in faster than its frames are dispatched (a PARAM_SET with its reply takes
-// about 1,800 cycles, the time of 11 received bytes); together the two hold 768 bytes, three of
-// the documented bursts.
+// line rate comes in faster than its frames are dispatched (a PARAM_SET takes about 3,000 cycles
+// in its jobs, the time of 19 received bytes); together the two hold 768 bytes, three of the
+// documented bursts.
 #define MAIN_RX_FIFO_SIZE 512u  // power of two
 
 static app_state g_app;
@@ -161,7 +163,8 @@ int main() {
         }
         main_move_rx(last_tick);
         if (main_after_work()) continue;
-        if (g_app.rx_result != PROTO_RX_NONE) {
+        if (app_reply_work(&g_app)) continue;
+        if (app_rx_waits(&g_app)) {
             app_rx_act(&g_app);
             continue;
         }

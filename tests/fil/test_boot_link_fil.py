@@ -27,11 +27,12 @@ OUTPUTS_ENABLED = 1 << 0
 SPEED_MRAD_S = [75000, -75000, 75000, -75000]  # about 716 rpm
 WAIT_S = 20.0  # wall-clock limit of every wait: generous for a loaded 2-core host
 STATS_PERIOD_S = 0.0005
-# Tick to PWM under the flood, from docs/hardware.md#link-load: the longest job of the main loop
-# (1,475 cycles) and the PWM update (131) stretched by the receive interrupt (160 / 103), the step
-# under the burst (4,081 cycles with it), the tick interrupt and the loop's test (85): 6,660
-# cycles, 416 us, and Timer2's count of 4 us.
-STEP_BOUND_US = 420
+# Tick to PWM under the flood, from docs/hardware.md#link-load: a step waits for the rest of the
+# longest job of the main loop (1,105 cycles), then runs the step (2,658) and the PWM update (131),
+# all stretched by the receive interrupt (160 / 103); plus the tick interrupt and the loop's test
+# (85), a receive interrupt in progress at the tick (72) and STOP_ALL's five matched bytes (15 more
+# each): 6,281 cycles, 392 us. step_max_us counts Timer2 from its clear, never above it.
+STEP_BOUND_US = 392
 
 
 def wire(name: str, **fields: int) -> bytes:

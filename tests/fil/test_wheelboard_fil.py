@@ -403,8 +403,9 @@ def test_stop_all_from_715_rpm_ends_without_reversing():
 
     The true rotor speeds (the harness's SPEED lines every 2 ms of simulated time) are followed
     from STOP_ALL until 1.5 s later: no wheel turns backwards by 0.5 rad/s or more at any
-    sample, every wheel ends within 0.8 rad/s of zero (released within one count per tick of
-    measured speed, then coasting with its driver off) and every output is off.
+    sample, every wheel ends within 0.8 rad/s of zero (released once its measured angle change
+    over 4 ticks is below 4 x 1.3 counts, then coasting with its driver off) and every output is
+    off.
     """
     signs = [1, -1, 1, -1]
     with Harness(firmware_elf(), ["--speed-period", "0.002"]) as h:

@@ -19,10 +19,41 @@ static uint16_t sat_inc(uint16_t x) {
     return x < 0xFFFFu ? static_cast<uint16_t>(x + 1) : x;
 }
 
-static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+// Its own function: the 45-byte wire buffer's stack frame stays out of app_reply_step's early
+// exit, which every pass of the board's main loop takes.
+__attribute__((noinline)) static void app_reply_queue(app_state* a) {
+    app_reply* r = &a->reply;
     uint8_t wire[PROTO_MAX_WIRE];
-    uint8_t n = proto_build(id, payload, len, wire);
-    if (n == 0 || !a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+    const uint8_t n = proto_wire(r->raw, static_cast<uint8_t>(r->body + 2), wire);
+    if (!a->tx(wire, n)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);
+}
+
+bool app_reply_step(app_state* a) {
+    app_reply* r = &a->reply;
+    if (r->stage == APP_REPLY_CRC) {
+        proto_seal(r->raw, r->body);
+        r->stage = APP_REPLY_SEND;
+    } else {
+        app_reply_queue(a);
+        r->stage = APP_REPLY_NONE;
+    }
+    return true;
+}
+
+// Held for app_reply_work. A reply still held (a calibration ending in the tick's work, a save
+// finished, before the main loop ran its jobs) is sent first: replies stay in order.
+static void app_send(app_state* a, uint8_t id, const uint8_t* payload, uint8_t len) {
+    static_assert(PROTO_LEN_ACK <= APP_REPLY_MAX && PROTO_LEN_ERROR <= APP_REPLY_MAX &&
+                      PROTO_LEN_PARAM_VALUE <= APP_REPLY_MAX &&
+                      PROTO_LEN_HELLO_REPLY <= APP_REPLY_MAX,
+                  "every reply fits the reply slot");
+    while (app_reply_work(a)) {
+    }
+    app_reply* r = &a->reply;
+    r->raw[0] = id;
+    for (uint8_t i = 0; i < len; i++) r->raw[1 + i] = payload[i];
+    r->body = static_cast<uint8_t>(len + 1);
+    r->stage = APP_REPLY_CRC;
 }
 
 static void app_send_ack(app_state* a, uint8_t req_id) {
@@ -69,7 +100,16 @@ static void app_reset_wheel(app_wheel* w) {
 
 // The parameters of the drive (gains, lead, ramp, offsets, heartbeat, mode), then those of the
 // supervision (guard.h, the speed filter): two halves, so that a PARAM_SET's derivation is two
-// jobs of the board's main loop (app_derive_ctl). All prm.v are within their params.def ranges.
+// jobs of the board's main loop (app_derive_ctl). The pole pairs only change with a structural
+// PARAM_SET (wheels off), PARAM_DEFAULTS or at boot, which derive everything at once
+// (app_load_ctl): the lead's division stays out of the halves. All prm.v are within their
+// params.def ranges.
+static void app_load_poles(app_state* a) {
+    app_ctl* c = &a->ctl;
+    c->pole_pairs = static_cast<uint8_t>(a->prm.v[PRM_POLE_PAIRS]);
+    cmt_lead_poles(&c->lead, c->pole_pairs);
+}
+
 static void app_load_drive(app_state* a) {
     const int32_t* v = a->prm.v;
     app_ctl* c = &a->ctl;
@@ -78,8 +118,7 @@ static void app_load_drive(app_state* a) {
     c->gains.out_max = static_cast<int16_t>(v[PRM_DRIVE_MAX_Q15]);
     c->gains.slew = static_cast<int16_t>(v[PRM_SLEW_Q15]);
     c->gains = pi_gains_sanitize(c->gains);
-    c->pole_pairs = static_cast<uint8_t>(v[PRM_POLE_PAIRS]);
-    cmt_lead_init(&c->lead, c->pole_pairs, static_cast<uint16_t>(v[PRM_LEAD_Q8]));
+    cmt_lead_time(&c->lead, static_cast<uint16_t>(v[PRM_LEAD_Q8]));
     c->accel = v[PRM_ACCEL_RAD_S2];
     c->decel = v[PRM_DECEL_RAD_S2];
     for (uint8_t i = 0; i < APP_WHEELS; i++) {
@@ -110,6 +149,7 @@ static void app_load_guard(app_state* a) {
 }
 
 static void app_load_ctl(app_state* a) {
+    app_load_poles(a);
     app_load_drive(a);
     app_load_guard(a);
 }
@@ -121,6 +161,7 @@ void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot
     }
     flt_init(&a->flt);
     proto_rx_init(&a->rx);
+    a->reply.stage = APP_REPLY_NONE;
     a->cnt = app_counters();
     a->tx = tx;
     a->seq = 0;
@@ -366,13 +407,17 @@ static void app_dispatch(app_state* a, const proto_frame* f) {
 }
 
 bool app_rx_decode_end(app_state* a, uint8_t byte) {
-    a->rx_result = proto_rx_push(&a->rx, byte, &a->rx_frame);
+    a->rx_result = proto_rx_end(&a->rx, byte);
     return a->rx_result != PROTO_RX_NONE;
 }
 
 void app_rx_act(app_state* a) {
     const proto_frame* f = &a->rx_frame;
     const uint8_t result = a->rx_result;
+    if (result == PROTO_RX_CHECK) {  // a job of its own: the dispatch follows in the next
+        a->rx_result = proto_rx_check(&a->rx, &a->rx_frame);
+        return;
+    }
     a->rx_result = PROTO_RX_NONE;
     switch (result) {
         case PROTO_RX_FRAME:
@@ -406,7 +451,7 @@ void app_rx_act(app_state* a) {
     }
 }
 
-void app_poll(app_state* a) {
+void app_poll_save(app_state* a) {
     if (prm_save_poll(&a->prm)) app_send_ack(a, PROTO_ID_PARAM_SAVE);
 }
 
@@ -494,16 +539,17 @@ void app_setpoints_tick(app_state* a) {
 
 bool app_brake_on(app_wheel* w, bool was_enabled) {
     if (!was_enabled || w->stop_ticks >= APP_STOP_TICKS) return false;
-    // The first braking tick, and the tick after a bad word, only take the angle.
-    const uint16_t prev = w->stop_ticks ? w->brake_angle : APP_NO_ANGLE;
+    // This tick's slot of the ring holds the angle of APP_STOP_WINDOW braking ticks ago.
+    uint16_t* slot = &w->brake_angles[w->stop_ticks & (APP_STOP_WINDOW - 1)];
+    const uint16_t then = w->stop_ticks >= APP_STOP_WINDOW ? *slot : APP_NO_ANGLE;
     const bool fresh = w->spd.primed && !w->spd.missed;  // last_angle sampled in this tick
-    w->brake_angle = fresh ? w->spd.last_angle : APP_NO_ANGLE;
+    *slot = fresh ? w->spd.last_angle : APP_NO_ANGLE;
     w->stop_ticks++;
-    if (prev == APP_NO_ANGLE || !fresh) return true;
-    // Measured speed of the last tick in q8, signed in the direction the wheel was turning.
-    int32_t moved = static_cast<int32_t>(spd_wrap_delta(prev, w->brake_angle)) * SPD_Q8_PER_COUNT;
+    if (then == APP_NO_ANGLE || !fresh) return true;
+    // The window's angle change in q8, signed in the direction the wheel was turning.
+    int32_t moved = static_cast<int32_t>(spd_wrap_delta(then, *slot)) * SPD_Q8_PER_COUNT;
     if (spd_q8(&w->spd) < 0) moved = -moved;
-    return moved >= APP_STOP_Q8;
+    return moved >= static_cast<int32_t>(APP_STOP_WINDOW) * APP_STOP_Q8;
 }
 
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]) {
@@ -530,6 +576,8 @@ void app_control_step(app_state* a, const uint16_t enc_words[APP_WHEELS]) {
     }
     app_setpoints_tick(a);
     for (uint8_t i = 0; i < APP_WHEELS; i++) app_supervise(a, i);
+    while (app_reply_work(a)) {
+    }
 }
 
 void app_supervise(app_state* a, uint8_t i) {
@@ -614,10 +662,10 @@ bool app_telemetry_work(app_state* a) {
             app_telem_convert(tm, 3);
             break;
         case APP_TELEM_CRC:
-            proto_put_u16(&tm->raw[body], crc16_ccitt(tm->raw, body));
+            proto_seal(tm->raw, body);
             break;
         case APP_TELEM_COBS:
-            tm->wire[cobs_encode(tm->raw, APP_TELEM_RAW, tm->wire)] = 0;
+            (void)proto_wire(tm->raw, APP_TELEM_RAW, tm->wire);
             break;
         default:  // APP_TELEM_QUEUE
             if (!a->tx(tm->wire, sizeof tm->wire)) a->cnt.tx_dropped = sat_inc(a->cnt.tx_dropped);

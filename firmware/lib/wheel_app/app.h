@@ -20,18 +20,30 @@
 
 // Stopping in closed loop: when a running wheel's ramped setpoint and target reach 0 (STOP_ALL,
 // fail-safe, SET_SPEEDS 0), the loop keeps driving (braking towards 0) until the wheel has
-// stopped, then disables the wheel's driver. Stopped is judged on the encoder's angle change over
-// the last tick, not on the filtered estimate: the filter lags a braking wheel by a few rad/s, so
-// braking until it read zero drove the wheel backwards. The end: the last tick's angle change in
-// the direction being braked (the sign of the lagging estimate) is below APP_STOP_Q8 (334 q8 =
-// 1.3 counts per tick = 0.50 rad/s = 4.8 rpm), which also ends it the tick the wheel reverses;
-// a tick with a bad encoder word is not judged. With the 1-count resolution a wheel is released at
-// 0.38 rad/s or less measured (below about 0.8 rad/s true; it then coasts, drivers off), never
-// after it turned backwards by more than a tick's worth of braking. APP_STOP_TICKS (500 ms) bounds
-// a wheel that cannot be stopped (a load, a frozen encoder); a wheel already off stays off.
+// stopped, then disables the wheel's driver. Stopped is judged on the encoder's angles, not on the
+// filtered estimate: the filter lags a braking wheel by a few rad/s, so braking until it read zero
+// drove the wheel backwards. The test: the angle change over the last APP_STOP_WINDOW ticks, D,
+// signed in the direction being braked (the sign of the lagging estimate), below APP_STOP_WINDOW *
+// APP_STOP_Q8 (334 q8 = 1.3 counts per tick = 0.50 rad/s = 4.8 rpm, as a mean over the window);
+// a wheel that reversed shows a D below it as well. A window with a bad encoder word at either end
+// is not judged.
+// Why a window of 4: the AS5048A reads with about 2 counts rms of noise (sigma), so any change of
+// two reads has sqrt(2) * 2 = 2.83 counts rms, over one tick or over N. On one tick's change
+// against 1.3 counts that let a wheel go at up to 1.3 + 4 * 2.83 = 12.6 counts a tick (4.8 rad/s)
+// at 4 sigma; over N ticks the mean speed at release is at most (1.3 * N + 4 * 2.83) / N counts a
+// tick: 4.1 (1.58 rad/s) for N = 4. The window's price is its lag: braking at a counts per tick^2
+// the window's mean runs a * N / 2 ahead of the present speed, and the brake holds until the mean
+// is below 1.3. At the strongest braking of the motor (275 rad/s^2 at full drive, 0.72 counts per
+// tick^2) that is 1.43 counts a tick for N = 4: without noise the wheel is released before it
+// turns backwards faster than 1.3 - 1.43 = -0.13 counts a tick (0.05 rad/s; at the default DECEL
+// of 200 rad/s^2 it is still turning forwards at 0.26). N = 6 would bound the release at
+// 1.42 rad/s but allow 0.22 rad/s backwards; 4 is a power of two (the ring's index is a mask).
+// APP_STOP_TICKS (500 ms) bounds a wheel that cannot be stopped (a load, a frozen encoder); a
+// wheel already off stays off.
 #define APP_STOP_Q8 334L
+#define APP_STOP_WINDOW 4u  // power of two
 #define APP_STOP_TICKS 500u
-#define APP_NO_ANGLE 0xFFFFu  // brake_angle not yet taken (angles are 14 bits)
+#define APP_NO_ANGLE 0xFFFFu  // no angle in a brake_angles slot (angles are 14 bits)
 
 // Open loop (MODE 1) is a bench mode with nothing measuring the rotor: a SET_SPEEDS there drives
 // at OPEN_LOOP_DRIVE_Q15, capped at DRIVE_MAX_Q15 (the closed loop's own limit), under the
@@ -69,8 +81,10 @@ struct app_wheel {
     uint32_t ol_phase;      // open-loop electrical phase, 2^32 = one turn
     int16_t drive_q15;      // signed drive level
     uint16_t stop_ticks;    // ticks braking at setpoint 0 (APP_STOP_TICKS)
-    uint16_t brake_angle;   // encoder angle at the last braking tick, or APP_NO_ANGLE
-    grd_wheel grd;          // sensor and motion supervision
+    // Encoder angles of the last APP_STOP_WINDOW braking ticks, a ring indexed by stop_ticks;
+    // APP_NO_ANGLE for a tick with a bad word.
+    uint16_t brake_angles[APP_STOP_WINDOW];
+    grd_wheel grd;  // sensor and motion supervision
 };
 
 // Parameters in the form the control step uses them, derived from prm.v once per change so that
@@ -105,6 +119,17 @@ struct app_telem {
     uint8_t convert;  // the speeds are q8 (closed loop), not yet mrad/s
     uint8_t raw[APP_TELEM_RAW];
     uint8_t wire[COBS_ENCODED_SIZE(APP_TELEM_RAW) + 1];
+};
+
+// A reply held for two jobs of its own (app_reply_work: the CRC, then the COBS and the copy into
+// the TX ring), which would otherwise make a frame's dispatch the main loop's longest job. The
+// longest reply payload is STATS.
+#define APP_REPLY_MAX PROTO_LEN_STATS
+enum : uint8_t { APP_REPLY_NONE, APP_REPLY_CRC, APP_REPLY_SEND };
+struct app_reply {
+    uint8_t stage;  // APP_REPLY_*: none waits, its CRC next, its COBS and queueing next
+    uint8_t body;   // id and payload bytes in raw
+    uint8_t raw[1 + APP_REPLY_MAX + 2];
 };
 
 struct app_state {
@@ -142,23 +167,39 @@ struct app_state {
     // acted on yet; rx_frame's payload points into rx.buf, which stays intact until then.
     uint8_t rx_result;  // proto_rx_result, PROTO_RX_NONE when nothing waits
     proto_frame rx_frame;
+    app_reply reply;
 };
 
 // boot_faults: PROTO_FAULT_* bits known at start-up (e.g. WATCHDOG_RESET).
 void app_init(app_state* a, const prm_eeprom_if* ee, app_tx_fn tx, uint16_t boot_faults);
 
-// Received bytes in two parts, so that the board can run a control step between a frame's
-// decoding (COBS and CRC, at its delimiter) and its dispatch with the reply: app_rx_decode feeds
-// one byte and returns true when a frame or an error waits for app_rx_act; feed no byte until
-// then. Inline: a byte inside a frame is one store, without the call and its stack frame.
+// Received bytes in three jobs, so that the board can run a control step between a frame's
+// COBS (at its delimiter), its CRC and checks, and its dispatch: app_rx_decode feeds one byte and
+// returns true when a frame or an error waits for app_rx_act; then call app_rx_act while
+// app_rx_waits, and feed no byte until it is false. Inline: a byte inside a frame is one store,
+// without the call and its stack frame.
 bool app_rx_decode_end(app_state* a, uint8_t byte);
 inline bool app_rx_decode(app_state* a, uint8_t byte) {
     return !proto_rx_append(&a->rx, byte) && app_rx_decode_end(a, byte);
 }
+inline bool app_rx_waits(const app_state* a) {
+    return a->rx_result != PROTO_RX_NONE;
+}
 void app_rx_act(app_state* a);
-// Both at once: a complete frame is dispatched as its delimiter is fed (native tests, fuzzing).
+// One part of the reply the dispatch (or the tick's work) left in a->reply: its CRC, then its COBS
+// and the copy into the TX ring. False when none was left. The board runs them as jobs before the
+// next frame's; app_rx_byte right away.
+bool app_reply_step(app_state* a);
+inline bool app_reply_work(app_state* a) {
+    return a->reply.stage != APP_REPLY_NONE && app_reply_step(a);
+}
+// All at once: a complete frame is dispatched and answered as its delimiter is fed (native tests,
+// fuzzing).
 inline void app_rx_byte(app_state* a, uint8_t byte) {
-    if (app_rx_decode(a, byte)) app_rx_act(a);
+    if (!app_rx_decode(a, byte)) return;
+    while (app_rx_waits(a)) app_rx_act(a);
+    while (app_reply_work(a)) {
+    }
 }
 
 // STOP_ALL's action: every target to 0, ramped down with DECEL. The dispatcher calls it (and
@@ -174,8 +215,13 @@ void app_stop_all(app_state* a);
 // cancel a SET_SPEEDS sent after it) and never leaves setpoints dropped.
 void app_note_stops_seen(app_state* a, uint8_t stops_seen);
 
-// Background work of the main loop (EEPROM save progress).
-void app_poll(app_state* a);
+// Background work of the main loop (EEPROM save progress). The test inline: the board's main
+// loop passes here on every idle or decoding pass, and a call with its register saves there cost
+// more of the CPU than a SET_SPEEDS stream leaves (reports/firmware-timing.md).
+void app_poll_save(app_state* a);
+inline void app_poll(app_state* a) {
+    if (a->prm.saving) app_poll_save(a);
+}
 
 // One 1 ms control step of all wheels. enc_words: the AS5048A reply words (ignored in open loop).
 // Runs the step (app_step.h), app_derive_ctl, app_setpoints_tick and app_supervise of every

@@ -29,8 +29,9 @@
 void app_wheel_off(app_wheel* w, uint16_t pwm[3]);
 void app_wheel_open(const app_ctl* c, app_wheel* w, uint16_t pwm[3]);
 // Setpoint and target at 0 in closed loop: true while the wheel (enabled in the last tick) still
-// turns at APP_STOP_Q8 or more in the direction being braked, measured on the encoder's last
-// angle change (app.h), and APP_STOP_TICKS have not passed; the loop then brakes on.
+// turns at APP_STOP_Q8 or more in the direction being braked, measured on the encoder's angle
+// change over the last APP_STOP_WINDOW ticks (app.h), and APP_STOP_TICKS have not passed; the
+// loop then brakes on.
 bool app_brake_on(app_wheel* w, bool was_enabled);
 
 // One wheel of the step, I its constant index (the step calls it four times): with a constant

@@ -84,15 +84,21 @@ int32_t cmt_phase_inc(int32_t speed_mrad_s, uint8_t pole_pairs);
 // lead_q8 <= 40 * 512 = 20480, with speed_q8 >> 6 (a quarter count per tick, |.| <= 2^15)
 // clamped to the aliasing limit CMT_MAX_ELEC_MRAD_S / pole_pairs as cmt_phase_inc. One signed
 // 16 x 16 -> 32 multiply per tick (cmt_lead_angle), k and the clamp set up once per parameter
-// change (cmt_lead_init). Error against the exact value: below k/256 + 1 angle units (speed
-// truncated to a quarter count, product floored); 4.5 units (0.025 degrees electrical) at 7 pole
-// pairs and the default lead of 128/256 tick.
+// change (cmt_lead_init; the clamp's 32-bit division, about 600 cycles, only when the pole pairs
+// change: cmt_lead_poles, then cmt_lead_time for a new lead). Error against the exact value: below
+// k/256 + 1 angle units (speed truncated to a quarter count, product floored); 4.5 units (0.025
+// degrees electrical) at 7 pole pairs and the default lead of 128/256 tick.
 struct cmt_lead {
     int16_t k;
     int16_t s_max;       // clamp of |speed_q8 >> 6|
     uint8_t pole_pairs;  // 1..40, as cmt_elec_angle takes it (cmt_drive)
 };
-void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8);
+void cmt_lead_poles(cmt_lead* l, uint8_t pole_pairs);
+void cmt_lead_time(cmt_lead* l, uint16_t lead_q8);
+inline void cmt_lead_init(cmt_lead* l, uint8_t pole_pairs, uint16_t lead_q8) {
+    cmt_lead_poles(l, pole_pairs);
+    cmt_lead_time(l, lead_q8);
+}
 PORT_INLINE uint16_t cmt_lead_angle(const cmt_lead* l, int32_t speed_q8) {
     // |speed_q8| <= 2^21, so speed_q8 >> 6 fits int16; formed from bytes 1..2 shifted up by two
     // and the top two bits of byte 0 (no 6-step shift loop of a 32-bit value at -Os).

@@ -1,6 +1,7 @@
 #include "params.h"
 
 #include "crc16.h"
+#include "port_progmem.h"
 #include "proto.h"
 
 #define PRM(name, id, def, lo, hi, unit, text)                    \
@@ -17,28 +18,34 @@ enum : uint8_t {
 };
 static_assert(prm_entries == PRM_COUNT, "PRM_COUNT differs from the number of rows in params.def");
 
-int32_t prm_default(uint8_t id) {
-    switch (id) {
-#define PRM(name, id, def, lo, hi, unit, text) \
-    case id:                                   \
-        return def;
+// The table in flash, one row per id: a switch over params.def compiled into a lookup table
+// that avr-gcc keeps in RAM (.data), 63 bytes of the 2048.
+struct prm_row {
+    int32_t def, lo, hi;
+};
+static const prm_row prm_rows[PRM_COUNT] PORT_PROGMEM = {
+#define PRM(name, id, def, lo, hi, unit, text) {def, lo, hi},
 #include "params.def"
 #undef PRM
-        default:
-            return 0;
-    }
+};
+// The rows are indexed by id: params.def lists them in id order.
+static constexpr uint8_t prm_ids[] = {
+#define PRM(name, id, def, lo, hi, unit, text) id,
+#include "params.def"
+#undef PRM
+};
+static constexpr bool prm_ids_in_order(uint8_t i) {
+    return i == PRM_COUNT || (prm_ids[i] == i && prm_ids_in_order(static_cast<uint8_t>(i + 1)));
+}
+static_assert(prm_ids_in_order(0), "params.def rows not in id order");
+
+int32_t prm_default(uint8_t id) {
+    return id < PRM_COUNT ? PORT_READ_I32(&prm_rows[id].def) : 0;
 }
 
 bool prm_in_range(uint8_t id, int32_t value) {
-    switch (id) {
-#define PRM(name, id, def, lo, hi, unit, text) \
-    case id:                                   \
-        return value >= (lo) && value <= (hi);
-#include "params.def"
-#undef PRM
-        default:
-            return false;
-    }
+    return id < PRM_COUNT && value >= PORT_READ_I32(&prm_rows[id].lo) &&
+           value <= PORT_READ_I32(&prm_rows[id].hi);
 }
 
 void prm_defaults(prm_store* s) {

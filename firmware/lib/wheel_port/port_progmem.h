@@ -26,10 +26,12 @@ typedef int32_t port_i24;
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
 #define PORT_PROGMEM PROGMEM
+#define PORT_READ_I32(addr) (static_cast<int32_t>(pgm_read_dword(addr)))
 #define PORT_READ_I16(addr) (static_cast<int16_t>(pgm_read_word(addr)))
 #define PORT_READ_U8(addr) (static_cast<uint8_t>(pgm_read_byte(addr)))
 #else
 #define PORT_PROGMEM
+#define PORT_READ_I32(addr) (*(addr))
 #define PORT_READ_I16(addr) (*(addr))
 #define PORT_READ_U8(addr) (*(addr))
 #endif

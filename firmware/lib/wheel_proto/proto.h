@@ -56,6 +56,7 @@ enum proto_rx_result : uint8_t {
     PROTO_RX_BAD_COBS,    // not valid COBS: dropped
     PROTO_RX_UNKNOWN_ID,  // CRC good, id not in the table: out->id/len set, not acted on
     PROTO_RX_BAD_LENGTH,  // CRC good, payload length differs from the table: out->id/len set
+    PROTO_RX_CHECK,       // proto_rx_end only: COBS decoded, proto_rx_check does the rest
 };
 
 // The whole wire frame of STOP_ALL (no payload): COBS(0x04 | CRC 0xA174, low byte first) and the
@@ -73,7 +74,7 @@ struct proto_frame {
 
 struct proto_rx {
     uint8_t buf[PROTO_MAX_ENCODED];
-    uint8_t n;
+    uint8_t n;  // bytes in buf: encoded while receiving, decoded after proto_rx_end
     uint8_t overflow;
 };
 
@@ -98,9 +99,22 @@ inline bool proto_rx_append(proto_rx* rx, uint8_t byte) {
 // Feed one received byte. Returns PROTO_RX_NONE until a delimiter completes a frame.
 proto_rx_result proto_rx_push(proto_rx* rx, uint8_t byte, proto_frame* out);
 
+// proto_rx_push's work at a byte that proto_rx_append refused, in two parts of about half the
+// cycles each, so that the board can run a control step between them (a SET_SPEEDS: COBS about
+// 430 cycles, CRC and checks about 600): proto_rx_end takes the byte and, at a delimiter,
+// decodes the COBS in place and returns PROTO_RX_CHECK for a frame that proto_rx_check must
+// finish (CRC, id and length); any other result is final. Feed no byte in between.
+proto_rx_result proto_rx_end(proto_rx* rx, uint8_t byte);
+proto_rx_result proto_rx_check(proto_rx* rx, proto_frame* out);
+
 // Build the wire bytes (COBS + trailing 0x00) of a message into out (PROTO_MAX_WIRE bytes).
 // Returns the number of bytes, or 0 if len > PROTO_MAX_PAYLOAD.
 uint8_t proto_build(uint8_t id, const uint8_t* payload, uint8_t len, uint8_t* out);
+// proto_build in two parts, for a frame built in slices: raw holds id | payload (body bytes) and
+// room for the CRC, which proto_seal appends; proto_wire then writes the COBS and the delimiter
+// of the body + 2 raw bytes into out and returns the wire length.
+void proto_seal(uint8_t* raw, uint8_t body);
+uint8_t proto_wire(const uint8_t* raw, uint8_t raw_len, uint8_t* out);
 
 // Little-endian packing.
 void proto_put_u16(uint8_t* p, uint16_t v);

@@ -237,7 +237,10 @@ TEST_F(AppTest, OpenLoopDriveCappedAtDriveMax) {
 TEST_F(AppTest, OpenLoopIsNeverRestoredAtBoot) {
     set_param(PRM_MODE, 1);
     send(PROTO_ID_PARAM_SAVE);
-    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) app_poll(&app);
+    for (int i = 0; i < 1000 && !last(PROTO_ID_ACK); i++) {
+        app_poll(&app);
+        app_reply_work(&app);
+    }
     ASSERT_NE(last(PROTO_ID_ACK), nullptr);
     app_state booted;
     app_init(&booted, &FakeEeprom::iface, TxCapture::tx, 0);
@@ -381,7 +384,10 @@ TEST_F(AppTest, SaveAcksWhenWrittenAndSurvivesReboot) {
     EXPECT_NE(app_status(&app) & PROTO_STATUS_SAVING, 0);
     send(PROTO_ID_PARAM_SAVE);
     expect_error(PROTO_ID_PARAM_SAVE, PROTO_ERR_BUSY, 0);
-    for (int i = 0; i < 2000 && count(PROTO_ID_ACK) == 0; i++) app_poll(&app);
+    for (int i = 0; i < 2000 && count(PROTO_ID_ACK) == 0; i++) {
+        app_poll(&app);
+        app_reply_work(&app);
+    }
     ASSERT_EQ(count(PROTO_ID_ACK), 1);
     EXPECT_EQ(last(PROTO_ID_ACK)->payload[0], PROTO_ID_PARAM_SAVE);
     app_state again;
@@ -671,7 +677,8 @@ TEST_F(AppTest, FailSafeBrakesUntilTheWheelHasStopped) {
 // STOP_ALL from +-715 rpm at the default DECEL (the motor lags the ramp): braking ends when the
 // encoder shows the wheel stopped, not when the lagging filtered estimate does, so no wheel turns
 // backwards: the true speed never passes 0.5 rad/s the wrong way, and it is released within
-// 0.8 rad/s of zero (the 1-count resolution of one tick's angle change).
+// 0.8 rad/s of zero (the window's mean below 1.3 counts a tick, its change resolved to a count:
+// (5.2 + 1) / 4 counts a tick, 0.59 rad/s).
 TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
     set_param(PRM_HEARTBEAT_MS, 1000);
@@ -710,6 +717,53 @@ TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
         EXPECT_LT(fabs(m[i].omega), 0.8) << "wheel " << i;
     }
     EXPECT_EQ(app.enable_mask, 0);
+}
+
+// The same stop on an encoder with the AS5048A's noise at rest (2 counts rms on every read), 25
+// times over. The release is judged on the angle change over APP_STOP_WINDOW ticks (app.h), whose
+// noise is 2.83 counts rms: at 4 sigma a wheel goes at a mean speed over the window of at most
+// (4 * 1.3 + 4 * 2.83) / 4 = 4.13 counts a tick (1.58 rad/s; the present speed of a braked wheel
+// is lower), and, braking at up to 275 rad/s^2 (the window's mean 1.43 counts a tick ahead of the
+// present speed), it has not turned backwards faster than (4 * 1.3 - 4 * 2.83) / 4 - 1.43 =
+// -2.96 counts a tick (1.13 rad/s). One tick's change against 1.3 counts let the FIL wheels go at
+// up to 2.6 rad/s on this noise (4.8 rad/s at 4 sigma).
+TEST_F(AppTest, StopAllUnderEncoderNoiseReleasesWithinTheWindowsBounds) {
+    set_param(PRM_DRIVE_MAX_Q15, 32767);
+    set_param(PRM_HEARTBEAT_MS, 1000);
+    const double count_rad_s = 2 * M_PI / 16384.0 * 1000.0;  // one count a tick
+    const double release_max = 4.13 * count_rad_s, backwards_max = 2.96 * count_rad_s;
+    const int32_t sp[4] = {74870, -74870, 74870, -74870};
+    Gauss noise(7);
+    Motor m[4];
+    double fastest = 0, wrong_way = 0;
+    for (int stop = 0; stop < 25; stop++) {
+        send(PROTO_ID_SET_SPEEDS, i32s({sp[0], sp[1], sp[2], sp[3]}));
+        int t_off[4] = {-1, -1, -1, -1}, t_sp0[4] = {-1, -1, -1, -1};
+        for (int t = 0; t < 3500; t++) {
+            if (t == 2000) send(PROTO_ID_STOP_ALL);
+            uint16_t words[4];
+            for (int i = 0; i < 4; i++) words[i] = m[i].word(2.0 * noise.next());
+            const uint8_t was = app.enable_mask;
+            app_step_alive(&app, words);
+            for (int i = 0; i < 4; i++) {
+                if (((was & ~app.enable_mask) >> i) & 1) {
+                    t_off[i] = t;
+                    fastest = std::max(fastest, fabs(m[i].omega));
+                }
+                m[i].run(app.pwm[i], (app.enable_mask >> i) & 1, 1e-3);
+                if (t < 2000) continue;
+                if (t_sp0[i] < 0 && app.w[i].sp_mrad_s == 0) t_sp0[i] = t;
+                wrong_way = std::max(wrong_way, sp[i] > 0 ? -m[i].omega : m[i].omega);
+            }
+        }
+        ASSERT_EQ(app.flt.faults, 0) << "stop " << stop;
+        for (int i = 0; i < 4; i++) {
+            ASSERT_GT(t_off[i], t_sp0[i]) << "stop " << stop << " wheel " << i;
+            EXPECT_LT(t_off[i] - t_sp0[i], static_cast<int>(APP_STOP_TICKS)) << "wheel " << i;
+        }
+    }
+    EXPECT_LT(fastest, release_max);
+    EXPECT_LT(wrong_way, backwards_max);
 }
 
 // A bad encoder word while braking is not taken for a stopped wheel: the tick is not judged.

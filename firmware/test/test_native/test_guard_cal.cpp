@@ -252,7 +252,8 @@ TEST_F(AppRules, CalibrateEncRunsOnTheMotorStoresTheOffsetAndUnblocks) {
     EXPECT_EQ(last()->id, PROTO_ID_ACK);
     EXPECT_EQ(last()->payload[0], PROTO_ID_CALIBRATE_ENC);
     EXPECT_EQ(app.uncal_mask, 0x0B);
-    for (int k = 0; k < 3; k++) {  // the stop logic sees the wheel at rest within two ticks
+    // The stop logic sees the wheel at rest once its window of angles is full.
+    for (unsigned k = 0; k < APP_STOP_WINDOW + 1; k++) {
         const uint16_t rest[4] = {m[0].word(), m[1].word(), m[2].word(), m[3].word()};
         app_step_alive(&app, rest);
     }

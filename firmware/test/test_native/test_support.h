@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "app.h"
@@ -62,9 +63,11 @@ struct Motor {
     double j = 2e-4, b = 1e-5, kt = 0.05, r = 10.0, vbus = 12.0;
     int pp = 7;
     double elec = 0;  // electrical angle at encoder zero, rad
-    uint16_t word() const {
+    // noise_counts: added to the read angle before it is quantised (encoder noise).
+    uint16_t word(double noise_counts = 0.0) const {
         double turns = theta / (2 * M_PI);
-        long counts = static_cast<long>(floor((turns - floor(turns)) * 16384.0)) & 0x3FFF;
+        long counts =
+            static_cast<long>(floor((turns - floor(turns)) * 16384.0 + noise_counts)) & 0x3FFF;
         return enc_make_reply(static_cast<uint16_t>(counts), false);
     }
     void run(const uint16_t d[3], bool enabled, double dt) {
@@ -80,6 +83,18 @@ struct Motor {
             omega += tau / j * dt / sub;
             theta += omega * dt / sub;
         }
+    }
+};
+
+// Standard normal samples from mt19937 (fully specified) by Box-Muller, so that a seed gives the
+// same sequence with any standard library (std::normal_distribution's algorithm is not fixed).
+struct Gauss {
+    std::mt19937 g;
+    explicit Gauss(uint32_t seed) : g(seed) {}
+    double next() {
+        const double u1 = (static_cast<double>(g()) + 1.0) / 4294967297.0;  // (0, 1)
+        const double u2 = static_cast<double>(g()) / 4294967296.0;
+        return sqrt(-2.0 * log(u1)) * cos(2.0 * M_PI * u2);
     }
 };
 

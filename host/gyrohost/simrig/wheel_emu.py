@@ -23,8 +23,9 @@ from boot on the emulator's clock, so simulated-time runs are exact:
   emulator was held up are placed among its catch-up ticks by ``PtyDevice.poll``: the emulator's
   delay is not the host's silence), all targets become 0 and the setpoints ramp down at
   DECEL_RAD_S2 (ACCEL_RAD_S2 otherwise; both are mrad/s per tick); a wheel ramped to rest brakes
-  on until its encoder shows it stopped (the last tick's count difference, in the direction
-  being braked, below ``STOP_RAD_S``; at most ``STOP_TICKS``);
+  on until its encoder shows it stopped (the count difference over the last ``STOP_WINDOW``
+  ticks, in the direction being braked, below ``STOP_RAD_S`` as a mean; at most
+  ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
   status and fault word.
 
@@ -72,9 +73,11 @@ _CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
 MAX_CATCH_UP_TICKS = 1000
 """More ticks than this behind (a stalled emulator loop) are skipped and counted as overruns."""
 STOP_RAD_S = 0.5
-"""A wheel ramped to rest brakes in closed loop while the encoder's speed over the last tick, in
-the direction of the (lagging) filtered estimate, is this or more (the firmware's
-``APP_STOP_Q8``), for at most ``STOP_TICKS`` ticks (``APP_STOP_TICKS``)."""
+"""A wheel ramped to rest brakes in closed loop while the encoder's mean speed over the last
+``STOP_WINDOW`` ticks, in the direction of the (lagging) filtered estimate, is this or more (the
+firmware's ``APP_STOP_Q8``), for at most ``STOP_TICKS`` ticks (``APP_STOP_TICKS``)."""
+STOP_WINDOW = 4
+"""Ticks of the stop's speed (the firmware's ``APP_STOP_WINDOW``: robust to encoder noise)."""
 STOP_TICKS = 500
 
 _P = {p.name: p.id for p in wp.PARAMS}
@@ -165,6 +168,7 @@ class WheelBoardEmulator(PtyDevice):
         self.drive = [0] * wp.N_WHEELS
         self.enabled = [False] * wp.N_WHEELS
         self._stop_ticks = [0] * wp.N_WHEELS
+        self._stop_raw: list[list[float | None]] = [[] for _ in range(wp.N_WHEELS)]
         self._rx = bytearray()
         self._rx_overflow = False
         self.boots += 1
@@ -423,11 +427,17 @@ class WheelBoardEmulator(PtyDevice):
         if not self.enabled[i] or self._stop_ticks[i] >= STOP_TICKS:
             return False
         self._stop_ticks[i] += 1
-        raw = self._raw_rad_s[i]
-        if raw is None:
+        window = self._stop_raw[i]
+        if self._stop_ticks[i] == 1:
+            window.clear()  # the first braking tick only takes the angle, as the firmware
             return True
+        window.append(self._raw_rad_s[i])
+        del window[:-STOP_WINDOW]
+        if len(window) < STOP_WINDOW or None in window:
+            return True
+        mean = sum(w for w in window if w is not None) / STOP_WINDOW
         # the filtered estimate lags the braking: its sign is the direction being braked
-        return (raw if self.measured[i] >= 0 else -raw) >= STOP_RAD_S
+        return (mean if self.measured[i] >= 0 else -mean) >= STOP_RAD_S
 
     def _physics(self, dt_s: float) -> None:
         emu = self.emu
