@@ -307,13 +307,14 @@ def test_line_rate_burst_in_a_setpoint_stream_nothing_lost_stop_all_within_2_ms(
     every 20 ms for 300 ms, a burst of 20 PARAM_SETs (220 bytes back to back) in the middle;
     then, the stream over, the burst again with STOP_ALL behind it.
 
-    Every PARAM_SET is answered in order, the STOP_ALL acknowledged after them, no counter of lost
-    or bad frames moves, the UART never overruns (harness rx_overrun), and the drive brakes within
-    2 ms of STOP_ALL's last byte (the harness's RXMARK), while the 220 bytes before it are still
-    being dispatched. The longest tick-to-PWM time (step_max_us, the chip's Timer2 count: simulated
-    time) stays within STEP_BOUND_US, the bound docs/hardware.md#link-load derives from the main
-    loop's jobs (a step waits for at most the rest of one job); where the burst falls against the
-    tick varies from run to run (the harness queues it when its command arrives).
+    Every PARAM_SET is answered in order, the STOP_ALL acknowledged after them, no counter of
+    lost or bad frames moves, the UART never overruns (harness rx_overrun), and the drive brakes
+    within 2 ms and a step's delay of STOP_ALL's last byte (the harness's RXMARK), while the 220
+    bytes before it are still being dispatched. The longest tick-to-PWM time (step_max_us, the
+    chip's Timer2 count: simulated time) stays within STEP_BOUND_US, the bound
+    docs/hardware.md#link-load derives from the main loop's jobs (a step waits for at most the
+    rest of one job); where the burst falls against the tick varies from run to run (the harness
+    queues it when its command arrives).
     """
 
     h, link, beat = beat_link(
@@ -357,7 +358,11 @@ def test_line_rate_burst_in_a_setpoint_stream_nothing_lost_stop_all_within_2_ms(
     braking = [t for t, v in samples if t >= t_mark_s and v < steady - 0.1]
     assert braking, f"no braking after the mark at {t_mark_s} s: {samples[-5:]}"
     latency_s = braking[0] - t_mark_s
-    assert latency_s <= 0.002 + STATS_PERIOD_S, f"drive braked {latency_s * 1e3:.3f} ms after"
+    # noted in the tick after the last byte, braked by the next tick's step: 2 ms, plus how much
+    # later that step's PWM update comes than the first's (at most STEP_BOUND_US), plus the
+    # sampling
+    bound_s = 0.002 + STEP_BOUND_US * 1e-6 + STATS_PERIOD_S
+    assert latency_s <= bound_s, f"drive braked {latency_s * 1e3:.3f} ms after"
     step_cycles = max(int(s["cyc_max"]) for s in h.stats)  # the step's cycles, ISRs included
     print(f"STOP_ALL: braking {latency_s * 1e3:.3f} ms after its last byte; {stats}")
     print(f"control step under the bursts: at most {step_cycles} cycles")
