@@ -299,7 +299,8 @@ def fit(
             for r in recs
         ]
         theta0 = solve(Problem(scene, config, est, params, first), theta0).x
-        recs, dropped = _followed(scene, config, est, params, recs, theta0)
+        a = apply(scene, config, params, theta0, nominal_lag(est, recs), len(recs))
+        recs, dropped = _predictable(Problem(scene, config, est, params, anchored(recs, a)), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
     sol = solve(problem, theta0)
@@ -366,18 +367,15 @@ def two_passes(recs, dt_s: float) -> bool:
     return any(r.segment_start == "imu" and len(shooting.edges_s(r, dt_s)) > 2 for r in recs)
 
 
-def _followed(scene, config, est, params, recs, theta) -> tuple[list, list]:
-    """``recs`` without what their prediction at ``theta`` does not follow
-    (:func:`.shooting.predictable`; the later segments start from the IMU read with
-    ``theta``'s mounting and gyro bias), and what was left out: (recording, start, end)."""
-    a = apply(scene, config, params, theta, nominal_lag(est, recs), len(recs))
-    problem = Problem(scene, config, est, params, anchored(recs, a))
-    kept, dropped = [], []
+def _predictable(problem: Problem, theta) -> tuple[list, list]:
+    """The recordings of ``problem`` without the segments their prediction at ``theta`` does
+    not follow (:func:`.shooting.predictable`), and those left out: (recording, start, end)."""
+    recs, dropped = [], []
     for rec, err in zip(problem.recs, problem.weighted(theta), strict=True):
-        rec_kept, windows = shooting.predictable(rec, err, forward.STEP_S)
-        kept.append(rec_kept)
+        kept, windows = shooting.predictable(rec, err, forward.STEP_S)
+        recs.append(kept)
         dropped += [(rec.name, t0, t1) for t0, t1 in windows]
-    return kept, dropped
+    return recs, dropped
 
 
 def stream_rms(errors, cols) -> float:

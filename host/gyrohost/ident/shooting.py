@@ -7,7 +7,7 @@ segments of ``segment_s`` (:func:`segment_starts`), the first one starts where t
 turned to the IMU's tilt and rate at its start (:func:`anchored`), or, if asked, from the
 host estimator's logged state there (:func:`start_states`; far off while the estimator runs a
 scene not yet identified). The parameters are shared across segments; the start states are
-held, not fitted, and what the prediction does not follow is left out
+held, not fitted, and segments the prediction does not follow are left out
 (:func:`predictable`); reports/identification-history.md, "Why the starts are held", has the
 measurements behind both.
 """
@@ -25,16 +25,10 @@ FIRST_PASS_S = 4.0
 2 s held so little of the pulls that the strings' stiffness wandered to where the model's
 fixed step is unstable."""
 UNPREDICTABLE = 2.0
-"""Where the weighted residuals' moving RMS after the first pass exceeds this many times the
-first segment's median, the prediction has left the recording and the rest of that segment is
-left out of the fit (:func:`predictable`). Followed segments are within 1.2 times the first's,
-those past a fold 4.8 times and more (reports/identification-history.md, "Several
+"""A segment whose weighted residual RMS after the first pass exceeds this many times the first
+segment's is left out of the fit (:func:`predictable`). Followed segments are within 1.2 times
+the first's, those past a fold 4.8 times and more (reports/identification-history.md, "Several
 recordings"): a fold's first segment, kept, drags the strings by tens of percent."""
-FOLLOW_WINDOW_S = 0.25
-"""Width of the moving RMS that finds where a prediction leaves the recording, s: 25 IMU
-samples at 100 Hz, so that noise alone (chi-square with 200 degrees of freedom over the 8
-outputs) stays within 25 % of its mean, far below :data:`UNPREDICTABLE`, while a fold growing
-by e in a third of a second crosses it within a window."""
 ANCHOR_HALF_S = 0.05
 """IMU samples within this of a segment's start are averaged into its anchor, s."""
 
@@ -135,16 +129,11 @@ def edges_s(rec, dt_s: float) -> np.ndarray:
 
 
 def predictable(rec, weighted_errors, dt_s: float):
-    """``rec`` without the IMU samples its prediction does not follow: in each segment, from
-    where the moving RMS of its weighted residuals (``weighted_errors``, shape (k, 8), at the
-    first pass's optimum) over :data:`FOLLOW_WINDOW_S` first exceeds :data:`UNPREDICTABLE`
-    times the first segment's median (that window's start) to the segment's end. Past the point
-    where the D-bar rolls over, a segment's prediction can leave the recording within a
-    fraction of a second from any start the IMU fixes (docs/identification.md); a fold
-    starting inside a segment is unpredictable too (it grows from the wheels' speed errors,
-    which nothing records). Fitted, such stretches drag every parameter: the roll they add to
-    the gyro's reading, correlated with the pitch rate of the pulls, turned the IMU's fitted
-    yaw by a degree.
+    """``rec`` without the IMU samples of the segments its prediction does not follow: their
+    weighted residual RMS (``weighted_errors``, shape (k, 8), at the first pass's optimum)
+    above :data:`UNPREDICTABLE` times the first segment's. Past the point where the D-bar rolls
+    over, a segment's prediction can leave the recording within a fraction of a second from any
+    start the IMU fixes (docs/identification.md); fitted, such segments drag every parameter.
 
     Returns
     -------
@@ -154,30 +143,11 @@ def predictable(rec, weighted_errors, dt_s: float):
     """
     edges = edges_s(rec, dt_s)
     seg = np.searchsorted(edges, rec.t_imu_s, "right") - 1
-    period_s = float(np.median(np.diff(rec.t_imu_s))) if len(rec.t_imu_s) > 1 else dt_s
-    width = max(int(round(FOLLOW_WINDOW_S / period_s)), 1)
-    square = np.mean(np.asarray(weighted_errors) ** 2, axis=1)
-    rms = np.zeros(len(seg))
-    for i in np.unique(seg):
-        rms[seg == i] = np.sqrt(_moving_mean(square[seg == i], width))
-    limit = UNPREDICTABLE * np.median(rms[seg == seg[0]])
-    keep, dropped = np.ones(len(seg), bool), []
-    for i in np.unique(seg):
-        own = np.flatnonzero(seg == i)
-        off = own[rms[own] > limit]
-        if len(off):
-            cut = max(off[0] - width // 2, own[0])
-            keep[cut : own[-1] + 1] = False
-            t0 = float(edges[i]) if cut == own[0] else float(rec.t_imu_s[cut])
-            dropped.append((t0, float(min(edges[i + 1], rec.t_imu_s[-1]))))
+    rms = np.array(
+        [np.sqrt(np.mean(weighted_errors[seg == i] ** 2)) for i in range(len(edges) - 1)]
+    )
+    bad = np.flatnonzero(rms > UNPREDICTABLE * rms[0])
+    keep = ~np.isin(seg, bad)
+    last = rec.t_imu_s[-1]
+    dropped = [(float(edges[i]), float(min(edges[i + 1], last))) for i in bad]
     return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep]), dropped
-
-
-def _moving_mean(values: np.ndarray, width: int) -> np.ndarray:
-    """Centred moving mean of ``values`` over ``width`` samples, fewer at the ends (each the
-    mean of those it has), same shape."""
-    total = np.concatenate([[0.0], np.cumsum(values)])
-    i = np.arange(len(values))
-    lo = np.clip(i - width // 2, 0, len(values))
-    hi = np.clip(i - width // 2 + width, 0, len(values))
-    return (total[hi] - total[lo]) / (hi - lo)
