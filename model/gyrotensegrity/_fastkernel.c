@@ -419,13 +419,14 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
  * State z = [q, q_dot, omega_w, rest] (D = 6 m + n_w + alpha entries), then n - D entries the
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
- * start (n_w), commands (n_w), jitter density (m^2 s)]. follow = 0: the wheels accelerate at
- * the given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at
- * wheel_accel from the start setpoints towards the commands. */
+ * start (n_w), commands (n_w), jitter density (m^2 s), the mean kink's jitter std (m; 0: the
+ * sharp kink)]. follow = 0: the wheels accelerate at the given constant accelerations; 1: they
+ * lag (wheel_lag) behind setpoints ramping at wheel_accel from the start setpoints towards the
+ * commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
     int follow, have_A;
-    double jitter;
+    double jitter, kink_sd;
     const double *rest_cmd, *wheel_acc, *sp0, *cmd;
 } StepSpec;
 
@@ -442,10 +443,64 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->sp0 = p->wheel_acc + nw;
     p->cmd = p->sp0 + nw;
     p->jitter = p->cmd[nw];
+    p->kink_sd = p->cmd[nw + 1];
 }
 
 static int64_t step_spec_size(const int64_t* d) {
-    return 7 + d[2] + 3 * d[3];
+    return 8 + d[2] + 3 * d[3];
+}
+
+/* E max(a - Z, 0) = a Phi(a) + phi(a), Z standard normal (gyrohost.estimator.kink). */
+static double expected_positive_part(double a) {
+    double Phi = 0.5 * erfc(-a / sqrt(2.0));
+    return a * Phi + exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846);
+}
+
+/* The mean kink (gyrohost.estimator.process_model.mean_force_rest_jacobian): the rest lengths
+ * (alpha) at which the strings of the state z = [q, q_dot, omega_w, rest] pull with their
+ * expected force under a rest-length jitter of std sd, rest + mu - sd g(mu / sd) with the
+ * tension margin mu = s - rest + (c/k) s_dot, g = expected_positive_part; sd = 0: the rest
+ * lengths. With Dm (alpha x D), their Jacobian: (1 - Phi) (u + (c/k) (S_dot - s_dot u) / s)
+ * along the string's coordinates in q, (1 - Phi) (c/k) u in q_dot, Phi on its rest length. */
+static void mean_pulling(const Consts* k, const int64_t* d, const double* z, double sd,
+                         double* pulling, double* Dm) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], K = beta + alpha;
+    int64_t D = 6 * m + nw + alpha, r0 = 6 * m + nw;
+    for (int64_t i = 0; Dm && i < alpha * D; i++) Dm[i] = 0.0;
+    for (int64_t i = 0; i < alpha; i++) {
+        int64_t j = beta + i;
+        double rest = z[r0 + i], S[3], Sd[3], ss = 0.0, sv = 0.0;
+        pulling[i] = rest;
+        if (Dm) Dm[i * D + r0 + i] = 1.0;
+        if (sd == 0.0) continue;
+        for (int64_t a = 0; a < 3; a++) {
+            S[a] = k->off[a * K + j];
+            Sd[a] = 0.0;
+            for (int64_t l = 0; l < m; l++) {
+                S[a] += z[a * m + l] * k->EE_T[l * K + j];
+                Sd[a] += z[3 * m + a * m + l] * k->EE_T[l * K + j];
+            }
+            ss += S[a] * S[a];
+        }
+        double s = sqrt(ss), ratio = k->c_s[i] / k->k_s[i], u[3];
+        for (int64_t a = 0; a < 3; a++) {
+            u[a] = S[a] / s;
+            sv += u[a] * Sd[a];
+        }
+        double margin = s - rest + ratio * sv, x = margin / sd;
+        pulling[i] = rest + margin - sd * expected_positive_part(x);
+        if (!Dm) continue;
+        double open = 0.5 * erfc(x / sqrt(2.0)); /* d pulling / d margin */
+        for (int64_t a = 0; a < 3; a++) {
+            double gq = open * (u[a] + ratio * (Sd[a] - sv * u[a]) / s), gd = open * ratio * u[a];
+            for (int64_t l = 0; l < m; l++) {
+                double e = k->EE_T[l * K + j];
+                Dm[i * D + a * m + l] = gq * e;
+                Dm[i * D + 3 * m + a * m + l] = gd * e;
+            }
+        }
+        Dm[i * D + r0 + i] = 1.0 - open;
+    }
 }
 
 /* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
@@ -462,7 +517,7 @@ static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSp
         for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
         xm[6 * m + nw + t] = s;
     }
-    for (int64_t i = 0; i < alpha; i++) um[i] = rest[i];
+    mean_pulling(k, d, z, p->kink_sd, um, NULL);
     for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
     int64_t status = evaluate(k, d, xm, um, out, w);
     if (status) return status;
@@ -523,6 +578,34 @@ static void gemm(int trans_b, int r, int c, int k, double a, const double* A, in
     gemm2(0, trans_b, r, c, k, a, A, lda, B, ldb, b, C, ldc);
 }
 
+/* Work entries mean_jacobian() needs (doubles). */
+static int64_t mean_jacobian_work(const int64_t* d) {
+    int64_t m = d[0], alpha = d[2], D = 6 * m + d[3] + alpha;
+    return jacobian_work(d) + D + alpha * D + 3 * m * alpha;
+}
+
+/* jacobian() under the mean kink of jitter std sd (mean_pulling; sd = 0: jacobian() itself):
+ * the accelerations at the pulling rest lengths and their Jacobian through them, the rest
+ * lengths' columns J_r chained: J[:, rest] = 0, J += J_r Dm. */
+static int64_t mean_jacobian(const Consts* k, const int64_t* d, double sd, const double* x,
+                             double* acc, double* J, double* w) {
+    if (sd == 0.0) return jacobian(k, d, x, acc, J, w);
+    int64_t m = d[0], alpha = d[2], D = 6 * m + d[3] + alpha, r0 = D - alpha;
+    double *z = w, *Dm = z + D, *Jr = Dm + alpha * D;
+    for (int64_t i = 0; i < D; i++) z[i] = x[i];
+    mean_pulling(k, d, x, sd, z + r0, Dm);
+    int64_t status = jacobian(k, d, z, acc, J, Jr + 3 * m * alpha);
+    if (status) return status;
+    for (int64_t r = 0; r < 3 * m; r++) {
+        for (int64_t i = 0; i < alpha; i++) {
+            Jr[r * alpha + i] = J[r * D + r0 + i];
+            J[r * D + r0 + i] = 0.0;
+        }
+    }
+    gemm(0, (int)(3 * m), (int)D, (int)alpha, 1.0, Jr, (int)alpha, Dm, (int)D, 1.0, J, (int)D);
+    return 0;
+}
+
 /* C = h A B + c0 I for the lean step's A (D x D): rows of q take B's q_dot rows, rows of
  * q_dot the accelerations' Jacobian Jq (3 m x D) times B, the wheels' and rest lengths' rows
  * their diagonal slopes; B is D x D. */
@@ -556,7 +639,7 @@ static void propagate(int64_t D, int64_t n, const double* F, const double* P, do
 static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
-    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = jacobian_work(d);
+    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = mean_jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
     return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + D + 3 * m +
            9 * m * alpha + alpha + (ev > jw ? ev : jw);
@@ -570,7 +653,7 @@ static double kink_weight(double a) {
 }
 
 /* Po[:6m, :6m] += (q / dt) sum_i w_i G_i G_i^T, the rest-length jitter of density q through
- * each string's kink (gyrohost.estimator.process_noise.jitter_noise, sharp kink): G_i = dt/2
+ * each string's kink (gyrohost.estimator.process_noise.jitter_noise): G_i = dt/2
  * (b_i + F b_i), b_i = (0, d acc / d rest_i) with string i held taut, w_i = kink_weight(mu_i /
  * sqrt(q / dt)), mu_i the tension margin as a length at x. Jt: 3 m x D work. */
 static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
@@ -591,7 +674,9 @@ static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p
         double margin = stretch < damped ? stretch : damped;
         /* any taut point gives the column: the force is affine in the rest length there */
         z[r0 + i] = x[r0 + i] - (margin < 0.0 ? -margin : 0.0) - 1e-3;
-        wt[i] = kink_weight(margin / sqrt(q / dt));
+        double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
+        /* under the mean kink the prediction carries the mean force already */
+        wt[i] = kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0);
     }
     int64_t status = jacobian(k, d, z, acc, Jt, w);
     if (status) return status;
@@ -629,7 +714,7 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
         for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
         if (nw) wslope = Ain[(6 * m) * D + 6 * m];
     } else {
-        status = jacobian(k, d, x, acc, Jq, kw);
+        status = mean_jacobian(k, d, p->kink_sd, x, acc, Jq, kw);
         if (status) return status;
     }
     /* RK4 for the state */
@@ -866,13 +951,13 @@ static void sensor_frame(const Dual* in, const double* Rbs, Dual* R, Dual* om) {
 
 /* spec (doubles): [servo_lag, wheel slope, rest command (alpha), wheel accelerations (n_w),
  * gravity (3), R_bs (9), node rows of U for a, b, c (3 x m), N_fix at a, b, c (3 x 3: node,
- * then axis)]. */
+ * then axis), the mean kink's jitter std (m; 0: the sharp kink)]. */
 static int64_t imu_spec_size(const int64_t* d) {
-    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9;
+    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9 + 1;
 }
 
 static int64_t imu_work(const int64_t* d) {
-    return jacobian_work(d);
+    return mean_jacobian_work(d);
 }
 
 /* The IMU's values and Jacobians at the filter state x (its first D = 6 m + n_w + alpha
@@ -885,7 +970,7 @@ static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec
     const double *rest_cmd = spec + 2, *wacc = rest_cmd + alpha, *g = wacc + nw, *Rbs = g + 3;
     const double *ua = Rbs + 9, *ub = ua + m, *uc = ub + m, *Nf = uc + m;
     double acc[3 * 100], *J = A + 3 * m * D; /* the q_dot rows of A */
-    int64_t status = jacobian(k, d, x, acc, J, w);
+    int64_t status = mean_jacobian(k, d, spec[imu_spec_size(d) - 1], x, acc, J, w);
     if (status) return status;
     for (int64_t i = 0; i < 3 * m * D; i++) A[i] = 0.0;
     for (int64_t i = 6 * m * D; i < D * D; i++) A[i] = 0.0;
@@ -1458,13 +1543,23 @@ static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize
     return status < 0 ? NULL : PyLong_FromLongLong(status);
 }
 
-static PyObject* kernel_jacobian_work(PyObject* self, PyObject* arg) {
-    (void)self;
+/* A work size of the model's dims (an int64 buffer). */
+static PyObject* dims_work(PyObject* arg, int64_t (*size)(const int64_t*)) {
     Py_buffer dims;
     if (PyObject_GetBuffer(arg, &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
-    int64_t n = jacobian_work((const int64_t*)dims.buf);
+    int64_t n = size((const int64_t*)dims.buf);
     PyBuffer_Release(&dims);
     return PyLong_FromLongLong(n);
+}
+
+static PyObject* kernel_jacobian_work(PyObject* self, PyObject* arg) {
+    (void)self;
+    return dims_work(arg, jacobian_work);
+}
+
+static PyObject* kernel_imu_work(PyObject* self, PyObject* arg) {
+    (void)self;
+    return dims_work(arg, imu_work);
 }
 
 static PyObject* kernel_rhs(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
@@ -1516,6 +1611,8 @@ static PyMethodDef methods[] = {
      "kernel's own loops"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
+    {"imu_work", (PyCFunction)kernel_imu_work, METH_O,
+     "imu_work(dims) -> doubles of work imu() needs"},
     {NULL, NULL, 0, NULL},
 };
 

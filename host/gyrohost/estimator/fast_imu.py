@@ -14,6 +14,7 @@ kernel call) follow. Covered as :mod:`.fast_prediction`; elsewhere :func:`fast_i
 import numpy as np
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
+from .fast_prediction import kink_std
 from .fusion import Measurement
 from .imu_prediction import ImuPrediction, with_mounting
 
@@ -35,12 +36,13 @@ class FastImu:
         self.nd, self.alpha, self.nw = L.n_dynamic, L.n_strings, L.n_wheels
         rows = self.dyn.U_T.A[:, [imu.a, imu.b, imu.c]].T  # (3, m): the nodes' rows of U
         N_fix = self.dyn.N_fix[:, [imu.a, imu.b, imu.c]].T  # (3 nodes, 3 axes)
-        # [servo lag, wheel slope, rest command, wheel accelerations, gravity, R_bs, rows, N_fix]
+        # [servo lag, wheel slope, rest command, wheel accelerations, gravity, R_bs, rows, N_fix,
+        # the mean kink's std]
         head = 2 + self.alpha + self.nw
         self._spec = np.concatenate([np.zeros(head), imu.gravity, imu.R_bs.ravel(), rows.ravel(),
-                                     N_fix.ravel()])  # fmt: skip
+                                     N_fix.ravel(), [kink_std(ekf.config)]])  # fmt: skip
         self._R_bs = slice(head + 3, head + 12)
-        self._work = np.empty(self.kernel.jacobian_work(self.dyn._dims))
+        self._work = np.empty(self.kernel.imu_work(self.dyn._dims))
         self._columns = np.asarray(ekf.imu_columns, np.int64)
 
     def __call__(self, x, u) -> ImuPrediction:

@@ -9,7 +9,8 @@ jitter's noise through the strings' kinks, which needs this ``F``) in one call; 
 process noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step).
 tests/estimator/test_fast_prediction.py holds the two equal to round-off.
 
-Covered: the lean model with the closed-form Jacobian, the sharp string kink, a model that omits
+Covered: the lean model with the closed-form Jacobian, either string kink (the mean one's smooth
+force and its Jacobian through the pulling rest lengths in the kernel too), a model that omits
 no term (the omitted-term check looks at every stage's spins) and the kernel built; elsewhere
 :func:`fast_prediction` gives None and the filter takes the reference path.
 """
@@ -26,10 +27,17 @@ def fast_prediction(process, n: int):
         c.process_method == "lean"
         and jac is not None
         and jac.kernel is not None
-        and c.kink_model == "sharp"
         and not process.model.omitted
     )
     return FastPrediction(process, n) if covered and dyn.kernel is not None else None
+
+
+def kink_std(config) -> float:
+    """The rest-length jitter's std per step, m, that the mean kink smooths the strings' force
+    over (:meth:`.process_model.ProcessModel.mean_force_rest`); 0 for the sharp kink."""
+    if config.kink_model != "mean":
+        return 0.0
+    return float(np.sqrt(config.rest_jitter_psd_m2_s / config.process_dt_s))
 
 
 class FastPrediction:
@@ -49,9 +57,10 @@ class FastPrediction:
         L = process.layout
         self.n, self.nd, self.alpha, self.nw = n, L.n_dynamic, L.n_strings, L.n_wheels
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
-        # accelerations, setpoints, commands, jitter density] (the kernel's StepSpec)
-        self._spec = np.zeros(7 + self.alpha + 3 * self.nw)
-        self._spec[-1] = process.config.rest_jitter_psd_m2_s
+        # accelerations, setpoints, commands, jitter density, mean kink's std] (the kernel's
+        # StepSpec)
+        self._spec = np.zeros(8 + self.alpha + 3 * self.nw)
+        self._spec[-2:] = process.config.rest_jitter_psd_m2_s, kink_std(process.config)
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
 
