@@ -1278,6 +1278,124 @@ static int64_t kalman_update(int64_t k, const int64_t* sizes, const double* gate
     return 0;
 }
 
+/* ---- One IMU sample's cycle (gyrohost.estimator.fast_cycle) ----
+ * The filter's fuse_imu in one call, the stages above in the filter's order: the lean step of
+ * dt (none where dt = 0) with the process noise Q (n x n) added, the state onto the bars; the
+ * IMU's prediction there (its wheel accelerations at the step's end setpoints); the three
+ * measurements; their gated update; the posterior onto the bars where one was fused. spec
+ * (doubles): [step spec (step_spec_size), the IMU's constants (gravity, R_bs, rows, N_fix: 21
+ * + 3 m, as imu_predict's spec), the measurements' spec (8, imu_measurements'), z (9), gates
+ * (3), rotation tolerance, manifold rtol, manifold iterations]. out: innovations (9), their
+ * variances (9), whitened (9), stats (3 x 3, kalman_update's). Status 0; anything else: a stage
+ * refused (a singular model, a non-finite value, axes that are no rotation, a Gram matrix or an
+ * S not positive definite), the outputs unset: the caller takes the stages one by one. */
+#define CYCLE_TAIL 23
+
+static int64_t cycle_spec_size(const int64_t* d) {
+    return step_spec_size(d) + 21 + 3 * d[0] + CYCLE_TAIL;
+}
+
+static int64_t cycle_work(const int64_t* d, int64_t n) {
+    int64_t m = d[0], D = 6 * m + d[3] + d[2], scratch = lean_work(d, n);
+    const int64_t other[3] = {imu_work(d), manifold_work(m, d[1], n), update_work(n, 9)};
+    for (int i = 0; i < 3; i++) scratch = other[i] > scratch ? other[i] : scratch;
+    return 2 * n + 2 * n * n + D * D + imu_spec_size(d) + 16 * D + 9 * n + 114 + scratch;
+}
+
+static int all_finite(const double* v, int64_t len) {
+    for (int64_t i = 0; i < len; i++)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+/* Whether x (n) and the diagonal of P (n x n) are finite (a non-finite entry of P reaches the
+ * diagonal within a step). */
+static int state_finite(const double* x, const double* P, int64_t n) {
+    for (int64_t i = 0; i < n; i++)
+        if (!isfinite(x[i]) || !isfinite(P[i * n + i])) return 0;
+    return 1;
+}
+
+/* imu_predict's spec at the step's end: its wheels' accelerations as the step's last stage
+ * sees them, the IMU's constants ic (21 + 3 m). */
+static void cycle_imu_spec(const int64_t* d, const StepSpec* p, const double* ic, const double* x,
+                           double* is) {
+    int64_t m = d[0], alpha = d[2], nw = d[3];
+    double reach = p->wheel_accel * p->dt;
+    is[0] = p->servo_lag;
+    is[1] = p->follow ? -1.0 / p->wheel_lag : 0.0;
+    for (int64_t i = 0; i < alpha; i++) is[2 + i] = p->rest_cmd[i];
+    for (int64_t i = 0; i < nw; i++) {
+        double step = p->cmd[i] - p->sp0[i];
+        step = step > reach ? reach : (step < -reach ? -reach : step);
+        is[2 + alpha + i] =
+            p->follow ? (p->sp0[i] + step - x[6 * m + i]) / p->wheel_lag : p->wheel_acc[i];
+    }
+    for (int64_t i = 0; i < 21 + 3 * m; i++) is[2 + alpha + nw + i] = ic[i];
+    is[imu_spec_size(d) - 1] = p->kink_sd;
+}
+
+/* The IMU's prediction at the prior xs and its checks (fuse_imu's): finite, R a rotation to
+ * tol. f, R, ...: D, 9, 9 x D, 3, 3 x D, 3, 3 x D consecutive from f. */
+static int64_t cycle_prediction(const Consts* k, const int64_t* d, const double* is,
+                                const double* xs, double tol, double* A, double* f, double* w) {
+    int64_t D = 6 * d[0] + d[3] + d[2];
+    double *R = f + D, *dR = R + 9, *om = dR + 9 * D, *dom = om + 3, *fs = dom + 3 * D;
+    int64_t status = imu_predict(k, d, is, xs, f, A, R, dR, om, dom, fs, fs + 3, w);
+    if (status) return status;
+    if (!all_finite(f, 16 * D + 15) || !all_finite(A, D * D)) return 1;
+    for (int a = 0; a < 3; a++) {
+        for (int c = 0; c < 3; c++) {
+            double s = R[a] * R[c] + R[3 + a] * R[3 + c] + R[6 + a] * R[6 + c] - (a == c);
+            if (fabs(s) > tol) return 1;
+        }
+    }
+    return 0;
+}
+
+static int64_t imu_cycle(const Consts* k, const int64_t* d, const double* spec, const int64_t* cols,
+                         const Bars* b, const double* x, const double* P, const double* Ain,
+                         const double* Q, double* xo, double* Po, double* A, double* out,
+                         double* w) {
+    int64_t m = d[0], D = 6 * m + d[3] + d[2], n = b->n, status;
+    StepSpec p;
+    step_spec(spec, d, &p);
+    const double *ic = spec + step_spec_size(d), *ms = ic + 21 + 3 * m, *z = ms + 8;
+    const double *gates = z + 9, tol = gates[3], rtol = gates[4];
+    int64_t iterations = (int64_t)gates[5];
+    double *xs = w, *Ps = xs + n, *xu = Ps + n * n, *Pu = xu + n, *F = Pu + n * n;
+    double *is = F + D * D, *f = is + imu_spec_size(d), *H = f + 16 * D + 15, *hx = H + 9 * n;
+    double *zo = hx + 9, *Rm = zo + 9, *scratch = Rm + 81, *stats = out + 27;
+    for (int64_t i = 0; i < n; i++) xs[i] = x[i];
+    for (int64_t i = 0; i < n * n; i++) Ps[i] = P[i];
+    if (p.dt > 0.0) {
+        status = lean_step(k, d, &p, n, x, P, Ain, xs, Ps, F, scratch);
+        for (int64_t i = 0; !status && i < n * n; i++) Ps[i] += Q[i];
+        if (!status && !state_finite(xs, Ps, n)) status = 1;
+        if (!status) status = project_bars(b, xs, rtol, iterations, scratch);
+        if (status) return status;
+    }
+    cycle_imu_spec(d, &p, ic, xs, is);
+    status = cycle_prediction(k, d, is, xs, tol, A, f, scratch);
+    if (status) return status;
+    const double* pred[7] = {
+        f + D, f + D + 9, f + 10 * D + 9, f + 10 * D + 12, f + 13 * D + 12, f + 13 * D + 15, f};
+    imu_measurements(n, D, cols, ms, pred, xs, z, H, hx, zo, Rm);
+    for (int i = 0; i < 9; i++) out[i] = zo[i] - hx[i];
+    const int64_t sizes[3] = {3, 3, 3};
+    status = kalman_update(3, sizes, gates, n, 9, H, out, Rm, Ps, xs, out + 9, out + 18, stats, xu,
+                           Pu, scratch);
+    if (status) return status;
+    int fused = stats[2] != 0.0 || stats[5] != 0.0 || stats[8] != 0.0;
+    for (int64_t i = 0; i < n; i++) xo[i] = fused ? xu[i] : xs[i];
+    if (!fused) {
+        for (int64_t i = 0; i < n * n; i++) Po[i] = Ps[i];
+        return 0;
+    }
+    status = condition_bars(b, xo, Pu, Po, rtol, iterations, scratch);
+    return status ? status : !state_finite(xo, Po, n);
+}
+
 /* The buffers of a call: the first n_read read, the rest up to n written. */
 static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
                            int n, const char* use) {
@@ -1505,6 +1623,54 @@ static int64_t imu_measurements_body(Py_buffer* buf) {
 
 BUFFER_CALL(kernel_imu_measurements, 11, 15, IMU_MEAS_USE, imu_measurements_body)
 
+#define CYCLE_USE                                                                                  \
+    "imu_cycle(consts, dims, spec, cols, bars, x, P, A, Q, x_out, P_out, A_out, out, work) takes " \
+    "14 buffers"
+
+/* bars: the manifold's E (beta x m), B0 (3 x beta), l2 (beta) one after the other. */
+static int64_t cycle_body(Py_buffer* buf) {
+    const int64_t *dims = (const int64_t*)buf[1].buf, *cols = (const int64_t*)buf[3].buf;
+    int64_t m = dims[0], beta = dims[1], D = 6 * m + dims[3] + dims[2], status;
+    int64_t n = (int64_t)(buf[5].len / (Py_ssize_t)sizeof(double));
+    const int64_t need[14] = {
+        0,     0,  cycle_spec_size(dims), D, beta * (m + 4), n, n * n, D * D, n * n, n, n * n,
+        D * D, 36, cycle_work(dims, n)};
+    int ok = dims[5] == 0 && n >= D && m <= 100 && D <= 256 && beta > 0;
+    for (int64_t c = 0; ok && c < D; c++) ok = cols[c] == c;
+    if (!fits(buf, need, 2, 14, ok, "imu_cycle: joints, over 100 coordinates or a small buffer"))
+        return -1;
+    Consts k;
+    layout((const double*)buf[0].buf, dims, &k);
+    const double* bars = (const double*)buf[4].buf;
+    Bars b = {m, beta, n, bars, bars + beta * m, bars + beta * (m + 3)};
+    const double* in[5];
+    double* o[5];
+    for (int i = 0; i < 5; i++) {
+        in[i] = (const double*)buf[i ? 4 + i : 2].buf; /* spec, x, P, A, Q */
+        o[i] = (double*)buf[9 + i].buf;
+    }
+    Py_BEGIN_ALLOW_THREADS status = imu_cycle(&k, dims, in[0], cols, &b, in[1], in[2], in[3], in[4],
+                                              o[0], o[1], o[2], o[3], o[4]);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_imu_cycle, 9, 14, CYCLE_USE, cycle_body)
+
+static PyObject* kernel_cycle_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    Py_buffer dims;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "cycle_work(dims, n) takes 2 arguments");
+        return NULL;
+    }
+    long long n = PyLong_AsLongLong(args[1]);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    int64_t size = cycle_work((const int64_t*)dims.buf, (int64_t)n);
+    PyBuffer_Release(&dims);
+    return PyLong_FromLongLong(size);
+}
+
 static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
     Py_buffer dims;
@@ -1606,6 +1772,12 @@ static PyMethodDef methods[] = {
      "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, "
      "z_out, R_out): the IMU's rate, specific force and attitude measurements (the estimator's "
      "fast path)"},
+    {"imu_cycle", (PyCFunction)(void (*)(void))kernel_imu_cycle, METH_FASTCALL,
+     "imu_cycle(consts, dims, spec, cols, bars, x, P, A, Q, x_out, P_out, A_out, out, work) -> "
+     "status: one IMU sample's prediction step, prediction, measurements, update and "
+     "projections (the estimator's fast path; nonzero: a stage refused, outputs unset)"},
+    {"cycle_work", (PyCFunction)(void (*)(void))kernel_cycle_work, METH_FASTCALL,
+     "cycle_work(dims, n) -> doubles of work imu_cycle() needs for an n-entry filter state"},
     {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
      "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's); None: the "
      "kernel's own loops"},

@@ -69,15 +69,27 @@ class FastImu:
         pred = ImuPrediction(R, dR, om, dom, force, dforce, A, f)
         return pred if dR_bs is None else with_mounting(pred, R_bs, dR_bs)
 
+    def constants(self):
+        """The kernel's IMU constants, the sensor's axes in body axes fixed (no mounting
+        state): gravity, R_bs, the nodes' rows of U, N_fix."""
+        return self._spec[self._R_bs.start - 3 : -1]
+
+    def measurement_spec(self):
+        """The kernel's spec of the three measurements (``imu_measurements``'): the filter's lag
+        behind the sample, the sensor's noise, the bias columns."""
+        ekf, c = self.ekf, self.ekf.config
+        L = ekf.layout
+        accel_bias = L.accel_bias.start if L.n_accel_bias else -1
+        return np.array([ekf.imu_lag_s, c.imu_time_std_s, c.imu_rate_std_rad_s,
+                         c.imu_accel_std_m_s2, c.imu_angle_std_rad, fuse_imu_angle.FLOOR,
+                         L.bias.start, accel_bias])  # fmt: skip
+
     def measurements(self, pred: ImuPrediction, omega_rad_s, accel_m_s2, euler_rad):
         """The rate, specific-force and attitude measurements of one IMU sample, as
         ``fuse_imu_rate``, ``fuse_imu_accel`` and ``fuse_imu_angle`` make them from ``pred``."""
-        ekf, c = self.ekf, self.ekf.config
-        L, n = ekf.layout, ekf.layout.size
-        accel_bias = L.accel_bias.start if L.n_accel_bias else -1
-        spec = np.array([ekf.imu_lag_s, c.imu_time_std_s, c.imu_rate_std_rad_s,
-                         c.imu_accel_std_m_s2, c.imu_angle_std_rad, fuse_imu_angle.FLOOR,
-                         L.bias.start, accel_bias])  # fmt: skip
+        ekf = self.ekf
+        n = ekf.layout.size
+        spec = self.measurement_spec()
         z = np.concatenate([omega_rad_s, accel_m_s2, euler_rad]).astype(float)
         H, hx, z_out, R = np.empty((9, n)), np.empty(9), np.empty(9), np.empty((9, 9))
         fields = (pred.R_ws, pred.dR_ws, pred.omega, pred.d_omega, pred.specific_force,

@@ -64,17 +64,13 @@ class FastPrediction:
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
 
-    def __call__(self, x, P, u, dt, A=None):
-        """The state (n,) and covariance (n, n) ``dt`` s on, with the process noise of the
-        rest-length jitter (:meth:`.process_noise.ProcessNoise.jitter_noise`) but no other, and
-        the step's Jacobian ``F`` (n_dynamic, n_dynamic) over the dynamic states (the identity
-        beyond them), from ``x`` (n,) and ``P`` (n, n) under the input ``u``; ``A`` as
-        :meth:`.process_model.ProcessModel.step`. Moves the wheels' setpoints on as the step
-        does."""
+    def step_spec(self, u, dt: float, have_A: bool):
+        """The kernel's spec of a step of ``dt`` s under ``u`` (a buffer reused by the next
+        call) and the wheels' setpoints at its start."""
         p, c, spec = self.process, self.process.config, self._spec
         sp0 = p.wheel_setpoint_rad_s
         follow = p.wheel_target_rad_s is not None and c.wheel_lag_s != 0.0
-        spec[:6] = dt, c.servo_lag_s, c.wheel_lag_s, c.wheel_accel_rad_s2, follow, A is not None
+        spec[:6] = dt, c.servo_lag_s, c.wheel_lag_s, c.wheel_accel_rad_s2, follow, have_A
         a, nw = 6 + self.alpha, self.nw
         spec[6:a] = u[: self.alpha]
         if follow:
@@ -82,6 +78,17 @@ class FastPrediction:
             spec[a + 2 * nw : a + 3 * nw] = p.wheel_command_rad_s
         else:
             spec[a : a + nw] = p.wheel_acceleration(np.zeros((1, nw)), u)[0]
+        return spec, sp0
+
+    def __call__(self, x, P, u, dt, A=None):
+        """The state (n,) and covariance (n, n) ``dt`` s on, with the process noise of the
+        rest-length jitter (:meth:`.process_noise.ProcessNoise.jitter_noise`) but no other, and
+        the step's Jacobian ``F`` (n_dynamic, n_dynamic) over the dynamic states (the identity
+        beyond them), from ``x`` (n,) and ``P`` (n, n) under the input ``u``; ``A`` as
+        :meth:`.process_model.ProcessModel.step`. Moves the wheels' setpoints on as the step
+        does."""
+        p = self.process
+        spec, sp0 = self.step_spec(u, dt, A is not None)
         x_out, P_out, F = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.nd,) * 2)
         A = self._no_A if A is None else A
         status = self.kernel.lean_step(
