@@ -1280,10 +1280,11 @@ static int64_t kalman_update(int64_t k, const int64_t* sizes, const double* gate
 
 /* ---- One IMU sample's cycle (gyrohost.estimator.fast_cycle) ----
  * The filter's fuse_imu in one call, the stages above in the filter's order: the lean step of
- * dt (none where dt = 0) with the process noise Q (n x n) added, the state onto the bars; the
- * IMU's prediction there (its wheel accelerations at the step's end setpoints); the three
- * measurements; their gated update; the posterior onto the bars where one was fused. spec
- * (doubles): [step spec (step_spec_size), the IMU's constants (gravity, R_bs, rows, N_fix: 21
+ * dt (none where dt = 0) with the process noise Q (nq x nq, nq <= n) on P's leading block, the
+ * state onto the bars; the IMU's prediction there (its wheel accelerations at the step's end
+ * setpoints); the three measurements; their gated update; the posterior onto the bars where one was
+ * fused. spec (doubles): [step spec (step_spec_size), the IMU's constants (gravity, R_bs, rows,
+ * N_fix: 21
  * + 3 m, as imu_predict's spec), the measurements' spec (8, imu_measurements'), z (9), gates
  * (3), rotation tolerance, manifold rtol, manifold iterations]. out: innovations (9), their
  * variances (9), whitened (9), stats (3 x 3, kalman_update's). Status 0; anything else: a stage
@@ -1355,8 +1356,8 @@ static int64_t cycle_prediction(const Consts* k, const int64_t* d, const double*
 
 static int64_t imu_cycle(const Consts* k, const int64_t* d, const double* spec, const int64_t* cols,
                          const Bars* b, const double* x, const double* P, const double* Ain,
-                         const double* Q, double* xo, double* Po, double* A, double* out,
-                         double* w) {
+                         const double* Q, int64_t nq, double* xo, double* Po, double* A,
+                         double* out, double* w) {
     int64_t m = d[0], D = 6 * m + d[3] + d[2], n = b->n, status;
     StepSpec p;
     step_spec(spec, d, &p);
@@ -1370,7 +1371,8 @@ static int64_t imu_cycle(const Consts* k, const int64_t* d, const double* spec, 
     for (int64_t i = 0; i < n * n; i++) Ps[i] = P[i];
     if (p.dt > 0.0) {
         status = lean_step(k, d, &p, n, x, P, Ain, xs, Ps, F, scratch);
-        for (int64_t i = 0; !status && i < n * n; i++) Ps[i] += Q[i];
+        for (int64_t i = 0; !status && i < nq; i++)
+            for (int64_t j = 0; j < nq; j++) Ps[i * n + j] += Q[i * nq + j];
         if (!status && !state_finite(xs, Ps, n)) status = 1;
         if (!status) status = project_bars(b, xs, rtol, iterations, scratch);
         if (status) return status;
@@ -1632,10 +1634,12 @@ static int64_t cycle_body(Py_buffer* buf) {
     const int64_t *dims = (const int64_t*)buf[1].buf, *cols = (const int64_t*)buf[3].buf;
     int64_t m = dims[0], beta = dims[1], D = 6 * m + dims[3] + dims[2], status;
     int64_t n = (int64_t)(buf[5].len / (Py_ssize_t)sizeof(double));
+    int64_t nq = (int64_t)sqrt((double)(buf[8].len / (Py_ssize_t)sizeof(double)) + 0.5);
     const int64_t need[14] = {
-        0,     0,  cycle_spec_size(dims), D, beta * (m + 4), n, n * n, D * D, n * n, n, n * n,
+        0,     0,  cycle_spec_size(dims), D, beta * (m + 4), n, n * n, D * D, nq * nq, n, n * n,
         D * D, 36, cycle_work(dims, n)};
-    int ok = dims[5] == 0 && n >= D && m <= 100 && D <= 256 && beta > 0;
+    int ok = dims[5] == 0 && n >= D && m <= 100 && D <= 256 && beta > 0 && nq <= n &&
+             buf[8].len == nq * nq * (Py_ssize_t)sizeof(double);
     for (int64_t c = 0; ok && c < D; c++) ok = cols[c] == c;
     if (!fits(buf, need, 2, 14, ok, "imu_cycle: joints, over 100 coordinates or a small buffer"))
         return -1;
@@ -1650,7 +1654,7 @@ static int64_t cycle_body(Py_buffer* buf) {
         o[i] = (double*)buf[9 + i].buf;
     }
     Py_BEGIN_ALLOW_THREADS status = imu_cycle(&k, dims, in[0], cols, &b, in[1], in[2], in[3], in[4],
-                                              o[0], o[1], o[2], o[3], o[4]);
+                                              nq, o[0], o[1], o[2], o[3], o[4]);
     Py_END_ALLOW_THREADS return status;
 }
 
