@@ -118,7 +118,6 @@ class TensegrityEKF:
         # the columns the IMU prediction's Jacobians are over
         self.imu_columns = np.r_[self.dynamic_columns, L.mounting.start : L.mounting.stop]
         self.fast_imu = fast_imu(self)
-        self.cycle = fast_cycle(self, ROTATION_TOLERANCE) if fast else None
         self.t = float(t0_s)
         self.t_start = self.t
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
@@ -129,6 +128,7 @@ class TensegrityEKF:
         self._A = None  # linearisation of the dynamics at the current prior, if made
         # inputs not in effect yet, by due time: (s, "rest" or "wheels", values)
         self._commands: list[tuple[float, str, np.ndarray]] = []
+        self.cycle = fast_cycle(self, ROTATION_TOLERANCE) if fast else None
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)

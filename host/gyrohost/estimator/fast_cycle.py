@@ -42,11 +42,18 @@ class FastCycle:
         dyn = ekf.process.dyn
         self.kernel, self._model = dyn.kernel, (dyn._consts, dyn._dims)
         n, nd = ekf.layout.size, ekf.layout.n_dynamic
-        probability = ekf.config.gate_probability
-        self._tail = np.array([gate(probability, 3)] * 3 + [rotation_tolerance, 1e-15, 8.0])
+        gates = [gate(ekf.config.gate_probability, 3)] * 3
+        # the kernel's spec: [step, IMU constants, measurements (the lag first), z, gates,
+        # rotation tolerance, the manifold's rtol and iterations]; all but the step, the lag
+        # and z fixed for the filter's life
+        measurements = ekf.fast_imu.measurement_spec()
+        self._spec = np.concatenate([np.zeros(len(ekf.fast_step._spec)), ekf.fast_imu.constants(),
+                                     measurements, np.zeros(9), gates,
+                                     [rotation_tolerance, 1e-15, 8.0]])  # fmt: skip
+        self._lag = len(self._spec) - 6 - 9 - len(measurements)
         self._bars = np.concatenate([np.ravel(a) for a in ekf.manifold._bars])
         self._columns = np.asarray(ekf.imu_columns, np.int64)
-        self._no_A, self._no_Q = np.zeros((nd, nd)), np.zeros((n, n))
+        self._no_A, self._no_Q = np.zeros((nd, nd)), np.zeros((0, 0))
         self._work = np.empty(self.kernel.cycle_work(dyn._dims, n))
 
     def __call__(self, dt: float, omega_rad_s, accel_m_s2, euler_rad):
@@ -55,8 +62,12 @@ class FastCycle:
         ekf = self.ekf
         process, n = ekf.process, ekf.layout.size
         step, sp0 = ekf.fast_step.step_spec(ekf.u, dt, ekf._A is not None)
-        spec = np.concatenate([step, ekf.fast_imu.constants(), ekf.fast_imu.measurement_spec(),
-                               omega_rad_s, accel_m_s2, euler_rad, self._tail])  # fmt: skip
+        spec, z = self._spec, self._lag + 8
+        spec[: len(step)] = step
+        spec[self._lag] = ekf.imu_lag_s
+        spec[z : z + 3] = omega_rad_s
+        spec[z + 3 : z + 6] = accel_m_s2
+        spec[z + 6 : z + 9] = euler_rad
         Q = process.noise(dt, None, ekf.x) if dt > 0.0 else self._no_Q
         A_in = self._no_A if ekf._A is None else ekf._A
         x, P, A, out = np.empty(n), np.empty((n, n)), np.empty(self._no_A.shape), np.empty(36)

@@ -77,7 +77,7 @@ class FastPrediction:
             spec[a + nw : a + 2 * nw] = sp0
             spec[a + 2 * nw : a + 3 * nw] = p.wheel_command_rad_s
         else:
-            spec[a : a + nw] = p.wheel_acceleration(np.zeros((1, nw)), u)[0]
+            spec[a : a + nw] = self.dyn.wheel_acceleration(u)  # the model's, as the step's
         return spec, sp0
 
     def __call__(self, x, P, u, dt, A=None):

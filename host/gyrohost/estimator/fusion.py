@@ -11,6 +11,7 @@ manifold; ``> 1`` it is rejected and counted. Either way an :class:`Innovation` 
 and passed to the filter's log callback.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -176,7 +177,7 @@ def judge(ekf, source: str, y, variance, w, spread: float, nis=None) -> Innovati
     counted in the source's monitor."""
     nis = float(w @ w) if nis is None else float(nis)
     ratio = nis / gate(ekf.config.gate_probability, len(y))
-    accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
+    accepted = math.isfinite(ratio) and ratio <= 1.0
     monitor = ekf.monitors[source]
     monitor.record(ekf.t, accepted)
     return Innovation(
