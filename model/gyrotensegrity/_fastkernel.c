@@ -307,10 +307,11 @@ static void force_jacobian(const Consts* k, const int64_t* d, const double* gxb,
     }
 }
 
-/* Accelerations (3, m) and their Jacobian (3 m x D) at state [q, q_dot, omega_w, rest] for
- * the dense path without joints (fast_jacobian.py: the derivation). Status as evaluate(). */
-static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, double* acc, double* J,
-                        double* w) {
+/* Accelerations (3, m) and their Jacobian's columns c0..c1-1 (of 3 m x D; the others partial)
+ * at state [q, q_dot, omega_w, rest] for the dense path without joints (fast_jacobian.py: the
+ * derivation). Status as evaluate(). */
+static int64_t jacobian_columns(const Consts* k, const int64_t* d, const double* x, double* acc,
+                                double* J, double* w, int64_t c0, int64_t c1) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3];
     int64_t K = beta + alpha, D = 6 * m + nw + alpha;
     const double *q = x, *qd = x + 3 * m, *om = x + 6 * m, *rest = x + 6 * m + nw;
@@ -333,7 +334,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 double g = k->Minv[i * m + j];
                 s += f0[r * m + i] * g;
                 const double* src = Jf + (r * m + i) * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             acc[r * m + j] = s;
         }
@@ -353,7 +354,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
             for (int64_t i = 0; i < m; i++) {
                 double g = -b * k->MinvET[i * beta + j];
                 const double* src = Jf + (a * m + i) * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             for (int64_t l = 0; l < m; l++) {
                 double e = k->EE_T[l * K + j];
@@ -389,7 +390,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 row[a * m + l] -=
                     P[a * beta + j] * k->EE_T[l * K + j] + pos[a * K + j] * YmuE[j * m + l];
     }
-    for (int64_t c = 0; c < D; c++) {
+    for (int64_t c = c0; c < c1; c++) {
         for (int64_t j = 0; j < beta; j++) tmp[j] = Jr[j * D + c];
         cholesky_subst(Z, tmp, beta);
         for (int64_t j = 0; j < beta; j++) Jr[j * D + c] = tmp[j];
@@ -402,7 +403,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 double g = pos[r * K + i] * k->EMinv[i * m + j];
                 acc[r * m + j] += mu[i] * g;
                 const double* src = Jr + i * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             for (int64_t l = 0; l < m; l++) {
                 double s = 0.0;
@@ -413,6 +414,12 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
         }
     }
     return 0;
+}
+
+/* Accelerations (3, m) and their whole Jacobian (3 m x D): jacobian_columns over every column. */
+static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, double* acc, double* J,
+                        double* w) {
+    return jacobian_columns(k, d, x, acc, J, w, 0, 6 * d[0] + d[3] + d[2]);
 }
 
 /* ---- The estimator's lean prediction step (gyrohost.estimator.process_model, "lean") ----
@@ -678,7 +685,7 @@ static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p
         /* under the mean kink the prediction carries the mean force already */
         wt[i] = kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0);
     }
-    int64_t status = jacobian(k, d, z, acc, Jt, w);
+    int64_t status = jacobian_columns(k, d, z, acc, Jt, w, r0, D); /* the rest lengths' */
     if (status) return status;
     for (int64_t r = 0; r < 3 * m; r++)
         for (int64_t i = 0; i < alpha; i++) b[r * alpha + i] = Jt[r * D + r0 + i];
