@@ -1667,34 +1667,30 @@ static int64_t cycle_body(Py_buffer* buf) {
 
 BUFFER_CALL(kernel_imu_cycle, 9, 14, CYCLE_USE, cycle_body)
 
-static PyObject* kernel_cycle_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
+/* A work size of the model's dims (an int64 buffer) and an n-entry filter state: (dims, n). */
+static PyObject* dims_n_work(PyObject* const* args, Py_ssize_t nargs,
+                             int64_t (*size)(const int64_t*, int64_t), const char* use) {
     Py_buffer dims;
     if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "cycle_work(dims, n) takes 2 arguments");
+        PyErr_SetString(PyExc_TypeError, use);
         return NULL;
     }
     long long n = PyLong_AsLongLong(args[1]);
     if (n == -1 && PyErr_Occurred()) return NULL;
     if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
-    int64_t size = cycle_work((const int64_t*)dims.buf, (int64_t)n);
+    int64_t need = size((const int64_t*)dims.buf, (int64_t)n);
     PyBuffer_Release(&dims);
-    return PyLong_FromLongLong(size);
+    return PyLong_FromLongLong(need);
+}
+
+static PyObject* kernel_cycle_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    return dims_n_work(args, nargs, cycle_work, "cycle_work(dims, n) takes 2 arguments");
 }
 
 static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
-    Py_buffer dims;
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "lean_work(dims, n) takes 2 arguments");
-        return NULL;
-    }
-    long long n = PyLong_AsLongLong(args[1]);
-    if (n == -1 && PyErr_Occurred()) return NULL;
-    if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
-    int64_t size = lean_work((const int64_t*)dims.buf, (int64_t)n);
-    PyBuffer_Release(&dims);
-    return PyLong_FromLongLong(size);
+    return dims_n_work(args, nargs, lean_work, "lean_work(dims, n) takes 2 arguments");
 }
 
 static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
