@@ -34,8 +34,10 @@ def three_filters(model, config, x):
 
 
 def feed(ekf, omega_w, sample, tilt_rad):
-    """IMU samples between wheel reports (steps split), one behind the filter (fused with its
-    lag, no step), the last tilted by ``tilt_rad``; every fusion's results."""
+    """IMU samples between wheel reports (steps split), a command due at one's time (the step
+    to it not held), one behind the filter (fused with its lag, no step), the last tilted by
+    ``tilt_rad``; every fusion's results."""
+    ekf.set_input(ekf.u[: ekf.model.alpha] + 1e-4, 0.02 - ekf.config.imu_latency_s)
     results = []
     for t in (0.01, 0.02, 0.03):
         results.append(ekf.fuse_wheels(t - 0.004, omega_w))

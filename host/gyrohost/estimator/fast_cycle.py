@@ -47,11 +47,11 @@ class FastCycle:
         # rotation tolerance, the manifold's rtol and iterations]; all but the step, the lag
         # and z fixed for the filter's life
         measurements = ekf.fast_imu.measurement_spec()
-        self._spec = np.concatenate([np.zeros(len(ekf.fast_step._spec)), ekf.fast_imu.constants(),
+        self._spec = np.concatenate([np.zeros(ekf.fast_step.spec_size), ekf.fast_imu.constants(),
                                      measurements, np.zeros(9), gates,
                                      [rotation_tolerance, 1e-15, 8.0]])  # fmt: skip
         self._lag = len(self._spec) - 6 - 9 - len(measurements)
-        self._bars = np.concatenate([np.ravel(a) for a in ekf.manifold._bars])
+        self._bars = ekf.manifold.packed_bars
         self._columns = np.asarray(ekf.imu_columns, np.int64)
         self._no_A, self._no_Q = np.zeros((nd, nd)), np.zeros((0, 0))
         self._work = np.empty(self.kernel.cycle_work(dyn._dims, n))

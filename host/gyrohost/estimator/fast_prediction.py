@@ -59,7 +59,8 @@ class FastPrediction:
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
         # accelerations, setpoints, commands, jitter density, mean kink's std] (the kernel's
         # StepSpec)
-        self._spec = np.zeros(8 + self.alpha + 3 * self.nw)
+        self.spec_size = 8 + self.alpha + 3 * self.nw
+        self._spec = np.zeros(self.spec_size)
         self._spec[-2:] = process.config.rest_jitter_psd_m2_s, kink_std(process.config)
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
