@@ -307,10 +307,11 @@ static void force_jacobian(const Consts* k, const int64_t* d, const double* gxb,
     }
 }
 
-/* Accelerations (3, m) and their Jacobian (3 m x D) at state [q, q_dot, omega_w, rest] for
- * the dense path without joints (fast_jacobian.py: the derivation). Status as evaluate(). */
-static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, double* acc, double* J,
-                        double* w) {
+/* Accelerations (3, m) and their Jacobian's columns c0..c1-1 (of 3 m x D; the others partial)
+ * at state [q, q_dot, omega_w, rest] for the dense path without joints (fast_jacobian.py: the
+ * derivation). Status as evaluate(). */
+static int64_t jacobian_columns(const Consts* k, const int64_t* d, const double* x, double* acc,
+                                double* J, double* w, int64_t c0, int64_t c1) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3];
     int64_t K = beta + alpha, D = 6 * m + nw + alpha;
     const double *q = x, *qd = x + 3 * m, *om = x + 6 * m, *rest = x + 6 * m + nw;
@@ -333,7 +334,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 double g = k->Minv[i * m + j];
                 s += f0[r * m + i] * g;
                 const double* src = Jf + (r * m + i) * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             acc[r * m + j] = s;
         }
@@ -353,7 +354,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
             for (int64_t i = 0; i < m; i++) {
                 double g = -b * k->MinvET[i * beta + j];
                 const double* src = Jf + (a * m + i) * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             for (int64_t l = 0; l < m; l++) {
                 double e = k->EE_T[l * K + j];
@@ -389,7 +390,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 row[a * m + l] -=
                     P[a * beta + j] * k->EE_T[l * K + j] + pos[a * K + j] * YmuE[j * m + l];
     }
-    for (int64_t c = 0; c < D; c++) {
+    for (int64_t c = c0; c < c1; c++) {
         for (int64_t j = 0; j < beta; j++) tmp[j] = Jr[j * D + c];
         cholesky_subst(Z, tmp, beta);
         for (int64_t j = 0; j < beta; j++) Jr[j * D + c] = tmp[j];
@@ -402,7 +403,7 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
                 double g = pos[r * K + i] * k->EMinv[i * m + j];
                 acc[r * m + j] += mu[i] * g;
                 const double* src = Jr + i * D;
-                for (int64_t c = 0; c < D; c++) row[c] += g * src[c];
+                for (int64_t c = c0; c < c1; c++) row[c] += g * src[c];
             }
             for (int64_t l = 0; l < m; l++) {
                 double s = 0.0;
@@ -415,17 +416,24 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
     return 0;
 }
 
+/* Accelerations (3, m) and their whole Jacobian (3 m x D): jacobian_columns over every column. */
+static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, double* acc, double* J,
+                        double* w) {
+    return jacobian_columns(k, d, x, acc, J, w, 0, 6 * d[0] + d[3] + d[2]);
+}
+
 /* ---- The estimator's lean prediction step (gyrohost.estimator.process_model, "lean") ----
  * State z = [q, q_dot, omega_w, rest] (D = 6 m + n_w + alpha entries), then n - D entries the
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
- * start (n_w), commands (n_w), jitter density (m^2 s)]. follow = 0: the wheels accelerate at
- * the given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at
- * wheel_accel from the start setpoints towards the commands. */
+ * start (n_w), commands (n_w), jitter density (m^2 s), the mean kink's jitter std (m; 0: the
+ * sharp kink)]. follow = 0: the wheels accelerate at the given constant accelerations; 1: they
+ * lag (wheel_lag) behind setpoints ramping at wheel_accel from the start setpoints towards the
+ * commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
     int follow, have_A;
-    double jitter;
+    double jitter, kink_sd;
     const double *rest_cmd, *wheel_acc, *sp0, *cmd;
 } StepSpec;
 
@@ -442,10 +450,64 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->sp0 = p->wheel_acc + nw;
     p->cmd = p->sp0 + nw;
     p->jitter = p->cmd[nw];
+    p->kink_sd = p->cmd[nw + 1];
 }
 
 static int64_t step_spec_size(const int64_t* d) {
-    return 7 + d[2] + 3 * d[3];
+    return 8 + d[2] + 3 * d[3];
+}
+
+/* E max(a - Z, 0) = a Phi(a) + phi(a), Z standard normal (gyrohost.estimator.kink). */
+static double expected_positive_part(double a) {
+    double Phi = 0.5 * erfc(-a / sqrt(2.0));
+    return a * Phi + exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846);
+}
+
+/* The mean kink (gyrohost.estimator.process_model.mean_force_rest_jacobian): the rest lengths
+ * (alpha) at which the strings of the state z = [q, q_dot, omega_w, rest] pull with their
+ * expected force under a rest-length jitter of std sd, rest + mu - sd g(mu / sd) with the
+ * tension margin mu = s - rest + (c/k) s_dot, g = expected_positive_part; sd = 0: the rest
+ * lengths. With Dm (alpha x D), their Jacobian: (1 - Phi) (u + (c/k) (S_dot - s_dot u) / s)
+ * along the string's coordinates in q, (1 - Phi) (c/k) u in q_dot, Phi on its rest length. */
+static void mean_pulling(const Consts* k, const int64_t* d, const double* z, double sd,
+                         double* pulling, double* Dm) {
+    int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], K = beta + alpha;
+    int64_t D = 6 * m + nw + alpha, r0 = 6 * m + nw;
+    for (int64_t i = 0; Dm && i < alpha * D; i++) Dm[i] = 0.0;
+    for (int64_t i = 0; i < alpha; i++) {
+        int64_t j = beta + i;
+        double rest = z[r0 + i], S[3], Sd[3], ss = 0.0, sv = 0.0;
+        pulling[i] = rest;
+        if (Dm) Dm[i * D + r0 + i] = 1.0;
+        if (sd == 0.0) continue;
+        for (int64_t a = 0; a < 3; a++) {
+            S[a] = k->off[a * K + j];
+            Sd[a] = 0.0;
+            for (int64_t l = 0; l < m; l++) {
+                S[a] += z[a * m + l] * k->EE_T[l * K + j];
+                Sd[a] += z[3 * m + a * m + l] * k->EE_T[l * K + j];
+            }
+            ss += S[a] * S[a];
+        }
+        double s = sqrt(ss), ratio = k->c_s[i] / k->k_s[i], u[3];
+        for (int64_t a = 0; a < 3; a++) {
+            u[a] = S[a] / s;
+            sv += u[a] * Sd[a];
+        }
+        double margin = s - rest + ratio * sv, x = margin / sd;
+        pulling[i] = rest + margin - sd * expected_positive_part(x);
+        if (!Dm) continue;
+        double open = 0.5 * erfc(x / sqrt(2.0)); /* d pulling / d margin */
+        for (int64_t a = 0; a < 3; a++) {
+            double gq = open * (u[a] + ratio * (Sd[a] - sv * u[a]) / s), gd = open * ratio * u[a];
+            for (int64_t l = 0; l < m; l++) {
+                double e = k->EE_T[l * K + j];
+                Dm[i * D + a * m + l] = gq * e;
+                Dm[i * D + 3 * m + a * m + l] = gd * e;
+            }
+        }
+        Dm[i * D + r0 + i] = 1.0 - open;
+    }
 }
 
 /* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
@@ -462,7 +524,7 @@ static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSp
         for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
         xm[6 * m + nw + t] = s;
     }
-    for (int64_t i = 0; i < alpha; i++) um[i] = rest[i];
+    mean_pulling(k, d, z, p->kink_sd, um, NULL);
     for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
     int64_t status = evaluate(k, d, xm, um, out, w);
     if (status) return status;
@@ -523,6 +585,34 @@ static void gemm(int trans_b, int r, int c, int k, double a, const double* A, in
     gemm2(0, trans_b, r, c, k, a, A, lda, B, ldb, b, C, ldc);
 }
 
+/* Work entries mean_jacobian() needs (doubles). */
+static int64_t mean_jacobian_work(const int64_t* d) {
+    int64_t m = d[0], alpha = d[2], D = 6 * m + d[3] + alpha;
+    return jacobian_work(d) + D + alpha * D + 3 * m * alpha;
+}
+
+/* jacobian() under the mean kink of jitter std sd (mean_pulling; sd = 0: jacobian() itself):
+ * the accelerations at the pulling rest lengths and their Jacobian through them, the rest
+ * lengths' columns J_r chained: J[:, rest] = 0, J += J_r Dm. */
+static int64_t mean_jacobian(const Consts* k, const int64_t* d, double sd, const double* x,
+                             double* acc, double* J, double* w) {
+    if (sd == 0.0) return jacobian(k, d, x, acc, J, w);
+    int64_t m = d[0], alpha = d[2], D = 6 * m + d[3] + alpha, r0 = D - alpha;
+    double *z = w, *Dm = z + D, *Jr = Dm + alpha * D;
+    for (int64_t i = 0; i < D; i++) z[i] = x[i];
+    mean_pulling(k, d, x, sd, z + r0, Dm);
+    int64_t status = jacobian(k, d, z, acc, J, Jr + 3 * m * alpha);
+    if (status) return status;
+    for (int64_t r = 0; r < 3 * m; r++) {
+        for (int64_t i = 0; i < alpha; i++) {
+            Jr[r * alpha + i] = J[r * D + r0 + i];
+            J[r * D + r0 + i] = 0.0;
+        }
+    }
+    gemm(0, (int)(3 * m), (int)D, (int)alpha, 1.0, Jr, (int)alpha, Dm, (int)D, 1.0, J, (int)D);
+    return 0;
+}
+
 /* C = h A B + c0 I for the lean step's A (D x D): rows of q take B's q_dot rows, rows of
  * q_dot the accelerations' Jacobian Jq (3 m x D) times B, the wheels' and rest lengths' rows
  * their diagonal slopes; B is D x D. */
@@ -556,7 +646,7 @@ static void propagate(int64_t D, int64_t n, const double* F, const double* P, do
 static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], ntq = d[4], cu = d[5];
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
-    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = jacobian_work(d);
+    int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = mean_jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
     return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + D + 3 * m +
            9 * m * alpha + alpha + (ev > jw ? ev : jw);
@@ -570,7 +660,7 @@ static double kink_weight(double a) {
 }
 
 /* Po[:6m, :6m] += (q / dt) sum_i w_i G_i G_i^T, the rest-length jitter of density q through
- * each string's kink (gyrohost.estimator.process_noise.jitter_noise, sharp kink): G_i = dt/2
+ * each string's kink (gyrohost.estimator.process_noise.jitter_noise): G_i = dt/2
  * (b_i + F b_i), b_i = (0, d acc / d rest_i) with string i held taut, w_i = kink_weight(mu_i /
  * sqrt(q / dt)), mu_i the tension margin as a length at x. Jt: 3 m x D work. */
 static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
@@ -591,9 +681,11 @@ static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p
         double margin = stretch < damped ? stretch : damped;
         /* any taut point gives the column: the force is affine in the rest length there */
         z[r0 + i] = x[r0 + i] - (margin < 0.0 ? -margin : 0.0) - 1e-3;
-        wt[i] = kink_weight(margin / sqrt(q / dt));
+        double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
+        /* under the mean kink the prediction carries the mean force already */
+        wt[i] = kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0);
     }
-    int64_t status = jacobian(k, d, z, acc, Jt, w);
+    int64_t status = jacobian_columns(k, d, z, acc, Jt, w, r0, D); /* the rest lengths' */
     if (status) return status;
     for (int64_t r = 0; r < 3 * m; r++)
         for (int64_t i = 0; i < alpha; i++) b[r * alpha + i] = Jt[r * D + r0 + i];
@@ -629,7 +721,7 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
         for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
         if (nw) wslope = Ain[(6 * m) * D + 6 * m];
     } else {
-        status = jacobian(k, d, x, acc, Jq, kw);
+        status = mean_jacobian(k, d, p->kink_sd, x, acc, Jq, kw);
         if (status) return status;
     }
     /* RK4 for the state */
@@ -866,13 +958,13 @@ static void sensor_frame(const Dual* in, const double* Rbs, Dual* R, Dual* om) {
 
 /* spec (doubles): [servo_lag, wheel slope, rest command (alpha), wheel accelerations (n_w),
  * gravity (3), R_bs (9), node rows of U for a, b, c (3 x m), N_fix at a, b, c (3 x 3: node,
- * then axis)]. */
+ * then axis), the mean kink's jitter std (m; 0: the sharp kink)]. */
 static int64_t imu_spec_size(const int64_t* d) {
-    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9;
+    return 2 + d[2] + d[3] + 3 + 9 + 3 * d[0] + 9 + 1;
 }
 
 static int64_t imu_work(const int64_t* d) {
-    return jacobian_work(d);
+    return mean_jacobian_work(d);
 }
 
 /* The IMU's values and Jacobians at the filter state x (its first D = 6 m + n_w + alpha
@@ -885,7 +977,7 @@ static int64_t imu_predict(const Consts* k, const int64_t* d, const double* spec
     const double *rest_cmd = spec + 2, *wacc = rest_cmd + alpha, *g = wacc + nw, *Rbs = g + 3;
     const double *ua = Rbs + 9, *ub = ua + m, *uc = ub + m, *Nf = uc + m;
     double acc[3 * 100], *J = A + 3 * m * D; /* the q_dot rows of A */
-    int64_t status = jacobian(k, d, x, acc, J, w);
+    int64_t status = mean_jacobian(k, d, spec[imu_spec_size(d) - 1], x, acc, J, w);
     if (status) return status;
     for (int64_t i = 0; i < 3 * m * D; i++) A[i] = 0.0;
     for (int64_t i = 6 * m * D; i < D * D; i++) A[i] = 0.0;
@@ -1193,6 +1285,126 @@ static int64_t kalman_update(int64_t k, const int64_t* sizes, const double* gate
     return 0;
 }
 
+/* ---- One IMU sample's cycle (gyrohost.estimator.fast_cycle) ----
+ * The filter's fuse_imu in one call, the stages above in the filter's order: the lean step of
+ * dt (none where dt = 0) with the process noise Q (nq x nq, nq <= n) on P's leading block, the
+ * state onto the bars; the IMU's prediction there (its wheel accelerations at the step's end
+ * setpoints); the three measurements; their gated update; the posterior onto the bars where one was
+ * fused. spec (doubles): [step spec (step_spec_size), the IMU's constants (gravity, R_bs, rows,
+ * N_fix: 21
+ * + 3 m, as imu_predict's spec), the measurements' spec (8, imu_measurements'), z (9), gates
+ * (3), rotation tolerance, manifold rtol, manifold iterations]. out: innovations (9), their
+ * variances (9), whitened (9), stats (3 x 3, kalman_update's). Status 0; anything else: a stage
+ * refused (a singular model, a non-finite value, axes that are no rotation, a Gram matrix or an
+ * S not positive definite), the outputs unset: the caller takes the stages one by one. */
+#define CYCLE_TAIL 23
+
+static int64_t cycle_spec_size(const int64_t* d) {
+    return step_spec_size(d) + 21 + 3 * d[0] + CYCLE_TAIL;
+}
+
+static int64_t cycle_work(const int64_t* d, int64_t n) {
+    int64_t m = d[0], D = 6 * m + d[3] + d[2], scratch = lean_work(d, n);
+    const int64_t other[3] = {imu_work(d), manifold_work(m, d[1], n), update_work(n, 9)};
+    for (int i = 0; i < 3; i++) scratch = other[i] > scratch ? other[i] : scratch;
+    return 2 * n + 2 * n * n + D * D + imu_spec_size(d) + 16 * D + 9 * n + 114 + scratch;
+}
+
+static int all_finite(const double* v, int64_t len) {
+    for (int64_t i = 0; i < len; i++)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+/* Whether x (n) and the diagonal of P (n x n) are finite (a non-finite entry of P reaches the
+ * diagonal within a step). */
+static int state_finite(const double* x, const double* P, int64_t n) {
+    for (int64_t i = 0; i < n; i++)
+        if (!isfinite(x[i]) || !isfinite(P[i * n + i])) return 0;
+    return 1;
+}
+
+/* imu_predict's spec at the step's end: its wheels' accelerations as the step's last stage
+ * sees them, the IMU's constants ic (21 + 3 m). */
+static void cycle_imu_spec(const int64_t* d, const StepSpec* p, const double* ic, const double* x,
+                           double* is) {
+    int64_t m = d[0], alpha = d[2], nw = d[3];
+    double reach = p->wheel_accel * p->dt;
+    is[0] = p->servo_lag;
+    is[1] = p->follow ? -1.0 / p->wheel_lag : 0.0;
+    for (int64_t i = 0; i < alpha; i++) is[2 + i] = p->rest_cmd[i];
+    for (int64_t i = 0; i < nw; i++) {
+        double step = p->cmd[i] - p->sp0[i];
+        step = step > reach ? reach : (step < -reach ? -reach : step);
+        is[2 + alpha + i] =
+            p->follow ? (p->sp0[i] + step - x[6 * m + i]) / p->wheel_lag : p->wheel_acc[i];
+    }
+    for (int64_t i = 0; i < 21 + 3 * m; i++) is[2 + alpha + nw + i] = ic[i];
+    is[imu_spec_size(d) - 1] = p->kink_sd;
+}
+
+/* The IMU's prediction at the prior xs and its checks (fuse_imu's): finite, R a rotation to
+ * tol. f, R, ...: D, 9, 9 x D, 3, 3 x D, 3, 3 x D consecutive from f. */
+static int64_t cycle_prediction(const Consts* k, const int64_t* d, const double* is,
+                                const double* xs, double tol, double* A, double* f, double* w) {
+    int64_t D = 6 * d[0] + d[3] + d[2];
+    double *R = f + D, *dR = R + 9, *om = dR + 9 * D, *dom = om + 3, *fs = dom + 3 * D;
+    int64_t status = imu_predict(k, d, is, xs, f, A, R, dR, om, dom, fs, fs + 3, w);
+    if (status) return status;
+    if (!all_finite(f, 16 * D + 15) || !all_finite(A, D * D)) return 1;
+    for (int a = 0; a < 3; a++) {
+        for (int c = 0; c < 3; c++) {
+            double s = R[a] * R[c] + R[3 + a] * R[3 + c] + R[6 + a] * R[6 + c] - (a == c);
+            if (fabs(s) > tol) return 1;
+        }
+    }
+    return 0;
+}
+
+static int64_t imu_cycle(const Consts* k, const int64_t* d, const double* spec, const int64_t* cols,
+                         const Bars* b, const double* x, const double* P, const double* Ain,
+                         const double* Q, int64_t nq, double* xo, double* Po, double* A,
+                         double* out, double* w) {
+    int64_t m = d[0], D = 6 * m + d[3] + d[2], n = b->n, status;
+    StepSpec p;
+    step_spec(spec, d, &p);
+    const double *ic = spec + step_spec_size(d), *ms = ic + 21 + 3 * m, *z = ms + 8;
+    const double *gates = z + 9, tol = gates[3], rtol = gates[4];
+    int64_t iterations = (int64_t)gates[5];
+    double *xs = w, *Ps = xs + n, *xu = Ps + n * n, *Pu = xu + n, *F = Pu + n * n;
+    double *is = F + D * D, *f = is + imu_spec_size(d), *H = f + 16 * D + 15, *hx = H + 9 * n;
+    double *zo = hx + 9, *Rm = zo + 9, *scratch = Rm + 81, *stats = out + 27;
+    for (int64_t i = 0; i < n; i++) xs[i] = x[i];
+    for (int64_t i = 0; i < n * n; i++) Ps[i] = P[i];
+    if (p.dt > 0.0) {
+        status = lean_step(k, d, &p, n, x, P, Ain, xs, Ps, F, scratch);
+        for (int64_t i = 0; !status && i < nq; i++)
+            for (int64_t j = 0; j < nq; j++) Ps[i * n + j] += Q[i * nq + j];
+        if (!status && !state_finite(xs, Ps, n)) status = 1;
+        if (!status) status = project_bars(b, xs, rtol, iterations, scratch);
+        if (status) return status;
+    }
+    cycle_imu_spec(d, &p, ic, xs, is);
+    status = cycle_prediction(k, d, is, xs, tol, A, f, scratch);
+    if (status) return status;
+    const double* pred[7] = {
+        f + D, f + D + 9, f + 10 * D + 9, f + 10 * D + 12, f + 13 * D + 12, f + 13 * D + 15, f};
+    imu_measurements(n, D, cols, ms, pred, xs, z, H, hx, zo, Rm);
+    for (int i = 0; i < 9; i++) out[i] = zo[i] - hx[i];
+    const int64_t sizes[3] = {3, 3, 3};
+    status = kalman_update(3, sizes, gates, n, 9, H, out, Rm, Ps, xs, out + 9, out + 18, stats, xu,
+                           Pu, scratch);
+    if (status) return status;
+    int fused = stats[2] != 0.0 || stats[5] != 0.0 || stats[8] != 0.0;
+    for (int64_t i = 0; i < n; i++) xo[i] = fused ? xu[i] : xs[i];
+    if (!fused) {
+        for (int64_t i = 0; i < n * n; i++) Po[i] = Ps[i];
+        return 0;
+    }
+    status = condition_bars(b, xo, Pu, Po, rtol, iterations, scratch);
+    return status ? status : !state_finite(xo, Po, n);
+}
+
 /* The buffers of a call: the first n_read read, the rest up to n written. */
 static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
                            int n, const char* use) {
@@ -1420,19 +1632,65 @@ static int64_t imu_measurements_body(Py_buffer* buf) {
 
 BUFFER_CALL(kernel_imu_measurements, 11, 15, IMU_MEAS_USE, imu_measurements_body)
 
-static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
-    (void)self;
+#define CYCLE_USE                                                                                  \
+    "imu_cycle(consts, dims, spec, cols, bars, x, P, A, Q, x_out, P_out, A_out, out, work) takes " \
+    "14 buffers"
+
+/* bars: the manifold's E (beta x m), B0 (3 x beta), l2 (beta) one after the other. */
+static int64_t cycle_body(Py_buffer* buf) {
+    const int64_t *dims = (const int64_t*)buf[1].buf, *cols = (const int64_t*)buf[3].buf;
+    int64_t m = dims[0], beta = dims[1], D = 6 * m + dims[3] + dims[2], status;
+    int64_t n = (int64_t)(buf[5].len / (Py_ssize_t)sizeof(double));
+    int64_t nq = (int64_t)sqrt((double)(buf[8].len / (Py_ssize_t)sizeof(double)) + 0.5);
+    const int64_t need[14] = {
+        0,     0,  cycle_spec_size(dims), D, beta * (m + 4), n, n * n, D * D, nq * nq, n, n * n,
+        D * D, 36, cycle_work(dims, n)};
+    int ok = dims[5] == 0 && n >= D && m <= 100 && D <= 256 && beta > 0 && nq <= n &&
+             buf[8].len == nq * nq * (Py_ssize_t)sizeof(double);
+    for (int64_t c = 0; ok && c < D; c++) ok = cols[c] == c;
+    if (!fits(buf, need, 2, 14, ok, "imu_cycle: joints, over 100 coordinates or a small buffer"))
+        return -1;
+    Consts k;
+    layout((const double*)buf[0].buf, dims, &k);
+    const double* bars = (const double*)buf[4].buf;
+    Bars b = {m, beta, n, bars, bars + beta * m, bars + beta * (m + 3)};
+    const double* in[5];
+    double* o[5];
+    for (int i = 0; i < 5; i++) {
+        in[i] = (const double*)buf[i ? 4 + i : 2].buf; /* spec, x, P, A, Q */
+        o[i] = (double*)buf[9 + i].buf;
+    }
+    Py_BEGIN_ALLOW_THREADS status = imu_cycle(&k, dims, in[0], cols, &b, in[1], in[2], in[3], in[4],
+                                              nq, o[0], o[1], o[2], o[3], o[4]);
+    Py_END_ALLOW_THREADS return status;
+}
+
+BUFFER_CALL(kernel_imu_cycle, 9, 14, CYCLE_USE, cycle_body)
+
+/* A work size of the model's dims (an int64 buffer) and an n-entry filter state: (dims, n). */
+static PyObject* dims_n_work(PyObject* const* args, Py_ssize_t nargs,
+                             int64_t (*size)(const int64_t*, int64_t), const char* use) {
     Py_buffer dims;
     if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "lean_work(dims, n) takes 2 arguments");
+        PyErr_SetString(PyExc_TypeError, use);
         return NULL;
     }
     long long n = PyLong_AsLongLong(args[1]);
     if (n == -1 && PyErr_Occurred()) return NULL;
     if (PyObject_GetBuffer(args[0], &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
-    int64_t size = lean_work((const int64_t*)dims.buf, (int64_t)n);
+    int64_t need = size((const int64_t*)dims.buf, (int64_t)n);
     PyBuffer_Release(&dims);
-    return PyLong_FromLongLong(size);
+    return PyLong_FromLongLong(need);
+}
+
+static PyObject* kernel_cycle_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    return dims_n_work(args, nargs, cycle_work, "cycle_work(dims, n) takes 2 arguments");
+}
+
+static PyObject* kernel_lean_work(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
+    (void)self;
+    return dims_n_work(args, nargs, lean_work, "lean_work(dims, n) takes 2 arguments");
 }
 
 static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
@@ -1458,13 +1716,23 @@ static PyObject* kernel_jacobian(PyObject* self, PyObject* const* args, Py_ssize
     return status < 0 ? NULL : PyLong_FromLongLong(status);
 }
 
-static PyObject* kernel_jacobian_work(PyObject* self, PyObject* arg) {
-    (void)self;
+/* A work size of the model's dims (an int64 buffer). */
+static PyObject* dims_work(PyObject* arg, int64_t (*size)(const int64_t*)) {
     Py_buffer dims;
     if (PyObject_GetBuffer(arg, &dims, PyBUF_C_CONTIGUOUS) < 0) return NULL;
-    int64_t n = jacobian_work((const int64_t*)dims.buf);
+    int64_t n = size((const int64_t*)dims.buf);
     PyBuffer_Release(&dims);
     return PyLong_FromLongLong(n);
+}
+
+static PyObject* kernel_jacobian_work(PyObject* self, PyObject* arg) {
+    (void)self;
+    return dims_work(arg, jacobian_work);
+}
+
+static PyObject* kernel_imu_work(PyObject* self, PyObject* arg) {
+    (void)self;
+    return dims_work(arg, imu_work);
 }
 
 static PyObject* kernel_rhs(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
@@ -1511,11 +1779,19 @@ static PyMethodDef methods[] = {
      "imu_measurements(cols, spec, R, dR, omega, d_omega, force, d_force, x_dot, x, z, H, hx, "
      "z_out, R_out): the IMU's rate, specific force and attitude measurements (the estimator's "
      "fast path)"},
+    {"imu_cycle", (PyCFunction)(void (*)(void))kernel_imu_cycle, METH_FASTCALL,
+     "imu_cycle(consts, dims, spec, cols, bars, x, P, A, Q, x_out, P_out, A_out, out, work) -> "
+     "status: one IMU sample's prediction step, prediction, measurements, update and "
+     "projections (the estimator's fast path; nonzero: a stage refused, outputs unset)"},
+    {"cycle_work", (PyCFunction)(void (*)(void))kernel_cycle_work, METH_FASTCALL,
+     "cycle_work(dims, n) -> doubles of work imu_cycle() needs for an n-entry filter state"},
     {"use_blas", (PyCFunction)kernel_use_blas, METH_O,
      "use_blas(capsule): products through this dgemm (scipy.linalg.cython_blas's); None: the "
      "kernel's own loops"},
     {"jacobian_work", (PyCFunction)kernel_jacobian_work, METH_O,
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
+    {"imu_work", (PyCFunction)kernel_imu_work, METH_O,
+     "imu_work(dims) -> doubles of work imu() needs"},
     {NULL, NULL, 0, NULL},
 };
 

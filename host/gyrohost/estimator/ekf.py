@@ -24,6 +24,7 @@ from gyrotensegrity import SimulationError
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import mounting_covariance
 from .errors import EstimatorError
+from .fast_cycle import fast_cycle
 from .fast_imu import fast_imu
 from .fast_manifold import fast_manifold
 from .fast_prediction import fast_prediction
@@ -97,8 +98,9 @@ class TensegrityEKF:
     fast : bool
         The compiled prediction step and IMU prediction (:mod:`.fast_prediction`,
         :mod:`.fast_imu`) where they cover the configuration, the compiled manifold
-        (:mod:`.fast_manifold`) and the fusion without filterpy (:func:`.fusion.fuse`); False:
-        the reference path everywhere.
+        (:mod:`.fast_manifold`) and the fusion without filterpy (:func:`.fusion.fuse`), an IMU
+        sample's last step and fusion in one call (:mod:`.fast_cycle`); False: the reference
+        path everywhere.
     """
 
     def __init__(self, model, config, x0=None, P0=None, t0_s=0.0, log=None, fast=True):
@@ -121,11 +123,12 @@ class TensegrityEKF:
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
         self.u = model.input_at(self.t)
         self.log = log
-        self.monitors = {s: SourceMonitor(s, self._timeout(s)) for s in SOURCES}
+        self.monitors = {s: SourceMonitor(s, _timeout(config, s)) for s in SOURCES}
         self.stale_last = False
         self._A = None  # linearisation of the dynamics at the current prior, if made
         # inputs not in effect yet, by due time: (s, "rest" or "wheels", values)
         self._commands: list[tuple[float, str, np.ndarray]] = []
+        self.cycle = fast_cycle(self, ROTATION_TOLERANCE) if fast else None
         self.kf = _Filter(L.size, 1)
         if x0 is None:
             x0 = from_model_state(model, model.initial_state(), self.u)
@@ -139,12 +142,6 @@ class TensegrityEKF:
         P0 = self.initial_covariance() if P0 is None else np.asarray(P0, float)
         x, P = self.manifold.condition(np.asarray(x0, float), P0)
         self.kf.x, self.kf.P = x.reshape(-1, 1), P
-
-    def _timeout(self, source):
-        c = self.config
-        if source.startswith("imu"):
-            return c.imu_timeout_s
-        return c.wheels_timeout_s if source == "wheels" else c.servos_timeout_s
 
     def initial_covariance(self):
         """Diagonal initial covariance from the ``init_*_std`` keys, shape (n, n)."""
@@ -248,14 +245,26 @@ class TensegrityEKF:
                 self.u[: self.model.alpha] = values
         return self._commands[0][0] if self._commands else np.inf
 
-    def advance(self, t_s: float) -> None:
-        """Predict to ``t_s`` in steps of at most ``process_dt_s``; check the time-outs."""
+    def advance(self, t_s: float, hold: bool = False) -> float:
+        """Predict to ``t_s`` in steps of at most ``process_dt_s``; check the time-outs.
+
+        With ``hold`` the last step, where no command falls due at its end, is left to the
+        caller (:mod:`.fast_cycle`, which then checks the time-outs): its length is returned
+        (0.0: none left).
+        """
         dt_max = self.config.process_dt_s
         while t_s - self.t > 1e-12:
             due = self._apply_due_commands()
             dt = min(dt_max, t_s - self.t, max(due - self.t, 1e-9))
+            if hold and t_s - (self.t + dt) <= 1e-12 and due > self.t + dt + 1e-12:
+                return dt
             self.predict(dt)
         self._apply_due_commands()
+        self.check_timeouts()
+        return 0.0
+
+    def check_timeouts(self) -> None:
+        """Every source's time-out at the filter's time."""
         for mon in self.monitors.values():
             mon.check(self.t, self.t_start)
 
@@ -310,17 +319,18 @@ class TensegrityEKF:
         if self.log is not None:
             self.log(result)
 
-    def _arrive(self, t_s: float, source: str) -> bool:
-        """Bring the filter to a sample's time; False if the sample is too old to fuse."""
+    def _arrive(self, t_s: float, source: str, hold: bool = False) -> float | None:
+        """Bring the filter to a sample's time (with ``hold`` but its last step, whose length
+        is returned: :meth:`advance`); None if the sample is too old to fuse."""
         if t_s >= self.t:
-            self.advance(t_s)
+            held = self.advance(t_s, hold)
             self.stale_last = False
-            return True
+            return held
         self.monitors[source].out_of_order += 1
         self.stale_last = self.t - t_s > self.config.max_lag_s
         if self.stale_last:
             self.monitors[source].stale += 1
-        return not self.stale_last
+        return None if self.stale_last else 0.0
 
     def fuse_imu(self, t_s, omega_rad_s, accel_m_s2, euler_rad):
         """Predict to ``t_s`` and fuse one IMU sample: rate, specific force, angles.
@@ -332,14 +342,23 @@ class TensegrityEKF:
         before the filter's time (the run loop predicts to every tick) is compared with the
         prediction taken back to its time along the dynamics (``h - lag dh/dt``).
 
+        With the fast path's :mod:`.fast_cycle` the last prediction step and all of that are
+        one kernel call; where it refuses, the stages from the same state.
+
         Returns
         -------
         list of Innovation (empty when the sample was stale)
         """
         taken_s = t_s - self.config.imu_latency_s
         self.imu_lag_s = max(self.t - taken_s, 0.0)
-        if not self._arrive(taken_s, fuse_imu_rate.SOURCE):
+        held = self._arrive(taken_s, fuse_imu_rate.SOURCE, self.cycle is not None)
+        if held is None:
             return []
+        if self.cycle is not None:
+            results = self.cycle(held, omega_rad_s, accel_m_s2, euler_rad)
+            if results is not None:
+                return results
+            self.advance(taken_s)  # the held step the stages' way
         pred = self._imu_prediction()
         self._A = pred.A  # the lean process model's next linearisation
         if self.fast_imu is not None:
@@ -379,7 +398,7 @@ class TensegrityEKF:
 
     def fuse_wheels(self, t_s, omega_rad_s):
         """Predict to ``t_s`` and fuse the wheel speeds (n_w,) rad/s."""
-        if not self._arrive(t_s, fuse_wheels.SOURCE):
+        if self._arrive(t_s, fuse_wheels.SOURCE) is None:
             return []
         return [fuse_wheels.fuse_wheels(self, omega_rad_s)]
 
@@ -388,9 +407,16 @@ class TensegrityEKF:
         (sampled at ``t_s``: a read behind the filter's time is compared with the rest lengths
         then)."""
         lag_s = max(self.t - t_s, 0.0)
-        if not self._arrive(t_s, fuse_servos.SOURCE):
+        if self._arrive(t_s, fuse_servos.SOURCE) is None:
             return []
         return [fuse_servos.fuse_servos(self, lengths_m, strings, lag_s)]
+
+
+def _timeout(config, source: str) -> float:
+    """The time-out of ``source``, s."""
+    if source.startswith("imu"):
+        return config.imu_timeout_s
+    return config.wheels_timeout_s if source == "wheels" else config.servos_timeout_s
 
 
 def _failed(t_s: float, what: str, member: str) -> EstimatorError:

@@ -14,6 +14,7 @@ kernel call) follow. Covered as :mod:`.fast_prediction`; elsewhere :func:`fast_i
 import numpy as np
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
+from .fast_prediction import kink_std
 from .fusion import Measurement
 from .imu_prediction import ImuPrediction, with_mounting
 
@@ -35,12 +36,13 @@ class FastImu:
         self.nd, self.alpha, self.nw = L.n_dynamic, L.n_strings, L.n_wheels
         rows = self.dyn.U_T.A[:, [imu.a, imu.b, imu.c]].T  # (3, m): the nodes' rows of U
         N_fix = self.dyn.N_fix[:, [imu.a, imu.b, imu.c]].T  # (3 nodes, 3 axes)
-        # [servo lag, wheel slope, rest command, wheel accelerations, gravity, R_bs, rows, N_fix]
+        # [servo lag, wheel slope, rest command, wheel accelerations, gravity, R_bs, rows, N_fix,
+        # the mean kink's std]
         head = 2 + self.alpha + self.nw
         self._spec = np.concatenate([np.zeros(head), imu.gravity, imu.R_bs.ravel(), rows.ravel(),
-                                     N_fix.ravel()])  # fmt: skip
+                                     N_fix.ravel(), [kink_std(ekf.config)]])  # fmt: skip
         self._R_bs = slice(head + 3, head + 12)
-        self._work = np.empty(self.kernel.jacobian_work(self.dyn._dims))
+        self._work = np.empty(self.kernel.imu_work(self.dyn._dims))
         self._columns = np.asarray(ekf.imu_columns, np.int64)
 
     def __call__(self, x, u) -> ImuPrediction:
@@ -67,15 +69,27 @@ class FastImu:
         pred = ImuPrediction(R, dR, om, dom, force, dforce, A, f)
         return pred if dR_bs is None else with_mounting(pred, R_bs, dR_bs)
 
+    def constants(self):
+        """The kernel's IMU constants, the sensor's axes in body axes fixed (no mounting
+        state): gravity, R_bs, the nodes' rows of U, N_fix."""
+        return self._spec[self._R_bs.start - 3 : -1]
+
+    def measurement_spec(self):
+        """The kernel's spec of the three measurements (``imu_measurements``'): the filter's lag
+        behind the sample, the sensor's noise, the bias columns."""
+        ekf, c = self.ekf, self.ekf.config
+        L = ekf.layout
+        accel_bias = L.accel_bias.start if L.n_accel_bias else -1
+        return np.array([ekf.imu_lag_s, c.imu_time_std_s, c.imu_rate_std_rad_s,
+                         c.imu_accel_std_m_s2, c.imu_angle_std_rad, fuse_imu_angle.FLOOR,
+                         L.bias.start, accel_bias])  # fmt: skip
+
     def measurements(self, pred: ImuPrediction, omega_rad_s, accel_m_s2, euler_rad):
         """The rate, specific-force and attitude measurements of one IMU sample, as
         ``fuse_imu_rate``, ``fuse_imu_accel`` and ``fuse_imu_angle`` make them from ``pred``."""
-        ekf, c = self.ekf, self.ekf.config
-        L, n = ekf.layout, ekf.layout.size
-        accel_bias = L.accel_bias.start if L.n_accel_bias else -1
-        spec = np.array([ekf.imu_lag_s, c.imu_time_std_s, c.imu_rate_std_rad_s,
-                         c.imu_accel_std_m_s2, c.imu_angle_std_rad, fuse_imu_angle.FLOOR,
-                         L.bias.start, accel_bias])  # fmt: skip
+        ekf = self.ekf
+        n = ekf.layout.size
+        spec = self.measurement_spec()
         z = np.concatenate([omega_rad_s, accel_m_s2, euler_rad]).astype(float)
         H, hx, z_out, R = np.empty((9, n)), np.empty(9), np.empty(9), np.empty((9, 9))
         fields = (pred.R_ws, pred.dR_ws, pred.omega, pred.d_omega, pred.specific_force,

@@ -25,6 +25,9 @@ class FastManifold(Manifold):
     def __init__(self, model, layout):
         super().__init__(model, layout)
         self._bars = [np.ascontiguousarray(a, float) for a in (self.E, self.B0, self.l2)]
+        self.packed_bars = np.concatenate([a.ravel() for a in self._bars])
+        """E (beta x m), B0 (3 x beta) and l2 (beta) one after the other (the kernel's one-call
+        IMU cycle reads them so)."""
         self._work = np.empty(_fastkernel.manifold_work(layout.m, self.beta, layout.size))
         self._none = np.empty(0)
 

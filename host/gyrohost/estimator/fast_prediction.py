@@ -9,7 +9,8 @@ jitter's noise through the strings' kinks, which needs this ``F``) in one call; 
 process noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step).
 tests/estimator/test_fast_prediction.py holds the two equal to round-off.
 
-Covered: the lean model with the closed-form Jacobian, the sharp string kink, a model that omits
+Covered: the lean model with the closed-form Jacobian, either string kink (the mean one's smooth
+force and its Jacobian through the pulling rest lengths in the kernel too), a model that omits
 no term (the omitted-term check looks at every stage's spins) and the kernel built; elsewhere
 :func:`fast_prediction` gives None and the filter takes the reference path.
 """
@@ -26,10 +27,17 @@ def fast_prediction(process, n: int):
         c.process_method == "lean"
         and jac is not None
         and jac.kernel is not None
-        and c.kink_model == "sharp"
         and not process.model.omitted
     )
     return FastPrediction(process, n) if covered and dyn.kernel is not None else None
+
+
+def kink_std(config) -> float:
+    """The rest-length jitter's std per step, m, that the mean kink smooths the strings' force
+    over (:meth:`.process_model.ProcessModel.mean_force_rest`); 0 for the sharp kink."""
+    if config.kink_model != "mean":
+        return 0.0
+    return float(np.sqrt(config.rest_jitter_psd_m2_s / config.process_dt_s))
 
 
 class FastPrediction:
@@ -49,11 +57,29 @@ class FastPrediction:
         L = process.layout
         self.n, self.nd, self.alpha, self.nw = n, L.n_dynamic, L.n_strings, L.n_wheels
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
-        # accelerations, setpoints, commands, jitter density] (the kernel's StepSpec)
-        self._spec = np.zeros(7 + self.alpha + 3 * self.nw)
-        self._spec[-1] = process.config.rest_jitter_psd_m2_s
+        # accelerations, setpoints, commands, jitter density, mean kink's std] (the kernel's
+        # StepSpec)
+        self.spec_size = 8 + self.alpha + 3 * self.nw
+        self._spec = np.zeros(self.spec_size)
+        self._spec[-2:] = process.config.rest_jitter_psd_m2_s, kink_std(process.config)
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
+
+    def step_spec(self, u, dt: float, have_A: bool):
+        """The kernel's spec of a step of ``dt`` s under ``u`` (a buffer reused by the next
+        call) and the wheels' setpoints at its start."""
+        p, c, spec = self.process, self.process.config, self._spec
+        sp0 = p.wheel_setpoint_rad_s
+        follow = p.wheel_target_rad_s is not None and c.wheel_lag_s != 0.0
+        spec[:6] = dt, c.servo_lag_s, c.wheel_lag_s, c.wheel_accel_rad_s2, follow, have_A
+        a, nw = 6 + self.alpha, self.nw
+        spec[6:a] = u[: self.alpha]
+        if follow:
+            spec[a + nw : a + 2 * nw] = sp0
+            spec[a + 2 * nw : a + 3 * nw] = p.wheel_command_rad_s
+        else:
+            spec[a : a + nw] = self.dyn.wheel_acceleration(u)  # the model's, as the step's
+        return spec, sp0
 
     def __call__(self, x, P, u, dt, A=None):
         """The state (n,) and covariance (n, n) ``dt`` s on, with the process noise of the
@@ -62,17 +88,8 @@ class FastPrediction:
         beyond them), from ``x`` (n,) and ``P`` (n, n) under the input ``u``; ``A`` as
         :meth:`.process_model.ProcessModel.step`. Moves the wheels' setpoints on as the step
         does."""
-        p, c, spec = self.process, self.process.config, self._spec
-        sp0 = p.wheel_setpoint_rad_s
-        follow = p.wheel_target_rad_s is not None and c.wheel_lag_s != 0.0
-        spec[:6] = dt, c.servo_lag_s, c.wheel_lag_s, c.wheel_accel_rad_s2, follow, A is not None
-        a, nw = 6 + self.alpha, self.nw
-        spec[6:a] = u[: self.alpha]
-        if follow:
-            spec[a + nw : a + 2 * nw] = sp0
-            spec[a + 2 * nw : a + 3 * nw] = p.wheel_command_rad_s
-        else:
-            spec[a : a + nw] = p.wheel_acceleration(np.zeros((1, nw)), u)[0]
+        p = self.process
+        spec, sp0 = self.step_spec(u, dt, A is not None)
         x_out, P_out, F = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.nd,) * 2)
         A = self._no_A if A is None else A
         status = self.kernel.lean_step(

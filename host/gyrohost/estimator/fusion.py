@@ -11,6 +11,7 @@ manifold; ``> 1`` it is rejected and counted. Either way an :class:`Innovation` 
 and passed to the filter's log callback.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +113,7 @@ def _fuse_reference(ekf, measurements) -> list[Innovation]:
         y = meas.residual(meas.z, meas.hx)
         S = meas.H @ kf.P @ meas.H.T + meas.R
         w, log_det_S = whitened(S, y)
-        result = judge(ekf, meas, y, np.diag(S), w, log_det_S - log_det(meas.R))
+        result = judge(ekf, meas.source, y, np.diag(S), w, log_det_S - log_det(meas.R))
         results.append(result)
         if result.accepted:
             keep.append((y, meas))
@@ -159,7 +160,7 @@ def _fuse_fast(ekf, measurements) -> list[Innovation]:
     if _fastkernel.update(sizes, gates, H, y, R, *prior, S_diag, w, stats, x, P, work):
         return _fuse_reference(ekf, measurements)
     results = [
-        judge(ekf, meas, ys[i], S_diag[e - k : e], w[e - k : e], stats[i, 1], stats[i, 0])
+        judge(ekf, meas.source, ys[i], S_diag[e - k : e], w[e - k : e], stats[i, 1], stats[i, 0])
         for i, (e, k, meas) in enumerate(zip(ends, sizes, measurements, strict=True))
     ]
     if stats[:, 2].any():
@@ -170,17 +171,17 @@ def _fuse_fast(ekf, measurements) -> list[Innovation]:
     return results
 
 
-def judge(ekf, meas: Measurement, y, variance, w, spread: float, nis=None) -> Innovation:
-    """The gate's verdict on one measurement (innovation ``y``, the diagonal ``variance`` of its
-    covariance, whitened ``w``, ``spread``; ``nis`` given or ``w . w``), counted in its source's
-    monitor."""
+def judge(ekf, source: str, y, variance, w, spread: float, nis=None) -> Innovation:
+    """The gate's verdict on one measurement of ``source`` (innovation ``y``, the diagonal
+    ``variance`` of its covariance, whitened ``w``, ``spread``; ``nis`` given or ``w . w``),
+    counted in the source's monitor."""
     nis = float(w @ w) if nis is None else float(nis)
     ratio = nis / gate(ekf.config.gate_probability, len(y))
-    accepted = bool(np.isfinite(ratio) and ratio <= 1.0)
-    monitor = ekf.monitors[meas.source]
+    accepted = math.isfinite(ratio) and ratio <= 1.0
+    monitor = ekf.monitors[source]
     monitor.record(ekf.t, accepted)
     return Innovation(
-        meas.source,
+        source,
         ekf.t,
         y,
         np.array(variance),

@@ -150,21 +150,19 @@ class ProcessNoise:
         if dt in self._noise:
             return self._noise[dt]
         L, c = self.layout, self.config
-        Q = np.zeros((L.size, L.size))
-        i, j = np.arange(L.q.start, L.q.stop), np.arange(L.q_dot.start, L.q_dot.stop)
+        # built from slices: a step split by wheel and servo samples has a length of its own
+        diagonal = np.zeros(L.size)
         qa = c.accel_psd_m2_s3
-        Q[i, i] = qa * dt**3 / 3.0
-        Q[i, j] = Q[j, i] = qa * dt**2 / 2.0
-        Q[j, j] = qa * dt
-        w = np.arange(L.omega.start, L.omega.stop)
-        Q[w, w] = c.wheel_accel_psd_rad2_s3 * dt
-        r = np.arange(L.rest.start, L.rest.stop)
+        diagonal[L.q] = qa * dt**3 / 3.0
+        diagonal[L.q_dot] = qa * dt
+        diagonal[L.omega] = c.wheel_accel_psd_rad2_s3 * dt
         hold = self.lag_factor(dt)
-        Q[r, r] = c.rest_psd_m2_s * dt + c.rest_hold_std_m**2 * (1.0 - hold * hold)
-        b = np.arange(L.bias.start, L.bias.stop)
-        Q[b, b] = c.gyro_bias_psd_rad2_s3 * dt
-        a = np.arange(L.accel_bias.start, L.accel_bias.stop)
-        Q[a, a] = c.accel_bias_psd_m2_s5 * dt
+        diagonal[L.rest] = c.rest_psd_m2_s * dt + c.rest_hold_std_m**2 * (1.0 - hold * hold)
+        diagonal[L.bias] = c.gyro_bias_psd_rad2_s3 * dt
+        diagonal[L.accel_bias] = c.accel_bias_psd_m2_s5 * dt
+        Q = np.diag(diagonal)
+        np.fill_diagonal(Q[L.q, L.q_dot], qa * dt**2 / 2.0)  # position with velocity
+        np.fill_diagonal(Q[L.q_dot, L.q], qa * dt**2 / 2.0)
         if len(self._noise) < 8:  # the steps repeat (10 ms); keep a few
             self._noise[dt] = Q
         return Q
