@@ -21,7 +21,8 @@ DEBS    := build/.debs-stamp
 DEMODEBS := build/.debs-demo-stamp
 LABDEBS := build/.debs-lab-stamp
 
-.PHONY: demo lab oldest floors test lint pytest pytest-computing pytest-fil pytest-rig studies-check \
+.PHONY: demo lab oldest floors test lint pytest pytest-computing pytest-beside-rig pytest-fil pytest-rig \
+        studies-check \
         study firmware setup clean flash
 
 # The Mega 2560's bootloader speaks STK500v2 at 115200 baud; opening the port resets the board into
@@ -48,11 +49,11 @@ oldest: $(DEMODEBS)
 	    --ignore tests/model/test_rig_fidelity_mujoco.py $(OLDEST_TESTS)
 
 # The firmware builds and runs its native tests (one core, half a minute) beside the computing
-# tests, then the floors check (floors below) takes its place; the firmware-in-the-loop tests
-# beside the simulated rig's: see pytest below.
+# tests, then the floors check (floors below) takes its place; the firmware-in-the-loop tests,
+# then the slow computing ones, beside the simulated rig's: see pytest below.
 test: setup lint studies-check
 	$(MAKE) --no-print-directory -j2 --output-sync=target firmware pytest-computing floors
-	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-fil pytest-rig
+	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-beside-rig pytest-rig
 
 # The floors as a user installs them on the oldest Python found (or PYTHON_OLDEST), and one
 # simulation from outside the checkout (tools/check-floors.sh): about a minute, half of it
@@ -100,13 +101,18 @@ firmware:
 
 # The computing tests on two workers, then the real-time ones (tests/conftest.py): those of the
 # simulated rig one after the other (a run needs most of a core: rig, loop and estimator), beside
-# them those of the firmware in the loop (the simavr harness needs about 0.4 of one), never two
-# rig runs at once.
+# them those of the firmware in the loop (the simavr harness needs about 0.4 of one), then the
+# computing tests marked slow (one process, one core: the rig's runs take five minutes, and the
+# other core would idle), never two rig runs at once.
 pytest: pytest-computing
-	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-fil pytest-rig
+	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-beside-rig pytest-rig
 
 pytest-computing:
-	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time"
+	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time and not slow"
+
+pytest-beside-rig:
+	$(BIN)/pytest -m real_time tests/fil
+	$(BIN)/pytest -m "slow and not real_time"
 
 pytest-fil:
 	$(BIN)/pytest -m real_time tests/fil

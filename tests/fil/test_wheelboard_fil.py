@@ -392,8 +392,10 @@ def test_open_loop_stops_at_its_time_limit_and_on_heartbeat_loss(harness):
     assert 10.0 - 0.001 <= limit.t_us * 1e-6 - t_start_s <= 10.0 + 0.1, (limit.t_us, t_start_s)
     assert off.t_us - limit.t_us <= 0.2e6  # 20 rad/s at DECEL 200 rad/s^2: 0.1 s
     assert all(f"m{i}=0/" in pwm_limit for i in range(4)), pwm_limit
-    # the last HEARTBEAT went out up to heartbeat_period_s (50 ms) before the hang
-    assert 0.25 - 0.05 - 0.001 <= lost.t_us * 1e-6 - t_hang_s <= 0.25 + 0.1
+    # the last HEARTBEAT went out up to heartbeat_period_s (50 ms) before the hang, and up to
+    # that much later again where a loaded host woke its thread late (the real-time rig tests
+    # run beside these): a latch at half of HEARTBEAT_MS still fails
+    assert 0.25 - 0.1 <= lost.t_us * 1e-6 - t_hang_s <= 0.25 + 0.1
     assert lost_off.t_us - lost.t_us <= 0.2e6
     assert all(f"m{i}=0/" in pwm_lost for i in range(4)), pwm_lost
 

@@ -45,6 +45,7 @@ def test_truth_parameters_predict_the_log_to_its_noise(tmp_path):
     assert np.all(rms["nominal"][6:] > 5 * rms["truth"][6:])
 
 
+@pytest.mark.slow
 def test_weighed_bars_j3_and_mounting_within_the_acceptance(tmp_path):
     """Bars weighed (the nominal scene has their true mass), 3.5 s of log: J3 within 3 % and the
     mounting within 0.3 degrees (10 seeds of 10 in identify_check); stiffness and damping closer
@@ -65,6 +66,7 @@ def test_weighed_bars_j3_and_mounting_within_the_acceptance(tmp_path):
     assert result.rms["gyro"][1] < 0.2 * result.rms["gyro"][0]  # to the noise
 
 
+@pytest.mark.slow
 def test_bars_not_weighed_the_scale_is_reported_not_separable(tmp_path):
     """Bar mass fitted, 3.5 s of log: the common scale of masses, J3 and strings is flagged
     (the singular values alone did not), the report prints no number for the bar mass, J3
@@ -114,6 +116,7 @@ def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
     assert (out.parent / "rig-residuals.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_path, capsys):
     """The default method: the output error, then the filter's likelihood for the mounting,
     the latency and its noise, started from the output error's values. The scene is the first

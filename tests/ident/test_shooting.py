@@ -67,6 +67,7 @@ def test_segments_continue_the_truth_and_start_on_the_manifold(tmp_path):
     assert np.all(jumps["nominal"][:, 0] > 2e-3)
 
 
+@pytest.mark.slow
 def test_segments_past_the_roll_over_are_left_out_of_the_fit(tmp_path):
     """12 s of the excitation played twice and more (bars weighed): the truth rolls over about
     8 s in, after which no prediction follows the recording (reports/identification-history.md).

@@ -215,6 +215,7 @@ def test_non_finite_state_names_time_and_member():
     assert np.all(np.isfinite(exc.value.partial["N"]))
 
 
+@pytest.mark.slow
 def test_long_horizon_prism_keeps_energy_and_momentum():
     """60 s of the free prism (the bench runs 1,000 s)."""
     model = model_of(prism())
