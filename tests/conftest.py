@@ -42,6 +42,28 @@ REAL_TIME = (
 
 
 @pytest.hookimpl(tryfirst=True)
+@pytest.fixture(scope="session")
+def realtime_run(tmp_path_factory) -> Path:
+    """A log folder of a real-time run of the simulated rig (the first of the estimator's
+    recorded batch P01): the devices' streams, the live estimate and the rig's truth, its scene
+    the shipped dbar-gyro. Shared: read it, write elsewhere."""
+    import json
+    import tarfile
+
+    from gyrohost.resources import shipped
+
+    root = tmp_path_factory.mktemp("realtime-run")
+    with tarfile.open(
+        Path(__file__).parent / "estimator" / "data" / "realtime-run-P01.tar.xz"
+    ) as tar:
+        tar.extractall(root, members=[m for m in tar if m.name.startswith("run01")], filter="data")
+    folder = root / "run01"
+    meta = json.loads((folder / "meta.json").read_text())
+    meta["scene"] = str(shipped("scene", "dbar-gyro"))
+    (folder / "meta.json").write_text(json.dumps(meta))
+    return folder
+
+
 def pytest_collection_modifyitems(config, items):
     """The tests that run the simulated rig or the firmware against the wall clock are marked
     ``real_time`` (before ``-m`` selects): ``make test`` runs the others on two workers, a

@@ -86,37 +86,18 @@ def test_regular_times_find_the_grid_again_after_a_lost_sample():
     assert np.all(t <= arrival[keep] + 1e-12)
 
 
-@pytest.fixture(scope="module")
-def simulated_run(tmp_path_factory):
-    """A real-time run of the simulated rig, its truth logged beside the devices."""
-    import tarfile
-    from pathlib import Path
-
-    from gyrohost.resources import shipped
-
-    root = tmp_path_factory.mktemp("truth-run")
-    run = Path(__file__).parent / "data" / "realtime-run-P01.tar.xz"
-    with tarfile.open(run) as tar:
-        tar.extractall(root, members=[m for m in tar if m.name.startswith("run01")], filter="data")
-    folder = root / "run01"
-    meta = json.loads((folder / "meta.json").read_text())
-    meta["scene"] = str(shipped("scene", "dbar-gyro"))
-    (folder / "meta.json").write_text(json.dumps(meta))
-    return folder
-
-
-def test_replay_scores_a_simulated_run_against_its_truth(simulated_run, tmp_path):
+def test_replay_scores_a_realtime_run_against_its_truth(realtime_run, tmp_path):
     """A log with the simulated rig's truth: the replay's summary has the NEES of its own
     estimate at the truth samples within the estimate's span, as the run's has. The same run
     replayed with the IMU's mounting taken 0.1 rad off in roll, which the filter is told it
     knows to 0.1 mrad: it reads the IMU's roll as the structure's, an error hundreds of its
     sigmas wide, so its NEES is at least ten times the right one's."""
-    meta = read_meta(simulated_run)
+    meta = read_meta(realtime_run)
     right = tmp_path / "right"
-    assert main(["replay", str(simulated_run), "-o", str(right)]) == 0
+    assert main(["replay", str(realtime_run), "-o", str(right)]) == 0
     nees = read_meta(right)["summary"]["nees"]
-    truth = read_stream(simulated_run, "truth")
-    estimate = read_stream(simulated_run, "estimate")
+    truth = read_stream(realtime_run, "truth")
+    estimate = read_stream(realtime_run, "estimate")
     within = (truth["t_s"] >= estimate["t_s"][0]) & (truth["t_s"] <= estimate["t_s"][-1])
     assert nees["dof"] == meta["summary"]["estimator"]["nees"]["dof"]
     assert 0.9 * np.count_nonzero(within) <= nees["samples"] <= len(truth)
@@ -126,7 +107,7 @@ def test_replay_scores_a_simulated_run_against_its_truth(simulated_run, tmp_path
     lines = ["[estimator]"] + [f"{k} = {_toml(v)}" for k, v in turned.items()]
     (tmp_path / "turned.toml").write_text("\n".join(lines) + "\n")
     wrong = tmp_path / "wrong"
-    argv = ["replay", str(simulated_run), "-o", str(wrong)]
+    argv = ["replay", str(realtime_run), "-o", str(wrong)]
     assert main([*argv, "--estimator", str(tmp_path / "turned.toml")]) == 0
     assert read_meta(wrong)["summary"]["nees"]["mean"] > 10 * nees["mean"]
 

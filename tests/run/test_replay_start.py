@@ -3,10 +3,6 @@ its inputs from the last command before it, or, with none yet, the rest lengths 
 held; never the scene's own input at the log's time, which a log on host time has nothing to
 do with (the filter fit's recordings start with a wheel report before the first command)."""
 
-import json
-import tarfile
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,20 +12,12 @@ from gyrohost.resources import shipped
 from gyrohost.run.replay import read_inputs, started
 from gyrotensegrity import Model, load_scene
 
-RUN = Path(__file__).parents[1] / "estimator" / "data" / "realtime-run-P01.tar.xz"
-
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory):
+def data(realtime_run):
     """A real-time run's streams from 1 s on, without the live estimate, its commands starting
     after the first wheel report and servo read."""
-    root = tmp_path_factory.mktemp("replay-start")
-    with tarfile.open(RUN) as tar:
-        tar.extractall(root, members=[m for m in tar if m.name.startswith("run01")], filter="data")
-    folder = root / "run01"
-    meta = json.loads((folder / "meta.json").read_text())
-    meta["scene"] = str(shipped("scene", "dbar-gyro"))
-    (folder / "meta.json").write_text(json.dumps(meta))
+    folder = realtime_run
     data = read_inputs(folder)
     data.pop(streams.ESTIMATE)
     # a window 1 s into the log, as the filter fit cuts its recordings at the lead-in
