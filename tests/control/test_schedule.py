@@ -85,6 +85,15 @@ def test_limits_problems_and_validation():
         Limits(min_length_m=0.5, max_length_m=0.4)
 
 
+def test_the_wheel_limits_are_the_boards_defaults():
+    """Limits' wheel speed and acceleration are the wheel board's SPEED_MAX and ACCEL_RAD_S2 as
+    its parameter table ships them (gyrotens plan takes them when not given)."""
+    from gyrohost.drivers.wheelproto import PARAM_BY_NAME
+
+    assert Limits().max_wheel_speed_rad_s == PARAM_BY_NAME["SPEED_MAX_MRAD_S"].default / 1000
+    assert Limits().max_wheel_accel_rad_s2 == PARAM_BY_NAME["ACCEL_RAD_S2"].default
+
+
 def test_wheel_speeds_and_accelerations_beyond_the_limits_are_problems():
     """The board's SPEED_MAX (157.08 rad/s) and setpoint ramp (100 rad/s^2) by default."""
     s = Schedule((), [0.0, 1.0, 1.5], np.zeros((3, 0)), "w", ("b12",), [[0.0], [90.0], [150.0]])

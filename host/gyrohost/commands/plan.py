@@ -29,14 +29,13 @@ def register(sub) -> None:
     )
     p.add_argument("--duration", type=float, default=4.0, metavar="S", help="landing time (4 s)")
     p.add_argument(
-        "--max-speed", type=float, default=0.05, metavar="M/S", help="servo speed (0.05 m/s)"
+        "--max-speed", type=float, metavar="M/S", help="servo speed (default Limits', 0.05 m/s)"
     )
     p.add_argument(
         "--max-wheel-speed",
         type=float,
-        default=157.08,
         metavar="RAD/S",
-        help="largest |spin| (default the wheel board's SPEED_MAX, 157.08 rad/s)",
+        help="largest |spin| (default Limits': the wheel board's SPEED_MAX, 157.08 rad/s)",
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="schedule to write (.toml/.json)")
     p.set_defaults(func=run)
@@ -59,13 +58,17 @@ def _limits(args):
     from gyrohost.commands.errors import CliError
     from gyrohost.control import Limits
 
-    for option, value in (
-        ("--max-speed", args.max_speed),
-        ("--max-wheel-speed", args.max_wheel_speed),
+    given = {}
+    for option, key, value in (
+        ("--max-speed", "max_speed_m_s", args.max_speed),
+        ("--max-wheel-speed", "max_wheel_speed_rad_s", args.max_wheel_speed),
     ):
+        if value is None:
+            continue
         if not (math.isfinite(value) and value > 0.0):
             raise CliError(f"{option} {value}: must be a positive number")
-    return Limits(max_speed_m_s=args.max_speed, max_wheel_speed_rad_s=args.max_wheel_speed)
+        given[key] = value
+    return Limits(**given)
 
 
 def run(args) -> int:
