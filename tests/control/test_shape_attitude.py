@@ -120,8 +120,8 @@ def test_a_stiff_prism_changing_shape_turns_as_the_quasi_static_model_says():
     +-150 rad/s: the full model (strings 100 times stiffer than prism-rig's, so the shape
     follows its equilibrium) turns as the reduced model. The gap is the shape's dynamic lag
     and the frame nodes' ringing, second order in the drive's frequency over the strings'
-    (measured 1.6 % of the turn); the bound is 10 % of the turn. Leaving out the shape
-    connection ``B_b`` (the shape change's own momentum) misses by more."""
+    (docs/attitude-plans.md gives the figure); the bound is 10 % of the turn. Leaving out the
+    shape connection ``B_b`` (the shape change's own momentum) misses by more."""
     model = prism(100.0, [150.0, -150.0, 150.0])
     am = AttitudeModel(model, ["s7", "s8"])
     x0_full = model.initial_state()

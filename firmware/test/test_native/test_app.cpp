@@ -725,8 +725,8 @@ TEST_F(AppTest, StopAllEndsBrakingWhenTheEncoderShowsStoppedNeverReversing) {
 // (4 * 1.3 + 4 * 2.83) / 4 = 4.13 counts a tick (1.58 rad/s; the present speed of a braked wheel
 // is lower), and, braking at up to 275 rad/s^2 (the window's mean 1.43 counts a tick ahead of the
 // present speed), it has not turned backwards faster than (4 * 1.3 - 4 * 2.83) / 4 - 1.43 =
-// -2.96 counts a tick (1.13 rad/s). One tick's change against 1.3 counts let the FIL wheels go at
-// up to 2.6 rad/s on this noise (4.8 rad/s at 4 sigma).
+// -2.96 counts a tick (1.13 rad/s). One tick's change against 1.3 counts would allow
+// 1.3 + 4 * 2.83 = 12.6 counts a tick at 4 sigma (4.8 rad/s).
 TEST_F(AppTest, StopAllUnderEncoderNoiseReleasesWithinTheWindowsBounds) {
     set_param(PRM_DRIVE_MAX_Q15, 32767);
     set_param(PRM_HEARTBEAT_MS, 1000);
