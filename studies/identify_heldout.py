@@ -32,13 +32,14 @@ latency, no real-time effects), so it does not depend on the machine's load; the
 then is left out (its NEES is the real-time rig's).
 
 It prints per case the truth's factors, each parameter's error and reported 1-sigma, the
-identification's wall time and the run's NEES with the share of its samples inside their
+identification's wall and CPU time and the run's NEES with the share of its samples inside their
 bounds; then per parameter how often the error is within the acceptance tolerance
 (:data:`TOLERANCE`), within 1 and 2 reported sigmas. The rig runs are real time: run on a
 quiet machine (each case takes about a minute plus the identification).
 """
 
 import argparse
+import resource
 import sys
 import tempfile
 import time
@@ -201,10 +202,11 @@ def one_case(root: Path, k: int, truth: Truth, steps, clock: str = "real") -> di
     if out.get("record", 0) != 0:
         return out  # a recording cut short (a loaded machine): nothing to identify
     if "identify" in steps:
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), _children_cpu_s()
         argv = ["identify", str(log), "-o", str(ident), "--overlay", str(overlay)]
         out["identify"] = gyrotens([*argv, "--config", str(config)])
         out["identify_s"] = time.perf_counter() - t0
+        out["identify_cpu_s"] = _children_cpu_s() - cpu0
     if not ident.exists():
         return out
     out["errors"] = errors(truth, ident, overlay)
@@ -254,6 +256,13 @@ def summary_lines(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _children_cpu_s() -> float:
+    """User and system CPU time of the ended child processes so far, s: what the
+    identification costs whatever else loads the machine (its wall time depends on that)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def case_line(k: int, truth: Truth, out: dict) -> str:
     f = " ".join(f"{name} x{v:.2f}" for name, v in truth.factors.items())
     rot = ", ".join(f"{a:+.2f}" for a in truth.imu_rotation_deg)
@@ -267,7 +276,8 @@ def case_line(k: int, truth: Truth, out: dict) -> str:
     status = {k: v for k, v in out.items() if k in STEPS}
     if status.get("record", 0) != 0:
         return f"{head}\n  the recording stopped (exit {status['record']}): not identified"
-    figures = f"exit {status}; identify {out.get('identify_s', float('nan')):.0f} s"
+    figures = (f"exit {status}; identify {out.get('identify_s', float('nan')):.0f} s "
+               f"({out.get('identify_cpu_s', float('nan')):.0f} s of CPU)")  # fmt: skip
     if "nees" in out:
         figures += f"; NEES {out['nees'][0]:.1f}, {100 * out['nees'][1]:.0f} % inside"
     return f"{head}\n  error (1-sigma): {errs}\n  {figures}"
