@@ -114,6 +114,7 @@ class SimulatedRig:
         self._idle_at_s = -1.0
         self._dev_t_s = 0.0
         self._steps = self._late = 0
+        self._step_start: tuple[dict, np.ndarray] | None = None  # (_step_inputs)
         self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
         self._cpu0_s = 0.0
 
@@ -225,6 +226,7 @@ class SimulatedRig:
                 target = self._truth_target_s(now)
                 due = self.truth.t_s + self.truth.dt_s
                 if due <= target + 1e-9:
+                    self._poll(due)  # the devices' outputs at the step's end (_step_inputs)
                     self._step(target - due)
                     # Devices keep wall time even while a loaded CPU makes the truth lag.
                     self._poll(self._target_s() if self.clock == "real" else self.truth.t_s)
@@ -244,9 +246,7 @@ class SimulatedRig:
     def _step(self, lateness_s: float) -> None:
         start = time.perf_counter()
         with self._lock:
-            lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
-            speeds = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
-            self.truth.step(lengths, speeds)
+            self.truth.step(*self._step_inputs())
             for sid, tension in self.truth.servo_tensions_N().items():
                 self.servos.set_tension(sid, tension)
         self._step_wall_s += time.perf_counter() - start
@@ -254,6 +254,19 @@ class SimulatedRig:
         if self.clock == "real":
             self._max_lag_s = max(self._max_lag_s, lateness_s)
             self._late += lateness_s > self.truth.dt_s
+
+    def _step_inputs(self) -> tuple[dict, np.ndarray]:
+        """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) the truth
+        holds over the step now due: the mean of the devices' outputs at its start and end. The
+        end's alone would lead the devices by half a step, as the start's would trail them; the
+        host's reads of the servos and the IMU's view of the truth would then disagree in time
+        by that much, which an identification takes up in the IMU's latency."""
+        lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
+        speeds = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
+        start = self._step_start or (lengths, speeds)
+        self._step_start = (lengths, speeds)
+        held = {sid: 0.5 * (start[0][sid] + length) for sid, length in lengths.items()}
+        return held, 0.5 * (start[1] + speeds)
 
     def _poll(self, t_s: float) -> None:
         self._dev_t_s = t_s = max(t_s, self._dev_t_s)
@@ -409,6 +422,7 @@ class SimulatedRig:
         with self._lock:
             self.truth.reset()
             self.servos.reset()
+            self._step_start = None  # the servos jumped: no step starts where they were
             if self.wheels_kind == "emulator":
                 self.wheels.rest()
         wheels = "wheels at rest" if self.wheels_kind == "emulator" else "simavr wheels as they are"
