@@ -48,36 +48,55 @@ DBAR_TARGET_DEG = (10.0, -20.0, -27.27)
 ``tan(yaw) = tan(roll) / sin(pitch)``."""
 
 
+PRISM_TARGET_DEG = (2.0, -2.0, 3.0)
+"""A turn of 4.2 deg about an axis off every body axis and off the momentum."""
+PRISM_MAX_ITER = 400
+"""SLSQP iterations for the prism's plan: the wheels turn it only through a shape change during
+which their spin changes (second order in the inputs), so it converges in a few hundred."""
+
+
 def parse(argv):
     p = argparse.ArgumentParser(prog="python -m studies.attitude_open_loop", description=__doc__)
-    p.add_argument("--case", choices=("prism", "dbar", "both"), default="both")
+    p.add_argument("--case", choices=("prism", "prism-wheels", "dbar", "all"), default="all")
     p.add_argument("--prism-turn", type=float, default=1.5, help="about the momentum, deg")
     p.add_argument("--duration", type=float, default=6.0, help="maneuver length, s")
     p.add_argument("--settle", type=float, default=1.0, help="time after the landing, s")
     return p.parse_args(argv)
 
 
-def stiff_prism():
+def stiff_prism_data():
+    """prism-rig's scene table, strings 100 times stiffer, wheels at +-150 rad/s."""
     data = tomllib.loads(shipped("scene", "prism-rig").read_text())
     for string in data["strings"]:
         string["stiffness"] *= 100.0
     for bar, spin in zip(data["bars"], (150.0, -150.0, 150.0), strict=True):
         bar["wheel"]["spin"] = spin
-    return Model(scene_from_dict(data, "prism-stiff.toml"))
+    return data
+
+
+def stiff_prism():
+    return Model(scene_from_dict(stiff_prism_data(), "prism-stiff.toml"))
 
 
 def dbar_truth(plan, planner_model, a=1):
     """dbar-rig with the plan's n1-n3 rest lengths, dbar-gyro's n2-n4 string on the plan's
-    follower lengths, and the plan's wheel accelerations as motor torques (piecewise constant,
-    0.1 ms edges as the shipped scene's)."""
+    follower lengths, and the plan's wheel accelerations as motor torques."""
     data = tomllib.loads(shipped("scene", "dbar-rig").read_text())
     s = plan.schedule
     data["strings"][0]["rest_length"] = {"t": s.t.tolist(), "value": s.rest_length[:, 0].tolist()}
     follower = dict(data["strings"][0], name="s24", nodes=["n2", "n4"])
     follower["rest_length"] = {"t": s.t.tolist(), "value": s.rest_length[:, 1].tolist()}
     data["strings"].append(follower)
+    set_wheel_torques(data, plan, planner_model, a)
+    data["scene"]["duration"] = float(plan.knot_t_s[-1]) + 2.0
+    return Model(scene_from_dict(data, "dbar-rig-planned.toml"))
+
+
+def set_wheel_torques(data, plan, planner_model, a):
+    """Each bar's wheel driven by the motor torque ``J_3 omega_w_dot`` of the plan's wheel
+    accelerations (inputs ``a`` on; piecewise constant, 0.1 ms edges as the shipped scenes')."""
     kt = plan.knot_t_s
-    for k, bar in enumerate(data["bars"]):
+    for k, bar in enumerate(b for b in data["bars"] if "wheel" in b):
         J3 = planner_model.J3[planner_model.wheel_bars[k]]
         torque = J3 * plan.inputs[:, a + k]
         t, v = [0.0], [float(torque[0])]
@@ -87,8 +106,6 @@ def dbar_truth(plan, planner_model, a=1):
         t += [float(kt[-1]), float(kt[-1]) + 1e-4]
         v += [float(torque[-1]), 0.0]
         bar["wheel"]["torque"] = {"t": t, "value": v}
-    data["scene"]["duration"] = float(kt[-1]) + 2.0
-    return Model(scene_from_dict(data, "dbar-rig-planned.toml"))
 
 
 def play(model, schedule, duration_s, settle_s, fast, dt=1e-3, max_dt=2e-5):
@@ -137,6 +154,25 @@ def prism_case(a):
     report("prism", target, plan, q_land, q_after, a.settle, plan_s, time.perf_counter() - start)
 
 
+def prism_wheels_case(a):
+    data = stiff_prism_data()
+    model = Model(scene_from_dict(data, "prism-stiff.toml"))
+    start = time.perf_counter()
+    plan = plan_attitude(model, np.radians(PRISM_TARGET_DEG), a.duration, strings=["s7", "s8"],
+                         max_iter=PRISM_MAX_ITER)  # fmt: skip
+    plan_s = time.perf_counter() - start
+    set_wheel_torques(data, plan, model, 2)
+    truth = Model(scene_from_dict(data, "prism-stiff-planned.toml"))
+    start = time.perf_counter()
+    q_land, q_after = play(truth, plan.schedule, a.duration, a.settle, fast=True)
+    sim_s = time.perf_counter() - start
+    report("prism-wheels", PRISM_TARGET_DEG, plan, q_land, q_after, a.settle, plan_s, sim_s)
+    peak = np.max(np.abs(plan.schedule.wheel_speed), axis=0)
+    travel = np.ptp(plan.schedule.rest_length, axis=0)
+    print(f"  peak wheel speeds {', '.join(f'{v:.1f}' for v in peak)} rad/s, string travel "
+          f"{', '.join(f'{1e3 * v:.1f}' for v in travel)} mm")  # fmt: skip
+
+
 def dbar_case(a):
     model = Model(load_scene(shipped("scene", "dbar-gyro")))
     start = time.perf_counter()
@@ -151,9 +187,11 @@ def dbar_case(a):
 
 def main(argv=None) -> int:
     a = parse(argv)
-    if a.case in ("prism", "both"):
+    if a.case in ("prism", "all"):
         prism_case(a)
-    if a.case in ("dbar", "both"):
+    if a.case in ("prism-wheels", "all"):
+        prism_wheels_case(a)
+    if a.case in ("dbar", "all"):
         dbar_case(a)
     return 0
 

@@ -1,6 +1,8 @@
 """``gyrotens plan``: a schedule file from a target attitude; bad input and unreachable targets
 exit 2 with the reason, nothing written."""
 
+import re
+
 import pytest
 
 from gyrohost.cli import main
@@ -8,14 +10,26 @@ from gyrohost.control import load_schedule
 
 
 def test_a_wheels_only_plan_is_written_and_reported(tmp_path, capsys):
-    out = tmp_path / "roll.toml"
-    argv = ["plan", "prism-rig", "--target-attitude", "5,0,0", "--wheels-only", "-o", str(out)]
+    out = tmp_path / "tilt.toml"
+    argv = ["plan", "dbar-gyro", "--target-attitude", "0,5,0", "--wheels-only", "-o", str(out)]
     assert main(argv) == 0
     schedule = load_schedule(out)
-    assert schedule.names == () and schedule.wheels == ("bar1", "bar2", "bar3")
+    assert schedule.names == () and schedule.wheels == ("b12", "b23", "b34", "b41")
     assert schedule.t[-1] == pytest.approx(4.0)
     report = capsys.readouterr().out
-    assert "lands at roll, pitch, yaw +5.00" in report and "peak wheel speed bar1" in report
+    assert re.search(r"lands at roll, pitch, yaw [+-]0\.00, \+5\.00, [+-]0\.00 deg", report)
+    assert "peak wheel speed b12" in report
+
+
+def test_the_prisms_wheels_alone_are_refused_with_an_empty_range(tmp_path, capsys):
+    """Its bars meet only strings: a wheel's reaction leaves the prism, so at a held shape
+    the wheels turn it by nothing (docs/attitude-plans.md)."""
+    out = tmp_path / "roll.toml"
+    argv = ["plan", "prism-rig", "--target-attitude", "5,0,0", "--wheels-only", "-o", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "out of reach" in err and "between +0.00 and +0.00 deg" in err, err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(

@@ -124,6 +124,8 @@ class AttitudePlanner:
     sample_dt_s : float, s
         Largest step of the schedule's time grid.
     weights : AttitudeWeights
+    max_iter : int
+        SLSQP iterations of one plan (default :data:`MAX_ITER`).
     """
 
     def __init__(
@@ -135,6 +137,7 @@ class AttitudePlanner:
         landing_rate_rad_s=LANDING_RATE_RAD_S,
         sample_dt_s=0.05,
         weights=None,
+        max_iter=MAX_ITER,
     ):
         if mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -142,7 +145,7 @@ class AttitudePlanner:
             raise PlanError(f"knots and substeps must be at least 1, got {knots}, {substeps}")
         self.model, self.knots, self.substeps, self.mode = model, int(knots), int(substeps), mode
         self.landing_rate_rad_s, self.sample_dt_s = float(landing_rate_rad_s), float(sample_dt_s)
-        self.weights = weights or AttitudeWeights()
+        self.weights, self.max_iter = weights or AttitudeWeights(), int(max_iter)
         lim = model.limits
         n_x, n_u = model.size
         scale = np.concatenate(
@@ -150,7 +153,7 @@ class AttitudePlanner:
         )
         active = np.ones(n_u, bool)
         active[: model.a] = mode != "wheels" and model.a > 0
-        active[model.a :] = mode != "strings"
+        active[model.a :] = (mode != "strings") & model.steerable  # `own` wheels held
         if not active.any():
             raise PlanError(f"mode {mode}: the scene has nothing to move (no strings or wheels)")
         self.active, self.scale = np.flatnonzero(active), scale
@@ -377,7 +380,7 @@ class _Problem:
             method="SLSQP",
             bounds=[(-1.0, 1.0)] * self.n_z,
             constraints=constraints,
-            options={"maxiter": MAX_ITER, "ftol": 1e-12},
+            options={"maxiter": self.p.max_iter, "ftol": 1e-12},
             callback=callback,
         )
         return np.clip(res.x, -1.0, 1.0), bool(res.success), str(res.message)
@@ -463,7 +466,7 @@ def plan_attitude(
     tolerance_rad : float, rad
     **options
         Passed to :class:`AttitudePlanner` (``knots``, ``substeps``, ``landing_rate_rad_s``,
-        ``sample_dt_s``, ``weights``).
+        ``sample_dt_s``, ``weights``, ``max_iter``).
 
     Raises
     ------
