@@ -52,3 +52,41 @@ def test_bad_input_exits_2_before_writing(tmp_path, capsys, extra, message):
     err = capsys.readouterr().err
     assert err.startswith("gyrotens plan: error: ") and message in err, err
     assert not out.exists()
+
+
+def test_a_target_shape_is_where_the_plan_lands(tmp_path, capsys):
+    """The D-bar pitched by 5 deg and left with n1-n3 at 0.40 m (31 mm shorter than at the
+    start; n2-n4 follows the rhombus): its wheels' momentum then sits elsewhere in the body, so
+    the wheels move too."""
+    shape, out = tmp_path / "shape.toml", tmp_path / "plan.toml"
+    shape.write_text("[rest_length]\ns13 = 0.40\n")
+    argv = ["plan", "dbar-gyro", "--target-attitude", "0,-5,0", "--target-shape", str(shape)]
+    assert main([*argv, "-o", str(out)]) == 0
+    schedule = load_schedule(out)
+    assert schedule.names == ("s13", "s24")
+    assert schedule.rest_length[-1, 0] == pytest.approx(0.40, abs=1e-6)  # a servo step is mm
+    assert schedule.rest_length[0, 0] == pytest.approx(0.43105229381822, abs=1e-9)
+    assert "lands at roll, pitch, yaw" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (None, "cannot read"),
+        ("rest_length = 3\n", "needs a [rest_length] table"),
+        ("[rest_length]\ns13 = -0.4\n", "rest_length.s13 = -0.4: must be a positive number"),
+        ("[rest_length]\ns13 = 0.4\n[other]\n", "unknown key(s) other"),
+        ("[rest_length]\ns99 = 0.4\n", "s99 not actuated"),
+        ("[rest_length]\ns13 = 0.9\n", "s13 = 0.9000 m is outside"),
+        ("[rest_length]\ns13 = 0.40\ns24 = 0.40\n", "s24 = 0.4000 m, but the shape its leader"),
+    ],
+)
+def test_a_bad_target_shape_exits_2_naming_it(tmp_path, capsys, text, message):
+    shape, out = tmp_path / "shape.toml", tmp_path / "plan.toml"
+    if text is not None:
+        shape.write_text(text)
+    argv = ["plan", "dbar-gyro", "--target-attitude", "0,-5,0", "--target-shape", str(shape)]
+    assert main([*argv, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err, err
+    assert not out.exists()

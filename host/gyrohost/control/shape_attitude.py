@@ -1,12 +1,13 @@
 """The attitude of any free scene whose actuated strings change its shape and whose wheels
 change speed: the three-axis planner's model (``f(t, x, u, params)``, complex-step safe).
 
-State ``x = [q (4) | r (a) | omega_w (n_w) | dH (3, only with lost reactions)]``: the body frame's attitude quaternion (its rotation
-from its start, :mod:`gyrotensegrity.attitude`), the actuated strings' coordinates (their rest
-lengths, m; the D-bar's one coordinate is its n1-n3 rest length, the n2-n4 string follows) and
-the wheels' spins, rad/s. Input ``u = [r_dot (a) | omega_w_dot (n_w)]``: servo rates, m/s, and
-wheel accelerations, rad/s^2, so that the servo speed and the wheel acceleration are boxes on
-``u`` and the servo range and wheel speed boxes on ``x``.
+State ``x = [q (4) | r (a) | omega_w (n_w) | dH (3, only with lost reactions)]``: the body
+frame's attitude quaternion (its rotation from its start, :mod:`gyrotensegrity.attitude`), the
+actuated strings' coordinates (their rest lengths, m; the D-bar's one coordinate is its n1-n3
+rest length, the n2-n4 string follows), the wheels' spins, rad/s, and the momentum the wheels'
+lost reactions took away (below). Input ``u = [r_dot (a) | omega_w_dot (n_w)]``: servo rates,
+m/s, and wheel accelerations, rad/s^2, so that the servo speed and the wheel acceleration are
+boxes on ``u`` and the servo range and wheel speed boxes on ``x``.
 
 The shape is quasi-static (:mod:`.shape`): the equilibrium of the current rest lengths, in the
 body frame. Nothing outside acts, so the total angular momentum ``H`` (the start frame's axes) is
