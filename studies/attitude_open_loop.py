@@ -8,11 +8,15 @@ Cases:
   shape change of a second or two for the shape to sit at its equilibrium),
   wheels at +-150 rad/s held (they give the momentum the strings steer), strings s7 and s8
   actuated; the target a turn about the total momentum (rolling, pitching and yawing at once).
-  Wheels are held because the full model of an unjointed prism has no way for a wheel's
-  reaction to reach the other bars: strings meet a bar on its axis, so a spin-up only turns
-  its own bar about that axis (rig fidelity) or nothing at all (the paper's model). With the
-  wheels held and the strings back at rest, the body lands (stops turning) only where it sees
-  the momentum as at the start: after a turn about the momentum (docs/attitude-plans.md).
+  With the wheels held and the strings back at rest, the body lands (stops turning) only where
+  it sees the momentum as at the start: after a turn about the momentum
+  (docs/attitude-plans.md).
+- ``prism-wheels``: the same prism, strings s7 and s8 and the three wheels planned together, a
+  target off the momentum and off every body axis. The prism's bars meet only strings, so in
+  the paper's model a wheel's motor reaction leaves the structure (control/wheel_reaction.py):
+  a wheel turns the prism only through its gyroscopic couple while the shape moves its axis,
+  and a net turn needs its spin to change while the shape is away from rest. Each planned
+  wheel acceleration becomes the motor torque ``J_3 omega_w_dot``.
 - ``dbar``: planned on dbar-gyro (strings and wheels), played on dbar-rig, the rig-fidelity
   truth (hinges, stators, the motors' reaction): each planned wheel acceleration becomes the
   motor torque ``J_3 omega_w_dot``, n1-n3 and n2-n4 follow the plan (dbar-rig has no n2-n4
@@ -34,7 +38,7 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from gyrohost.control.attitude_planner import plan_attitude, target_quaternion
+from gyrohost.control.attitude_planner import AttitudeWeights, plan_attitude, target_quaternion
 from gyrohost.control.schedule import Limits
 from gyrohost.control.shape_attitude import AttitudeModel
 from gyrohost.resources import shipped
@@ -50,9 +54,12 @@ DBAR_TARGET_DEG = (10.0, -20.0, -27.27)
 
 PRISM_TARGET_DEG = (2.0, -2.0, 3.0)
 """A turn of 4.2 deg about an axis off every body axis and off the momentum."""
-PRISM_MAX_ITER = 400
-"""SLSQP iterations for the prism's plan: the wheels turn it only through a shape change during
-which their spin changes (second order in the inputs), so it converges in a few hundred."""
+PRISM_OPTIONS = dict(weights=AttitudeWeights(1e-6, 1e-6), landing_rate_rad_s=1e-4, max_iter=400)
+"""Planner options for the prism with wheels: effort weights far below the landing term's (a
+turn of 4 deg is 5e-3 rad^2; the default 1e-4 on inputs near their limits weighs as much as a
+landing 0.6 deg off, sqrt(1e-4) rad), a landing
+rate of 0.006 deg/s (a drift of 0.006 deg in the settle second), and SLSQP iterations for a
+problem second order in the inputs (a few hundred evaluations)."""
 
 
 def parse(argv):
@@ -159,7 +166,7 @@ def prism_wheels_case(a):
     model = Model(scene_from_dict(data, "prism-stiff.toml"))
     start = time.perf_counter()
     plan = plan_attitude(model, np.radians(PRISM_TARGET_DEG), a.duration, strings=["s7", "s8"],
-                         max_iter=PRISM_MAX_ITER)  # fmt: skip
+                         **PRISM_OPTIONS)  # fmt: skip
     plan_s = time.perf_counter() - start
     set_wheel_torques(data, plan, model, 2)
     truth = Model(scene_from_dict(data, "prism-stiff-planned.toml"))

@@ -2,6 +2,9 @@
 
 import pytest
 
+from gyrohost.control import PlanError
+from gyrohost.control.attitude_planner import AttitudePlanner
+from gyrohost.control.shape_attitude import AttitudeModel
 from gyrohost.control.wheel_reaction import wheel_couplings
 from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene, scene_from_dict
@@ -41,3 +44,15 @@ def test_a_scene_without_rig_fidelity_takes_its_joined_bars_as_the_rigs_hinges()
     """dbar-gyro (the paper's model of the D-bar) plans for the hinged rig, dbar-rig."""
     model = Model(load_scene(shipped("scene", "dbar-gyro")))
     assert wheel_couplings(model) == ("body",) * 4
+
+
+def test_wheels_that_only_spin_their_own_bars_are_held_by_the_planner():
+    """Rig fidelity with the motor's reaction on the prism's unhinged bars: a spin change only
+    spins the bar, so the planner does not move those wheels (wheels only: nothing to move)."""
+    model = model_of("prism-rig", {"stator_inertia": 1e-5, "motor_reaction": True}, True)
+    reduced = AttitudeModel(model, ["s7"])
+    assert not reduced.steerable.any() and reduced.n_h == 0
+    both = AttitudePlanner(reduced)
+    assert list(both.active) == [0]  # the string only
+    with pytest.raises(PlanError, match="nothing to move"):
+        AttitudePlanner(reduced, mode="wheels")
