@@ -47,8 +47,10 @@ LANDING_RATE_RAD_S = 5e-4
 """Largest body rate a plan leaves at its landing (0.03 deg/s: it drifts less than the refusal's
 0.005 rad in 10 s after it)."""
 MAX_ITER = 100
-"""SLSQP iterations of one plan (a reachable target converges in tens; an unreachable one
-stops here and is refused)."""
+"""SLSQP iterations of one plan by default (a reachable target converges in tens where the
+wheels' reactions reach the body; an unreachable one stops here and is refused). Wheels that act
+only gyroscopically (:mod:`.wheel_reaction`, ``lost``) turn the body at second order in the
+inputs, and such plans need a few hundred (``max_iter``)."""
 FEASIBLE = 1e-6
 """Largest violation of a constraint (its own unit: m, rad/s, rad^2/s^2) of a plan that
 counts as within the limits, for the reach's bounds."""
