@@ -54,12 +54,11 @@ DBAR_TARGET_DEG = (10.0, -20.0, -27.27)
 
 PRISM_TARGET_DEG = (2.0, -2.0, 3.0)
 """A turn of 4.2 deg about an axis off every body axis and off the momentum."""
-PRISM_OPTIONS = dict(weights=AttitudeWeights(1e-6, 1e-6), landing_rate_rad_s=1e-4, max_iter=400)
+PRISM_OPTIONS = dict(weights=AttitudeWeights(1e-6, 1e-6), landing_rate_rad_s=1e-4)
 """Planner options for the prism with wheels: effort weights far below the landing term's (a
 turn of 4 deg is 5e-3 rad^2; the default 1e-4 on inputs near their limits weighs as much as a
-landing 0.6 deg off, sqrt(1e-4) rad), a landing
-rate of 0.006 deg/s (a drift of 0.006 deg in the settle second), and SLSQP iterations for a
-problem second order in the inputs (a few hundred evaluations)."""
+landing 0.6 deg off, sqrt(1e-4) rad) and a landing rate of 0.006 deg/s (a drift of 0.006 deg in
+the settle second)."""
 
 
 def parse(argv):

@@ -50,7 +50,9 @@ MAX_ITER = 100
 """SLSQP iterations of one plan by default (a reachable target converges in tens where the
 wheels' reactions reach the body; an unreachable one stops here and is refused). Wheels that act
 only gyroscopically (:mod:`.wheel_reaction`, ``lost``) turn the body at second order in the
-inputs, and such plans need a few hundred (``max_iter``)."""
+inputs, and such plans need a few hundred."""
+MAX_ITER_GYROSCOPIC = 400
+"""SLSQP iterations of one plan by default when a planned wheel's reaction is lost."""
 FEASIBLE = 1e-6
 """Largest violation of a constraint (its own unit: m, rad/s, rad^2/s^2) of a plan that
 counts as within the limits, for the reach's bounds."""
@@ -127,8 +129,9 @@ class AttitudePlanner:
     sample_dt_s : float, s
         Largest step of the schedule's time grid.
     weights : AttitudeWeights
-    max_iter : int
-        SLSQP iterations of one plan (default :data:`MAX_ITER`).
+    max_iter : int, optional
+        SLSQP iterations of one plan (default :data:`MAX_ITER`, or
+        :data:`MAX_ITER_GYROSCOPIC` when a planned wheel's reaction is lost).
     """
 
     def __init__(
@@ -140,7 +143,7 @@ class AttitudePlanner:
         landing_rate_rad_s=LANDING_RATE_RAD_S,
         sample_dt_s=0.05,
         weights=None,
-        max_iter=MAX_ITER,
+        max_iter=None,
     ):
         if mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -148,7 +151,7 @@ class AttitudePlanner:
             raise PlanError(f"knots and substeps must be at least 1, got {knots}, {substeps}")
         self.model, self.knots, self.substeps, self.mode = model, int(knots), int(substeps), mode
         self.landing_rate_rad_s, self.sample_dt_s = float(landing_rate_rad_s), float(sample_dt_s)
-        self.weights, self.max_iter = weights or AttitudeWeights(), int(max_iter)
+        self.weights = weights or AttitudeWeights()
         lim = model.limits
         n_x, n_u = model.size
         scale = np.concatenate(
@@ -160,6 +163,10 @@ class AttitudePlanner:
         if not active.any():
             raise PlanError(f"mode {mode}: the scene has nothing to move (no strings or wheels)")
         self.active, self.scale = np.flatnonzero(active), scale
+        if max_iter is None:
+            gyroscopic = (active[model.a :] & model.lost).any()
+            max_iter = MAX_ITER_GYROSCOPIC if gyroscopic else MAX_ITER
+        self.max_iter = int(max_iter)
         self.n_x, self.n_u = n_x, n_u
         self._taut = not isinstance(model.shape, RhombusShape)  # the rhombus: no tension
 
