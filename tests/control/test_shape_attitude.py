@@ -159,7 +159,7 @@ def test_a_stiff_prism_changing_shape_turns_as_the_quasi_static_model_says(spin_
     in the drive's frequency over the strings' (docs/attitude-plans.md gives the figure); the
     bound is 10 % of the turn. Leaving out the shape connection ``B_b`` (the shape change's own
     momentum) misses by more, and so does letting the spin-up's reaction turn the body (it
-    leaves the prism: :mod:`.wheel_reaction`), by far more (a turn thirty times too big)."""
+    leaves the prism: :mod:`.wheel_reaction`), by far more (the docs give both figures)."""
     model = prism(100.0, [150.0, -150.0, 150.0])
     am = AttitudeModel(model, ["s7", "s8"])
     x0_full = model.initial_state()
