@@ -8,11 +8,15 @@ Cases:
   shape change of a second or two for the shape to sit at its equilibrium),
   wheels at +-150 rad/s held (they give the momentum the strings steer), strings s7 and s8
   actuated; the target a turn about the total momentum (rolling, pitching and yawing at once).
-  Wheels are held because the full model of an unjointed prism has no way for a wheel's
-  reaction to reach the other bars: strings meet a bar on its axis, so a spin-up only turns
-  its own bar about that axis (rig fidelity) or nothing at all (the paper's model). With the
-  wheels held and the strings back at rest, the body lands (stops turning) only where it sees
-  the momentum as at the start: after a turn about the momentum (docs/attitude-plans.md).
+  With the wheels held and the strings back at rest, the body lands (stops turning) only where
+  it sees the momentum as at the start: after a turn about the momentum
+  (docs/attitude-plans.md).
+- ``prism-wheels``: the same prism, strings s7 and s8 and the three wheels planned together, a
+  target off the momentum and off every body axis. The prism's bars meet only strings, so in
+  the paper's model a wheel's motor reaction leaves the structure (control/wheel_reaction.py):
+  a wheel turns the prism only through its gyroscopic couple while the shape moves its axis,
+  and a net turn needs its spin to change while the shape is away from rest. Each planned
+  wheel acceleration becomes the motor torque ``J_3 omega_w_dot``.
 - ``dbar``: planned on dbar-gyro (strings and wheels), played on dbar-rig, the rig-fidelity
   truth (hinges, stators, the motors' reaction): each planned wheel acceleration becomes the
   motor torque ``J_3 omega_w_dot``, n1-n3 and n2-n4 follow the plan (dbar-rig has no n2-n4
@@ -34,7 +38,7 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from gyrohost.control.attitude_planner import plan_attitude, target_quaternion
+from gyrohost.control.attitude_planner import AttitudeWeights, plan_attitude, target_quaternion
 from gyrohost.control.schedule import Limits
 from gyrohost.control.shape_attitude import AttitudeModel
 from gyrohost.resources import shipped
@@ -48,36 +52,57 @@ DBAR_TARGET_DEG = (10.0, -20.0, -27.27)
 ``tan(yaw) = tan(roll) / sin(pitch)``."""
 
 
+PRISM_TARGET_DEG = (2.0, -2.0, 3.0)
+"""A turn of 4.2 deg about an axis off every body axis and off the momentum."""
+PRISM_OPTIONS = dict(weights=AttitudeWeights(1e-6, 1e-6), landing_rate_rad_s=1e-4)
+"""Planner options for the prism with wheels: effort weights far below the landing term's (a
+turn of 4 deg is 5e-3 rad^2; the default 1e-4 on inputs near their limits weighs as much as a
+landing 0.6 deg off, sqrt(1e-4) rad) and a landing rate of 0.006 deg/s (a drift of 0.006 deg in
+the settle second)."""
+
+
 def parse(argv):
     p = argparse.ArgumentParser(prog="python -m studies.attitude_open_loop", description=__doc__)
-    p.add_argument("--case", choices=("prism", "dbar", "both"), default="both")
+    p.add_argument("--case", choices=("prism", "prism-wheels", "dbar", "all"), default="all")
     p.add_argument("--prism-turn", type=float, default=1.5, help="about the momentum, deg")
     p.add_argument("--duration", type=float, default=6.0, help="maneuver length, s")
     p.add_argument("--settle", type=float, default=1.0, help="time after the landing, s")
     return p.parse_args(argv)
 
 
-def stiff_prism():
+def stiff_prism_data():
+    """prism-rig's scene table, strings 100 times stiffer, wheels at +-150 rad/s."""
     data = tomllib.loads(shipped("scene", "prism-rig").read_text())
     for string in data["strings"]:
         string["stiffness"] *= 100.0
     for bar, spin in zip(data["bars"], (150.0, -150.0, 150.0), strict=True):
         bar["wheel"]["spin"] = spin
-    return Model(scene_from_dict(data, "prism-stiff.toml"))
+    return data
+
+
+def stiff_prism():
+    return Model(scene_from_dict(stiff_prism_data(), "prism-stiff.toml"))
 
 
 def dbar_truth(plan, planner_model, a=1):
     """dbar-rig with the plan's n1-n3 rest lengths, dbar-gyro's n2-n4 string on the plan's
-    follower lengths, and the plan's wheel accelerations as motor torques (piecewise constant,
-    0.1 ms edges as the shipped scene's)."""
+    follower lengths, and the plan's wheel accelerations as motor torques."""
     data = tomllib.loads(shipped("scene", "dbar-rig").read_text())
     s = plan.schedule
     data["strings"][0]["rest_length"] = {"t": s.t.tolist(), "value": s.rest_length[:, 0].tolist()}
     follower = dict(data["strings"][0], name="s24", nodes=["n2", "n4"])
     follower["rest_length"] = {"t": s.t.tolist(), "value": s.rest_length[:, 1].tolist()}
     data["strings"].append(follower)
+    set_wheel_torques(data, plan, planner_model, a)
+    data["scene"]["duration"] = float(plan.knot_t_s[-1]) + 2.0
+    return Model(scene_from_dict(data, "dbar-rig-planned.toml"))
+
+
+def set_wheel_torques(data, plan, planner_model, a):
+    """Each bar's wheel driven by the motor torque ``J_3 omega_w_dot`` of the plan's wheel
+    accelerations (inputs ``a`` on; piecewise constant, 0.1 ms edges as the shipped scenes')."""
     kt = plan.knot_t_s
-    for k, bar in enumerate(data["bars"]):
+    for k, bar in enumerate(b for b in data["bars"] if "wheel" in b):
         J3 = planner_model.J3[planner_model.wheel_bars[k]]
         torque = J3 * plan.inputs[:, a + k]
         t, v = [0.0], [float(torque[0])]
@@ -87,8 +112,6 @@ def dbar_truth(plan, planner_model, a=1):
         t += [float(kt[-1]), float(kt[-1]) + 1e-4]
         v += [float(torque[-1]), 0.0]
         bar["wheel"]["torque"] = {"t": t, "value": v}
-    data["scene"]["duration"] = float(kt[-1]) + 2.0
-    return Model(scene_from_dict(data, "dbar-rig-planned.toml"))
 
 
 def play(model, schedule, duration_s, settle_s, fast, dt=1e-3, max_dt=2e-5):
@@ -137,6 +160,25 @@ def prism_case(a):
     report("prism", target, plan, q_land, q_after, a.settle, plan_s, time.perf_counter() - start)
 
 
+def prism_wheels_case(a):
+    data = stiff_prism_data()
+    model = Model(scene_from_dict(data, "prism-stiff.toml"))
+    start = time.perf_counter()
+    plan = plan_attitude(model, np.radians(PRISM_TARGET_DEG), a.duration, strings=["s7", "s8"],
+                         **PRISM_OPTIONS)  # fmt: skip
+    plan_s = time.perf_counter() - start
+    set_wheel_torques(data, plan, model, 2)
+    truth = Model(scene_from_dict(data, "prism-stiff-planned.toml"))
+    start = time.perf_counter()
+    q_land, q_after = play(truth, plan.schedule, a.duration, a.settle, fast=True)
+    sim_s = time.perf_counter() - start
+    report("prism-wheels", PRISM_TARGET_DEG, plan, q_land, q_after, a.settle, plan_s, sim_s)
+    peak = np.max(np.abs(plan.schedule.wheel_speed), axis=0)
+    travel = np.ptp(plan.schedule.rest_length, axis=0)
+    print(f"  peak wheel speeds {', '.join(f'{v:.1f}' for v in peak)} rad/s, string travel "
+          f"{', '.join(f'{1e3 * v:.1f}' for v in travel)} mm")  # fmt: skip
+
+
 def dbar_case(a):
     model = Model(load_scene(shipped("scene", "dbar-gyro")))
     start = time.perf_counter()
@@ -151,9 +193,11 @@ def dbar_case(a):
 
 def main(argv=None) -> int:
     a = parse(argv)
-    if a.case in ("prism", "both"):
+    if a.case in ("prism", "all"):
         prism_case(a)
-    if a.case in ("dbar", "both"):
+    if a.case in ("prism-wheels", "all"):
+        prism_wheels_case(a)
+    if a.case in ("dbar", "all"):
         dbar_case(a)
     return 0
 

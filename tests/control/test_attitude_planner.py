@@ -11,6 +11,7 @@ from gyrohost.control import Limits, PlanError
 from gyrohost.control.attitude_planner import (
     LANDING_RATE_RAD_S,
     AttitudePlanner,
+    AttitudeWeights,
     plan_attitude,
     target_quaternion,
 )
@@ -19,47 +20,54 @@ from gyrohost.control.shape_attitude import AttitudeModel
 from gyrohost.resources import shipped
 from gyrotensegrity import Model, load_scene
 
-PRISM_TARGET_DEG = (20.0, -15.0, 30.0)
+PRISM_TARGET_DEG = (1.0, -1.0, 1.5)
+"""A turn of 2.1 deg about an axis off the body's axes and off the momentum: the prism's wheels
+turn it only while its shape changes (their reactions leave it), so its reach is degrees."""
+PRISM_OPTIONS = dict(knots=4, weights=AttitudeWeights(1e-6, 1e-6))
+"""Effort weights far below the landing term's (2.1 deg is 1.3e-3 rad^2; the default 1e-4 on
+inputs near their limits weighs as much as a landing 0.6 deg off), so that the effort does not
+pull the landing off."""
 
 
 @pytest.fixture(scope="module")
 def stiff_prism():
-    return prism(100.0)
+    return prism(100.0, [150.0, -150.0, 150.0])
 
 
 @pytest.fixture(scope="module")
 def prism_plan(stiff_prism):
-    limits = Limits(max_wheel_speed_rad_s=100.0)
     return plan_attitude(
-        stiff_prism, np.radians(PRISM_TARGET_DEG), 4.0, limits, strings=["s7", "s8"]
+        stiff_prism, np.radians(PRISM_TARGET_DEG), 6.0, strings=["s7", "s8"], **PRISM_OPTIONS
     )
 
 
-def test_a_prism_reaches_a_three_axis_target_within_the_limits(prism_plan):
+def test_a_prism_reaches_a_three_axis_target_with_strings_and_wheels(prism_plan):
+    """Its wheels act only gyroscopically (their reactions leave it): a problem second order in
+    the inputs, planned with MAX_ITER_GYROSCOPIC iterations."""
     plan = prism_plan
     assert plan.success, plan.message
     assert plan.landing_error_rad < 0.005
     assert plan.landing_rate_rad_s <= LANDING_RATE_RAD_S * (1 + 1e-6)
     s = plan.schedule
     assert s.names == ("s7", "s8") and s.wheels == ("bar1", "bar2", "bar3")
-    assert np.max(np.abs(s.wheel_speed)) <= 100.0 + 1e-9
-    assert s.problems(Limits(max_wheel_speed_rad_s=100.0)) == []
+    assert s.problems(Limits()) == []
+    assert np.ptp(s.wheel_speed, axis=0).min() > 1.0  # every wheel takes part
     np.testing.assert_allclose(s.rest_length[-1], s.rest_length[0], atol=1e-9)  # lands at rest
-    assert s.t[0] == 0.0 and s.t[-1] == pytest.approx(4.0)
+    assert s.t[0] == 0.0 and s.t[-1] == pytest.approx(6.0)
 
 
 def test_a_replan_from_the_plan_itself_starts_where_it_ends(stiff_prism, prism_plan):
     """Knots in absolute time: the previous plan is the warm start of a re-plan half way, from
     its own state there: already feasible and near optimal, it converges in fewer evaluations
     than the cold start and still lands within the tolerance."""
-    model = AttitudeModel(stiff_prism, ["s7", "s8"], Limits(max_wheel_speed_rad_s=100.0))
-    planner = AttitudePlanner(model)
+    model = AttitudeModel(stiff_prism, ["s7", "s8"])
+    planner = AttitudePlanner(model, **PRISM_OPTIONS)
     _, H0 = model.start(stiff_prism.initial_state())
-    kt = planner.knot_times(0.0, 4.0)
-    again = planner.plan(prism_plan.target_q, kt, kt[4], prism_plan.states[4], H0, prism_plan)
+    kt = planner.knot_times(0.0, 6.0)
+    again = planner.plan(prism_plan.target_q, kt, kt[2], prism_plan.states[2], H0, prism_plan)
     assert again.success and again.landing_error_rad < 0.005
     assert again.n_eval < prism_plan.n_eval
-    assert again.schedule.t[0] == kt[4]
+    assert again.schedule.t[0] == kt[2]
 
 
 def test_a_strings_only_plan_tilts_the_dbar_as_the_one_axis_model_says():

@@ -1,5 +1,6 @@
-"""``gyrotens plan SCENE --target-attitude ROLL,PITCH,YAW [--strings-only | --wheels-only]
-[--strings NAMES] [--duration S] [--max-speed M/S] [--max-wheel-speed RAD/S] -o SCHEDULE``:
+"""``gyrotens plan SCENE --target-attitude ROLL,PITCH,YAW [--target-shape FILE]
+[--strings-only | --wheels-only] [--strings NAMES] [--duration S] [--max-speed M/S]
+[--max-wheel-speed RAD/S] -o SCHEDULE``:
 plan rest lengths and wheel speeds that turn a free scene to a target attitude and land it
 there, on the reduced attitude model (docs/schedule.md#attitude-plans), and write the schedule.
 """
@@ -18,6 +19,12 @@ def register(sub) -> None:
         required=True,
         metavar="ROLL,PITCH,YAW",
         help="degrees, the scene's body frame (intrinsic Z-Y-X, docs/scene-format.md)",
+    )
+    p.add_argument(
+        "--target-shape",
+        type=Path,
+        metavar="FILE",
+        help="TOML [rest_length] table of actuated strings to land at, m (default: the scene's)",
     )
     only = p.add_mutually_exclusive_group()
     only.add_argument("--strings-only", action="store_true", help="hold the wheels' spins")
@@ -75,6 +82,7 @@ def run(args) -> int:
     from gyrohost.commands.errors import CliError
     from gyrohost.control import PlanError
     from gyrohost.control.attitude_planner import plan_attitude
+    from gyrohost.control.target_shape import load_target_shape
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, load_scene
 
@@ -85,7 +93,10 @@ def run(args) -> int:
     mode = "strings" if args.strings_only else "wheels" if args.wheels_only else "both"
     try:
         model = Model(load_scene(resolve("scene", args.scene)))
-        plan = plan_attitude(model, target, args.duration, _limits(args), strings, mode)
+        shape = None if args.target_shape is None else load_target_shape(args.target_shape)
+        plan = plan_attitude(
+            model, target, args.duration, _limits(args), strings, mode, target_rest=shape
+        )
     except (ResourceError, SceneError, PlanError) as exc:
         raise CliError(str(exc)) from None
     plan.schedule.save(args.out)

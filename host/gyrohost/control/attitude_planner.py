@@ -40,14 +40,19 @@ from .errors import PlanError
 from .schedule import Schedule
 from .shape import RhombusShape
 from .shape_attitude import AttitudeModel
+from .target_shape import target_coordinates
 
 MODES = ("both", "strings", "wheels")
 LANDING_RATE_RAD_S = 5e-4
 """Largest body rate a plan leaves at its landing (0.03 deg/s: it drifts less than the refusal's
 0.005 rad in 10 s after it)."""
 MAX_ITER = 100
-"""SLSQP iterations of one plan (a reachable target converges in tens; an unreachable one
-stops here and is refused)."""
+"""SLSQP iterations of one plan by default (a reachable target converges in tens where the
+wheels' reactions reach the body; an unreachable one stops here and is refused). Wheels that act
+only gyroscopically (:mod:`.wheel_reaction`, ``lost``) turn the body at second order in the
+inputs, and such plans need a few hundred."""
+MAX_ITER_GYROSCOPIC = 400
+"""SLSQP iterations of one plan by default when a planned wheel's reaction is lost."""
 FEASIBLE = 1e-6
 """Largest violation of a constraint (its own unit: m, rad/s, rad^2/s^2) of a plan that
 counts as within the limits, for the reach's bounds."""
@@ -124,6 +129,9 @@ class AttitudePlanner:
     sample_dt_s : float, s
         Largest step of the schedule's time grid.
     weights : AttitudeWeights
+    max_iter : int, optional
+        SLSQP iterations of one plan (default :data:`MAX_ITER`, or
+        :data:`MAX_ITER_GYROSCOPIC` when a planned wheel's reaction is lost).
     """
 
     def __init__(
@@ -135,6 +143,7 @@ class AttitudePlanner:
         landing_rate_rad_s=LANDING_RATE_RAD_S,
         sample_dt_s=0.05,
         weights=None,
+        max_iter=None,
     ):
         if mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -150,10 +159,14 @@ class AttitudePlanner:
         )
         active = np.ones(n_u, bool)
         active[: model.a] = mode != "wheels" and model.a > 0
-        active[model.a :] = mode != "strings"
+        active[model.a :] = (mode != "strings") & model.steerable  # `own` wheels held
         if not active.any():
             raise PlanError(f"mode {mode}: the scene has nothing to move (no strings or wheels)")
         self.active, self.scale = np.flatnonzero(active), scale
+        if max_iter is None:
+            gyroscopic = (active[model.a :] & model.lost).any()
+            max_iter = MAX_ITER_GYROSCOPIC if gyroscopic else MAX_ITER
+        self.max_iter = int(max_iter)
         self.n_x, self.n_u = n_x, n_u
         self._taut = not isinstance(model.shape, RhombusShape)  # the rhombus: no tension
 
@@ -190,7 +203,7 @@ class AttitudePlanner:
         return self.model.body_rate(x_end, np.zeros(x_end.shape[:-1] + (self.n_u,)), H0)
 
     # -- planning ---------------------------------------------------------------------------------
-    def plan(self, target_q, knot_t_s, t_start_s, x0, H0, warm=None) -> AttitudePlan:
+    def plan(self, target_q, knot_t_s, t_start_s, x0, H0, warm=None, r_end=None) -> AttitudePlan:
         """Optimise the inputs of the intervals after ``t_start_s``.
 
         Parameters
@@ -205,19 +218,23 @@ class AttitudePlanner:
         H0 : ndarray, shape (3,), kg m^2/s
         warm : AttitudePlan, optional
             A previous plan on the same knots: its inputs are the initial guess.
+        r_end : ndarray, shape (a,), m, optional
+            Coordinates to land at (:func:`.target_shape.target_coordinates`; default the
+            scene's rest lengths).
         """
         start = time.perf_counter()
-        problem = self._problem(target_q, knot_t_s, t_start_s, x0, H0)
+        problem = self._problem(target_q, knot_t_s, t_start_s, x0, H0, r_end)
         z0 = problem.guess(warm)
         z, ok, message = problem.solve(z0, problem.cost)
         return problem.result(z, ok, message, time.perf_counter() - start)
 
-    def reach(self, axis, knot_t_s, t_start_s, x0, H0):
+    def reach(self, axis, knot_t_s, t_start_s, x0, H0, r_end=None):
         """The smallest and largest rotation (rad) about the unit ``axis`` (3,), start frame,
         that a plan can land at within the limits: each the furthest of the iterates of an
         optimisation of that angle that keep every limit (NaN: none does; from rest, holding
         still does, so the range holds 0)."""
-        problem = self._problem(np.array([1.0, 0.0, 0.0, 0.0]), knot_t_s, t_start_s, x0, H0)
+        identity = np.array([1.0, 0.0, 0.0, 0.0])
+        problem = self._problem(identity, knot_t_s, t_start_s, x0, H0, r_end)
         problem.axis = np.asarray(axis, float) / np.linalg.norm(axis)
         bounds = []
         for sign in (-1.0, 1.0):
@@ -233,7 +250,7 @@ class AttitudePlanner:
             bounds.append(best[0])
         return tuple(bounds)
 
-    def _problem(self, target_q, knot_t_s, t_start_s, x0, H0):
+    def _problem(self, target_q, knot_t_s, t_start_s, x0, H0, r_end=None):
         knot_t_s = np.asarray(knot_t_s, float)
         x0, H0, target_q = (np.asarray(v, float) for v in (x0, H0, target_q))
         if not (np.isfinite(x0).all() and np.isfinite(H0).all() and np.isfinite(target_q).all()):
@@ -245,7 +262,10 @@ class AttitudePlanner:
             raise PlanError(f"plan: start {t_start_s:g} s is not before the end {t_end:g} s")
         inner = knot_t_s[(knot_t_s > t_start_s + 1e-9) & (knot_t_s < t_end - 1e-9)]
         kt = np.concatenate([[t_start_s], inner, [t_end]])
-        return _Problem(self, kt, x0, H0, target_q / np.linalg.norm(target_q))
+        problem = _Problem(self, kt, x0, H0, target_q / np.linalg.norm(target_q))
+        if r_end is not None:
+            problem.r_end = np.asarray(r_end, float)
+        return problem
 
 
 class _Problem:
@@ -258,6 +278,7 @@ class _Problem:
         self.n_z = self.n_free * len(planner.active)
         self.n_eval, self.axis = 0, None
         self._cache = (None, None)
+        self.r_end = planner.model.shape.rest
 
     def guess(self, warm):
         if warm is None:
@@ -346,10 +367,10 @@ class _Problem:
         return L - rest
 
     def equalities(self, z):
-        """The rest lengths back at the scene's at the landing (m), batched."""
+        """The coordinates at the landing ``r_end`` (m; the scene's rest lengths unless a
+        target shape), batched."""
         X, _ = self.trajectory(z)
-        model = self.p.model
-        return self._value_grad(X[:, -1, 4 : 4 + model.a] - model.shape.rest)
+        return self._value_grad(X[:, -1, 4 : 4 + self.p.model.a] - self.r_end)
 
     def feasible(self, z):
         """Whether ``z`` keeps every constraint (to :data:`FEASIBLE`)."""
@@ -377,7 +398,7 @@ class _Problem:
             method="SLSQP",
             bounds=[(-1.0, 1.0)] * self.n_z,
             constraints=constraints,
-            options={"maxiter": MAX_ITER, "ftol": 1e-12},
+            options={"maxiter": self.p.max_iter, "ftol": 1e-12},
             callback=callback,
         )
         return np.clip(res.x, -1.0, 1.0), bool(res.success), str(res.message)
@@ -443,6 +464,7 @@ def plan_attitude(
     strings=None,
     mode="both",
     tolerance_rad=0.005,
+    target_rest=None,
     **options,
 ) -> AttitudePlan:
     """Plan a maneuver of ``duration_s`` (s) from the model's initial state to the attitude
@@ -461,9 +483,12 @@ def plan_attitude(
     mode : str
         ``both``, ``strings`` (wheels held) or ``wheels`` (rest lengths held).
     tolerance_rad : float, rad
+    target_rest : dict, optional
+        ``{string: rest length (m)}`` to land at (:mod:`.target_shape`; strings not named land
+        at the scene's rest lengths).
     **options
         Passed to :class:`AttitudePlanner` (``knots``, ``substeps``, ``landing_rate_rad_s``,
-        ``sample_dt_s``, ``weights``).
+        ``sample_dt_s``, ``weights``, ``max_iter``).
 
     Raises
     ------
@@ -478,23 +503,31 @@ def plan_attitude(
         raise PlanError(f"target attitude must be three finite angles, got {target_rpy_rad}")
     reduced = AttitudeModel(model, strings, limits)
     planner = AttitudePlanner(reduced, mode=mode, **options)
+    r_end = None
+    if target_rest:
+        if mode == "wheels":
+            raise PlanError("a target shape needs the strings to move (not --wheels-only)")
+        r_end = target_coordinates(reduced, target_rest)
     kt = planner.knot_times(0.0, float(duration_s))
     x0, H0 = reduced.start(model.initial_state())
     q_target = target_quaternion(target)
-    plan = planner.plan(q_target, kt, 0.0, x0, H0)
+    plan = planner.plan(q_target, kt, 0.0, x0, H0, r_end=r_end)
     if (
         plan.landing_error_rad > tolerance_rad
         or plan.landing_rate_rad_s > 2 * planner.landing_rate_rad_s
     ):
-        _refuse(planner, plan, kt, x0, H0, target, tolerance_rad, duration_s)
+        _refuse(planner, plan, (kt, x0, H0, r_end), target, tolerance_rad, duration_s)
     return plan
 
 
-def _refuse(planner, plan, kt, x0, H0, target_rpy, tolerance_rad, duration_s):
+def _refuse(planner, plan, start, target_rpy, tolerance_rad, duration_s):
+    """Raise the refusal with the reachable turn about the target's axis from ``start``
+    (knot times, state, momentum, landing coordinates)."""
+    kt, x0, H0, r_end = start
     rotvec = Rotation.from_quat(plan.target_q, scalar_first=True).as_rotvec()
     angle = float(np.linalg.norm(rotvec))
     axis = rotvec / angle if angle > 0.0 else np.array([0.0, 0.0, 1.0])
-    lo, hi = planner.reach(axis, kt, 0.0, x0, H0)
+    lo, hi = planner.reach(axis, kt, 0.0, x0, H0, r_end)
     deg = np.degrees
     within = (
         f"lands turned between {deg(lo):+.2f} and {deg(hi):+.2f} deg about that axis (about "
