@@ -318,7 +318,16 @@ class _Problem:
 
     def inequalities(self, z):
         """Stacked margins (>= 0) at the knots and the landing, batched."""
-        X, Z = self.trajectory(z)
+        X, _ = self.trajectory(z)
+        w = self.p.landing_rate(X[:, -1], self.H0)
+        landing = (self.p.landing_rate_rad_s**2 - np.sum(w * w, axis=-1))[:, None]
+        return self._value_grad(np.concatenate([self._margins(X), landing], axis=1))
+
+    def margins(self, z):
+        """The limits' margins (>= 0) at the knots, batched (the landing's left out)."""
+        return self._value_grad(self._margins(self.trajectory(z)[0]))
+
+    def _margins(self, X):
         p, model = self.p, self.p.model
         lim = model.limits
         _, r, omega = model.split(X[:, 1:])
@@ -332,10 +341,7 @@ class _Problem:
         parts += [lim.max_wheel_speed_rad_s - omega, lim.max_wheel_speed_rad_s + omega]
         if p._taut:
             parts.append(self._slack_margin(r))
-        w = p.landing_rate(X[:, -1], self.H0)
-        parts.append((p.landing_rate_rad_s**2 - np.sum(w * w, axis=-1))[:, None, None])
-        flat = np.concatenate([v.reshape(len(X), -1) for v in parts], axis=1)
-        return self._value_grad(flat)
+        return np.concatenate([v.reshape(len(X), -1) for v in parts], axis=1)
 
     def _slack_margin(self, r):
         """Each string's length minus its rest length (m) at the quasi-static shapes ``r``."""
