@@ -488,15 +488,21 @@ def plan_attitude(
     x0, H0 = reduced.start(model.initial_state())
     q_target = target_quaternion(target)
     plan = planner.plan(q_target, kt, 0.0, x0, H0)
-    if (
-        plan.landing_error_rad > tolerance_rad
-        or plan.landing_rate_rad_s > 2 * planner.landing_rate_rad_s
-    ):
-        _refuse(planner, plan, kt, x0, H0, target, tolerance_rad, duration_s)
+    if not reachable(planner, plan, tolerance_rad):
+        raise PlanError(refusal(planner, plan, kt, x0, H0, target, tolerance_rad, duration_s))
     return plan
 
 
-def _refuse(planner, plan, kt, x0, H0, target_rpy, tolerance_rad, duration_s):
+def reachable(planner, plan, tolerance_rad) -> bool:
+    """Whether the first plan lands within ``tolerance_rad`` of its target, nearly still."""
+    return (
+        plan.landing_error_rad <= tolerance_rad
+        and plan.landing_rate_rad_s <= 2 * planner.landing_rate_rad_s
+    )
+
+
+def refusal(planner, plan, kt, x0, H0, target_rpy, tolerance_rad, duration_s) -> str:
+    """Why ``plan`` is refused: the reachable rotation about the target's axis."""
     rotvec = Rotation.from_quat(plan.target_q, scalar_first=True).as_rotvec()
     angle = float(np.linalg.norm(rotvec))
     axis = rotvec / angle if angle > 0.0 else np.array([0.0, 0.0, 1.0])
@@ -509,7 +515,7 @@ def _refuse(planner, plan, kt, x0, H0, target_rpy, tolerance_rad, duration_s):
         else "finds no landing (body rate at most "
         f"{deg(planner.landing_rate_rad_s):.2f} deg/s) that turns further about that axis"
     )
-    raise PlanError(
+    return (
         f"target attitude (roll, pitch, yaw) {', '.join(f'{v:+.2f}' for v in deg(target_rpy))} "
         f"deg is out of reach in {duration_s:g} s ({planner.mode}): a turn of {deg(angle):.2f} "
         f"deg about the axis ({', '.join(f'{v:+.3f}' for v in axis)}); within the limits it "

@@ -5,12 +5,13 @@ within its period is of no use. :meth:`AttitudePlanner.plan` runs SLSQP to conve
 depends on how far the estimate is from the plan in force (0.1-0.6 s warm on the D-bar). This
 re-plan does a fixed amount of work instead, so that its time is bounded by construction:
 
-- ``iterations`` Gauss-Newton steps from the warm start (the plan in force, on the same knots).
-  Each linearises, around the present inputs, the landing residuals (the attitude error
-  ``2 vec(q_target^-1 q_K)`` and the body rate left at the landing, times ``drift_s``: the
-  angle it turns in that time after the landing) and every limit, with the complex-step
-  sensitivities the planner already computes (one batched integration), and solves the small
-  quadratic programme of the step (no simulation in it; at most :data:`QP_ITERATIONS`);
+- ``iterations`` Gauss-Newton steps (one by default) from the warm start (the plan in force,
+  on the same knots). Each linearises, around the present inputs, the landing residuals (the
+  attitude error ``2 vec(q_target^-1 q_K)`` and the body rate left at the landing, times
+  ``drift_s``: the angle it turns in that time after the landing) and every limit, with the
+  complex-step sensitivities the planner already computes (one batched integration), and
+  solves the small quadratic programme of the step (no simulation in it; at most
+  :data:`QP_ITERATIONS`);
 - each step is tried whole, then halved at most :data:`HALVINGS` times, and taken only if the
   nonlinear landing cost falls and no limit is violated more than before (one batched
   integration per try, which the next step's linearisation reuses).
@@ -37,8 +38,9 @@ from .attitude_planner import FEASIBLE, AttitudePlan, AttitudePlanner, conjugate
 DRIFT_S = 10.0
 """Weight of the landing rate: the time (s) over which it is judged; the first plan's landing
 rate bound is set so that it drifts less than the refusal's 0.005 rad in this time."""
-ITERATIONS = 2
-"""Gauss-Newton steps per re-plan."""
+ITERATIONS = 1
+"""Gauss-Newton steps per re-plan: one, as a real-time iteration does; the next re-plan, a
+period later, takes the next from the new estimate."""
 HALVINGS = 2
 """Halvings of a step that does not improve the plan."""
 QP_ITERATIONS = 60
