@@ -66,8 +66,10 @@ class Replanner:
     def __post_init__(self):
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
             raise PlanError("duration_s and period_s must be positive")
-        attitude = isinstance(self.planner, AttitudePlanner)
-        self.goal = (AttitudeGoal if attitude else TiltGoal)(self.planner, self.target)
+        if isinstance(self.planner, AttitudePlanner):
+            self.goal = AttitudeGoal(self.planner, self.target, self.period_s)
+        else:
+            self.goal = TiltGoal(self.planner, self.target)
         self.knot_t = self.planner.knot_times(self.t0_s, self.t0_s + self.duration_s)
         self.t_end_s = float(self.knot_t[-1])
         self._next_s = -np.inf

@@ -110,13 +110,15 @@ class TiltGoal:
 
 
 class AttitudeGoal:
-    """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame."""
+    """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame; a
+    re-plan's steps end within half the re-planning period ``period_s`` (the other half is
+    the run loop's and the estimator's on a two-core machine)."""
 
-    def __init__(self, planner: AttitudePlanner, target):
+    def __init__(self, planner: AttitudePlanner, target, period_s=0.25):
         self.planner, self.rpy = planner, np.asarray(target, float)
         self.model = planner.model
         self.target = target_quaternion(self.rpy)
-        self.rti = RealTimeIteration(planner)
+        self.rti = RealTimeIteration(planner, budget_s=0.5 * period_s)
         self._plan = None  # the plan whose inputs are in force: the re-plans' warm start
 
     def first(self, t_s, x, knot_t):

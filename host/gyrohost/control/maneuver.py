@@ -43,7 +43,7 @@ class Target:
         Re-plan from the estimate every ``period_s``; otherwise plan once and play.
     period_s : float, s
     knots : int
-        Knot intervals of the plan.
+        Knot intervals of the plan (default 6 for a tilt, 8 for an attitude).
     adapt : bool
         Fit the wheel-momentum gain while re-planning a tilt (``Replanner.adapt``).
     threaded : bool
@@ -62,7 +62,7 @@ class Target:
     duration_s: float = 4.0
     closed_loop: bool = False
     period_s: float = 0.25
-    knots: int = 6
+    knots: int | None = None
     adapt: bool = True
     threaded: bool = False
     reach_tolerance_rad: float = 0.005
@@ -78,6 +78,8 @@ class Target:
             len(self.attitude_rpy_rad) == 3 and np.isfinite(self.attitude_rpy_rad).all()
         ):
             raise PlanError(f"target attitude must be 3 finite angles, got {self.attitude_rpy_rad}")
+        if self.knots is None:  # frozen: the default set once, here
+            object.__setattr__(self, "knots", 6 if self.attitude_rpy_rad is None else 8)
         if self.mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if not self.reach_tolerance_rad > 0.0:

@@ -5,13 +5,13 @@ within its period is of no use. :meth:`AttitudePlanner.plan` runs SLSQP to conve
 depends on how far the estimate is from the plan in force (0.1-0.6 s warm on the D-bar). This
 re-plan does a fixed amount of work instead, so that its time is bounded by construction:
 
-- ``iterations`` Gauss-Newton steps (one by default) from the warm start (the plan in force,
-  on the same knots). Each linearises, around the present inputs, the landing residuals (the
-  attitude error ``2 vec(q_target^-1 q_K)`` and the body rate left at the landing, times
-  ``drift_s``: the angle it turns in that time after the landing) and every limit, with the
-  complex-step sensitivities the planner already computes (one batched integration), and
-  solves the small quadratic programme of the step (no simulation in it; at most
-  :data:`QP_ITERATIONS`);
+- at most ``iterations`` Gauss-Newton steps (fewer when ``budget_s`` runs out) from the warm
+  start (the plan in force, on the same knots). Each linearises, around the present inputs,
+  the landing residuals (the attitude error ``2 vec(q_target^-1 q_K)`` and the body rate left
+  at the landing, times ``drift_s``: the angle it turns in that time after the landing) and
+  every limit, with the complex-step sensitivities the planner already computes (one batched
+  integration), and solves the small quadratic programme of the step (no simulation in it; at
+  most :data:`QP_ITERATIONS`);
 - each step is tried whole, then halved at most :data:`HALVINGS` times, and taken only if the
   nonlinear landing cost falls and no limit is violated more than before (one batched
   integration per try, which the next step's linearisation reuses).
@@ -26,6 +26,7 @@ an estimate of a plant the model gets slightly wrong, from which a hard landing-
 be unreachable in the time left, and a programme without a solution would give no plan at all.
 """
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -38,9 +39,9 @@ from .attitude_planner import FEASIBLE, AttitudePlan, AttitudePlanner, conjugate
 DRIFT_S = 10.0
 """Weight of the landing rate: the time (s) over which it is judged; the first plan's landing
 rate bound is set so that it drifts less than the refusal's 0.005 rad in this time."""
-ITERATIONS = 1
-"""Gauss-Newton steps per re-plan: one, as a real-time iteration does; the next re-plan, a
-period later, takes the next from the new estimate."""
+ITERATIONS = 2
+"""Gauss-Newton steps per re-plan at most. One is a real-time iteration's; the second takes
+most of what the first leaves from an estimate that moved the plan by degrees."""
 HALVINGS = 2
 """Halvings of a step that does not improve the plan."""
 QP_ITERATIONS = 60
@@ -56,11 +57,15 @@ class RealTimeIteration:
     planner : AttitudePlanner
     iterations : int
     drift_s : float, s
+    budget_s : float, s
+        A step after the first is begun only if it would end within this time from the start
+        of the re-plan, judged by the step before it (a loaded machine takes fewer steps).
     """
 
     planner: AttitudePlanner
     iterations: int = ITERATIONS
     drift_s: float = DRIFT_S
+    budget_s: float = math.inf
 
     def plan(self, target_q, knot_t_s, t_start_s, x0, H0, warm: AttitudePlan) -> AttitudePlan:
         """A re-plan of the intervals after ``t_start_s`` from the state ``x0`` (arguments as
@@ -71,11 +76,15 @@ class RealTimeIteration:
         z = problem.guess(warm)
         allowed, taken = max(_violation(problem, z), FEASIBLE), 0
         for _ in range(self.iterations if problem.n_z else 0):
+            begun = time.perf_counter()
             step = self._step(problem, z)
             better = None if step is None else self._try(problem, z, step)
             if better is None:
                 break
             z, taken = better, taken + 1
+            now = time.perf_counter()
+            if now - start + (now - begun) > self.budget_s:
+                break
         ok = taken > 0 and _violation(problem, z) <= allowed
         message = f"{taken} of {self.iterations} steps taken" + ("" if ok else ": no better plan")
         return problem.result(z, ok, message, time.perf_counter() - start)
