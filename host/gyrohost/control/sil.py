@@ -175,10 +175,18 @@ class ManeuverSil:
 
 
 def run_maneuver_sil(
-    truth: Model, maneuver, settle_s=0.5, step_s=0.01, max_dt_s=5e-4, seed=0, fast=False
+    truth: Model,
+    maneuver,
+    settle_s=0.5,
+    step_s=0.01,
+    max_dt_s=5e-4,
+    seed=0,
+    fast=False,
+    noise=(1e-3, 2e-3),
 ) -> ManeuverSil:
     """Play ``maneuver`` (open loop, or re-planned from the truth plus noise,
-    :class:`TruthPlusNoise` with ``seed``) on ``truth`` in simulated time.
+    :class:`TruthPlusNoise` with ``seed`` and ``noise``: the std of the node coordinates, m,
+    and of their rates, m/s) on ``truth`` in simulated time.
 
     The truth's first states are the planner model's layout (a rig-fidelity truth appends its
     own at the end, docs/rig-fidelity.md); the estimate is the truth's cut to it. Scheduled
@@ -193,7 +201,7 @@ def run_maneuver_sil(
         raise PlanError("truth and planner models have different state layouts")
     start = time.perf_counter()
     stepper = Stepper(truth, max_dt=max_dt_s, fast=fast)
-    estimate = TruthPlusNoise(stepper, seed=seed)
+    estimate = TruthPlusNoise(stepper, *noise, seed=seed)
     frame = BodyFrame.of_model(truth)
     t_end = maneuver.schedule.t_end
     n = int(round((t_end + settle_s) / step_s))
