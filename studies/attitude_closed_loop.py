@@ -21,11 +21,12 @@ Two parts:
 Prints per case: target, mode, loop, landing error (geodesic, deg, truth at the landing time),
 peak wheel speed, servo travel, re-plans (accepted) and their time (median, worst, ms), whether
 the schedule and the truth stayed within the limits. Writes an attitude and command figure of
-the first target (strings and wheels) to ``--out``.
+the heavier-wheeled case to ``--out``.
 """
 
 import argparse
 import math
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -140,7 +141,7 @@ def sil_part(a):
         f"{'servo mm':>9s}{'re-plans':>10s}{'ms med/max':>11s}{'limits':>7s}"
     )
     errors, times, figure_runs = [], [], {}
-    for k, (mode, target_deg) in enumerate(CASES[: a.cases]):
+    for mode, target_deg in CASES[: a.cases]:
         for closed in (False, True):
             try:
                 line, run, error = sil_case(nominal, truth, mode, target_deg, closed, a)
@@ -151,8 +152,6 @@ def sil_part(a):
             if closed and mode != "strings":
                 errors.append(error)
                 times += [r.plan_time_s for r in run.records[1:]]
-            if k == 0:
-                figure_runs[closed] = run
     if errors:
         print(
             f"three-axis targets, closed loop: landing error at most {max(errors):.3f} deg; "
@@ -163,7 +162,8 @@ def sil_part(a):
         stressed = rig_truth(wheel_inertia=STRESS_J3)
         print(f"the same, truth {stressed.scene.source}:")
         for closed in (False, True):
-            print(sil_case(nominal, stressed, *CASES[0], closed, a)[0], flush=True)
+            line, figure_runs[closed], _ = sil_case(nominal, stressed, *CASES[0], closed, a)
+            print(line, flush=True)
     if figure_runs:
         path = plot(figure_runs, CASES[0][1], a.out / "attitude-closed-loop.png")
         print(f"figure: {path}")
@@ -191,7 +191,7 @@ def plot(runs, target_deg, path):
     axes[1].set_ylabel("s13 rest length, mm")
     axes[2].set_ylabel("truth wheel speeds, rad/s")
     axes[2].set_xlabel("t, s (dotted: open loop, solid: closed loop)")
-    fig.suptitle(f"D-bar to roll, pitch, yaw {target_deg} deg, truth 1-sigma off")
+    fig.suptitle(f"D-bar to roll, pitch, yaw {target_deg} deg, truth's wheels 5 % heavier")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -251,6 +251,10 @@ def rig_line(target_deg, closed, result, wall_s):
 
 def main(argv=None) -> int:
     a = parse(argv)
+    held = sorted(a.out.glob("rig-*/meta.json")) if a.part != "sil" else []
+    if held:
+        print(f"error: {held[0].parent} already holds a log; choose another -o", file=sys.stderr)
+        return 2
     if a.part in ("sil", "both"):
         sil_part(a)
     if a.part in ("rig", "both"):
