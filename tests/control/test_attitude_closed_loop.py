@@ -73,13 +73,17 @@ def test_closed_loop_lands_nearer_than_open_loop_on_heavier_wheels(sil_runs):
     """Open loop: the wheels' momentum exchange is 5 % larger than planned, and so is the
     part of the 33.7-degree turn it drives: to first order 1.7 degrees off; half of that is
     asserted. Closed loop re-plans every 0.25 s from the truth plus noise (1 mm on the nodes:
-    about 0.3 degree of attitude on the 0.43 m diagonals): what is left is the model error of
-    the last period's turn and that noise, well under a quarter of the open loop's error."""
+    about 0.3 degree of attitude on the 0.43 m diagonals) with the momentum and wheel gain
+    fitted over the estimates: what is left is that noise and the model error of the last
+    period's turn, well under a quarter of the open loop's error."""
     open_, closed = landing_error(sil_runs[False]), landing_error(sil_runs[True])
     print(f"landing error open loop {np.degrees(open_):.3f} deg, closed {np.degrees(closed):.3f}")
     assert open_ > np.radians(0.5 * 0.05 * 33.7)
     assert closed < 0.25 * open_
     records = sil_runs[True].records
+    print(f"fitted wheel gain {records[-1].kappa:.4f}")
+    # the momentum fit sees the heavier wheels: its gain nearer the truth's 1.05 than 1
+    assert abs(records[-1].kappa - J3_FACTOR) < 0.5 * (J3_FACTOR - 1.0)
     assert len(records) == 16  # the first plan and 15 re-plans at 4 Hz before the landing
     assert np.allclose(np.diff([r.t_s for r in records[1:]]), 0.25, atol=0.011)  # a tick late
 

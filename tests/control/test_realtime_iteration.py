@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from gyrohost.control import Limits
+from gyrohost.control.adapt import MomentumGainFit
 from gyrohost.control.attitude_planner import AttitudePlanner, target_quaternion
 from gyrohost.control.realtime_iteration import RealTimeIteration
 from gyrohost.control.shape_attitude import AttitudeModel, quaternion_product_batch
@@ -48,3 +49,26 @@ def test_the_budget_stops_after_the_first_step(setting):
     x, t = perturbed(plan, 2), float(knots[2])
     one = RealTimeIteration(planner, budget_s=0.0).plan(q, knots, t, x, H0, plan)
     assert one.message == "1 of 2 steps taken"
+
+
+class Exact(MomentumGainFit):
+    """Samples made with the fit's own law at a known momentum and gain: the wheels' momentum
+    ``W`` given, the structure's ``L = H0 - kappa W``."""
+
+    H0, KAPPA = np.array([0.001, 0.005, -0.002]), 1.3
+
+    def split(self, x):
+        if np.size(x) != 3:  # the model's start: the prior
+            return super().split(x)
+        wheels = np.asarray(x, float)
+        return self.H0 - self.KAPPA * wheels, wheels
+
+
+def test_the_momentum_fit_recovers_momentum_and_gain(dbar):
+    model = AttitudeModel(dbar, limits=Limits())
+    fit = Exact(model, dbar.initial_state())  # its momentum the prior: off the truth
+    for angle in np.linspace(0.0, 1.0, 300):  # the prior's pull falls as 1 / samples
+        fit.add_state((1.0 + angle) * 0.004 * np.array([np.sin(angle), np.cos(angle), 0.0]))
+    H0, kappa, std = fit.estimate()
+    assert kappa == pytest.approx(Exact.KAPPA, abs=1e-3) and std < 0.05
+    np.testing.assert_allclose(H0, Exact.H0, atol=1e-5)

@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from gyrotensegrity.attitude import angle_between
 
-from .adapt import WheelGainFit
+from .adapt import MomentumGainFit, WheelGainFit
 from .attitude_planner import AttitudePlanner, reachable, refusal, target_quaternion
 from .planner import Planner
 from .realtime_iteration import RealTimeIteration
@@ -131,11 +131,10 @@ class AttitudeGoal:
         return plan.landing_error_rad
 
     def gain_fit(self, t_s, x):
-        """No gain fit: the momentum comes from the estimate's body rate at every re-plan."""
-        return None
+        return MomentumGainFit(self.model, x)
 
     def observe(self, fit, x) -> None:
-        return None
+        fit.add_state(x)
 
     def state(self, t_s, x, schedule):
         """``(x0, H0)`` of the reduced model: the estimate's attitude and momentum, the rest
@@ -150,11 +149,17 @@ class AttitudeGoal:
         return x0, H0
 
     def again(self, t_s, x, knot_t, schedule, fitted):
+        """``(plan, kappa)``: from the estimate's momentum, or the fitted momentum and wheel
+        gain (:class:`.adapt.MomentumGainFit`) given as ``fitted``."""
         x0, H0 = self.state(t_s, x, schedule)
+        kappa = 1.0
+        if fitted is not None:
+            H0, kappa = fitted
+        self.model.wheel_gain = kappa
         plan = self.rti.plan(self.target, knot_t, t_s, x0, H0, self._plan)
         if plan.success:
             self._plan = plan
-        return plan, 1.0
+        return plan, kappa
 
     def record(self, t_s, x, plan, accepted, kappa) -> ReplanRecord:
         q = self.model.frame.attitude(self.model.model.nodes(x)[0]).quaternion

@@ -90,6 +90,9 @@ class AttitudeModel:
         points = TABLE_POINTS[self.a] if points is None else points
         self.table = ShapeTable(model, self.shape, points, self.frame.F0)
         self.wheels = tuple(model.scene.bars[i].name for i in model.wheel_bars)
+        self.wheel_gain = 1.0
+        """Factor on the wheels' momentum (a closed loop's fitted gain: the truth's wheels
+        heavier or lighter than the scene's)."""
 
     @property
     def size(self):
@@ -109,7 +112,7 @@ class AttitudeModel:
         q, r, omega_w = self.split(x)
         I_b, h_b, B_b, _ = self.terms(r)
         H_b = np.einsum("...ji,j->...i", rotation_batch(q), H0)
-        rhs = H_b - np.einsum("...ij,...j->...i", h_b, omega_w)
+        rhs = H_b - self.wheel_gain * np.einsum("...ij,...j->...i", h_b, omega_w)
         rhs = rhs - np.einsum("...ij,...j->...i", B_b, u[..., : self.a])
         return np.linalg.solve(I_b, rhs[..., None])[..., 0]
 
