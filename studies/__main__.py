@@ -36,6 +36,7 @@ STUDIES = {
     "control_compare": "open vs closed loop on a truth with heavier wheels (in process)",
     "rig_sil": "open vs closed loop on the real-time simulated rig",
     "attitude_open_loop": "three-axis plans played open loop on the full model (prism, dbar-rig)",
+    "attitude_closed_loop": "three-axis maneuvers open vs closed loop, truth 1-sigma off",
     "mujoco_peer": "the fast path against MuJoCo on the same scene",
 }
 """Study -> what it measures."""

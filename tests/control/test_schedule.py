@@ -119,6 +119,18 @@ def test_splice_keeps_the_command_continuous():
         a.splice(jump, 0.5)
 
 
+def test_splice_of_wheel_speeds_alone_and_near_a_sample():
+    """A wheels-only schedule has no rest length to jump; a splice a round-off after a sample
+    drops that sample instead of a rate over 1e-16 s."""
+    none = np.zeros((2, 0))
+    a = Schedule((), [0.0, 0.5, 1.0], np.zeros((3, 0)), "a", ("b12",), [[0.0], [25.0], [50.0]])
+    b = Schedule((), [0.5, 1.0], none, "b", ("b12",), [[25.0], [0.0]])
+    t = float(np.nextafter(0.5, 1.0))
+    c = a.splice(b, t)
+    assert c.t.tolist() == [0.0, t, 1.0] and c.problems(Limits()) == []
+    np.testing.assert_allclose(c.wheel_speeds(0.75), [12.5])
+
+
 def test_bind_rejects_unknown_strings(dbar):
     s = Schedule(("s99",), [0.0], [[0.4]])
     with pytest.raises(ScheduleError, match="s99 not in scene dbar-gyro"):

@@ -158,3 +158,18 @@ def test_run_target_tilt_options_are_checked_before_anything_moves(tmp_path, cap
     assert main([*base, "--target-tilt", "-0.3", "--duration", "0"]) == 2
     assert "must be positive" in capsys.readouterr().err
     assert not (tmp_path / "z").exists()
+
+
+def test_run_target_attitude_options_are_checked_before_anything_moves(tmp_path, capsys):
+    base = ["run", "--config", str(CONFIG), "--sim", "-o", str(tmp_path / "z")]
+    cases = [
+        (["--target-attitude", "5,0"], "need three numbers"),
+        (["--target-attitude", "0,-5,0", "--target-tilt", "-0.1"], "not both"),
+        (["--strings-only"], "go with --target-attitude"),
+        # strings alone turn the D-bar only about its momentum (y): a roll is out of reach
+        (["--target-attitude", "5,0,0", "--strings-only"], "is out of reach in 4 s (strings)"),
+    ]
+    for extra, message in cases:
+        assert main([*base, *extra]) == 2, extra
+        assert message in capsys.readouterr().err, extra
+    assert not (tmp_path / "z").exists()

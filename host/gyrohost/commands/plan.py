@@ -48,7 +48,8 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _angles(text):
+def attitude_angles(text):
+    """Roll, pitch, yaw (rad) of the option's ``ROLL,PITCH,YAW`` degrees."""
     from gyrohost.commands.errors import CliError
 
     parts = text.split(",")
@@ -86,7 +87,7 @@ def run(args) -> int:
     from gyrohost.resources import ResourceError, resolve
     from gyrotensegrity import Model, SceneError, load_scene
 
-    target = _angles(args.target_attitude)
+    target = attitude_angles(args.target_attitude)
     if args.out.suffix not in (".toml", ".json"):
         raise CliError(f"-o {args.out}: schedule files end in .toml or .json")
     strings = None if args.strings is None else [s for s in args.strings.split(",") if s]

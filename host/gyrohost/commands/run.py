@@ -1,5 +1,6 @@
 """``gyrotens run --config RIG.toml [--overlay FILE] [--schedule FILE|PRESET | --target-tilt RAD
-[--duration S] [--closed-loop]] [--max-duration S] [--estimator FILE.toml] [-o LOGDIR]
+| --target-attitude R,P,Y [--strings-only|--wheels-only]] [--duration S] [--closed-loop]]
+[--max-duration S] [--estimator FILE.toml] [-o LOGDIR]
 [--sim [--truth-scene FILE] | --rig PORTSFILE] [--live]``: one run of a schedule or a planned
 tilt maneuver on the rig, from connection to the safe state, logged (CSV streams and an MCAP
 file), optionally served live to Foxglove (docs/run.md, docs/schedule.md)."""
@@ -42,7 +43,20 @@ def register(sub) -> None:
         help="plan a maneuver landing the D-bar plane at this tilt (instead of --schedule)",
     )
     p.add_argument(
-        "--duration", type=float, default=4.0, metavar="S", help="landing time of --target-tilt"
+        "--target-attitude",
+        metavar="ROLL,PITCH,YAW",
+        help="plan a maneuver landing the scene's body frame at this attitude, degrees "
+        "(intrinsic Z-Y-X, as gyrotens plan; docs/attitude-plans.md), on strings and wheels",
+    )
+    only = p.add_mutually_exclusive_group()
+    only.add_argument(
+        "--strings-only", action="store_true", help="--target-attitude: hold the wheels' spins"
+    )
+    only.add_argument(
+        "--wheels-only", action="store_true", help="--target-attitude: hold the rest lengths"
+    )
+    p.add_argument(
+        "--duration", type=float, default=4.0, metavar="S", help="landing time of the target"
     )
     p.add_argument(
         "--closed-loop",
@@ -177,17 +191,23 @@ def _request(args):
     from gyrohost.run.request import RunRequest
 
     target = None
-    if args.target_tilt is None and (args.closed_loop or args.replan_thread):
-        raise CliError("--closed-loop and --replan-thread need --target-tilt")
+    aimed = args.target_tilt is not None or args.target_attitude is not None
+    if not aimed and (args.closed_loop or args.replan_thread):
+        raise CliError("--closed-loop and --replan-thread need --target-tilt or --target-attitude")
+    if args.target_tilt is not None and args.target_attitude is not None:
+        raise CliError("give --target-tilt or --target-attitude, not both")
+    if args.target_attitude is None and (args.strings_only or args.wheels_only):
+        raise CliError("--strings-only and --wheels-only go with --target-attitude")
     if args.max_duration is not None and not args.max_duration > 0:  # NaN too
         raise CliError(f"--max-duration {args.max_duration}: must be a positive number of s")
-    if args.target_tilt is not None:
+    if aimed:
         target = Target(
             args.target_tilt,
             args.duration,
             closed_loop=args.closed_loop,
             period_s=args.replan_period,
             threaded=args.replan_thread,
+            **_attitude(args),
         )
     return RunRequest(
         config=args.config,
@@ -203,6 +223,16 @@ def _request(args):
         ports={"imu": args.imu, "wheels": args.wheels, "servos": args.servos},
         max_schedule_s=args.max_duration,
     )
+
+
+def _attitude(args) -> dict:
+    """The attitude keys of the :class:`Target` (none for a tilt)."""
+    from gyrohost.commands.plan import attitude_angles
+
+    if args.target_attitude is None:
+        return {}
+    mode = "strings" if args.strings_only else "wheels" if args.wheels_only else "both"
+    return {"attitude_rpy_rad": tuple(attitude_angles(args.target_attitude)), "mode": mode}
 
 
 def _announce_live(url: str) -> None:
@@ -275,14 +305,23 @@ def maneuver_line(summary: dict) -> str:
     m = summary["maneuver"]
     t = m["target"]
     loop = "closed loop" if t["closed_loop"] else "open loop"
-    line = f"target {t['tilt_rad']:+.4f} rad at {t['duration_s']:g} s, {loop}"
+    if t.get("attitude_rpy_rad") is None:
+        line = f"target {t['tilt_rad']:+.4f} rad at {t['duration_s']:g} s, {loop}"
+    else:
+        rpy = ", ".join(f"{math.degrees(v):+.2f}" for v in t["attitude_rpy_rad"])
+        line = f"target roll, pitch, yaw {rpy} deg at {t['duration_s']:g} s ({t['mode']}), {loop}"
     if "tilt_settled_truth_error_rad" in summary:
         line += f": truth error after settling {summary['tilt_settled_truth_error_rad']:+.4f} rad"
+    for key, when in (("end", "at the landing"), ("settled", "after settling")):
+        if f"attitude_{key}_truth_error_rad" in summary:
+            deg = math.degrees(summary[f"attitude_{key}_truth_error_rad"])
+            line += f"; truth {deg:.2f} deg off {when}"
     line += f"; first plan {1e3 * m['first_plan']['plan_time_s']:.1f} ms"
     if m["replans"]:
         line += (
             f"; {m['replans']} re-plans ({m['replans_accepted']} accepted), "
             f"{1e3 * m['replan_time_mean_s']:.1f} ms mean, "
-            f"{1e3 * m['replan_time_max_s']:.1f} ms max"
+            f"{1e3 * m['replan_time_max_s']:.1f} ms max, {m['replans_late']} longer than the "
+            f"{1e3 * t['period_s']:.0f} ms period"
         )
     return line

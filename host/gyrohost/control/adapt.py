@@ -13,6 +13,10 @@ once the shape has moved (``h_w(d)`` changes); before that the prior holds it at
 
 import numpy as np
 
+from gyrotensegrity.diagnostics import angular_momentum
+
+from .attitude_model import centre_of_mass, params_at
+
 
 class WheelGainFit:
     """Estimate ``(H, kappa)`` from shape and tilt-rate samples.
@@ -55,3 +59,62 @@ class WheelGainFit:
         mean = np.linalg.solve(self.info, self.vec)
         cov = np.linalg.inv(self.info)
         return float(mean[0]), float(mean[1]), float(np.sqrt(cov[1, 1]))
+
+
+class MomentumGainFit:
+    """The three-axis form of :class:`WheelGainFit`: estimate the total momentum ``H0`` (3,
+    kg m^2/s, start-frame axes) and the wheel-momentum gain ``kappa`` of any free scene from
+    full-state estimates. Each is one linear observation (three rows)::
+
+        L_i = H0 - kappa W_i
+
+    with ``W_i`` the wheels' spin momentum the model gives at the estimate and ``L_i`` the rest
+    of its momentum (the structure's). Priors as :class:`WheelGainFit`'s; the rows weighted by
+    a body-rate noise ``rate_std_rad_s`` times the locked inertia's largest principal value at
+    the start.
+
+    Parameters
+    ----------
+    reduced : AttitudeModel
+    x0 : ndarray
+        A full state of ``reduced.model`` (the start): the prior mean of ``H0``.
+    kappa_std, momentum_std, rate_std_rad_s : float
+        As :class:`WheelGainFit`'s.
+    """
+
+    def __init__(self, reduced, x0, kappa_std=0.5, momentum_std=0.5, rate_std_rad_s=0.02):
+        self.reduced, self.u = reduced, reduced.model.input_at(0.0)
+        inertia = float(np.linalg.eigvalsh(params_at(reduced.model, x0, self.u).I_b)[-1])
+        self.weight = 1.0 / (inertia * rate_std_rad_s) ** 2
+        H0 = np.sum(self.split(x0), axis=0)
+        s_H = momentum_std * max(float(np.linalg.norm(H0)), 1e-12)
+        self.info = np.diag([1.0 / s_H**2] * 3 + [1.0 / kappa_std**2])
+        self.vec = self.info @ np.append(H0, 1.0)
+        self.samples = 0
+
+    def split(self, x):
+        """``(L, W)``: the structure's and the wheels' spin momentum (3,) kg m^2/s, start-frame
+        axes, about the centre of mass, of the full state ``x``."""
+        model = self.reduced.model
+        N, N_dot = model.nodes(x)
+        omega_w = model.wheel_speeds(x, self.u)
+        centre, velocity = centre_of_mass(model, N), centre_of_mass(model, N_dot)
+        total = angular_momentum(model, N - centre[:, None], N_dot - velocity[:, None], omega_w)
+        wheels = angular_momentum(model, N, np.zeros_like(N), omega_w)  # spin alone
+        F0 = self.reduced.frame.F0
+        return F0.T @ (total - wheels), F0.T @ wheels
+
+    def add_state(self, x):
+        """One estimate (a full state of the model)."""
+        locked, wheels = self.split(x)
+        rows = np.hstack([np.eye(3), -wheels[:, None]])
+        self.info += self.weight * rows.T @ rows
+        self.vec += self.weight * rows.T @ locked
+        self.samples += 1
+
+    def estimate(self):
+        """``(H0, kappa, kappa_std)``: momentum (3,) kg m^2/s, gain and its standard
+        deviation."""
+        mean = np.linalg.solve(self.info, self.vec)
+        cov = np.linalg.inv(self.info)
+        return mean[:3], float(mean[3]), float(np.sqrt(cov[3, 3]))

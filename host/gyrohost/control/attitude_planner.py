@@ -339,7 +339,16 @@ class _Problem:
 
     def inequalities(self, z):
         """Stacked margins (>= 0) at the knots and the landing, batched."""
-        X, Z = self.trajectory(z)
+        X, _ = self.trajectory(z)
+        w = self.p.landing_rate(X[:, -1], self.H0)
+        landing = (self.p.landing_rate_rad_s**2 - np.sum(w * w, axis=-1))[:, None]
+        return self._value_grad(np.concatenate([self._margins(X), landing], axis=1))
+
+    def margins(self, z):
+        """The limits' margins (>= 0) at the knots, batched (the landing's left out)."""
+        return self._value_grad(self._margins(self.trajectory(z)[0]))
+
+    def _margins(self, X):
         p, model = self.p, self.p.model
         lim = model.limits
         _, r, omega = model.split(X[:, 1:])
@@ -353,10 +362,7 @@ class _Problem:
         parts += [lim.max_wheel_speed_rad_s - omega, lim.max_wheel_speed_rad_s + omega]
         if p._taut:
             parts.append(self._slack_margin(r))
-        w = p.landing_rate(X[:, -1], self.H0)
-        parts.append((p.landing_rate_rad_s**2 - np.sum(w * w, axis=-1))[:, None, None])
-        flat = np.concatenate([v.reshape(len(X), -1) for v in parts], axis=1)
-        return self._value_grad(flat)
+        return np.concatenate([v.reshape(len(X), -1) for v in parts], axis=1)
 
     def _slack_margin(self, r):
         """Each string's length minus its rest length (m) at the quasi-static shapes ``r``."""
@@ -512,18 +518,23 @@ def plan_attitude(
     x0, H0 = reduced.start(model.initial_state())
     q_target = target_quaternion(target)
     plan = planner.plan(q_target, kt, 0.0, x0, H0, r_end=r_end)
-    if (
-        plan.landing_error_rad > tolerance_rad
-        or plan.landing_rate_rad_s > 2 * planner.landing_rate_rad_s
-    ):
-        _refuse(planner, plan, (kt, x0, H0, r_end), target, tolerance_rad, duration_s)
+    if not reachable(planner, plan, tolerance_rad):
+        why = refusal(planner, plan, kt, x0, H0, target, tolerance_rad, duration_s, r_end)
+        raise PlanError(why)
     return plan
 
 
-def _refuse(planner, plan, start, target_rpy, tolerance_rad, duration_s):
-    """Raise the refusal with the reachable turn about the target's axis from ``start``
-    (knot times, state, momentum, landing coordinates)."""
-    kt, x0, H0, r_end = start
+def reachable(planner, plan, tolerance_rad) -> bool:
+    """Whether the first plan lands within ``tolerance_rad`` of its target, nearly still."""
+    return (
+        plan.landing_error_rad <= tolerance_rad
+        and plan.landing_rate_rad_s <= 2 * planner.landing_rate_rad_s
+    )
+
+
+def refusal(planner, plan, kt, x0, H0, target_rpy, tolerance_rad, duration_s, r_end=None) -> str:
+    """Why ``plan`` is refused: the reachable rotation about the target's axis (landing at the
+    coordinates ``r_end``, or the start's)."""
     rotvec = Rotation.from_quat(plan.target_q, scalar_first=True).as_rotvec()
     angle = float(np.linalg.norm(rotvec))
     axis = rotvec / angle if angle > 0.0 else np.array([0.0, 0.0, 1.0])
@@ -536,7 +547,7 @@ def _refuse(planner, plan, start, target_rpy, tolerance_rad, duration_s):
         else "finds no landing (body rate at most "
         f"{deg(planner.landing_rate_rad_s):.2f} deg/s) that turns further about that axis"
     )
-    raise PlanError(
+    return (
         f"target attitude (roll, pitch, yaw) {', '.join(f'{v:+.2f}' for v in deg(target_rpy))} "
         f"deg is out of reach in {duration_s:g} s ({planner.mode}): a turn of {deg(angle):.2f} "
         f"deg about the axis ({', '.join(f'{v:+.3f}' for v in axis)}); within the limits it "

@@ -1,8 +1,9 @@
-"""Closed loop: receding-horizon re-planning of the tilt maneuver from the state estimate.
+"""Closed loop: receding-horizon re-planning of a maneuver from the state estimate.
 
 Law. Every ``period_s`` the :class:`Replanner` takes the estimate ``(t, x)``, reads the tilt and
-the angular momentum about the tilt axis from it, and re-optimises the rest of the schedule
-(the knots after ``t``) toward the target, with the landing time fixed (a shrinking horizon).
+the angular momentum about the tilt axis from it (or the attitude and the total momentum, for a
+three-axis target: :mod:`.goals`), and re-optimises the rest of the schedule (the knots after
+``t``) toward the target, with the landing time fixed (a shrinking horizon).
 The new schedule starts from the rest length commanded at ``t`` (the servos see no jump) and
 replaces the old one from ``t`` on.
 
@@ -24,25 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .adapt import WheelGainFit
+from .attitude_planner import AttitudePlanner
 from .errors import PlanError
-from .planner import Plan, Planner
+from .goals import AttitudeGoal, ReplanRecord, TiltGoal
 from .schedule import Schedule
 
-
-@dataclass
-class ReplanRecord:
-    """One re-plan: time (s), measured tilt (rad), the new plan's prediction (rad), plan wall
-    time (s), whether it was accepted, the optimiser's message and the wheel-momentum gain
-    the plan used (1 without adaptation)."""
-
-    t_s: float
-    tilt_rad: float
-    predicted_tilt_rad: float
-    plan_time_s: float
-    accepted: bool
-    message: str
-    kappa: float = 1.0
+__all__ = ["ReplanRecord", "Replanner", "TruthPlusNoise", "ekf_estimate"]
 
 
 @dataclass
@@ -51,20 +39,23 @@ class Replanner:
 
     Parameters
     ----------
-    planner : Planner
-    target_tilt_rad : float, rad
+    planner : Planner or AttitudePlanner
+        The tilt planner (the D-bar) or the three-axis planner (any free scene).
+    target : float or sequence of 3 float, rad
+        The tilt, or roll, pitch, yaw of the body frame (:mod:`.goals`).
     t0_s, duration_s : float, s
         Start and length of the maneuver; it lands at ``t0_s + duration_s``.
     period_s : float, s
         Re-planning period (0.25 s = 4 Hz).
     adapt : bool
-        Fit the wheel-momentum gain and the momentum from every estimate
+        Tilt: fit the wheel-momentum gain and the momentum from every estimate
         (:class:`.adapt.WheelGainFit`) and plan with them; otherwise plan with the momentum of
-        the latest estimate and the nominal wheels.
+        the latest estimate and the nominal wheels. An attitude plans from the momentum of
+        every estimate.
     """
 
-    planner: Planner
-    target_tilt_rad: float
+    planner: object
+    target: object
     t0_s: float
     duration_s: float
     period_s: float = 0.25
@@ -75,20 +66,23 @@ class Replanner:
     def __post_init__(self):
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
             raise PlanError("duration_s and period_s must be positive")
+        if isinstance(self.planner, AttitudePlanner):
+            self.goal = AttitudeGoal(self.planner, self.target, self.period_s)
+        else:
+            self.goal = TiltGoal(self.planner, self.target)
         self.knot_t = self.planner.knot_times(self.t0_s, self.t0_s + self.duration_s)
         self.t_end_s = float(self.knot_t[-1])
         self._next_s = -np.inf
         self.fit = None
 
-    def start(self, t_s, x) -> Plan:
+    def start(self, t_s, x):
         """The first plan, from rest (the rest shape is commanded at ``t_s``)."""
-        plan = self.planner.plan_from_state(self.target_tilt_rad, x, t_s, self.knot_t)
+        plan = self.goal.first(t_s, x, self.knot_t)
         if not plan.success:
             raise PlanError(f"no initial plan: {plan.message}")
         self.schedule = plan.schedule
         if self.adapt:
-            _, momentum, omega_w = self.planner.state_terms(x, t_s)
-            self.fit = WheelGainFit(self.planner.dbar, momentum, omega_w)
+            self.fit = self.goal.gain_fit(t_s, x)
         self._log(t_s, x, plan, True)
         self._next_s = t_s + self.period_s
         return plan
@@ -107,9 +101,7 @@ class Replanner:
         """Take one estimate into the gain fit; True if a re-plan is due at ``t_s`` (the
         period is then counted as used)."""
         if self.fit is not None:
-            N, N_dot = self.planner.model.nodes(x)
-            att = self.planner.attitude
-            self.fit.add(att.n13(N), att.tilt_rate(N, N_dot))
+            self.goal.observe(self.fit, x)
         if self._next_s <= t_s < self.t_end_s:
             # the first grid point after t_s: a late re-plan uses up every period it overran
             self._next_s += self.period_s * (np.floor((t_s - self._next_s) / self.period_s) + 1.0)
@@ -120,38 +112,18 @@ class Replanner:
         """``(momentum, kappa)`` of the gain fit, or None without adaptation."""
         return None if self.fit is None else self.fit.estimate()[:2]
 
-    def replan(self, t_s, x, fitted=None) -> Plan:
+    def replan(self, t_s, x, fitted=None):
         """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``; ``fitted``
         (momentum, kappa) defaults to the gain fit's current values (:meth:`fitted`)."""
-        col = self.schedule.names.index(self.planner.names[0])
-        d_now = float(self.schedule(t_s)[col])
-        tilt, momentum, omega_w = self.planner.state_terms(x, t_s)
-        kappa = 1.0
         fitted = self.fitted() if fitted is None else fitted
-        if fitted is not None:
-            momentum, kappa = fitted
-        plan = self.planner.plan(
-            self.target_tilt_rad,
-            self.knot_t,
-            t_s,
-            tilt,
-            momentum,
-            kappa * omega_w,
-            d_now,
-            warm=self.schedule,
-        )
+        plan, kappa = self.goal.again(t_s, x, self.knot_t, self.schedule, fitted)
         if plan.success:
             self.schedule = self.schedule.splice(plan.schedule, t_s)
         self._log(t_s, x, plan, plan.success, kappa)
         return plan
 
     def _log(self, t_s, x, plan, accepted, kappa=1.0):
-        tilt = self.planner.attitude.tilt(self.planner.model.nodes(x)[0])
-        self.records.append(
-            ReplanRecord(
-                t_s, tilt, plan.predicted_tilt_rad, plan.plan_time_s, accepted, plan.message, kappa
-            )
-        )
+        self.records.append(self.goal.record(t_s, x, plan, accepted, kappa))
 
 
 class TruthPlusNoise:

@@ -1,10 +1,11 @@
-"""A planned tilt maneuver as the run loop plays it: open loop or re-planned from the EKF.
+"""A planned maneuver as the run loop plays it: open loop or re-planned from the EKF.
 
-The run loop (``gyrotens run --target-tilt RAD``) builds a :class:`Maneuver` before anything
-moves: the planner makes the first plan from the scene's initial state (the structure is at
-rest before the maneuver), which the run checks against the servo limits like any schedule.
-Open loop plays it. Closed loop hands every estimate to the :class:`.closed_loop.Replanner`,
-which re-plans at its period and splices the result into the schedule being played.
+The run loop (``gyrotens run --target-tilt RAD`` or ``--target-attitude R,P,Y``) builds a
+:class:`Maneuver` before anything moves: the planner makes the first plan from the scene's
+initial state (the structure is at rest before the maneuver), which the run checks against
+the servo limits like any schedule. Open loop plays it. Closed loop hands every estimate to
+the :class:`.closed_loop.Replanner`, which re-plans at its period and splices the result
+into the schedule being played.
 
 Time here is schedule time: 0 when the run enters its ``schedule`` phase, in s.
 
@@ -20,19 +21,21 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .attitude_planner import MODES, AttitudePlanner
 from .closed_loop import Replanner
 from .errors import PlanError
 from .planner import Planner
 from .schedule import Limits, Schedule
+from .shape_attitude import AttitudeModel
 
 
 @dataclass(frozen=True)
 class Target:
-    """What ``gyrotens run --target-tilt`` asks for.
+    """What ``gyrotens run --target-tilt`` or ``--target-attitude`` asks for.
 
     Attributes
     ----------
-    tilt_rad : float, rad
+    tilt_rad : float, rad, optional
         Tilt of the D-bar plane to land at (``docs/schedule.md``, Attitude).
     duration_s : float, s
         Landing time after the start of the schedule.
@@ -40,28 +43,45 @@ class Target:
         Re-plan from the estimate every ``period_s``; otherwise plan once and play.
     period_s : float, s
     knots : int
-        Knot intervals of the plan.
+        Knot intervals of the plan (default 6 for a tilt, 8 for an attitude).
     adapt : bool
-        Fit the wheel-momentum gain while re-planning (``Replanner.adapt``).
+        Fit the wheel-momentum gain while re-planning a tilt (``Replanner.adapt``).
     threaded : bool
         Re-plan in a worker thread instead of on the loop thread.
     reach_tolerance_rad : float, rad
-        The first plan may land at most this far from ``tilt_rad``; farther, the target is out
+        The first plan may land at most this far from the target; farther, the target is out
         of reach and refused (:class:`Maneuver`).
+    attitude_rpy_rad : tuple of 3 float, rad, optional
+        Instead of a tilt: roll, pitch, yaw of the scene's body frame to land at
+        (docs/attitude-plans.md), planned on strings and wheels.
+    mode : str
+        With an attitude: ``both``, ``strings`` (wheels held) or ``wheels`` (rest lengths held).
     """
 
-    tilt_rad: float
+    tilt_rad: float | None = None
     duration_s: float = 4.0
     closed_loop: bool = False
     period_s: float = 0.25
-    knots: int = 6
+    knots: int | None = None
     adapt: bool = True
     threaded: bool = False
     reach_tolerance_rad: float = 0.005
+    attitude_rpy_rad: tuple | None = None
+    mode: str = "both"
 
     def __post_init__(self):
-        if not np.isfinite(self.tilt_rad):
+        if (self.tilt_rad is None) == (self.attitude_rpy_rad is None):
+            raise PlanError("a target is a tilt or an attitude (roll, pitch, yaw), one of them")
+        if self.tilt_rad is not None and not np.isfinite(self.tilt_rad):
             raise PlanError(f"target tilt must be finite, got {self.tilt_rad}")
+        if self.attitude_rpy_rad is not None and not (
+            len(self.attitude_rpy_rad) == 3 and np.isfinite(self.attitude_rpy_rad).all()
+        ):
+            raise PlanError(f"target attitude must be 3 finite angles, got {self.attitude_rpy_rad}")
+        if self.knots is None:  # frozen: the default set once, here
+            object.__setattr__(self, "knots", 6 if self.attitude_rpy_rad is None else 8)
+        if self.mode not in MODES:
+            raise PlanError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if not self.reach_tolerance_rad > 0.0:
             raise PlanError(f"reach tolerance must be positive, got {self.reach_tolerance_rad} rad")
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
@@ -70,63 +90,71 @@ class Target:
                 "must be positive"
             )
 
+    @property
+    def value(self):
+        """The tilt (rad) or the roll, pitch, yaw (rad) the re-planner steers toward."""
+        return self.tilt_rad if self.attitude_rpy_rad is None else self.attitude_rpy_rad
+
     def to_dict(self) -> dict:
-        return asdict(self)
+        out = asdict(self)
+        if self.attitude_rpy_rad is not None:
+            out["attitude_rpy_rad"] = [float(v) for v in self.attitude_rpy_rad]
+        return out
+
+
+def planner_for(model, limits: Limits, target: Target):
+    """The tilt planner (a tilt) or the three-axis planner on the reduced attitude model."""
+    if target.attitude_rpy_rad is None:
+        return Planner(model, limits, knots=target.knots)
+    return AttitudePlanner(AttitudeModel(model, limits=limits), target.knots, mode=target.mode)
 
 
 class Maneuver:
-    """The schedule of one tilt maneuver, planned and (closed loop) re-planned.
+    """The schedule of one maneuver (tilt or attitude), planned and (closed loop) re-planned.
 
     Parameters
     ----------
     model : gyrotensegrity.Model
         The planner's model: the run's nominal scene (the EKF's model).
     limits : Limits
-        Usually ``Limits.from_servos(config.servos.servo)``.
+        Usually ``Limits.per_string(config.servos.servo)``.
     target : Target
 
     Raises
     ------
     PlanError
-        The scene is not a D-bar, no first plan within the limits, or the target is out of
-        reach: the best plan lands more than ``target.reach_tolerance_rad`` from it (the
-        message gives the tilts reachable in ``target.duration_s``).
+        A tilt on a scene that is not a D-bar, an attitude on a scene without a free body
+        frame, no first plan within the limits, or the target is out of reach: the best plan
+        lands more than ``target.reach_tolerance_rad`` from it (the message gives what is
+        reachable in ``target.duration_s``).
     """
 
     def __init__(self, model, limits: Limits, target: Target):
         self.target = target
-        self.planner = Planner(model, limits, knots=target.knots)
+        self.planner = planner_for(model, limits, target)
         self.replanner = Replanner(
             self.planner,
-            target.tilt_rad,
+            target.value,
             0.0,
             target.duration_s,
             target.period_s,
             adapt=target.adapt,
         )
-        self.first = self.replanner.start(0.0, model.initial_state())
-        self.landing_miss_rad = abs(self.first.predicted_tilt_rad - target.tilt_rad)
-        if self.landing_miss_rad > target.reach_tolerance_rad:
-            self._refuse_unreachable(model.initial_state())
+        x0 = model.initial_state()
+        self.first = self.replanner.start(0.0, x0)
+        goal = self.replanner.goal
+        self.landing_miss_rad = goal.miss(self.first)
+        why = goal.refusal(
+            self.first, x0, self.replanner.knot_t, target.duration_s, target.reach_tolerance_rad
+        )
+        if why is not None:
+            raise PlanError(why)
         self._worker: threading.Thread | None = None
         self._lock = threading.Lock()
         self._ready: Schedule | None = None
         self._playing = self.first.schedule
         self.taken = 0
         """Re-planned schedules taken into the loop (threaded: at a later tick)."""
-
-    def _refuse_unreachable(self, x0) -> None:
-        planner, t = self.planner, self.target
-        tilt, momentum, omega_w = planner.state_terms(x0, 0.0)
-        knots = self.replanner.knot_t
-        lo, hi = planner.reach(knots, 0.0, tilt, momentum, omega_w, planner.dbar.d_rest)
-        raise PlanError(
-            f"target tilt {t.tilt_rad:+.4f} rad is out of reach in {t.duration_s:g} s: within "
-            f"the servo limits the plane lands between {lo:+.4f} and {hi:+.4f} rad (the best "
-            f"plan lands at {self.first.predicted_tilt_rad:+.4f} rad, "
-            f"{self.landing_miss_rad:.4f} rad off, more than {t.reach_tolerance_rad:g} rad); "
-            "choose a target in that range or another duration"
-        )
 
     @property
     def schedule(self) -> Schedule:
@@ -182,7 +210,7 @@ class Maneuver:
         out = {
             "target": self.target.to_dict(),
             "first_plan": {
-                "predicted_tilt_rad": self.first.predicted_tilt_rad,
+                **self.replanner.goal.summary(self.first),
                 "landing_miss_rad": self.landing_miss_rad,
                 "plan_time_s": self.first.plan_time_s,
                 "message": self.first.message,
@@ -194,6 +222,11 @@ class Maneuver:
         if times.size:
             out["replan_time_mean_s"] = float(times.mean())
             out["replan_time_max_s"] = float(times.max())
-            out["last_predicted_tilt_rad"] = recs[-1].predicted_tilt_rad
-            out["kappa"] = recs[-1].kappa
+            out["replan_time_median_s"] = float(np.median(times))
+            out["replans_late"] = int(np.sum(times > self.target.period_s))
+            if self.target.attitude_rpy_rad is None:
+                out["last_predicted_tilt_rad"] = recs[-1].predicted_tilt_rad
+                out["kappa"] = recs[-1].kappa
+            else:
+                out["last_predicted_error_rad"] = recs[-1].predicted_error_rad
         return out

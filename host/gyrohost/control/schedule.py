@@ -38,6 +38,9 @@ PURPOSES = ("run", "identification")
 fits, on a rig whose parameters are not yet known: its run's estimate, on the scene still to be
 identified, may diverge without failing the run (docs/schedule.md)."""
 
+SPLICE_GAP_S = 1e-9
+"""Samples nearer than this to a splice's time give way to the splice point, s."""
+
 
 @dataclass(frozen=True)
 class Limits:
@@ -311,11 +314,13 @@ class Schedule:
                 f"{self.names} and {self.wheels}"
             )
         here = self(t_s)
-        jump = np.max(np.abs(other(t_s) - here))
+        jump = np.max(np.abs(other(t_s) - here), initial=0.0)  # none: wheels only
         if jump > 1e-4:
             raise ScheduleError(f"splice at {t_s:g} s: rest lengths jump by {jump:.3g} m")
-        head = self.t < t_s
-        tail = other.t > t_s
+        # samples within SPLICE_GAP_S of t_s are dropped: a float sum of ticks lands 1e-16 s
+        # off a knot, and a rate over that gap is round-off over round-off
+        head = self.t < t_s - SPLICE_GAP_S
+        tail = other.t > t_s + SPLICE_GAP_S
         t = np.concatenate([self.t[head], [t_s], other.t[tail]])
         v = np.vstack([self.rest_length[head], here, other.rest_length[tail]])
         w = np.vstack([self.wheel_speed[head], self.wheel_speeds(t_s), other.wheel_speed[tail]])

@@ -104,6 +104,9 @@ class AttitudeModel:
         self.lost = coupling_mask(self.couplings, "lost")
         self.steerable = ~coupling_mask(self.couplings, "own")
         self.n_h = 3 if self.lost.any() else 0
+        self.wheel_gain = 1.0
+        """Factor on the wheels' momentum (a closed loop's fitted gain: the truth's wheels
+        heavier or lighter than the scene's)."""
 
     @property
     def size(self):
@@ -133,6 +136,7 @@ class AttitudeModel:
         """The body rate and ``h_b`` (..., 3, n_w) at states ``x``."""
         q, r, omega_w = self.split(x)
         I_b, h_b, B_b, _ = self.terms(r)
+        h_b = self.wheel_gain * h_b  # the wheels' momentum, also what a lost reaction carries
         H_b = np.einsum("...ji,...j->...i", rotation_batch(q), self.momentum(x, H0))
         rhs = H_b - np.einsum("...ij,...j->...i", h_b, omega_w)
         rhs = rhs - np.einsum("...ij,...j->...i", B_b, u[..., : self.a])

@@ -17,20 +17,34 @@ import numpy as np
 from gyrohost.control.closed_loop import Replanner, TruthPlusNoise
 from gyrohost.control.errors import PlanError
 from gyrohost.control.planner import Plan, Planner
-from gyrotensegrity import Model, Stepper, scene_from_dict, simulate
+from gyrotensegrity import BodyFrame, Model, Stepper, scene_from_dict, simulate
 from gyrotensegrity.compat import tomllib
 
 
 def scene_with_wheel_inertia(path, factor: float):
     """The scene file at ``path`` with every wheel's ``J_3`` scaled by ``factor``."""
-    if not factor > 0.0:
-        raise PlanError(f"wheel inertia factor must be positive, got {factor}")
     data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    return scaled_scene(data, Path(path).name, wheel_inertia=factor)
+
+
+def scaled_scene(data: dict, source: str, wheel_inertia=1.0, stiffness=1.0, damping=1.0):
+    """The scene of the file contents ``data`` (a dict, changed in place) with every wheel's
+    ``J_3`` (through its radius, so the masses stay), every string's stiffness and damping
+    scaled by the factors: a truth whose parameters are off the model's."""
+    factors = {"J3": wheel_inertia, "stiffness": stiffness, "damping": damping}
+    for what, factor in factors.items():
+        if not factor > 0.0:
+            raise PlanError(f"{what} factor must be positive, got {factor}")
     for bar in data.get("bars", []):
         if "wheel" in bar:
-            bar["wheel"]["radius"] *= math.sqrt(factor)
-    data["scene"]["name"] = f"{data['scene'].get('name', 'scene')}-J3x{factor:g}"
-    return scene_from_dict(data, f"{Path(path).name} (J3 x {factor:g})")
+            bar["wheel"]["radius"] *= math.sqrt(wheel_inertia)
+    for string in data.get("strings", []):
+        string["stiffness"] *= stiffness
+        string["damping"] = string.get("damping", 0.0) * damping
+    tag = ", ".join(f"{k} x {v:g}" for k, v in factors.items() if v != 1.0)
+    name = data["scene"].get("name", "scene")
+    data["scene"]["name"] = name + "".join(f"-{k}x{v:g}" for k, v in factors.items() if v != 1.0)
+    return scene_from_dict(data, f"{source} ({tag or 'as is'})")
 
 
 @dataclass(frozen=True)
@@ -127,3 +141,102 @@ def validate(plan: Plan, model: Model, planner: Planner, settle_s=0.5, rtol=1e-9
     )
     k = int(np.argmin(np.abs(run["t"] - t_land)))
     return planner.attitude.tilt(run["N"][k]), planner.attitude.tilt(run["N"][-1])
+
+
+@dataclass(frozen=True)
+class ManeuverSil:
+    """One SIL run of a :class:`.maneuver.Maneuver` (tilt or attitude).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (K,), s
+    quaternion : ndarray, shape (K, 4)
+        The truth's body attitude (its ``[attitude]`` frame) at every control step.
+    wheel_speed_rad_s : ndarray, shape (K, n_w)
+        The truth's wheel spins.
+    rest_length_m : ndarray, shape (K, s)
+        The scheduled rest lengths played over each step (at its midpoint).
+    landing_index : int
+        The step at the landing time.
+    schedule : Schedule
+        The schedule played (spliced from the accepted re-plans).
+    records : list of ReplanRecord
+    wall_time_s : float
+    """
+
+    t_s: np.ndarray
+    quaternion: np.ndarray
+    wheel_speed_rad_s: np.ndarray
+    rest_length_m: np.ndarray
+    landing_index: int
+    schedule: object
+    records: list
+    wall_time_s: float
+
+
+def run_maneuver_sil(
+    truth: Model,
+    maneuver,
+    settle_s=0.5,
+    step_s=0.01,
+    max_dt_s=5e-4,
+    seed=0,
+    fast=False,
+    noise=(1e-3, 2e-3),
+) -> ManeuverSil:
+    """Play ``maneuver`` (open loop, or re-planned from the truth plus noise,
+    :class:`TruthPlusNoise` with ``seed`` and ``noise``: the std of the node coordinates, m,
+    and of their rates, m/s) on ``truth`` in simulated time.
+
+    The truth's first states are the planner model's layout (a rig-fidelity truth appends its
+    own at the end, docs/rig-fidelity.md); the estimate is the truth's cut to it. Scheduled
+    wheels are torque-driven in the truth, each by an ideal speed loop: over every control
+    step the torque ``J_3 (omega_cmd(t + h) - omega) / h`` that brings its spin to the
+    command at the step's end, whose reaction a rig-fidelity truth puts on the bar.
+    """
+    nominal = maneuver.planner.model
+    nominal = getattr(nominal, "model", nominal)  # the attitude planner's full model
+    n_x = nominal.layout.size
+    if truth.layout.size - truth.layout.n_rig != n_x or truth.layout.m != nominal.layout.m:
+        raise PlanError("truth and planner models have different state layouts")
+    start = time.perf_counter()
+    stepper = Stepper(truth, max_dt=max_dt_s, fast=fast)
+    estimate = TruthPlusNoise(stepper, *noise, seed=seed)
+    frame = BodyFrame.of_model(truth)
+    t_end = maneuver.schedule.t_end
+    n = int(round((t_end + settle_s) / step_s))
+    rows = []
+    for _ in range(n):
+        t = stepper.t
+        t_est, x = estimate()
+        schedule = maneuver.update(t_est, x[:n_x])
+        u = _truth_input(truth, schedule, stepper.x, t, step_s)
+        rows.append((t, frame.attitude(truth.nodes(stepper.x)[0]).quaternion,
+                     truth.wheel_speeds(stepper.x, u), schedule(t + 0.5 * step_s)))  # fmt: skip
+        stepper.step(step_s, u)
+    t_s = np.array([r[0] for r in rows])
+    return ManeuverSil(
+        t_s=t_s,
+        quaternion=np.array([r[1] for r in rows]),
+        wheel_speed_rad_s=np.array([r[2] for r in rows]),
+        rest_length_m=np.array([r[3] for r in rows]),
+        landing_index=int(np.argmin(np.abs(t_s - t_end))),
+        schedule=maneuver.schedule,
+        records=maneuver.records,
+        wall_time_s=time.perf_counter() - start,
+    )
+
+
+def _truth_input(truth, schedule, x, t, h):
+    """The truth's input over ``[t, t + h]``: the scheduled rest lengths at the midpoint, the
+    scheduled wheels' speed-loop torques (see :func:`run_maneuver_sil`)."""
+    u = truth.input_at(t + 0.5 * h)
+    u[schedule.bind(truth)] = schedule(t + 0.5 * h)
+    if schedule.wheels:
+        k = np.asarray(schedule.bind_wheels(truth), int)
+        if not np.isin(k, truth.torque_wheels).all():
+            raise PlanError("run_maneuver_sil: the truth's scheduled wheels must be torque-driven")
+        omega = truth.wheel_speeds(x, u)[k]
+        J3 = truth.J3[truth.wheel_bars[k]]
+        u[truth.alpha + k] = J3 * (schedule.wheel_speeds(t + h) - omega) / h
+    return u

@@ -12,6 +12,7 @@ checks the request's combinations and the log folder: every bad input is an erro
 port is opened or a log folder made.
 """
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -39,7 +40,8 @@ class RunRequest:
     schedule : str, optional
         A schedule file, a preset or a shipped schedule (default ``paper``); not with ``target``.
     target : Target, optional
-        A tilt maneuver planned on the scene (and re-planned when ``target.closed_loop``).
+        A tilt or attitude maneuver planned on the scene (and re-planned when
+        ``target.closed_loop``).
     out : path, optional
         The new log folder (default ``out/runs/DATE-NAME``).
     sim : bool
@@ -172,16 +174,19 @@ def what_to_play(config, schedule: str | None, target: Target | None):
     if target is None:
         return load_schedule_arg(schedule or "paper", config.scene_path)
     if schedule is not None:
-        raise RunRequestError("give --schedule or --target-tilt, not both")
+        raise RunRequestError("give --schedule or a target (--target-tilt, ...), not both")
     return planned_maneuver(config, target)
 
 
 def planned_maneuver(config, target: Target) -> Maneuver:
-    """The maneuver to ``target`` on the configuration's scene and servos."""
+    """The maneuver to ``target`` on the configuration's scene, within its servos' limits and
+    its ``[run] max_wheel_speed_rad_s``."""
     from gyrohost.control.schedule import Limits
     from gyrotensegrity import Model, load_scene
 
     limits = Limits.per_string(config.servos.servo)
+    if target.attitude_rpy_rad is not None:  # a tilt holds the wheels at the scene's spins
+        limits = replace(limits, max_wheel_speed_rad_s=config.run.max_wheel_speed_rad_s)
     return Maneuver(Model(load_scene(config.scene_path)), limits, target)
 
 
@@ -237,5 +242,10 @@ def default_log_folder(schedule) -> Path:
     if target is None:
         name = safe_name(schedule.name)
     else:
-        name = f"tilt{target.tilt_rad:+g}-{'closed' if target.closed_loop else 'open'}"
+        aim = (
+            f"tilt{target.tilt_rad:+g}"
+            if target.attitude_rpy_rad is None
+            else "attitude" + "".join(f"{math.degrees(v):+.3g}" for v in target.attitude_rpy_rad)
+        )
+        name = f"{aim}-{'closed' if target.closed_loop else 'open'}"
     return Path("out/runs") / f"{time.strftime('%Y%m%d-%H%M%S')}-{name}"

@@ -374,11 +374,15 @@ class ReplanWriter:
                 "plan_time_s",
                 "accepted",
                 "kappa",
+                "error_rad",
+                "predicted_error_rad",
                 "message",
             ],
             ("message",),
             "plans of the maneuver: start (host and schedule time, s), estimated tilt there, "
-            "the plan's landing tilt (rad), optimiser wall time (s), accepted, wheel gain",
+            "the plan's landing tilt (rad; NaN for an attitude), optimiser wall time (s), "
+            "accepted, wheel gain, the estimate's and the plan's landing distance from the "
+            "target (rad; geodesic for an attitude)",
         )
 
     def write(self, records) -> None:
@@ -393,6 +397,8 @@ class ReplanWriter:
                 r.plan_time_s,
                 int(r.accepted),
                 r.kappa,
+                r.error_rad,
+                r.predicted_error_rad,
                 message,
             )
         self.done = len(records)

@@ -6,6 +6,7 @@ from dataclasses import asdict
 from gyrohost.run.ticker import jitter_line
 from gyrohost.simrig.errors import RigProcessError
 from gyrotensegrity import __version__
+from gyrotensegrity.attitude import angle_between
 
 
 def run_meta(loop) -> dict:
@@ -53,10 +54,7 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         }
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
-        target = loop.maneuver.target.tilt_rad
-        for key in ("tilt_end", "tilt_settled"):
-            if f"{key}_truth_rad" in out:
-                out[f"{key}_truth_error_rad"] = out[f"{key}_truth_rad"] - target
+        out.update(landing_errors(loop.maneuver, out))
     if loop.rig is not None:
         try:
             stats = loop.rig.stats()
@@ -67,6 +65,22 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         if lost:
             loop.event("warning", lost)
     loop.event("timing", jitter_line(timing))
+    return out
+
+
+def landing_errors(maneuver, summary: dict) -> dict:
+    """The truth's distance from the maneuver's target at the end of the schedule and after
+    settling (simulated rig): the tilt's difference (``tilt_end_truth_error_rad``, ...) or the
+    geodesic angle of the body attitude (``attitude_end_truth_error_rad``, ...), rad."""
+    target = maneuver.target
+    out = {}
+    for key in ("end", "settled"):
+        if target.attitude_rpy_rad is None and f"tilt_{key}_truth_rad" in summary:
+            out[f"tilt_{key}_truth_error_rad"] = summary[f"tilt_{key}_truth_rad"] - target.tilt_rad
+        truth = summary.get(f"attitude_{key}", {}).get("truth")
+        if target.attitude_rpy_rad is not None and truth is not None:
+            q = maneuver.replanner.goal.target
+            out[f"attitude_{key}_truth_error_rad"] = float(angle_between(q, truth["quaternion"]))
     return out
 
 
