@@ -92,19 +92,45 @@ def _truth_of(ekf):
 def test_nees_against_the_truth_and_a_diverged_estimate(model, config):
     ekf = TensegrityEKF(model, config)
     score = TruthScore(ekf)
-    score.estimate()
     N, omega, rest = _truth_of(ekf)
-    score.truth(ekf.t + 0.003, N, omega, rest)  # the truth is the estimate: NEES 0
-    score.truth(ekf.t + 0.05, N, omega, rest)  # no estimate near it: not scored
+    score.truth(ekf.t - 0.003, N, omega, rest)
+    score.estimate()
+    score.estimate()  # the filter has not moved on: kept once
+    score.truth(ekf.t + 0.007, N, omega, rest)  # the truth at the estimate's time is the estimate
     table = health(NisTally(), score)
     assert table["nees"]["samples"] == 1 and table["nees"]["mean"] < 1e-12
     assert table["nees"]["dof"] == 14  # 8 node coordinates on the manifold, 4 wheels, 2 rests
     assert not table["diverged"]
-    for _ in range(10):  # the whole structure 10 cm off along x: the estimate has diverged
-        score.truth(ekf.t, N + np.array([[0.1], [0.0], [0.0]]), omega, rest)
+    off = N + np.array([[0.1], [0.0], [0.0]])  # the whole structure 10 cm off along x
+    for k in range(1, 11):
+        ekf.t = 0.01 * k  # an estimate each 10 ms, scored as the truth comes after it
+        score.estimate()
+        score.truth(ekf.t + 0.005, off, omega, rest)
     table = health(NisTally(), score)
     assert table["nees"]["node_error_recent_rms_m"] > DIVERGED_NODE_ERROR_M
     assert table["diverged"] and "node error" in table["why"]
+
+
+def test_an_estimate_is_scored_against_the_truth_at_its_own_time(model, config):
+    """Between two truth samples the truth is interpolated to the estimate's time: a node
+    moving at constant speed is where the estimate says when the estimate is there, though
+    neither truth sample is (the nearest sample would put it 5 mm off)."""
+    ekf = TensegrityEKF(model, config)
+    N, omega, rest = _truth_of(ekf)
+    step = np.zeros_like(N)
+    step[0, 0] = 1e-2  # node n1 moves 10 mm along x between the truth samples
+    score = TruthScore(ekf)
+    score.estimate()  # before every truth sample: never scored
+    ekf.t += 0.01
+    score.truth(ekf.t - 0.005, N - step / 2, omega, rest)
+    score.estimate()
+    score.truth(ekf.t + 0.005, N + step / 2, omega, rest)
+    assert len(score.nees) == 1 and score.nees[0] < 1e-9
+    nearest = TruthScore(ekf)
+    nearest.truth(ekf.t - 0.001, N - step / 2, omega, rest)
+    nearest.truth(ekf.t, N - step / 2, omega, rest)
+    nearest.estimate()
+    assert nearest.nees[0] > 1.0  # what scoring at the nearest sample's time would have said
 
 
 def test_the_nees_is_scored_sample_by_sample_not_as_independent_samples(model, config):

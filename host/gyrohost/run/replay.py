@@ -38,7 +38,7 @@ from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.imu_model import tilt
 from gyrohost.estimator.layout import from_model_state, layout_of
 from gyrohost.run.errors import LogError
-from gyrohost.run.health import MAX_GAP_S, TruthScore
+from gyrohost.run.health import TruthScore
 from gyrohost.run.log import RunLog, check_new_log_folder, read_meta, read_stream, read_streams
 from gyrohost.run.log_screen import LogScreen
 from gyrohost.run.streams import INNOVATION_COMPONENTS, node_columns_of
@@ -116,8 +116,8 @@ class _Writer:
 
 
 class _Truth:
-    """The simulated rig's truth samples of a log, each scored against the replay's estimate
-    nearest to it in time (:class:`TruthScore`) once the estimate has passed it."""
+    """The simulated rig's truth samples of a log, handed to a :class:`TruthScore` as the
+    replay's estimate reaches them: each estimate is scored against the truth at its time."""
 
     def __init__(self, ekf, rows: np.ndarray):
         scene = ekf.model.scene
@@ -144,7 +144,7 @@ class _Truth:
 
     def step(self) -> None:
         self.score.estimate()
-        self._score_until(self.score.ekf.t - MAX_GAP_S)
+        self._score_until(self.score.ekf.t)
 
     def finish(self) -> bool:
         """Score what is left; whether anything was scored."""
@@ -152,7 +152,8 @@ class _Truth:
         return bool(self.score.nees)
 
     def _score_until(self, t_s: float) -> None:
-        while self.next < len(self.t_s) and self.t_s[self.next] <= t_s:
+        """Hand the score the truth samples up to the first at or after ``t_s``."""
+        while self.next < len(self.t_s) and (self.next == 0 or self.t_s[self.next - 1] < t_s):
             k = self.next
             self.score.truth(self.t_s[k], self.N[k], self.omega[k], self.rest[k])
             self.next += 1
