@@ -115,7 +115,7 @@ class TruthScore:
     def __init__(self, ekf):
         self.ekf = ekf
         self.waiting: deque = deque()  # (t_s, x, P) estimates not yet scored
-        self.truths: deque = deque(maxlen=TRUTH_KEPT)  # (t_s, N, omega, rest)
+        self.truths: list = []  # (t_s, N, omega, rest), from the one before the next estimate
         self.nees: list[float] = []
         self.node_error_m: list[float] = []
         self.dof = 0
@@ -157,6 +157,9 @@ class TruthScore:
                 (t_a, *a), (t_b, *b) = self.truths[k - 1], self.truths[k]
                 w = (t - t_a) / (t_b - t_a)
                 self._score(x, P, *(u + w * (v - u) for u, v in zip(a, b, strict=True)))
+            # later estimates come no earlier: the samples before this one's interval go
+            del self.truths[: max(k - 1, 0)], times[: max(k - 1, 0)]
+        del self.truths[: max(len(self.truths) - TRUTH_KEPT, 0)]
 
     def _score(self, x, P, N, omega_rad_s, rest_m) -> None:
         x_true = state_of_truth(self.ekf, x, N, omega_rad_s, rest_m)
