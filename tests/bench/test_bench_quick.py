@@ -6,8 +6,6 @@ import pytest
 
 from gyrohost.cli import main
 
-pytestmark = pytest.mark.slow  # the quick benchmark runs whole
-
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):

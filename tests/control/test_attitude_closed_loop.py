@@ -69,7 +69,6 @@ def landing_error(run):
     return angle_between(target_quaternion(TARGET_RPY), run.quaternion[run.landing_index])
 
 
-@pytest.mark.slow
 def test_closed_loop_lands_nearer_than_open_loop_on_heavier_wheels(sil_runs):
     """Open loop: the wheels' momentum exchange is 5 % larger than planned, and so is the
     part of the 33.7-degree turn it drives: to first order 1.7 degrees off; half of that is
@@ -89,7 +88,6 @@ def test_closed_loop_lands_nearer_than_open_loop_on_heavier_wheels(sil_runs):
     assert np.allclose(np.diff([r.t_s for r in records[1:]]), 0.25, atol=0.011)  # a tick late
 
 
-@pytest.mark.slow
 def test_the_played_schedules_and_the_truth_keep_the_limits(sil_runs):
     for run in sil_runs.values():
         assert run.schedule.problems(LIMITS) == []

@@ -25,14 +25,12 @@ def prism_run(request):
     return duration_s, simulate(model, duration=duration_s, rtol=1e-12, atol=1e-14, fast=fast)
 
 
-@pytest.mark.slow
 def test_prism_energy_constant(prism_run):
     duration_s, run = prism_run
     assert run["t"][-1] == pytest.approx(duration_s)
     assert relative_drift(run["energy"]) <= 1e-9
 
 
-@pytest.mark.slow
 def test_prism_angular_momentum_constant(prism_run):
     _, run = prism_run
     assert np.linalg.norm(run["angular_momentum"][0]) > 1e-4  # the wheels carry momentum
@@ -52,7 +50,6 @@ def test_momentum_constant_while_rest_lengths_change(scene):
     assert relative_drift(run["angular_momentum"]) <= 1e-10
 
 
-@pytest.mark.slow
 def test_string_mass_energy_constant():
     model = Model(load_scene(SCENES / "prism-string-mass.toml"))
     assert "point_masses" in model.terms

@@ -15,8 +15,6 @@ from gyrotensegrity.sensitivity import (
     tilt,
 )
 
-pytestmark = pytest.mark.slow  # the paper's run simulated several times over
-
 SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 
 
