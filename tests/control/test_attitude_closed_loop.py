@@ -118,3 +118,27 @@ def test_a_replan_ends_within_its_steps_and_the_splice_is_continuous(dbar):
         )  # the splice tolerance
     assert maneuver.schedule.problems(LIMITS) == []
     assert all("steps taken" in r.message for r in maneuver.records[1:])
+
+
+def test_a_replan_on_a_prism_starts_from_the_scheduled_wheel_speeds():
+    """The prism's wheels' reactions leave it, so its reduced state carries that momentum
+    after the wheel speeds: a re-plan's state takes the schedule's speeds into the wheels'
+    entries only, and the lost momentum from the estimate (none at the start)."""
+    from prism_variants import prism
+
+    from gyrohost.control.attitude_planner import AttitudePlanner
+    from gyrohost.control.goals import AttitudeGoal
+    from gyrohost.control.schedule import Schedule
+    from gyrohost.control.shape_attitude import AttitudeModel
+
+    model = prism(100.0, [150.0, -150.0, 150.0])
+    reduced = AttitudeModel(model, ["s7", "s8"])
+    assert reduced.n_h == 3
+    goal = AttitudeGoal(AttitudePlanner(reduced, knots=4), np.radians([2.0, -2.0, 3.0]))
+    speeds = np.array([[150.0, -150.0, 150.0], [140.0, -130.0, 120.0]])
+    rest = np.tile(reduced.shape.rest, (2, 1))
+    schedule = Schedule(("s7", "s8"), [0.0, 1.0], rest, wheels=reduced.wheels, wheel_speed=speeds)
+    x0, _ = goal.state(0.5, model.initial_state(), schedule)
+    assert x0.shape == (reduced.size[0],)
+    np.testing.assert_array_equal(reduced.split(x0)[2], speeds.mean(axis=0))
+    np.testing.assert_array_equal(x0[-3:], 0.0)

@@ -145,7 +145,8 @@ class AttitudeGoal:
             rest = schedule(t_s)[[schedule.names.index(n) for n in names]]
         x0, H0 = self.model.start(x, t_s, rest)
         if schedule.wheels:
-            x0[4 + self.model.a :] = schedule.wheel_speeds(t_s)
+            _, _, omega_w = self.model.split(x0)  # a view: the state's wheel entries
+            omega_w[:] = schedule.wheel_speeds(t_s)
         return x0, H0
 
     def again(self, t_s, x, knot_t, schedule, fitted):
