@@ -18,7 +18,27 @@ from gyrotensegrity.diagnostics import angular_momentum
 from .attitude_model import centre_of_mass, params_at
 
 
-class WheelGainFit:
+class _LinearFit:
+    """Bayesian least squares in information form: a Gaussian prior on the unknowns (``mean``,
+    ``std``, independent) plus weighted linear observations ``rows @ theta = y``."""
+
+    def __init__(self, mean, std):
+        self.info = np.diag(1.0 / np.asarray(std, float) ** 2)
+        self.vec = self.info @ np.asarray(mean, float)
+        self.samples = 0
+
+    def _observe(self, rows, y, weight) -> None:
+        rows = np.atleast_2d(rows)
+        self.info += weight * rows.T @ rows
+        self.vec += weight * rows.T @ np.atleast_1d(y)
+        self.samples += 1
+
+    def _posterior(self):
+        """Mean and covariance of the unknowns."""
+        return np.linalg.solve(self.info, self.vec), np.linalg.inv(self.info)
+
+
+class WheelGainFit(_LinearFit):
     """Estimate ``(H, kappa)`` from shape and tilt-rate samples.
 
     Parameters
@@ -41,27 +61,21 @@ class WheelGainFit:
     ):
         self.dbar, self.omega_w, self.rate_std = dbar, np.asarray(omega_w, float), rate_std_rad_s
         s_H = momentum_std * max(abs(momentum0), 1e-12)
-        self.info = np.diag([1.0 / s_H**2, 1.0 / kappa_std**2])
-        self.vec = self.info @ np.array([momentum0, 1.0])
-        self.samples = 0
+        super().__init__([momentum0, 1.0], [s_H, kappa_std])
 
     def add(self, d_m, rate_rad_s):
         """One sample: n1-n3 distance ``d_m`` (m) and tilt rate ``rate_rad_s`` (rad/s)."""
         inertia = float(self.dbar.inertia(d_m))
         phi = np.array([1.0, -float(self.dbar.wheel_momentum(d_m, self.omega_w))])
-        weight = 1.0 / (inertia * self.rate_std) ** 2
-        self.info += weight * np.outer(phi, phi)
-        self.vec += weight * phi * inertia * rate_rad_s
-        self.samples += 1
+        self._observe(phi, inertia * rate_rad_s, 1.0 / (inertia * self.rate_std) ** 2)
 
     def estimate(self):
         """``(H, kappa, kappa_std)``: momentum (kg m^2/s), gain and its standard deviation."""
-        mean = np.linalg.solve(self.info, self.vec)
-        cov = np.linalg.inv(self.info)
+        mean, cov = self._posterior()
         return float(mean[0]), float(mean[1]), float(np.sqrt(cov[1, 1]))
 
 
-class MomentumGainFit:
+class MomentumGainFit(_LinearFit):
     """The three-axis form of :class:`WheelGainFit`: estimate the total momentum ``H0`` (3,
     kg m^2/s, start-frame axes) and the wheel-momentum gain ``kappa`` of any free scene from
     full-state estimates. Each is one linear observation (three rows)::
@@ -88,9 +102,7 @@ class MomentumGainFit:
         self.weight = 1.0 / (inertia * rate_std_rad_s) ** 2
         H0 = np.sum(self.split(x0), axis=0)
         s_H = momentum_std * max(float(np.linalg.norm(H0)), 1e-12)
-        self.info = np.diag([1.0 / s_H**2] * 3 + [1.0 / kappa_std**2])
-        self.vec = self.info @ np.append(H0, 1.0)
-        self.samples = 0
+        super().__init__(np.append(H0, 1.0), [s_H] * 3 + [kappa_std])
 
     def split(self, x):
         """``(L, W)``: the structure's and the wheels' spin momentum (3,) kg m^2/s, start-frame
@@ -107,14 +119,10 @@ class MomentumGainFit:
     def add_state(self, x):
         """One estimate (a full state of the model)."""
         locked, wheels = self.split(x)
-        rows = np.hstack([np.eye(3), -wheels[:, None]])
-        self.info += self.weight * rows.T @ rows
-        self.vec += self.weight * rows.T @ locked
-        self.samples += 1
+        self._observe(np.hstack([np.eye(3), -wheels[:, None]]), locked, self.weight)
 
     def estimate(self):
         """``(H0, kappa, kappa_std)``: momentum (3,) kg m^2/s, gain and its standard
         deviation."""
-        mean = np.linalg.solve(self.info, self.vec)
-        cov = np.linalg.inv(self.info)
+        mean, cov = self._posterior()
         return mean[:3], float(mean[3]), float(np.sqrt(cov[3, 3]))
