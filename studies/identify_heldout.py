@@ -41,7 +41,6 @@ quiet machine (each case takes about a minute plus the identification).
 """
 
 import argparse
-import json
 import resource
 import shutil
 import sys
@@ -54,6 +53,7 @@ import numpy as np
 import tomllib
 
 from gyrohost.resources import shipped
+from gyrohost.run.log import read_meta
 from gyrohost.run.summary import real_time_lost
 from studies.identify_rig import (
     estimator_figures,
@@ -238,9 +238,7 @@ def real_time_run(argv: list[str], log: Path) -> tuple[int, str]:
         if log.exists():
             shutil.rmtree(log)
         status = gyrotens([*argv, "-o", str(log)])
-        meta = log / "meta.json"
-        summary = json.loads(meta.read_text()).get("summary", {}) if meta.is_file() else {}
-        if status != 0 or real_time_lost(summary) is None:
+        if status != 0 or real_time_lost(read_meta(log).get("summary", {})) is None:
             return status, "kept" if attempt == 1 else f"kept at attempt {attempt}"
         print(f"{log}: the truth did not keep real time (attempt {attempt} of {ATTEMPTS})")
     return status, "lost"
