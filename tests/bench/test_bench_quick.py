@@ -6,6 +6,10 @@ import pytest
 
 from gyrohost.cli import main
 
+# Its quick benchmark takes half a minute of one core and asserts no timing: beside the simulated
+# rig's real-time tests (tests/conftest.py), whose second core would otherwise idle.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):

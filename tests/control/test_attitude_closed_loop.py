@@ -21,6 +21,10 @@ from gyrotensegrity import Model
 from gyrotensegrity.attitude import angle_between
 from gyrotensegrity.compat import tomllib
 
+# Half a minute of simulated maneuvers on one core: beside the simulated rig's real-time tests
+# (tests/conftest.py), whose second core would otherwise idle.
+pytestmark = pytest.mark.slow
+
 TARGET_RPY = tuple(np.radians([10.0, -20.0, -27.27]))
 J3_FACTOR = 1.05
 LIMITS = Limits()

@@ -14,6 +14,10 @@ from gyrohost.control.sil import run_sil, scene_with_wheel_inertia
 from gyrohost.resources import shipped
 from gyrotensegrity import Model
 
+# Half a minute of simulated maneuvers on one core: beside the simulated rig's real-time tests
+# (tests/conftest.py), whose second core would otherwise idle.
+pytestmark = pytest.mark.slow
+
 SCENE = shipped("scene", "dbar-gyro")
 TARGET, DURATION = -0.3, 4.0
 

@@ -10,6 +10,10 @@ from gyrotensegrity import Model, load_scene, simulate
 
 SCENES = Path(gyrotensegrity.__file__).parent / "scenes"
 
+# A minute of the reference equations at tight tolerances on one core: beside the simulated rig's
+# real-time tests (tests/conftest.py), whose second core would otherwise idle.
+pytestmark = pytest.mark.slow
+
 
 def relative_drift(series):
     series = np.asarray(series)
