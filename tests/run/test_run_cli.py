@@ -162,10 +162,17 @@ def test_run_target_tilt_options_are_checked_before_anything_moves(tmp_path, cap
 
 def test_run_target_attitude_options_are_checked_before_anything_moves(tmp_path, capsys):
     base = ["run", "--config", str(CONFIG), "--sim", "-o", str(tmp_path / "z")]
+    shape = tmp_path / "shape.toml"
+    shape.write_text("[rest_length]\ns13 = 0.40\ns99 = 0.4\n")
+    pitch = ["--target-attitude", "0,-5,0"]
     cases = [
         (["--target-attitude", "5,0"], "need three numbers"),
         (["--target-attitude", "0,-5,0", "--target-tilt", "-0.1"], "not both"),
         (["--strings-only"], "go with --target-attitude"),
+        (["--target-shape", str(shape)], "go with --target-attitude"),
+        ([*pitch, "--target-shape", str(tmp_path / "none.toml")], "cannot read"),
+        ([*pitch, "--wheels-only", "--target-shape", str(shape)], "a target shape needs"),
+        ([*pitch, "--target-shape", str(shape)], "s99 not actuated"),
         # strings alone turn the D-bar only about its momentum (y): a roll is out of reach
         (["--target-attitude", "5,0,0", "--strings-only"], "is out of reach in 4 s (strings)"),
     ]

@@ -1,5 +1,6 @@
 """``gyrotens run --config RIG.toml [--overlay FILE] [--schedule FILE|PRESET | --target-tilt RAD
-| --target-attitude R,P,Y [--strings-only|--wheels-only]] [--duration S] [--closed-loop]]
+| --target-attitude R,P,Y [--strings-only|--wheels-only] [--target-shape FILE]] [--duration S]
+[--closed-loop]]
 [--max-duration S] [--estimator FILE.toml] [-o LOGDIR]
 [--sim [--truth-scene FILE] | --rig PORTSFILE] [--live]``: one run of a schedule or a planned
 tilt maneuver on the rig, from connection to the safe state, logged (CSV streams and an MCAP
@@ -54,6 +55,13 @@ def register(sub) -> None:
     )
     only.add_argument(
         "--wheels-only", action="store_true", help="--target-attitude: hold the rest lengths"
+    )
+    p.add_argument(
+        "--target-shape",
+        type=Path,
+        metavar="FILE",
+        help="--target-attitude: land at these rest lengths (a [rest_length] table of "
+        "string = metres, as gyrotens plan; docs/attitude-plans.md)",
     )
     p.add_argument(
         "--duration", type=float, default=4.0, metavar="S", help="landing time of the target"
@@ -196,8 +204,10 @@ def _request(args):
         raise CliError("--closed-loop and --replan-thread need --target-tilt or --target-attitude")
     if args.target_tilt is not None and args.target_attitude is not None:
         raise CliError("give --target-tilt or --target-attitude, not both")
-    if args.target_attitude is None and (args.strings_only or args.wheels_only):
-        raise CliError("--strings-only and --wheels-only go with --target-attitude")
+    if args.target_attitude is None and (
+        args.strings_only or args.wheels_only or args.target_shape
+    ):
+        raise CliError("--strings-only, --wheels-only and --target-shape go with --target-attitude")
     if args.max_duration is not None and not args.max_duration > 0:  # NaN too
         raise CliError(f"--max-duration {args.max_duration}: must be a positive number of s")
     if aimed:
@@ -228,11 +238,17 @@ def _request(args):
 def _attitude(args) -> dict:
     """The attitude keys of the :class:`Target` (none for a tilt)."""
     from gyrohost.commands.plan import attitude_angles
+    from gyrohost.control.target_shape import load_target_shape
 
     if args.target_attitude is None:
         return {}
     mode = "strings" if args.strings_only else "wheels" if args.wheels_only else "both"
-    return {"attitude_rpy_rad": tuple(attitude_angles(args.target_attitude)), "mode": mode}
+    shape = None if args.target_shape is None else load_target_shape(args.target_shape)
+    return {
+        "attitude_rpy_rad": tuple(attitude_angles(args.target_attitude)),
+        "mode": mode,
+        "target_rest": shape,
+    }
 
 
 def _announce_live(url: str) -> None:

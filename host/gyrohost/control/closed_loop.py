@@ -52,6 +52,9 @@ class Replanner:
         (:class:`.adapt.WheelGainFit`) and plan with them; otherwise plan with the momentum of
         the latest estimate and the nominal wheels. An attitude plans from the momentum of
         every estimate.
+    target_rest : dict, optional
+        An attitude's target shape: ``{string: rest length (m)}`` to land at
+        (:class:`.goals.AttitudeGoal`).
     """
 
     planner: object
@@ -60,6 +63,7 @@ class Replanner:
     duration_s: float
     period_s: float = 0.25
     adapt: bool = True
+    target_rest: dict | None = None
     schedule: Schedule | None = None
     records: list = field(default_factory=list)
 
@@ -67,7 +71,9 @@ class Replanner:
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
             raise PlanError("duration_s and period_s must be positive")
         if isinstance(self.planner, AttitudePlanner):
-            self.goal = AttitudeGoal(self.planner, self.target, self.period_s)
+            self.goal = AttitudeGoal(self.planner, self.target, self.period_s, self.target_rest)
+        elif self.target_rest:
+            raise PlanError("a target shape goes with an attitude target, not a tilt")
         else:
             self.goal = TiltGoal(self.planner, self.target)
         self.knot_t = self.planner.knot_times(self.t0_s, self.t0_s + self.duration_s)

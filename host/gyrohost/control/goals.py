@@ -27,6 +27,7 @@ from .adapt import MomentumGainFit, WheelGainFit
 from .attitude_planner import AttitudePlanner, reachable, refusal, target_quaternion
 from .planner import Planner
 from .realtime_iteration import RealTimeIteration
+from .target_shape import target_coordinates
 
 
 @dataclass
@@ -110,20 +111,27 @@ class TiltGoal:
 
 
 class AttitudeGoal:
-    """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame; a
-    re-plan's steps end within half the re-planning period ``period_s`` (the other half is
-    the run loop's and the estimator's on a two-core machine)."""
+    """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame,
+    landing at the rest lengths ``target_rest`` (``{string: m}``, :mod:`.target_shape`; the
+    scene's where not given); a re-plan's steps end within half the re-planning period
+    ``period_s`` (the other half is the run loop's and the estimator's on a two-core machine).
 
-    def __init__(self, planner: AttitudePlanner, target, period_s=0.25):
+    Raises
+    ------
+    PlanError
+        ``target_rest`` names a string the plan does not move or leaves the shape table."""
+
+    def __init__(self, planner: AttitudePlanner, target, period_s=0.25, target_rest=None):
         self.planner, self.rpy = planner, np.asarray(target, float)
         self.model = planner.model
         self.target = target_quaternion(self.rpy)
+        self.r_end = target_coordinates(self.model, target_rest) if target_rest else None
         self.rti = RealTimeIteration(planner, budget_s=0.5 * period_s)
         self._plan = None  # the plan whose inputs are in force: the re-plans' warm start
 
     def first(self, t_s, x, knot_t):
         x0, H0 = self.model.start(x, t_s)
-        self._plan = self.planner.plan(self.target, knot_t, t_s, x0, H0)
+        self._plan = self.planner.plan(self.target, knot_t, t_s, x0, H0, r_end=self.r_end)
         return self._plan
 
     def miss(self, plan) -> float:
@@ -157,7 +165,7 @@ class AttitudeGoal:
         if fitted is not None:
             H0, kappa = fitted
         self.model.wheel_gain = kappa
-        plan = self.rti.plan(self.target, knot_t, t_s, x0, H0, self._plan)
+        plan = self.rti.plan(self.target, knot_t, t_s, x0, H0, self._plan, self.r_end)
         if plan.success:
             self._plan = plan
         return plan, kappa
@@ -176,7 +184,9 @@ class AttitudeGoal:
         if reachable(self.planner, plan, tolerance_rad):
             return None
         x, H0 = self.model.start(x0)
-        return refusal(self.planner, plan, knot_t, x, H0, self.rpy, tolerance_rad, duration_s)
+        return refusal(
+            self.planner, plan, knot_t, x, H0, self.rpy, tolerance_rad, duration_s, self.r_end
+        )
 
     def summary(self, plan) -> dict:
         rpy = Rotation.from_quat(plan.predicted_q, scalar_first=True).as_euler("ZYX")[::-1]

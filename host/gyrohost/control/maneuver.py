@@ -56,6 +56,9 @@ class Target:
         (docs/attitude-plans.md), planned on strings and wheels.
     mode : str
         With an attitude: ``both``, ``strings`` (wheels held) or ``wheels`` (rest lengths held).
+    target_rest : dict, optional
+        With an attitude: ``{string: rest length (m)}`` to land at (``--target-shape``,
+        :mod:`.target_shape`); the scene's rest lengths where not given.
     """
 
     tilt_rad: float | None = None
@@ -68,6 +71,7 @@ class Target:
     reach_tolerance_rad: float = 0.005
     attitude_rpy_rad: tuple | None = None
     mode: str = "both"
+    target_rest: dict | None = None
 
     def __post_init__(self):
         if (self.tilt_rad is None) == (self.attitude_rpy_rad is None):
@@ -82,6 +86,8 @@ class Target:
             object.__setattr__(self, "knots", 6 if self.attitude_rpy_rad is None else 8)
         if self.mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.target_rest and (self.attitude_rpy_rad is None or self.mode == "wheels"):
+            raise PlanError("a target shape needs an attitude target whose strings move")
         if not self.reach_tolerance_rad > 0.0:
             raise PlanError(f"reach tolerance must be positive, got {self.reach_tolerance_rad} rad")
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
@@ -139,6 +145,7 @@ class Maneuver:
             target.duration_s,
             target.period_s,
             adapt=target.adapt,
+            target_rest=target.target_rest,
         )
         x0 = model.initial_state()
         self.first = self.replanner.start(0.0, x0)

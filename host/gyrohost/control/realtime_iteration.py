@@ -67,12 +67,15 @@ class RealTimeIteration:
     drift_s: float = DRIFT_S
     budget_s: float = math.inf
 
-    def plan(self, target_q, knot_t_s, t_start_s, x0, H0, warm: AttitudePlan) -> AttitudePlan:
+    def plan(
+        self, target_q, knot_t_s, t_start_s, x0, H0, warm: AttitudePlan, r_end=None
+    ) -> AttitudePlan:
         """A re-plan of the intervals after ``t_start_s`` from the state ``x0`` (arguments as
-        :meth:`AttitudePlanner.plan`), starting from ``warm``: successful only if it improves
-        on ``warm``'s inputs from this state within the limits."""
+        :meth:`AttitudePlanner.plan`, ``r_end`` the landing coordinates of a target shape),
+        starting from ``warm``: successful only if it improves on ``warm``'s inputs from this
+        state within the limits."""
         start = time.perf_counter()
-        problem = self.planner._problem(target_q, knot_t_s, t_start_s, x0, H0)
+        problem = self.planner._problem(target_q, knot_t_s, t_start_s, x0, H0, r_end)
         z = problem.guess(warm)
         allowed, taken = max(_violation(problem, z), FEASIBLE), 0
         for _ in range(self.iterations if problem.n_z else 0):
