@@ -29,8 +29,8 @@ def register(sub) -> None:
         action="append",
         default=[],
         metavar="FILE",
-        help="TOML keys merged into the configuration (as gyrotens identify writes them: the "
-        "IMU mounting, servo zeros); may be repeated",
+        help="TOML keys merged into the configuration (gyrotens identify's: IMU mounting, "
+        "servo zeros); repeatable",
     )
     p.add_argument(
         "--schedule",
@@ -60,8 +60,7 @@ def register(sub) -> None:
         "--target-shape",
         type=Path,
         metavar="FILE",
-        help="--target-attitude: land at these rest lengths (a [rest_length] table of "
-        "string = metres, as gyrotens plan; docs/attitude-plans.md)",
+        help="--target-attitude: land at these rest lengths (as gyrotens plan)",
     )
     p.add_argument(
         "--duration", type=float, default=4.0, metavar="S", help="landing time of the target"
@@ -93,8 +92,8 @@ def register(sub) -> None:
     p.add_argument(
         "--truth-scene",
         metavar="FILE",
-        help="with --sim: scene the simulated rig's truth runs (the host keeps --scene or the "
-        "configuration's; default: [sim.truth] scene)",
+        help="with --sim: the scene of the rig's truth, not the host's (default: [sim.truth] "
+        "scene)",
     )
     p.add_argument(
         "--rig",
