@@ -102,18 +102,18 @@ firmware:
 # The computing tests on two workers, then the real-time ones (tests/conftest.py): those of the
 # simulated rig one after the other (a run needs most of a core: rig, loop and estimator), beside
 # them those of the firmware in the loop (the simavr harness needs about 0.4 of one), then the
-# computing tests marked slow (one process held to one core: the rig's runs take five minutes,
-# and the other core would idle; not those marked install, whose compilers take both), never
-# two rig runs at once.
+# computing tests marked slow (one process held to one core: the rig's runs take six minutes,
+# and the other core would idle; the wheel's build and install among them, 45 s of one core),
+# never two rig runs at once.
 pytest: pytest-computing
 	$(MAKE) --no-print-directory -j2 --output-sync=target pytest-beside-rig pytest-rig
 
 pytest-computing:
-	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time and (not slow or install)"
+	$(BIN)/pytest -n 2 --dist loadscope -m "not real_time and not slow"
 
 pytest-beside-rig:
 	$(BIN)/pytest -m real_time tests/fil
-	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/pytest -m "slow and not real_time and not install"
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/pytest -m "slow and not real_time"
 
 pytest-fil:
 	$(BIN)/pytest -m real_time tests/fil

@@ -27,7 +27,6 @@ def run(cmd, **kwargs) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-@pytest.mark.install
 def test_wheel_in_a_fresh_venv_finds_its_shipped_files_from_a_temporary_directory(tmp_path):
     src = tmp_path / "src"
     src.mkdir()
