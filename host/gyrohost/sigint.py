@@ -109,11 +109,18 @@ class InterruptsBlocked:
     """Context: the interrupting signals blocked in this thread. A process started inside
     inherits the block (across ``fork`` and ``exec``), so a Ctrl-C to the process group cannot
     cut its start short (a traceback from its interpreter's start-up): it unblocks them once it
-    has chosen what to do with them (:func:`unblock_interrupts`)."""
+    has chosen what to do with them (:func:`unblock_interrupts`).
+
+    multiprocessing's resource tracker, started with a process's first child, unblocks SIGINT
+    and SIGTERM in the starting thread once it runs: it is started before the block, so that
+    the block holds for the child started inside it."""
 
     def __enter__(self):
         self.previous = None
         if hasattr(signal, "pthread_sigmask"):  # POSIX
+            from multiprocessing import resource_tracker
+
+            resource_tracker.ensure_running()
             self.previous = signal.pthread_sigmask(signal.SIG_BLOCK, INTERRUPTS)
         return self
 

@@ -22,7 +22,7 @@ _PUBLIC = {
     "check_schedule": "limits",
     "jitter_line": "ticker",
     "run_simulated": "simulated",
-    "with_ports": "simulated",
+    "with_ports": "connect",
 }
 """Public name -> its module; imported on first use, so ``gyrohost.run.log`` (read by the plots)
 does not import the drivers, the estimator and the model."""

@@ -1,5 +1,7 @@
 """The ``connect`` phase: the devices opened and checked, their versions logged."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from gyrohost.bringup.wheel_faults import clear_reported_faults
@@ -38,6 +40,17 @@ def wheel_model_differences(board_params: dict, est) -> list[str]:
             f"{1e3 * est.wheel_filter_s:g} ms ([estimator] of the configuration)"
         )
     return out
+
+
+def with_ports(config, ports: dict):
+    """``config`` with device ports replaced: ``ports`` maps ``imu``, ``wheels``, ``servos`` to a
+    path (a missing or ``None`` entry keeps the configured port)."""
+    return replace(
+        config,
+        imu=replace(config.imu, port=ports.get("imu") or config.imu.port),
+        wheelboard=replace(config.wheelboard, port=ports.get("wheels") or config.wheelboard.port),
+        servos=replace(config.servos, port=ports.get("servos") or config.servos.port),
+    )
 
 
 def connect_devices(loop) -> None:

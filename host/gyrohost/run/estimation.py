@@ -202,7 +202,8 @@ class EstimatorProcess:
     def stop(self, timeout_s: float = STOP_TIMEOUT_S) -> tuple[bool, str]:
         """Let the child finish what it was sent, write its rows, take its health table and
         end it; returns (finished, what happened) for the safe state's step list."""
-        if self.log is None:
+        if self.log is None:  # never fed: the pipe's end ends the child at once
+            self._conn.close()
             self._end()
             return True, "never started"
         try:

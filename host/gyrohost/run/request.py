@@ -217,7 +217,7 @@ def wired(config, request: RunRequest):
     """``config`` with the ports of ``request`` (its ports file, then its single ports); every
     device must end on a real port, not the emulator's."""
     from gyrohost.config import EMULATED_PORT
-    from gyrohost.run.simulated import with_ports
+    from gyrohost.run.connect import with_ports
     from gyrohost.simrig.control_socket import read_ports_file
 
     running = {} if request.ports_file is None else read_ports_file(request.ports_file).devices

@@ -42,7 +42,7 @@ from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator.config import EstimatorConfig, for_rig
 from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.gcfreeze import heap_frozen
-from gyrohost.run.connect import connect_devices
+from gyrohost.run.connect import connect_devices, with_ports
 from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
 from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
 from gyrohost.run.errors import RunError, StartStateRefused
@@ -232,15 +232,34 @@ class RunLoop:
         self.log.update_meta(summary=summary)
         return True, "in meta.json"
 
+    def spawn_estimator(self) -> None:
+        """Start the estimator's child process, once: it imports and builds its model while
+        the devices connect and the wheels spin up (and, on the simulated rig, while the rig's
+        own process starts: :func:`gyrohost.run.simulated.run_simulated`). A child the run never
+        takes up is ended by :meth:`run`'s safe state, or by :meth:`end_estimator`."""
+        if self.estimator is None:
+            self.estimator = EstimatorProcess(
+                self.model,
+                self.config.scene_path,
+                self.estimator_config,
+                self.servo_strings,
+                self.settings.estimate_max_age_s,
+            )
+
+    def end_estimator(self) -> None:
+        """End the estimator's child if the run did not (a run that never began)."""
+        if self.estimator is not None:
+            self.estimator.stop()
+
+    def attach_rig(self, rig) -> None:
+        """Run on the started simulated rig ``rig`` (a ``RigProcess``): its ptys as the ports,
+        its truth streamed to the log and the estimator's score."""
+        self.config = with_ports(self.config, rig.paths)
+        self.rig = rig
+
     def _sequence(self) -> None:
         self._enter("connect")
-        self.estimator = EstimatorProcess(  # builds its model while the rig spins up
-            self.model,
-            self.config.scene_path,
-            self.estimator_config,
-            self.servo_strings,
-            self.settings.estimate_max_age_s,
-        )
+        self.spawn_estimator()
         connect_devices(self)
         check_start_state(self)
         self._enter("hold")

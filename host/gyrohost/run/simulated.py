@@ -1,4 +1,4 @@
-"""A run on the simulated rig, and a configuration's ports replaced by a rig's ptys."""
+"""A run on the simulated rig: its process started beside the estimator's, its ptys as the ports."""
 
 from dataclasses import replace
 from pathlib import Path
@@ -34,16 +34,11 @@ def run_simulated(
     settings = kwargs.get("settings") or RunSettings()
     check_schedule(getattr(schedule, "schedule", schedule), config.servos.servo, config.run,
                    settings.max_schedule_s)  # fmt: skip
-    with RigProcess(config, period_s=1.0 / settings.rate_hz) as rig:
-        return RunLoop(with_ports(config, rig.paths), schedule, log_folder, rig=rig, **kwargs).run()
-
-
-def with_ports(config, ports: dict):
-    """``config`` with device ports replaced: ``ports`` maps ``imu``, ``wheels``, ``servos`` to a
-    path (a missing or ``None`` entry keeps the configured port)."""
-    return replace(
-        config,
-        imu=replace(config.imu, port=ports.get("imu") or config.imu.port),
-        wheelboard=replace(config.wheelboard, port=ports.get("wheels") or config.wheelboard.port),
-        servos=replace(config.servos, port=ports.get("servos") or config.servos.port),
-    )
+    loop = RunLoop(config, schedule, log_folder, **kwargs)  # checked before anything starts
+    loop.spawn_estimator()  # its child and the rig's import side by side
+    try:
+        with RigProcess(config, period_s=1.0 / settings.rate_hz) as rig:
+            loop.attach_rig(rig)
+            return loop.run()
+    finally:
+        loop.end_estimator()
