@@ -52,6 +52,7 @@ def test_a_wheel_spin_up_turns_the_structure_by_the_momentum_balance():
     stretch of s13 as it turns (0.02 % in docs/rig-fidelity.md) and the truth's RK4 at 5 ms is
     within 1e-5 m of a ten times finer step; a dropped reaction would give 0."""
     truth = Truth(RIG, TruthConfig(), [])
+    assert truth.release()  # a motor-reaction truth starts held by its mount
     model = truth.model
     for k in range(1, 51):  # 0.25 s ramp
         end = SPIN_RAD_S * min(k / 50, 1.0)
@@ -69,6 +70,22 @@ def test_a_wheel_spin_up_turns_the_structure_by_the_momentum_balance():
     I_y = np.sum(model.m_t * R[0] ** 2 + J_perp * (1 - d_y**2) + RIG.rig.stator_inertia * d_y**2)
     H_wheels = np.sum(model.J3 * SPIN_RAD_S * d_y)
     assert H_wheels == pytest.approx(5.09e-3, rel=1e-2)
-    print(f"turn {rate[1]:.5f} rad/s, momentum balance {-H_wheels / I_y:.5f} rad/s")
     assert rate[1] == pytest.approx(-H_wheels / I_y, rel=1e-2)
     assert np.abs(rate[[0, 2]]).max() < 1e-6 * abs(rate[1])
+
+
+def test_held_during_the_spin_up_then_free_and_still():
+    """The mount takes the spin-up's reaction: the structure is where it started when released,
+    at rest, and stays so while the spins hold (no momentum exchange)."""
+    truth = Truth(RIG, TruthConfig(), [])
+    start = truth.nodes()
+    for k in range(1, 41):
+        truth.step({}, SPIN_RAD_S * (k - 0.5) / 40, SPIN_RAD_S * k / 40)
+    np.testing.assert_array_equal(truth.nodes(), start)
+    np.testing.assert_allclose(truth.wheel_speeds_rad_s(), SPIN_RAD_S, rtol=1e-12)
+    assert truth.release() and not truth.release()
+    for _ in range(100):
+        truth.step({}, SPIN_RAD_S, SPIN_RAD_S)
+    assert np.abs(truth.nodes() - start).max() < 1e-9
+    truth.reset()
+    assert truth.held

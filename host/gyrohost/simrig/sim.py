@@ -437,7 +437,8 @@ class SimulatedRig:
         """Run one text command; returns a one-line answer.
 
         ``fault DEVICE FAULT [ARG...]`` (``fault imu silence 2``, ``fault wheels corrupt 40``,
-        ``fault servos overload 1 0.5``, ``fault wheels reset``), ``stats`` or ``reset``.
+        ``fault servos overload 1 0.5``, ``fault wheels reset``), ``stats``, ``reset`` or
+        ``release`` (a held truth's structure let go, :meth:`Truth.release`).
 
         Raises
         ------
@@ -450,6 +451,10 @@ class SimulatedRig:
             return f"{stats.rates_line()}; {stats.truth_line()}"
         if words == ["reset"]:
             return self.reset()
+        if words == ["release"]:
+            with self._lock:
+                held = self.truth.release()
+            return "release: the structure is free" if held else "release: nothing was held"
         if len(words) < 3 or words[0] != "fault":
             raise FaultCommandError(f"unknown command {line.strip()!r}: try 'fault imu silence 2'")
         device, fault, args = words[1], words[2], words[3:]

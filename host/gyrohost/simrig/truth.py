@@ -12,7 +12,11 @@ heavier or lighter than the scene the estimator uses (model mismatch). Two kinds
   ``J_3 (omega_board(t + h) - omega) / h`` held over every step ``h``, which brings the spin to
   the board's true speed at the step's end; the reaction of that torque acts on the stator's
   bar, so every speed change of the board turns the structure by the momentum balance. The
-  rig-fidelity model runs in the compiled kernel (:mod:`gyrotensegrity.fast_rig`).
+  rig-fidelity model runs in the compiled kernel (:mod:`gyrotensegrity.fast_rig`). Such a truth
+  starts **held**: its mount keeps the structure at its initial state (the reaction of the
+  wheels' spin-up goes into the mount, as the experimenter's hands take it on the rig) until
+  :meth:`Truth.release`; the run releases it when its lead-in starts, after the spin-up, where
+  the estimator starts from the scene's initial state. :meth:`Truth.reset` holds it again.
 
 Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
 
@@ -263,6 +267,7 @@ class Truth:
         self.wheel_input_rad_s = np.zeros(len(self.model.wheel_bars))
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
         self.torque_driven = torque_driven(scene)
+        self.held = self.torque_driven
         self._J3 = self.model.J3[self.model.wheel_bars]
         self._check_frame()
         depth = int(math.ceil((config.imu_latency_s + MAX_BACKLOG_S) / self.dt_s)) + 2
@@ -302,7 +307,13 @@ class Truth:
         self.rest_length_m[:] = [s.rest_length(0.0) for s in self.model.scene.strings]
         self.wheel_input_rad_s[:] = 0.0
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        self.held = self.torque_driven
         self.set_state(self._x0)
+
+    def release(self) -> bool:
+        """Let the structure go (see the module docstring); returns whether it was held."""
+        held, self.held = self.held, False
+        return held
 
     @property
     def t_s(self) -> float:
@@ -342,6 +353,11 @@ class Truth:
             wheel = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
         self.u = self.model.pack_input(self.rest_length_m, wheel)
         x = self.stepper.step(self.dt_s, self.u)
+        if self.held:  # the mount: the structure where it started, the wheels as they spin
+            L = self.model.layout
+            x = self._x0.copy()
+            x[L.theta], x[L.omega] = self.stepper.x[L.theta], self.stepper.x[L.omega]
+            self.stepper.x = x
         self._history.append((self.stepper.t, x.copy(), self.u))
         if self._record is not None:
             self._record.append(
