@@ -67,18 +67,24 @@ static int64_t cholesky_factor(double* A, int64_t n) {
     return 0;
 }
 
-/* b <- A^-1 b with A's Cholesky factor L (lower triangle of A): forward, then backward. */
-static void cholesky_subst(const double* A, double* b, int64_t n) {
+/* b <- A^-1 b (n entries) with A's Cholesky factor L in the lower triangle of the leading n x n
+ * block of A (leading dimension ld): forward, then backward. */
+static void cholesky_subst_ld(const double* A, int64_t ld, double* b, int64_t n) {
     for (int64_t i = 0; i < n; i++) {
         double s = b[i];
-        for (int64_t k = 0; k < i; k++) s -= A[i * n + k] * b[k];
-        b[i] = s / A[i * n + i];
+        for (int64_t k = 0; k < i; k++) s -= A[i * ld + k] * b[k];
+        b[i] = s / A[i * ld + i];
     }
     for (int64_t i = n - 1; i >= 0; i--) {
         double s = b[i];
-        for (int64_t k = i + 1; k < n; k++) s -= A[k * n + i] * b[k];
-        b[i] = s / A[i * n + i];
+        for (int64_t k = i + 1; k < n; k++) s -= A[k * ld + i] * b[k];
+        b[i] = s / A[i * ld + i];
     }
+}
+
+/* b <- A^-1 b with A's Cholesky factor L (lower triangle of A, n x n). */
+static void cholesky_subst(const double* A, double* b, int64_t n) {
+    cholesky_subst_ld(A, n, b, n);
 }
 
 static int64_t cholesky_solve(double* A, double* b, int64_t n) {
@@ -1596,16 +1602,8 @@ static void semidefinite_solve(double* A, const double* b, double* mu, double* w
         for (int64_t i = j + 1; i < n; i++)
             for (int64_t l = j + 1; l < n; l++) A[i * n + l] -= A[i * n + j] * A[l * n + j];
     }
-    for (int64_t i = 0; i < rank; i++) {
-        double s = b[(int64_t)perm[i]];
-        for (int64_t c = 0; c < i; c++) s -= A[i * n + c] * y[c];
-        y[i] = s / A[i * n + i];
-    }
-    for (int64_t i = rank - 1; i >= 0; i--) {
-        double s = y[i];
-        for (int64_t c = i + 1; c < rank; c++) s -= A[c * n + i] * y[c];
-        y[i] = s / A[i * n + i];
-    }
+    for (int64_t i = 0; i < rank; i++) y[i] = b[(int64_t)perm[i]];
+    cholesky_subst_ld(A, n, y, rank);
     for (int64_t i = 0; i < n; i++) mu[i] = 0.0;
     for (int64_t i = 0; i < rank; i++) mu[(int64_t)perm[i]] = y[i];
 }

@@ -93,12 +93,6 @@ class FastRig:
         if self.kernel is None:  # pragma: no cover - depends on the build
             return self.model.rig.rhs(t, x, u)
         out = np.empty(self.state_size)
-        self.kernel.rig_rhs(
-            self._consts,
-            self._dims,
-            np.ascontiguousarray(x, float),
-            np.ascontiguousarray(u, float),
-            out,
-            self._work,
-        )
+        x, u = (np.ascontiguousarray(a, float) for a in (x, u))
+        self.kernel.rig_rhs(self._consts, self._dims, x, u, out, self._work)
         return out

@@ -6,6 +6,7 @@ from importlib.resources import files
 
 import numpy as np
 import pytest
+from rigid_motion import structure_rate
 from scipy.integrate import solve_ivp
 
 from gyrotensegrity import Model, SceneError, Stepper, evaluate, rhs, scene_from_dict, simulate
@@ -62,16 +63,6 @@ def states(model, duration_s, times):
         t_eval=times,
     )
     return sol.y.T
-
-
-def structure_rate(N, N_dot):
-    """Angular velocity (3,) rad/s of the rigid motion that best fits the node velocities."""
-    c = N.mean(axis=1, keepdims=True)
-    rows = []
-    for p in (N - c).T:
-        skew = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
-        rows.append(np.hstack([-skew, np.eye(3)]))
-    return np.linalg.lstsq(np.vstack(rows), N_dot.T.ravel(), rcond=None)[0][:3]
 
 
 def momentum_balance_rate(model):

@@ -3,6 +3,7 @@ speed changes turn the structure by the momentum balance (simrig/truth.py)."""
 
 import numpy as np
 import pytest
+from rigid_motion import structure_rate
 
 from gyrohost.resources import shipped
 from gyrohost.simrig.config import TruthConfig
@@ -11,16 +12,6 @@ from gyrotensegrity import Model, load_scene
 
 RIG = load_scene(shipped("scene", "dbar-rig"))
 SPIN_RAD_S = np.array([1.0, -1.0, -1.0, 1.0]) * 74.87462492  # the dbar-rig pattern, 715 rpm
-
-
-def structure_rate(N, N_dot):
-    """Angular velocity (3,) rad/s of the rigid motion that best fits the node velocities."""
-    c = N.mean(axis=1, keepdims=True)
-    rows = []
-    for p in (N - c).T:
-        skew = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
-        rows.append(np.hstack([-skew, np.eye(3)]))
-    return np.linalg.lstsq(np.vstack(rows), N_dot.T.ravel(), rcond=None)[0][:3]
 
 
 def test_the_plant_of_a_motor_reaction_scene_is_torque_driven_at_rest():
