@@ -5,10 +5,14 @@ import numpy as np
 import pytest
 from rigid_motion import structure_rate
 
+from gyrohost.config import load_rig_config
+from gyrohost.ident.scenefile import scene_toml
 from gyrohost.resources import shipped
-from gyrohost.simrig.config import TruthConfig
+from gyrohost.simrig.config import TruthConfig, with_truth_scene
+from gyrohost.simrig.sim import SimulatedRig
 from gyrohost.simrig.truth import Truth, rig_scene
-from gyrotensegrity import Model, load_scene
+from gyrotensegrity import Model, SceneError, load_scene, scene_from_dict
+from gyrotensegrity.textfile import read_toml
 
 RIG = load_scene(shipped("scene", "dbar-rig"))
 SPIN_RAD_S = np.array([1.0, -1.0, -1.0, 1.0]) * 74.87462492  # the dbar-rig pattern, 715 rpm
@@ -80,3 +84,19 @@ def test_held_during_the_spin_up_then_free_and_still():
     assert np.abs(truth.nodes() - start).max() < 1e-9
     truth.reset()
     assert truth.held
+
+
+def test_the_simulated_rig_releases_a_held_truth_on_its_command(tmp_path):
+    d = read_toml(shipped("scene", "dbar-rig"), SceneError)
+    for bar in d["bars"]:
+        del bar["wheel"]["torque"]
+    d["strings"].append(dict(d["strings"][0], name="s24", nodes=["n2", "n4"]))  # dbar-gyro's
+    path = tmp_path / "truth.toml"
+    path.write_text(scene_toml(scene_from_dict(d, "dbar-rig with s24"), "truth"))
+    config = with_truth_scene(load_rig_config(shipped("config", "sim-rig")), path)
+    with SimulatedRig(config, clock="sim") as rig:
+        assert rig.truth.held
+        assert rig.command("release") == "release: the structure is free"
+        assert rig.command("release") == "release: nothing was held"
+        rig.command("reset")
+        assert rig.truth.held
