@@ -126,7 +126,7 @@ def sil_case(nominal, truth, mode, target_deg, closed, a):
     target = Target(attitude_rpy_rad=tuple(np.radians(target_deg)), duration_s=a.duration,
                     closed_loop=closed, mode=mode)  # fmt: skip
     maneuver = Maneuver(nominal, limits, target)
-    run = run_maneuver_sil(truth, maneuver, max_dt_s=2e-3, noise=NOISE)
+    run = run_maneuver_sil(truth, maneuver, max_dt_s=2e-3, noise=NOISE, fast=True)
     q = target_quaternion(np.radians(target_deg))
     error = math.degrees(angle_between(q, run.quaternion[run.landing_index]))
     travel = np.ptp(run.schedule.rest_length, axis=0) * 1e3 if run.schedule.names else [0.0]
