@@ -13,10 +13,13 @@ Two parts:
   sin(pitch)`` (strings alone: turns about the momentum, the pitch axis). :data:`NOISE`
   gives the stand-in estimate the EKF's accuracy.
 - ``rig`` (real time, EKF in the loop): ``gyrotens run --sim --target-attitude`` on the
-  simulated rig (sim-rig) with the truth scene dbar-gyro off by the same 1-sigma. Strings only:
-  the simulated rig's wheels are speed-controlled without the motors' reaction (the rig-fidelity
-  truth needs the reference path, about real time on one core at its stability step, and
-  torque-driven wheels), so on it a wheel's speed change does not turn the structure.
+  simulated rig (sim-rig) whose truth is the sil part's (dbar-rig with the follower string s24,
+  off by the same 1-sigma), its wheels torque-driven by an ideal speed loop following the wheel
+  board's true speeds (simrig/truth.py), so every speed change turns the structure by its
+  reaction; the rig-fidelity model in the compiled kernel (gyrotensegrity.fast_rig). Strings
+  and wheels on the three-axis targets, strings only on a pitch target, open and closed loop
+  (re-planned in a thread). Limits asserted from each run's log: the truth's wheel speeds and
+  accelerations, its rest lengths and the servos' string lengths.
 
 Prints per case: target, mode, loop, landing error (geodesic, deg, truth at the landing time),
 peak wheel speed, servo travel, re-plans (accepted) and their time (median, worst, ms), whether
@@ -72,6 +75,7 @@ def parse(argv):
     p.add_argument("--part", choices=("sil", "rig", "both"), default="both")
     p.add_argument("--duration", type=float, default=4.0, help="landing time, s")
     p.add_argument("--cases", type=int, default=len(CASES), help="the first N sil cases")
+    p.add_argument("--rig-cases", type=int, default=len(RIG_CASES), help="the first N rig cases")
     p.add_argument("-o", "--out", type=Path, default=Path("out/attitude-closed-loop"))
     return p.parse_args(argv)
 
@@ -85,14 +89,19 @@ STRESS_J3 = 1.05
 corrects when the model is clearly wrong."""
 
 
-def rig_truth(**factors):
+def rig_truth_scene(**factors):
     """dbar-rig with the follower string, off by ``factors`` (default 1-sigma), its wheels'
-    torques the SIL's."""
+    torques left to the SIL's or the simulated rig's speed loop."""
     data = truth_data("dbar-rig")
     for bar in data["bars"]:
         bar["wheel"].pop("torque")
     data["strings"].append(dict(data["strings"][0], name="s24", nodes=["n2", "n4"]))
-    return Model(scaled_scene(data, "dbar-rig with s24", **(ONE_SIGMA | factors)))
+    return scaled_scene(data, "dbar-rig with s24", **(ONE_SIGMA | factors))
+
+
+def rig_truth(**factors):
+    """:func:`rig_truth_scene` as a model."""
+    return Model(rig_truth_scene(**factors))
 
 
 def within_limits(run, limits) -> bool:
@@ -117,7 +126,7 @@ def sil_case(nominal, truth, mode, target_deg, closed, a):
     target = Target(attitude_rpy_rad=tuple(np.radians(target_deg)), duration_s=a.duration,
                     closed_loop=closed, mode=mode)  # fmt: skip
     maneuver = Maneuver(nominal, limits, target)
-    run = run_maneuver_sil(truth, maneuver, max_dt_s=2e-3, noise=NOISE)
+    run = run_maneuver_sil(truth, maneuver, max_dt_s=2e-3, noise=NOISE, fast=True)
     q = target_quaternion(np.radians(target_deg))
     error = math.degrees(angle_between(q, run.quaternion[run.landing_index]))
     travel = np.ptp(run.schedule.rest_length, axis=0) * 1e3 if run.schedule.names else [0.0]
@@ -204,48 +213,143 @@ def _matrix(q):
     return Rotation.from_quat(q, scalar_first=True).as_matrix()
 
 
+RIG_CASES = [("both", t) for t in THREE_AXIS_DEG] + [("strings", PITCH_DEG[0])]
+"""The real-time part's cases: strings and wheels on the three-axis targets, strings alone on a
+pitch target."""
+
+
 def rig_part(a):
-    """Real time on the simulated rig, EKF in the loop, strings only."""
+    """Real time on the simulated rig, EKF in the loop, the rig-fidelity truth."""
     from gyrohost.config import load_rig_config
     from gyrohost.ident.scenefile import scene_toml
     from gyrohost.run import run_simulated
-    from gyrohost.simrig.config import with_truth_scene
+    from gyrohost.simrig.config import sim_config, with_truth_scene
 
     a.out.mkdir(parents=True, exist_ok=True)
-    scene = scaled_scene(truth_data("dbar-gyro"), "dbar-gyro", **ONE_SIGMA)
-    truth_path = a.out / "truth-dbar-gyro-1sigma.toml"
-    truth_path.write_text(scene_toml(scene, "dbar-gyro, parameters 1-sigma off"))
+    scene = rig_truth_scene()
+    truth_path = a.out / "truth-dbar-rig-s24-1sigma.toml"
+    truth_path.write_text(scene_toml(scene, "dbar-rig with s24, parameters 1-sigma off"))
     config = with_truth_scene(load_rig_config(shipped("config", "sim-rig")), truth_path)
     limits = Limits.per_string(config.servos.servo)
-    print(f"rig (real time, EKF): truth {scene.source}, strings only, re-planned in a thread")
-    for target_deg in PITCH_DEG:
+    sim = sim_config(config)
+    step_m = max(2.0 * math.pi * s.pulley_radius_m / 4096 for s in config.servos.servo)
+    tolerances = (sim.truth.dt_s, sim.servos.hold_band_steps * step_m)
+    print(truth_speed(scene, config), flush=True)
+    print(
+        f"rig (real time, EKF): truth {scene.source}, wheels torque-driven; re-planned in a "
+        "thread; limits from the log: truth wheels, truth rest lengths, servo lengths"
+    )
+    print(
+        f"{'mode':8s}{'target r, p, y (deg)':>22s}{'loop':>8s}{'err deg':>9s}{'wheel':>9s}"
+        f"{'servo mm':>9s}{'re-plans':>10s}{'ms med/max':>11s}{'late':>5s}{'limits':>7s}  run"
+    )
+    for mode, target_deg in RIG_CASES[: a.rig_cases]:
         for closed in (False, True):
             target = Target(attitude_rpy_rad=tuple(np.radians(target_deg)),
-                            duration_s=a.duration, mode="strings")  # fmt: skip
+                            duration_s=a.duration, mode=mode)  # fmt: skip
             target = replace(target, closed_loop=closed, threaded=closed)
-            out = a.out / f"rig-{target_deg[1]:+g}-{'closed' if closed else 'open'}"
-            maneuver = Maneuver(Model(load_scene(config.scene_path)), limits, target)
+            out = a.out / f"rig-{mode}-{'_'.join(f'{v:+g}' for v in target_deg)}-{closed:d}"
             start = time.perf_counter()
-            result = run_simulated(config, maneuver, out)
-            print(rig_line(target_deg, closed, result, time.perf_counter() - start), flush=True)
+            try:
+                maneuver = Maneuver(Model(load_scene(config.scene_path)), limits, target)
+                result = run_simulated(config, maneuver, out)
+            except PlanError as exc:
+                print(f"{mode:8s}{', '.join(f'{v:+.1f}' for v in target_deg):>22s}  {exc}")
+                continue
+            wall_s = time.perf_counter() - start
+            line = rig_line(mode, target_deg, closed, result, out, limits, tolerances, wall_s)
+            print(line, flush=True)
 
 
-def rig_line(target_deg, closed, result, wall_s):
+def truth_speed(scene, config, steps=200):
+    """The simulated rig's truth step (5 ms: RK4, the speed loop's torques, a wheel spin-up and a
+    string pull) on the compiled kernel and on the reference path, measured here, one after the
+    other: wall ms per step and their ratio."""
+    from gyrohost.simrig.config import sim_config
+    from gyrohost.simrig.truth import Truth
+    from gyrotensegrity import Stepper
+
+    wall = {}
+    for fast in (True, False):
+        truth = Truth(scene, sim_config(config).truth, config.servos.servo)
+        truth.release()
+        truth.stepper = Stepper(truth.model, max_dt=truth.stepper.max_dt, fast=fast)
+        spins = np.array([1.0, -1.0, -1.0, 1.0]) * 75.0
+        start = time.perf_counter()
+        for k in range(steps):
+            pulled = {1: truth.rest_length_m[0] - 1e-4, 2: truth.rest_length_m[1]}
+            truth.step(pulled, spins * min(1.0, (k + 0.5) / 100), spins * min(1.0, (k + 1) / 100))
+        wall[fast] = (time.perf_counter() - start) / steps
+    return (
+        f"truth step ({steps} steps of {1e3 * truth.dt_s:g} ms): kernel {1e3 * wall[True]:.3f} ms, "
+        f"reference {1e3 * wall[False]:.3f} ms wall per step, {wall[False] / wall[True]:.0f} times"
+    )
+
+
+ACCEL_WINDOW_S = 0.05
+"""The truth's wheel accelerations are asserted over this much truth time, against the limit
+times ``1 + dt / window`` (1.1 at the truth's 5 ms step): each truth step takes the board's
+speeds at the rig's poll, which a late step (a loaded CPU) takes a step later in device time,
+and the board ramps its setpoints at its ``ACCEL_RAD_S2``, the limit itself."""
+
+
+def log_limits(folder, limits, dt_s, band_m):
+    """Peak truth wheel speed (rad/s), servo travel (mm) and whether the log stays inside the
+    limits: the truth's wheel speeds, its rest lengths and the servos' string lengths within
+    each string's range throughout; the truth's wheel accelerations (over
+    :data:`ACCEL_WINDOW_S`) while the schedule plays and settles (the spin-up and the safe
+    state's ramp-down are the wheel board's own ramps); ``dt_s`` the truth's step, s. The
+    lengths may pass a range by ``band_m``: a servo stops within its hold band of a goal at the
+    range's end (the emulator's ``hold_band_steps``), as a real one within its count."""
+    from gyrohost.run.log import read_stream
+
+    truth, servos = read_stream(folder, "truth"), read_stream(folder, "servos")
+    truth = truth[np.concatenate([[True], np.diff(truth["truth_t_s"]) > 0.0])]  # new states
+    omega = np.column_stack([truth[f"omega_{i}_rad_s"] for i in range(4)])
+    events = read_stream(folder, "events")
+    played = events["t_s"][(events["kind"] == "phase") & (events["message"] == "schedule")]
+    ended = events["t_s"][events["kind"] == "end"]
+    t = truth["truth_t_s"]
+    later = np.searchsorted(t, t + ACCEL_WINDOW_S)
+    ends = later < len(t)
+    start, end = np.flatnonzero(ends), later[ends]
+    during = (truth["t_s"][start] >= played.min(initial=np.inf)) & (
+        truth["t_s"][end] <= ended.min(initial=np.inf)
+    )
+    accel = np.abs(omega[end] - omega[start]) / (t[end] - t[start])[:, None]
+    ok = bool(np.abs(omega).max() <= limits.max_wheel_speed_rad_s)
+    slack = 1.0 + dt_s / ACCEL_WINDOW_S
+    ok &= bool(accel[during].max(initial=0.0) <= slack * limits.max_wheel_accel_rad_s2)
+    travel = 0.0
+    for name in ("s13", "s24"):
+        low, high = limits.range_of(name)
+        for column in (truth[f"{name}_rest_m"], servos[f"{name}_length_m"]):
+            ok &= bool(low - band_m <= column.min() and column.max() <= high + band_m)
+        travel = max(travel, float(np.ptp(servos[f"{name}_length_m"])) * 1e3)
+    return float(np.abs(omega).max()), travel, ok
+
+
+def rig_line(mode, target_deg, closed, result, folder, limits, tolerances, wall_s):
     s = result.summary
     m = s["maneuver"]
     error = s.get("attitude_end_truth_error_rad", math.nan)
-    lag = s.get("rig_real_time", {})
     times = (
-        f"{1e3 * m['replan_time_median_s']:.0f}/{1e3 * m['replan_time_max_s']:.0f} ms, "
-        f"{m['replans_late']} late"
+        f"{1e3 * m['replan_time_median_s']:.0f}/{1e3 * m['replan_time_max_s']:.0f}"
         if m["replans"]
         else "-"
     )
+    wheel, travel, ok = log_limits(folder, limits, *tolerances)
+    lag = s.get("rig_real_time", {})
+    plans = f"{m['replans']} ({m['replans_accepted']})"
+    ekf = "diverged" if s["estimator"].get("diverged") else "ok"
     return (
-        f"  target {', '.join(f'{v:+.1f}' for v in target_deg)} deg "
-        f"{'closed' if closed else 'open'}: {s['reason']}; truth {math.degrees(error):.3f} deg "
-        f"off at the landing; re-plans {m['replans']} ({m['replans_accepted']} accepted), "
-        f"{times}; loop {s['loop'].get('overruns', '?')} overruns; rig {lag}; {wall_s:.0f} s"
+        f"{mode:8s}{', '.join(f'{v:+.1f}' for v in target_deg):>22s}"
+        f"{'closed' if closed else 'open':>8s}{math.degrees(error):>9.3f}{wheel:>9.1f}"
+        f"{travel:>9.1f}{plans:>10s}{times:>11s}{m.get('replans_late', 0):>5d}"
+        f"{'yes' if ok else 'NO':>7s}  {s['reason']}; EKF {ekf}, NEES "
+        f"{s['estimator'].get('nees', {}).get('mean', math.nan):.1f}; truth late "
+        f"{lag.get('late_share', math.nan):.1%}, max lag {1e3 * lag.get('max_lag_s', math.nan):.0f}"
+        f" ms; loop {s['loop'].get('overruns', '?')} overruns; {wall_s:.0f} s"
     )
 
 

@@ -2,7 +2,8 @@
  *
  * rhs(consts, dims, x, u, out, work) -> status evaluates the dense formulation documented
  * in fast.py for one state; jacobian(consts, dims, state, acc, J, work) -> status gives the
- * accelerations and their closed-form Jacobian (fast_jacobian.py, dense path without joints). All
+ * accelerations and their closed-form Jacobian (fast_jacobian.py, dense path without joints);
+ * rig_rhs(consts, dims, x, u, out, work) the rig-fidelity model's dx/dt (fast_rig.py). All
  * arrays are contiguous float64 buffers laid out by fast.py (_kernel_constants); dims is an int64
  * buffer [m, beta, alpha, n_w, n_tq, c_u, diagonal]. Status 0 is success; k > 0 means the
  * constraint system lost positive definiteness at pivot k - 1 (singular geometry).
@@ -66,18 +67,24 @@ static int64_t cholesky_factor(double* A, int64_t n) {
     return 0;
 }
 
-/* b <- A^-1 b with A's Cholesky factor L (lower triangle of A): forward, then backward. */
-static void cholesky_subst(const double* A, double* b, int64_t n) {
+/* b <- A^-1 b (n entries) with A's Cholesky factor L in the lower triangle of the leading n x n
+ * block of A (leading dimension ld): forward, then backward. */
+static void cholesky_subst_ld(const double* A, int64_t ld, double* b, int64_t n) {
     for (int64_t i = 0; i < n; i++) {
         double s = b[i];
-        for (int64_t k = 0; k < i; k++) s -= A[i * n + k] * b[k];
-        b[i] = s / A[i * n + i];
+        for (int64_t k = 0; k < i; k++) s -= A[i * ld + k] * b[k];
+        b[i] = s / A[i * ld + i];
     }
     for (int64_t i = n - 1; i >= 0; i--) {
         double s = b[i];
-        for (int64_t k = i + 1; k < n; k++) s -= A[k * n + i] * b[k];
-        b[i] = s / A[i * n + i];
+        for (int64_t k = i + 1; k < n; k++) s -= A[k * ld + i] * b[k];
+        b[i] = s / A[i * ld + i];
     }
+}
+
+/* b <- A^-1 b with A's Cholesky factor L (lower triangle of A, n x n). */
+static void cholesky_subst(const double* A, double* b, int64_t n) {
+    cholesky_subst_ld(A, n, b, n);
 }
 
 static int64_t cholesky_solve(double* A, double* b, int64_t n) {
@@ -1405,6 +1412,288 @@ static int64_t imu_cycle(const Consts* k, const int64_t* d, const double* spec, 
     return status ? status : !state_finite(xo, Po, n);
 }
 
+/* ---- The rig-fidelity model (gyrotensegrity.fast_rig; rigfidelity.py has the derivation) ----
+ * dims (int64): [m, beta, alpha, n_w, n_tq, k, n_h], then the bar of each wheel (n_w), the wheel
+ * of each torque input (n_tq), the bars with an axial state (k), the bar and the axial slot of
+ * each hinge side (2 n_h each: the sides i of all hinges, then the sides j) and each torque
+ * wheel's reaction slot (n_tq; -1: no reaction). consts: EE_T, off, k_s, c_s, WU, Ef as the
+ * paper's kernel, then 1/l^3 (beta), J_3 of each wheel (n_w), the speed mask (n_w), the
+ * reduced mass matrix's inverse (m x m), J_s (k), 1/J_3 of each torque wheel (n_tq), the hinge
+ * axes in their bars' frames (3 x 2 n_h), the sides' signs (2 n_h) and the rank cut rcond. */
+typedef struct {
+    int64_t m, beta, alpha, nw, ntq, k, nh, K, D, r;
+    const int64_t *wbar, *tq, *rbar, *sbar, *sslot, *react;
+    const double *inv_l3, *J3w, *smask, *Minv, *Js, *invJ3, *axis, *sign;
+    double rcond;
+    Consts paper; /* the members member_vectors and reduced_forces read */
+} Rig;
+
+// clang-format off
+static void rig_layout(const double *c, const int64_t *d, Rig *g)
+{
+    g->m = d[0]; g->beta = d[1]; g->alpha = d[2]; g->nw = d[3]; g->ntq = d[4];
+    g->k = d[5]; g->nh = d[6];
+    g->K = g->beta + g->alpha; g->D = 3 * g->m + g->k; g->r = g->beta + 3 * g->nh;
+    const int64_t *i = d + 7, m = g->m, K = g->K, al = g->alpha, nw = g->nw, s2 = 2 * g->nh;
+    g->wbar = i; i += nw;
+    g->tq = i; i += g->ntq;
+    g->rbar = i; i += g->k;
+    g->sbar = i; i += s2;
+    g->sslot = i; i += s2;
+    g->react = i;
+    g->paper.EE_T = c; c += m * K;
+    g->paper.off = c; c += 3 * K;
+    g->paper.k_s = c; c += al;
+    g->paper.c_s = c; c += al;
+    g->paper.WU = c; c += 3 * m;
+    g->paper.Ef = c; c += K * m;
+    g->inv_l3 = c; c += g->beta;
+    g->J3w = c; c += nw;
+    g->smask = c; c += nw;
+    g->Minv = c; c += m * m;
+    g->Js = c; c += g->k;
+    g->invJ3 = c; c += g->ntq;
+    g->axis = c; c += 3 * s2;
+    g->sign = c; c += s2;
+    g->rcond = *c;
+}
+// clang-format on
+
+static int64_t rig_work(const int64_t* d) {
+    int64_t K = d[1] + d[2], D = 3 * d[0] + d[5], r = d[1] + 3 * d[6];
+    return 9 * K + 3 * D + d[3] + d[1] + 2 * r * D + r * r + 4 * r;
+}
+
+static void cross3(const double* a, const double* b, double* c) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double dot3(const double* a, const double* b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Column j of a 3 x K row-major array into v. */
+static void column3(const double* A, int64_t K, int64_t j, double* v) {
+    for (int r = 0; r < 3; r++) v[r] = A[r * K + j];
+}
+
+/* b_hat and d/dt (b / |b|) of a bar vector b with rate bd; returns |b|^2. */
+static double unit_rate(const double* b, const double* bd, double* bh, double* bhd) {
+    double l2 = dot3(b, b), len = sqrt(l2);
+    for (int r = 0; r < 3; r++) bh[r] = b[r] / len;
+    double along = dot3(bh, bd);
+    for (int r = 0; r < 3; r++) bhd[r] = (bd[r] - bh[r] * along) / len;
+    return l2;
+}
+
+/* One hinge side s (bar p): its three rows of G (added at row0, D columns) and of gamma. */
+static void hinge_side(const Rig* g, const double* pos, const double* vel, const double* wax,
+                       const double* e, int64_t s, double* G, double* gam) {
+    int64_t m = g->m, K = g->K, D = g->D, p = g->sbar[s], slot = g->sslot[s], s2 = 2 * g->nh;
+    int64_t row0 = g->beta + 3 * (s % g->nh);
+    double b[3], bd[3], bh[3], bhd[3], ev[3], bxe[3], h[3], ax[3], bxbd[3], w[3], wd[3];
+    double wh[3], wwh[3], t1[3];
+    column3(pos, K, p, b);
+    column3(vel, K, p, bd);
+    column3(e, g->k, slot, ev);
+    double l2 = unit_rate(b, bd, bh, bhd), sg = g->sign[s];
+    cross3(bh, ev, bxe);
+    for (int r = 0; r < 3; r++)
+        h[r] = g->axis[s] * bh[r] + g->axis[s2 + s] * ev[r] + g->axis[2 * s2 + s] * bxe[r];
+    double hb = dot3(h, b);
+    /* (b x b_ddot) x h / |b|^2 = ((h . b) I - b h^T) b_ddot / |b|^2 */
+    for (int rr = 0; rr < 3; rr++) {
+        for (int c = 0; c < 3; c++) {
+            double A = sg / l2 * ((rr == c ? hb : 0.0) - b[rr] * h[c]);
+            double* row = G + (row0 + rr) * D + c * m;
+            for (int64_t j = 0; j < m; j++) row[j] += A * g->paper.EE_T[j * K + p];
+        }
+    }
+    cross3(bh, h, ax);
+    for (int rr = 0; rr < 3; rr++) G[(row0 + rr) * D + 3 * m + slot] += sg * ax[rr];
+    cross3(b, bd, bxbd);
+    double bbd = dot3(b, bd);
+    for (int r = 0; r < 3; r++) {
+        w[r] = bxbd[r] / l2 + wax[slot] * bh[r];
+        wd[r] = -2.0 * bbd * bxbd[r] / (l2 * l2) + wax[slot] * bhd[r];
+    }
+    cross3(wd, h, t1);
+    cross3(w, h, wh);
+    cross3(w, wh, wwh);
+    for (int r = 0; r < 3; r++) gam[row0 + r] += sg * (t1[r] + wwh[r]);
+}
+
+/* G (r x D, row-major) and gamma (r): bar lengths (b . b_dot), then three rows per hinge. */
+static void rig_constraints(const Rig* g, const double* pos, const double* vel, const double* wax,
+                            const double* e, double* G, double* gam) {
+    int64_t m = g->m, K = g->K, D = g->D;
+    for (int64_t i = 0; i < g->r * D; i++) G[i] = 0.0;
+    for (int64_t i = 0; i < g->r; i++) gam[i] = 0.0;
+    for (int64_t i = 0; i < g->beta; i++) {
+        double b[3], bd[3];
+        column3(pos, K, i, b);
+        column3(vel, K, i, bd);
+        for (int c = 0; c < 3; c++)
+            for (int64_t j = 0; j < m; j++) G[i * D + c * m + j] = b[c] * g->paper.EE_T[j * K + i];
+        gam[i] = dot3(bd, bd);
+    }
+    for (int64_t s = 0; s < 2 * g->nh; s++) hinge_side(g, pos, vel, wax, e, s, G, gam);
+}
+
+/* y = M^-1 v for generalized forces v (D): kron(I3, M_red^-1), then 1/J_s. */
+static void rig_mass_solve(const Rig* g, const double* v, double* y) {
+    int64_t m = g->m;
+    for (int c = 0; c < 3; c++) {
+        for (int64_t i = 0; i < m; i++) {
+            double s = 0.0;
+            for (int64_t j = 0; j < m; j++) s += g->Minv[i * m + j] * v[c * m + j];
+            y[c * m + i] = s;
+        }
+    }
+    for (int64_t s = 0; s < g->k; s++) y[3 * m + s] = v[3 * m + s] / g->Js[s];
+}
+
+/* Swap rows and columns i and j of the n x n matrix A. */
+static void swap_symmetric(double* A, int64_t n, int64_t i, int64_t j) {
+    for (int64_t c = 0; c < n; c++) {
+        double t = A[i * n + c];
+        A[i * n + c] = A[j * n + c];
+        A[j * n + c] = t;
+    }
+    for (int64_t c = 0; c < n; c++) {
+        double t = A[c * n + i];
+        A[c * n + i] = A[c * n + j];
+        A[c * n + j] = t;
+    }
+}
+
+/* mu (n) with A mu = b for a symmetric positive semi-definite A (n x n, overwritten) and a b
+ * outside A's null space: Cholesky with complete pivoting (LAPACK's dpstrf) up to the first
+ * pivot at or below rcond times A's largest diagonal entry; the multipliers of the rows beyond
+ * (redundant constraints) are 0. w: 2 n doubles of work. */
+static void semidefinite_solve(double* A, const double* b, double* mu, double* w, int64_t n,
+                               double rcond) {
+    double *perm = w, *y = w + n, tol = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+        tol = fmax(tol, A[i * n + i]);
+        perm[i] = (double)i;
+    }
+    tol *= rcond;
+    int64_t rank = n;
+    for (int64_t j = 0; j < n; j++) {
+        int64_t p = j;
+        for (int64_t i = j + 1; i < n; i++)
+            if (A[i * n + i] > A[p * n + p]) p = i;
+        if (!(A[p * n + p] > tol)) {
+            rank = j;
+            break;
+        }
+        if (p != j) {
+            swap_symmetric(A, n, j, p);
+            double t = perm[j];
+            perm[j] = perm[p];
+            perm[p] = t;
+        }
+        double d = sqrt(A[j * n + j]);
+        A[j * n + j] = d;
+        for (int64_t i = j + 1; i < n; i++) A[i * n + j] /= d;
+        for (int64_t i = j + 1; i < n; i++)
+            for (int64_t l = j + 1; l < n; l++) A[i * n + l] -= A[i * n + j] * A[l * n + j];
+    }
+    for (int64_t i = 0; i < rank; i++) y[i] = b[(int64_t)perm[i]];
+    cholesky_subst_ld(A, n, y, rank);
+    for (int64_t i = 0; i < n; i++) mu[i] = 0.0;
+    for (int64_t i = 0; i < rank; i++) mu[(int64_t)perm[i]] = y[i];
+}
+
+/* Spins of the wheels (n_w) and the generalized forces Q (D): the paper's strings and gyroscopic
+ * couples with each bar's whole axial momentum, the motor reactions on the stators' bars. */
+static void rig_forces(const Rig* g, const int64_t* d, const double* x, const double* u,
+                       double* pos, double* vel, double* cols, double* omega, double* H,
+                       double* Q) {
+    int64_t m = g->m, beta = g->beta, K = g->K, nw = g->nw;
+    const double *wax = x + 6 * m + nw + g->ntq, *uw = u + g->alpha;
+    member_vectors(&g->paper, d, x, x + 3 * m, pos, vel);
+    for (int64_t i = 0; i < nw; i++) omega[i] = g->smask[i] * uw[i];
+    for (int64_t t = 0; t < g->ntq; t++) omega[g->tq[t]] = x[6 * m + nw + t];
+    for (int64_t i = 0; i < beta; i++) H[i] = 0.0;
+    for (int64_t i = 0; i < nw; i++) H[g->wbar[i]] = g->J3w[i] * omega[i];
+    for (int64_t s = 0; s < g->k; s++) H[g->rbar[s]] += g->Js[s] * wax[s];
+    for (int64_t i = 0; i < beta; i++) {
+        double b[3], bd[3], c[3];
+        column3(pos, K, i, b);
+        column3(vel, K, i, bd);
+        cross3(b, bd, c);
+        for (int r = 0; r < 3; r++) cols[r * K + i] = c[r] * H[i] * g->inv_l3[i];
+    }
+    for (int64_t j = beta; j < K; j++) {
+        double S[3], Sd[3];
+        column3(pos, K, j, S);
+        column3(vel, K, j, Sd);
+        double s = sqrt(dot3(S, S)), rest = u[j - beta];
+        double tension =
+            g->paper.k_s[j - beta] * (s - rest) + g->paper.c_s[j - beta] * dot3(S, Sd) / s;
+        double gamma = (s > rest && tension > 0.0) ? tension / s : 0.0;
+        for (int r = 0; r < 3; r++) cols[r * K + j] = S[r] * gamma;
+    }
+    reduced_forces(&g->paper, d, cols, Q);
+    for (int64_t s = 0; s < g->k; s++) Q[3 * m + s] = 0.0;
+    for (int64_t t = 0; t < g->ntq; t++)
+        if (g->react[t] >= 0) Q[3 * m + g->react[t]] -= uw[g->tq[t]];
+}
+
+/* dx/dt of the rig-fidelity model (state and layout of rigfidelity.RigFidelity.rhs): M a = Q +
+ * G^T mu, G a = -gamma, solved as K mu = -gamma - G M^-1 Q with K = G M^-1 G^T. */
+static void rig_evaluate(const Rig* g, const int64_t* d, const double* x, const double* u,
+                         double* out, double* w) {
+    int64_t m = g->m, K = g->K, D = g->D, r = g->r, nw = g->nw, ntq = g->ntq, k = g->k;
+    double *pos = w, *vel = pos + 3 * K, *cols = vel + 3 * K, *Q = cols + 3 * K, *a0 = Q + D;
+    double *a = a0 + D, *omega = a + D, *H = omega + nw, *G = H + g->beta, *MG = G + r * D;
+    double *Km = MG + r * D, *gam = Km + r * r, *mu = gam + r, *sw = mu + r;
+    const double *wax = x + 6 * m + nw + ntq, *e = wax + k;
+    rig_forces(g, d, x, u, pos, vel, cols, omega, H, Q);
+    rig_constraints(g, pos, vel, wax, e, G, gam);
+    rig_mass_solve(g, Q, a0);
+    for (int64_t i = 0; i < r; i++)
+        rig_mass_solve(g, G + i * D, MG + i * D); /* rows: (M^-1 G^T)^T */
+    for (int64_t i = 0; i < r; i++) {
+        double s = -gam[i];
+        for (int64_t c = 0; c < D; c++) s -= G[i * D + c] * a0[c];
+        gam[i] = s;
+        for (int64_t j = 0; j < r; j++) {
+            double t = 0.0;
+            for (int64_t c = 0; c < D; c++) t += G[i * D + c] * MG[j * D + c];
+            Km[i * r + j] = t;
+        }
+    }
+    semidefinite_solve(Km, gam, mu, sw, r, g->rcond);
+    for (int64_t c = 0; c < D; c++) {
+        double s = a0[c];
+        for (int64_t i = 0; i < r; i++) s += MG[i * D + c] * mu[i];
+        a[c] = s;
+    }
+    for (int64_t i = 0; i < 3 * m; i++) {
+        out[i] = x[3 * m + i];
+        out[3 * m + i] = a[i];
+    }
+    for (int64_t i = 0; i < nw; i++) out[6 * m + i] = omega[i];
+    for (int64_t t = 0; t < ntq; t++) out[6 * m + nw + t] = u[g->alpha + g->tq[t]] * g->invJ3[t];
+    double* tail = out + 6 * m + nw + ntq;
+    for (int64_t s = 0; s < k; s++) {
+        double b[3], bd[3], bh[3], bhd[3], ev[3], bxe[3];
+        column3(pos, K, g->rbar[s], b);
+        column3(vel, K, g->rbar[s], bd);
+        column3(e, k, s, ev);
+        unit_rate(b, bd, bh, bhd);
+        cross3(bh, ev, bxe);
+        double along = dot3(bhd, ev);
+        tail[s] = a[3 * m + s];
+        for (int c = 0; c < 3; c++) tail[k + c * k + s] = -bh[c] * along + wax[s] * bxe[c];
+    }
+}
+
 /* The buffers of a call: the first n_read read, the rest up to n written. */
 static int get_buffer_list(PyObject* const* args, Py_ssize_t nargs, Py_buffer* buf, int n_read,
                            int n, const char* use) {
@@ -1455,6 +1744,26 @@ static int fits(const Py_buffer* buf, const int64_t* need, int from, int n, int 
     if (!ok) PyErr_SetString(PyExc_ValueError, what);
     return ok;
 }
+
+#define RIG_USE "rig_rhs(consts, dims, x, u, out, work) takes 6 buffers"
+
+static int64_t rig_body(Py_buffer* buf) {
+    const int64_t* d = (const int64_t*)buf[1].buf;
+    if (buf[1].len < 7 * (Py_ssize_t)sizeof(int64_t)) {
+        PyErr_SetString(PyExc_ValueError, "rig_rhs: dims holds fewer than 7 sizes");
+        return -1;
+    }
+    int64_t n = 6 * d[0] + d[3] + d[4] + 4 * d[5];
+    const int64_t need[6] = {0, 0, n, d[2] + d[3], n, rig_work(d)};
+    if (!fits(buf, need, 2, 6, 1, "rig_rhs: a small buffer")) return -1;
+    Rig g;
+    rig_layout((const double*)buf[0].buf, d, &g);
+    Py_BEGIN_ALLOW_THREADS rig_evaluate(&g, d, (const double*)buf[2].buf, (const double*)buf[3].buf,
+                                        (double*)buf[4].buf, (double*)buf[5].buf);
+    Py_END_ALLOW_THREADS return 0;
+}
+
+BUFFER_CALL(kernel_rig_rhs, 4, 6, RIG_USE, rig_body)
 
 #define LEAN_USE "lean_step(consts, dims, spec, x, P, A, x_out, P_out, F, work) takes 10 buffers"
 
@@ -1735,6 +2044,11 @@ static PyObject* kernel_imu_work(PyObject* self, PyObject* arg) {
     return dims_work(arg, imu_work);
 }
 
+static PyObject* kernel_rig_work(PyObject* self, PyObject* arg) {
+    (void)self;
+    return dims_work(arg, rig_work);
+}
+
 static PyObject* kernel_rhs(PyObject* self, PyObject* const* args, Py_ssize_t nargs) {
     (void)self;
     Py_buffer buf[6];
@@ -1792,6 +2106,10 @@ static PyMethodDef methods[] = {
      "jacobian_work(dims) -> doubles of work jacobian() needs"},
     {"imu_work", (PyCFunction)kernel_imu_work, METH_O,
      "imu_work(dims) -> doubles of work imu() needs"},
+    {"rig_rhs", (PyCFunction)(void (*)(void))kernel_rig_rhs, METH_FASTCALL,
+     "rig_rhs(consts, dims, x, u, out, work) -> 0: dx/dt of the rig-fidelity model"},
+    {"rig_work", (PyCFunction)kernel_rig_work, METH_O,
+     "rig_work(dims) -> doubles of work rig_rhs() needs"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -97,9 +97,8 @@ class FastDynamics:
             raise ValueError(f"coordinates must be 'reduced' or 'full', got {coordinates!r}")
         if model.rig is not None:
             raise SceneError(
-                f"{model.scene.source}: rig_fidelity: the fast path does not implement this "
-                "option; use the reference path (simulate(fast=False), gyrotens simulate "
-                "--reference)"
+                f"{model.scene.source}: rig_fidelity: FastDynamics is the paper's model only; "
+                "simulate() and Stepper take the option's own fast path (fast_rig.FastRig)"
             )
         st = model.structure
         self.model, self.coordinates = model, coordinates

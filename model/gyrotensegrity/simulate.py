@@ -22,6 +22,10 @@ from .runfile import Run
 def dynamics_of(model: Model, fast: bool):
     """The right-hand side ``f(t, x, u)`` and the projector (None: the reference one) of the
     reference path or of the fast path."""
+    if fast and model.rig is not None:
+        from .fast_rig import FastRig
+
+        return FastRig(model).rhs, None
     if fast:
         from .fast import FastDynamics
 

@@ -6,6 +6,7 @@ from importlib.resources import files
 
 import numpy as np
 import pytest
+from rigid_motion import structure_rate
 from scipy.integrate import solve_ivp
 
 from gyrotensegrity import Model, SceneError, Stepper, evaluate, rhs, scene_from_dict, simulate
@@ -62,16 +63,6 @@ def states(model, duration_s, times):
         t_eval=times,
     )
     return sol.y.T
-
-
-def structure_rate(N, N_dot):
-    """Angular velocity (3,) rad/s of the rigid motion that best fits the node velocities."""
-    c = N.mean(axis=1, keepdims=True)
-    rows = []
-    for p in (N - c).T:
-        skew = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
-        rows.append(np.hstack([-skew, np.eye(3)]))
-    return np.linalg.lstsq(np.vstack(rows), N_dot.T.ravel(), rcond=None)[0][:3]
 
 
 def momentum_balance_rate(model):
@@ -148,17 +139,16 @@ def test_braking_at_rest_turns_the_structure_as_the_momentum_balance_says():
     assert np.max(np.abs(structure_rate(*paper.nodes(still)))) < 1e-9  # the paper's: no turn
 
 
-def test_shipped_scene_uses_the_option_and_the_fast_path_refuses_it():
+def test_shipped_scene_uses_the_option_and_the_paper_paths_refuse_it():
     model = Model(load_scene(SCENES / "dbar-rig.toml"))
     assert model.rig is not None and len(model.rig.hinges) == 4
-    with pytest.raises(ModelSceneError, match=r"dbar-rig.toml: rig_fidelity: .*--reference"):
+    with pytest.raises(ModelSceneError, match=r"dbar-rig.toml: rig_fidelity: .*FastRig"):
         FastDynamics(model)
     with pytest.raises(ModelSceneError, match="rig_fidelity"):
-        simulate(model, duration=0.01, fast=True)
-    with pytest.raises(ModelSceneError, match="rig_fidelity"):
         evaluate(0.0, model.initial_state(), model.input_at(0.0), model)
-    x = Stepper(model, max_dt=1e-3).step(0.01)  # the reference path steps it
-    assert x.shape == (model.layout.size,) and np.all(np.isfinite(x))
+    for fast in (False, True):  # the reference path and the option's kernel step it
+        x = Stepper(model, max_dt=1e-3, fast=fast).step(0.01)
+        assert x.shape == (model.layout.size,) and np.all(np.isfinite(x))
 
 
 @pytest.mark.parametrize(
@@ -215,10 +205,9 @@ def test_collinear_bars_give_no_hinge_axis():
         Model(scene_from_dict(d, "bad.toml"))
 
 
-def test_cli_refuses_the_fast_path_with_exit_status_2(tmp_path, capsys):
+def test_cli_runs_both_paths(tmp_path):
     from gyrohost.cli import main
 
-    assert main(["simulate", "dbar-rig", "--duration", "0.01", "-o", str(tmp_path / "r.npz")]) == 2
-    assert "rig_fidelity" in capsys.readouterr().err
-    out = str(tmp_path / "ref.npz")
-    assert main(["simulate", "dbar-rig", "--duration", "0.01", "--reference", "-o", out]) == 0
+    for flags in ([], ["--reference"]):
+        out = str(tmp_path / f"r{len(flags)}.npz")
+        assert main(["simulate", "dbar-rig", "--duration", "0.01", *flags, "-o", out]) == 0

@@ -203,9 +203,9 @@ def _print_header(rig, ports_file: Path, control: Path) -> None:
     print(f"ports file: {ports_file}  (gyrotens run --rig {ports_file})")
     print(f"control: {control}  (gyrotens rig --ports-file {ports_file} --send LINE)")
     print(
-        "commands: 'fault DEVICE FAULT [ARGS]', 'stats' or 'reset' (back to the scene's initial "
-        "state, between runs), typed here while in the foreground or sent with --send; "
-        "Ctrl-C stops",
+        "commands: 'fault DEVICE FAULT [ARGS]', 'stats', 'reset' (back to the scene's initial "
+        "state, between runs) or 'release' (a held truth's structure let go), typed here while "
+        "in the foreground or sent with --send; Ctrl-C stops",
         flush=True,
     )
 

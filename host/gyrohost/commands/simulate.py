@@ -79,7 +79,7 @@ def run(args) -> int:
             progress=progress,
             fast=not args.reference,
         )
-    except SceneError as exc:  # an option the chosen path refuses (the fast path: rig_fidelity)
+    except SceneError as exc:  # an option the chosen path refuses
         progress.close()
         raise CliError(str(exc)) from None
     except SimulationError as exc:

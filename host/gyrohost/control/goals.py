@@ -110,6 +110,12 @@ class TiltGoal:
         return {"predicted_tilt_rad": plan.predicted_tilt_rad}
 
 
+FIRST_ROUNDS = 4
+"""Iteration budgets (``AttitudePlanner.max_iter`` each) the first attitude plan may take."""
+ITERATION_LIMIT = "Iteration limit"
+"""How SLSQP's message says it stopped on its budget."""
+
+
 class AttitudeGoal:
     """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame,
     landing at the rest lengths ``target_rest`` (``{string: m}``, :mod:`.target_shape`; the
@@ -130,9 +136,18 @@ class AttitudeGoal:
         self._plan = None  # the plan whose inputs are in force: the re-plans' warm start
 
     def first(self, t_s, x, knot_t):
+        """The first plan, made before anything moves: with no period to keep, while the
+        optimiser stops on its iteration limit it goes on from where it stopped, up to
+        :data:`FIRST_ROUNDS` budgets (with a servo's range binding, the D-bar's three-axis
+        plans on the sim-rig's limits need two to four, the re-plans from them one)."""
         x0, H0 = self.model.start(x, t_s)
-        self._plan = self.planner.plan(self.target, knot_t, t_s, x0, H0, r_end=self.r_end)
-        return self._plan
+        plan = self.planner.plan(self.target, knot_t, t_s, x0, H0, r_end=self.r_end)
+        for _ in range(FIRST_ROUNDS - 1):
+            if plan.success or ITERATION_LIMIT not in plan.message:
+                break
+            plan = self.planner.plan(self.target, knot_t, t_s, x0, H0, warm=plan, r_end=self.r_end)
+        self._plan = plan
+        return plan
 
     def miss(self, plan) -> float:
         """How far (rad, geodesic) the plan lands from the target."""

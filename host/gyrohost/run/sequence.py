@@ -8,7 +8,8 @@
                scene's initial state (run/start_check.py: refused outside tolerances, exit 2)
     hold       servos: multi-turn mode, torque on, hold the present position
     spinup     wheels to the scene's spins; wait for steady speed (time-out)
-    lead_in    estimator started from the steady state, schedule at its first sample
+    lead_in    the simulated rig's held truth released; estimator started from the steady
+               state, schedule at its first sample
     schedule   the schedule played at the host rate (100 Hz), every device sample fused
     settle     schedule held at its last sample, estimator running
     rampdown   wheels stopped, wait until they are slow (bounded), servos held: the safe state
@@ -268,6 +269,8 @@ class RunLoop:
         self._enter("spinup")
         self._spin_up()
         self._enter("lead_in")
+        if self.rig is not None:  # a held truth (motor reactions) let go after its spin-up
+            self.event("rig", self.rig.command("release"))
         self._start_estimator()
         self._ticks(self.settings.lead_in_s)
         self._enter("schedule")

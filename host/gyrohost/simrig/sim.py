@@ -255,18 +255,19 @@ class SimulatedRig:
             self._max_lag_s = max(self._max_lag_s, lateness_s)
             self._late += lateness_s > self.truth.dt_s
 
-    def _step_inputs(self) -> tuple[dict, np.ndarray]:
+    def _step_inputs(self) -> tuple[dict, np.ndarray, np.ndarray]:
         """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) the truth
         holds over the step now due: the mean of the devices' outputs at its start and end. The
         end's alone would lead the devices by half a step, as the start's would trail them; the
         host's reads of the servos and the IMU's view of the truth would then disagree in time
-        by that much, which an identification takes up in the IMU's latency."""
+        by that much, which an identification takes up in the IMU's latency. Then the wheels'
+        speeds at the step's end, which a torque-driven truth's speed loop reaches."""
         lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
         speeds = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
         start = self._step_start or (lengths, speeds)
         self._step_start = (lengths, speeds)
         held = {sid: 0.5 * (start[0][sid] + length) for sid, length in lengths.items()}
-        return held, 0.5 * (start[1] + speeds)
+        return held, 0.5 * (start[1] + speeds), speeds
 
     def _poll(self, t_s: float) -> None:
         self._dev_t_s = t_s = max(t_s, self._dev_t_s)
@@ -294,7 +295,7 @@ class SimulatedRig:
     def truth_wheel_speeds(self) -> np.ndarray:
         """True wheel spins now, shape (n_w,), rad/s (scene wheel order)."""
         with self._lock:
-            return self.truth.wheel_input_rad_s.copy()
+            return self.truth.wheel_speeds_rad_s()
 
     def truth_rest_lengths(self) -> np.ndarray:
         """True string rest lengths now, shape (alpha,), m."""
@@ -313,7 +314,7 @@ class SimulatedRig:
                 t_s,
                 t_s + self._slip_s,
                 self.truth.nodes(),
-                self.truth.wheel_input_rad_s.copy(),
+                self.truth.wheel_speeds_rad_s(),
                 self.truth.rest_length_m.copy(),
             )
 
@@ -436,7 +437,8 @@ class SimulatedRig:
         """Run one text command; returns a one-line answer.
 
         ``fault DEVICE FAULT [ARG...]`` (``fault imu silence 2``, ``fault wheels corrupt 40``,
-        ``fault servos overload 1 0.5``, ``fault wheels reset``), ``stats`` or ``reset``.
+        ``fault servos overload 1 0.5``, ``fault wheels reset``), ``stats``, ``reset`` or
+        ``release`` (a held truth's structure let go, :meth:`Truth.release`).
 
         Raises
         ------
@@ -449,6 +451,10 @@ class SimulatedRig:
             return f"{stats.rates_line()}; {stats.truth_line()}"
         if words == ["reset"]:
             return self.reset()
+        if words == ["release"]:
+            with self._lock:
+                held = self.truth.release()
+            return "release: the structure is free" if held else "release: nothing was held"
         if len(words) < 3 or words[0] != "fault":
             raise FaultCommandError(f"unknown command {line.strip()!r}: try 'fault imu silence 2'")
         device, fault, args = words[1], words[2], words[3:]

@@ -1,9 +1,22 @@
 """The truth of the simulated rig: the dynamics model of the scene, stepped with device inputs.
 
-The scene is turned into the rig's plant (:func:`rig_scene`): every wheel becomes
-speed-controlled (its spin is an input, starting at rest) because the wheel board, not the
-scene, sets the spins; ``wheel_inertia_scale`` makes the truth's wheels heavier or lighter than
-the scene the estimator uses (model mismatch).
+The scene is turned into the rig's plant (:func:`rig_scene`), its wheels at rest, because the
+wheel board, not the scene, sets the spins; ``wheel_inertia_scale`` makes the truth's wheels
+heavier or lighter than the scene the estimator uses (model mismatch). Two kinds of plant:
+
+- **Speed-driven wheels** (the paper's model, and any scene without the rig-fidelity option's
+  ``motor_reaction``): each wheel's spin is an input; the motor's reaction is dropped
+  (docs/rig-fidelity.md), so a speed change acts on the bars only through the gyroscopic couple.
+- **Torque-driven wheels** (a scene with ``[rig_fidelity] motor_reaction = true``, e.g. dbar-rig):
+  each wheel's spin is in the state, driven by an ideal speed loop, the torque
+  ``J_3 (omega_board(t + h) - omega) / h`` held over every step ``h``, which brings the spin to
+  the board's true speed at the step's end; the reaction of that torque acts on the stator's
+  bar, so every speed change of the board turns the structure by the momentum balance. The
+  rig-fidelity model runs in the compiled kernel (:mod:`gyrotensegrity.fast_rig`). Such a truth
+  starts **held**: its mount keeps the structure at its initial state (the reaction of the
+  wheels' spin-up goes into the mount, as the experimenter's hands take it on the rig) until
+  :meth:`Truth.release`; the run releases it when its lead-in starts, after the spin-up, where
+  the estimator starts from the scene's initial state. :meth:`Truth.reset` holds it again.
 
 Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
 
@@ -13,7 +26,8 @@ Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
   string's rest length, through a first-order lag ``servo_lag_s`` (string and pulley compliance;
   0 = none). Strings no servo winds keep their scene rest length at t = 0.
 - **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
-  about +b of its bar); board wheels beyond the scene's wheels spin nothing.
+  about +b of its bar); board wheels beyond the scene's wheels spin nothing. Speed-driven: the
+  spin held over the step; torque-driven: the speed loop's target at the step's end.
 
 **Truth against model.** The truth runs ``[sim.truth] scene`` when set (:func:`truth_scene`),
 the host's model, estimator and planner keep the configuration's scene: any parameter may differ
@@ -47,7 +61,7 @@ from gyrohost.config import RigConfig, ServoConfig
 from gyrohost.simrig.config import TruthConfig, truth_scene_path
 from gyrohost.simrig.imu_emu import MAX_BACKLOG_S, ImuTruth
 from gyrotensegrity import Model, Scene, SceneError, Stepper, load_scene
-from gyrotensegrity.dynamics import evaluate, string_force_densities
+from gyrotensegrity.dynamics import string_force_densities
 from gyrotensegrity.piecewise import constant
 from gyrotensegrity.simulate import stable_step
 
@@ -127,8 +141,15 @@ def _member(member) -> str:
     return f"'{name}'" + (f" on {list(nodes)}" if nodes else "")
 
 
+def torque_driven(scene: Scene) -> bool:
+    """Whether the rig's plant of ``scene`` drives its wheels by torque: the motor's reaction
+    (``[rig_fidelity] motor_reaction``) needs the torque; otherwise they are speed-driven."""
+    return scene.rig is not None and scene.rig.motor_reaction
+
+
 def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
-    """The plant of the rig: ``scene`` with speed-controlled wheels, at rest, inertia scaled.
+    """The plant of the rig: ``scene`` with its wheels at rest, inertia scaled, speed-driven or
+    (:func:`torque_driven`) torque-driven with the torque an input.
 
     Parameters
     ----------
@@ -147,10 +168,10 @@ def rig_scene(scene: Scene, wheel_inertia_scale: float = 1.0) -> Scene:
                 radius=wheel.radius * radius_scale,
                 J3=None if wheel.J3 is None else wheel.J3 * wheel_inertia_scale,
                 J1=None if wheel.J1 is None else wheel.J1 * wheel_inertia_scale,
-                mode="speed",
+                mode="torque" if torque_driven(scene) else "speed",
                 spin0=0.0,
-                speed=constant(0.0),
-                torque=None,
+                speed=None if torque_driven(scene) else constant(0.0),
+                torque=constant(0.0) if torque_driven(scene) else None,
             )
         bars.append(replace(bar, wheel=wheel))
     return replace(scene, bars=bars)
@@ -168,7 +189,8 @@ class TruthRecord:
     R_wb : ndarray, shape (k, 3, 3)
         Attitude of the IMU frame: its axes in the world frame.
     omega_w_rad_s : ndarray, shape (k, n_w), rad/s
-        Wheel spins (scene wheel order).
+        Wheel spins (scene wheel order): held over the step (speed-driven), at its end
+        (torque-driven).
     rest_length_m : ndarray, shape (k, alpha), m
         String rest lengths.
     node_names : list of str
@@ -214,9 +236,9 @@ class Truth:
         self.config = config
         self.model = Model(rig_scene(scene, config.wheel_inertia_scale))
         # The compiled fast path (equal to the reference right-hand side to round-off,
-        # tests/model/test_fast.py) keeps the truth ahead of real time on a loaded laptop. A
-        # scene too stiff for one RK4 step per dt_s (a stiffer truth, an identification's trial)
-        # takes substeps within the stability limit instead of failing.
+        # tests/model/test_fast.py, test_fast_rig.py) keeps the truth ahead of real time on a
+        # loaded laptop. A scene too stiff for one RK4 step per dt_s (a stiffer truth, an
+        # identification's trial) takes substeps within the stability limit instead of failing.
         max_dt = stable_step(self.model, config.dt_s)
         self.stepper = Stepper(self.model, max_dt=max_dt, fast=True)
         self.dt_s = config.dt_s
@@ -244,6 +266,9 @@ class Truth:
         self.rest_length_m = np.array([s.rest_length(0.0) for s in scene.strings])
         self.wheel_input_rad_s = np.zeros(len(self.model.wheel_bars))
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        self.torque_driven = torque_driven(scene)
+        self.held = self.torque_driven
+        self._J3 = self.model.J3[self.model.wheel_bars]
         self._check_frame()
         depth = int(math.ceil((config.imu_latency_s + MAX_BACKLOG_S) / self.dt_s)) + 2
         self._history: deque = deque(maxlen=depth)
@@ -282,14 +307,25 @@ class Truth:
         self.rest_length_m[:] = [s.rest_length(0.0) for s in self.model.scene.strings]
         self.wheel_input_rad_s[:] = 0.0
         self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        self.held = self.torque_driven
         self.set_state(self._x0)
+
+    def release(self) -> bool:
+        """Let the structure go (see the module docstring); returns whether it was held."""
+        held, self.held = self.held, False
+        return held
 
     @property
     def t_s(self) -> float:
         """Truth time, s."""
         return self.stepper.t
 
-    def step(self, string_lengths_m: Mapping[int, float], wheel_speeds_rad_s: Sequence[float]):
+    def step(
+        self,
+        string_lengths_m: Mapping[int, float],
+        wheel_speeds_rad_s: Sequence[float],
+        wheel_speeds_end_rad_s: Sequence[float] | None = None,
+    ):
         """Advance by one step ``dt_s`` with the devices' present outputs.
 
         Parameters
@@ -297,19 +333,31 @@ class Truth:
         string_lengths_m : mapping servo ID -> float, m
             Present string lengths of the servos (those without a string are ignored).
         wheel_speeds_rad_s : sequence of float, rad/s
-            True wheel-board speeds, board wheel order.
+            True wheel-board speeds held over the step, board wheel order.
+        wheel_speeds_end_rad_s : sequence of float, rad/s, optional
+            The board's true speeds at the step's end, the target of a torque-driven truth's
+            speed loop (default ``wheel_speeds_rad_s``).
         """
         lag = self.config.servo_lag_s
         gain = 1.0 if lag <= 0 else 1.0 - math.exp(-self.dt_s / lag)
         for servo_id, index in self.servo_strings.items():
             target = string_lengths_m[servo_id] - self.servo_offset_m[servo_id]
             self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
-        n_w = len(self.wheel_input_rad_s)
-        self.wheel_input_rad_s[:] = 0.0
-        speeds = np.asarray(wheel_speeds_rad_s, dtype=float)[:n_w]
-        self.wheel_input_rad_s[: len(speeds)] = speeds
-        self.u = self.model.pack_input(self.rest_length_m, self.wheel_input_rad_s)
+        end = wheel_speeds_rad_s if wheel_speeds_end_rad_s is None else wheel_speeds_end_rad_s
+        self.wheel_input_rad_s[:] = self._board_order(
+            end if self.torque_driven else wheel_speeds_rad_s
+        )
+        wheel = self.wheel_input_rad_s
+        if self.torque_driven:  # the ideal speed loop's torque (module docstring)
+            spin = self.model.wheel_speeds(self.stepper.x, self.u)
+            wheel = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
+        self.u = self.model.pack_input(self.rest_length_m, wheel)
         x = self.stepper.step(self.dt_s, self.u)
+        if self.held:  # the mount: the structure where it started, the wheels as they spin
+            L = self.model.layout
+            x = self._x0.copy()
+            x[L.theta], x[L.omega] = self.stepper.x[L.theta], self.stepper.x[L.omega]
+            self.stepper.x = x
         self._history.append((self.stepper.t, x.copy(), self.u))
         if self._record is not None:
             self._record.append(
@@ -317,12 +365,23 @@ class Truth:
                     self.stepper.t,
                     self.nodes(),
                     self.attitude(),
-                    self.wheel_input_rad_s.copy(),
+                    self.wheel_speeds_rad_s(),
                     self.rest_length_m.copy(),
                 )
             )
 
+    def _board_order(self, speeds: Sequence[float]) -> np.ndarray:
+        """Board speeds (rad/s) as the scene's wheels': the first n_w; missing ones 0."""
+        out = np.zeros(len(self.wheel_input_rad_s))
+        given = np.asarray(speeds, dtype=float)[: len(out)]
+        out[: len(given)] = given
+        return out
+
     # --- read-outs ----------------------------------------------------------------------------
+    def wheel_speeds_rad_s(self) -> np.ndarray:
+        """The truth's wheel spins now, shape (n_w,), rad/s (scene wheel order)."""
+        return self.model.wheel_speeds(self.stepper.x, self.u)
+
     def nodes(self, x: np.ndarray | None = None) -> np.ndarray:
         """Scene node positions, shape (3, n_scene), m (state ``x``, default the present)."""
         N, _ = self.model.nodes(self.stepper.x if x is None else x)
@@ -381,8 +440,10 @@ class Truth:
         else:
             (t_a, x_a, _), (t_b, x_b, u) = entries[later - 1], entries[later]
             t, x = when, x_a + (when - t_a) / (t_b - t_a) * (x_b - x_a)
-        ev = evaluate(t, x, u, self.model)
-        omega, force, R = self.frame_motion(*(v[..., None] for v in (ev.N, ev.N_dot, ev.N_ddot)))
+        N, N_dot = self.model.nodes(x)
+        q_ddot = self.stepper.dynamics(t, x, u)[self.model.layout.q_dot].reshape(3, -1)
+        N_ddot = np.asarray(self.model.U2 @ q_ddot.T).T
+        omega, force, R = self.frame_motion(*(v[..., None] for v in (N, N_dot, N_ddot)))
         return ImuTruth(omega[0], force[0], R[0])
 
     def has_imu_truth(self, t_s: float) -> bool:
