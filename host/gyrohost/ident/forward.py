@@ -21,7 +21,7 @@ from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
 from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
 from gyrohost.simrig.config import TruthConfig
-from gyrohost.simrig.truth import Truth
+from gyrohost.simrig.truth import Truth, torque_driven
 from gyrotensegrity import Scene
 
 from .errors import IdentDataError
@@ -175,6 +175,17 @@ class FrameMotion:
     starts: tuple = ()
 
 
+def _check_wheels_played(scene: Scene) -> None:
+    """The forward model plays the logged wheel speeds: a scene whose wheels act through the
+    motors' reaction needs their torques instead."""
+    if torque_driven(scene):
+        raise IdentDataError(
+            f"scene {scene.name}: [rig_fidelity] motor_reaction needs the wheels' torques, "
+            "which identification does not model (it plays the logged wheel speeds): identify "
+            "with the scene without the motors' reaction"
+        )
+
+
 def simulate(
     scene: Scene,
     config: RigConfig,
@@ -200,7 +211,13 @@ def simulate(
     imu_latency_s : float, s
         How long before its stamp each IMU sample was taken: the motion is read then (the
         first samples of a segment at most its start).
+
+    Raises
+    ------
+    IdentDataError
+        The scene's wheels act through the motors' reaction, which this model does not drive.
     """
+    _check_wheels_played(scene)
     servos = [s for s in config.servos.servo if s.string]
     string_lag_s = 0.0 if rec.commanded else servo_lag_s
     model = TruthConfig(dt_s=STEP_S, imu_frame_nodes=frame_nodes, servo_lag_s=string_lag_s)

@@ -198,13 +198,20 @@ def rig_model_run(
     dt_s : float, the truth's step, s
     """
     from gyrohost.simrig.imu_emu import Bwt61Emulator
-    from gyrohost.simrig.truth import Truth, truth_scene
+    from gyrohost.simrig.truth import Truth, torque_driven, truth_scene
     from gyrotensegrity import Model, load_scene
 
     config = seeded(config, seed)
     model = Model(load_scene(config.scene_path))
     sim = sim_config(config)
-    truth = Truth(truth_scene(config), replace(sim.truth, servo_lag_s=0.0), config.servos.servo)
+    scene = truth_scene(config)
+    if torque_driven(scene):
+        raise SilError(
+            f"truth scene {scene.name}: [rig_fidelity] motor_reaction drives the wheels by "
+            "torque, which the in-process SIL's wheel board does not (it plays their speeds): "
+            "run it on the real-time simulated rig (gyrotens run --sim)"
+        )
+    truth = Truth(scene, replace(sim.truth, servo_lag_s=0.0), config.servos.servo)
     emu = Bwt61Emulator(sim.imu, config.imu, rotation_deg=sim.truth.imu_rotation_deg)
     servos = [s for s in config.servos.servo if s.string]
     strings = [s.name for s in model.scene.strings]
