@@ -41,7 +41,6 @@ from gyrohost.control.maneuver import Maneuver
 from gyrohost.control.schedule import Schedule
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.estimator.config import EstimatorConfig, for_rig
-from gyrohost.estimator.ekf import Status
 from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.connect import connect_devices, with_ports
@@ -53,6 +52,7 @@ from gyrohost.run.health import fails_run
 from gyrohost.run.limits import CommandHistory, check_limits, check_schedule
 from gyrohost.run.log import RunLog
 from gyrohost.run.mcap import McapSink
+from gyrohost.run.replan_hold import ReplanHold
 from gyrohost.run.safe_state import attempt, ignore_interrupts, reach_safe_state
 from gyrohost.run.settings import RunResult, RunSettings
 from gyrohost.run.start_check import check_start_state
@@ -157,7 +157,10 @@ class RunLoop:
         self.t_schedule_s = math.nan
         self.estimate = self.replans = self.streams = None
         self._followed_t_s = math.nan
-        self._replans_held_s = math.nan  # since when an untrusted estimate holds the re-plans
+        closed = self.maneuver is not None and self.maneuver.target.closed_loop
+        self.replan_hold = (
+            ReplanHold(self.maneuver.target.period_s, self.notice, self.event) if closed else None
+        )
         self._command_failed = False  # a command or heartbeat failed in the safe state
 
     # --- the sequence -------------------------------------------------------------------------
@@ -458,22 +461,11 @@ class RunLoop:
             self._follow_estimate()
 
     def _follow_estimate(self) -> None:
-        """Closed loop: the estimate to the maneuver, its schedule from the next tick on. An
-        estimate the IMU no longer corrects (:func:`followable`) is not followed: the schedule
-        in force plays on, as open loop, until the IMU's samples pass their gates again; re-plans
-        from a diverged estimate would steer the rig by the model's error."""
+        """Closed loop: the estimate to the maneuver, its schedule from the next tick on; not
+        while the IMU no longer corrects the estimate (:class:`.replan_hold.ReplanHold`)."""
         t_s, x = self.estimate()
-        if self.maneuver.target.closed_loop and not followable(self.estimator.status):
-            if math.isnan(self._replans_held_s):
-                self._replans_held_s = t_s
-                self.notice(
-                    f"closed loop: re-plans held at t = {t_s:.2f} s, the estimate's IMU samples "
-                    "fail their gates; the schedule in force plays on"
-                )
+        if self.replan_hold is not None and not self.replan_hold.follow(t_s, self.estimator.status):
             return
-        if not math.isnan(self._replans_held_s):
-            self.event("replan", f"resumed: held {t_s - self._replans_held_s:.2f} s")
-            self._replans_held_s = math.nan
         self.schedule = self.maneuver.update(t_s - self.t_schedule_s, x)
         self.replans.write(self.maneuver.records)
 
@@ -543,22 +535,6 @@ class RunLoop:
         text = " ".join(str(message).replace(",", ";").split())
         if self.streams is not None:  # none before the log is open
             self.streams.events.write(self.now(), kind, text)
-
-
-UNFOLLOWABLE = (
-    Status.IMU_RATE_REJECTED
-    | Status.IMU_ACCEL_REJECTED
-    | Status.IMU_ANGLE_REJECTED
-    | Status.PREDICTION_ONLY
-)
-"""Status bits of an estimate a closed loop does not re-plan from."""
-
-
-def followable(status: Status) -> bool:
-    """Whether a closed loop may re-plan from an estimate of this status word: its last IMU
-    sample passed every gate and not every source timed out (the estimate is more than the
-    model's own prediction)."""
-    return not Status(status) & UNFOLLOWABLE
 
 
 def _stderr_line(message: str) -> None:
