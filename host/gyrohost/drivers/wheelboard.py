@@ -43,6 +43,10 @@ its bootloader, which ignores the protocol for 1-2 s (docs/protocol.md#boot-stat
 HELLO_RETRY_S = 0.25
 """The interval between two HELLOs within the boot window, s (as the bring-up probe's)."""
 CONTROL_FRAMES = ("HEARTBEAT", "SET_SPEEDS", "STOP_ALL")
+FRESH_S = 0.02
+"""How long after a call a telemetry frame counts as made after it, s: a frame crosses a USB
+serial link or a pty within a few ms, so one received 20 ms later left the board after what the
+host sent before the call arrived; short beside the board's HEARTBEAT_MS window (250 ms)."""
 """The frames that restart the board's heartbeat count (the firmware's app_is_control_frame)."""
 
 
@@ -235,16 +239,22 @@ class WheelBoard:
         return names
 
     def latched_faults(self, timeout_s: float | None = None) -> list[str]:
-        """The faults of the next telemetry frame (not one received before this call)."""
+        """The faults of the first telemetry frame received :data:`FRESH_S` or more after this
+        call: one the board made after the frames sent before the call reached it (a board
+        that latched HEARTBEAT_LOST just before the connect's first HEARTBEAT shows it there,
+        where a frame still on the link would not)."""
         timeout_s = timeout_s or self.reply_timeout_s
-        while not self.telemetry.empty():
-            self.telemetry.get_nowait()
-        try:
-            return self.telemetry.get(timeout=timeout_s).fault_names
-        except queue.Empty:
-            raise WheelBoardTimeout(
-                f"no wheel-board telemetry within {timeout_s:.3f} s (TELEMETRY_DIV 0?)"
-            ) from None
+        now = time.monotonic()
+        fresh, deadline = now + FRESH_S, now + timeout_s
+        while True:
+            try:
+                frame = self.telemetry.get(timeout=max(deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                raise WheelBoardTimeout(
+                    f"no wheel-board telemetry within {timeout_s:.3f} s (TELEMETRY_DIV 0?)"
+                ) from None
+            if time.monotonic() >= fresh:
+                return frame.fault_names
 
     def calibrate(self, wheel: int, save: bool = True, timeout_s: float = 5.0) -> int:
         """Find wheel ``wheel``'s electrical zero with its motor (CALIBRATE_ENC, about 1.8 s with
