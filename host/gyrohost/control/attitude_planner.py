@@ -40,7 +40,7 @@ from .errors import PlanError
 from .schedule import Schedule
 from .shape import RhombusShape
 from .shape_attitude import AttitudeModel
-from .target_shape import target_coordinates
+from .target_shape import landing_coordinates
 
 MODES = ("both", "strings", "wheels")
 LANDING_RATE_RAD_S = 5e-4
@@ -509,11 +509,7 @@ def plan_attitude(
         raise PlanError(f"target attitude must be three finite angles, got {target_rpy_rad}")
     reduced = AttitudeModel(model, strings, limits)
     planner = AttitudePlanner(reduced, mode=mode, **options)
-    r_end = None
-    if target_rest:
-        if mode == "wheels":
-            raise PlanError("a target shape needs the strings to move (not --wheels-only)")
-        r_end = target_coordinates(reduced, target_rest)
+    r_end = landing_coordinates(planner, target_rest)
     kt = planner.knot_times(0.0, float(duration_s))
     x0, H0 = reduced.start(model.initial_state())
     q_target = target_quaternion(target)

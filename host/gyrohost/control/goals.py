@@ -27,7 +27,7 @@ from .adapt import MomentumGainFit, WheelGainFit
 from .attitude_planner import AttitudePlanner, reachable, refusal, target_quaternion
 from .planner import Planner
 from .realtime_iteration import RealTimeIteration
-from .target_shape import target_coordinates
+from .target_shape import landing_coordinates
 
 
 @dataclass
@@ -125,13 +125,14 @@ class AttitudeGoal:
     Raises
     ------
     PlanError
-        ``target_rest`` names a string the plan does not move or leaves the shape table."""
+        ``target_rest`` with a planner that holds the rest lengths, naming a string the plan
+        does not move, or leaving the shape table."""
 
     def __init__(self, planner: AttitudePlanner, target, period_s=0.25, target_rest=None):
         self.planner, self.rpy = planner, np.asarray(target, float)
         self.model = planner.model
         self.target = target_quaternion(self.rpy)
-        self.r_end = target_coordinates(self.model, target_rest) if target_rest else None
+        self.r_end = landing_coordinates(planner, target_rest)
         self.rti = RealTimeIteration(planner, budget_s=0.5 * period_s)
         self._plan = None  # the plan whose inputs are in force: the re-plans' warm start
 

@@ -60,6 +60,23 @@ def load_target_shape(path) -> dict:
     return out
 
 
+def landing_coordinates(planner, rest: dict | None):
+    """The coordinates (a,) m an :class:`.attitude_planner.AttitudePlanner` lands at for target
+    rest lengths ``rest`` (:func:`target_coordinates` of its model), or None without them.
+
+    Raises
+    ------
+    PlanError
+        A planner that holds the rest lengths (mode ``wheels``) cannot land them elsewhere, or
+        :func:`target_coordinates` refuses them.
+    """
+    if not rest:
+        return None
+    if planner.mode == "wheels":
+        raise PlanError("a target shape needs the strings to move (not --wheels-only)")
+    return target_coordinates(planner.model, rest)
+
+
 def target_coordinates(model, rest: dict):
     """The reduced model's coordinates (a,) m at the landing for target rest lengths ``rest``
     of an :class:`.shape_attitude.AttitudeModel` ``model``: its start's where not given.
