@@ -655,8 +655,8 @@ static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
     int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = mean_jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
-    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + D + 3 * m +
-           9 * m * alpha + alpha + (ev > jw ? ev : jw);
+    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + 2 * D +
+           3 * m + 9 * m * alpha + alpha + (ev > jw ? ev : jw);
 }
 
 /* Mean square of max(a - Z, 0) - max(a, 0), Z standard normal (gyrohost.estimator.kink). */
@@ -666,31 +666,74 @@ static double kink_weight(double a) {
     return a <= 0.0 ? (a * a + 1.0) * Phi + a * phi : Phi - a * phi + a * a * (1.0 - Phi);
 }
 
-/* Po[:6m, :6m] += (q / dt) sum_i w_i G_i G_i^T, the rest-length jitter of density q through
- * each string's kink (gyrohost.estimator.process_noise.jitter_noise): G_i = dt/2
- * (b_i + F b_i), b_i = (0, d acc / d rest_i) with string i held taut, w_i = kink_weight(mu_i /
- * sqrt(q / dt)), mu_i the tension margin as a length at x. Jt: 3 m x D work. */
-static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
-                            const double* x, const double* F, double* Po, double* Jt, double* v,
-                            double* w) {
+/* Mean square of max(a + Z, 0) - max(a, 0) - H(a) Z, Z standard normal
+ * (gyrohost.estimator.kink.linearisation_residual). */
+static double linearisation_residual(double a) {
+    double b = fabs(a);
+    return (b * b + 1.0) * 0.5 * erfc(b / sqrt(2.0)) -
+           b * exp(-0.5 * b * b) / sqrt(2.0 * 3.14159265358979323846);
+}
+
+/* g P g^T over the dynamic block of P (n x n) for g (D) nonzero only at q, q_dot (6 m) and
+ * the rest length r: the variance of string i's tension margin. */
+static double margin_variance(const double* g, const double* P, int64_t n, int64_t m, int64_t r) {
+    double s = 0.0;
+    for (int64_t a = 0; a < 6 * m; a++) {
+        double t = g[r] * P[a * n + r];
+        for (int64_t b = 0; b < 6 * m; b++) t += P[a * n + b] * g[b];
+        s += g[a] * t;
+    }
+    double t = g[r] * P[r * n + r];
+    for (int64_t b = 0; b < 6 * m; b++) t += P[r * n + b] * g[b];
+    return s + g[r] * t;
+}
+
+/* Po[:6m, :6m] += sum_i var_i G_i G_i^T, the force errors at the strings' kinks
+ * (gyrohost.estimator.process_noise.kink_noise): G_i = dt/2 (b_i + F b_i), b_i = (0, d acc /
+ * d rest_i) with string i held taut; var_i = (q / dt) kink_weight(mu_i / sqrt(q / dt)) for the
+ * rest-length jitter of density q, plus sigma_i^2 linearisation_residual(mu_i / sigma_i) for the
+ * linearisation, sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
+ * x. Jt: 3 m x D work. */
+static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
+                          const double* x, const double* P, const double* F, double* Po,
+                          double* Jt, double* v, double* w) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3], K = beta + alpha;
     int64_t D = 6 * m + nw + alpha, r0 = 6 * m + nw;
     double *pos = v, *vel = pos + 3 * K, *z = vel + 3 * K, *acc = z + D, *b = acc + 3 * m;
-    double *G = b + 3 * m * alpha, *wt = G + 6 * m * alpha, dt = p->dt, q = p->jitter;
+    double *G = b + 3 * m * alpha, *wt = G + 6 * m * alpha, *g = wt + alpha, dt = p->dt;
+    double q = p->jitter;
     member_vectors(k, d, x, x + 3 * m, pos, vel);
     for (int64_t i = 0; i < D; i++) z[i] = x[i];
     for (int64_t i = 0; i < alpha; i++) {
         int64_t j = beta + i;
-        double S0 = pos[j], S1 = pos[K + j], S2 = pos[2 * K + j];
-        double s = sqrt(S0 * S0 + S1 * S1 + S2 * S2);
-        double sdot = (S0 * vel[j] + S1 * vel[K + j] + S2 * vel[2 * K + j]) / s;
-        double stretch = s - x[r0 + i], damped = stretch + k->c_s[i] / k->k_s[i] * sdot;
-        double margin = stretch < damped ? stretch : damped;
+        double S[3] = {pos[j], pos[K + j], pos[2 * K + j]};
+        double Sd[3] = {vel[j], vel[K + j], vel[2 * K + j]};
+        double s = sqrt(S[0] * S[0] + S[1] * S[1] + S[2] * S[2]);
+        double sdot = (S[0] * Sd[0] + S[1] * Sd[1] + S[2] * Sd[2]) / s;
+        double ratio = k->c_s[i] / k->k_s[i];
+        double stretch = s - x[r0 + i], damped = stretch + ratio * sdot;
+        int on_damped = damped < stretch;
+        double margin = on_damped ? damped : stretch;
         /* any taut point gives the column: the force is affine in the rest length there */
         z[r0 + i] = x[r0 + i] - (margin < 0.0 ? -margin : 0.0) - 1e-3;
-        double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
-        /* under the mean kink the prediction carries the mean force already */
-        wt[i] = kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0);
+        /* d margin / d (q, q_dot, rest_i) on the side of the min that holds */
+        for (int64_t c = 0; c < D; c++) g[c] = 0.0;
+        for (int64_t r = 0; r < 3; r++) {
+            double u = S[r] / s, dq = u + (on_damped ? ratio * (Sd[r] - sdot * u) / s : 0.0);
+            double dqd = on_damped ? ratio * u : 0.0;
+            for (int64_t c = 0; c < m; c++) {
+                g[r * m + c] = dq * k->EE_T[c * K + j];
+                g[3 * m + r * m + c] = dqd * k->EE_T[c * K + j];
+            }
+        }
+        g[r0 + i] = -1.0;
+        double sigma2 = margin_variance(g, P, n, m, r0 + i);
+        wt[i] = sigma2 > 0.0 ? sigma2 * linearisation_residual(margin / sqrt(sigma2)) : 0.0;
+        if (q > 0.0) {
+            double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
+            /* under the mean kink the prediction carries the mean force already */
+            wt[i] += (q / dt) * (kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0));
+        }
     }
     int64_t status = jacobian_columns(k, d, z, acc, Jt, w, r0, D); /* the rest lengths' */
     if (status) return status;
@@ -704,7 +747,7 @@ static int64_t jitter_noise(const Consts* k, const int64_t* d, const StepSpec* p
         for (int64_t c = 0; c < 6 * m; c++) {
             double s = 0.0;
             for (int64_t i = 0; i < alpha; i++) s += G[r * alpha + i] * wt[i] * G[c * alpha + i];
-            Po[r * n + c] += (q / dt) * s;
+            Po[r * n + c] += s;
         }
     }
     return 0;
@@ -720,7 +763,8 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
     double *k1 = w, *k2 = k1 + D, *k3 = k2 + D, *k4 = k3 + D, *zs = k4 + D;
     double *xm = zs + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
     double *Jq = acc + 3 * m, *T1 = Jq + 3 * m * D, *T2 = T1 + D * D, *T3 = T2 + D * D;
-    double *FP = T3 + D * D, *kw = FP + D * n + 6 * (d[1] + d[2]) + D + 3 * m + 9 * m * d[2] + d[2];
+    double *FP = T3 + D * D;
+    double *kw = FP + D * n + 6 * (d[1] + d[2]) + 2 * D + 3 * m + 9 * m * d[2] + d[2];
     double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
     double dt = p->dt;
     int64_t status;
@@ -751,8 +795,7 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
     apply_A(d, Jq, dt / 2.0, wslope, rslope, 1.0, T2, T1);
     apply_A(d, Jq, dt, wslope, rslope, 1.0, T1, F);
     propagate(D, n, F, P, FP, Po);
-    if (p->jitter > 0.0) return jitter_noise(k, d, p, n, x, F, Po, Jq, FP + D * n, kw);
-    return 0;
+    return kink_noise(k, d, p, n, x, P, F, Po, Jq, FP + D * n, kw);
 }
 
 /* ---- The filter's constraint manifold (gyrohost.estimator.manifold) ----

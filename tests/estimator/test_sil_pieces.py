@@ -1,6 +1,6 @@
 """The pieces of the SIL that the consistency studies build on, checked exactly: the wait of a
-late command for the truth's next step, the kink weight of the rest-length jitter, the jitter's
-columns through a string near its kink. The Monte Carlo itself (NEES and NIS of 6-20 seeds
+late command for the truth's next step, the kink weight of the rest-length jitter and the
+linearisation's residual, the kink noise's columns through a string near its kink. The Monte Carlo itself (NEES and NIS of 6-20 seeds
 against the bounds of their average, and the share of time steps inside them) is a statistical
 claim and a study: ``python -m studies estimator_sil`` and ``python -m studies
 estimator_effects`` (reports/)."""
@@ -28,6 +28,51 @@ def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():
         sampled = np.mean((np.maximum(a - z, 0.0) - max(a, 0.0)) ** 2)
         assert abs(kink_weight(a) - sampled) < 0.01, a
     assert kink_weight(-8.0) < 1e-12 and abs(kink_weight(8.0) - 1.0) < 1e-12
+
+
+def test_linearisation_residual_is_the_mean_square_of_the_rectifier_off_its_line():
+    from gyrohost.estimator.kink import linearisation_residual
+
+    z = np.random.default_rng(0).standard_normal(400_000)
+    for a in (-2.0, -0.7, 0.0, 0.5, 1.5, 4.0):
+        off = np.maximum(a + z, 0.0) - max(a, 0.0) - (a > 0.0) * z
+        assert abs(linearisation_residual(a) - np.mean(off**2)) < 0.01, a
+    assert linearisation_residual(0.0) == 0.5
+    assert linearisation_residual(-8.0) < 1e-12 and linearisation_residual(8.0) < 1e-12
+
+
+def test_an_uncertain_margin_at_the_kink_adds_half_its_variance_along_the_string(model):
+    """With no jitter, the kink's noise is the linearisation's: the margin's variance ``g P
+    g^T`` (``g`` here from central differences of the margins), times 1/2 at the kink, through
+    the same columns as the jitter."""
+    from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.layout import from_model_state, layout_of
+    from gyrohost.estimator.process_model import ProcessModel
+
+    dt = 0.01
+    pm = ProcessModel(model, EstimatorConfig())
+    L = layout_of(model)
+    x = from_model_state(model, model.initial_state(), model.input_at(0.0))
+    _, F = pm.step(x, model.input_at(0.0), dt)
+    rng = np.random.default_rng(3)
+    root = rng.standard_normal((L.size, L.size)) * 1e-3
+    P = root @ root.T
+    g = np.empty((L.n_strings, L.n_dynamic))
+    for j in range(L.n_dynamic):
+        X = np.tile(x[: L.n_dynamic], (2, 1))
+        X[:, j] += (-1e-7, 1e-7)
+        # at t = 0 the strings rest at their kink with no motion, where the two sides of the
+        # min are equal: the tie takes the stretch
+        stretch, _ = pm.margins(X)
+        g[:, j] = (stretch[1] - stretch[0]) / 2e-7
+    sigma2 = np.einsum("ij,jk,ik->i", g, P[: L.n_dynamic, : L.n_dynamic], g)
+    G, margin = pm.taut_columns(dt, F, x)
+    n = L.q_dot.stop
+    added = pm.noise(dt, F, x, P) - pm.noise(dt)
+    assert np.all(np.abs(margin) < 1e-9)
+    expected = (G * 0.5 * sigma2) @ G.T
+    assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
+    assert not added[n:].any() and not added[:, n:].any()
 
 
 def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(model):
@@ -58,7 +103,8 @@ def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(mod
         b[L.q_dot] = (acc[1] - acc[0]) / 2e-7
         expected = 0.5 * dt * (b + F[:n, L.q_dot] @ b[L.q_dot])
         assert np.linalg.norm(G[:, i] - expected) < 1e-6 * np.linalg.norm(expected)
-    added = pm.noise(dt, F, x) - pm.noise(dt)
+    P0 = np.zeros((L.size, L.size))  # an exact estimate: no linearisation error
+    added = pm.noise(dt, F, x, P0) - pm.noise(dt)
     w = kink_weight(margin / np.sqrt(q / dt))
     assert np.allclose(added[:n, :n], q / dt * (G * w) @ G.T)
     assert not added[n:].any() and not added[:, n:].any()
@@ -70,4 +116,4 @@ def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(mod
     x_slack = x.copy()
     x_slack[L.rest] += 0.01
     _, F_slack = pm.step(x_slack, model.input_at(0.0), dt)
-    assert np.abs(pm.noise(dt, F_slack, x_slack) - pm.noise(dt)).max() < 1e-30
+    assert np.abs(pm.noise(dt, F_slack, x_slack, P0) - pm.noise(dt)).max() < 1e-30

@@ -289,7 +289,7 @@ class TensegrityEKF:
         x_next, F = self.process.step(self.x, self.u, dt, self._A)
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
-        Q = self.process.noise(dt, F, self.x)
+        Q = self.process.noise(dt, F, self.x, self.P)
         self.kf.Q = np.zeros_like(F)  # the wheel noise states change at wheel samples only
         self.kf.Q[: len(Q), : len(Q)] = Q
         self.kf.predict()
@@ -297,7 +297,7 @@ class TensegrityEKF:
     def _predict_fast(self, dt: float) -> None:
         """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
         x_next, P, _ = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
-        Q = self.process.noise(dt, None, self.x)  # the jitter's term is in P already
+        Q = self.process.noise(dt, None, self.x)  # the kinks' term is in P already
         P[: len(Q), : len(Q)] += Q
         self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 

@@ -6,7 +6,7 @@ state onto the bars, the IMU's prediction, its three measurements, their update,
 onto the bars) and each costs less than the Python that builds its arguments and checks its
 results. Here the last prediction step to the sample and everything after it are one call
 with the same arithmetic (tests/estimator/test_fast_cycle.py holds the two paths equal); the
-process noise other than the jitter's is still :meth:`.process_noise.ProcessNoise.noise`'s.
+process noise other than the kinks' is still :meth:`.process_noise.ProcessNoise.noise`'s.
 Every fusion is logged as the stages log it: innovation, variance, test ratio
 (:func:`.fusion.judge`).
 

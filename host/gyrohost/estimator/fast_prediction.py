@@ -5,7 +5,7 @@ by filterpy's ``F P F^T``: Python around small numpy operations, each costing mo
 arithmetic it does. ``gyrotensegrity._fastkernel.lean_step`` does the same arithmetic (the RK4
 step through the kernel's accelerations, ``A`` from the kernel's closed-form Jacobian unless the
 IMU prediction made one, ``F`` by the same Taylor series, ``F P F^T`` and the rest-length
-jitter's noise through the strings' kinks, which needs this ``F``) in one call; the rest of the
+kinks' noise, which needs this ``F`` and ``P``) in one call; the rest of the
 process noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step).
 tests/estimator/test_fast_prediction.py holds the two equal to round-off.
 
@@ -83,7 +83,7 @@ class FastPrediction:
 
     def __call__(self, x, P, u, dt, A=None):
         """The state (n,) and covariance (n, n) ``dt`` s on, with the process noise of the
-        rest-length jitter (:meth:`.process_noise.ProcessNoise.jitter_noise`) but no other, and
+        strings' kinks (:meth:`.process_noise.ProcessNoise.kink_noise`) but no other, and
         the step's Jacobian ``F`` (n_dynamic, n_dynamic) over the dynamic states (the identity
         beyond them), from ``x`` (n,) and ``P`` (n, n) under the input ``u``; ``A`` as
         :meth:`.process_model.ProcessModel.step`. Moves the wheels' setpoints on as the step

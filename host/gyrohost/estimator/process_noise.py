@@ -1,6 +1,7 @@
 """The process model's discrete noise covariance: white node accelerations, random walks of
 the wheel speeds, rest lengths and gyro bias, the servos' goal steps, the board's command
-timing while the wheels change speed, and the rest-length jitter through the string kinks.
+timing while the wheels change speed, and the string kinks (the rest-length jitter through
+them, the linearisation's error at them).
 A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provides ``layout``,
 ``config``, ``dyn``, ``wheel_acceleration`` and its slope, ``substeps``,
 ``rest_step_var_m2`` and the ``_noise`` cache.
@@ -9,13 +10,13 @@ A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provide
 import numpy as np
 
 from . import complex_step
-from .kink import expected_positive_part, kink_weight
+from .kink import expected_positive_part, kink_weight, linearisation_residual
 
 
 class ProcessNoise:
     """Discrete process noise of :class:`~gyrohost.estimator.process_model.ProcessModel`."""
 
-    def noise(self, dt, F=None, x=None):
+    def noise(self, dt, F=None, x=None, P=None):
         """Discrete process noise covariance over ``dt`` s, shape (n, n).
 
         White acceleration noise of density ``accel_psd_m2_s3`` on every reduced coordinate
@@ -23,15 +24,16 @@ class ProcessNoise:
         rest lengths (``rest_psd_m2_s``; and, kept as their spread about the lag whatever the
         steps, :meth:`lag_factor`, the resting servos' ``rest_hold_std_m`` and the servos' last
         goal step's, :meth:`goal_stepped`) and the gyro bias; with the step's Jacobian ``F``
-        (n, n) and the state ``x`` (n,) it linearises about, also white noise of density
-        ``rest_jitter_psd_m2_s`` on the rest lengths the string forces see, through the kink of
-        each string (:meth:`jitter_noise`).
+        (n, n), the state ``x`` (n,) it linearises about and its covariance ``P`` (n, n), also
+        the strings' kinks (:meth:`kink_noise`): the rest-length jitter of density
+        ``rest_jitter_psd_m2_s`` through them, and the error of the linearisation where the
+        estimate may lie on the wrong side of one.
         """
         Q = self._white_noise(dt)
         steps = self.rest_step_var_m2.any()
-        jitter = F is not None and x is not None and self.config.rest_jitter_psd_m2_s > 0.0
+        kinks = F is not None and x is not None and P is not None
         timing = None if x is None else self.wheel_timing_psd(x)
-        if not (steps or jitter or timing is not None):
+        if not (steps or kinks or timing is not None):
             return Q
         Q = Q.copy()
         if timing is not None:
@@ -41,9 +43,9 @@ class ProcessNoise:
             r = np.arange(self.layout.rest.start, self.layout.rest.stop)
             hold = self.lag_factor(dt)
             Q[r, r] += self.rest_step_var_m2 * (1.0 - hold * hold)
-        if jitter:
+        if kinks:
             n = self.layout.q_dot.stop
-            Q[:n, :n] += self.jitter_noise(dt, F, x)
+            Q[:n, :n] += self.kink_noise(dt, F, x, P)
         return Q
 
     def lag_factor(self, dt):
@@ -71,26 +73,58 @@ class ProcessNoise:
         rate = self.wheel_acceleration(x[None, self.layout.omega], None)[0]
         return -2.0 * slope * (std * rate) ** 2
 
-    def jitter_noise(self, dt, F, x):
-        """Node-motion covariance (6 m, 6 m) of a rest-length jitter through tension-only strings.
+    def kink_noise(self, dt, F, x, P):
+        """Node-motion covariance (6 m, 6 m) of the strings' force errors at their kinks.
 
-        The string forces see rest lengths ``rest + d``, ``d`` white with density ``q`` =
-        ``rest_jitter_psd_m2_s`` (per step ``d ~ N(0, s^2)``, ``s^2 = q / dt``). String i is taut
-        while ``d < mu_i``, ``mu_i = min(stretch, stretch + c/k d(length)/dt)`` (tension margin
-        as a length): the jitter's force error against the filter's prediction (which takes
-        ``d = 0``) is ``k (max(mu - d, 0) - max(mu, 0))``, whose mean square is ``k^2 s^2
-        w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2 at the kink, 1 well taut). It acts
-        along the string as if taut: ``Q = (q / dt) sum_i w_i G_i G_i^T`` with ``G_i`` the
-        step's response to the taut string's ``d acceleration / d rest_i`` (:meth:`taut_columns`).
-        A slack string at the linearisation point thus still gets the noise of its re-engaging.
+        String i pulls with ``k max(mu_i, 0)``, ``mu_i = min(stretch, stretch + c/k
+        d(length)/dt)`` its tension margin as a length (taut while positive). Two errors of the
+        prediction's force act along the string as if taut, each as a rest-length error ``d``
+        over the step: ``Q = sum_i var_i G_i G_i^T`` with ``G_i`` the step's response to the
+        taut string's ``d acceleration / d rest_i`` (:meth:`taut_columns`), so a slack string at
+        the linearisation point still gets the noise of its re-engaging:
+
+        - the rest-length jitter, white with density ``q`` = ``rest_jitter_psd_m2_s`` (per step
+          ``N(0, s^2)``, ``s^2 = q / dt``): the force error ``k (max(mu - d, 0) - max(mu,
+          0))`` has mean square ``k^2 s^2 w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2
+          at the kink, 1 well taut), less the mean the mean kink carries;
+        - the linearisation: the estimate's margin is uncertain, ``mu ~ N(mu_hat, sigma^2)``
+          with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`margin_gradient`), and the force
+          departs from the line through the estimate by a mean square ``k^2 sigma^2 r(mu_hat
+          / sigma)`` (:func:`linearisation_residual`: 1/2 at the kink, 0 away from it) that
+          ``F P F^T`` does not carry.
         """
-        q = self.config.rest_jitter_psd_m2_s
         G, margin = self.taut_columns(dt, F, x)
-        a = margin / np.sqrt(q / dt)
-        w = kink_weight(a)
-        if self.config.kink_model == "mean":  # the prediction carries the mean already
-            w = w - (expected_positive_part(a) - np.maximum(a, 0.0)) ** 2
-        return (q / dt) * (G * w) @ G.T
+        g = self.margin_gradient(x)
+        nd = self.layout.n_dynamic
+        sigma2 = np.einsum("ij,jk,ik->i", g, P[:nd, :nd], g)
+        var = np.zeros_like(margin)
+        live = sigma2 > 0.0
+        var[live] = sigma2[live] * linearisation_residual(margin[live] / np.sqrt(sigma2[live]))
+        q = self.config.rest_jitter_psd_m2_s
+        if q > 0.0:
+            a = margin / np.sqrt(q / dt)
+            w = kink_weight(a)
+            if self.config.kink_model == "mean":  # the prediction carries the mean already
+                w = w - (expected_positive_part(a) - np.maximum(a, 0.0)) ** 2
+            var += (q / dt) * w
+        return (G * var) @ G.T
+
+    def margin_gradient(self, x):
+        """``d mu / dx`` (alpha, n_dynamic) of the strings' tension margins (:meth:`kink_noise`)
+        at ``x``, each on the side of its ``min`` that holds there, the stretch on a tie
+        (complex step)."""
+        L = self.layout
+        X = complex_step.perturbed(x[: L.n_dynamic], self.columns)
+        stretch, damped = self.margins(X)
+        pick = damped.real < stretch.real
+        return complex_step.split(np.where(pick, damped, stretch))[1]
+
+    def margins(self, X):
+        """Stretch (K, alpha) and damped stretch ``stretch + c/k d(length)/dt`` (K, alpha), m,
+        of a batch of states ``X`` (K, n_dynamic), real or complex."""
+        s, s_dot = self.string_lengths(X)
+        stretch = s - X[:, self.layout.rest]
+        return stretch, stretch + self.dyn.c_s / self.dyn.k_s * s_dot
 
     def taut_columns(self, dt, F, x):
         """Response of the node motion over a step to every rest length, each string as if taut.
@@ -104,10 +138,9 @@ class ProcessNoise:
         margin : ndarray, shape (alpha,), m
             Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
         """
-        L, dyn = self.layout, self.dyn
-        s, s_dot = self.string_lengths(x)
+        L = self.layout
         rest = x[L.rest]
-        margin = np.minimum(s - rest, s - rest + dyn.c_s / dyn.k_s * s_dot)
+        margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
         # the string force is affine in its rest length while taut (slope -k along the string)
         # and the accelerations are affine in the string forces: any taut point gives the
         # column; 1 mm of margin keeps every string taut whatever its state
@@ -138,13 +171,15 @@ class ProcessNoise:
         return a.reshape(alpha, 3 * m).imag.T / complex_step.STEP
 
     def string_lengths(self, x):
-        """Lengths (alpha,) m and their rates (alpha,) m/s of the strings at the state ``x``."""
+        """Lengths (..., alpha) m and their rates (..., alpha) m/s of the strings at the state
+        ``x`` (..., n) (real or complex)."""
         L, dyn = self.layout, self.dyn
+        shape = x.shape[:-1] + (3, L.m)
         # bar and string vectors are EE_T(q) + off (bars first); keep the strings
-        Y = (dyn.EE_T(x[L.q].reshape(3, L.m)) + dyn.off)[:, dyn.beta :]
-        Y_dot = dyn.EE_T(x[L.q_dot].reshape(3, L.m))[:, dyn.beta :]
-        s = np.sqrt((Y * Y).sum(axis=0))
-        return s, (Y * Y_dot).sum(axis=0) / s
+        Y = (dyn.EE_T(x[..., L.q].reshape(shape)) + dyn.off)[..., dyn.beta :]
+        Y_dot = dyn.EE_T(x[..., L.q_dot].reshape(shape))[..., dyn.beta :]
+        s = np.sqrt((Y * Y).sum(axis=-2))
+        return s, (Y * Y_dot).sum(axis=-2) / s
 
     def _white_noise(self, dt):
         if dt in self._noise:
