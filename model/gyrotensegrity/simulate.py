@@ -442,8 +442,10 @@ IMPLICIT = tuple(name for name in ADAPTIVE if name in ("radau", "bdf"))
 class Stepper:
     """Step the model with inputs given at each step (the simulated rig's truth model).
 
-    The input is held over each step (zero-order hold) and the step is divided into RK4
-    substeps of at most ``max_dt``.
+    The input is held over each step (zero-order hold), or, given its value at the step's end
+    too, follows the straight line between the two (first-order hold: a device's output that
+    moves on within the step, as a servo's or a wheel's, is not held back in steps). The step is
+    divided into RK4 substeps of at most ``max_dt``.
 
     Parameters
     ----------
@@ -472,8 +474,9 @@ class Stepper:
         self.max_dt = float(max_dt)
         self.method = "rk4-projected" if project else "rk4"
 
-    def step(self, dt, u=None):
-        """Advance by ``dt`` seconds under input ``u`` (default: the scene's input at ``t``).
+    def step(self, dt, u=None, u_end=None):
+        """Advance by ``dt`` seconds under input ``u`` (default: the scene's input at ``t``),
+        held, or with ``u_end`` given, moving in a straight line from ``u`` to ``u_end``.
 
         Returns
         -------
@@ -484,9 +487,10 @@ class Stepper:
         u = self.model.input_at(self.t) if u is None else np.asarray(u, float)
         n = max(1, int(np.ceil(dt / self.max_dt - 1e-9)))
         h = dt / n
+        t0, du = self.t, None if u_end is None else (np.asarray(u_end, float) - u) / dt
 
         def f(t, x):
-            return self.dynamics(t, x, u)
+            return self.dynamics(t, x, u if du is None else u + (t - t0) * du)
 
         for j in range(n):
             self.x = fixed_step(

@@ -60,7 +60,6 @@ def test_a_log_s_reports_are_rendered_with_the_rig_s_servo_response(tmp_path):
     """An in-process recording (servos: a first-order 50 ms lag, read at 25 Hz): the response
     fitted to the reports is the rig's, and the rendered lengths are its commands through it."""
     from gyrohost.config import load_rig_config
-    from gyrohost.ident.forward import _servo_response
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.simcheck import record_log, write_rigs
     from gyrohost.sil.scoring import SERVO_LAG_S
@@ -75,6 +74,6 @@ def test_a_log_s_reports_are_rendered_with_the_rig_s_servo_response(tmp_path):
     assert abs(response.delay_s) < 1e-3
     assert response.lag_s == pytest.approx(SERVO_LAG_S, rel=0.02)
     t = np.arange(0.0, commands.t_imu_s[-1], 0.005)
-    exact = _servo_response(commands, t, SERVO_LAG_S)  # each step's mean
-    mid = [np.interp(t + 0.0025, reports.t_servos_s, v) for v in reports.servos_m.T]
-    assert np.max(np.abs(np.column_stack(mid) - exact)) < 2e-5  # m: the reads' 15 um steps
+    exact = lagged(commands.t_servos_s, commands.servos_m, t, SERVO_LAG_S)
+    read = [np.interp(t, reports.t_servos_s, v) for v in reports.servos_m.T]
+    assert np.max(np.abs(np.column_stack(read) - exact)) < 2e-5  # m: the reads' 15 um steps

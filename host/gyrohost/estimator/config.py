@@ -354,24 +354,19 @@ PULL_SPEED_M_S = 0.1
 pulls, m/s."""
 
 
-def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
-    """The rest-length jitter ``rest_jitter_psd_m2_s`` (m^2 s) of a rig whose strings move in
+def sawtooth_psd(command_period_s, servo_speed_m_s=math.inf):
+    """The rest-length jitter ``rest_jitter_psd_m2_s`` (m^2 s) of a rig whose servos move in
     steps about the filter's continuous rest lengths, pulled at :data:`PULL_SPEED_M_S` (``v``).
 
-    Two sawtooths add up: the truth holds each rest length over its step ``h`` (peak to peak
-    ``v h``), and a servo given a goal every command period ``T`` covers the goal's step at its
-    speed ``V`` and holds (peak to peak ``v T (1 - v/V)``; 0 for ``T = 0``, servos that follow
-    their lag smoothly). A sawtooth of peak to peak ``p`` and period ``P`` is taken as white
-    noise of density ``2 (p^2 / 12) P``, and the sum is doubled: with its own density the
-    in-process SIL's motion block sat at twice its dof while a string crossed its kink
-    (docs/estimator-noise.md#the-rest-length-jitter). The two spreads add within 3 % for servos
-    up to twice the pull's speed; servos that jump to their goals step where the truth does,
-    and the sum overstates their spread by up to a fifth.
+    A servo given a goal every command period ``T`` covers the goal's step at its speed ``V``
+    and holds: about the ramp it rises and falls by ``p = v T (1 - v/V)`` once a period, a
+    spread ``p^2 / 12`` (0 for ``T = 0``, servos that follow their lag smoothly). A wave of peak
+    to peak ``p`` and period ``P`` is taken as white noise of density ``2 (p^2 / 12) P``, and
+    that is doubled: with its own density the in-process SIL's motion block sat at twice its dof
+    while a string crossed its kink (docs/estimator-noise.md#the-rest-length-jitter).
 
     Parameters
     ----------
-    truth_dt_s : float
-        The truth's step ``h``, s.
     command_period_s : float
         The servos' goal period ``T``, s (0: no goal steps).
     servo_speed_m_s : float
@@ -379,7 +374,7 @@ def sawtooth_psd(truth_dt_s, command_period_s=0.0, servo_speed_m_s=math.inf):
     """
     v = PULL_SPEED_M_S
     held = max(1.0 - v / servo_speed_m_s, 0.0)
-    return 2.0 * v**2 / 6.0 * (truth_dt_s**3 + command_period_s**3 * held**2)
+    return 2.0 * v**2 / 6.0 * command_period_s**3 * held**2
 
 
 def servo_hold_std(count_m, band_steps):

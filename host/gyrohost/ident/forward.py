@@ -19,7 +19,7 @@ from gyrohost.estimator import streams
 from gyrohost.estimator.fuse_imu_angle import FLOOR
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
-from gyrohost.ident.servo_render import GRID_S, ServoResponse, held, lagged, rendered
+from gyrohost.ident.servo_render import ServoResponse, lagged, rendered
 from gyrohost.simrig.config import TruthConfig
 from gyrohost.simrig.truth import Truth, torque_driven
 from gyrotensegrity import Scene
@@ -27,10 +27,9 @@ from gyrotensegrity import Scene
 from .errors import IdentDataError
 
 STEP_S = 0.005
-"""The forward model's step, s. Its inputs are held over each step, as the simulated rig's
-truth holds its rest lengths and wheel speeds over its own step (``[sim.truth] dt_s``, 5 ms
-unless set otherwise), so that on the simulated rig the two step alike; a real rig's strings
-move smoothly, and 5 ms is a tenth of their servos' lag."""
+"""The forward model's step, s. Its inputs move in a straight line over each step between their
+values at its ends (:meth:`Truth.step`), as a real rig's strings and wheels move smoothly; 5 ms
+is a tenth of their servos' lag."""
 
 WHEEL_SMOOTHING_S = 0.3
 """Width of the moving average on the reported wheel speeds, s. The board holds its speeds; the
@@ -227,17 +226,9 @@ def simulate(
     n = int(np.ceil(rec.t_imu_s[-1] / dt)) + 1
     t_steps = dt * np.arange(n + 1)
     if rec.commanded:
-        lengths = _servo_response(rec, t_steps, servo_lag_s) + offsets
+        lengths = lagged(rec.t_servos_s, rec.servos_m, t_steps, servo_lag_s) + offsets
     else:
-        # a step holds its inputs: their mean over the step (the midpoint's value is it for a
-        # straight line, 3 um off it where a lag bends the rendered lengths), read at the
-        # rendered grid's points within it
-        points = max(int(round(dt / GRID_S)), 1)
-        t_held = t_steps[:, None] + dt * (np.arange(points) + 0.5) / points
-        lengths = np.column_stack(
-            [np.interp(t_held, rec.t_servos_s, v).mean(axis=1) for v in rec.servos_m.T]
-        )
-        lengths += offsets
+        lengths = _interp(t_steps, rec.t_servos_s, rec.servos_m) + offsets
     speeds = np.column_stack([np.interp(t_steps, rec.t_wheels_s, w) for w in rec.wheels_rad_s.T])
     speeds = _smooth(speeds, int(round(WHEEL_SMOOTHING_S / dt)))
     if len(rec.t_command_s):
@@ -281,14 +272,13 @@ def _run(truth: Truth, t_steps, lengths, speeds, k0: int, k1: int):
     every step, shapes (k1 - k0 + 1, 3), (.., 3) and (.., 9)."""
     ids = list(truth.servo_strings)
     model, stepper = truth.model, truth.stepper
-    # the state at t_k with the input held over the step that led to it (as the rig's IMU sees
-    # its truth, Truth.imu_truth)
+    # the state and the input at t_k
     xs, us = np.empty((k1 - k0 + 1, len(stepper.x))), []
     for j, k in enumerate(range(k0, k1 + 1)):
         xs[j] = stepper.x
         us.append(truth.u)
         if k < k1:
-            truth.step(dict(zip(ids, lengths[k], strict=True)), speeds[k])
+            truth.step(dict(zip(ids, lengths[k + 1], strict=True)), speeds[k + 1])
     t = t_steps[k0 : k1 + 1]
     x_dot = np.array([stepper.dynamics(tk, x, u) for tk, x, u in zip(t, xs, us, strict=True)])
     L, k = model.layout, len(t)
@@ -306,19 +296,6 @@ def window(rec: Recording, until_s: float) -> Recording:
     """``rec`` up to ``until_s`` (its IMU samples; the inputs whole), one segment."""
     keep = rec.t_imu_s < until_s
     return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep], segment_s=0.0)
-
-
-def _servo_response(rec: Recording, t_steps: np.ndarray, lag_s: float) -> np.ndarray:
-    """The servos' positions under the commands of ``rec`` (each held until the next), through
-    a first-order lag ``lag_s``, as the mean over each step from ``t_steps``: shape (k, n)."""
-    command = held(rec.t_servos_s, rec.servos_m, t_steps)
-    if lag_s <= 0.0:
-        return command
-    dt = t_steps[1] - t_steps[0]
-    gain = 1.0 - np.exp(-dt / lag_s)
-    start = lagged(rec.t_servos_s, rec.servos_m, t_steps, lag_s)  # at each step's start
-    # the mean of the exponential approach over the step
-    return command + (start - command) * gain * lag_s / dt
 
 
 def _smooth(values, width):

@@ -70,16 +70,13 @@ def emulator_keys(rig: RigConfig) -> dict:
         # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
         # tick it covers the goal step and holds, so it strays from the lag by up to the step,
         # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
-        # while they move; holding still, they sit within the hold below; its reads scatter
-        # about the truth's 5 ms rest-length steps (docs/estimator-noise.md#resting-servos)
+        # while they move; holding still, they sit within the hold below
+        # (docs/estimator-noise.md#resting-servos)
         "servo_lag_s": 0.005,
-        # a moving servo's read lies anywhere within the truth's 5 ms hold of its rest length
-        # (uniform: dt / sqrt(12) as a time); at rest it reads within a count of where it
-        # holds, and 5e-5 m left for the rest put the servo NIS at 1.8-2.0 of 2 on three
-        # real-time batches (2e-4 and no time: 0.87-1.06, below its bounds on one;
-        # docs/estimator-noise.md#the-servos-reads-moving-and-at-rest)
+        # at rest it reads within a count of where it holds, and 5e-5 m left for the rest put
+        # the servo NIS at 1.8-2.0 of 2 on three real-time batches (2e-4: 0.87-1.06, below its
+        # bounds on one; docs/estimator-noise.md#the-servos-reads-moving-and-at-rest)
         "servo_length_std_m": 5.0e-5,
-        "servo_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
         "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
         # a resting servo holds within its band of the command's count, and no walk beyond it
         # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
@@ -89,12 +86,11 @@ def emulator_keys(rig: RigConfig) -> dict:
             max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
             sim.servos.hold_band_steps,
         ),
-        # the strings see their rest lengths in steps, a sawtooth about the filter's continuous
-        # ones which the kink rectifies: the truth's hold over its step and the servos' goal
-        # steps, one per tick of the run loop, each covered at the servo's speed (the fastest
-        # servo's: the largest sawtooth; docs/estimator-noise.md#the-rest-length-jitter)
+        # the strings see their rest lengths in steps about the filter's continuous ones, which
+        # the kink rectifies: the servos' goal steps, one per tick of the run loop, each covered
+        # at the servo's speed (the fastest servo's: the largest steps;
+        # docs/estimator-noise.md#the-rest-length-jitter)
         "rest_jitter_psd_m2_s": sawtooth_psd(
-            sim.truth.dt_s,
             1.0 / LOOP_RATE_HZ,
             max((s.max_speed_m_s for s in rig.servos.servo), default=math.inf),
         ),
@@ -118,15 +114,10 @@ def emulator_keys(rig: RigConfig) -> dict:
         # every ramp (docs/estimator.md#wheel-commands)
         "wheel_delay_s": 0.0,
         # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
-        # time (wheel_times "device"), late by the link's shortest delay (about 1 ms) and
-        # against a truth that picks up the wheel speeds once per 5 ms step: 2 ms (0: the
-        # wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
+        # time (wheel_times "device"), late by the link's shortest delay (about 1 ms): 2 ms (0:
+        # the wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
         # docs/estimator.md)
         "wheel_time_std_s": 0.002,
-        # the truth spins its wheels at the board's speeds of its 5 ms step's end: in a speed
-        # step the wheels act on a command at a time uniform over the step (dt / sqrt(12), as
-        # the servos' reads)
-        "wheel_command_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
         "imu_frame_nodes": tuple(sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(sim.truth.imu_gravity_m_s2),
     }

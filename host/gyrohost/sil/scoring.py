@@ -40,7 +40,7 @@ import numpy as np
 
 from gyrohost import parallel
 from gyrohost.estimator import streams
-from gyrohost.estimator.config import EXACT_IMU_TIMES, sawtooth_psd
+from gyrohost.estimator.config import EXACT_IMU_TIMES
 from gyrohost.estimator.consistency import (
     average_bounds,
     observed_blocks,
@@ -61,7 +61,7 @@ from gyrohost.sil.montecarlo import (
     score_run,
     summarise,
 )
-from gyrohost.simrig.config import TruthConfig, sim_config, with_sim_keys, with_truth_scene
+from gyrohost.simrig.config import sim_config, with_sim_keys, with_truth_scene
 
 from .errors import SilError
 
@@ -69,17 +69,12 @@ WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run 
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
 # Keys for the in-process SIL (on top of emulator_keys), each checked by the marginal NEES of its
-# block (docs/estimator.md). The rig's truth has no random forces: one filter step from the true
-# state reproduces the truth to round-off except where a string crosses its slack/taut kink within
-# the step (the truth's 5 ms hold of each rest length against the filter's continuous one: a
-# sawtooth of +-0.25 mm at 0.1 m/s that the kink rectifies). That is white noise on the rest
-# lengths as the string forces see them, through every string as if taut and weighted by its kink
-# error, with the kink's mean force in the prediction (kink_model "mean"); the sawtooth's own
-# density (2e-10 m^2 s) left the motion block twice its dof at a kink, twice that covers it
-# (sawtooth_psd of the truth's step); white node accelerations keep a little (3e-8). The servos here
-# are exactly the filter's first-order lag (no read off it, no goal-step spread, no hold): reads
-# to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s for what the model misses where
-# the dynamics pin them (1e-10: rest block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
+# block (docs/estimator.md). The rig's truth has no random forces and moves its rest lengths as
+# the servos do: one filter step from the true state reproduces the truth to round-off. White
+# node accelerations keep a little (3e-8). The servos here are exactly the filter's first-order
+# lag (no read off it, no goal-step spread, no hold): reads to the step's quantisation (4.4 um),
+# and a walk of 1e-13 m^2/s for what the model misses where the dynamics pin them (1e-10: rest
+# block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
 RIG_MODEL_KEYS = {
     "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
@@ -88,8 +83,7 @@ RIG_MODEL_KEYS = {
     "rest_psd_m2_s": 1e-13,
     "rest_hold_std_m": 0.0,
     "servo_step_std_ratio": 0.0,
-    "rest_jitter_psd_m2_s": sawtooth_psd(TruthConfig.dt_s),
-    "kink_model": "mean",
+    "rest_jitter_psd_m2_s": 0.0,
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
 
@@ -312,14 +306,10 @@ def _rig_model_rows(
         u = truth.model.pack_input(rest, board.true_speeds())
         truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
         truth_R.append(imu.R_wb @ emu.R_bs)  # the sensor axes, as the filter's attitude
-        held = {}
         for s, i in zip(servos, servo_strings, strict=True):
-            start = position[s.id]
-            position[s.id] += gain * (command[i] - start)
-            # the truth holds a rest length over its step: the lag's mean over the step (its end
-            # value would lead the servo by half a step, its start value trail it)
-            held[s.id] = command[i] + (start - command[i]) * gain * SERVO_LAG_S / dt
-        truth.step(held, board.true_speeds())
+            position[s.id] += gain * (command[i] - position[s.id])
+        board.dev.tick(t + dt)  # the wheels' speeds at the step's end, where the truth goes
+        truth.step(dict(position), board.true_speeds())
     return rows, truth_x, truth_R
 
 

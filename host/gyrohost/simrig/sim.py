@@ -114,7 +114,6 @@ class SimulatedRig:
         self._idle_at_s = -1.0
         self._dev_t_s = 0.0
         self._steps = self._late = 0
-        self._step_start: tuple[dict, np.ndarray] | None = None  # (_step_inputs)
         self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
         self._cpu0_s = 0.0
 
@@ -255,19 +254,12 @@ class SimulatedRig:
             self._max_lag_s = max(self._max_lag_s, lateness_s)
             self._late += lateness_s > self.truth.dt_s
 
-    def _step_inputs(self) -> tuple[dict, np.ndarray, np.ndarray]:
-        """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) the truth
-        holds over the step now due: the mean of the devices' outputs at its start and end. The
-        end's alone would lead the devices by half a step, as the start's would trail them; the
-        host's reads of the servos and the IMU's view of the truth would then disagree in time
-        by that much, which an identification takes up in the IMU's latency. Then the wheels'
-        speeds at the step's end, which a torque-driven truth's speed loop reaches."""
+    def _step_inputs(self) -> tuple[dict, np.ndarray]:
+        """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) at the end
+        of the step now due, where the devices have been polled; the truth moves its inputs
+        there from the last step's (:meth:`Truth.step`)."""
         lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
-        speeds = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
-        start = self._step_start or (lengths, speeds)
-        self._step_start = (lengths, speeds)
-        held = {sid: 0.5 * (start[0][sid] + length) for sid, length in lengths.items()}
-        return held, 0.5 * (start[1] + speeds), speeds
+        return lengths, np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
 
     def _poll(self, t_s: float) -> None:
         self._dev_t_s = t_s = max(t_s, self._dev_t_s)
@@ -423,7 +415,6 @@ class SimulatedRig:
         with self._lock:
             self.truth.reset()
             self.servos.reset()
-            self._step_start = None  # the servos jumped: no step starts where they were
             if self.wheels_kind == "emulator":
                 self.wheels.rest()
         wheels = "wheels at rest" if self.wheels_kind == "emulator" else "simavr wheels as they are"

@@ -18,7 +18,8 @@ heavier or lighter than the scene the estimator uses (model mismatch). Two kinds
   :meth:`Truth.release`; the run releases it when its lead-in starts, after the spin-up, where
   the estimator starts from the scene's initial state. :meth:`Truth.reset` holds it again.
 
-Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
+Inputs at each step (the devices' outputs at its start and end, joined by a straight line,
+:class:`gyrotensegrity.Stepper`):
 
 - **String rest lengths.** A servo with ``string = "<name>"`` in the configuration winds that scene
   string: its present string length (the servo calibration, ``L = length_at_zero_m + length_sign *
@@ -27,7 +28,7 @@ Inputs at each step (held over the step, :class:`gyrotensegrity.Stepper`):
   0 = none). Strings no servo winds keep their scene rest length at t = 0.
 - **Wheel spins.** Board wheel ``i`` spins the scene's ``i``-th wheel in bar order (rad/s, positive
   about +b of its bar); board wheels beyond the scene's wheels spin nothing. Speed-driven: the
-  spin held over the step; torque-driven: the speed loop's target at the step's end.
+  spin moving over the step; torque-driven: the speed loop's target at the step's end.
 
 **Truth against model.** The truth runs ``[sim.truth] scene`` when set (:func:`truth_scene`),
 the host's model, estimator and planner keep the configuration's scene: any parameter may differ
@@ -189,8 +190,7 @@ class TruthRecord:
     R_wb : ndarray, shape (k, 3, 3)
         Attitude of the IMU frame: its axes in the world frame.
     omega_w_rad_s : ndarray, shape (k, n_w), rad/s
-        Wheel spins (scene wheel order): held over the step (speed-driven), at its end
-        (torque-driven).
+        Wheel spins (scene wheel order) at the step's end.
     rest_length_m : ndarray, shape (k, alpha), m
         String rest lengths.
     node_names : list of str
@@ -299,7 +299,7 @@ class Truth:
         """Replace the present state (layout of ``self.model``); the IMU history restarts."""
         self.stepper.x = np.array(x, dtype=float)
         self._history.clear()
-        self._history.append((self.stepper.t, self.stepper.x.copy(), self.u))
+        self._history.append((self.stepper.t, self.stepper.x.copy(), self.u, self.u))
 
     def reset(self) -> None:
         """Back to the scene's initial state (nodes, velocities, rest lengths), wheels at rest;
@@ -320,45 +320,41 @@ class Truth:
         """Truth time, s."""
         return self.stepper.t
 
-    def step(
-        self,
-        string_lengths_m: Mapping[int, float],
-        wheel_speeds_rad_s: Sequence[float],
-        wheel_speeds_end_rad_s: Sequence[float] | None = None,
-    ):
-        """Advance by one step ``dt_s`` with the devices' present outputs.
+    def step(self, string_lengths_m: Mapping[int, float], wheel_speeds_rad_s: Sequence[float]):
+        """Advance by one step ``dt_s`` to the devices' outputs at the step's end.
+
+        The rest lengths and a speed-driven truth's spins move in a straight line over the step
+        from where the last step left them (first-order hold): the servos and the wheels move
+        on continuously within it, as the filter's continuous inputs do, so the truth adds no
+        steps of its own. A torque-driven truth's speed loop holds its torque over the step.
 
         Parameters
         ----------
         string_lengths_m : mapping servo ID -> float, m
-            Present string lengths of the servos (those without a string are ignored).
+            The servos' string lengths at the step's end (those without a string are ignored).
         wheel_speeds_rad_s : sequence of float, rad/s
-            True wheel-board speeds held over the step, board wheel order.
-        wheel_speeds_end_rad_s : sequence of float, rad/s, optional
-            The board's true speeds at the step's end, the target of a torque-driven truth's
-            speed loop (default ``wheel_speeds_rad_s``).
+            The wheel board's true speeds at the step's end, board wheel order.
         """
+        u_start = self.u
         lag = self.config.servo_lag_s
         gain = 1.0 if lag <= 0 else 1.0 - math.exp(-self.dt_s / lag)
         for servo_id, index in self.servo_strings.items():
             target = string_lengths_m[servo_id] - self.servo_offset_m[servo_id]
             self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
-        end = wheel_speeds_rad_s if wheel_speeds_end_rad_s is None else wheel_speeds_end_rad_s
-        self.wheel_input_rad_s[:] = self._board_order(
-            end if self.torque_driven else wheel_speeds_rad_s
-        )
+        self.wheel_input_rad_s[:] = self._board_order(wheel_speeds_rad_s)
         wheel = self.wheel_input_rad_s
         if self.torque_driven:  # the ideal speed loop's torque (module docstring)
             spin = self.model.wheel_speeds(self.stepper.x, self.u)
             wheel = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
+            u_start = self.model.pack_input(u_start[: self.model.alpha], wheel)
         self.u = self.model.pack_input(self.rest_length_m, wheel)
-        x = self.stepper.step(self.dt_s, self.u)
+        x = self.stepper.step(self.dt_s, u_start, self.u)
         if self.held:  # the mount: the structure where it started, the wheels as they spin
             L = self.model.layout
             x = self._x0.copy()
             x[L.theta], x[L.omega] = self.stepper.x[L.theta], self.stepper.x[L.omega]
             self.stepper.x = x
-        self._history.append((self.stepper.t, x.copy(), self.u))
+        self._history.append((self.stepper.t, x.copy(), u_start, self.u))
         if self._record is not None:
             self._record.append(
                 (
@@ -429,17 +425,18 @@ class Truth:
         """What the IMU frame does at ``t_s - imu_latency_s``: the state interpolated between
         the truth's steps around that time (a sensor samples on its own clock, not on the
         truth's 5 ms steps; the linear interpolation's error, ``a dt^2 / 8``, is far below the
-        IMU's noise); after the newest step, the newest."""
+        IMU's noise), under the step's input at that time; after the newest step, the newest."""
         when = t_s - self.config.imu_latency_s
         entries = list(self._history)
         later = next((i for i, e in enumerate(entries) if e[0] >= when - 1e-12), None)
         if later is None:
-            t, x, u = entries[-1]
+            t, x, _, u = entries[-1]
         elif later == 0:
-            t, x, u = entries[0]
+            t, x, _, u = entries[0]
         else:
-            (t_a, x_a, _), (t_b, x_b, u) = entries[later - 1], entries[later]
-            t, x = when, x_a + (when - t_a) / (t_b - t_a) * (x_b - x_a)
+            (t_a, x_a, _, _), (t_b, x_b, u_a, u_b) = entries[later - 1], entries[later]
+            share = (when - t_a) / (t_b - t_a)
+            t, x, u = when, x_a + share * (x_b - x_a), u_a + share * (u_b - u_a)
         N, N_dot = self.model.nodes(x)
         q_ddot = self.stepper.dynamics(t, x, u)[self.model.layout.q_dot].reshape(3, -1)
         N_ddot = np.asarray(self.model.U2 @ q_ddot.T).T
