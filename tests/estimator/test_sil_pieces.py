@@ -1,9 +1,9 @@
 """The pieces of the SIL that the consistency studies build on, checked exactly: the wait of a
 late command for the truth's next step, the kink weight of the rest-length jitter and the
-linearisation's residual, the kink noise's columns through a string near its kink. The Monte Carlo itself (NEES and NIS of 6-20 seeds
-against the bounds of their average, and the share of time steps inside them) is a statistical
-claim and a study: ``python -m studies estimator_sil`` and ``python -m studies
-estimator_effects`` (reports/)."""
+linearisation's residual, the kink noise's columns through a string near its kink. The Monte
+Carlo itself (NEES and NIS of 6-20 seeds against the bounds of their average, and the share of
+time steps inside them) is a statistical claim and a study: ``python -m studies estimator_sil``
+and ``python -m studies estimator_effects`` (reports/)."""
 
 import numpy as np
 
