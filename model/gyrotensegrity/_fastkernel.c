@@ -666,12 +666,12 @@ static double kink_weight(double a) {
     return a <= 0.0 ? (a * a + 1.0) * Phi + a * phi : Phi - a * phi + a * a * (1.0 - Phi);
 }
 
-/* Mean square of max(a + Z, 0) - max(a, 0) - H(a) Z, Z standard normal
- * (gyrohost.estimator.kink.linearisation_residual). */
-static double linearisation_residual(double a) {
-    double b = fabs(a);
-    return (b * b + 1.0) * 0.5 * erfc(b / sqrt(2.0)) -
-           b * exp(-0.5 * b * b) / sqrt(2.0 * 3.14159265358979323846);
+/* Var f - Cov(f, Z)^2 of f = max(a + Z, 0), Z standard normal: what no line in Z captures
+ * (gyrohost.estimator.kink.unexplained_variance). */
+static double unexplained_variance(double a) {
+    double Phi = 0.5 * erfc(-a / sqrt(2.0)),
+           phi = exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846), mean = a * Phi + phi;
+    return (a * a + 1.0) * Phi + a * phi - mean * mean - Phi * Phi;
 }
 
 /* g P g^T over the dynamic block of P (n x n) for g (D) nonzero only at q, q_dot (6 m) and
@@ -691,7 +691,7 @@ static double margin_variance(const double* g, const double* P, int64_t n, int64
 /* Po[:6m, :6m] += sum_i var_i G_i G_i^T, the force errors at the strings' kinks
  * (gyrohost.estimator.process_noise.kink_noise): G_i = dt/2 (b_i + F b_i), b_i = (0, d acc /
  * d rest_i) with string i held taut; var_i = (q / dt) kink_weight(mu_i / sqrt(q / dt)) for the
- * rest-length jitter of density q, plus sigma_i^2 linearisation_residual(mu_i / sigma_i) for the
+ * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i) for the
  * linearisation, sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
  * x. Jt: 3 m x D work. */
 static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
@@ -728,7 +728,7 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         }
         g[r0 + i] = -1.0;
         double sigma2 = margin_variance(g, P, n, m, r0 + i);
-        wt[i] = sigma2 > 0.0 ? sigma2 * linearisation_residual(margin / sqrt(sigma2)) : 0.0;
+        wt[i] = sigma2 > 0.0 ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) : 0.0;
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
             /* under the mean kink the prediction carries the mean force already */

@@ -6,6 +6,7 @@ time steps inside them) is a statistical claim and a study: ``python -m studies 
 and ``python -m studies estimator_effects`` (reports/)."""
 
 import numpy as np
+import pytest
 
 from gyrohost.sil.effects import CASES
 
@@ -30,21 +31,22 @@ def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():
     assert kink_weight(-8.0) < 1e-12 and abs(kink_weight(8.0) - 1.0) < 1e-12
 
 
-def test_linearisation_residual_is_the_mean_square_of_the_rectifier_off_its_line():
-    from gyrohost.estimator.kink import linearisation_residual
+def test_unexplained_variance_is_what_the_best_line_leaves_of_the_rectifier():
+    from gyrohost.estimator.kink import unexplained_variance
 
     z = np.random.default_rng(0).standard_normal(400_000)
     for a in (-2.0, -0.7, 0.0, 0.5, 1.5, 4.0):
-        off = np.maximum(a + z, 0.0) - max(a, 0.0) - (a > 0.0) * z
-        assert abs(linearisation_residual(a) - np.mean(off**2)) < 0.01, a
-    assert linearisation_residual(0.0) == 0.5
-    assert linearisation_residual(-8.0) < 1e-12 and linearisation_residual(8.0) < 1e-12
+        f = np.maximum(a + z, 0.0)
+        slope, intercept = np.polyfit(z, f, 1)
+        assert abs(unexplained_variance(a) - np.mean((f - intercept - slope * z) ** 2)) < 0.005, a
+    assert unexplained_variance(0.0) == pytest.approx(0.25 - 1.0 / (2.0 * np.pi), rel=1e-12)
+    assert abs(unexplained_variance(-8.0)) < 1e-12 and abs(unexplained_variance(8.0)) < 1e-12
 
 
-def test_an_uncertain_margin_at_the_kink_adds_half_its_variance_along_the_string(model):
+def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the_string(model):
     """With no jitter, the kink's noise is the linearisation's: the margin's variance ``g P
-    g^T`` (``g`` here from central differences of the margins), times 1/2 at the kink, through
-    the same columns as the jitter."""
+    g^T`` (``g`` here from central differences of the margins), times ``1/4 - 1/(2 pi)`` at the
+    kink, through the same columns as the jitter."""
     from gyrohost.estimator import EstimatorConfig
     from gyrohost.estimator.layout import from_model_state, layout_of
     from gyrohost.estimator.process_model import ProcessModel
@@ -70,7 +72,7 @@ def test_an_uncertain_margin_at_the_kink_adds_half_its_variance_along_the_string
     n = L.q_dot.stop
     added = pm.noise(dt, F, x, P) - pm.noise(dt)
     assert np.all(np.abs(margin) < 1e-9)
-    expected = (G * 0.5 * sigma2) @ G.T
+    expected = (G * (0.25 - 1.0 / (2.0 * np.pi)) * sigma2) @ G.T
     assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
     assert not added[n:].any() and not added[:, n:].any()
 

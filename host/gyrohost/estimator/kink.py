@@ -1,7 +1,8 @@
 """A tension-only string under a rest-length jitter: the mean of its rectified force and the
 mean square of its error, in units of the jitter's std (the process model's ``kink_model =
-"mean"`` and its jitter noise, docs/estimator.md); and the error of the force's linearisation
-at an uncertain estimate (the kink noise, :meth:`.process_noise.ProcessNoise.kink_noise`)."""
+"mean"`` and its jitter noise, docs/estimator.md); and what no linearisation of the force
+captures at an uncertain estimate (the kink noise,
+:meth:`.process_noise.ProcessNoise.kink_noise`)."""
 
 import numpy as np
 from scipy.special import erfc, ndtr
@@ -31,16 +32,19 @@ def kink_weight(a):
     return np.where(a <= 0.0, slack, taut)
 
 
-def linearisation_residual(a):
-    """Mean square of ``max(a + Z, 0) - max(a, 0) - H(a) Z``, Z standard normal, ``H`` the step
-    function (shape of ``a``).
+def unexplained_variance(a):
+    """``Var f - Cov(f, Z)^2`` for ``f = max(a + Z, 0)``, Z standard normal (shape of ``a``):
+    ``(a^2 + 1) Phi(a) + a phi(a) - (a Phi(a) + phi(a))^2 - Phi(a)^2``.
 
-    The error of a tension-only string's force beyond the filter's linearisation at its estimate,
-    in units of the estimate's variance of the tension margin, when the margin is off the
-    estimate by ``Z`` standard deviations and ``a`` is the estimated margin in the same units:
-    the part of the rectifier the line through the estimate misses, ``E((Z - |a|)+)^2 =
-    (a^2 + 1) Phi(-|a|) - |a| phi(a)``; 1/2 at the kink, falling to 0 on both sides (taut or
-    slack, the line is exact there).
+    A tension-only string's force when the filter's tension margin is off the estimate by ``Z``
+    standard deviations and ``a`` is the estimated margin in the same units, in units of the
+    margin's variance: what no straight line in the margin captures of it (the residual of the
+    best one, of slope ``Cov(f, Z) = Phi(a)``). About 0.09 at the kink, 0 away from it (taut or
+    slack, the force is a line there). The filter's own line, of slope 0 or 1, misses at least
+    this much.
     """
-    b = np.abs(np.asarray(a, dtype=float))
-    return (b * b + 1.0) * ndtr(-b) - b * np.exp(-0.5 * b * b) / np.sqrt(2.0 * np.pi)
+    a = np.asarray(a, dtype=float)
+    Phi = ndtr(a)
+    phi = np.exp(-0.5 * a * a) / np.sqrt(2.0 * np.pi)
+    mean = a * Phi + phi
+    return (a * a + 1.0) * Phi + a * phi - mean * mean - Phi * Phi

@@ -10,7 +10,7 @@ A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provide
 import numpy as np
 
 from . import complex_step
-from .kink import expected_positive_part, kink_weight, linearisation_residual
+from .kink import expected_positive_part, kink_weight, unexplained_variance
 
 
 class ProcessNoise:
@@ -88,10 +88,13 @@ class ProcessNoise:
           0))`` has mean square ``k^2 s^2 w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2
           at the kink, 1 well taut), less the mean the mean kink carries;
         - the linearisation: the estimate's margin is uncertain, ``mu ~ N(mu_hat, sigma^2)``
-          with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`margin_gradient`), and the force
-          departs from the line through the estimate by a mean square ``k^2 sigma^2 r(mu_hat
-          / sigma)`` (:func:`linearisation_residual`: 1/2 at the kink, 0 away from it) that
-          ``F P F^T`` does not carry.
+          with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`margin_gradient`), and no line
+          in ``mu`` follows the force: the best leaves ``k^2 sigma^2 v(mu_hat / sigma)``
+          (:func:`unexplained_variance`: 0.09 at the kink, 0 away from it), which ``F P F^T``
+          cannot carry. The filter's own line (the slope at the estimate) misses by more, by
+          ``(H - Phi)^2 sigma^2`` and the mean's offset; that part is left out: it grows with
+          ``P`` near a kink, and a filter that has lost the structure (the nominal scene on an
+          identification run) then grew ``P`` without bound until its bars went singular.
         """
         G, margin = self.taut_columns(dt, F, x)
         g = self.margin_gradient(x)
@@ -99,7 +102,7 @@ class ProcessNoise:
         sigma2 = np.einsum("ij,jk,ik->i", g, P[:nd, :nd], g)
         var = np.zeros_like(margin)
         live = sigma2 > 0.0
-        var[live] = sigma2[live] * linearisation_residual(margin[live] / np.sqrt(sigma2[live]))
+        var[live] = sigma2[live] * unexplained_variance(margin[live] / np.sqrt(sigma2[live]))
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
