@@ -666,6 +666,8 @@ static double kink_weight(double a) {
     return a <= 0.0 ? (a * a + 1.0) * Phi + a * phi : Phi - a * phi + a * a * (1.0 - Phi);
 }
 
+#define KINK_REACH 7.0 /* gyrohost.estimator.process_noise.KINK_REACH */
+
 /* Var f - Cov(f, Z)^2 of f = max(a + Z, 0), Z standard normal: what no line in Z captures
  * (gyrohost.estimator.kink.unexplained_variance). */
 static double unexplained_variance(double a) {
@@ -728,13 +730,18 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         }
         g[r0 + i] = -1.0;
         double sigma2 = margin_variance(g, P, n, m, r0 + i);
-        wt[i] = sigma2 > 0.0 ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) : 0.0;
+        /* beyond KINK_REACH of its standard deviations the force is a line to round-off */
+        int near = sigma2 > 0.0 && fabs(margin) < KINK_REACH * sqrt(sigma2);
+        wt[i] = near ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) : 0.0;
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
             /* under the mean kink the prediction carries the mean force already */
             wt[i] += (q / dt) * (kink_weight(a) - (p->kink_sd > 0.0 ? mean * mean : 0.0));
         }
     }
+    int any = 0;
+    for (int64_t i = 0; i < alpha; i++) any |= wt[i] != 0.0;
+    if (!any) return 0; /* every string a line to round-off: no Jacobian needed */
     int64_t status = jacobian_columns(k, d, z, acc, Jt, w, r0, D); /* the rest lengths' */
     if (status) return status;
     for (int64_t r = 0; r < 3 * m; r++)

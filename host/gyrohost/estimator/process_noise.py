@@ -12,6 +12,11 @@ import numpy as np
 from . import complex_step
 from .kink import expected_positive_part, kink_weight, unexplained_variance
 
+KINK_REACH = 7.0
+"""How many of its standard deviations a string's tension margin may lie from its kink for the
+linearisation's noise to count: beyond, no line misses more than round-off (``v(7)`` =
+4e-14, :func:`.kink.unexplained_variance`)."""
+
 
 class ProcessNoise:
     """Discrete process noise of :class:`~gyrohost.estimator.process_model.ProcessModel`."""
@@ -96,13 +101,13 @@ class ProcessNoise:
           ``P`` near a kink, and a filter that has lost the structure (the nominal scene on an
           identification run) then grew ``P`` without bound until its bars went singular.
         """
-        G, margin = self.taut_columns(dt, F, x)
+        L = self.layout
+        margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
         g = self.margin_gradient(x)
-        nd = self.layout.n_dynamic
-        sigma2 = np.einsum("ij,jk,ik->i", g, P[:nd, :nd], g)
+        sigma2 = np.einsum("ij,jk,ik->i", g, P[: L.n_dynamic, : L.n_dynamic], g)
         var = np.zeros_like(margin)
-        live = sigma2 > 0.0
-        var[live] = sigma2[live] * unexplained_variance(margin[live] / np.sqrt(sigma2[live]))
+        near = (sigma2 > 0.0) & (np.abs(margin) < KINK_REACH * np.sqrt(sigma2))
+        var[near] = sigma2[near] * unexplained_variance(margin[near] / np.sqrt(sigma2[near]))
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
@@ -110,6 +115,10 @@ class ProcessNoise:
             if self.config.kink_model == "mean":  # the prediction carries the mean already
                 w = w - (expected_positive_part(a) - np.maximum(a, 0.0)) ** 2
             var += (q / dt) * w
+        n = L.q_dot.stop
+        if not var.any():  # every string a line to round-off: no Jacobian needed
+            return np.zeros((n, n))
+        G, _ = self.taut_columns(dt, F, x)
         return (G * var) @ G.T
 
     def margin_gradient(self, x):
