@@ -77,6 +77,26 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     assert not added[n:].any() and not added[:, n:].any()
 
 
+def test_the_margins_gradient_in_closed_form_is_the_complex_steps(model):
+    """On a moving state with one string on each side of its ``min`` (the damped stretch the
+    smaller where the string shortens)."""
+    from dataclasses import replace
+
+    from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.layout import from_model_state, layout_of
+    from gyrohost.estimator.process_model import ProcessModel
+
+    L = layout_of(model)
+    x = from_model_state(model, model.initial_state(), model.input_at(0.0))
+    x[L.q_dot] = np.random.default_rng(2).normal(scale=0.05, size=3 * L.m)
+    closed = ProcessModel(model, EstimatorConfig())
+    stepped = ProcessModel(model, replace(EstimatorConfig(), jacobian="complex-step"))
+    _, s_dot = closed.string_lengths(x)
+    assert np.any(s_dot < 0.0) and np.any(s_dot > 0.0)
+    g = closed.margin_gradient(x)
+    assert np.abs(g - stepped.margin_gradient(x)).max() < 1e-12 * np.abs(g).max()
+
+
 def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(model):
     from dataclasses import replace
 

@@ -218,18 +218,13 @@ class ProcessModel(ProcessNoise):
         D[:, L.rest] = np.eye(L.n_strings)
         if s_j == 0.0:
             return rest, D
-        S = (q @ self.jac.EE_T + dyn.off)[:, dyn.beta :]
-        S_dot = q_dot @ self.jac.EE_T[:, dyn.beta :]
-        s = np.sqrt((S * S).sum(axis=0))
-        u = S / s
-        s_dot = (u * S_dot).sum(axis=0)
-        ratio = dyn.c_s / dyn.k_s
-        margin = s - rest + ratio * s_dot
+        s, s_dot, _, d_S, d_S_dot = self.string_slopes(q, q_dot)
+        margin = s - rest + dyn.c_s / dyn.k_s * s_dot
         a = margin / s_j
         open_ = 1.0 - ndtr(a)  # d pulling / d margin
         Es = self.jac.Es
-        D[:, L.q] = outer_rows(open_ * (u + ratio * (S_dot - s_dot * u) / s), Es)
-        D[:, L.q_dot] = outer_rows(open_ * ratio * u, Es)
+        D[:, L.q] = outer_rows(open_ * d_S, Es)
+        D[:, L.q_dot] = outer_rows(open_ * d_S_dot, Es)
         D[:, L.rest] = np.diag(1.0 - open_)
         return rest + margin - s_j * expected_positive_part(a), D
 

@@ -9,6 +9,8 @@ A part of :class:`~gyrohost.estimator.process_model.ProcessModel`, which provide
 
 import numpy as np
 
+from gyrotensegrity.fast_jacobian import outer_rows
+
 from . import complex_step
 from .kink import expected_positive_part, kink_weight, unexplained_variance
 
@@ -123,13 +125,37 @@ class ProcessNoise:
 
     def margin_gradient(self, x):
         """``d mu / dx`` (alpha, n_dynamic) of the strings' tension margins (:meth:`kink_noise`)
-        at ``x``, each on the side of its ``min`` that holds there, the stretch on a tie
-        (complex step)."""
+        at ``x``, each on the side of its ``min`` that holds there, the stretch on a tie: in
+        closed form where the Jacobian is (:meth:`string_slopes`), else by the complex step."""
         L = self.layout
-        X = complex_step.perturbed(x[: L.n_dynamic], self.columns)
-        stretch, damped = self.margins(X)
-        pick = damped.real < stretch.real
-        return complex_step.split(np.where(pick, damped, stretch))[1]
+        if self.jac is None:
+            X = complex_step.perturbed(x[: L.n_dynamic], self.columns)
+            stretch, damped = self.margins(X)
+            pick = damped.real < stretch.real
+            return complex_step.split(np.where(pick, damped, stretch))[1]
+        q, q_dot = x[L.q].reshape(3, L.m), x[L.q_dot].reshape(3, L.m)
+        _, s_dot, u, d_S, d_S_dot = self.string_slopes(q, q_dot)
+        damped = self.dyn.c_s / self.dyn.k_s * s_dot < 0.0
+        g = np.zeros((L.n_strings, L.n_dynamic))
+        g[:, L.q] = outer_rows(np.where(damped, d_S, u), self.jac.Es)
+        g[:, L.q_dot] = outer_rows(np.where(damped, d_S_dot, 0.0), self.jac.Es)
+        g[:, L.rest] = -np.eye(L.n_strings)
+        return g
+
+    def string_slopes(self, q, q_dot):
+        """The strings' lengths ``s`` (alpha,) m, rates ``s_dot`` (alpha,) m/s and directions
+        ``u`` (3, alpha), and the gradients (3, alpha) of their damped stretch ``s + (c/k)
+        s_dot`` with respect to each string's vector ``S`` and its rate: ``u + (c/k) (S_dot -
+        s_dot u) / s`` and ``(c/k) u``; at one real state ``q``, ``q_dot`` (3, m), through the
+        closed-form Jacobian's member maps."""
+        dyn = self.dyn
+        S = (q @ self.jac.EE_T + dyn.off)[:, dyn.beta :]
+        S_dot = q_dot @ self.jac.EE_T[:, dyn.beta :]
+        s = np.sqrt((S * S).sum(axis=0))
+        u = S / s
+        s_dot = (u * S_dot).sum(axis=0)
+        ratio = dyn.c_s / dyn.k_s
+        return s, s_dot, u, u + ratio * (S_dot - s_dot * u) / s, ratio * u
 
     def margins(self, X):
         """Stretch (K, alpha) and damped stretch ``stretch + c/k d(length)/dt`` (K, alpha), m,
