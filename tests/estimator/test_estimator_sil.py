@@ -138,6 +138,20 @@ def test_score_only_without_recorded_runs_says_what_it_reads(tmp_path, capsys):
     assert "run01: not a log folder" in err and "--score-only scores the runs" in err
 
 
+def test_score_only_scores_every_run_recorded_in_a_row(tmp_path, capsys):
+    from gyrohost.cli import main
+    from gyrohost.sil.scoring import recorded_runs
+
+    for k in (1, 2, 4):  # run03 missing: run04 is no run of this series
+        (tmp_path / f"run{k:02d}").mkdir()
+        (tmp_path / f"run{k:02d}" / "meta.json").write_text("{}")
+    assert recorded_runs(tmp_path) == 2
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["sil", "--realtime", "--score-only", "--out", str(empty)]) == 2
+    assert f"{empty}: no recorded runs to score" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("completed", [True, False])
 def test_a_real_time_run_whose_filter_diverged_is_scored(tmp_path, monkeypatch, completed):
     """A run whose estimator diverged completes with exit status 1 (a nominal scene against

@@ -28,7 +28,7 @@ def run(args) -> int:
     from gyrohost.sil.scoring import report
     from gyrotensegrity import SceneError
 
-    if args.runs < 1:
+    if args.runs is not None and args.runs < 1:
         raise CliError(f"--runs must be at least 1, got {args.runs}")
     if args.realtime and (args.workers is not None or args.scheduler is not None):
         raise CliError("--realtime runs one after the other: --workers/--scheduler are for the "

@@ -14,7 +14,10 @@ DEFAULT_CONFIG = shipped("config", "sim-rig")
 
 def add_arguments(parser) -> None:
     """The options of ``gyrotens sil`` and of the experiment's command line."""
-    parser.add_argument("--runs", type=int, default=20, help="simulated runs scored (20)")
+    parser.add_argument(
+        "--runs", type=int,
+        help="simulated runs scored (20; --score-only: every run recorded in OUT)",
+    )  # fmt: skip
     parser.add_argument("--config", type=Path, default=DEFAULT_CONFIG, help="rig configuration")
     parser.add_argument(
         "--overlay", type=Path, action="append", default=[], metavar="FILE",

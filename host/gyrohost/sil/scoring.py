@@ -65,6 +65,7 @@ from gyrohost.simrig.config import sim_config, with_sim_keys, with_truth_scene
 
 from .errors import SilError
 
+DEFAULT_RUNS = 20  # runs a SIL simulates or records when --runs is not given
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
 SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
@@ -465,6 +466,22 @@ def sil_results(
     return results
 
 
+def recorded_runs(out) -> int:
+    """How many runs ``--realtime`` recorded in ``out`` (``run01``, ``run02``, ... in a row).
+
+    Raises
+    ------
+    SilError
+        None there.
+    """
+    count = 0
+    while (Path(out) / f"run{count + 1:02d}" / "meta.json").exists():
+        count += 1
+    if not count:
+        raise SilError(f"{out}: no recorded runs to score (run01, run02, ... with meta.json)")
+    return count
+
+
 def report(args) -> dict:
     """Run and print the SIL table of ``args`` (:func:`add_arguments`); returns the figures."""
     from gyrohost.config import load_with_scene
@@ -472,9 +489,12 @@ def report(args) -> dict:
     config = load_with_scene(args.config, args.overlay, args.scene)
     if args.truth_scene is not None:
         config = with_truth_scene(config, resolve("scene", args.truth_scene))
+    runs = args.runs
+    if runs is None:
+        runs = recorded_runs(args.out) if args.realtime and args.score_only else DEFAULT_RUNS
     with parallel.from_args(args) as executor:
         results = sil_results(
-            config, args.runs, args.duration, args.realtime, args.out, args.score_only,
+            config, runs, args.duration, args.realtime, args.out, args.score_only,
             executor, args.estimator,
         )  # fmt: skip
     clock = "real-time rig through the run loop" if args.realtime else "simulated clock"
