@@ -118,6 +118,11 @@ def emulator_keys(rig: RigConfig) -> dict:
         # the wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
         # docs/estimator.md)
         "wheel_time_std_s": 0.002,
+        # the host stamps a command when it sends it; the emulated board acts on it when the
+        # rig's loop next serves its pty, between the truth's steps, which on a loaded two-core
+        # machine is up to a step later: uniform over the step, dt / sqrt(12) (without it the
+        # wheel-steps run test lost the wheels in two of four loaded suites)
+        "wheel_command_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
         "imu_frame_nodes": tuple(sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(sim.truth.imu_gravity_m_s2),
     }
