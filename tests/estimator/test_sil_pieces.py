@@ -77,7 +77,7 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     assert not added[n:].any() and not added[:, n:].any()
 
 
-def test_the_margins_gradient_in_closed_form_is_the_complex_steps(model):
+def test_the_margins_and_their_gradient_in_closed_form_are_the_complex_steps(model):
     """On a moving state with one string on each side of its ``min`` (the damped stretch the
     smaller where the string shortens)."""
     from dataclasses import replace
@@ -93,8 +93,11 @@ def test_the_margins_gradient_in_closed_form_is_the_complex_steps(model):
     stepped = ProcessModel(model, replace(EstimatorConfig(), jacobian="complex-step"))
     _, s_dot = closed.string_lengths(x)
     assert np.any(s_dot < 0.0) and np.any(s_dot > 0.0)
-    g = closed.margin_gradient(x)
-    assert np.abs(g - stepped.margin_gradient(x)).max() < 1e-12 * np.abs(g).max()
+    margin, g = closed.tension_margins(x)
+    margin_cs, g_cs = stepped.tension_margins(x)
+    assert np.abs(g - g_cs).max() < 1e-12 * np.abs(g).max()
+    np.testing.assert_allclose(margin, margin_cs, rtol=0.0, atol=1e-15)
+    np.testing.assert_allclose(margin, closed.taut_columns(0.01, np.eye(L.size), x)[1], atol=1e-15)
 
 
 def test_rest_jitter_reaches_the_nodes_through_slack_strings_near_their_kink(model):

@@ -95,7 +95,7 @@ class ProcessNoise:
           0))`` has mean square ``k^2 s^2 w(mu / s)`` (:func:`kink_weight`: 0 deep slack, 1/2
           at the kink, 1 well taut), less the mean the mean kink carries;
         - the linearisation: the estimate's margin is uncertain, ``mu ~ N(mu_hat, sigma^2)``
-          with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`margin_gradient`), and no line
+          with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`tension_margins`), and no line
           in ``mu`` follows the force: the best leaves ``k^2 sigma^2 v(mu_hat / sigma)``
           (:func:`unexplained_variance`: 0.09 at the kink, 0 away from it), which ``F P F^T``
           cannot carry. The filter's own line (the slope at the estimate) misses by more, by
@@ -104,8 +104,7 @@ class ProcessNoise:
           identification run) then grew ``P`` without bound until its bars went singular.
         """
         L = self.layout
-        margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
-        g = self.margin_gradient(x)
+        margin, g = self.tension_margins(x)
         sigma2 = np.einsum("ij,jk,ik->i", g, P[: L.n_dynamic, : L.n_dynamic], g)
         var = np.zeros_like(margin)
         near = (sigma2 > 0.0) & (np.abs(margin) < KINK_REACH * np.sqrt(sigma2))
@@ -120,27 +119,29 @@ class ProcessNoise:
         n = L.q_dot.stop
         if not var.any():  # every string a line to round-off: no Jacobian needed
             return np.zeros((n, n))
-        G, _ = self.taut_columns(dt, F, x)
+        G, _ = self.taut_columns(dt, F, x, margin)
         return (G * var) @ G.T
 
-    def margin_gradient(self, x):
-        """``d mu / dx`` (alpha, n_dynamic) of the strings' tension margins (:meth:`kink_noise`)
-        at ``x``, each on the side of its ``min`` that holds there, the stretch on a tie: in
-        closed form where the Jacobian is (:meth:`string_slopes`), else by the complex step."""
+    def tension_margins(self, x):
+        """The strings' tension margins ``mu`` (alpha,) m (:meth:`kink_noise`) at ``x`` and
+        their gradient ``d mu / dx`` (alpha, n_dynamic), each on the side of its ``min`` that
+        holds there, the stretch on a tie: in closed form where the Jacobian is
+        (:meth:`string_slopes`), else by the complex step."""
         L = self.layout
         if self.jac is None:
             X = complex_step.perturbed(x[: L.n_dynamic], self.columns)
             stretch, damped = self.margins(X)
             pick = damped.real < stretch.real
-            return complex_step.split(np.where(pick, damped, stretch))[1]
+            return complex_step.split(np.where(pick, damped, stretch))
         q, q_dot = x[L.q].reshape(3, L.m), x[L.q_dot].reshape(3, L.m)
-        _, s_dot, u, d_S, d_S_dot = self.string_slopes(q, q_dot)
-        damped = self.dyn.c_s / self.dyn.k_s * s_dot < 0.0
+        s, s_dot, u, d_S, d_S_dot = self.string_slopes(q, q_dot)
+        damping = self.dyn.c_s / self.dyn.k_s * s_dot
+        damped = damping < 0.0
         g = np.zeros((L.n_strings, L.n_dynamic))
         g[:, L.q] = outer_rows(np.where(damped, d_S, u), self.jac.Es)
         g[:, L.q_dot] = outer_rows(np.where(damped, d_S_dot, 0.0), self.jac.Es)
         g[:, L.rest] = -np.eye(L.n_strings)
-        return g
+        return s - x[L.rest] + np.where(damped, damping, 0.0), g
 
     def string_slopes(self, q, q_dot):
         """The strings' lengths ``s`` (alpha,) m, rates ``s_dot`` (alpha,) m/s and directions
@@ -164,8 +165,9 @@ class ProcessNoise:
         stretch = s - X[:, self.layout.rest]
         return stretch, stretch + self.dyn.c_s / self.dyn.k_s * s_dot
 
-    def taut_columns(self, dt, F, x):
-        """Response of the node motion over a step to every rest length, each string as if taut.
+    def taut_columns(self, dt, F, x, margin=None):
+        """Response of the node motion over a step to every rest length, each string as if taut
+        (``margin``: the strings' tension margins at ``x`` where the caller has them).
 
         Returns
         -------
@@ -178,7 +180,8 @@ class ProcessNoise:
         """
         L = self.layout
         rest = x[L.rest]
-        margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
+        if margin is None:
+            margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
         # the string force is affine in its rest length while taut (slope -k along the string)
         # and the accelerations are affine in the string forces: any taut point gives the
         # column; 1 mm of margin keeps every string taut whatever its state

@@ -229,7 +229,7 @@ def simulate(
         lengths = lagged(rec.t_servos_s, rec.servos_m, t_steps, servo_lag_s) + offsets
     else:
         lengths = _interp(t_steps, rec.t_servos_s, rec.servos_m) + offsets
-    speeds = np.column_stack([np.interp(t_steps, rec.t_wheels_s, w) for w in rec.wheels_rad_s.T])
+    speeds = _interp(t_steps, rec.t_wheels_s, rec.wheels_rad_s)
     speeds = _smooth(speeds, int(round(WHEEL_SMOOTHING_S / dt)))
     if len(rec.t_command_s):
         cmd = rec.command_rad_s[
