@@ -278,7 +278,7 @@ def truth_speed(scene, config, steps=200):
         start = time.perf_counter()
         for k in range(steps):
             pulled = {1: truth.rest_length_m[0] - 1e-4, 2: truth.rest_length_m[1]}
-            truth.step(pulled, spins * min(1.0, (k + 0.5) / 100), spins * min(1.0, (k + 1) / 100))
+            truth.step(pulled, spins * min(1.0, (k + 1) / 100))
         wall[fast] = (time.perf_counter() - start) / steps
     return (
         f"truth step ({steps} steps of {1e3 * truth.dt_s:g} ms): kernel {1e3 * wall[True]:.3f} ms, "

@@ -174,6 +174,10 @@ class EstimatorConfig:
     # expected force under the rest-length jitter, rest_jitter_psd_m2_s; the jitter noise then
     # carries only its variance about that mean)
     kink_model: str = field(default="sharp", metadata={"choices": ("sharp", "mean")})
+    # where the wheels' motor reaction goes (gyrohost.control.wheel_reaction): "lost", the
+    # paper's model (bars that carry no torque about their axis); "body", the hinged rig's,
+    # whose hinges pass it on and turn the whole structure (the filter: .motor_reaction)
+    wheel_reaction: str = field(default="lost", metadata={"choices": ("lost", "body")})
     # IMU attachment (as the rig's truth, gyrohost.simrig.truth): body frame from three scene
     # nodes (the rig's default: the D-bar's), sensor axes turned by mounting_rpy, gravity the
     # sensor feels (world frame)
@@ -264,15 +268,32 @@ def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
     """The EKF's configuration for a run on ``rig`` (a ``gyrohost.config.RigConfig``).
 
     Layers, each overriding the keys it names: the defaults; the IMU's output period, time-out
-    and mounting from ``[imu]`` (:func:`imu_keys`); the rig's ``[estimator]`` keys; the
-    ``[estimator]`` table of the file ``path`` (``gyrotens run --estimator``).
+    and mounting from ``[imu]`` (:func:`imu_keys`); on a simulated rig, what its truth's
+    physics fixes (:func:`truth_keys`); the rig's ``[estimator]`` keys; the ``[estimator]``
+    table of the file ``path`` (``gyrotens run --estimator``).
 
     Raises
     ------
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    return config_from_dict({**imu_keys(rig), **rig_overrides(rig, path)}, rig.source)
+    keys = {**imu_keys(rig), **truth_keys(rig), **rig_overrides(rig, path)}
+    return config_from_dict(keys, rig.source)
+
+
+def truth_keys(rig) -> dict:
+    """Keys a simulated rig's truth fixes as hardware would: ``wheel_reaction`` "body" where
+    the truth scene's hinges carry the motors' reaction (``[rig_fidelity] joints = "hinge"``
+    and ``motor_reaction``), as the real D-bar's do; none for a real rig (its ``[estimator]``
+    table says so) or a truth without that reaction."""
+    if not rig.sim:
+        return {}
+    from gyrohost.simrig.config import truth_scene_path
+    from gyrotensegrity import load_scene
+
+    spec = load_scene(truth_scene_path(rig)).rig
+    hinged = spec is not None and spec.joints == "hinge" and spec.motor_reaction
+    return {"wheel_reaction": "body"} if hinged else {}
 
 
 def rig_overrides(rig, path: str | Path | None = None) -> dict:

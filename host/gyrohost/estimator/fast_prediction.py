@@ -11,8 +11,9 @@ tests/estimator/test_fast_prediction.py holds the two equal to round-off.
 
 Covered: the lean model with the closed-form Jacobian, either string kink (the mean one's smooth
 force and its Jacobian through the pulling rest lengths in the kernel too), a model that omits
-no term (the omitted-term check looks at every stage's spins) and the kernel built; elsewhere
-:func:`fast_prediction` gives None and the filter takes the reference path.
+no term (the omitted-term check looks at every stage's spins), the paper's wheel reaction
+(``wheel_reaction = "lost"``: the kernel has no turn of the whole structure) and the kernel
+built; elsewhere :func:`fast_prediction` gives None and the filter takes the reference path.
 """
 
 import numpy as np
@@ -28,6 +29,7 @@ def fast_prediction(process, n: int):
         and jac is not None
         and jac.kernel is not None
         and not process.model.omitted
+        and process.reaction is None
     )
     return FastPrediction(process, n) if covered and dyn.kernel is not None else None
 

@@ -47,6 +47,7 @@ from . import complex_step
 from .errors import EstimatorConfigError
 from .kink import expected_positive_part
 from .layout import layout_of
+from .motor_reaction import MotorReaction
 from .process_noise import ProcessNoise
 
 
@@ -89,6 +90,8 @@ class ProcessModel(ProcessNoise):
         self.wheel_target_rad_s: np.ndarray | None = None
         """The setpoints the wheels are pulled towards in this derivative evaluation, rad/s."""
         self.jac = self._closed_form() if config.jacobian == "analytic" else None
+        self.reaction = MotorReaction(self.dyn) if config.wheel_reaction == "body" else None
+        """The wheels' reaction on the whole structure (hinged rig), or None (the paper's)."""
         self.rest_step_var_m2 = np.zeros(self.layout.n_strings)
         """Spread (alpha,) m^2 the rest lengths keep about their lag from the last goal step."""
         self._commanded = False  # the first goals set the lag's target, they are no step
@@ -126,9 +129,14 @@ class ProcessModel(ProcessNoise):
         else:
             eta2_ddot = self.dyn.reduced_accelerations(q, q_dot, omega, pulling)
         dx = np.empty_like(X)
+        dx[:, L.omega] = self.wheel_acceleration(omega, u)
+        if self.reaction is not None:
+            turn = self.reaction.accelerations(q, dx[:, L.omega])
+            eta2_ddot = eta2_ddot + turn
+            if with_node_accelerations:
+                N_ddot = N_ddot + self.dyn.node_values(turn)
         dx[:, L.q] = X[:, L.q_dot]
         dx[:, L.q_dot] = eta2_ddot.reshape(K, 3 * m)
-        dx[:, L.omega] = self.wheel_acceleration(omega, u)
         dx[:, L.rest] = self.rest_rate(rest, u)
         return (dx, N_ddot) if with_node_accelerations else dx
 
@@ -253,6 +261,9 @@ class ProcessModel(ProcessNoise):
             J += through_pulling
         else:
             z_ddot, J = self.jac(q, q_dot, x[L.omega], rest)
+        if self.reaction is not None:
+            turn, d_turn = self.reaction.jacobian(x, L, lambda w: self.wheel_acceleration(w, u))
+            z_ddot, J = z_ddot + turn.reshape(3, m), J + d_turn
         nd = L.n_dynamic
         A = np.zeros((nd, nd))
         A[L.q, L.q_dot] = np.eye(3 * m)
