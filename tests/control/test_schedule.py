@@ -119,6 +119,29 @@ def test_splice_keeps_the_command_continuous():
         a.splice(jump, 0.5)
 
 
+def test_a_late_plan_is_joined_by_the_fastest_move_the_limits_allow():
+    """A plan taken later than the estimate it was made from departs from the command played:
+    the join moves onto it at the servos' and the wheels' largest rates, without a jump."""
+    limits = Limits(max_speed_m_s=0.05, max_wheel_accel_rad_s2=100.0)
+    a = Schedule(("s13",), [0.0, 2.0], [[0.40], [0.40]], "a", ("b12",), [[50.0], [50.0]])
+    t_b = np.arange(0.0, 2.01, 0.05)
+    b = Schedule(("s13",), t_b, np.full((t_b.size, 1), 0.39), "b", ("b12",),
+                 np.full((t_b.size, 1), 60.0))  # fmt: skip
+    c = a.join(b, 0.5, limits)
+    np.testing.assert_allclose(c(0.5), [0.40])  # no jump where it is taken
+    assert c.problems(limits) == []  # the move keeps the servos' speed and the ramp
+    # 10 mm at 0.05 m/s: the first of b's samples 0.2 s on, b from there
+    np.testing.assert_allclose(c(0.7), [0.39])
+    for t in (0.7, 1.0, 2.0):
+        np.testing.assert_allclose(c(t), b(t))
+        np.testing.assert_allclose(c.wheel_speeds(t), b.wheel_speeds(t))
+    assert c(0.6)[0] > 0.39 + 1e-6  # still on its way at 0.1 s
+    short = Schedule(("s13",), [0.5, 0.55], [[0.39], [0.38]], "s", ("b12",), [[60.0], [60.0]])
+    end = a.join(short, 0.5, limits)  # ends before it is reached: its last value, as fast
+    np.testing.assert_allclose(end.t[-1], 0.5 + 0.02 / 0.05)
+    assert end.problems(limits) == []
+
+
 def test_splice_of_wheel_speeds_alone_and_near_a_sample():
     """A wheels-only schedule has no rest length to jump; a splice a round-off after a sample
     drops that sample instead of a rate over 1e-16 s."""

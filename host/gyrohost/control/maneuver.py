@@ -12,8 +12,9 @@ Time here is schedule time: 0 when the run enters its ``schedule`` phase, in s.
 Re-planning can run in a worker thread (``threaded=True``): :meth:`Maneuver.update` then
 hands the estimate to the worker if it is idle and returns at once; the new schedule is taken
 at the first update after the worker finished. A plan made from the estimate at ``t`` and
-taken at ``t' > t`` is spliced at ``t'`` only if it is continuous there (it is: the planner
-starts from the schedule in force, which the loop has been playing since ``t``).
+taken at ``t' > t`` departs from what the loop played since ``t``: it is joined at ``t'`` by
+the fastest move the limits allow onto it (:meth:`.schedule.Schedule.join`), so the servos never
+jump.
 """
 
 import threading
@@ -136,7 +137,7 @@ class Maneuver:
     """
 
     def __init__(self, model, limits: Limits, target: Target):
-        self.target = target
+        self.target, self.limits = target, limits
         self.planner = planner_for(model, limits, target)
         self.replanner = Replanner(
             self.planner,
@@ -187,9 +188,12 @@ class Maneuver:
     def _update_threaded(self, t_s: float, x) -> Schedule:
         with self._lock:
             ready, self._ready = self._ready, None
-        if ready is not None:
-            self._playing = ready
-            self.taken += 1
+            if ready is not None:
+                # continuous from what was played since the estimate, and the next re-plan
+                # starts from it (the worker that set ready no longer touches the schedule)
+                self._playing = self._playing.join(ready, t_s, self.limits)
+                self.replanner.schedule = self._playing
+                self.taken += 1
         due = self.replanner.observe(t_s, x)
         idle = self._worker is None or not self._worker.is_alive()
         if due and idle:  # a re-plan still running makes the loop skip this one

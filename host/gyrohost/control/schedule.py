@@ -326,6 +326,41 @@ class Schedule:
         w = np.vstack([self.wheel_speed[head], self.wheel_speeds(t_s), other.wheel_speed[tail]])
         return Schedule(self.names, t, v, self.name, self.wheels, w, self.purpose)
 
+    def join(self, other: "Schedule", t_s: float, limits: Limits) -> "Schedule":
+        """This schedule up to ``t_s`` (s), then a straight line to ``other`` (same strings and
+        wheels) at the first of its samples that a move at ``limits``' rates reaches (rest
+        lengths at ``max_speed_m_s``, spins at ``max_wheel_accel_rad_s2``), then ``other``.
+
+        A re-plan made from the estimate at ``t`` but taken at ``t_s > t`` (it ran in a
+        thread) departs from the schedule played since ``t``; :meth:`splice` at ``t_s`` would
+        make the servos jump by that difference. The line is the fastest move the limits allow
+        onto the new plan; where ``other`` ends first, its last values are reached as fast.
+        """
+        if other.names != self.names or other.wheels != self.wheels:
+            return self.splice(other, t_s)  # raises, naming both
+        here, spins = self(t_s), self.wheel_speeds(t_s)
+
+        def move_s(k):  # the time a move from here to other's sample k takes at the limits
+            rest = np.max(np.abs(other.rest_length[k] - here), initial=0.0)
+            spin = np.max(np.abs(other.wheel_speed[k] - spins), initial=0.0)
+            return max(rest / limits.max_speed_m_s, spin / limits.max_wheel_accel_rad_s2)
+
+        later = np.flatnonzero(other.t > t_s + SPLICE_GAP_S)
+        # a round-off short of the limit still reaches (Schedule.problems allows as much)
+        reached = [k for k in later if other.t[k] - t_s >= move_s(k) * (1.0 - 1e-9)]
+        head = self.t < t_s - SPLICE_GAP_S
+        if reached:
+            k = reached[0]
+            t = np.concatenate([self.t[head], [t_s], other.t[k:]])
+            rest, wheels = other.rest_length[k:], other.wheel_speed[k:]
+        else:
+            last = len(other.t) - 1
+            t = np.concatenate([self.t[head], [t_s, t_s + move_s(last)]])
+            rest, wheels = other.rest_length[last:], other.wheel_speed[last:]
+        v = np.vstack([self.rest_length[head], here, rest])
+        w = np.vstack([self.wheel_speed[head], spins, wheels])
+        return Schedule(self.names, t, v, self.name, self.wheels, w, self.purpose)
+
     def to_dict(self) -> dict:
         """Plain data in the file layout (see the module docstring)."""
         out = {
