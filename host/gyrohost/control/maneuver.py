@@ -173,9 +173,10 @@ class Maneuver:
         """:class:`.closed_loop.ReplanRecord` of every plan so far, the first included."""
         return self.replanner.records
 
-    def update(self, t_s: float, x) -> Schedule:
+    def update(self, t_s: float, x, now_s: float | None = None) -> Schedule:
         """Take the estimate ``x`` (a full state of the planner's model) at schedule time
-        ``t_s`` (s); returns the schedule to play from now on. Open loop: the first plan."""
+        ``t_s`` (s); returns the schedule to play from now on (``now_s``, the loop's schedule
+        time, default ``t_s``: the estimate trails the loop). Open loop: the first plan."""
         if not self.target.closed_loop:
             return self.schedule
         if not self.target.threaded:
@@ -183,15 +184,15 @@ class Maneuver:
             self.replanner.update(t_s, x)
             self.taken += self.replanner.schedule is not before
             return self.schedule
-        return self._update_threaded(t_s, x)
+        return self._update_threaded(t_s, x, t_s if now_s is None else max(t_s, now_s))
 
-    def _update_threaded(self, t_s: float, x) -> Schedule:
+    def _update_threaded(self, t_s: float, x, now_s: float) -> Schedule:
         with self._lock:
             ready, self._ready = self._ready, None
             if ready is not None:
                 # continuous from what was played since the estimate, and the next re-plan
                 # starts from it (the worker that set ready no longer touches the schedule)
-                self._playing = self._playing.join(ready, t_s, self.limits)
+                self._playing = self._playing.join(ready, now_s, self.limits)
                 self.replanner.schedule = self._playing
                 self.taken += 1
         due = self.replanner.observe(t_s, x)

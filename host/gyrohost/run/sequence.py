@@ -458,15 +458,17 @@ class RunLoop:
         new = est.t != self._followed_t_s
         if strict and new and self.phase == "schedule" and self.maneuver is not None:
             self._followed_t_s = est.t
-            self._follow_estimate()
+            self._follow_estimate(t_s)
 
-    def _follow_estimate(self) -> None:
-        """Closed loop: the estimate to the maneuver, its schedule from the next tick on; not
-        while the IMU no longer corrects the estimate (:class:`.replan_hold.ReplanHold`)."""
+    def _follow_estimate(self, now_s: float) -> None:
+        """Closed loop: the estimate to the maneuver at the tick ``now_s``, its schedule from
+        the next tick on; not while the IMU no longer corrects the estimate
+        (:class:`.replan_hold.ReplanHold`)."""
         t_s, x = self.estimate()
         if self.replan_hold is not None and not self.replan_hold.follow(t_s, self.estimator.status):
             return
-        self.schedule = self.maneuver.update(t_s - self.t_schedule_s, x)
+        t0 = self.t_schedule_s
+        self.schedule = self.maneuver.update(t_s - t0, x, now_s - t0)
         self.replans.write(self.maneuver.records)
 
     def _write_truth(self, strict: bool) -> None:
