@@ -18,8 +18,10 @@ Two parts:
   board's true speeds (simrig/truth.py), so every speed change turns the structure by its
   reaction; the rig-fidelity model in the compiled kernel (gyrotensegrity.fast_rig). Strings
   and wheels on the three-axis targets, strings only on a pitch target, open and closed loop
-  (re-planned in a thread). Limits asserted from each run's log: the truth's wheel speeds and
-  accelerations, its rest lengths and the servos' string lengths.
+  (re-planned in a thread); then the first target on the truth with heavier wheels (J3 x 1.05,
+  as the sil part's last case), where open loop misses. The EKF models the motors' reaction
+  (``wheel_reaction = "body"``, set by the truth). Limits asserted from each run's log: the
+  truth's wheel speeds and accelerations, its rest lengths and the servos' string lengths.
 
 Prints per case: target, mode, loop, landing error (geodesic, deg, truth at the landing time),
 peak wheel speed, servo travel, re-plans (accepted) and their time (median, worst, ms), whether
@@ -219,22 +221,39 @@ pitch target."""
 
 
 def rig_part(a):
-    """Real time on the simulated rig, EKF in the loop, the rig-fidelity truth."""
+    """Real time on the simulated rig, EKF in the loop, the rig-fidelity truth: the cases at
+    1-sigma, then the first on a truth with heavier wheels."""
+    a.out.mkdir(parents=True, exist_ok=True)
+    print(truth_speed(rig_truth_scene(), rig_config(a, rig_truth_scene(), "1sigma")), flush=True)
+    rig_runs(a, rig_truth_scene(), "1sigma", RIG_CASES[: a.rig_cases])
+    if a.rig_cases:
+        stressed = rig_truth_scene(wheel_inertia=STRESS_J3)
+        rig_runs(a, stressed, "heavier-wheels", RIG_CASES[:1])
+
+
+def rig_config(a, scene, label):
+    """sim-rig with ``scene`` (written to ``--out``) as its truth."""
     from gyrohost.config import load_rig_config
     from gyrohost.ident.scenefile import scene_toml
-    from gyrohost.run import run_simulated
-    from gyrohost.simrig.config import sim_config, with_truth_scene
+    from gyrohost.simrig.config import with_truth_scene
 
-    a.out.mkdir(parents=True, exist_ok=True)
-    scene = rig_truth_scene()
-    truth_path = a.out / "truth-dbar-rig-s24-1sigma.toml"
-    truth_path.write_text(scene_toml(scene, "dbar-rig with s24, parameters 1-sigma off"))
-    config = with_truth_scene(load_rig_config(shipped("config", "sim-rig")), truth_path)
+    truth_path = a.out / f"truth-dbar-rig-s24-{label}.toml"
+    truth_path.write_text(scene_toml(scene, f"{scene.name}, parameters {label}"))
+    return with_truth_scene(load_rig_config(shipped("config", "sim-rig")), truth_path)
+
+
+def rig_runs(a, scene, label, cases):
+    """Each case open and closed loop on the real-time simulated rig with the truth ``scene``."""
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.run import run_simulated
+    from gyrohost.run.request import planned_maneuver
+    from gyrohost.simrig.config import sim_config
+
+    config = rig_config(a, scene, label)
     limits = Limits.per_string(config.servos.servo)
     sim = sim_config(config)
     step_m = max(2.0 * math.pi * s.pulley_radius_m / 4096 for s in config.servos.servo)
     tolerances = (sim.truth.dt_s, sim.servos.hold_band_steps * step_m)
-    print(truth_speed(scene, config), flush=True)
     print(
         f"rig (real time, EKF): truth {scene.source}, wheels torque-driven; re-planned in a "
         "thread; limits from the log: truth wheels, truth rest lengths, servo lengths"
@@ -243,15 +262,16 @@ def rig_part(a):
         f"{'mode':8s}{'target r, p, y (deg)':>22s}{'loop':>8s}{'err deg':>9s}{'wheel':>9s}"
         f"{'servo mm':>9s}{'re-plans':>10s}{'ms med/max':>11s}{'late':>5s}{'limits':>7s}  run"
     )
-    for mode, target_deg in RIG_CASES[: a.rig_cases]:
+    for mode, target_deg in cases:
         for closed in (False, True):
             target = Target(attitude_rpy_rad=tuple(np.radians(target_deg)),
                             duration_s=a.duration, mode=mode)  # fmt: skip
             target = replace(target, closed_loop=closed, threaded=closed)
-            out = a.out / f"rig-{mode}-{'_'.join(f'{v:+g}' for v in target_deg)}-{closed:d}"
+            name = "_".join(f"{v:+g}" for v in target_deg)
+            out = a.out / f"rig-{label}-{mode}-{name}-{closed:d}"
             start = time.perf_counter()
             try:
-                maneuver = Maneuver(Model(load_scene(config.scene_path)), limits, target)
+                maneuver = planned_maneuver(config, target, for_rig(config))  # as the run's
                 result = run_simulated(config, maneuver, out)
             except PlanError as exc:
                 print(f"{mode:8s}{', '.join(f'{v:+.1f}' for v in target_deg):>22s}  {exc}")

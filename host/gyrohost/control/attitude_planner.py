@@ -170,6 +170,11 @@ class AttitudePlanner:
         self.n_x, self.n_u = n_x, n_u
         self._taut = not isinstance(model.shape, RhombusShape)  # the rhombus: no tension
 
+    @property
+    def limits(self):
+        """The servo and wheel limits the plans keep (the model's)."""
+        return self.model.limits
+
     def knot_times(self, t0_s, t_end_s):
         """The maneuver's knot times (knots + 1,), s."""
         return np.linspace(t0_s, t_end_s, self.knots + 1)

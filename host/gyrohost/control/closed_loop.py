@@ -4,8 +4,10 @@ Law. Every ``period_s`` the :class:`Replanner` takes the estimate ``(t, x)``, re
 the angular momentum about the tilt axis from it (or the attitude and the total momentum, for a
 three-axis target: :mod:`.goals`), and re-optimises the rest of the schedule (the knots after
 ``t``) toward the target, with the landing time fixed (a shrinking horizon).
-The new schedule starts from the rest length commanded at ``t`` (the servos see no jump) and
-replaces the old one from ``t`` on.
+The new schedule starts from the rest length commanded at ``t`` and replaces the old one from
+``t`` on, joined to it by the fastest move the limits allow where the two differ there (a follower
+string played on a join's straight line is off the rhombus the planner starts it on), so the
+servos see no jump.
 
 Why re-planning and not a feedback law on the tilt error: the plant's gain, tilt rate per
 metre of string, changes several-fold with the shape (the locked inertia falls as n1 and n3
@@ -55,6 +57,11 @@ class Replanner:
     target_rest : dict, optional
         An attitude's target shape: ``{string: rest length (m)}`` to land at
         (:class:`.goals.AttitudeGoal`).
+    lag_s : float, s
+        How much later the plant follows the commands than the planner's model, whose rest
+        lengths and spins are the commanded ones (the servos' and the wheels' first-order lag):
+        an estimate at ``t`` is planned from as the model's state at ``t - lag_s``, with the
+        commands of that time, which are the ones the actuators have reached.
     """
 
     planner: object
@@ -64,6 +71,7 @@ class Replanner:
     period_s: float = 0.25
     adapt: bool = True
     target_rest: dict | None = None
+    lag_s: float = 0.0
     schedule: Schedule | None = None
     records: list = field(default_factory=list)
 
@@ -122,9 +130,10 @@ class Replanner:
         """Re-optimise the rest of the schedule from the state ``x`` at ``t_s``; ``fitted``
         (momentum, kappa) defaults to the gain fit's current values (:meth:`fitted`)."""
         fitted = self.fitted() if fitted is None else fitted
-        plan, kappa = self.goal.again(t_s, x, self.knot_t, self.schedule, fitted)
-        if plan.success:
-            self.schedule = self.schedule.splice(plan.schedule, t_s)
+        t_plan = max(t_s - self.lag_s, self.t0_s)  # the commands the actuators have reached
+        plan, kappa = self.goal.again(t_plan, x, self.knot_t, self.schedule, fitted)
+        if plan.success:  # joined: a follower string inside a join is off its geometry
+            self.schedule = self.schedule.join(plan.schedule, t_s, self.planner.limits)
         self._log(t_s, x, plan, plan.success, kappa)
         return plan
 

@@ -60,6 +60,10 @@ class Target:
     target_rest : dict, optional
         With an attitude: ``{string: rest length (m)}`` to land at (``--target-shape``,
         :mod:`.target_shape`); the scene's rest lengths where not given.
+    actuator_lag_s : float, s
+        How much later the servos and wheels follow a command than the plan assumes (their
+        first-order lag): re-plans start from the commands they have reached
+        (:class:`.closed_loop.Replanner`'s ``lag_s``).
     """
 
     tilt_rad: float | None = None
@@ -73,6 +77,7 @@ class Target:
     attitude_rpy_rad: tuple | None = None
     mode: str = "both"
     target_rest: dict | None = None
+    actuator_lag_s: float = 0.0
 
     def __post_init__(self):
         if (self.tilt_rad is None) == (self.attitude_rpy_rad is None):
@@ -89,6 +94,11 @@ class Target:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if self.target_rest and (self.attitude_rpy_rad is None or self.mode == "wheels"):
             raise PlanError("a target shape needs an attitude target whose strings move")
+        if not 0.0 <= self.actuator_lag_s < self.period_s:
+            raise PlanError(
+                f"actuator lag must be at least 0 and shorter than the re-planning period "
+                f"({self.period_s} s), got {self.actuator_lag_s} s"
+            )
         if not self.reach_tolerance_rad > 0.0:
             raise PlanError(f"reach tolerance must be positive, got {self.reach_tolerance_rad} rad")
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
@@ -147,6 +157,7 @@ class Maneuver:
             target.period_s,
             adapt=target.adapt,
             target_rest=target.target_rest,
+            lag_s=target.actuator_lag_s,
         )
         x0 = model.initial_state()
         self.first = self.replanner.start(0.0, x0)

@@ -183,10 +183,13 @@ def run_maneuver_sil(
     seed=0,
     fast=False,
     noise=(1e-3, 2e-3),
+    actuator_lag_s=0.0,
 ) -> ManeuverSil:
     """Play ``maneuver`` (open loop, or re-planned from the truth plus noise,
     :class:`TruthPlusNoise` with ``seed`` and ``noise``: the std of the node coordinates, m,
-    and of their rates, m/s) on ``truth`` in simulated time.
+    and of their rates, m/s) on ``truth`` in simulated time; the truth's rest lengths and
+    wheel speeds follow the schedule at once, or through a first-order lag ``actuator_lag_s``
+    (s) as the rig's servos and wheels do.
 
     The truth's first states are the planner model's layout (a rig-fidelity truth appends its
     own at the end, docs/rig-fidelity.md); the estimate is the truth's cut to it. Scheduled
@@ -206,11 +209,12 @@ def run_maneuver_sil(
     t_end = maneuver.schedule.t_end
     n = int(round((t_end + settle_s) / step_s))
     rows = []
+    actuators = Actuators(actuator_lag_s)
     for _ in range(n):
         t = stepper.t
         t_est, x = estimate()
         schedule = maneuver.update(t_est, x[:n_x])
-        u = _truth_input(truth, schedule, stepper.x, t, step_s)
+        u = _truth_input(truth, schedule, stepper.x, t, step_s, actuators)
         rows.append((t, frame.attitude(truth.nodes(stepper.x)[0]).quaternion,
                      truth.wheel_speeds(stepper.x, u), schedule(t + 0.5 * step_s)))  # fmt: skip
         stepper.step(step_s, u)
@@ -227,16 +231,36 @@ def run_maneuver_sil(
     )
 
 
-def _truth_input(truth, schedule, x, t, h):
+class Actuators:
+    """What the truth's servos and wheels reach of the schedule's commands: the commands, or
+    with ``lag_s`` > 0 their first-order lag ``y += (1 - exp(-h / lag_s)) (u - y)`` per step
+    ``h`` (exact for a command held over the step), starting at the first command."""
+
+    def __init__(self, lag_s: float = 0.0):
+        self.lag_s = float(lag_s)
+        self._reached: dict = {}
+
+    def follow(self, kind: str, command, h: float):
+        """The ``kind`` (rest lengths or spins) reached after ``h`` s of ``command``."""
+        last = self._reached.get(kind)
+        if self.lag_s > 0.0 and last is not None:
+            command = last + (1.0 - np.exp(-h / self.lag_s)) * (command - last)
+        self._reached[kind] = command
+        return command
+
+
+def _truth_input(truth, schedule, x, t, h, actuators):
     """The truth's input over ``[t, t + h]``: the scheduled rest lengths at the midpoint, the
-    scheduled wheels' speed-loop torques (see :func:`run_maneuver_sil`)."""
+    scheduled wheels' speed-loop torques (see :func:`run_maneuver_sil`), as ``actuators``
+    reach them."""
     u = truth.input_at(t + 0.5 * h)
-    u[schedule.bind(truth)] = schedule(t + 0.5 * h)
+    u[schedule.bind(truth)] = actuators.follow("rest", schedule(t + 0.5 * h), h)
     if schedule.wheels:
         k = np.asarray(schedule.bind_wheels(truth), int)
         if not np.isin(k, truth.torque_wheels).all():
             raise PlanError("run_maneuver_sil: the truth's scheduled wheels must be torque-driven")
         omega = truth.wheel_speeds(x, u)[k]
         J3 = truth.J3[truth.wheel_bars[k]]
-        u[truth.alpha + k] = J3 * (schedule.wheel_speeds(t + h) - omega) / h
+        spins = actuators.follow("spins", schedule.wheel_speeds(t + h), h)
+        u[truth.alpha + k] = J3 * (spins - omega) / h
     return u

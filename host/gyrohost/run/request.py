@@ -112,7 +112,7 @@ def prepare(request: RunRequest) -> PreparedRun:
     if request.sim:
         sim_config(config)  # its [sim] tables checked before anything starts
     estimator = for_rig(config, request.estimator)
-    schedule = what_to_play(config, request.schedule, request.target)
+    schedule = what_to_play(config, request.schedule, request.target, estimator)
     if not request.sim:
         config = wired(config, request)
     out = Path(request.out or default_log_folder(schedule))
@@ -169,25 +169,34 @@ def _live_view(config, port: int, on_live):
     return live
 
 
-def what_to_play(config, schedule: str | None, target: Target | None):
+def what_to_play(config, schedule: str | None, target: Target | None, estimator):
     """A Schedule (``schedule``, default the paper preset) or a Maneuver (``target``)."""
     if target is None:
         return load_schedule_arg(schedule or "paper", config.scene_path)
     if schedule is not None:
         raise RunRequestError("give --schedule or a target (--target-tilt, ...), not both")
-    return planned_maneuver(config, target)
+    return planned_maneuver(config, target, estimator)
 
 
-def planned_maneuver(config, target: Target) -> Maneuver:
+def planned_maneuver(config, target: Target, estimator) -> Maneuver:
     """The maneuver to ``target`` on the configuration's scene, within its servos' limits and
-    its ``[run] max_wheel_speed_rad_s``."""
+    its ``[run] max_wheel_speed_rad_s``; an attitude's re-plans allow for the lag of what it
+    moves (the estimator's ``servo_lag_s``, ``wheel_lag_s``: the rig's)."""
     from gyrohost.control.schedule import Limits
     from gyrotensegrity import Model, load_scene
 
     limits = Limits.per_string(config.servos.servo)
     if target.attitude_rpy_rad is not None:  # a tilt holds the wheels at the scene's spins
         limits = replace(limits, max_wheel_speed_rad_s=config.run.max_wheel_speed_rad_s)
+        target = replace(target, actuator_lag_s=actuator_lag(estimator, target.mode))
     return Maneuver(Model(load_scene(config.scene_path)), limits, target)
+
+
+def actuator_lag(estimator, mode: str) -> float:
+    """The first-order lag, s, of what an attitude maneuver in ``mode`` moves: the servos'
+    (``servo_lag_s``), the wheels' (``wheel_lag_s``), the larger for both."""
+    lags = {"strings": estimator.servo_lag_s, "wheels": estimator.wheel_lag_s}
+    return lags.get(mode, max(lags.values()))
 
 
 def load_schedule_arg(text: str, scene_path: Path):
