@@ -27,6 +27,7 @@ import numpy as np
 
 from gyrohost.estimator import fuse_servos, fuse_wheels
 from gyrohost.estimator.ekf import Status
+from gyrohost.estimator.fusion_horizon import FUSIONS, FusionHorizon
 from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.errors import RunError
 from gyrohost.run.streams import IMU_FUSIONS
@@ -337,21 +338,22 @@ class _Filter:
         self.innovations = InnovationWriter(out, servo_strings)
         self.ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0_s, log=self.innovations)
         self.estimates = EstimateWriter(out, self.ekf, attitude_of(model), body_frame_of(model))
-        self.max_age_s = max_age_s
+        self.horizon = FusionHorizon(self.ekf, max_age_s)  # samples in the order taken
         self.skipped = 0  # samples left unfused to catch up
 
     def call(self, kind: str, args) -> tuple | None:
         """One call of the loop; the estimate's reply after a tick."""
         ekf = self.ekf
         if kind == "tick":
-            if args[0] - ekf.t > self.max_age_s:
-                ekf.advance(args[0])
+            self.horizon.tick(args[0])
             tilt, body = self.estimates.write(ekf.t)
             return ("estimate", ekf.t, int(ekf.status), tilt, body, ekf.x.tolist())
         if kind == "truth":
             self.estimates.score.truth(*args)
+        elif kind in FUSIONS:
+            self.horizon.sample(kind, args)
         else:
-            getattr(ekf, kind)(*args)  # fuse_imu, fuse_wheels, fuse_servos, set_input
+            getattr(ekf, kind)(*args)  # set_input
         return None
 
     def skip(self, kind: str, t_s: float) -> None:
@@ -422,6 +424,8 @@ class _Child:
             kind, *args = self.calls.popleft()
             self.ticks -= kind == "tick"
             if kind == "stop":
+                if self.filter is not None and not self.failed:
+                    self.filter.horizon.flush()
                 health = self.filter.health() if self.filter else None
                 self.conn.send([*self.out.take(), ("health", health)])
                 return
