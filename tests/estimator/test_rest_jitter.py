@@ -32,12 +32,12 @@ def test_the_servos_spread_is_that_of_a_wave_of_its_steps_height(servo_speed_m_s
     assert np.var(servo_off_ramp(t, T, servo_speed_m_s)) == pytest.approx(p**2 / 12, rel=1e-3)
 
 
-def test_the_density_of_the_steps_doubled():
-    """``2 (p^2 / 12) T`` doubled; goals that come faster than the servo covers them
-    (``V <= v``) add no steps; smooth servos (``T = 0``) none."""
+def test_the_density_of_the_steps():
+    """``2 (p^2 / 12) T``; goals that come faster than the servo covers them (``V <= v``) add no
+    steps; smooth servos (``T = 0``) none."""
     v = PULL_SPEED_M_S
     steps = 2 * (v * 0.010 * (1 - v / 0.15)) ** 2 / 12 * 0.010
-    assert sawtooth_psd(0.010, 0.15) == pytest.approx(2 * steps, rel=1e-12)
+    assert sawtooth_psd(0.010, 0.15) == pytest.approx(steps, rel=1e-12)
     assert sawtooth_psd(0.010, 0.05) == 0.0
     assert sawtooth_psd(0.0) == 0.0
     assert sawtooth_psd(0.010, math.inf) > sawtooth_psd(0.010, 0.15)
@@ -45,8 +45,8 @@ def test_the_density_of_the_steps_doubled():
 
 def test_the_simulated_rig_takes_its_own_steps():
     """The real-time rig's keys: the run loop's 100 Hz goals and the servos' 0.15 m/s
-    (3.7e-10 m^2 s); a rig without ``[sim]`` noise keys has none."""
+    (1.85e-10 m^2 s); a rig without ``[sim]`` noise keys has none."""
     keys = for_rig(load_rig_config(shipped("config", "sim-rig")))
     assert keys.rest_jitter_psd_m2_s == pytest.approx(sawtooth_psd(0.01, 0.15))
-    assert keys.rest_jitter_psd_m2_s == pytest.approx(3.70e-10, rel=1e-2)
+    assert keys.rest_jitter_psd_m2_s == pytest.approx(1.85e-10, rel=1e-2)
     assert for_rig(load_rig_config(shipped("config", "lab-rig"))).rest_jitter_psd_m2_s == 0.0

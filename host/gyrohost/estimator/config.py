@@ -382,9 +382,8 @@ def sawtooth_psd(command_period_s, servo_speed_m_s=math.inf):
     A servo given a goal every command period ``T`` covers the goal's step at its speed ``V``
     and holds: about the ramp it rises and falls by ``p = v T (1 - v/V)`` once a period, a
     spread ``p^2 / 12`` (0 for ``T = 0``, servos that follow their lag smoothly). A wave of peak
-    to peak ``p`` and period ``P`` is taken as white noise of density ``2 (p^2 / 12) P``, and
-    that is doubled: with its own density the in-process SIL's motion block sat at twice its dof
-    while a string crossed its kink (docs/estimator-noise.md#the-rest-length-jitter).
+    to peak ``p`` and period ``P`` is taken as white noise of density ``2 (p^2 / 12) P``
+    (docs/estimator-noise.md#the-rest-length-jitter).
 
     Parameters
     ----------
@@ -395,7 +394,7 @@ def sawtooth_psd(command_period_s, servo_speed_m_s=math.inf):
     """
     v = PULL_SPEED_M_S
     held = max(1.0 - v / servo_speed_m_s, 0.0)
-    return 2.0 * v**2 / 6.0 * command_period_s**3 * held**2
+    return v**2 / 6.0 * command_period_s**3 * held**2
 
 
 def servo_hold_std(count_m, band_steps):
