@@ -110,6 +110,15 @@ class Scene:
     def node_index(self, name: str) -> int:
         return self.node_names.index(name)
 
+    def jointed_bars(self) -> set[int]:
+        """Indices of the bars that share a node with another bar (where a hinge can pass a
+        torque about a bar's axis on to the structure)."""
+        count: dict[str, int] = {}
+        for bar in self.bars:
+            for name in (bar.start, bar.end):
+                count[name] = count.get(name, 0) + 1
+        return {i for i, b in enumerate(self.bars) if count[b.start] > 1 or count[b.end] > 1}
+
     def to_dict(self) -> dict:
         """The resolved scene as plain JSON-able data (schedules as {t, value})."""
 

@@ -31,19 +31,10 @@ import numpy as np
 COUPLINGS = ("body", "lost", "own")
 
 
-def jointed_bars(scene):
-    """Indices of the bars that share a node with another bar."""
-    count = {}
-    for bar in scene.bars:
-        for name in (bar.start, bar.end):
-            count[name] = count.get(name, 0) + 1
-    return {i for i, b in enumerate(scene.bars) if count[b.start] > 1 or count[b.end] > 1}
-
-
 def wheel_couplings(model):
     """The coupling (one of :data:`COUPLINGS`) of each wheel, in ``model.wheel_bars`` order."""
     scene, spec = model.scene, model.scene.rig
-    jointed = jointed_bars(scene)
+    jointed = scene.jointed_bars()
     out = []
     for i in (int(i) for i in model.wheel_bars):
         if spec is None:

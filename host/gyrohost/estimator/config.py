@@ -268,32 +268,15 @@ def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
     """The EKF's configuration for a run on ``rig`` (a ``gyrohost.config.RigConfig``).
 
     Layers, each overriding the keys it names: the defaults; the IMU's output period, time-out
-    and mounting from ``[imu]`` (:func:`imu_keys`); on a simulated rig, what its truth's
-    physics fixes (:func:`truth_keys`); the rig's ``[estimator]`` keys; the ``[estimator]``
-    table of the file ``path`` (``gyrotens run --estimator``).
+    and mounting from ``[imu]`` (:func:`imu_keys`); the rig's ``[estimator]`` keys; the
+    ``[estimator]`` table of the file ``path`` (``gyrotens run --estimator``).
 
     Raises
     ------
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    keys = {**imu_keys(rig), **truth_keys(rig), **rig_overrides(rig, path)}
-    return config_from_dict(keys, rig.source)
-
-
-def truth_keys(rig) -> dict:
-    """Keys a simulated rig's truth fixes as hardware would: ``wheel_reaction`` "body" where
-    the truth scene's hinges carry the motors' reaction (``[rig_fidelity] joints = "hinge"``
-    and ``motor_reaction``), as the real D-bar's do; none for a real rig (its ``[estimator]``
-    table says so) or a truth without that reaction."""
-    if not rig.sim:
-        return {}
-    from gyrohost.simrig.config import truth_scene_path
-    from gyrotensegrity import load_scene
-
-    spec = load_scene(truth_scene_path(rig)).rig
-    hinged = spec is not None and spec.joints == "hinge" and spec.motor_reaction
-    return {"wheel_reaction": "body"} if hinged else {}
+    return config_from_dict({**imu_keys(rig), **rig_overrides(rig, path)}, rig.source)
 
 
 def rig_overrides(rig, path: str | Path | None = None) -> dict:

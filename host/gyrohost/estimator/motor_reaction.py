@@ -25,8 +25,6 @@ derivatives by the complex step, over the node coordinates and the wheel spins i
 
 import numpy as np
 
-from gyrohost.control.wheel_reaction import jointed_bars
-
 from . import complex_step
 from .errors import EstimatorConfigError
 
@@ -59,7 +57,7 @@ class MotorReaction:
                 f"estimator key 'wheel_reaction' = 'body' on scene {name!r}: the scene holds "
                 "nodes, whose mount takes the wheels' reaction; it turns only a free structure"
             )
-        jointed = jointed_bars(model.scene)
+        jointed = model.scene.jointed_bars()
         loose = [model.scene.bars[i].name for i in dyn.wheel_bars if i not in jointed]
         if loose:
             raise EstimatorConfigError(

@@ -13,6 +13,7 @@ from pathlib import Path
 from gyrohost.config import IMU_FRAME_NODES, RigConfig
 from gyrohost.configfile import build, spec
 from gyrohost.errors import ConfigError
+from gyrotensegrity import load_scene
 
 
 @dataclass(frozen=True)
@@ -176,8 +177,26 @@ def truth_scene_path(rig: RigConfig, model_path: Path | None = None) -> Path:
 
 def with_truth_scene(rig: RigConfig, scene: str | Path) -> RigConfig:
     """``rig`` with ``[sim.truth] scene`` set to the file ``scene`` (an absolute path, as
-    ``--truth-scene`` gives it: it no longer depends on the configuration's folder)."""
-    return with_sim_keys(rig, "truth", scene=str(Path(scene).resolve()))
+    ``--truth-scene`` gives it: it no longer depends on the configuration's folder), and the
+    estimator's keys that scene's physics fixes as a rig's hardware would
+    (:func:`hardware_keys`) where the rig's ``[estimator]`` table does not set them.
+
+    Raises
+    ------
+    SceneError
+        ``scene`` is no scene file.
+    """
+    rig = with_sim_keys(rig, "truth", scene=str(Path(scene).resolve()))
+    return replace(rig, estimator={**hardware_keys(load_scene(scene)), **rig.estimator})
+
+
+def hardware_keys(scene) -> dict:
+    """Estimator keys a truth ``scene`` fixes: ``wheel_reaction = "body"`` where its hinges carry
+    the motors' reaction (``[rig_fidelity] joints = "hinge"`` and ``motor_reaction``), as the
+    real D-bar's do (docs/estimator.md); none otherwise."""
+    spec = scene.rig
+    hinged = spec is not None and spec.joints == "hinge" and spec.motor_reaction
+    return {"wheel_reaction": "body"} if hinged else {}
 
 
 def with_sim_keys(rig: RigConfig, table: str, **keys) -> RigConfig:
