@@ -124,7 +124,7 @@ def test_errors_name_the_file_and_key(data, message):
 
 def test_truth_scene_resolves_as_the_scene_does(tmp_path):
     path = tmp_path / "rig.toml"
-    (tmp_path / "heavier.toml").write_text("")
+    (tmp_path / "heavier.toml").write_text(shipped("scene", "dbar-gyro").read_text())
     path.write_text('scene = "dbar-gyro"\n[sim.truth]\nscene = "heavier.toml"\n')
     cfg = load_rig_config(path)
     assert truth_scene_path(cfg) == tmp_path / "heavier.toml"  # relative to the config
