@@ -51,6 +51,22 @@ def test_the_budget_stops_after_the_first_step(setting):
     assert one.message == "1 of 2 steps taken"
 
 
+def test_no_half_of_a_step_is_tried_past_the_period(setting, monkeypatch):
+    """A step whose whole does not lower the cost is halved only while the halves end within
+    the period (twice the budget): here the period is over before the first half."""
+    planner = setting[0]
+    rti = RealTimeIteration(planner, budget_s=0.0)
+    tried = []
+    never_lower = lambda self, problem, z: tried.append(z) or 1.0  # noqa: E731
+    monkeypatch.setattr(RealTimeIteration, "cost", never_lower)
+    monkeypatch.setattr("gyrohost.control.realtime_iteration._violation", lambda p, z: 0.0)
+    assert rti._try(None, np.zeros(3), np.ones(3), deadline=0.0) is None
+    assert len(tried) == 2  # the base and the whole step, no half
+    tried.clear()
+    assert rti._try(None, np.zeros(3), np.ones(3)) is None  # no deadline: every half
+    assert len(tried) == 1 + 1 + 2
+
+
 class Exact(MomentumGainFit):
     """Samples made with the fit's own law at a known momentum and gain: the wheels' momentum
     ``W`` given, the structure's ``L = H0 - kappa W``."""

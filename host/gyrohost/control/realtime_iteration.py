@@ -59,7 +59,10 @@ class RealTimeIteration:
     drift_s : float, s
     budget_s : float, s
         A step after the first is begun only if it would end within this time from the start
-        of the re-plan, judged by the step before it (a loaded machine takes fewer steps).
+        of the re-plan, judged by the step before it (a loaded machine takes fewer steps); a
+        half of a step only if it would end within twice this time (the re-planning period),
+        judged by the try before it: a re-plan past its period is of no use, the schedule in
+        force then stays.
     """
 
     planner: AttitudePlanner
@@ -78,10 +81,11 @@ class RealTimeIteration:
         problem = self.planner._problem(target_q, knot_t_s, t_start_s, x0, H0, r_end)
         z = problem.guess(warm)
         allowed, taken = max(_violation(problem, z), FEASIBLE), 0
+        deadline = start + 2.0 * self.budget_s
         for _ in range(self.iterations if problem.n_z else 0):
             begun = time.perf_counter()
             step = self._step(problem, z)
-            better = None if step is None else self._try(problem, z, step)
+            better = None if step is None else self._try(problem, z, step, deadline)
             if better is None:
                 break
             z, taken = better, taken + 1
@@ -148,14 +152,20 @@ class RealTimeIteration:
         step = M @ res.x
         return step if np.isfinite(step).all() and res.status in (0, 9) else None
 
-    def _try(self, problem, z, step):
+    def _try(self, problem, z, step, deadline=math.inf):
         """``z`` plus the step or one of its halves that lowers the cost without violating a
-        limit more than ``z`` does; None if none does."""
+        limit more than ``z`` does; None if none does, or if a half would end past ``deadline``
+        (``time.perf_counter`` s), judged by the try before it."""
         base, allowed = self.cost(problem, z), max(_violation(problem, z), FEASIBLE)
+        took = 0.0
         for k in range(HALVINGS + 1):
+            begun = time.perf_counter()
+            if k and begun + took > deadline:
+                return None
             trial = np.clip(z + step / 2.0**k, -1.0, 1.0)
             if _violation(problem, trial) <= allowed and self.cost(problem, trial) < base:
                 return trial
+            took = time.perf_counter() - begun
         return None
 
 
