@@ -27,11 +27,12 @@ HOLD_TOLERANCE_STEPS = 32
 
 
 def ignore_interrupts(loop, what: str) -> InterruptsHandled:
-    """Context: an interrupting signal is logged as an ``interrupt`` event and ignored."""
+    """Context: an interrupting signal is ignored and logged as an ``interrupt`` event by the
+    loop's next event (``loop.heard``): the handler itself writes nothing, since the signal may
+    land while the loop is inside a write of that same file (a reentrant call, which raised)."""
 
     def note(signum, frame):
-        name = signal.Signals(signum).name
-        loop.event("interrupt", f"{name} during {what}: ignored")
+        loop.heard.append(f"{signal.Signals(signum).name} during {what}: ignored")
 
     return InterruptsHandled(note)
 

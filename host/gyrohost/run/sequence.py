@@ -123,6 +123,8 @@ class RunLoop:
         self.on_tick = on_tick
         self.progress = progress
         self.notify = notify
+        self.heard: list[str] = []
+        """Interrupts a signal handler noted, for the next event to log."""
         self.model = Model(load_scene(config.scene_path))
         self.schedule.bind(self.model)
         self.wheel_index = self.schedule.bind_wheels(self.model)  # board wheel i = scene wheel i
@@ -533,10 +535,17 @@ class RunLoop:
         self.event("notice", message)
 
     def event(self, kind: str, message: str) -> None:
-        """Append one row to the ``events`` stream (commas become semicolons)."""
+        """Append one row to the ``events`` stream (commas become semicolons), after the
+        interrupts noted since the last one."""
+        if self.streams is None:  # none before the log is open
+            return
+        while self.heard:
+            self._event_row("interrupt", self.heard.pop(0))
+        self._event_row(kind, message)
+
+    def _event_row(self, kind: str, message: str) -> None:
         text = " ".join(str(message).replace(",", ";").split())
-        if self.streams is not None:  # none before the log is open
-            self.streams.events.write(self.now(), kind, text)
+        self.streams.events.write(self.now(), kind, text)
 
 
 def _stderr_line(message: str) -> None:
