@@ -42,14 +42,10 @@ class FusionHorizon:
         self._order = itertools.count()
         self.imu_s = -math.inf  # the newest IMU sample's time taken, s
 
-    def taken_s(self, kind: str, t_s: float) -> float:
-        """When a sample stamped ``t_s`` (s) was taken: the IMU's latency before its stamp."""
-        return t_s - self.ekf.config.imu_latency_s if kind == "fuse_imu" else t_s
-
     def sample(self, kind: str, args) -> None:
         """Hold one sample (``kind`` one of :data:`FUSIONS`, ``args`` its arguments), then fuse
         whatever the IMU has caught up with."""
-        taken = self.taken_s(kind, args[0])
+        taken = self.ekf.imu_taken_s(args[0]) if kind == "fuse_imu" else args[0]
         heapq.heappush(self._held, (taken, next(self._order), kind, args))
         if kind == "fuse_imu":
             self.imu_s = max(self.imu_s, taken)
