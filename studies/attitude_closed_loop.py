@@ -224,11 +224,14 @@ def rig_part(a):
     """Real time on the simulated rig, EKF in the loop, the rig-fidelity truth: the cases at
     1-sigma, then the first on a truth with heavier wheels."""
     a.out.mkdir(parents=True, exist_ok=True)
-    print(truth_speed(rig_truth_scene(), rig_config(a, rig_truth_scene(), "1sigma")), flush=True)
-    rig_runs(a, rig_truth_scene(), "1sigma", RIG_CASES[: a.rig_cases])
+    scene = rig_truth_scene()
+    config = rig_config(a, scene, "1sigma")
+    print(truth_speed(scene, config), flush=True)
+    rig_runs(a, scene, config, RIG_CASES[: a.rig_cases], "1sigma")
     if a.rig_cases:
         stressed = rig_truth_scene(wheel_inertia=STRESS_J3)
-        rig_runs(a, stressed, "heavier-wheels", RIG_CASES[:1])
+        config = rig_config(a, stressed, "heavier-wheels")
+        rig_runs(a, stressed, config, RIG_CASES[:1], "heavier-wheels")
 
 
 def rig_config(a, scene, label):
@@ -242,14 +245,15 @@ def rig_config(a, scene, label):
     return with_truth_scene(load_rig_config(shipped("config", "sim-rig")), truth_path)
 
 
-def rig_runs(a, scene, label, cases):
-    """Each case open and closed loop on the real-time simulated rig with the truth ``scene``."""
+def rig_runs(a, scene, config, cases, label):
+    """Each case open and closed loop on the real-time simulated rig ``config`` with the truth
+    ``scene``, logged under ``--out`` by ``label``."""
     from gyrohost.estimator.config import for_rig
     from gyrohost.run import run_simulated
     from gyrohost.run.request import planned_maneuver
     from gyrohost.simrig.config import sim_config
 
-    config = rig_config(a, scene, label)
+    estimator = for_rig(config)
     limits = Limits.per_string(config.servos.servo)
     sim = sim_config(config)
     step_m = max(2.0 * math.pi * s.pulley_radius_m / 4096 for s in config.servos.servo)
@@ -271,7 +275,7 @@ def rig_runs(a, scene, label, cases):
             out = a.out / f"rig-{label}-{mode}-{name}-{closed:d}"
             start = time.perf_counter()
             try:
-                maneuver = planned_maneuver(config, target, for_rig(config))  # as the run's
+                maneuver = planned_maneuver(config, target, estimator)  # as the run's
                 result = run_simulated(config, maneuver, out)
             except PlanError as exc:
                 print(f"{mode:8s}{', '.join(f'{v:+.1f}' for v in target_deg):>22s}  {exc}")
