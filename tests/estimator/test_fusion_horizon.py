@@ -1,7 +1,10 @@
 """A live run's samples reach the filter in the order they were taken (fusion_horizon.py)."""
 
+from types import SimpleNamespace
+
 import pytest
 
+from gyrohost.estimator.config import imu_taken_s
 from gyrohost.estimator.fusion_horizon import FusionHorizon
 
 LATENCY_S = 0.02
@@ -12,18 +15,16 @@ class Recorder:
     """A filter that only notes what it is asked, in order, and keeps its time."""
 
     def __init__(self):
+        self.config = SimpleNamespace(imu_latency_s=LATENCY_S)
         self.t = 0.0
         self.calls = []
-
-    def imu_taken_s(self, t_s):
-        return t_s - LATENCY_S
 
     def _note(self, kind, t_s):
         self.calls.append((kind, round(t_s, 6)))
         self.t = max(self.t, t_s)
 
     def fuse_imu(self, t_s, *_):
-        self._note("imu", self.imu_taken_s(t_s))
+        self._note("imu", imu_taken_s(self.config, t_s))
 
     def fuse_wheels(self, t_s, *_):
         self._note("wheels", t_s)

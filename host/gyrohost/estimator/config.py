@@ -348,6 +348,11 @@ def imu_keys(rig) -> dict:
     }
 
 
+def imu_taken_s(config: EstimatorConfig, t_s: float) -> float:
+    """When an IMU sample stamped ``t_s`` (s) was taken: ``imu_latency_s`` before."""
+    return t_s - config.imu_latency_s
+
+
 EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
 """Keys for IMU samples that carry their own times (in-process runs): no latency, no
 uncertainty about it (a real-time rig's configuration gives both)."""

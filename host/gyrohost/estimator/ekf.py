@@ -22,7 +22,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from gyrotensegrity import SimulationError
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
-from .config import mounting_covariance
+from .config import imu_taken_s, mounting_covariance
 from .errors import EstimatorError
 from .fast_cycle import fast_cycle
 from .fast_imu import fast_imu
@@ -332,10 +332,6 @@ class TensegrityEKF:
             self.monitors[source].stale += 1
         return None if self.stale_last else 0.0
 
-    def imu_taken_s(self, t_s: float) -> float:
-        """When an IMU sample stamped ``t_s`` (s) was taken: ``imu_latency_s`` before."""
-        return t_s - self.config.imu_latency_s
-
     def fuse_imu(self, t_s, omega_rad_s, accel_m_s2, euler_rad):
         """Predict to ``t_s`` and fuse one IMU sample: rate, specific force, angles.
 
@@ -343,7 +339,7 @@ class TensegrityEKF:
         own NIS and the accepted ones fused in one update.
 
         ``t_s`` is the sample's stamp; it was taken ``imu_latency_s`` before
-        (:meth:`imu_taken_s`). A sample taken before the filter's time (one that came after
+        (:func:`.config.imu_taken_s`). A sample taken before the filter's time (one that came after
         samples taken later, or after the run's tick predicted past it) is compared with the
         prediction taken back to its time along the dynamics (``h - lag dh/dt``).
 
@@ -354,7 +350,7 @@ class TensegrityEKF:
         -------
         list of Innovation (empty when the sample was stale)
         """
-        taken_s = self.imu_taken_s(t_s)
+        taken_s = imu_taken_s(self.config, t_s)
         self.imu_lag_s = max(self.t - taken_s, 0.0)
         held = self._arrive(taken_s, fuse_imu_rate.SOURCE, self.cycle is not None)
         if held is None:

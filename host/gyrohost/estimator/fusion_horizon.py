@@ -22,6 +22,8 @@ import heapq
 import itertools
 import math
 
+from .config import imu_taken_s
+
 FUSIONS = ("fuse_imu", "fuse_wheels", "fuse_servos")
 """The filter's calls that fuse a sample (first argument: its time stamp, s)."""
 
@@ -45,7 +47,7 @@ class FusionHorizon:
     def sample(self, kind: str, args) -> None:
         """Hold one sample (``kind`` one of :data:`FUSIONS`, ``args`` its arguments), then fuse
         whatever the IMU has caught up with."""
-        taken = self.ekf.imu_taken_s(args[0]) if kind == "fuse_imu" else args[0]
+        taken = imu_taken_s(self.ekf.config, args[0]) if kind == "fuse_imu" else args[0]
         heapq.heappush(self._held, (taken, next(self._order), kind, args))
         if kind == "fuse_imu":
             self.imu_s = max(self.imu_s, taken)
