@@ -7,6 +7,8 @@ import pytest
 from gyrohost.control import Limits
 from gyrohost.control.adapt import MomentumGainFit
 from gyrohost.control.attitude_planner import AttitudePlanner, target_quaternion
+from gyrohost.control.deadline import NONE, Deadline
+from gyrohost.control.errors import PastDeadline
 from gyrohost.control.realtime_iteration import RealTimeIteration
 from gyrohost.control.shape_attitude import AttitudeModel, quaternion_product_batch
 
@@ -51,20 +53,49 @@ def test_the_budget_stops_after_the_first_step(setting):
     assert one.message == "1 of 2 steps taken"
 
 
-def test_no_half_of_a_step_is_tried_past_the_period(setting, monkeypatch):
-    """A step whose whole does not lower the cost is halved only while the halves end within
-    the period (twice the budget): here the period is over before the first half."""
-    planner = setting[0]
-    rti = RealTimeIteration(planner, budget_s=0.0)
-    tried = []
-    never_lower = lambda self, problem, z: tried.append(z) or 1.0  # noqa: E731
-    monkeypatch.setattr(RealTimeIteration, "cost", never_lower)
-    monkeypatch.setattr("gyrohost.control.realtime_iteration._violation", lambda p, z: 0.0)
-    assert rti._try(None, np.zeros(3), np.ones(3), deadline=0.0) is None
-    assert len(tried) == 2  # the base and the whole step, no half
-    tried.clear()
-    assert rti._try(None, np.zeros(3), np.ones(3)) is None  # no deadline: every half
-    assert len(tried) == 1 + 1 + 2
+def test_a_replan_cut_at_the_period_keeps_the_steps_taken_before(setting, monkeypatch):
+    """Past the period the work stops inside the next step, and the re-plan is the one of the
+    steps before it, as if it had been asked for no more."""
+    planner, knots, q, H0, plan = setting
+    x, t = perturbed(plan, 2), float(knots[2])
+    one = RealTimeIteration(planner, iterations=1).plan(q, knots, t, x, H0, plan)
+    tries = []
+    whole_try = RealTimeIteration._try
+
+    def period_over_at_second_try(self, problem, z, step):
+        tries.append(z)
+        if len(tries) == 2:
+            problem.deadline.at_s = 0.0  # the period ended before this try
+        return whole_try(self, problem, z, step)
+
+    monkeypatch.setattr(RealTimeIteration, "_try", period_over_at_second_try)
+    cut = RealTimeIteration(planner, period_s=60.0).plan(q, knots, t, x, H0, plan)
+    assert cut.success and cut.message == "1 of 2 steps taken; cut at the period"
+    np.testing.assert_array_equal(cut.inputs, one.inputs)
+    assert cut.schedule.problems(Limits()) == []
+
+
+def test_a_replan_cut_before_its_first_step_keeps_the_plan_in_force(setting):
+    planner, knots, q, H0, plan = setting
+    x, t = perturbed(plan, 2), float(knots[2])
+    cut = RealTimeIteration(planner, period_s=1e-9).plan(q, knots, t, x, H0, plan)
+    assert not cut.success
+    assert cut.message == "0 of 2 steps taken; cut at the period: no better plan"
+
+
+def test_a_deadline_stops_a_piece_that_would_end_past_it(monkeypatch):
+    clock = [100.0]
+    monkeypatch.setattr("gyrohost.control.deadline.time.perf_counter", lambda: clock[0])
+    NONE.check()
+    with pytest.raises(PastDeadline, match="past the deadline"):
+        Deadline(99.0).check()
+    late = Deadline(100.020)
+    late.check()
+    clock[0] = 100.015  # this piece took 15 ms: the next would end past the deadline
+    with pytest.raises(PastDeadline, match="0.0100 s past"):
+        late.check()
+    late.begin()  # a new loop: judged by nothing before it, and 5 ms are left
+    late.check()
 
 
 class Exact(MomentumGainFit):

@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 from gyrotensegrity.attitude import angle_between
 
 from .attitude_model import quaternion_product
+from .deadline import NONE
 from .errors import PlanError
 from .schedule import Schedule
 from .shape import RhombusShape
@@ -186,15 +187,18 @@ class AttitudePlanner:
         u[..., self.active] = z.reshape(z.shape[:-1] + (n_free, len(self.active)))
         return u * self.scale
 
-    def simulate(self, x0, H0, u, dt):
+    def simulate(self, x0, H0, u, dt, deadline=NONE):
         """States (..., k + 1, n_x) at the knots from ``x0`` under inputs ``u`` (..., k, n_u)
-        held on intervals ``dt`` (k,) s (RK4, ``substeps`` per interval)."""
+        held on intervals ``dt`` (k,) s (RK4, ``substeps`` per interval); each step checks
+        ``deadline`` (:class:`.deadline.Deadline`) first."""
         f = self.model.rhs
         x = np.broadcast_to(x0, u.shape[:-2] + (self.n_x,)).astype(u.dtype)
         out = [x]
+        deadline.begin()
         for k, span in enumerate(dt):
             h, uk = span / self.substeps, u[..., k, :]
             for _ in range(self.substeps):
+                deadline.check()
                 k1 = f(0.0, x, uk, H0)
                 k2 = f(0.0, x + 0.5 * h * k1, uk, H0)
                 k3 = f(0.0, x + 0.5 * h * k2, uk, H0)
@@ -282,8 +286,9 @@ class _Problem:
         self.n_free = len(self.dt)
         self.n_z = self.n_free * len(planner.active)
         self.n_eval, self.axis = 0, None
-        self._cache = (None, None)
+        self._cache = self._kept = (None, None)
         self.r_end = planner.model.shape.rest
+        self.deadline = NONE
 
     def guess(self, warm):
         if warm is None:
@@ -294,15 +299,38 @@ class _Problem:
         return np.clip(u.ravel(), -1.0, 1.0)
 
     def trajectory(self, z):
-        """States (n_z + 1, K + 1, n_x): the nominal (real) and one complex copy per variable."""
-        if self._cache[0] is not None and np.array_equal(self._cache[0], z):
-            return self._cache[1]
+        """States (n_z + 1, K + 1, n_x): the nominal (real) and one complex copy per variable;
+        raises :class:`.errors.PastDeadline` past :attr:`deadline`."""
+        held = self._held(z)
+        if held is not None:
+            return held
         self.n_eval += 1
         Z = z + 1j * STEP * np.eye(self.n_z)
         Z = np.vstack([z[None].astype(complex), Z])
-        X = self.p.simulate(self.x0, self.H0, self.p.inputs(Z, self.n_free), self.dt)
+        X = self.p.simulate(self.x0, self.H0, self.p.inputs(Z, self.n_free), self.dt, self.deadline)
         self._cache = (z.copy(), (X, Z))
         return X, Z
+
+    def _held(self, z):
+        """The trajectory of ``z`` if it is the last one or the kept one, else None."""
+        for cached, XZ in (self._cache, self._kept):
+            if cached is not None and np.array_equal(cached, z):
+                return XZ
+        return None
+
+    def _nominal(self, z):
+        """States (K + 1, n_x) and scaled inputs (n_z,) of ``z`` alone: held, or simulated
+        without the complex copies (a re-plan cut before its first trajectory)."""
+        held = self._held(z)
+        if held is not None:
+            return np.real(held[0][0]), np.real(held[1][0])
+        u = self.p.inputs(z[None], self.n_free)
+        return self.p.simulate(self.x0, self.H0, u, self.dt)[0], z
+
+    def keep(self, z) -> None:
+        """Hold the trajectory of ``z`` (computed before) apart from the last one: the plan a
+        bounded re-plan returns, whatever it tried after it."""
+        self._kept = (z.copy(), self.trajectory(z))
 
     def _value_grad(self, values):
         """``(value, gradient)`` of batched outputs (n_z + 1, ...): the first copy's real part,
@@ -415,9 +443,8 @@ class _Problem:
         return np.clip(res.x, -1.0, 1.0), bool(res.success), str(res.message)
 
     def result(self, z, ok, message, plan_time_s) -> AttitudePlan:
-        X, Z = self.trajectory(z)
-        states = np.real(X[0])
-        inputs = np.real(self.p.inputs(Z[0], self.n_free))
+        states, z = self._nominal(z)
+        inputs = self.p.inputs(z, self.n_free)
         q = states[-1, :4] / np.linalg.norm(states[-1, :4])
         rate = float(np.linalg.norm(self.p.landing_rate(states[-1], self.H0)))
         schedule = self.schedule(states)

@@ -23,6 +23,7 @@ state of the planner's model (layout of ``gyrotensegrity.Model``). The EKF plugs
 ``gyrohost.estimator`` (its state ``[eta2 | eta2_dot | omega_w | gyro bias]``).
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,6 +63,10 @@ class Replanner:
         lengths and spins are the commanded ones (the servos' and the wheels' first-order lag):
         an estimate at ``t`` is planned from as the model's state at ``t - lag_s``, with the
         commands of that time, which are the ones the actuators have reached.
+    real_time : bool
+        Re-plans run beside a real-time loop (:class:`.maneuver.Maneuver`'s worker thread): an
+        attitude re-plan's work is then bounded by the period (:class:`.goals.AttitudeGoal`).
+        On a simulated clock it is not, so that its plans do not depend on the machine.
     """
 
     planner: object
@@ -72,6 +77,7 @@ class Replanner:
     adapt: bool = True
     target_rest: dict | None = None
     lag_s: float = 0.0
+    real_time: bool = False
     schedule: Schedule | None = None
     records: list = field(default_factory=list)
 
@@ -79,7 +85,8 @@ class Replanner:
         if not (self.duration_s > 0.0 and self.period_s > 0.0):
             raise PlanError("duration_s and period_s must be positive")
         if isinstance(self.planner, AttitudePlanner):
-            self.goal = AttitudeGoal(self.planner, self.target, self.period_s, self.target_rest)
+            period_s = self.period_s if self.real_time else math.inf
+            self.goal = AttitudeGoal(self.planner, self.target, period_s, self.target_rest)
         elif self.target_rest:
             raise PlanError("a target shape goes with an attitude target, not a tilt")
         else:

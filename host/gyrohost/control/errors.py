@@ -9,3 +9,8 @@ class ScheduleError(GyrohostError, ValueError):
 
 class PlanError(GyrohostError, ValueError):
     """A planning request is invalid (target, duration, limits or model not supported)."""
+
+
+class PastDeadline(GyrohostError, RuntimeError):
+    """A bounded computation stopped: its next piece of work would end past its deadline
+    (:class:`.deadline.Deadline`)."""

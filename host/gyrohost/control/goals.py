@@ -119,8 +119,10 @@ ITERATION_LIMIT = "Iteration limit"
 class AttitudeGoal:
     """A three-axis attitude: ``target`` roll, pitch, yaw (rad) of the scene's body frame,
     landing at the rest lengths ``target_rest`` (``{string: m}``, :mod:`.target_shape`; the
-    scene's where not given); a re-plan's steps end within half the re-planning period
-    ``period_s`` (the other half is the run loop's and the estimator's on a two-core machine).
+    scene's where not given); a re-plan begins its steps within half the re-planning period
+    ``period_s`` (the other half is the run loop's and the estimator's on a two-core machine)
+    and is cut at the period (:class:`.realtime_iteration.RealTimeIteration`; ``inf``: its
+    work is not bounded).
 
     Raises
     ------
@@ -133,7 +135,7 @@ class AttitudeGoal:
         self.model = planner.model
         self.target = target_quaternion(self.rpy)
         self.r_end = landing_coordinates(planner, target_rest)
-        self.rti = RealTimeIteration(planner, budget_s=0.5 * period_s)
+        self.rti = RealTimeIteration(planner, budget_s=0.5 * period_s, period_s=period_s)
         self._plan = None  # the plan whose inputs are in force: the re-plans' warm start
 
     def first(self, t_s, x, knot_t):

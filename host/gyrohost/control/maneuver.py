@@ -64,6 +64,10 @@ class Target:
         How much later the servos and wheels follow a command than the plan assumes (their
         first-order lag): re-plans start from the commands they have reached
         (:class:`.closed_loop.Replanner`'s ``lag_s``).
+    real_time : bool
+        Re-plans beside a real-time loop (a run): an attitude re-plan's work is bounded by the
+        period (:class:`.closed_loop.Replanner`'s ``real_time``). Off on a simulated clock, so
+        that its plans do not depend on the machine.
     """
 
     tilt_rad: float | None = None
@@ -78,6 +82,7 @@ class Target:
     mode: str = "both"
     target_rest: dict | None = None
     actuator_lag_s: float = 0.0
+    real_time: bool = False
 
     def __post_init__(self):
         if (self.tilt_rad is None) == (self.attitude_rpy_rad is None):
@@ -158,6 +163,7 @@ class Maneuver:
             adapt=target.adapt,
             target_rest=target.target_rest,
             lag_s=target.actuator_lag_s,
+            real_time=target.real_time,
         )
         x0 = model.initial_state()
         self.first = self.replanner.start(0.0, x0)

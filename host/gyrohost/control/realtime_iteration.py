@@ -14,7 +14,10 @@ re-plan does a fixed amount of work instead, so that its time is bounded by cons
   most :data:`QP_ITERATIONS`);
 - each step is tried whole, then halved at most :data:`HALVINGS` times, and taken only if the
   nonlinear landing cost falls and no limit is violated more than before (one batched
-  integration per try, which the next step's linearisation reuses).
+  integration per try, which the next step's linearisation reuses);
+- the work stops where its next piece (a step of the batched integration, an iteration of the
+  step's programme) would end past the period ``period_s``, judged by the piece before it
+  (:mod:`.deadline`): on a loaded machine the re-plan ends in time with the steps taken so far.
 
 The result is a plan that is better than the plan in force from the same state, or a failed
 plan: the closed loop then keeps the schedule in force, which stays within the limits (its
@@ -35,6 +38,8 @@ from scipy import optimize
 
 from .attitude_model import quaternion_product
 from .attitude_planner import FEASIBLE, AttitudePlan, AttitudePlanner, conjugate
+from .deadline import NONE, Deadline
+from .errors import PastDeadline
 
 DRIFT_S = 10.0
 """Weight of the landing rate: the time (s) over which it is judged; the first plan's landing
@@ -46,6 +51,9 @@ HALVINGS = 2
 """Halvings of a step that does not improve the plan."""
 QP_ITERATIONS = 60
 """SLSQP iterations on one step's quadratic programme (linear algebra of tens of variables)."""
+RESULT_RESERVE = 0.05
+"""Share of the period left after the cut for the result: its schedule from the kept
+trajectory (about 1 ms of the D-bar's 250 ms) and one piece's jitter past its judged time."""
 
 
 @dataclass(frozen=True)
@@ -59,16 +67,19 @@ class RealTimeIteration:
     drift_s : float, s
     budget_s : float, s
         A step after the first is begun only if it would end within this time from the start
-        of the re-plan, judged by the step before it (a loaded machine takes fewer steps); a
-        half of a step only if it would end within twice this time (the re-planning period),
-        judged by the try before it: a re-plan past its period is of no use, the schedule in
-        force then stays.
+        of the re-plan, judged by the step before it (a loaded machine takes fewer steps).
+    period_s : float, s
+        The re-planning period: a re-plan past it is of no use. The work is cut where its next
+        piece (an integrator step, an iteration of a step's programme) would end past the
+        period less :data:`RESULT_RESERVE` of it (:class:`.deadline.Deadline`), and the re-plan
+        returns the steps taken before (a failed plan if none: the schedule in force stays).
     """
 
     planner: AttitudePlanner
     iterations: int = ITERATIONS
     drift_s: float = DRIFT_S
     budget_s: float = math.inf
+    period_s: float = math.inf
 
     def plan(
         self, target_q, knot_t_s, t_start_s, x0, H0, warm: AttitudePlan, r_end=None
@@ -79,21 +90,29 @@ class RealTimeIteration:
         state within the limits."""
         start = time.perf_counter()
         problem = self.planner._problem(target_q, knot_t_s, t_start_s, x0, H0, r_end)
-        z = problem.guess(warm)
-        allowed, taken = max(_violation(problem, z), FEASIBLE), 0
-        deadline = start + 2.0 * self.budget_s
-        for _ in range(self.iterations if problem.n_z else 0):
-            begun = time.perf_counter()
-            step = self._step(problem, z)
-            better = None if step is None else self._try(problem, z, step, deadline)
-            if better is None:
-                break
-            z, taken = better, taken + 1
-            now = time.perf_counter()
-            if now - start + (now - begun) > self.budget_s:
-                break
-        ok = taken > 0 and _violation(problem, z) <= allowed
-        message = f"{taken} of {self.iterations} steps taken" + ("" if ok else ": no better plan")
+        problem.deadline = Deadline(start + (1.0 - RESULT_RESERVE) * self.period_s)
+        z, taken, cut = problem.guess(warm), 0, ""
+        try:
+            problem.keep(z)
+            for _ in range(self.iterations if problem.n_z else 0):
+                begun = time.perf_counter()
+                step = self._step(problem, z)
+                better = None if step is None else self._try(problem, z, step)
+                if better is None:
+                    break
+                z, taken = better, taken + 1
+                problem.keep(z)
+                now = time.perf_counter()
+                if now - start + (now - begun) > self.budget_s:
+                    break
+        except PastDeadline:
+            cut = "; cut at the period"
+        problem.deadline = NONE
+        # each step taken lowered the cost and violates no limit more than the warm start
+        ok = taken > 0
+        message = f"{taken} of {self.iterations} steps taken{cut}" + (
+            "" if ok else ": no better plan"
+        )
         return problem.result(z, ok, message, time.perf_counter() - start)
 
     def residuals(self, problem, z):
@@ -131,7 +150,8 @@ class RealTimeIteration:
             res = r + JM @ y
             return res @ res + c @ (z + d) ** 2, 2.0 * (JM.T @ res + M.T @ (c * (z + d)))
 
-        eye = np.eye(problem.n_z)
+        eye, deadline = np.eye(problem.n_z), problem.deadline
+        deadline.begin()
         constraints = [
             {"type": "ineq", "fun": lambda y: g + GM @ y, "jac": lambda y: GM},
             {"type": "ineq", "fun": lambda y: 1.0 - z - M @ y, "jac": lambda y: -M},
@@ -148,24 +168,19 @@ class RealTimeIteration:
             method="SLSQP",
             constraints=constraints,
             options={"maxiter": QP_ITERATIONS, "ftol": 1e-12},
+            callback=lambda y: deadline.check(),
         )
         step = M @ res.x
         return step if np.isfinite(step).all() and res.status in (0, 9) else None
 
-    def _try(self, problem, z, step, deadline=math.inf):
+    def _try(self, problem, z, step):
         """``z`` plus the step or one of its halves that lowers the cost without violating a
-        limit more than ``z`` does; None if none does, or if a half would end past ``deadline``
-        (``time.perf_counter`` s), judged by the try before it."""
+        limit more than ``z`` does; None if none does."""
         base, allowed = self.cost(problem, z), max(_violation(problem, z), FEASIBLE)
-        took = 0.0
         for k in range(HALVINGS + 1):
-            begun = time.perf_counter()
-            if k and begun + took > deadline:
-                return None
             trial = np.clip(z + step / 2.0**k, -1.0, 1.0)
             if _violation(problem, trial) <= allowed and self.cost(problem, trial) < base:
                 return trial
-            took = time.perf_counter() - begun
         return None
 
 

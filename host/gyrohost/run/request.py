@@ -181,14 +181,16 @@ def what_to_play(config, schedule: str | None, target: Target | None, estimator)
 def planned_maneuver(config, target: Target, estimator) -> Maneuver:
     """The maneuver to ``target`` on the configuration's scene, within its servos' limits and
     its ``[run] max_wheel_speed_rad_s``; an attitude's re-plans allow for the lag of what it
-    moves (the estimator's ``servo_lag_s``, ``wheel_lag_s``: the rig's)."""
+    moves (the estimator's ``servo_lag_s``, ``wheel_lag_s``: the rig's) and are bounded by
+    their period (a run is real time)."""
     from gyrohost.control.schedule import Limits
     from gyrotensegrity import Model, load_scene
 
     limits = Limits.per_string(config.servos.servo)
     if target.attitude_rpy_rad is not None:  # a tilt holds the wheels at the scene's spins
         limits = replace(limits, max_wheel_speed_rad_s=config.run.max_wheel_speed_rad_s)
-        target = replace(target, actuator_lag_s=actuator_lag(estimator, target.mode))
+        lag_s = actuator_lag(estimator, target.mode)
+        target = replace(target, actuator_lag_s=lag_s, real_time=True)
     return Maneuver(Model(load_scene(config.scene_path)), limits, target)
 
 
