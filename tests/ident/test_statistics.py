@@ -10,7 +10,13 @@ import pytest
 from scipy.optimize import least_squares
 
 from gyrohost.ident import profile
-from gyrohost.ident.fit import FitResult, WalledResiduals, statistics, uncertainty
+from gyrohost.ident.fit import (
+    FAILED_RESIDUAL,
+    FitResult,
+    WalledResiduals,
+    statistics,
+    uncertainty,
+)
 from gyrohost.ident.params import Param
 from gyrohost.ident.report import apply_result, read_identified, report_lines
 
@@ -347,3 +353,18 @@ def test_segments_that_disagree_beyond_their_noise_widen_the_sigma():
     assert agree[0] == 1.0
     held = profile.segment_spread(problem(optima), np.zeros(1), np.array([False]), 0.005)
     assert held[0] == 1.0
+
+
+def test_a_residual_of_another_length_is_walled_and_named():
+    """A parameter vector whose filter fuses a different number of values (its residual has
+    another length) is a break: walled, so the solver backs off, and named."""
+    problem = Problem(np.zeros(5))
+    problem._length = None
+    first = problem._walled(np.zeros(5), np.ones(4), "")
+    short = problem._walled(np.zeros(5), np.ones(3), "")
+    assert len(first) == len(short) == 4
+    assert short[-1] == FAILED_RESIDUAL and short[0] == 1.0
+    assert problem.failures == [
+        "3 residuals where the first evaluation had 4 at J3 1, bar_mass 1, stiffness 1, "
+        "damping 1, mounting.roll 0"
+    ]

@@ -62,6 +62,14 @@ def register(sub) -> None:
         "log's inputs); filter: the filter's likelihood for every group (docs/identification.md)",
     )
     p.add_argument(
+        "--weighed-to",
+        type=float,
+        default=0.001,
+        metavar="KG",
+        help="the resolution of the scale the scene's bars and wheels were weighed on "
+        "(default 0.001 kg; 0: masses exact): the sigmas of J3, stiffness and damping include it",
+    )
+    p.add_argument(
         "--max-evaluations", type=int, default=40, help="of the residual per pass (default 40)"
     )
     p.add_argument(
@@ -172,12 +180,15 @@ def run(args) -> int:
     from gyrohost.ident.log_config import config_for_logs
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
+    from gyrohost.ident.weighing import with_weighing
     from gyrohost.resources import ResourceError
     from gyrotensegrity import Model, SceneError, load_scene
 
     out = args.out
     if out.suffix != ".toml":
         raise CliError(f"-o {out}: the identified scene must be a .toml file")
+    if not args.weighed_to >= 0.0:
+        raise CliError(f"--weighed-to {args.weighed_to}: a scale's resolution is 0 kg or more")
     warn = Warnings("identify")
     for log in args.logs:
         for warning in log_warnings(log):
@@ -219,6 +230,7 @@ def run(args) -> int:
     else:
         _describe(recs)
         result = _fit(fit, (scene, config, est, params, recs), args, two_passes(recs, STEP_S))
+    result = with_weighing(result, args.weighed_to)
     print("\n".join(report.report_lines(result)))
     _warn_undetermined(result)
     structure, config_used = None, config

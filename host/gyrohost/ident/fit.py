@@ -44,9 +44,9 @@ def broken_at(params, theta, what: str) -> str:
 class WalledResiduals:
     """Residual vectors of one length, walled where the model broke (:class:`Problem`,
     :class:`.filter_fit.FilterProblem`): the first evaluation sets the length, and a break
-    there is an :attr:`error`; a later break names its parameter vector in ``failures`` and
-    fills its residuals from where it broke on with :data:`FAILED_RESIDUAL`. Needs ``params``,
-    ``failures`` and ``_length``."""
+    there is an :attr:`error`; a later break, or a residual of another length, names its
+    parameter vector in ``failures`` and fills its residuals from where it broke on with
+    :data:`FAILED_RESIDUAL`. Needs ``params``, ``failures`` and ``_length``."""
 
     error: type[FitError] = FitError
 
@@ -56,6 +56,9 @@ class WalledResiduals:
             if broke:
                 raise self.error(broken_at(self.params, theta, broke))
             self._length = len(w)
+        if not broke and len(w) != self._length:
+            # a residual of another shape compares nothing with the others: walled as a break
+            broke = f"{len(w)} residuals where the first evaluation had {self._length}"
         if broke:
             self.failures.append(broken_at(self.params, theta, broke))
             w = np.nan_to_num(w[: self._length], nan=FAILED_RESIDUAL)
@@ -133,6 +136,9 @@ class FitResult:
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
+    weighing_sigma : float
+        Relative 1-sigma of the weighed masses included in the sigmas of the parameters that
+        scale with them (:mod:`.weighing`; 0: none).
     channels : tuple of str
         The columns of ``residuals``.
     streams : dict
@@ -158,6 +164,7 @@ class FitResult:
     dropped: list = field(default_factory=list)
     widened: dict = field(default_factory=dict)
     strings_valley: list = field(default_factory=list)
+    weighing_sigma: float = 0.0
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 

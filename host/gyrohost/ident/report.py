@@ -9,6 +9,7 @@ from gyrohost.ident.fit import BAR_GROUPS, INVOLVED, FitResult
 from gyrohost.ident.params import apply
 from gyrohost.ident.profile import VALLEY_STEP
 from gyrohost.ident.scenefile import scene_toml
+from gyrohost.ident.weighing import SCALED
 
 
 def report_lines(result: FitResult) -> list[str]:
@@ -48,6 +49,12 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append(
             f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
             "beyond their noise"
+        )
+    if result.weighing_sigma:
+        scaled = ", ".join(p.name for p in result.params if p.group in SCALED)
+        lines.append(
+            f"1-sigma of {scaled} includes the weighed masses' {100 * result.weighing_sigma:.2f} %"
+            " (the motion fixes them relative to the masses)"
         )
     if result.strings_valley:
         optima = ", ".join(f"{k:+.2f}: {c:.1f}" for k, c in result.strings_valley)
