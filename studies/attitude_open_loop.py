@@ -146,11 +146,17 @@ def report(name, target_deg, plan, q_land, q_after, settle_s, plan_s, sim_s):
     )
 
 
+def momentum_turn_deg(model, turn_deg):
+    """Roll, pitch, yaw (deg) of a turn by ``turn_deg`` about the prism's momentum: the turn its
+    strings s7 and s8 alone make (the wheels held)."""
+    _, H0 = AttitudeModel(model, ["s7", "s8"]).start(model.initial_state())
+    turn = Rotation.from_rotvec(np.radians(turn_deg) * H0 / np.linalg.norm(H0))
+    return np.degrees(euler_zyx(turn.as_matrix()))
+
+
 def prism_case(a):
     model = stiff_prism()
-    _, H0 = AttitudeModel(model, ["s7", "s8"]).start(model.initial_state())
-    turn = Rotation.from_rotvec(np.radians(a.prism_turn) * H0 / np.linalg.norm(H0))
-    target = np.degrees(euler_zyx(turn.as_matrix()))
+    target = momentum_turn_deg(model, a.prism_turn)
     start = time.perf_counter()
     plan = plan_attitude(model, np.radians(target), a.duration, strings=["s7", "s8"],
                          mode="strings")  # fmt: skip

@@ -89,3 +89,15 @@ def test_a_plan_on_the_length_limit_stays_exactly_on_it(dbar):
     for name, column in zip(plan.names, plan.rest_length.T, strict=True):
         low, high = limits.range_of(name)
         assert low <= column.min() and column.max() <= high
+
+
+def test_an_attitude_moves_the_strings_it_names():
+    """A scene that schedules no string (the prism) moves those the target names."""
+    from gyrohost.control.maneuver import planner_for
+    from gyrotensegrity import Model, load_scene
+
+    prism = Model(load_scene(shipped("scene", "prism-rig")))
+    target = Target(attitude_rpy_rad=(0.01, 0.0, 0.0), strings=("s7", "s8"))
+    assert planner_for(prism, Limits(), target).model.names == ("s7", "s8")
+    with pytest.raises(PlanError, match="strings to move go with an attitude"):
+        Target(tilt_rad=0.1, strings=("s13",))

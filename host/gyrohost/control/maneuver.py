@@ -68,6 +68,9 @@ class Target:
         Re-plans beside a real-time loop (a run): an attitude re-plan's work is bounded by the
         period (:class:`.closed_loop.Replanner`'s ``real_time``). Off on a simulated clock, so
         that its plans do not depend on the machine.
+    strings : tuple of str, optional
+        With an attitude: the strings it moves (default: those the scene schedules,
+        :class:`.shape_attitude.AttitudeModel`).
     """
 
     tilt_rad: float | None = None
@@ -83,6 +86,7 @@ class Target:
     target_rest: dict | None = None
     actuator_lag_s: float = 0.0
     real_time: bool = False
+    strings: tuple | None = None
 
     def __post_init__(self):
         if (self.tilt_rad is None) == (self.attitude_rpy_rad is None):
@@ -97,6 +101,8 @@ class Target:
             object.__setattr__(self, "knots", 6 if self.attitude_rpy_rad is None else 8)
         if self.mode not in MODES:
             raise PlanError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.strings is not None and self.attitude_rpy_rad is None:
+            raise PlanError("strings to move go with an attitude target, not a tilt")
         if self.target_rest and (self.attitude_rpy_rad is None or self.mode == "wheels"):
             raise PlanError("a target shape needs an attitude target whose strings move")
         if not 0.0 <= self.actuator_lag_s < self.period_s:
@@ -128,7 +134,8 @@ def planner_for(model, limits: Limits, target: Target):
     """The tilt planner (a tilt) or the three-axis planner on the reduced attitude model."""
     if target.attitude_rpy_rad is None:
         return Planner(model, limits, knots=target.knots)
-    return AttitudePlanner(AttitudeModel(model, limits=limits), target.knots, mode=target.mode)
+    reduced = AttitudeModel(model, target.strings, limits=limits)
+    return AttitudePlanner(reduced, target.knots, mode=target.mode)
 
 
 class Maneuver:
