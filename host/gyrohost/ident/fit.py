@@ -22,7 +22,7 @@ import numpy as np
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.ident import forward, lsq, profile, shooting
+from gyrohost.ident import forward, lsq, profile, shooting, weighing
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 from gyrotensegrity.errors import SimulationError
@@ -136,9 +136,12 @@ class FitResult:
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
-    weighing_sigma : float
-        Relative 1-sigma of the weighed masses included in the sigmas of the parameters that
-        scale with them (:mod:`.weighing`; 0: none).
+    mass_sensitivity : ndarray, shape (p,), or None
+        How the optimum moves with the log of the bars' mass (:mod:`.weighing`); None where a
+        group of :data:`BAR_GROUPS` is fitted (the masses are not taken as weighed).
+    weighing_sigma : ndarray, shape (p,), or None
+        The weighing's relative 1-sigma included in ``sigma`` (:func:`.weighing.with_weighing`;
+        None: not included).
     channels : tuple of str
         The columns of ``residuals``.
     streams : dict
@@ -164,7 +167,8 @@ class FitResult:
     dropped: list = field(default_factory=list)
     widened: dict = field(default_factory=dict)
     strings_valley: list = field(default_factory=list)
-    weighing_sigma: float = 0.0
+    mass_sensitivity: np.ndarray | None = None
+    weighing_sigma: np.ndarray | None = None
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 
@@ -200,6 +204,7 @@ class Problem(WalledResiduals):
 
     def __init__(self, scene: Scene, config: RigConfig, est: EstimatorConfig, params, recs):
         self.scene, self.config, self.params, self.recs = scene, config, params, recs
+        self.est = est
         self.servo_lag_s = nominal_lag(est, recs)
         self.imu_latency_s = est.imu_latency_s
         self.frame_nodes = est.imu_frame_nodes
@@ -218,6 +223,10 @@ class Problem(WalledResiduals):
     def applied(self, theta):
         return apply(self.scene, self.config, self.params, theta, self.servo_lag_s,
                      len(self.recs), self.imu_latency_s)  # fmt: skip
+
+    def with_params(self, params) -> "Problem":
+        """The same recordings and weights with the parameters ``params``."""
+        return Problem(self.scene, self.config, self.est, params, self.recs)
 
     def motions(self, theta) -> list:
         key = tuple(np.asarray(theta)[self.dynamic])
@@ -324,10 +333,12 @@ def fit(
     rms = {
         name: (stream_rms(initial, cols), stream_rms(final, cols)) for name, cols in STREAMS.items()
     }
+    weighed = not {p.group for p in params} & set(BAR_GROUPS)
+    sensitivity = weighing.bar_mass_sensitivity(problem, sol.x, sol.jac) if weighed else None
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
-        widened, [(k, float(c)) for k, _, c in strings],
+        widened, [(k, float(c)) for k, _, c in strings], sensitivity,
     )  # fmt: skip
 
 

@@ -50,11 +50,15 @@ def report_lines(result: FitResult) -> list[str]:
             f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
             "beyond their noise"
         )
-    if result.weighing_sigma:
-        scaled = ", ".join(p.name for p in result.params if p.group in SCALED)
+    if result.weighing_sigma is not None:
+        added = ", ".join(
+            f"{p.name} {100 * w:.2f} %"
+            for p, w in zip(result.params, result.weighing_sigma, strict=True)
+            if p.group in SCALED
+        )
         lines.append(
-            f"1-sigma of {scaled} includes the weighed masses' {100 * result.weighing_sigma:.2f} %"
-            " (the motion fixes them relative to the masses)"
+            f"1-sigma includes the weighing (the motion fixes these relative to the masses): "
+            f"{added}"
         )
     if result.strings_valley:
         optima = ", ".join(f"{k:+.2f}: {c:.1f}" for k, c in result.strings_valley)
