@@ -164,9 +164,11 @@ class AttitudePlanner:
         if not active.any():
             raise PlanError(f"mode {mode}: the scene has nothing to move (no strings or wheels)")
         self.active, self.scale = np.flatnonzero(active), scale
+        self.moves_lost_wheels = bool((active[model.a :] & model.lost).any())
+        """Whether a planned wheel's reaction is lost (:mod:`.wheel_reaction`): its spin-ups
+        change the total momentum and turn the body only gyroscopically."""
         if max_iter is None:
-            gyroscopic = (active[model.a :] & model.lost).any()
-            max_iter = MAX_ITER_GYROSCOPIC if gyroscopic else MAX_ITER
+            max_iter = MAX_ITER_GYROSCOPIC if self.moves_lost_wheels else MAX_ITER
         self.max_iter = int(max_iter)
         self.n_x, self.n_u = n_x, n_u
         self._taut = not isinstance(model.shape, RhombusShape)  # the rhombus: no tension
