@@ -15,8 +15,9 @@ Three parts:
 - ``prism`` (simulated clock): the stiff prism of studies.attitude_open_loop (its bars meet
   only strings, so its wheels act gyroscopically), planned on the nominal and played on a truth
   off by the same 1-sigma: strings s7 and s8 alone to a turn about its momentum, and with its
-  three wheels to a target off the momentum, through the same Maneuver and planner classes as
-  the D-bar (no prism code), estimate the truth plus :data:`NOISE`.
+  three wheels (and its wheels alone: refused) to a target off the momentum, through the same
+  Maneuver and planner classes as the D-bar (no prism code), estimate the truth plus
+  :data:`NOISE`.
 - ``rig`` (real time, EKF in the loop): ``gyrotens run --sim --target-attitude`` on the
   simulated rig (sim-rig) whose truth is the sil part's (dbar-rig with the follower string s24,
   off by the same 1-sigma), its wheels torque-driven by an ideal speed loop following the wheel
@@ -196,14 +197,15 @@ PRISM_DURATION_S = 6.0
 
 def prism_part(a):
     """The stiff prism of studies.attitude_open_loop in simulated time, the truth 1-sigma off:
-    strings s7 and s8 alone to a turn about the momentum, and with the three wheels to a target
-    off the momentum, open and closed loop, planned with the same classes as the D-bar."""
+    strings s7 and s8 alone to a turn about the momentum, and with the three wheels (and the
+    wheels alone, which turn a prism of fixed shape by nothing: refused) to a target off the
+    momentum, open and closed loop, planned with the same classes as the D-bar."""
     from studies.attitude_open_loop import PRISM_TARGET_DEG, momentum_turn_deg, stiff_prism_data
 
     nominal = Model(scene_from_dict(stiff_prism_data(), "prism-stiff.toml"))
     truth = Model(scaled_scene(stiff_prism_data(), "prism-stiff", **ONE_SIGMA))
     cases = [("strings", tuple(momentum_turn_deg(nominal, PRISM_TURN_DEG)))]
-    cases += [("both", PRISM_TARGET_DEG)]
+    cases += [("both", PRISM_TARGET_DEG), ("wheels", PRISM_TARGET_DEG)]
     prism = argparse.Namespace(**{**vars(a), "duration": PRISM_DURATION_S})
     print(f"prism: truth {truth.scene.source}, strings {', '.join(PRISM_STRINGS)}, landing "
           f"at {PRISM_DURATION_S:g} s")  # fmt: skip
