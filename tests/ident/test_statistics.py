@@ -237,6 +237,9 @@ def test_parameters_not_determined_keep_their_nominal_and_are_named():
     assert set(read_identified(header)) == {params[i].name for i in (0, 1, 4)}
     kept = apply_result(replace(result, theta=np.where(result.determined, theta, 0.0)), config)
     np.testing.assert_equal(apply_result(result, config).scene.to_dict(), kept.scene.to_dict())
+    assert not any("residual variance" in line for line in lines)  # none computed
+    told = report_lines(replace(result, residual_variance=9.24))
+    assert "residual variance per degree of freedom 9.24 (near 1 where" in "\n".join(told)
 
 
 def test_held_direction_leaves_the_covariance():

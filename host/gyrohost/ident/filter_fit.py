@@ -433,6 +433,7 @@ def fit(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), _status(sol.message, problem), scene, problem.servo_lag_s,
         strings_valley=[(k, float(c)) for k, _, c in strings], channels=CHANNELS, streams=STREAMS,
+        residual_variance=problem.residual_variance(sol.fun, len(params)),
     )  # fmt: skip
 
 

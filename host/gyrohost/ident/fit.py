@@ -136,6 +136,10 @@ class FitResult:
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
+    residual_variance : float
+        The weighted residuals' variance per degree of freedom at the optimum
+        (:meth:`WalledResiduals.residual_variance`): near 1 where the model follows the log to
+        the sensors' noise.
     mass_sensitivity : ndarray, shape (p,), or None
         How the optimum moves with the log of the bars' mass (:mod:`.weighing`); None where a
         group of :data:`BAR_GROUPS` is fitted (the masses are not taken as weighed).
@@ -167,6 +171,7 @@ class FitResult:
     dropped: list = field(default_factory=list)
     widened: dict = field(default_factory=dict)
     strings_valley: list = field(default_factory=list)
+    residual_variance: float = float("nan")
     mass_sensitivity: np.ndarray | None = None
     weighing_sigma: np.ndarray | None = None
     channels: tuple = CHANNELS
@@ -338,7 +343,9 @@ def fit(
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
         float(sol.cost), int(sol.nfev), str(sol.message), scene, problem.servo_lag_s, dropped,
-        widened, [(k, float(c)) for k, _, c in strings], sensitivity,
+        widened, [(k, float(c)) for k, _, c in strings],
+        residual_variance=problem.residual_variance(sol.fun, len(params)),
+        mass_sensitivity=sensitivity,
     )  # fmt: skip
 
 

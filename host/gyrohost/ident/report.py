@@ -45,6 +45,11 @@ def report_lines(result: FitResult) -> list[str]:
         lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
     for name, (before, after) in result.rms.items():
         lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
+    if np.isfinite(result.residual_variance):
+        lines.append(
+            f"residual variance per degree of freedom {result.residual_variance:.3g} (near 1 "
+            "where the fit follows the log to the sensors' noise)"
+        )
     for name, ratio in result.widened.items():
         lines.append(
             f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
