@@ -182,7 +182,8 @@ def planned_maneuver(config, target: Target, estimator) -> Maneuver:
     """The maneuver to ``target`` on the configuration's scene, within its servos' limits and
     its ``[run] max_wheel_speed_rad_s``; an attitude's re-plans allow for the lag of what it
     moves (the estimator's ``servo_lag_s``, ``wheel_lag_s``: the rig's) and are bounded by
-    their period (a run is real time)."""
+    their period (a run is real time); it moves the strings the configuration's servos wind
+    (unless the target names them), which need not be those the scene schedules."""
     from gyrohost.control.schedule import Limits
     from gyrotensegrity import Model, load_scene
 
@@ -190,7 +191,9 @@ def planned_maneuver(config, target: Target, estimator) -> Maneuver:
     if target.attitude_rpy_rad is not None:  # a tilt holds the wheels at the scene's spins
         limits = replace(limits, max_wheel_speed_rad_s=config.run.max_wheel_speed_rad_s)
         lag_s = actuator_lag(estimator, target.mode)
-        target = replace(target, actuator_lag_s=lag_s, real_time=True)
+        wound = tuple(s.string for s in config.servos.servo if s.string)
+        strings = target.strings if target.strings is not None else wound
+        target = replace(target, actuator_lag_s=lag_s, real_time=True, strings=strings)
     return Maneuver(Model(load_scene(config.scene_path)), limits, target)
 
 
