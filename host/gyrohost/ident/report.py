@@ -43,28 +43,7 @@ def report_lines(result: FitResult) -> list[str]:
         )
     if result.unresolved:
         lines.append("(log factors for J3, masses, inertias, stiffness, damping; else absolute)")
-    for name, (before, after) in result.rms.items():
-        lines.append(f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}")
-    if np.isfinite(result.residual_variance):
-        lines.append(
-            f"residual variance per degree of freedom {result.residual_variance:.3g} (near 1 "
-            "where the fit follows the log to the sensors' noise)"
-        )
-    for name, ratio in result.widened.items():
-        lines.append(
-            f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
-            "beyond their noise"
-        )
-    if result.weighing_sigma is not None:
-        added = ", ".join(
-            f"{p.name} {100 * w:.2f} %"
-            for p, w in zip(result.params, result.weighing_sigma, strict=True)
-            if p.group in SCALED
-        )
-        lines.append(
-            f"1-sigma includes the weighing (the motion fixes these relative to the masses): "
-            f"{added}"
-        )
+    lines += _fit_quality(result) + _sigma_notes(result)
     if result.strings_valley:
         optima = ", ".join(f"{k:+.2f}: {c:.1f}" for k, c in result.strings_valley)
         lines.append(
@@ -75,6 +54,41 @@ def report_lines(result: FitResult) -> list[str]:
     for name, t0, t1 in result.dropped:
         lines.append(f"not fitted (the prediction does not follow it): {name} {t0:.1f}-{t1:.1f} s")
     lines.append(f"{result.nfev} evaluations: {result.status}")
+    return lines
+
+
+def _fit_quality(result: FitResult) -> list[str]:
+    """How well the fit follows the log: the residual RMS per stream and the weighted
+    residuals' variance per degree of freedom."""
+    lines = [
+        f"residual RMS {name}: nominal {before:.4g}, identified {after:.4g}"
+        for name, (before, after) in result.rms.items()
+    ]
+    if np.isfinite(result.residual_variance):
+        lines.append(
+            f"residual variance per degree of freedom {result.residual_variance:.3g} (near 1 "
+            "where the fit follows the log to the sensors' noise)"
+        )
+    return lines
+
+
+def _sigma_notes(result: FitResult) -> list[str]:
+    """What widened the sigmas: the segments' spread, the weighing."""
+    lines = [
+        f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
+        "beyond their noise"
+        for name, ratio in result.widened.items()
+    ]
+    if result.weighing_sigma is not None:
+        added = ", ".join(
+            f"{p.name} {100 * w:.2f} %"
+            for p, w in zip(result.params, result.weighing_sigma, strict=True)
+            if p.group in SCALED
+        )
+        lines.append(
+            f"1-sigma includes the weighing (the motion fixes these relative to the masses): "
+            f"{added}"
+        )
     return lines
 
 
