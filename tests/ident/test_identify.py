@@ -243,3 +243,15 @@ def test_the_coverage_table_counts_errors_within_one_and_two_sigmas():
     assert j3[1:] == ["0.0150", "0.0250", "0.0100", "33%", "67%"]
     assert next(line for line in lines if line.startswith("damping")).endswith("100%        100%")
     assert lines[-1] == "(relative; expected coverage 68 % and 95 %, 4 seeds)"
+
+
+@pytest.mark.parametrize("resolution", ["-0.001", "nan"])
+def test_a_scale_resolution_below_zero_is_refused_before_a_log_is_read(
+    tmp_path, capsys, resolution
+):
+    argv = ["identify", str(tmp_path / "absent"), "-o", str(tmp_path / "x.toml")]
+    assert main([*argv, "--weighed-to", resolution]) == 2
+    assert f"--weighed-to {float(resolution)}: a scale's resolution is 0 kg or more" in (
+        capsys.readouterr().err
+    )
+    assert not any(tmp_path.iterdir())
