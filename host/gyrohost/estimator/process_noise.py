@@ -119,7 +119,7 @@ class ProcessNoise:
         n = L.q_dot.stop
         if not var.any():  # every string a line to round-off: no Jacobian needed
             return np.zeros((n, n))
-        G, _ = self.taut_columns(dt, F, x, margin)
+        G = self.taut_columns(dt, F, x, margin)
         return (G * var) @ G.T
 
     def tension_margins(self, x):
@@ -165,9 +165,10 @@ class ProcessNoise:
         stretch = s - X[:, self.layout.rest]
         return stretch, stretch + self.dyn.c_s / self.dyn.k_s * s_dot
 
-    def taut_columns(self, dt, F, x, margin=None):
+    def taut_columns(self, dt, F, x, margin):
         """Response of the node motion over a step to every rest length, each string as if taut
-        (``margin``: the strings' tension margins at ``x`` where the caller has them).
+        (``margin``: the strings' tension margins ``mu`` (alpha,) m at ``x``,
+        :meth:`tension_margins`).
 
         Returns
         -------
@@ -175,13 +176,9 @@ class ProcessNoise:
             ``dt/2 (b_i + F b_i)`` (trapezoid rule for the integral of the step's transition
             over the step), ``b_i`` = (0, d eta2_ddot / d rest_i) of string i held taut, m/m
             and (m/s)/m.
-        margin : ndarray, shape (alpha,), m
-            Tension margin ``mu_i`` of every string at ``x`` (taut while positive).
         """
         L = self.layout
         rest = x[L.rest]
-        if margin is None:
-            margin = np.minimum(*self.margins(x[None, : L.n_dynamic]))[0]
         # the string force is affine in its rest length while taut (slope -k along the string)
         # and the accelerations are affine in the string forces: any taut point gives the
         # column; 1 mm of margin keeps every string taut whatever its state
@@ -190,7 +187,7 @@ class ProcessNoise:
         n = L.q_dot.stop
         G = F[:n, L.q_dot] @ a
         G[L.q_dot] += a
-        return 0.5 * dt * G, margin
+        return 0.5 * dt * G
 
     def _rest_columns(self, x, rest):
         """``d eta2_ddot / d rest`` (3 m, alpha) at the state ``x`` with rest lengths ``rest``:
