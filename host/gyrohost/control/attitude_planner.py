@@ -321,13 +321,12 @@ class _Problem:
         return None
 
     def _nominal(self, z):
-        """States (K + 1, n_x) and scaled inputs (n_z,) of ``z`` alone: held, or simulated
-        without the complex copies (a re-plan cut before its first trajectory)."""
+        """States (K + 1, n_x) of ``z`` alone: held, or simulated without the complex copies
+        (a re-plan cut before its first trajectory)."""
         held = self._held(z)
         if held is not None:
-            return np.real(held[0][0]), np.real(held[1][0])
-        u = self.p.inputs(z[None], self.n_free)
-        return self.p.simulate(self.x0, self.H0, u, self.dt)[0], z
+            return np.real(held[0][0])
+        return self.p.simulate(self.x0, self.H0, self.p.inputs(z[None], self.n_free), self.dt)[0]
 
     def keep(self, z) -> None:
         """Hold the trajectory of ``z`` (computed before) apart from the last one: the plan a
@@ -445,7 +444,7 @@ class _Problem:
         return np.clip(res.x, -1.0, 1.0), bool(res.success), str(res.message)
 
     def result(self, z, ok, message, plan_time_s) -> AttitudePlan:
-        states, z = self._nominal(z)
+        states = self._nominal(z)
         inputs = self.p.inputs(z, self.n_free)
         q = states[-1, :4] / np.linalg.norm(states[-1, :4])
         rate = float(np.linalg.norm(self.p.landing_rate(states[-1], self.H0)))

@@ -141,8 +141,9 @@ class FitResult:
         (:meth:`WalledResiduals.residual_variance`): near 1 where the model follows the log to
         the sensors' noise.
     mass_sensitivity : ndarray, shape (p,), or None
-        How the optimum moves with the log of the bars' mass (:mod:`.weighing`); None where a
-        group of :data:`BAR_GROUPS` is fitted (the masses are not taken as weighed).
+        How the optimum moves with the log of the bars' mass (:mod:`.weighing`); None where no
+        parameter scales with the masses, or a group of :data:`BAR_GROUPS` is fitted (the
+        masses are not taken as weighed).
     weighing_sigma : ndarray, shape (p,), or None
         The weighing's relative 1-sigma included in ``sigma`` (:func:`.weighing.with_weighing`;
         None: not included).
@@ -338,7 +339,8 @@ def fit(
     rms = {
         name: (stream_rms(initial, cols), stream_rms(final, cols)) for name, cols in STREAMS.items()
     }
-    weighed = not {p.group for p in params} & set(BAR_GROUPS)
+    groups = {p.group for p in params}
+    weighed = groups & set(weighing.SCALED) and not groups & set(BAR_GROUPS)
     sensitivity = weighing.bar_mass_sensitivity(problem, sol.x, sol.jac) if weighed else None
     return FitResult(
         params, sol.x, sigma, corr, unresolved, separable, combos, valley, final, initial, rms,
