@@ -22,7 +22,7 @@ import numpy as np
 
 from gyrohost.config import RigConfig
 from gyrohost.estimator.config import EstimatorConfig
-from gyrohost.ident import forward, lsq, profile, shooting, weighing
+from gyrohost.ident import correlated, forward, lsq, profile, shooting, weighing
 from gyrohost.ident.params import OUTPUT_GROUPS, Param, apply
 from gyrotensegrity import Scene
 from gyrotensegrity.errors import SimulationError
@@ -133,6 +133,11 @@ class FitResult:
     widened : dict
         Output parameter -> the factor its sigma was widened by because the segments disagree
         about it beyond their noise (:func:`.profile.segment_spread`).
+    correlated : dict
+        Parameter -> the factor by which the residuals' correlation in time widens its sigma
+        (:mod:`.correlated`), where above 1; the larger of it and ``widened`` is applied.
+    correlation_lags : int
+        The bandwidth of that correlation, IMU samples (0: not estimated).
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
@@ -175,6 +180,8 @@ class FitResult:
     residual_variance: float = float("nan")
     mass_sensitivity: np.ndarray | None = None
     weighing_sigma: np.ndarray | None = None
+    correlated: dict = field(default_factory=dict)
+    correlation_lags: int = 0
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 
@@ -331,11 +338,14 @@ def fit(
         sol, strings = profile.strings_valley(solve, problem, sol, lower)
     final = [-e for e in problem.errors(sol.x)]
     sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
-    widened = {}
+    spread, widened = np.ones(len(params)), {}
     if segmented:
-        ratio = profile.segment_spread(problem, sol.x, ~problem.dynamic, forward.STEP_S)
-        widened = {p.name: float(r) for p, r in zip(params, ratio, strict=True) if r > 1.0}
-        sigma = sigma * ratio
+        spread = profile.segment_spread(problem, sol.x, ~problem.dynamic, forward.STEP_S)
+        widened = {p.name: float(r) for p, r in zip(params, spread, strict=True) if r > 1.0}
+    along, lags = correlation_widening(problem, sol, valley, [len(e) for e in final])
+    sigma = sigma * np.maximum(spread, [along(e) for e in np.eye(len(params))])
+    combos = [(c, value, s * along(c)) for c, value, s in combos]
+    correlated_by = {p.name: along(e) for p, e in zip(params, np.eye(len(params)), strict=True)}
     rms = {
         name: (stream_rms(initial, cols), stream_rms(final, cols)) for name, cols in STREAMS.items()
     }
@@ -348,7 +358,19 @@ def fit(
         widened, [(k, float(c)) for k, _, c in strings],
         residual_variance=problem.residual_variance(sol.fun, len(params)),
         mass_sensitivity=sensitivity,
+        correlated={k: v for k, v in correlated_by.items() if v > 1.0},
+        correlation_lags=lags,
     )  # fmt: skip
+
+
+def correlation_widening(problem: Problem, sol, valley, sizes):
+    """``along(v)``: how much the residuals' correlation in time widens the sigma along the
+    parameter direction ``v`` (:mod:`.correlated`; at least 1), and the bandwidth, samples.
+    ``valley``: the undetermined common scale held out, as :func:`statistics` holds it."""
+    s2 = problem.residual_variance(sol.fun, len(sol.x))
+    cov, _, _ = uncertainty(sol.jac, s2, len(sol.x), held=valley)
+    hac, lags = correlated.sandwich(cov, s2, sol.jac, sol.fun, sizes, len(CHANNELS))
+    return (lambda v: correlated.widening(cov, hac, v)), lags
 
 
 def solver(params, progress, max_nfev: int, ftol: float):

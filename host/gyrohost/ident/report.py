@@ -73,12 +73,20 @@ def _fit_quality(result: FitResult) -> list[str]:
 
 
 def _sigma_notes(result: FitResult) -> list[str]:
-    """What widened the sigmas: the segments' spread, the weighing."""
+    """What widened the sigmas: the segments' spread, the residuals' correlation, the
+    weighing."""
     lines = [
         f"1-sigma of {name} widened {ratio:.2f} times: the segments disagree about it "
         "beyond their noise"
         for name, ratio in result.widened.items()
     ]
+    wide = [f"{name} x{f:.2f}" for name, f in result.correlated.items() if round(f, 2) > 1.0]
+    if wide:
+        lines.append(
+            f"residuals correlated over {result.correlation_lags} IMU samples (the model "
+            f"does not follow the log to the sensors' noise there): 1-sigma widened "
+            f"{', '.join(wide)} (where the segments' spread widens one more, that applies)"
+        )
     if result.weighing_sigma is not None:
         added = ", ".join(
             f"{p.name} {100 * w:.2f} %"
