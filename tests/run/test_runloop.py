@@ -161,6 +161,36 @@ def test_an_injected_device_fault_ends_in_the_safe_state_and_is_named(tmp_path, 
         assert "overload" in " ".join(safe["servos"]["s13"]["faults"]).lower()
 
 
+def break_the_estimator(loop, phase, t_s):
+    """A non-finite rest length into the estimator once the schedule plays: its next
+    prediction fails (a NaN the filter refuses to carry on with)."""
+    if phase == "schedule" and not hasattr(loop, "broken"):
+        loop.broken = True
+        loop.estimator.set_input([math.nan, L0], t_s)
+
+
+def test_an_estimator_failure_ends_a_run_that_needs_the_estimate(tmp_path):
+    result, folder = run(tmp_path, on_tick=break_the_estimator)
+    assert result.exit_status == 1 and "non-finite" in result.reason, result.reason
+    assert_safe_state(folder, result)
+
+
+def test_an_identification_run_records_on_when_its_estimator_fails(tmp_path):
+    """Nothing acts on an identification run's estimate (no tilt limit, no maneuver): the
+    failure is told and the recording completes with every input stream to its end."""
+    schedule = replace(short_schedule(duration_s=1.0), purpose="identification")
+    result, folder = run(tmp_path, schedule, on_tick=break_the_estimator)
+    assert result.exit_status == 0, result.reason
+    told = [m for k, m in events(folder) if k == "notice" and "estimator" in m]
+    assert told and "non-finite" in told[0] and "goes on without it" in told[0]
+    end = read_stream(folder, "imu")["t_s"][-1]
+    assert read_stream(folder, "estimate")["t_s"][-1] < end - 0.5  # the estimate stopped
+    assert result.summary["estimator"]["required"] is False
+    with_limit = replace(SHORT, max_tilt_rad=1.0)  # a limit on the estimate: it is needed
+    result, folder = run(tmp_path / "limited", schedule, with_limit, break_the_estimator)
+    assert result.exit_status == 1 and "non-finite" in result.reason, result.reason
+
+
 def test_a_limit_breach_during_the_run_ends_in_the_safe_state(tmp_path):
     schedule = short_schedule(L0 - 0.1, 1.0)  # tilts the spinning D-bar by several degrees
     result, folder = run(tmp_path, schedule, replace(SHORT, max_tilt_rad=math.radians(1.0)))

@@ -453,14 +453,37 @@ class RunLoop:
         try:  # a lagging estimate ends the run while the limits act on it
             est.exchange(t_s, self.settings.estimator_max_lag_s if self.ekf else math.inf)
         except Exception as exc:
-            if strict:
+            if strict and self.estimate_required:
                 raise
-            self.event("fault", f"estimator: {failure_text(exc)}")
-        self.latest_tilt = est.tilt_rad
+            if strict:
+                self._without_estimator(exc)
+            else:
+                self.event("fault", f"estimator: {failure_text(exc)}")
+        self.latest_tilt = est.tilt_rad if self.ekf is not None else math.nan
         new = est.t != self._followed_t_s
         if strict and new and self.phase == "schedule" and self.maneuver is not None:
             self._followed_t_s = est.t
             self._follow_estimate(t_s)
+
+    @property
+    def estimate_required(self) -> bool:
+        """Whether the run needs its estimate: every run but an identification run (whose
+        scene is the one still to be identified) on which nothing acts on the estimate (no
+        tilt limit, no maneuver)."""
+        return (
+            self.schedule.purpose != "identification"
+            or math.isfinite(self.settings.max_tilt_rad)
+            or self.maneuver is not None
+        )
+
+    def _without_estimator(self, exc: BaseException) -> None:
+        """The estimator of a run that does not need it failed (:attr:`estimate_required`):
+        told, and the recording goes on unfused; the estimate's log ends here."""
+        self.ekf = None
+        self.notice(
+            f"estimator: {failure_text(exc)}; nothing acts on the estimate of this "
+            "identification run: the recording goes on without it"
+        )
 
     def _follow_estimate(self, now_s: float) -> None:
         """Closed loop: the estimate to the maneuver at the tick ``now_s``, its schedule from

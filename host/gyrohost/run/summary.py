@@ -49,8 +49,7 @@ def run_summary(loop, reason: str, safe: dict) -> dict:
         out["estimator"] = {
             **loop.estimator.health,
             "lag_s": loop.estimator.lag_table(),
-            # an identification run's scene is the one still to be identified
-            "required": loop.schedule.purpose != "identification",
+            "required": loop.estimate_required,
         }
     if loop.maneuver is not None:
         out["maneuver"] = loop.maneuver.summary()
