@@ -44,3 +44,20 @@ def test_a_rippled_cost_is_solved_to_its_smooth_minimum():
 def test_steps_must_be_positive():
     with pytest.raises(ValueError, match=r"steps must be positive, got \[0.1, 0.0\]"):
         lsq.solve(rippled, None, np.zeros(2), [0.1, 0.0], [-1.0, -1.0])
+
+
+def test_a_start_on_a_lower_bound_still_moves():
+    """A parameter fitted at its bound before (a latency at 0) starts the next fit there:
+    scipy's trust region starts as wide as the start is long, and the start nudged 1e-10 off
+    the bound made it 1e-15 wide, every step refused (held-out case 41's IMU yaw left where
+    the output error had put it, 2 degrees off)."""
+
+    def quadratic(theta):
+        return theta - np.array([0.04, 0.003])
+
+    lower = np.array([-np.inf, -9.99988e-11])  # the second at its bound 0 (nominal 1e-10)
+    sol = lsq.solve(
+        quadratic, lambda ts: [quadratic(t) for t in ts], np.zeros(2), [1e-3, 2e-3], lower,
+        xtol=1e-10,
+    )  # fmt: skip
+    np.testing.assert_allclose(sol.x, [0.04, 0.003], atol=1e-6)

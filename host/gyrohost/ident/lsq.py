@@ -39,6 +39,27 @@ def forward_jacobian(batch: Batch, theta, r0: np.ndarray, steps) -> np.ndarray:
     return np.column_stack([(r - r0) / d for r, d in zip(batch(list(moved)), h, strict=True)])
 
 
+FEASIBLE_MARGIN = 1e-10
+"""scipy's ``make_strictly_feasible`` margin (relative, at least absolute): a start this near a
+bound is moved this far inside it (scipy 1.17, ``least_squares``)."""
+
+
+def off_the_bounds(theta0, lower, steps) -> np.ndarray:
+    """``theta0`` with each parameter that starts on its lower bound (within
+    :data:`FEASIBLE_MARGIN`) one step above it.
+
+    scipy's trust region starts as wide as the scaled start is long (``trf``: ``Delta =
+    norm(x0 ...)``, 1 only for a start of exactly 0). A fit that starts from 0 with a parameter
+    on its bound (a latency fitted to 0 by the stage before) has its start nudged 1e-10 off
+    the bound, a first trust region some 1e-15 wide, and every step refused until ``xtol``
+    ends it where it began. One step inside, the region starts a step wide and grows."""
+    theta0 = np.array(theta0, float)
+    lower = np.asarray(lower, float)
+    on = np.isfinite(lower) & (theta0 - lower <= FEASIBLE_MARGIN * np.maximum(1.0, np.abs(lower)))
+    theta0[on] = lower[on] + steps[on]
+    return theta0
+
+
 def solve(residual: Residual, batch: Batch, theta0, steps, lower, **options) -> OptimizeResult:
     """``least_squares(residual, theta0, bounds=(lower, inf), **options)`` with the Jacobian of
     :func:`forward_jacobian` over ``steps`` (shape (p,), positive) from ``batch``; the residual
@@ -46,6 +67,7 @@ def solve(residual: Residual, batch: Batch, theta0, steps, lower, **options) -> 
     steps = np.asarray(steps, float)
     if np.any(steps <= 0.0):
         raise ValueError(f"steps must be positive, got {steps.tolist()}")
+    theta0 = off_the_bounds(theta0, lower, steps)
     last_theta, last_r = None, None
 
     def remembered(theta):
