@@ -76,3 +76,20 @@ def test_scores_sum_each_samples_channels():
 def test_residuals_that_are_not_whole_samples_are_refused():
     with pytest.raises(ValueError, match="7 residuals: not 2 channels for each of the 3 samples"):
         correlated.scores(np.zeros((7, 1)), np.zeros(7), [3], 2)
+
+
+def test_the_report_names_the_bandwidth_and_the_widened_sigmas_only():
+    from gyrohost.ident.fit import FitResult
+    from gyrohost.ident.params import Param
+    from gyrohost.ident.report import report_lines
+
+    params = [Param("J3", "J3", True, 1e-5, "kg m^2"), Param("mounting.yaw", "mounting", False,
+                                                             0.0, "rad")]  # fmt: skip
+    result = FitResult(
+        params, np.zeros(2), np.array([0.01, 0.02]), np.eye(2), [], np.ones(2, bool), [], None,
+        [], [], {}, 0.0, 0, "", None, 0.0, correlated={"J3": 1.001, "mounting.yaw": 4.1},
+        correlation_lags=140,
+    )  # fmt: skip
+    (line,) = [t for t in report_lines(result) if t.startswith("residuals correlated")]
+    assert "over 140 IMU samples: 1-sigma widened mounting.yaw x4.10 (" in line
+    assert "J3" not in line  # 1.00 as printed: not a widening worth a word

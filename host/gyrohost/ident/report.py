@@ -83,8 +83,7 @@ def _sigma_notes(result: FitResult) -> list[str]:
     wide = [f"{name} x{f:.2f}" for name, f in result.correlated.items() if round(f, 2) > 1.0]
     if wide:
         lines.append(
-            f"residuals correlated over {result.correlation_lags} IMU samples (the model "
-            f"does not follow the log to the sensors' noise there): 1-sigma widened "
+            f"residuals correlated over {result.correlation_lags} IMU samples: 1-sigma widened "
             f"{', '.join(wide)} (where the segments' spread widens one more, that applies)"
         )
     if result.weighing_sigma is not None:
