@@ -134,8 +134,9 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     first, _, second = text.partition("then the sensor by the filter's likelihood: 5 parameters")
     assert "by the output error" in first and "J3" in first and "accel_psd" not in first
     assert "accel_psd" in second and "mounting.yaw" in second and "J3 " not in second
+    assert "mounting.yaw started" in second  # its start along the yaw (ident/staged.py)
     header = out.read_text()
-    assert header.count("mounting.yaw") == 2
+    assert header.count("mounting.yaw") == 3  # each stage's row, the second's start
     overlay = tomllib.loads((tmp_path / "ident-config.toml").read_text())
     yaw = overlay["imu"]["mounting_rpy_rad"][2]
     reported = read_identified(header)

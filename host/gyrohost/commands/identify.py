@@ -240,16 +240,17 @@ def run(args) -> int:
     return 0
 
 
-def _fit(fitter, problem: tuple, args, two: bool = False, workers: bool = False):
+def _fit(fitter, problem: tuple, args, two: bool = False, workers: bool = False, line=None):
     """Run ``fitter`` on ``problem`` (scene, config, est, params, recs) with a progress line;
-    ``two``: an output-error fit in two passes; ``workers``: a filter fit, on ``--workers``."""
+    ``two``: an output-error fit in two passes; ``workers``: a filter fit, on ``--workers``,
+    started along ``line`` (:func:`gyrohost.ident.filter_fit.fit`)."""
     from gyrohost.commands.errors import CliError
     from gyrohost.ident import profile
     from gyrohost.ident.errors import FitError
 
     params = problem[3]
     passes = 2 + len(profile.VALLEY_STEPS) if workers else (2 if two else 1)
-    kwargs = {"workers": args.workers} if workers else {}
+    kwargs = {"workers": args.workers, "line": line} if workers else {}
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:
         with profile.observing(progress.statistics):
@@ -279,7 +280,8 @@ def _refine(structure, config, groups, args):
         f"then the sensor by the filter's likelihood: {len(problem[3])} parameters over the "
         f"first {span:g} s of each log"
     )
-    result = _fit(filter_fit.fit, problem, args, workers=True)
+    line = staged.yaw_line(structure, problem[3])
+    result = _fit(filter_fit.fit, problem, args, workers=True, line=line)
     print("\n".join(report.report_lines(result)))
     _warn_undetermined(result)
     return result, problem[1]

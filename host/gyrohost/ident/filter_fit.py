@@ -404,11 +404,15 @@ def fit(
     progress: Callable[[int, float], None] | None = None,
     max_nfev: int = 40,
     workers: int | None = 1,
+    line: tuple[int, float] | None = None,
 ) -> output_fit.FitResult:
     """Fit ``params`` to the recordings ``recs`` (:class:`FilterRecording`) by the filter's
     prediction error; ``progress(runs, cost)`` after every evaluation; the Jacobians' columns
     and the profiles' samples in ``workers`` processes (None: :func:`usable_cores`). The result
-    is the output-error fit's, its residuals the IMU's innovations (:data:`STREAMS`)."""
+    is the output-error fit's, its residuals the IMU's innovations (:data:`STREAMS`).
+
+    ``line`` (index, sigma): the fit starts from the smooth minimum of the likelihood along
+    that parameter within +-3 sigma of its nominal (:func:`.profile.line_start`)."""
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
     workers = usable_cores() if workers is None else workers
@@ -416,9 +420,10 @@ def fit(
     solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL)
     try:
         initial = problem.errors(np.zeros(len(params)))
-        sol, strings = profile.strings_valley(
-            solve, problem, solve(problem, np.zeros(len(params))), lower
-        )
+        start, samples = np.zeros(len(params)), []
+        if line is not None:
+            start, samples = profile.line_start(problem, start, *line)
+        sol, strings = profile.strings_valley(solve, problem, solve(problem, start), lower)
         final = problem.errors(sol.x)
         sigma, corr, unresolved, separable, combos, valley = output_fit.statistics(
             problem, sol, lower, steps
@@ -434,6 +439,7 @@ def fit(
         float(sol.cost), int(sol.nfev), _status(sol.message, problem), scene, problem.servo_lag_s,
         strings_valley=[(k, float(c)) for k, _, c in strings], channels=CHANNELS, streams=STREAMS,
         residual_variance=problem.residual_variance(sol.fun, len(params)),
+        start_line=None if line is None else (params[line[0]].name, start[line[0]], samples),
     )  # fmt: skip
 
 

@@ -138,6 +138,10 @@ class FitResult:
         (:mod:`.correlated`), where above 1; the larger of it and ``widened`` is applied.
     correlation_lags : int
         The bandwidth of that correlation, IMU samples (0: not estimated).
+    start_line : (str, float, list of (float, float)) or None
+        The parameter the fit started from the smooth minimum along (:func:`.profile.
+        line_start`), that start and the samples, each an offset from its nominal (its units
+        of ``theta``) and a cost; None where the fit started from the nominal.
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
@@ -182,6 +186,7 @@ class FitResult:
     weighing_sigma: np.ndarray | None = None
     correlated: dict = field(default_factory=dict)
     correlation_lags: int = 0
+    start_line: tuple | None = None
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 

@@ -58,6 +58,11 @@ two trade on the D-bar's preset (solved again from there, the fit stays within a
 its start, at costs within tens of units; along the major axis of their linearised covariance
 it slides back towards the start instead) and about the spacing of the local optima along it
 (docs/identification.md)."""
+LINE_SIGMAS = np.linspace(-3.0, 3.0, 13)
+"""Where the cost is sampled along one parameter before a fit starts (:func:`line_start`), in
+the sigmas the stage before gave it: +-3 of them, half a sigma apart."""
+LINE_REACH = 6.0
+"""How far out, in those sigmas, the samples go on while the lowest is the outermost."""
 SCALE_STEP = 0.2
 """Log factor of the common scale tested: +-20 % (the spread of the unmeasured parameters)."""
 CHI2_95 = 3.841
@@ -303,13 +308,66 @@ def strings_valley(solve, problem, sol, lower):
             break
     near = points[max(lowest - 2, 0) : lowest + 3]
     offsets, thetas, costs = (np.array(v) for v in zip(*near, strict=True))
-    vertex = offsets[np.argmin(costs)]
-    if len(near) >= 3:
+    vertex = lowest_vertex(offsets, costs)
+    start = np.array([np.interp(vertex, offsets, column) for column in thetas.T])
+    return solve(problem, start), points
+
+
+def lowest_vertex(offsets: np.ndarray, costs: np.ndarray) -> float:
+    """Where a parabola through the lowest of ``costs`` (at increasing ``offsets``) and up to
+    two neighbours either side has its vertex, within them; the lowest's offset where they are
+    not convex."""
+    lowest = int(np.argmin(costs))
+    lo, hi = max(lowest - 2, 0), lowest + 3
+    offsets, costs = np.asarray(offsets[lo:hi], float), np.asarray(costs[lo:hi], float)
+    vertex = float(offsets[lowest - lo])
+    if len(offsets) >= 3:
         a, b, _ = np.polyfit(offsets, costs, 2)
         if a > 0.0:
             vertex = float(np.clip(-b / (2.0 * a), offsets[0], offsets[-1]))
-    start = np.array([np.interp(vertex, offsets, column) for column in thetas.T])
-    return solve(problem, start), points
+    return vertex
+
+
+def line_start(problem, theta, i: int, sigma: float) -> tuple[np.ndarray, list]:
+    """``theta`` with parameter ``i`` moved to the smooth minimum of the cost along it within
+    ``+-3 sigma`` (:data:`LINE_SIGMAS`), and the samples (offset, cost).
+
+    The filter's likelihood is smooth only near the rig's value of the IMU's yaw: a degree or
+    two away its linearisation breaks at moments of the run and the cost jumps by hundreds
+    (reports/identification-heldout.md), and over a finite-difference step it is rough by some
+    ten units everywhere (gates and slack kinks crossed a sample earlier). A local solve started
+    out there refuses every step and stops where it began; started from the vertex of the
+    lowest samples along the line (:func:`lowest_vertex`), it is in the smooth basin. While the
+    lowest sample is the outermost, the line goes on by as many samples that side, up to
+    :data:`LINE_REACH` sigmas."""
+    spacing = LINE_SIGMAS[1] - LINE_SIGMAS[0]
+    samples = dict(_line_costs(problem, theta, i, LINE_SIGMAS * sigma))
+    while True:
+        offsets = np.array(sorted(samples))
+        lowest = int(np.argmin([samples[o] for o in offsets]))
+        side = -1.0 if lowest == 0 else 1.0 if lowest == len(offsets) - 1 else 0.0
+        edge = offsets[lowest] / sigma
+        if side == 0.0 or abs(edge) + spacing > LINE_REACH + 1e-9:
+            break
+        more = edge + side * spacing * np.arange(1, len(LINE_SIGMAS) // 2 + 1)
+        more = more[np.abs(more) <= LINE_REACH + 1e-9]
+        samples.update(_line_costs(problem, theta, i, more * sigma))
+    costs = np.array([samples[o] for o in offsets])
+    start = np.array(theta, float)
+    start[i] += lowest_vertex(offsets, costs)
+    return start, list(zip(offsets.tolist(), costs.tolist(), strict=True))
+
+
+def _line_costs(problem, theta, i: int, offsets) -> list[tuple[float, float]]:
+    """(offset, cost) of ``theta`` with parameter ``i`` moved by each of ``offsets``."""
+    thetas = []
+    for o in offsets:
+        t = np.array(theta, float)
+        t[i] += o
+        thetas.append(t)
+    return [
+        (float(o), 0.5 * float(r @ r)) for o, r in zip(offsets, problem.batch(thetas), strict=True)
+    ]
 
 
 def _valley_points(optima, origin, idx) -> list[tuple]:

@@ -51,6 +51,14 @@ def report_lines(result: FitResult) -> list[str]:
             f"damping x{np.exp(VALLEY_STEP[1]):.3f}: cost at its optimum): {optima}; "
             f"fitted from its parabola's vertex, cost {result.cost:.1f}"
         )
+    if result.start_line is not None:
+        name, start, samples = result.start_line
+        offsets, costs = zip(*samples, strict=True)
+        lines.append(
+            f"{name} started {start:+.4g} from its nominal: the smooth minimum of the cost "
+            f"along it from {offsets[0]:+.4g} to {offsets[-1]:+.4g} (costs {min(costs):.1f} "
+            f"to {max(costs):.1f})"
+        )
     for name, t0, t1 in result.dropped:
         lines.append(f"not fitted (the prediction does not follow it): {name} {t0:.1f}-{t1:.1f} s")
     lines.append(f"{result.nfev} evaluations: {result.status}")

@@ -23,6 +23,11 @@ from gyrohost.ident.report import apply_result
 SENSOR_GROUPS = ("mounting", "imu-latency", "process-noise")
 """What the filter refines: the IMU's mounting and latency, and its own noise scale. The IMU's
 biases are the filter's states."""
+LINE_PARAM = "mounting.yaw"
+"""The parameter the filter starts from the smooth minimum along (:func:`.profile.line_start`):
+the IMU's yaw, which gravity does not fix and the output error fixes only through the motion it
+misfits (a degree or more off where it misfits, its sigma widened as much by the residuals'
+correlation), while the filter's likelihood is smooth only near the rig's value."""
 SENSOR_WINDOW_S = 5.0
 """Seconds of each log, from its lead-in, the filter refines over: the identify schedule's
 first block of pulls, whose pitch rates carry the yaw, before the D-bar rolls over (past which
@@ -52,3 +57,16 @@ def sensor_problem(structure, config, logs, groups, until_s=None, warn=None):
     refined = [g for g in SENSOR_GROUPS if g in groups or g == "process-noise"]
     params = parameters(scene, start, refined, est.servo_lag_s, len(recs), est, True)
     return scene, start, est, params, recs
+
+
+def yaw_line(structure, params) -> tuple[int, float] | None:
+    """``(index in params, sigma)`` of :data:`LINE_PARAM` for :func:`.filter_fit.fit`'s
+    ``line``: its sigma the output error's ``structure`` gave it; None where the output error
+    did not fit it or left it undetermined."""
+    names = [p.name for p in structure.params]
+    if LINE_PARAM not in names or LINE_PARAM not in [p.name for p in params]:
+        return None
+    i = names.index(LINE_PARAM)
+    if not structure.determined[i]:
+        return None
+    return [p.name for p in params].index(LINE_PARAM), float(structure.sigma[i])
