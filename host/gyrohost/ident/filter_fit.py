@@ -417,7 +417,7 @@ def fit(
     steps = [p.step for p in params]
     workers = usable_cores() if workers is None else workers
     problem = FilterProblem(scene, config, est, params, recs, workers)
-    solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL)
+    solve = output_fit.solver(params, progress, max_nfev, output_fit.SEGMENTED_FTOL, True)
     try:
         initial = problem.errors(np.zeros(len(params)))
         start, samples = np.zeros(len(params)), []

@@ -378,13 +378,20 @@ def correlation_widening(problem: Problem, sol, valley, sizes):
     return (lambda v: correlated.widening(cov, hac, v)), lags
 
 
-def solver(params, progress, max_nfev: int, ftol: float):
+def solver(params, progress, max_nfev: int, ftol: float, scaled: bool = False):
     """``solve(problem, theta0)``: the least-squares fit (:func:`.lsq.solve`) of a problem's
     residual (:class:`Problem` or one with its interface) from ``theta0`` within the bounds of
     ``params`` and with their finite-difference steps, ``progress(simulations, cost)`` after
-    every evaluation."""
+    every evaluation.
+
+    ``scaled``: the trust region measured in each parameter's step (scipy's ``x_scale``) rather
+    than in the parameters' own units. The filter fit's differ by orders (rad, s, a log
+    factor): unscaled, a first region as wide as a 0.02 rad start along the yaw let a 20 ms
+    step of the latency in, every such step was refused, and the fit ended on ``xtol`` with
+    the latency and the noise scale where they started."""
     lower = np.array([p.lower for p in params])
     steps = [p.step for p in params]
+    options = {"x_scale": np.array(steps, float)} if scaled else {}
 
     def solve(problem, theta0):
         def reported(rs):
@@ -396,7 +403,7 @@ def solver(params, progress, max_nfev: int, ftol: float):
         return lsq.solve(
             lambda theta: reported([problem(theta)])[0],
             lambda thetas: reported(problem.batch(thetas)),
-            theta0, steps, lower, xtol=1e-10, ftol=ftol, max_nfev=max_nfev,
+            theta0, steps, lower, xtol=1e-10, ftol=ftol, max_nfev=max_nfev, **options,
         )  # fmt: skip
 
     return solve
