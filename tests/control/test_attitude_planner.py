@@ -9,6 +9,7 @@ from prism_variants import prism
 
 from gyrohost.control import Limits, PlanError
 from gyrohost.control.attitude_planner import (
+    FEASIBLE,
     LANDING_RATE_RAD_S,
     AttitudePlanner,
     AttitudeWeights,
@@ -47,7 +48,8 @@ def test_a_prism_reaches_a_three_axis_target_with_strings_and_wheels(prism_plan)
     plan = prism_plan
     assert plan.success, plan.message
     assert plan.landing_error_rad < 0.005
-    assert plan.landing_rate_rad_s <= LANDING_RATE_RAD_S * (1 + 1e-6)
+    # kept as the planner keeps its constraints: its square within FEASIBLE (rad^2/s^2)
+    assert plan.landing_rate_rad_s**2 <= LANDING_RATE_RAD_S**2 + FEASIBLE
     s = plan.schedule
     assert s.names == ("s7", "s8") and s.wheels == ("bar1", "bar2", "bar3")
     assert s.problems(Limits()) == []
