@@ -181,6 +181,7 @@ def run(args) -> int:
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
     from gyrohost.ident.weighing import with_weighing
+    from gyrohost.ident.wheel_error import wheel_walk
     from gyrohost.resources import ResourceError
     from gyrotensegrity import Model, SceneError, load_scene
 
@@ -236,7 +237,13 @@ def run(args) -> int:
     structure, config_used = None, config
     if args.method == "staged":
         structure, (result, config_used) = result, _refine(result, config, groups, args)
-    _write(args, result, config_used, structure)
+    walk = None if args.method == "filter" else wheel_walk(recs, est)
+    if walk is not None:
+        print(
+            f"wheels' speed error (settled reports less commands, less the reports' noise): "
+            f"std {walk[1]:.4f} rad/s; the filter's wheel walk {walk[0]:.3g} rad^2/s^3"
+        )
+    _write(args, result, config_used, structure, walk)
     return 0
 
 
@@ -300,10 +307,11 @@ def _warn_undetermined(result) -> None:
         )
 
 
-def _write(args, result, config, structure=None) -> None:
+def _write(args, result, config, structure=None, walk=None) -> None:
     """Write the identified scene (``structure``'s when the fit was staged, its header both
     stages' reports), the configuration overlay (``result``'s, on ``config``; a staged fit's
-    keeps what the first stage determined and the second left) and the residuals' plots."""
+    keeps what the first stage determined and the second left; the wheels' walk ``walk``
+    measured from the logs) and the residuals' plots."""
     from gyrohost.ident import report
 
     out = args.out
@@ -313,7 +321,7 @@ def _write(args, result, config, structure=None) -> None:
     out.write_text(report.identified_scene(first, config, args.logs, later))
     overlay = args.overlay or out.with_name(out.stem + "-config.toml")
     overlay.parent.mkdir(parents=True, exist_ok=True)
-    overlay.write_text(report.overlay_toml(result, config, structure))
+    overlay.write_text(report.overlay_toml(result, config, structure, walk))
     plot = out.with_name(out.stem + "-residuals.png")
     report.plot_residuals(first, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")

@@ -118,11 +118,13 @@ def _combination(v: np.ndarray, names: list[str]) -> str:
     return " ".join(terms)
 
 
-def overlay_toml(result: FitResult, config, before: FitResult | None = None) -> str:
+def overlay_toml(result: FitResult, config, before: FitResult | None = None, walk=None) -> str:
     """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
     ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
     (:func:`mounting_covariance`). Determined parameters only, or those of ``before`` (an
-    earlier stage, whose values ``config`` carries) where ``result`` leaves them."""
+    earlier stage, whose values ``config`` carries) where ``result`` leaves them; with
+    ``walk`` (:func:`.wheel_error.wheel_walk`: the walk, rad^2/s^3, and the error's std,
+    rad/s) the filter's wheel walk measured from the logs."""
     a = apply_result(result, config)
     fitted = _determined_groups(result) | _determined_groups(before)
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
@@ -132,6 +134,11 @@ def overlay_toml(result: FitResult, config, before: FitResult | None = None) -> 
     if cov is None and before is not None:
         cov = mounting_covariance(before)
     estimator = _estimator_keys(result, a, fitted, cov)
+    if walk is not None:
+        estimator.append(
+            f"wheel_accel_psd_rad2_s3 = {float(walk[0])!r}  # the wheels' speed error "
+            f"measured from the logs: std {float(walk[1]):.4f} rad/s"
+        )
     if estimator:
         out += ["", "[estimator]", *estimator]
     if "servo-offsets" in fitted:

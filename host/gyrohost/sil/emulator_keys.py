@@ -11,6 +11,7 @@ import math
 from gyrohost.config import LOOP_RATE_HZ, RigConfig
 from gyrohost.drivers.mx12 import steps_per_metre
 from gyrohost.estimator.config import (
+    MIN_WHEEL_WALK,
     SPEED_FILTER_DELAY_S,
     imu_keys,
     imu_wire_counts,
@@ -18,11 +19,6 @@ from gyrohost.estimator.config import (
     servo_hold_std,
 )
 from gyrohost.simrig.config import sim_config
-
-MIN_WHEEL_WALK = 1e-6
-"""The wheels' walk (rad^2/s^3) :func:`emulator_keys` keeps for emulated wheels without a
-speed error: with none the wheel covariance collapses, and the in-process SIL diverged on the
-identification's truth (NEES 3e5 for 28)."""
 
 
 def emulator_keys(rig: RigConfig) -> dict:
