@@ -9,7 +9,8 @@ off on held-out truths (reports/identification-heldout.md). The filter follows s
 process noise lets the measurements steer it), so its likelihood (:mod:`.filter_fit`) measures
 the IMU's mounting and latency without it, and the noise scale the filter needs with the
 identified structure; it is too slow and its cost too rough to fit the structure as well. So
-the filter refines only :data:`SENSOR_GROUPS`, from the output error's values, over the first
+the filter refines only :data:`SENSOR_GROUPS`, from the output error's values (the yaw from the
+smooth minimum of its likelihood along it, :func:`yaw_line`), over the first
 :data:`SENSOR_WINDOW_S` of each log.
 """
 
