@@ -80,7 +80,7 @@ def test_a_pinned_scale_gives_every_parameter_with_its_linear_sigma():
     """Weighed bars (a strong pin): everything separable; on a smooth, linear residual the
     sigmas read off the cost equal the closed form s^2 (J^T J)^-1."""
     problem = Problem([0.2, -0.2, 0.1, -0.3, 0.01], pin=200.0)
-    sol, (sigma, corr, unresolved, separable, combos, valley) = solve(problem)
+    sol, (sigma, corr, unresolved, separable, combos, valley, _) = solve(problem)
     assert valley is None and all(separable) and not unresolved and not combos
     np.testing.assert_allclose(sigma, linear_sigma(problem, sol), rtol=0.02)
     assert sol.x[1] == pytest.approx(-0.2, abs=4 * sigma[1])
@@ -155,7 +155,7 @@ def test_an_unpinned_scale_is_reported_with_the_combinations_that_are_determined
     sigmas of the truth's; the report prints no number for the bar mass."""
     truth = np.array([0.26, -0.22, 0.22, -0.36, 0.01])
     problem = Problem(truth, pin=0.5)
-    sol, (sigma, corr, unresolved, separable, combos, valley) = solve(problem)
+    sol, (sigma, corr, unresolved, separable, combos, valley, _) = solve(problem)
     assert all(uncertainty(sol.jac, 1.0, 5)[2])  # the singular values alone miss it
     assert valley is not None
     np.testing.assert_allclose(np.abs(valley[:4]), 0.5, atol=0.05)  # about the common factor

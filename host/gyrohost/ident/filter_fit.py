@@ -425,7 +425,7 @@ def fit(
             start, samples = profile.line_start(problem, start, *line)
         sol, strings = profile.strings_valley(solve, problem, solve(problem, start), lower)
         final = problem.errors(sol.x)
-        sigma, corr, unresolved, separable, combos, valley = output_fit.statistics(
+        sigma, corr, unresolved, separable, combos, valley, _ = output_fit.statistics(
             problem, sol, lower, steps
         )
     finally:

@@ -342,15 +342,15 @@ def fit(
     if segmented:
         sol, strings = profile.strings_valley(solve, problem, sol, lower)
     final = [-e for e in problem.errors(sol.x)]
-    sigma, corr, unresolved, separable, combos, valley = statistics(problem, sol, lower, steps)
+    sigma, corr, unresolved, separable, combos, valley, cov = statistics(problem, sol, lower, steps)
     spread, widened = np.ones(len(params)), {}
     if segmented:
         spread = profile.segment_spread(problem, sol.x, ~problem.dynamic, forward.STEP_S)
         widened = {p.name: float(r) for p, r in zip(params, spread, strict=True) if r > 1.0}
-    along, lags = correlation_widening(problem, sol, valley, [len(e) for e in final])
-    sigma = sigma * np.maximum(spread, [along(e) for e in np.eye(len(params))])
+    along, lags = correlation_widening(problem, sol, cov, [len(e) for e in final])
+    factors = np.array([along(e) for e in np.eye(len(params))])
+    sigma = sigma * np.maximum(spread, factors)
     combos = [(c, value, s * along(c)) for c, value, s in combos]
-    correlated_by = {p.name: along(e) for p, e in zip(params, np.eye(len(params)), strict=True)}
     rms = {
         name: (stream_rms(initial, cols), stream_rms(final, cols)) for name, cols in STREAMS.items()
     }
@@ -363,17 +363,16 @@ def fit(
         widened, [(k, float(c)) for k, _, c in strings],
         residual_variance=problem.residual_variance(sol.fun, len(params)),
         mass_sensitivity=sensitivity,
-        correlated={k: v for k, v in correlated_by.items() if v > 1.0},
+        correlated={p.name: float(f) for p, f in zip(params, factors, strict=True) if f > 1.0},
         correlation_lags=lags,
     )  # fmt: skip
 
 
-def correlation_widening(problem: Problem, sol, valley, sizes):
+def correlation_widening(problem: Problem, sol, cov, sizes):
     """``along(v)``: how much the residuals' correlation in time widens the sigma along the
-    parameter direction ``v`` (:mod:`.correlated`; at least 1), and the bandwidth, samples.
-    ``valley``: the undetermined common scale held out, as :func:`statistics` holds it."""
+    parameter direction ``v`` (:mod:`.correlated`; at least 1), and the bandwidth, samples;
+    ``cov`` the linearised covariance :func:`statistics` gave."""
     s2 = problem.residual_variance(sol.fun, len(sol.x))
-    cov, _, _ = uncertainty(sol.jac, s2, len(sol.x), held=valley)
     hac, lags = correlated.sandwich(cov, s2, sol.jac, sol.fun, sizes, len(CHANNELS))
     return (lambda v: correlated.widening(cov, hac, v)), lags
 
@@ -445,9 +444,9 @@ def stream_rms(errors, cols) -> float:
 
 
 def statistics(problem: Problem, sol, lower, steps):
-    """Sigmas, correlation, unresolved directions, separability, determined combinations and
-    the direction of an undetermined common scale (or ``None``), at the optimum ``sol``
-    (module docstring)."""
+    """Sigmas, correlation, unresolved directions, separability, determined combinations, the
+    direction of an undetermined common scale (or ``None``) and the linearised covariance
+    (p, p), at the optimum ``sol`` (module docstring)."""
     J, r, theta, cost0 = sol.jac, sol.fun, sol.x, float(sol.cost)
     p = len(theta)
     s2 = problem.residual_variance(r, p)
@@ -478,7 +477,7 @@ def statistics(problem: Problem, sol, lower, steps):
         for c in cs
         for secant in [profile.secant_sigma(problem, theta, cov, c, s2, cost0)[0]]
     ]
-    return (*_scaled(cov, sigma, separable), unresolved, separable, combos, valley)
+    return (*_scaled(cov, sigma, separable), unresolved, separable, combos, valley, cov)
 
 
 def scale_members(params) -> np.ndarray:

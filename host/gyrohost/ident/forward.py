@@ -232,9 +232,7 @@ def simulate(
     speeds = _interp(t_steps, rec.t_wheels_s, rec.wheels_rad_s)
     speeds = _smooth(speeds, int(round(WHEEL_SMOOTHING_S / dt)))
     if len(rec.t_command_s):
-        cmd = rec.command_rad_s[
-            np.clip(np.searchsorted(rec.t_command_s, t_steps, "right") - 1, 0, None)
-        ]
+        cmd = rec.command_rad_s[command_rows(rec, t_steps)]
         settled = np.abs(speeds - cmd) < WHEEL_SETTLED_RAD_S
         speeds[settled] = cmd[settled]
     starts = shooting.segment_starts(n, dt, rec.segment_s)
@@ -296,6 +294,12 @@ def window(rec: Recording, until_s: float) -> Recording:
     """``rec`` up to ``until_s`` (its IMU samples; the inputs whole), one segment."""
     keep = rec.t_imu_s < until_s
     return replace(rec, t_imu_s=rec.t_imu_s[keep], imu=rec.imu[keep], segment_s=0.0)
+
+
+def command_rows(rec: Recording, t_s) -> np.ndarray:
+    """Index of the command row in force at each of the times ``t_s`` (the latest at or before
+    it; the first before the first command)."""
+    return np.clip(np.searchsorted(rec.t_command_s, t_s, "right") - 1, 0, None)
 
 
 def _smooth(values, width):

@@ -306,9 +306,8 @@ def strings_valley(solve, problem, sol, lower):
         tried[k] = solved_from(k)
         if tried[k] is None:
             break
-    near = points[max(lowest - 2, 0) : lowest + 3]
-    offsets, thetas, costs = (np.array(v) for v in zip(*near, strict=True))
-    vertex = lowest_vertex(offsets, costs)
+    offsets, thetas, costs = (np.array(v) for v in zip(*points, strict=True))
+    vertex = lowest_vertex(offsets, costs)  # between two neighbouring optima: interpolated
     start = np.array([np.interp(vertex, offsets, column) for column in thetas.T])
     return solve(problem, start), points
 

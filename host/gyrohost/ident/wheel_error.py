@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from gyrohost.estimator.config import MIN_WHEEL_WALK
+from gyrohost.ident.forward import command_rows
 
 SETTLE_LAGS = 5.0
 """Lags of the stretch's start left out, after the board's ramp (e^-5: under 1 % of a step)."""
@@ -47,7 +48,7 @@ def _longest_settled(rec, lag_s: float, accel_rad_s2: float):
     if not len(rec.t_command_s) or len(rec.t_wheels_s) < 2:
         return None
     t = rec.t_wheels_s
-    i = np.clip(np.searchsorted(rec.t_command_s, t, "right") - 1, 0, None)
+    i = command_rows(rec, t)
     first, step = _changes(rec.command_rad_s)
     since = rec.t_command_s[first][i]
     settled = t - since >= step[first][i] / accel_rad_s2 + SETTLE_LAGS * lag_s
