@@ -29,7 +29,7 @@ class Likelihood:
 
 
 def test_the_start_moves_into_the_smooth_basin_from_out_in_the_jumps():
-    theta = np.array([0.0, 0.056])  # the output error's yaw, 2.7 deg off
+    theta = np.array([0.0, 0.056])  # started 2.7 deg out, in the jumps
     start, samples = profile.line_start(Likelihood(), theta, 1, 0.028)
     assert start[0] == 0.0
     # in the smooth basin (+-0.02), within a third of the samples' spacing (0.014)

@@ -49,8 +49,7 @@ def test_steps_must_be_positive():
 def test_a_start_on_a_lower_bound_still_moves():
     """A parameter fitted at its bound before (a latency at 0) starts the next fit there:
     scipy's trust region starts as wide as the start is long, and the start nudged 1e-10 off
-    the bound made it 1e-15 wide, every step refused (held-out case 41's IMU yaw left where
-    the output error had put it, 2 degrees off)."""
+    the bound made it 1e-15 wide, and every step was refused."""
 
     def quadratic(theta):
         return theta - np.array([0.04, 0.003])
