@@ -57,10 +57,22 @@ def test_a_sample_waits_for_the_imu_sample_taken_before_it(horizon):
 def test_a_silent_imu_holds_nothing_back(horizon):
     horizon.sample("fuse_imu", (0.110,))
     horizon.sample("fuse_wheels", (0.120, None))
-    horizon.tick(0.130)  # the IMU's newest is 0.04 s old: past the 0.03 s
+    horizon.tick(0.145)  # the IMU's newest came 0.035 s ago: past the 0.03 s
     assert horizon.ekf.calls == [("imu", 0.09), ("wheels", 0.12)]
     horizon.tick(0.160)  # the filter 0.04 s behind the tick: predicted to it
     assert horizon.ekf.calls[-1] == ("advance", 0.16)
+
+
+def test_silence_counts_from_the_stamp_not_the_time_taken(horizon):
+    """At 100 Hz the IMU's newest sample came at most a period before a tick, though it was
+    taken the latency (0.02 s) earlier still: nothing is silent, the wheels' sample waits for
+    the IMU's taken after it and no IMU sample comes after the filter passed its time."""
+    horizon.sample("fuse_imu", (0.110,))  # taken at 0.090
+    horizon.sample("fuse_wheels", (0.105, None))
+    horizon.tick(0.125)  # 0.035 s after the newest IMU sample was taken, 0.015 s after it came
+    horizon.sample("fuse_imu", (0.120,))  # taken at 0.100
+    horizon.sample("fuse_imu", (0.130,))  # taken at 0.110
+    assert horizon.ekf.calls == [("imu", 0.09), ("imu", 0.1), ("wheels", 0.105), ("imu", 0.11)]
 
 
 def test_a_tick_while_the_imu_speaks_fuses_nothing_new(horizon):

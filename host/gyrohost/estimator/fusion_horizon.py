@@ -15,6 +15,11 @@ nothing taken earlier than the newest of them can still be on its way from the I
 IMU is silent longer than ``max_age_s``, nothing waits for it: every held sample is fused and
 the filter predicted to the tick, so that the sources' time-outs still fire.
 
+Silence is counted from the newest IMU sample's stamp (when it came), not from when it was
+taken: counted from the latter, an IMU whose latency is within ``max_age_s`` of the loop's
+period seemed silent at most ticks, each tick moved the filter past the samples on their way,
+and at 20 ms latency seven IMU samples in ten were fused out of order.
+
 Commands (``set_input``) go straight to the filter, which queues them by their stamps.
 """
 
@@ -43,6 +48,7 @@ class FusionHorizon:
         self._held: list = []  # (time taken, arrival order, call, arguments)
         self._order = itertools.count()
         self.imu_s = -math.inf  # the newest IMU sample's time taken, s
+        self.imu_stamp_s = -math.inf  # and its stamp, s
 
     def sample(self, kind: str, args) -> None:
         """Hold one sample (``kind`` one of :data:`FUSIONS`, ``args`` its arguments), then fuse
@@ -51,12 +57,13 @@ class FusionHorizon:
         heapq.heappush(self._held, (taken, next(self._order), kind, args))
         if kind == "fuse_imu":
             self.imu_s = max(self.imu_s, taken)
+            self.imu_stamp_s = max(self.imu_stamp_s, args[0])
         self._fuse_until(self.imu_s)
 
     def tick(self, t_s: float) -> None:
-        """The loop's tick at ``t_s`` (s): with the IMU silent longer than ``max_age_s``, fuse
-        every held sample and predict the filter to ``t_s``."""
-        if t_s - self.imu_s > self.max_age_s:
+        """The loop's tick at ``t_s`` (s): with the IMU silent longer than ``max_age_s`` (its
+        newest stamp that old), fuse every held sample and predict the filter to ``t_s``."""
+        if t_s - self.imu_stamp_s > self.max_age_s:
             self.flush()
             if t_s - self.ekf.t > self.max_age_s:
                 self.ekf.advance(t_s)
