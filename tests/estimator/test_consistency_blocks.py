@@ -6,8 +6,15 @@ import numpy as np
 import pytest
 
 from gyrohost.estimator import TensegrityEKF
-from gyrohost.estimator.consistency import average_bounds, observed_blocks, observed_nees
+from gyrohost.estimator.consistency import (
+    average_bounds,
+    observed_blocks,
+    observed_nees,
+    translation,
+)
+from gyrohost.resources import shipped
 from gyrohost.sil.montecarlo import ScoredRun, summarise
+from gyrotensegrity import Model, load_scene
 
 
 @pytest.fixture()
@@ -21,7 +28,8 @@ def test_blocks_add_up_to_the_observed_nees_where_the_covariance_does_not_couple
     x_true = ekf.x + 1e-3 * np.random.default_rng(3).standard_normal(len(ekf.x))
     blocks = observed_blocks(ekf, x_true)
     total, dof = observed_nees(ekf, ekf.x, ekf.P, x_true)
-    assert {name: d for name, (_, d) in blocks.items()} == {"positions": 8, "wheels": 4, "rest": 2}
+    # the positions: 12 coordinates, less 4 bar lengths, less the 3 of the D-bar's translation
+    assert {name: d for name, (_, d) in blocks.items()} == {"positions": 5, "wheels": 4, "rest": 2}
     assert sum(d for _, d in blocks.values()) == dof
     assert sum(v for v, _ in blocks.values()) == pytest.approx(total, rel=1e-9)
 
@@ -48,6 +56,22 @@ def test_an_error_that_stretches_a_bar_is_not_a_position_error(ekf, model):
     x_true = ekf.x.copy()
     x_true[L.q] += 1e-3 * along
     assert observed_blocks(ekf, x_true)["positions"][0] > 1e-3
+
+
+def test_the_translation_of_a_free_structure_is_not_scored(ekf, model):
+    """No sensor and no force the model does not know moves the whole structure: an error
+    along its translation is the start's, not the filter's (consistency.scored_positions)."""
+    L = ekf.layout
+    shift = translation(model)
+    N = model.U2.toarray() @ shift[: L.m, 0]  # every node's x, moved by the first column
+    assert N == pytest.approx(np.full(len(N), N[0]), abs=1e-12) and N[0] != 0.0
+    x_true = ekf.x.copy()
+    x_true[L.q] += 1e-3 * shift @ np.array([1.0, -2.0, 0.5])
+    assert observed_blocks(ekf, x_true)["positions"][0] < 1e-20
+
+
+def test_a_structure_held_at_a_node_has_no_translation():
+    assert translation(Model(load_scene(shipped("scene", "double-pendulum")))) is None
 
 
 def test_each_block_reports_the_steps_it_spends_below_inside_and_above_its_bounds(capsys):
