@@ -56,7 +56,6 @@ from gyrohost.resources import shipped
 from gyrohost.run.log import read_meta
 from gyrohost.run.summary import real_time_lost
 from studies.identify_rig import (
-    estimator_figures,
     gyrotens,
     seeded_sim_rig,
     truth_kept_overlay,
@@ -223,7 +222,7 @@ def one_case(root: Path, k: int, truth: Truth, steps, clock: str = "real") -> di
         argv = ["run", *rig, "--overlay", str(kept), "--scene", str(ident)]
         out["run"], out["run_real_time"] = real_time_run(argv, folder / "with-ident")
         if out["run"] == 0:
-            out["nees"] = estimator_figures(folder / "with-ident")["nees"]
+            out["nees"] = read_meta(folder / "with-ident")["summary"]["estimator"]["nees"]
     if "replay" in steps and (folder / "with-ident").is_dir():
         out["nees"] = replayed_nees(folder / "with-ident", ident, config, overlay)
     return out
@@ -244,8 +243,8 @@ def real_time_run(argv: list[str], log: Path) -> tuple[int, str]:
     return status, "lost"
 
 
-def replayed_nees(run: Path, ident: Path, config: Path, overlay: Path) -> tuple[float, float]:
-    """NEES mean and the share of its samples inside their bounds of the estimator a run with
+def replayed_nees(run: Path, ident: Path, config: Path, overlay: Path) -> dict:
+    """The NEES table (:meth:`gyrohost.run.health.TruthScore.table`) of the estimator a run with
     ``ident`` and ``overlay`` on ``config`` has, replayed over the recorded ``run``."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
@@ -253,8 +252,15 @@ def replayed_nees(run: Path, ident: Path, config: Path, overlay: Path) -> tuple[
 
     est = for_rig(load_rig_config(config, [overlay]))
     with tempfile.TemporaryDirectory() as tmp:
-        nees = replay(run, Path(tmp) / "replay", ident, est)["nees"]
-    return nees["mean"], nees["inside"]
+        return replay(run, Path(tmp) / "replay", ident, est)["nees"]
+
+
+def nees_inside(nees: dict) -> bool:
+    """Whether a run's NEES ``mean`` lies within the one-sample 95 % bounds of its ``dof``: the
+    acceptance's test (a mean over a run of strongly correlated samples varies almost as much
+    as one sample does)."""
+    low, high = nees["sample_bounds95"]
+    return bool(low <= nees["mean"] <= high)
 
 
 def within(name: str, error: float) -> bool:
@@ -305,7 +311,11 @@ def case_line(k: int, truth: Truth, out: dict) -> str:
         if out.get(f"{step}_real_time", "kept") != "kept":
             figures += f"; {step}: real time {out[f'{step}_real_time']}"
     if "nees" in out:
-        figures += f"; NEES {out['nees'][0]:.1f}, {100 * out['nees'][1]:.0f} % inside"
+        n = out["nees"]
+        low, high = n["sample_bounds95"]
+        verdict = "inside" if nees_inside(n) else "OUTSIDE"
+        figures += (f"; NEES {n['mean']:.1f} {verdict} [{low:.1f}, {high:.1f}] (dof {n['dof']}), "
+                    f"{100 * n['inside']:.0f} % of samples inside")  # fmt: skip
     return f"{head}\n  error (1-sigma): {errs}\n  {figures}"
 
 
@@ -342,7 +352,7 @@ def main(argv=None) -> int:
         help="these of the drawn cases only (e.g. those a loaded machine spoiled; default all)",
     )  # fmt: skip
     args = parser.parse_args(argv)
-    rows = []
+    rows, nees = [], []
     with tempfile.TemporaryDirectory() as tmp:
         root = args.out or Path(tmp)
         for k, truth in enumerate(draw_truths(args.cases), start=1):
@@ -350,9 +360,12 @@ def main(argv=None) -> int:
                 continue
             out = one_case(root, k, truth, args.steps, args.clock)
             rows += [out["errors"]] if "errors" in out else []
+            nees += [nees_inside(out["nees"])] if "nees" in out else []
             print(case_line(k, truth, out), flush=True)
     if rows:
         print("\n".join(summary_lines(rows)))
+    if nees:
+        print(f"run's NEES inside its bounds: {sum(nees)}/{len(nees)}")
     return 0
 
 

@@ -4,10 +4,9 @@ report's own noise.
 
 The estimate is the reports' variance less the noise's (0.0146^2), so its spread is the
 noise's sample variance's, ``0.0146^2 sqrt(2 / N)``: over one identification log's 16 s of
-four wheels (N = 3,200) that is 7.5e-6 rad^2/s^2, 15 % of 0.005 rad/s squared. The checks
-hold a log ten times as long (160 s), the spread then 2.4e-6: 0.005 rad/s measured within
-20 % is more than four of it, 0.015 within 20 % far more, and no error at all reads below
-0.004 rad/s (1.6e-5 rad^2/s^2, near seven of it)."""
+four wheels (N = 3,150) that is 5.4e-6 rad^2/s^2, a fifth of 0.005 rad/s squared. The checks
+hold a log ten times as long (160 s), the spread then 1.7e-6: 0.005 rad/s measured within 20 %
+(1.1e-5 rad^2/s^2) is six of it, 0.015 within 20 % far more."""
 
 from types import SimpleNamespace
 
@@ -42,15 +41,30 @@ def recording(sigma: float, seed: int = 3, step_at_s: float = 160.0):
 
 @pytest.mark.parametrize("sigma", [0.005, 0.015])
 def test_the_error_is_measured_without_the_reports_noise(sigma):
-    walk, measured = wheel_error.wheel_walk([recording(sigma)], EST)
-    assert measured == pytest.approx(sigma, rel=0.2)
-    assert walk == pytest.approx(2 * measured**2 / EST.wheel_lag_s)
+    walk = wheel_error.wheel_walk([recording(sigma)], EST)
+    assert walk.resolved
+    assert walk.sigma == pytest.approx(sigma, rel=0.2)
+    assert walk.psd == pytest.approx(2 * walk.sigma**2 / EST.wheel_lag_s)
 
 
-def test_a_loop_without_error_keeps_the_filters_floor():
-    walk, measured = wheel_error.wheel_walk([recording(0.0)], EST)
-    assert measured < 0.004  # the report noise alone (0.0146) left out
-    assert walk == pytest.approx(max(2 * measured**2 / EST.wheel_lag_s, MIN_WHEEL_WALK))
+def test_a_loop_without_error_is_taken_at_the_logs_resolution():
+    """Over 160 s the resolution is two spreads (1.7e-6 each) of the variance, about 0.0018
+    rad/s (the reports' deviations nearly white here): a loop without error reads below it,
+    unresolved, and the filter takes that, not nil, nor the report noise (0.0146)."""
+    error = wheel_error.speed_error_variance([recording(0.0)], EST)
+    assert error.resolution == pytest.approx(2 * 0.0146**2 * np.sqrt(2 / error.count), rel=0.1)
+    walk = wheel_error.wheel_walk([recording(0.0)], EST)
+    assert not walk.resolved
+    assert walk.sigma == pytest.approx(np.sqrt(error.resolution))
+    assert walk.psd == pytest.approx(max(2 * walk.sigma**2 / EST.wheel_lag_s, MIN_WHEEL_WALK))
+
+
+def test_one_log_never_takes_an_error_it_barely_sees_as_less():
+    """Over one identification log's 16 s an error of 0.002 rad/s (4e-6 rad^2/s^2) is near
+    one spread of the variance (5.4e-6): resolved or not, the filter takes at least it (the
+    resolution, about 0.0033 rad/s, where unresolved) and not the report noise (0.0146)."""
+    walk = wheel_error.wheel_walk([recording(0.002, step_at_s=16.0)], EST)
+    assert 0.002 < walk.sigma < 0.006
 
 
 def test_without_commands_nothing_is_measured():
@@ -61,9 +75,11 @@ def test_without_commands_nothing_is_measured():
 
 def test_the_overlay_carries_the_measured_walk():
     result = SimpleNamespace(params=[])
-    text = overlay_toml_of(result, (0.0123, 0.0177))
+    text = overlay_toml_of(result, wheel_error.WheelWalk(0.0123, 0.0177, True))
     assert "wheel_accel_psd_rad2_s3 = 0.0123  # the wheels' speed error" in text
     assert "std 0.0177 rad/s" in text
+    text = overlay_toml_of(result, wheel_error.WheelWalk(0.0004, 0.0033, False))
+    assert "std below the logs' resolution, taken as 0.0033 rad/s" in text
 
 
 def overlay_toml_of(result, walk):

@@ -181,7 +181,7 @@ def run(args) -> int:
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
     from gyrohost.ident.weighing import with_weighing
-    from gyrohost.ident.wheel_error import wheel_walk
+    from gyrohost.ident.wheel_error import describe, wheel_walk
     from gyrohost.resources import ResourceError
     from gyrotensegrity import Model, SceneError, load_scene
 
@@ -241,7 +241,7 @@ def run(args) -> int:
     if walk is not None:
         print(
             f"wheels' speed error (settled reports less commands, less the reports' noise): "
-            f"std {walk[1]:.4f} rad/s; the filter's wheel walk {walk[0]:.3g} rad^2/s^3"
+            f"{describe(walk)}; the filter's wheel walk {walk.psd:.3g} rad^2/s^3"
         )
     _write(args, result, config_used, structure, walk)
     return 0

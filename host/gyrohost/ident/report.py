@@ -10,6 +10,7 @@ from gyrohost.ident.params import apply
 from gyrohost.ident.profile import VALLEY_STEP
 from gyrohost.ident.scenefile import scene_toml
 from gyrohost.ident.weighing import SCALED
+from gyrohost.ident.wheel_error import describe
 
 
 def report_lines(result: FitResult) -> list[str]:
@@ -123,8 +124,8 @@ def overlay_toml(result: FitResult, config, before: FitResult | None = None, wal
     ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
     (:func:`mounting_covariance`). Determined parameters only, or those of ``before`` (an
     earlier stage, whose values ``config`` carries) where ``result`` leaves them; with
-    ``walk`` (:func:`.wheel_error.wheel_walk`: the walk, rad^2/s^3, and the error's std,
-    rad/s) the filter's wheel walk measured from the logs."""
+    ``walk`` (:class:`.wheel_error.WheelWalk`) the filter's wheel walk measured from the
+    logs."""
     a = apply_result(result, config)
     fitted = _determined_groups(result) | _determined_groups(before)
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
@@ -136,8 +137,8 @@ def overlay_toml(result: FitResult, config, before: FitResult | None = None, wal
     estimator = _estimator_keys(result, a, fitted, cov)
     if walk is not None:
         estimator.append(
-            f"wheel_accel_psd_rad2_s3 = {float(walk[0])!r}  # the wheels' speed error "
-            f"measured from the logs: std {float(walk[1]):.4f} rad/s"
+            f"wheel_accel_psd_rad2_s3 = {float(walk.psd)!r}  # the wheels' speed error "
+            f"measured from the logs: {describe(walk)}"
         )
     if estimator:
         out += ["", "[estimator]", *estimator]

@@ -13,9 +13,17 @@ low-pass). So ``sigma^2`` is the reports' variance about their mean less that no
 longest stretch of one command in each log counts (the identify schedule's 16 s of pulls at
 its spin): after a step the loop's settling is still in the reports for a second or more,
 twice the variance of the long stretch on the simulated rig.
+
+An error well under the reports' noise is lost in the spread of their variance: over one
+log's 16 s of four wheels at 50 Hz its standard error is some 2.5 % of the noise's variance,
+two of it (0.0033 rad/s)^2. Where the difference comes out below two standard errors, the
+filter takes the error at that resolution: a loop whose error the logs cannot tell from none
+(0.002 rad/s, say) leaves the filter somewhat cautious about its wheels; taken as nil, the
+filter's wheel speeds would be sure to a tenth of what they are off by.
 """
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -26,20 +34,42 @@ SETTLE_LAGS = 5.0
 """Lags of the stretch's start left out, after the board's ramp (e^-5: under 1 % of a step)."""
 
 
-def speed_error_variance(recs, est) -> tuple[float, int]:
-    """The wheels' speed-error variance ``sigma^2`` (rad^2/s^2) from the recordings ``recs``
-    (:class:`.forward.Recording`: reports and commands, scene wheel order) for the filter
-    settings ``est`` (its wheel lag, ramp rate and report noise), pooled over wheels and
-    recordings, and the reports it rests on (0: none, variance NaN)."""
-    squares, count = 0.0, 0
-    for rec in recs:
-        e = _longest_settled(rec, est.wheel_lag_s, est.wheel_accel_rad_s2)
-        if e is not None:
-            squares += float(np.sum((e - e.mean(axis=0)) ** 2))
-            count += e.size - e.shape[1]
+RESOLUTION_ERRORS = 2.0
+"""Standard errors of the variance below which an error counts as unresolved (one-sided: an
+error the logs could not tell from none is under this 98 % of the time)."""
+
+
+class SpeedError(NamedTuple):
+    """The wheels' speed-error variance ``variance`` (rad^2/s^2, may be negative: the reports'
+    less their noise's), the ``resolution`` of that difference (rad^2/s^2,
+    :data:`RESOLUTION_ERRORS` of its standard errors) and the ``count`` of reports."""
+
+    variance: float
+    resolution: float
+    count: int
+
+
+def speed_error_variance(recs, est) -> SpeedError:
+    """The wheels' speed error from the recordings ``recs`` (:class:`.forward.Recording`:
+    reports and commands, scene wheel order) for the filter settings ``est`` (its wheel lag,
+    ramp rate and report noise), pooled over wheels and recordings (count 0: none, NaN).
+
+    The variance of a sample variance of ``N`` reports whose deviations correlate as an AR(1)
+    of lag-one correlation ``rho`` is ``2 s^4 (1 + rho^2) / ((1 - rho^2) N)``: ``rho`` is
+    measured on the same deviations, the noise's share and the error's together."""
+    centred = [e - e.mean(axis=0) for rec in recs if (e := _longest(rec, est)) is not None]
+    count = sum(d.size - d.shape[1] for d in centred)
     if count == 0:
-        return math.nan, 0
-    return squares / count - est.wheel_speed_std_rad_s**2, count
+        return SpeedError(math.nan, math.nan, 0)
+    squares = sum(float(np.sum(d * d)) for d in centred)
+    rho = sum(float(np.sum(d[1:] * d[:-1])) for d in centred) / squares
+    spread = squares / count
+    se = spread * math.sqrt(2.0 * (1.0 + rho**2) / ((1.0 - rho**2) * count))
+    return SpeedError(spread - est.wheel_speed_std_rad_s**2, RESOLUTION_ERRORS * se, count)
+
+
+def _longest(rec, est):
+    return _longest_settled(rec, est.wheel_lag_s, est.wheel_accel_rad_s2)
 
 
 def _longest_settled(rec, lag_s: float, accel_rad_s2: float):
@@ -66,12 +96,30 @@ def _changes(cmd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, step
 
 
-def wheel_walk(recs, est) -> tuple[float, float] | None:
-    """The filter's wheel walk ``2 sigma^2 / lag`` (rad^2/s^3, at least the filter's
-    :data:`~gyrohost.estimator.config.MIN_WHEEL_WALK`) and ``sigma`` (rad/s) from the logs'
-    settled reports; None where they have none or the filter models no wheel lag."""
-    variance, count = speed_error_variance(recs, est)
-    if count == 0 or not est.wheel_lag_s > 0.0:
+class WheelWalk(NamedTuple):
+    """The filter's wheel walk ``psd`` (rad^2/s^3), the speed error's ``sigma`` (rad/s) it
+    stands for, and whether the logs ``resolved`` it (else ``sigma`` is their resolution)."""
+
+    psd: float
+    sigma: float
+    resolved: bool
+
+
+def wheel_walk(recs, est) -> WheelWalk | None:
+    """The filter's wheel walk ``2 sigma^2 / lag`` (at least the filter's
+    :data:`~gyrohost.estimator.config.MIN_WHEEL_WALK`) from the logs' settled reports, with
+    ``sigma^2`` the measured variance or, below it, its resolution; None where they have no
+    reports or the filter models no wheel lag."""
+    error = speed_error_variance(recs, est)
+    if error.count == 0 or not est.wheel_lag_s > 0.0:
         return None
-    sigma = math.sqrt(max(variance, 0.0))
-    return max(2.0 * sigma**2 / est.wheel_lag_s, MIN_WHEEL_WALK), sigma
+    resolved = error.variance >= error.resolution
+    sigma = math.sqrt(error.variance if resolved else error.resolution)
+    return WheelWalk(max(2.0 * sigma**2 / est.wheel_lag_s, MIN_WHEEL_WALK), sigma, resolved)
+
+
+def describe(walk: WheelWalk) -> str:
+    """The speed error as ``gyrotens identify`` prints it and the overlay notes it."""
+    if walk.resolved:
+        return f"std {walk.sigma:.4f} rad/s"
+    return f"std below the logs' resolution, taken as {walk.sigma:.4f} rad/s"
