@@ -254,9 +254,11 @@ def _fit(fitter, problem: tuple, args, two: bool = False, workers: bool = False,
     from gyrohost.commands.errors import CliError
     from gyrohost.ident import profile
     from gyrohost.ident.errors import FitError
+    from gyrohost.ident.fit import latency_starts
 
     params = problem[3]
-    passes = 2 + len(profile.VALLEY_STEPS) if workers else (2 if two else 1)
+    starts = len(latency_starts(params, problem[2]))
+    passes = 2 + len(profile.VALLEY_STEPS) if workers else starts + (1 if two else 0)
     kwargs = {"workers": args.workers, "line": line} if workers else {}
     progress = FitProgress(passes * args.max_evaluations * (len(params) + 1))
     try:

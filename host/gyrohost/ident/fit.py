@@ -142,6 +142,9 @@ class FitResult:
         The parameter the fit started from the smooth minimum along (:func:`.profile.
         line_start`), that start and the samples, each an offset from its nominal (its units
         of ``theta``) and a cost; None where the fit started from the nominal.
+    latency_starts : list of (float, float, float)
+        The IMU latency's starts of the first solve (:func:`latency_starts`): each start, the
+        cost it ended at and the latency there, s; empty where it had one start.
     strings_valley : list of (float, float)
         The optima along the strings' valley (:func:`.profile.strings_valley`): offset (valley
         steps) and cost; empty where the fit is not in segments.
@@ -187,6 +190,7 @@ class FitResult:
     correlated: dict = field(default_factory=dict)
     correlation_lags: int = 0
     start_line: tuple | None = None
+    latency_starts: list = field(default_factory=list)
     channels: tuple = CHANNELS
     streams: dict = field(default_factory=lambda: dict(STREAMS))
 
@@ -326,18 +330,23 @@ def fit(
     segmented = two_passes(recs, forward.STEP_S)
     solve = solver(params, progress, max_nfev, SEGMENTED_FTOL if segmented else 1e-8)
 
-    theta0, dropped = np.zeros(len(params)), []
+    starts, dropped = latency_starts(params, est), []
     if segmented:
         first = [
             forward.window(r, max(r.segment_s, shooting.FIRST_PASS_S)) if r.segment_s else r
             for r in recs
         ]
-        theta0 = solve(Problem(scene, config, est, params, first), theta0).x
+        tried = [solve(Problem(scene, config, est, params, first), t) for t in starts]
+        theta0 = min(tried, key=lambda sol: sol.cost).x
         a = apply(scene, config, params, theta0, nominal_lag(est, recs), len(recs))
         recs, dropped = _predictable(Problem(scene, config, est, params, anchored(recs, a)), theta0)
     problem = Problem(scene, config, est, params, recs)
     initial = [-e for e in problem.errors(np.zeros(len(params)))]
-    sol = solve(problem, theta0)
+    if segmented:
+        sol = solve(problem, theta0)
+    else:
+        tried = [solve(problem, t) for t in starts]
+        sol = min(tried, key=lambda sol: sol.cost)
     strings = []
     if segmented:
         sol, strings = profile.strings_valley(solve, problem, sol, lower)
@@ -365,7 +374,42 @@ def fit(
         mass_sensitivity=sensitivity,
         correlated={p.name: float(f) for p, f in zip(params, factors, strict=True) if f > 1.0},
         correlation_lags=lags,
+        latency_starts=_latency_tries(params, starts, tried),
     )  # fmt: skip
+
+
+def latency_starts(params, est: EstimatorConfig) -> list[np.ndarray]:
+    """The parameter vectors the first solve starts from: the nominal alone, or, where the
+    IMU's latency is fitted, one per half IMU period over its range, from none to the longest
+    delay a sample may arrive with (``imu_max_delay_s``), the others at their nominal.
+
+    The cost along the latency can have a basin at its lower bound, where a damping too high
+    by a factor two or three makes up for the latency missing, beside the right one, and a
+    start near the bound may end in it. The cost varies along the latency no faster than the
+    IMU's signals, which it samples at ``imu_period_s``: no basin is narrower than a period,
+    so starts half a period apart each have one within reach, and the lowest end is kept."""
+    theta = np.zeros(len(params))
+    index = next((i for i, p in enumerate(params) if p.name == "imu_latency"), None)
+    if index is None:
+        return [theta]
+    spacing = 0.5 * est.imu_period_s
+    grid = spacing * np.arange(int(np.floor(est.imu_max_delay_s / spacing + 1e-9)) + 1)
+    starts = []
+    for latency_s in grid:
+        start = theta.copy()
+        start[index] = latency_s - params[index].nominal
+        starts.append(start)
+    return starts
+
+
+def _latency_tries(params, starts, tried) -> list:
+    """(start, cost, end) of the latency, s, for each of several starts (empty for one)."""
+    if len(starts) < 2:
+        return []
+    i = next(i for i, p in enumerate(params) if p.name == "imu_latency")
+    nominal = params[i].nominal
+    pairs = zip(starts, tried, strict=True)
+    return [(nominal + t[i], float(sol.cost), nominal + sol.x[i]) for t, sol in pairs]
 
 
 def correlation_widening(problem: Problem, sol, cov, sizes):

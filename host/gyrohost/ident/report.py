@@ -52,6 +52,15 @@ def report_lines(result: FitResult) -> list[str]:
             f"damping x{np.exp(VALLEY_STEP[1]):.3f}: cost at its optimum): {optima}; "
             f"fitted from its parabola's vertex, cost {result.cost:.1f}"
         )
+    if result.latency_starts:
+        starts, costs, ends = zip(*result.latency_starts, strict=True)
+        best = int(np.argmin(costs))
+        lines.append(
+            f"imu_latency: the first solve started at {len(starts)} latencies from "
+            f"{1e3 * starts[0]:.1f} to {1e3 * starts[-1]:.1f} ms (costs {min(costs):.1f} to "
+            f"{max(costs):.1f}); the lowest from {1e3 * starts[best]:.1f} ms, at "
+            f"{1e3 * ends[best]:.2f} ms"
+        )
     if result.start_line is not None:
         name, start, samples = result.start_line
         offsets, costs = zip(*samples, strict=True)
