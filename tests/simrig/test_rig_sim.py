@@ -218,3 +218,28 @@ def test_a_truth_sample_is_read_at_one_step_while_the_truth_moves():
         np.testing.assert_array_equal(rest, record.rest_length_m[k])
     moved = np.max(np.abs(record.N[-1] - record.N[0]))
     assert moved > 1e-3, f"the truth moved only {moved} m: nothing to tell the steps apart"
+
+
+def test_every_step_of_the_truth_reaches_its_reader_once():
+    """The rig process sends every step's truth (sim.truth_steps), so that a reader
+    interpolating between them has what the physics held between its steps: consecutive steps,
+    each once, each the state the recording has at that step, after the last read."""
+    with SimulatedRig(CONFIG, clock="sim") as rig:
+        rig.start_recording()
+        rig.advance(0.05)
+        first = rig.truth_steps()
+        rig.advance(0.05)
+        second = rig.truth_steps()
+        record = rig.recording()
+    rig.check()
+    dt = rig.truth.dt_s
+    times = [step[2] for step in first + second]
+    assert len(times) >= round(0.1 / dt) - 1
+    assert np.diff(times) == pytest.approx(dt)  # every step, in order, none twice
+    assert second[0][2] == pytest.approx(first[-1][2] + dt)
+    steps = {t: k for k, t in enumerate(record.t_s)}
+    for _, _, t, _, N, _, rest in first + second:
+        if t in steps:
+            np.testing.assert_array_equal(N, record.N[steps[t]])
+            np.testing.assert_array_equal(rest, record.rest_length_m[steps[t]])
+    assert sum(step[2] in steps for step in second) >= len(second) - 1

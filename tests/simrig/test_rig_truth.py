@@ -41,6 +41,29 @@ def test_rest_length_follows_the_servo_with_the_configured_lag():
     assert truth.rest_length_m[1] == start[1]  # no servo winds s24: it keeps its rest length
 
 
+def test_a_servo_move_within_a_step_moves_the_string_when_the_servo_does():
+    """A servo covers 2 mm between 1 and 3 ms of a 5 ms step, then holds. Stepped through its
+    turns, the truth moves as one stepped every 0.1 ms along the same path (to RK4's error, a
+    hundredth of the difference at most); one line from the step's start to its end instead
+    moves the string from its first millisecond to its last, and the nodes end 1 um away."""
+
+    def path(t):  # the servo's string length, m, at t s
+        return 0.43105229381822 - 0.002 * min(max((t - 0.001) / 0.002, 0.0), 1.0)
+
+    spin = [0.0] * 4  # the wheels at rest: the string alone moves the nodes
+    turned = Truth(SCENE, TruthConfig(dt_s=0.005), [LEFT])
+    turned.step({1: path(0.005)}, spin, [(0.001, {1: path(0.001)}), (0.003, {1: path(0.003)})])
+    fine = Truth(SCENE, TruthConfig(dt_s=0.0001), [LEFT])
+    for k in range(1, 51):
+        fine.step({1: path(k * 0.0001)}, spin)
+    line = Truth(SCENE, TruthConfig(dt_s=0.005), [LEFT])
+    line.step({1: path(0.005)}, spin)
+    assert turned.t_s == fine.t_s == 0.005
+    assert turned.rest_length_m == pytest.approx(fine.rest_length_m, abs=1e-12)
+    scale = np.max(np.abs(line.nodes() - fine.nodes()))
+    assert np.max(np.abs(turned.nodes() - fine.nodes())) < 1e-2 * scale
+
+
 def test_wheel_spins_follow_the_board_in_scene_order():
     truth = Truth(SCENE, TruthConfig(), [])
     truth.step({}, [1.0, -2.0, 3.0, -4.0])

@@ -35,10 +35,10 @@ ran on prediction alone for it as long as for a device half-way to that fault. D
 RECENT = 50
 MAX_TRUTH_GAP_S = 0.025
 """Truth samples further apart than this (the truth stalled: a loaded machine) bracket no
-estimate; the simulated rig's are 10 ms apart."""
-TRUTH_KEPT = 256
-"""Truth samples kept for estimates still to come (2.5 s at 100 Hz: an estimate lags its loop
-by some tens of ms)."""
+estimate; the simulated rig sends every 5 ms step's."""
+TRUTH_KEPT = 512
+"""Truth samples kept for estimates still to come (2.5 s of 5 ms steps: an estimate lags its
+loop by some tens of ms)."""
 
 
 def _mean_row(total: float, samples: int, dof: int) -> dict:
@@ -101,8 +101,10 @@ class TruthScore:
 
     Each estimate kept (:meth:`estimate`) is scored once two truth samples bracket its time, at
     the truth interpolated linearly between them: node positions, wheel speeds and rest lengths
-    (over a 10 ms truth step the chord of a turn at 2 rad/s is 8 um from the arc on the D-bar,
-    far inside its estimate's spread). Scoring an estimate against the truth sample nearest in
+    (over a 5 ms truth step the chord of a turn at 2 rad/s is 2 um from the arc on the D-bar,
+    far inside its estimate's spread; the rest lengths and a speed-driven truth's spins are
+    what the truth held between its steps, so that between every step's samples they are
+    exact). Scoring an estimate against the truth sample nearest in
     time instead compares two times up to half a truth step apart, and in the paper's last turn
     (2 rad/s) 5 ms is half a degree, ten times the estimate's spread: the NEES then measures the
     scoring, not the estimate. Estimates and truth samples come in time order, either first.

@@ -24,8 +24,8 @@ from gyrohost.run.health import NisTally, TruthScore
 from gyrohost.run.uncertainty import NodeSigma
 from gyrotensegrity.attitude import angle_between
 
-RECENT_TILTS = 100
-"""Truth tilts kept (1 s at the rig's 100 Hz), to compare with an estimate that lags."""
+RECENT_TILTS = 200
+"""Truth tilts kept (1 s of the rig's 5 ms steps), to compare with an estimate that lags."""
 
 IMU_FUSIONS = (fuse_imu_rate, fuse_imu_accel, fuse_imu_angle)
 """The fusions of one IMU sample (each names its ``SOURCE`` and its components' ``LABELS``)."""

@@ -3,9 +3,9 @@
 In one interpreter the rig's truth model, its emulators, the drivers and the estimator share
 one GIL and fall behind real time together; in a child process the rig has an interpreter of
 its own and the host side sees only its pseudo-terminals, as it would see hardware. The child
-also samples the truth every ``period_s`` and sends it up a pipe, stamped with
-``time.monotonic_ns()`` (a system-wide clock, so the parent maps it to its own run time), and
-answers fault injections and statistics requests.
+also sends every truth step's state up a pipe every ``period_s``, each stamped with
+``time.monotonic_ns()`` when stepped (a system-wide clock, so the parent maps it to its own run
+time), and answers fault injections and statistics requests.
 
 An interrupt (Ctrl-C, SIGTERM, SIGHUP) that arrives while the parent receives is held until the
 message is whole: a ``KeyboardInterrupt`` inside ``Connection.recv`` would leave the rest of the
@@ -41,9 +41,9 @@ class TruthSample:
     Attributes
     ----------
     t_ns : int
-        ``time.monotonic_ns`` when sampled, ns.
+        ``time.monotonic_ns`` when the truth took this step, ns.
     rig_t_s : float
-        Rig (device) time, s.
+        Rig (device) time then, s.
     truth_t_s : float
         Time of the truth's latest step, s: behind ``rig_t_s`` when the truth lags or slips.
     state_rig_t_s : float
@@ -73,7 +73,7 @@ class RigProcess:
     ----------
     config : RigConfig
     period_s : float, s
-        Truth sampling period.
+        How often the truth's steps since the last are sent.
 
     Attributes
     ----------
@@ -173,7 +173,7 @@ class RigProcess:
     def _take(self, msg) -> dict | None:
         kind, body = msg
         if kind == "truth":
-            self._pending.append(TruthSample(*body))
+            self._pending += [TruthSample(*step) for step in body]
             return None
         if kind == "error":
             raise RigProcessError(f"simulated rig: {body}")
@@ -257,7 +257,9 @@ def _start_and_serve(conn, rig, period_s: float) -> None:
                     conn.send(("stats", {"lines": lines, "real_time": s.real_time()}))
                 continue
             next_s += period_s
-            conn.send(("truth", (time.monotonic_ns(), rig.t_s, *rig.truth_sample())))
+            steps = rig.truth_steps()
+            if steps:
+                conn.send(("truth", steps))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         return
     finally:

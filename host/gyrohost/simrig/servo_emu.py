@@ -26,7 +26,10 @@ reads, is continuous, its present position a count.
 import math
 import random
 import time
+from collections import deque
 from dataclasses import dataclass
+
+import numpy as np
 
 from gyrohost.config import MX_POSITION_LIMIT, ConfigError, ServoConfig
 from gyrohost.drivers.mx12 import (
@@ -248,8 +251,9 @@ class EmulatedMx12:
         sign = self.spec.length_sign if self.spec is not None else 1
         return -sign * self.tension_N * radius
 
-    def advance(self, dt_s: float) -> None:
-        """Move for ``dt_s`` s and update the overload state."""
+    def advance(self, dt_s: float) -> float | None:
+        """Move for ``dt_s`` s and update the overload state; returns how far into ``dt_s``
+        (s) a move reached its goal, or None (still on its way, or not moving)."""
         torque_limit = self.word(Addr.TORQUE_LIMIT) / 1023.0 * self.emu.stall_torque_N_m
         if self.torque_on and abs(self.torque_N_m()) > torque_limit:
             self.overload_latched = True
@@ -257,7 +261,7 @@ class EmulatedMx12:
                 self.table[Addr.TORQUE_ENABLE] = 0
         if not self.torque_on or self.error_byte():
             self.velocity_steps_s = 0.0
-            return
+            return None
         speed_units = self.word(Addr.MOVING_SPEED)
         no_load = self.emu.no_load_speed_rpm / 0.916
         if self.mode == "wheel":
@@ -265,20 +269,23 @@ class EmulatedMx12:
             self.velocity_steps_s = _units_to_steps_s(max(min(units, no_load), -no_load))
             self.position_steps += self.velocity_steps_s * dt_s
             self._held_goal = None
-            return
+            return None
         goal = self._goal()
         if goal == self._held_goal and abs(goal - self.position_steps) <= self.emu.hold_band_steps:
             self.velocity_steps_s = 0.0
-            return
+            return None
         max_steps_s = _units_to_steps_s(min(speed_units or no_load, no_load))
         error = goal - self.position_steps
+        arrived = None
         if abs(error) <= max_steps_s * dt_s:
             step = self._settle(goal) - self.position_steps
+            arrived = abs(error) / max_steps_s if max_steps_s > 0 else 0.0
         else:
             step = math.copysign(max_steps_s * dt_s, error)
             self._held_goal = None
         self.position_steps += step
         self.velocity_steps_s = step / dt_s if dt_s > 0 else 0.0
+        return arrived
 
     def _refresh_present(self) -> None:
         position = int(round(self.position_steps))
@@ -305,6 +312,56 @@ class EmulatedMx12:
         if self.spec is None:
             raise ValueError(f"emulated servo ID {self.servo_id} has no string calibration")
         return steps_to_length(self.spec, self.position_steps)
+
+
+class ServoPath:
+    """A servo's position over emulator time, as straight pieces between the times its speed
+    changed: moving at its speed or holding, a servo's path is straight between ticks, and
+    bends only where a move starts (a tick after a new goal) or reaches its goal (within a
+    tick, at the time :meth:`EmulatedMx12.advance` gives). The truth steps its physics through
+    these bends (:meth:`gyrohost.simrig.truth.Truth.step`), so a rest length moves when the
+    servo does, not spread over the truth's step.
+
+    Only the bends of the last :data:`PATH_KEPT` s are kept; a point on the present straight
+    piece moves the piece's end instead of adding one."""
+
+    def __init__(self):
+        self.t_s: deque = deque()
+        self.steps: deque = deque()
+
+    def add(self, t_s: float, position_steps: float) -> None:
+        """The position at ``t_s`` (after every point added so far)."""
+        t, p = self.t_s, self.steps
+        if t and t_s <= t[-1]:
+            return
+        if len(t) >= 2 and _straight(t[-2], p[-2], t[-1], p[-1], t_s, position_steps):
+            t[-1], p[-1] = t_s, position_steps
+        else:
+            t.append(t_s)
+            p.append(position_steps)
+        while len(t) > 2 and t[1] < t_s - PATH_KEPT_S:
+            t.popleft()
+            p.popleft()
+
+    def steps_at(self, t_s: float) -> float:
+        """The position at ``t_s``, steps (the nearest end outside the path)."""
+        return float(np.interp(t_s, self.t_s, self.steps))
+
+    def turns(self, t0_s: float, t1_s: float) -> list[float]:
+        """The bends strictly between ``t0_s`` and ``t1_s``."""
+        return [t for t in list(self.t_s)[:-1] if t0_s < t < t1_s]
+
+
+PATH_KEPT_S = 1.0
+"""Emulator time a servo's path is kept for, s: far more than the truth lags its devices."""
+
+
+def _straight(t0, p0, t1, p1, t2, p2) -> bool:
+    """Whether the point (t2, p2) continues the piece (t0, p0)-(t1, p1) at its speed (to a
+    millionth of a step per second, or of the speed)."""
+    v01 = (p1 - p0) / (t1 - t0)
+    v12 = (p2 - p1) / (t2 - t1)
+    return abs(v12 - v01) <= 1e-6 * max(1.0, abs(v01))
 
 
 def _units_to_steps_s(units: float) -> float:
@@ -342,6 +399,7 @@ class Mx12Bus(PtyDevice):
         self.bad_checksums = 0
         self.cutter = PacketCutter()
         self._last_s: float | None = None
+        self.paths = {sid: ServoPath() for sid in self.servos}
 
     # --- truth and fault hooks ----------------------------------------------------------------
     def _servo(self, servo_id: int) -> EmulatedMx12:
@@ -369,6 +427,7 @@ class Mx12Bus(PtyDevice):
         with self.lock:
             for servo in self.servos.values():
                 servo.reset()
+            self.paths = {sid: ServoPath() for sid in self.servos}
 
     def string_length_m(self, servo_id: int) -> float:
         """Present string length of servo ``servo_id``, m: the rest length for the model."""
@@ -381,10 +440,32 @@ class Mx12Bus(PtyDevice):
             return self._servo(servo_id).position_steps
 
     # --- PtyDevice hooks ----------------------------------------------------------------------
+    def lengths_at(self, t_s: float) -> dict[int, float]:
+        """Each servo's string length (ID -> m) at emulator time ``t_s`` on its path: the
+        present one from the last tick on, the first kept before it."""
+        with self.lock:
+            return {sid: self._length_of(sid, p.steps_at(t_s)) for sid, p in self.paths.items()}
+
+    def turns_between(self, t0_s: float, t1_s: float) -> list[float]:
+        """The emulator times strictly between ``t0_s`` and ``t1_s`` at which a servo changed
+        speed (its path is straight between them and the ticks), sorted."""
+        with self.lock:
+            return sorted({t for p in self.paths.values() for t in p.turns(t0_s, t1_s)})
+
+    def _length_of(self, servo_id: int, position_steps: float) -> float:
+        servo = self.servos[servo_id]
+        return steps_to_length(servo.spec, position_steps) if servo.spec is not None else 0.0
+
     def tick(self, now_s: float) -> None:
-        if self._last_s is not None and now_s > self._last_s:
-            for servo in self.servos.values():
-                servo.advance(now_s - self._last_s)
+        if self._last_s is None:
+            for sid, servo in self.servos.items():
+                self.paths[sid].add(now_s, servo.position_steps)
+        elif now_s > self._last_s:
+            for sid, servo in self.servos.items():
+                arrived = servo.advance(now_s - self._last_s)
+                if arrived is not None and 0.0 < arrived < now_s - self._last_s:
+                    self.paths[sid].add(self._last_s + arrived, servo.position_steps)
+                self.paths[sid].add(now_s, servo.position_steps)
         self._last_s = now_s
 
     def handle_rx(self, data: bytes, now_s: float) -> None:

@@ -26,6 +26,7 @@ form (``"fault imu silence 2"``) used by ``gyrotens rig`` on its standard input,
 import select
 import threading
 import time
+from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,9 @@ IDLE_WAIT_S = 0.001
 MAX_LAG_S = 0.25
 """Real clock: the truth lags wall time by at most this much; beyond, it slips (runs slower)."""
 
+STEPS_KEPT = 400
+"""Truth steps :meth:`SimulatedRig.truth_steps` keeps for its reader: 2 s of 5 ms steps, some
+hundred times the period it is read at."""
 STREAM_FAULTS = ("corrupt", "drop", "silence", "stall", "clear")
 DEVICE_FAULTS = {"wheels": ("reset", "watchdog"), "servos": ("overload", "timeout")}
 
@@ -116,6 +120,7 @@ class SimulatedRig:
         self._steps = self._late = 0
         self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
         self._cpu0_s = 0.0
+        self._steps_kept: deque = deque(maxlen=STEPS_KEPT)
 
     def _wheel_board(self, config: RigConfig):
         emu = self.sim.wheels
@@ -248,18 +253,31 @@ class SimulatedRig:
             self.truth.step(*self._step_inputs())
             for sid, tension in self.truth.servo_tensions_N().items():
                 self.servos.set_tension(sid, tension)
+            self._steps_kept.append((time.monotonic_ns(), self._dev_t_s, *self._sample()))
         self._step_wall_s += time.perf_counter() - start
         self._steps += 1
         if self.clock == "real":
             self._max_lag_s = max(self._max_lag_s, lateness_s)
             self._late += lateness_s > self.truth.dt_s
 
-    def _step_inputs(self) -> tuple[dict, np.ndarray]:
-        """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) at the end
-        of the step now due, where the devices have been polled; the truth moves its inputs
-        there from the last step's (:meth:`Truth.step`)."""
-        lengths = {sid: self.servos.string_length_m(sid) for sid in self.truth.servo_strings}
-        return lengths, np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
+    def _step_inputs(self) -> tuple[dict, np.ndarray, list]:
+        """The servos' string lengths (servo ID -> m) and the wheels' speeds (rad/s) at the
+        end of the step now due, where the devices have been polled, and the servos' turns
+        within it: (truth time, lengths) where a servo's path bends (:class:`~gyrohost.simrig.
+        servo_emu.ServoPath`). The truth moves its inputs there from the last step's
+        (:meth:`Truth.step`)."""
+        start = self.truth.t_s + self._slip_s  # on the devices' clock
+        end = start + self.truth.dt_s
+        turns = [
+            (t - self._slip_s, self._lengths_at(t)) for t in self.servos.turns_between(start, end)
+        ]
+        wheels = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
+        return self._lengths_at(end), wheels, turns
+
+    def _lengths_at(self, t_s: float) -> dict:
+        """The servos' string lengths (servo ID -> m) at device time ``t_s``."""
+        lengths = self.servos.lengths_at(t_s)
+        return {sid: lengths[sid] for sid in self.truth.servo_strings}
 
     def _poll(self, t_s: float) -> None:
         self._dev_t_s = t_s = max(t_s, self._dev_t_s)
@@ -301,14 +319,33 @@ class SimulatedRig:
         separate reads, and a state a few steps past its stamp is a large error while the
         D-bar turns fast."""
         with self._lock:
-            t_s = self.truth.t_s
-            return (
-                t_s,
-                t_s + self._slip_s,
-                self.truth.nodes(),
-                self.truth.wheel_speeds_rad_s(),
-                self.truth.rest_length_m.copy(),
-            )
+            return self._sample()
+
+    def truth_steps(self) -> list[tuple]:
+        """Every truth step's sample since the last call (at most :data:`STEPS_KEPT`), oldest
+        first: ``time.monotonic_ns`` and the rig time when it was stepped, then
+        :meth:`truth_sample`'s values.
+
+        The truth holds its inputs first-order between its steps' ends: a reader that
+        interpolates between every step's sample has what the physics had, where one sampling
+        the latest step now and then interpolates over steps it missed. A servo moves its
+        string a goal step in about 2 ms once per tick; sampled once per tick, the rest length
+        interpolated between samples can be up to a goal step off, by an offset the ticks'
+        phase against the steps holds for a whole run."""
+        with self._lock:
+            out = list(self._steps_kept)
+            self._steps_kept.clear()
+        return out
+
+    def _sample(self) -> tuple:
+        t_s = self.truth.t_s
+        return (
+            t_s,
+            t_s + self._slip_s,
+            self.truth.nodes(),
+            self.truth.wheel_speeds_rad_s(),
+            self.truth.rest_length_m.copy(),
+        )
 
     def start_recording(self) -> None:
         """Record the truth at every following step (see :meth:`recording`)."""

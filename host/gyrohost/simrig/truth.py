@@ -19,7 +19,8 @@ heavier or lighter than the scene the estimator uses (model mismatch). Two kinds
   the estimator starts from the scene's initial state. :meth:`Truth.reset` holds it again.
 
 Inputs at each step (the devices' outputs at its start and end, joined by a straight line,
-:class:`gyrotensegrity.Stepper`):
+:class:`gyrotensegrity.Stepper`; the servos' through every turn of their paths within it,
+:meth:`Truth.step`):
 
 - **String rest lengths.** A servo with ``string = "<name>"`` in the configuration winds that scene
   string: its present string length (the servo calibration, ``L = length_at_zero_m + length_sign *
@@ -70,6 +71,9 @@ from .errors import RigSetupError
 
 FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
+PIECES_PER_STEP = 8
+"""Pieces of a step the IMU's history makes room for: each servo turns at most twice a step
+(a move's start and its arrival) while goals come every tick (two steps)."""
 
 
 def truth_scene(config: RigConfig, scene: str | Path | None = None) -> Scene:
@@ -270,7 +274,9 @@ class Truth:
         self.held = self.torque_driven
         self._J3 = self.model.J3[self.model.wheel_bars]
         self._check_frame()
-        depth = int(math.ceil((config.imu_latency_s + MAX_BACKLOG_S) / self.dt_s)) + 2
+        # a step's servo turns add pieces: room for PIECES_PER_STEP of them per step
+        steps = int(math.ceil((config.imu_latency_s + MAX_BACKLOG_S) / self.dt_s)) + 2
+        depth = PIECES_PER_STEP * steps
         self._history: deque = deque(maxlen=depth)
         self._record: list | None = None
         self._x0 = self.stepper.x.copy()
@@ -320,13 +326,22 @@ class Truth:
         """Truth time, s."""
         return self.stepper.t
 
-    def step(self, string_lengths_m: Mapping[int, float], wheel_speeds_rad_s: Sequence[float]):
+    def step(
+        self,
+        string_lengths_m: Mapping[int, float],
+        wheel_speeds_rad_s: Sequence[float],
+        turns: Sequence[tuple[float, Mapping[int, float]]] = (),
+    ):
         """Advance by one step ``dt_s`` to the devices' outputs at the step's end.
 
-        The rest lengths and a speed-driven truth's spins move in a straight line over the step
-        from where the last step left them (first-order hold): the servos and the wheels move
-        on continuously within it, as the filter's continuous inputs do, so the truth adds no
-        steps of its own. A torque-driven truth's speed loop holds its torque over the step.
+        The rest lengths move in a straight line from where the last step left them to the
+        servos' lengths at each of ``turns`` and then at the step's end, the physics stepped
+        through each piece (first-order hold on the servos' own path: a servo that covers a
+        goal step in 2 ms and holds moves the string then, where one line over the step would
+        spread the move over it and shift it by up to half a step, by a part of the step the
+        phase of the host's ticks held for a whole run). A speed-driven truth's spins move in a
+        straight line over the whole step (the board's speeds change smoothly); a torque-driven
+        truth's speed loop holds its torque over it.
 
         Parameters
         ----------
@@ -334,27 +349,24 @@ class Truth:
             The servos' string lengths at the step's end (those without a string are ignored).
         wheel_speeds_rad_s : sequence of float, rad/s
             The wheel board's true speeds at the step's end, board wheel order.
+        turns : sequence of (float, mapping servo ID -> float)
+            Times (s, within the step, ascending) where a servo's path bends, with every
+            servo's string length then, m.
         """
-        u_start = self.u
-        lag = self.config.servo_lag_s
-        gain = 1.0 if lag <= 0 else 1.0 - math.exp(-self.dt_s / lag)
-        for servo_id, index in self.servo_strings.items():
-            target = string_lengths_m[servo_id] - self.servo_offset_m[servo_id]
-            self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
+        t0, t_end = self.stepper.t, self.stepper.t + self.dt_s
+        wheel_start = self.wheel_input_rad_s.copy()
         self.wheel_input_rad_s[:] = self._board_order(wheel_speeds_rad_s)
-        wheel = self.wheel_input_rad_s
+        torque = None
         if self.torque_driven:  # the ideal speed loop's torque (module docstring)
             spin = self.model.wheel_speeds(self.stepper.x, self.u)
-            wheel = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
-            u_start = self.model.pack_input(u_start[: self.model.alpha], wheel)
-        self.u = self.model.pack_input(self.rest_length_m, wheel)
-        x = self.stepper.step(self.dt_s, u_start, self.u)
-        if self.held:  # the mount: the structure where it started, the wheels as they spin
-            L = self.model.layout
-            x = self._x0.copy()
-            x[L.theta], x[L.omega] = self.stepper.x[L.theta], self.stepper.x[L.omega]
-            self.stepper.x = x
-        self._history.append((self.stepper.t, x.copy(), u_start, self.u))
+            torque = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
+            self.u = self.model.pack_input(self.rest_length_m, torque)
+        points = [(t, lengths) for t, lengths in turns if t0 < t < t_end]
+        for t, lengths in [*points, (t_end, string_lengths_m)]:
+            share = (t - t0) / self.dt_s
+            spins = wheel_start + share * (self.wheel_input_rad_s - wheel_start)
+            self._piece(t - self.stepper.t, lengths, spins if torque is None else torque)
+        self.stepper.t = t_end  # the pieces' sum drifts from the step by round-off
         if self._record is not None:
             self._record.append(
                 (
@@ -365,6 +377,26 @@ class Truth:
                     self.rest_length_m.copy(),
                 )
             )
+
+    def _piece(self, h: float, string_lengths_m: Mapping[int, float], wheel) -> None:
+        """Step the physics ``h`` s to the servos' lengths and the wheels' input (spins or
+        torques) at the piece's end, in a straight line from the last piece's."""
+        u_start = self.u
+        lag = self.config.servo_lag_s
+        gain = 1.0 if lag <= 0 else 1.0 - math.exp(-h / lag)
+        for servo_id, index in self.servo_strings.items():
+            target = string_lengths_m[servo_id] - self.servo_offset_m[servo_id]
+            self.rest_length_m[index] += gain * (target - self.rest_length_m[index])
+        if self.torque_driven:  # the torque is held over the piece
+            u_start = self.model.pack_input(u_start[: self.model.alpha], wheel)
+        self.u = self.model.pack_input(self.rest_length_m, wheel)
+        x = self.stepper.step(h, u_start, self.u)
+        if self.held:  # the mount: the structure where it started, the wheels as they spin
+            L = self.model.layout
+            x = self._x0.copy()
+            x[L.theta], x[L.omega] = self.stepper.x[L.theta], self.stepper.x[L.omega]
+            self.stepper.x = x
+        self._history.append((self.stepper.t, x.copy(), u_start, self.u))
 
     def _board_order(self, speeds: Sequence[float]) -> np.ndarray:
         """Board speeds (rad/s) as the scene's wheels': the first n_w; missing ones 0."""
