@@ -289,7 +289,8 @@ def test_ctrl_c_while_the_truth_is_received_never_breaks_the_pipe():
             samples += len(rig.truth())  # still whole after thousands of interrupts
     finally:
         signal.signal(signal.SIGINT, previous)
-    assert interrupts > 100 and samples > 1000, (interrupts, samples)
+    # every 5 ms step of the truth comes (600 in 3 s): half of them tells a whole pipe
+    assert interrupts > 100 and samples > 300, (interrupts, samples)
 
 
 def test_lost_wheel_frames_are_counted_in_the_summary_and_told(tmp_path, capsys):

@@ -27,6 +27,7 @@ def test_a_move_bends_where_it_starts_and_where_it_reaches_its_goal():
     bus = Mx12Bus([SERVO], ServoEmuConfig(hold_band_steps=0.0))
     try:
         servo = bus.servos[1]
+        assert bus.lengths_at(0.0) == {1: bus.string_length_m(1)}  # before any tick: present
         servo.write(Addr.TORQUE_ENABLE, b"\x01")
         bus.tick(0.0)
         servo.write(Addr.GOAL_POSITION, (200).to_bytes(2, "little"))

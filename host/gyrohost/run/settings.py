@@ -44,7 +44,7 @@ class RunSettings:
     silent sources time out, s."""
     max_schedule_s: float = 600.0
     """Longest schedule a run plays, s (ten minutes: thirty times the longest shipped schedule,
-    ``identify``'s 19.7 s, and about 0.4 GB of log at the simulated rig's 0.6 MB/s); a longer
+    ``identify``'s 19.7 s, and about 0.7 GB of log at the simulated rig's 1.2 MB/s); a longer
     one is refused before anything moves, as more likely a mistake (milliseconds written as
     seconds) than a plan. ``gyrotens run --max-duration`` sets another."""
     estimator_max_lag_s: float = 1.0

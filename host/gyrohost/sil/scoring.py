@@ -137,10 +137,10 @@ def score_log(folder, estimator=None, config=None, start_seed=None) -> ScoredRun
     :class:`~gyrohost.estimator.config.EstimatorConfig` replayed instead of either.
 
     ``start_seed`` None: the filter starts where ``gyrotens replay`` starts it, on the
-    simulated rig the truth itself (the rig starts exactly in the scene's shape), so the
-    directions the sensors never see (the structure's position) score zero error all run; an
-    int: off the truth by a draw from the filter's initial covariance (``numpy`` seed), as a
-    Monte Carlo run starts (:func:`score_rig_model_run`)."""
+    simulated rig the truth itself (the rig starts exactly in the scene's shape); an int: off
+    the truth by a draw from the filter's initial covariance (``numpy`` seed), as a Monte Carlo
+    run starts (:func:`score_rig_model_run`). Either way the structure's translation, which no
+    sensor sees, is not scored (:func:`~gyrohost.estimator.consistency.scored_positions`)."""
     ekf, data = prepare(folder, config=config or replayed_config(folder, estimator))
     model, L = ekf.model, ekf.layout
     truth = read_stream(folder, "truth")

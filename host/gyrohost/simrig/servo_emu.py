@@ -442,30 +442,34 @@ class Mx12Bus(PtyDevice):
     # --- PtyDevice hooks ----------------------------------------------------------------------
     def lengths_at(self, t_s: float) -> dict[int, float]:
         """Each servo's string length (ID -> m) at emulator time ``t_s`` on its path: the
-        present one from the last tick on, the first kept before it."""
+        present one from the last tick on (or before any tick), the first kept before it."""
         with self.lock:
-            return {sid: self._length_of(sid, p.steps_at(t_s)) for sid, p in self.paths.items()}
+            out = {}
+            for sid, servo in self.servos.items():
+                path = self.paths.get(sid)
+                steps = path.steps_at(t_s) if path and path.t_s else servo.position_steps
+                out[sid] = self._length_of(sid, steps)
+            return out
 
     def turns_between(self, t0_s: float, t1_s: float) -> list[float]:
-        """The emulator times strictly between ``t0_s`` and ``t1_s`` at which a servo changed
-        speed (its path is straight between them and the ticks), sorted."""
+        """The emulator times strictly between ``t0_s`` and ``t1_s`` at which a servo on the
+        bus changed speed (its path is straight between them and the ticks), sorted."""
         with self.lock:
-            return sorted({t for p in self.paths.values() for t in p.turns(t0_s, t1_s)})
+            paths = [self.paths[sid] for sid in self.servos if sid in self.paths]
+            return sorted({t for p in paths for t in p.turns(t0_s, t1_s)})
 
     def _length_of(self, servo_id: int, position_steps: float) -> float:
         servo = self.servos[servo_id]
         return steps_to_length(servo.spec, position_steps) if servo.spec is not None else 0.0
 
     def tick(self, now_s: float) -> None:
-        if self._last_s is None:
-            for sid, servo in self.servos.items():
-                self.paths[sid].add(now_s, servo.position_steps)
-        elif now_s > self._last_s:
-            for sid, servo in self.servos.items():
+        for sid, servo in self.servos.items():
+            path = self.paths.setdefault(sid, ServoPath())  # a servo given a new ID: a new path
+            if self._last_s is not None and now_s > self._last_s:
                 arrived = servo.advance(now_s - self._last_s)
                 if arrived is not None and 0.0 < arrived < now_s - self._last_s:
-                    self.paths[sid].add(self._last_s + arrived, servo.position_steps)
-                self.paths[sid].add(now_s, servo.position_steps)
+                    path.add(self._last_s + arrived, servo.position_steps)
+            path.add(now_s, servo.position_steps)
         self._last_s = now_s
 
     def handle_rx(self, data: bytes, now_s: float) -> None:
