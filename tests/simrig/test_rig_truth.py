@@ -64,6 +64,18 @@ def test_a_servo_move_within_a_step_moves_the_string_when_the_servo_does():
     assert np.max(np.abs(turned.nodes() - fine.nodes())) < 1e-2 * scale
 
 
+def test_turns_closer_than_a_microsecond_are_one():
+    """Two servos arriving together, 1e-12 s apart by round-off, and a turn at the step's end:
+    no piece of (almost) no length is stepped, and the string ends where the servos are."""
+    truth = Truth(SCENE, TruthConfig(dt_s=0.005), [LEFT])
+    end = truth.rest_length_m[0] - 0.001
+    turns = [(0.002, {1: end}), (0.002 + 1e-12, {1: end}), (0.005 - 1e-12, {1: end})]
+    before = len(truth._history)  # one entry per piece stepped
+    truth.step({1: end}, [0.0] * 4, turns)
+    assert len(truth._history) - before == 2  # to the first turn, then to the step's end
+    assert truth.t_s == 0.005 and truth.rest_length_m[0] == end
+
+
 def test_wheel_spins_follow_the_board_in_scene_order():
     truth = Truth(SCENE, TruthConfig(), [])
     truth.step({}, [1.0, -2.0, 3.0, -4.0])

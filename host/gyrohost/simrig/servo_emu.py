@@ -322,7 +322,7 @@ class ServoPath:
     these bends (:meth:`gyrohost.simrig.truth.Truth.step`), so a rest length moves when the
     servo does, not spread over the truth's step.
 
-    Only the bends of the last :data:`PATH_KEPT` s are kept; a point on the present straight
+    Only the bends of the last :data:`PATH_KEPT_S` are kept; a point on the present straight
     piece moves the piece's end instead of adding one."""
 
     def __init__(self):

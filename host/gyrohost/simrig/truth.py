@@ -71,6 +71,10 @@ from .errors import RigSetupError
 
 FD_STEP_S = 1e-6
 """Time step of the finite difference that turns frame velocity into angular rate, s."""
+MIN_PIECE_S = 1e-6
+"""Shortest piece of a step through the servos' turns, s: two turns closer than this (two
+servos arriving together, apart by round-off) are one, far below any motion the truth resolves,
+and a piece of no length is no step."""
 PIECES_PER_STEP = 8
 """Pieces of a step the IMU's history makes room for: each servo turns at most twice a step
 (a move's start and its arrival) while goals come every tick (two steps)."""
@@ -361,7 +365,11 @@ class Truth:
             spin = self.model.wheel_speeds(self.stepper.x, self.u)
             torque = self._J3 * (self.wheel_input_rad_s - spin) / self.dt_s
             self.u = self.model.pack_input(self.rest_length_m, torque)
-        points = [(t, lengths) for t, lengths in turns if t0 < t < t_end]
+        points, last = [], t0
+        for t, lengths in turns:
+            if last + MIN_PIECE_S < t < t_end - MIN_PIECE_S:
+                points.append((t, lengths))
+                last = t
         for t, lengths in [*points, (t_end, string_lengths_m)]:
             share = (t - t0) / self.dt_s
             spins = wheel_start + share * (self.wheel_input_rad_s - wheel_start)
