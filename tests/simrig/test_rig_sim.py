@@ -225,6 +225,8 @@ def test_every_step_of_the_truth_reaches_its_reader_once():
     interpolating between them has what the physics held between its steps: consecutive steps,
     each once, each the state the recording has at that step, after the last read."""
     with SimulatedRig(CONFIG, clock="sim") as rig:
+        assert rig.truth_steps() == []  # none kept before asked
+        rig.keep_truth_steps()
         rig.start_recording()
         rig.advance(0.05)
         first = rig.truth_steps()

@@ -1,5 +1,7 @@
 """Consistency measures: NEES on the constraint manifold, chi-square bounds, tilt error."""
 
+from functools import lru_cache
+
 import numpy as np
 from scipy.linalg import null_space
 from scipy.stats import chi2
@@ -155,10 +157,12 @@ def scored_positions(ekf, x):
     return tangent @ null_space(shift.T @ tangent)
 
 
+@lru_cache(maxsize=8)
 def translation(model):
     """An orthonormal basis (3 m, 3) of the reduced coordinates (``q`` laid out by axis, as
     in the filter's state) that move every node alike, one column per axis; None where no
-    such motion exists (a node held fixed)."""
+    such motion exists (a node held fixed). Once per model (every scored estimate asks):
+    read-only."""
     U2 = model.U2.toarray()  # (n, m): N = N_fix + q U2^T
     ones = np.ones(U2.shape[0])
     column = np.linalg.lstsq(U2, ones, rcond=None)[0]
@@ -168,6 +172,7 @@ def translation(model):
     out = np.zeros((3 * m, 3))
     for axis in range(3):
         out[axis * m : (axis + 1) * m, axis] = column / np.linalg.norm(column)
+    out.flags.writeable = False
     return out
 
 

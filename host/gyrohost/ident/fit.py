@@ -336,8 +336,8 @@ def fit(
             forward.window(r, max(r.segment_s, shooting.FIRST_PASS_S)) if r.segment_s else r
             for r in recs
         ]
-        tried = [solve(Problem(scene, config, est, params, first), t) for t in starts]
-        theta0 = min(tried, key=lambda sol: sol.cost).x
+        best, tried = _best_of(solve, Problem(scene, config, est, params, first), starts)
+        theta0 = best.x
         a = apply(scene, config, params, theta0, nominal_lag(est, recs), len(recs))
         recs, dropped = _predictable(Problem(scene, config, est, params, anchored(recs, a)), theta0)
     problem = Problem(scene, config, est, params, recs)
@@ -345,8 +345,7 @@ def fit(
     if segmented:
         sol = solve(problem, theta0)
     else:
-        tried = [solve(problem, t) for t in starts]
-        sol = min(tried, key=lambda sol: sol.cost)
+        sol, tried = _best_of(solve, problem, starts)
     strings = []
     if segmented:
         sol, strings = profile.strings_valley(solve, problem, sol, lower)
@@ -388,25 +387,31 @@ def latency_starts(params, est: EstimatorConfig) -> list[np.ndarray]:
     start near the bound may end in it. The cost varies along the latency no faster than the
     IMU's signals, which it samples at ``imu_period_s``: no basin is narrower than a period,
     so starts half a period apart each have one within reach, and the lowest end is kept."""
-    theta = np.zeros(len(params))
-    index = next((i for i, p in enumerate(params) if p.name == "imu_latency"), None)
+    index = _latency_index(params)
     if index is None:
-        return [theta]
+        return [np.zeros(len(params))]
     spacing = 0.5 * est.imu_period_s
     grid = spacing * np.arange(int(np.floor(est.imu_max_delay_s / spacing + 1e-9)) + 1)
-    starts = []
-    for latency_s in grid:
-        start = theta.copy()
-        start[index] = latency_s - params[index].nominal
-        starts.append(start)
-    return starts
+    starts = np.zeros((len(grid), len(params)))
+    starts[:, index] = grid - params[index].nominal
+    return list(starts)
+
+
+def _latency_index(params) -> int | None:
+    return next((i for i, p in enumerate(params) if p.name == "imu_latency"), None)
+
+
+def _best_of(solve, problem, starts):
+    """The lowest-cost of ``solve(problem, start)`` over ``starts``, and every solution."""
+    tried = [solve(problem, start) for start in starts]
+    return min(tried, key=lambda sol: sol.cost), tried
 
 
 def _latency_tries(params, starts, tried) -> list:
     """(start, cost, end) of the latency, s, for each of several starts (empty for one)."""
     if len(starts) < 2:
         return []
-    i = next(i for i, p in enumerate(params) if p.name == "imu_latency")
+    i = _latency_index(params)
     nominal = params[i].nominal
     pairs = zip(starts, tried, strict=True)
     return [(nominal + t[i], float(sol.cost), nominal + sol.x[i]) for t, sol in pairs]

@@ -33,7 +33,6 @@ from gyrohost.ident.forward import command_rows
 SETTLE_LAGS = 5.0
 """Lags of the stretch's start left out, after the board's ramp (e^-5: under 1 % of a step)."""
 
-
 RESOLUTION_ERRORS = 2.0
 """Standard errors of the variance below which an error counts as unresolved (one-sided: an
 error the logs could not tell from none is under this 98 % of the time)."""
@@ -57,7 +56,7 @@ def speed_error_variance(recs, est) -> SpeedError:
     The variance of a sample variance of ``N`` reports whose deviations correlate as an AR(1)
     of lag-one correlation ``rho`` is ``2 s^4 (1 + rho^2) / ((1 - rho^2) N)``: ``rho`` is
     measured on the same deviations, the noise's share and the error's together."""
-    centred = [e - e.mean(axis=0) for rec in recs if (e := _longest(rec, est)) is not None]
+    centred = [e - e.mean(axis=0) for rec in recs if (e := _longest_settled(rec, est)) is not None]
     count = sum(d.size - d.shape[1] for d in centred)
     if count == 0:
         return SpeedError(math.nan, math.nan, 0)
@@ -68,20 +67,17 @@ def speed_error_variance(recs, est) -> SpeedError:
     return SpeedError(spread - est.wheel_speed_std_rad_s**2, RESOLUTION_ERRORS * se, count)
 
 
-def _longest(rec, est):
-    return _longest_settled(rec, est.wheel_lag_s, est.wheel_accel_rad_s2)
-
-
-def _longest_settled(rec, lag_s: float, accel_rad_s2: float):
+def _longest_settled(rec, est):
     """The reports less the command (k, n_w) over the longest stretch of one command, from when
-    the board's ramp to it and :data:`SETTLE_LAGS` lags are over; None without two."""
+    the board's ramp to it (at ``est``'s ramp rate) and :data:`SETTLE_LAGS` of its wheel lags
+    are over; None without two."""
     if not len(rec.t_command_s) or len(rec.t_wheels_s) < 2:
         return None
     t = rec.t_wheels_s
     i = command_rows(rec, t)
     first, step = _changes(rec.command_rad_s)
     since = rec.t_command_s[first][i]
-    settled = t - since >= step[first][i] / accel_rad_s2 + SETTLE_LAGS * lag_s
+    settled = t - since >= step[first][i] / est.wheel_accel_rad_s2 + SETTLE_LAGS * est.wheel_lag_s
     stretches = np.split(np.arange(len(t)), np.flatnonzero(np.diff(first[i]) != 0) + 1)
     keep = max((s[settled[s]] for s in stretches), key=len)
     return (rec.wheels_rad_s - rec.command_rad_s[i])[keep] if len(keep) >= 2 else None

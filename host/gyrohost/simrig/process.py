@@ -212,6 +212,7 @@ def _start_and_serve(conn, rig, period_s: float) -> None:
     from gyrohost.simrig.errors import FaultCommandError
 
     try:
+        rig.keep_truth_steps()
         t0_ns = time.monotonic_ns()  # rig time zero (start() reads the clock right after)
         rig.start()
     except Exception as exc:  # reported to the parent, which raises it

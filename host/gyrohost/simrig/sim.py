@@ -120,7 +120,7 @@ class SimulatedRig:
         self._steps = self._late = 0
         self._step_wall_s = self._max_lag_s = self._slip_s = 0.0
         self._cpu0_s = 0.0
-        self._steps_kept: deque = deque(maxlen=STEPS_KEPT)
+        self._steps_kept: deque | None = None  # kept once asked (keep_truth_steps)
 
     def _wheel_board(self, config: RigConfig):
         emu = self.sim.wheels
@@ -253,7 +253,8 @@ class SimulatedRig:
             self.truth.step(*self._step_inputs())
             for sid, tension in self.truth.servo_tensions_N().items():
                 self.servos.set_tension(sid, tension)
-            self._steps_kept.append((time.monotonic_ns(), self._dev_t_s, *self._sample()))
+            if self._steps_kept is not None:
+                self._steps_kept.append((time.monotonic_ns(), self._dev_t_s, *self._sample()))
         self._step_wall_s += time.perf_counter() - start
         self._steps += 1
         if self.clock == "real":
@@ -321,10 +322,17 @@ class SimulatedRig:
         with self._lock:
             return self._sample()
 
+    def keep_truth_steps(self) -> None:
+        """Keep every following truth step's sample for :meth:`truth_steps` (a rig whose truth
+        nobody streams leaves the nodes of each step uncomputed)."""
+        with self._lock:
+            if self._steps_kept is None:
+                self._steps_kept = deque(maxlen=STEPS_KEPT)
+
     def truth_steps(self) -> list[tuple]:
-        """Every truth step's sample since the last call (at most :data:`STEPS_KEPT`), oldest
-        first: ``time.monotonic_ns`` and the rig time when it was stepped, then
-        :meth:`truth_sample`'s values.
+        """Every truth step's sample since the last call (at most :data:`STEPS_KEPT`; none
+        before :meth:`keep_truth_steps`), oldest first: ``time.monotonic_ns`` and the rig time
+        when it was stepped, then :meth:`truth_sample`'s values.
 
         The truth holds its inputs first-order between its steps' ends: a reader that
         interpolates between every step's sample has what the physics had, where one sampling
@@ -333,8 +341,9 @@ class SimulatedRig:
         interpolated between samples can be up to a goal step off, by an offset the ticks'
         phase against the steps holds for a whole run."""
         with self._lock:
-            out = list(self._steps_kept)
-            self._steps_kept.clear()
+            out = list(self._steps_kept or ())
+            if self._steps_kept is not None:
+                self._steps_kept.clear()
         return out
 
     def _sample(self) -> tuple:
