@@ -1,5 +1,5 @@
-"""The pieces of the SIL that the consistency studies build on, checked exactly: the wait of a
-late command for the truth's next step, the kink weight of the rest-length jitter and the
+"""The pieces of the SIL that the consistency studies build on, checked exactly: the in-process
+servos' paths through a goal sent within a step, the kink weight of the rest-length jitter and the
 linearisation's residual, the kink noise's columns through a string near its kink. The Monte
 Carlo itself (NEES and NIS of 6-20 seeds against the bounds of their average, and the share of
 time steps inside them) is a statistical claim and a study: ``python -m studies estimator_sil``
@@ -8,17 +8,27 @@ and ``python -m studies estimator_effects`` (reports/)."""
 import numpy as np
 import pytest
 
-from gyrohost.sil.effects import CASES
 
+def test_in_process_servos_take_each_goal_from_its_send_within_a_step():
+    """A goal sent 1.7 ms into a 5 ms step moves the servo from then on: the step's path, at
+    its pieces' ends and the send, is the lag (at most at the speed limit) stepped in 1 us."""
+    from gyrohost.config import ServoConfig
+    from gyrohost.drivers.mx12 import lag_error_after
+    from gyrohost.sil.scoring import SERVO_PIECES, servo_paths
 
-def test_late_command_wait_is_the_mean_wait_for_the_truths_next_step():
-    from gyrohost.sil.effects import late_command_wait_s, loop_ticks
-
-    step_s, late_s = 0.005, 1e-3
-    ticks = loop_ticks(2000.0, CASES["loop-fixed"], np.random.default_rng(0), late_s)
-    sampled = np.mean(np.ceil(ticks / step_s - 1e-9) * step_s - ticks)
-    assert abs(late_command_wait_s(late_s, step_s) - sampled) < 2e-5
-    assert abs(late_command_wait_s(late_s, step_s) - 4.034e-3) < 1e-6
+    servo = ServoConfig(name="s", id=1, pulley_radius_m=0.01, max_speed_m_s=0.15, string="s13")
+    lag, dt = 0.0133, 0.005
+    later = [(0.0017, np.array([0.4040]))]
+    ends, paths = servo_paths([(servo, 0)], {1: 0.4}, np.array([0.4015]), later, dt, lag)
+    assert ends == sorted({*np.round(SERVO_PIECES * dt, 12), 0.0017}) and ends[-1] == dt
+    x, fine = 0.4, []
+    for k in range(1, 5001):
+        goal = 0.4015 if k * 1e-6 <= 0.0017 + 1e-12 else 0.4040
+        x = goal - float(lag_error_after(goal - x, 1e-6, lag, 0.15))
+        fine.append(x)
+    expected = [fine[int(round(e * 1e6)) - 1] for e in ends]
+    assert np.allclose(paths[1], expected, rtol=0, atol=1e-12)
+    assert np.ptp(np.diff(fine)) > 1e-9  # the send bent the path
 
 
 def test_kink_weight_is_the_mean_square_of_the_rectified_jitter():

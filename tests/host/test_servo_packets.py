@@ -309,6 +309,39 @@ def _move(servo: EmulatedMx12, goal: int) -> None:
         servo.advance(1e-3)
 
 
+def test_a_move_within_the_p_band_is_a_first_order_lag_whatever_the_ticks():
+    """200 steps, under the factory P gain's band (427 steps at 470 rpm): the error decays
+    as exp(-t / lag), lag = 50 / (P rpm) = 13.3 ms, exactly at uneven ticks."""
+    servo = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.0), SERVO)
+    servo.write(Addr.TORQUE_ENABLE, b"\x01")
+    start = servo.position_steps  # the calibrated zero: no band to sit in
+    servo.write(Addr.GOAL_POSITION, int(start + 200).to_bytes(2, "little"))
+    lag, t = 50.0 / (8 * 470.0), 0.0
+    for dt in (0.0003, 0.0021, 0.0007, 0.011, 0.004):
+        servo.advance(dt)
+        t += dt
+        assert servo.position_steps - start == pytest.approx(200 * (1 - math.exp(-t / lag)))
+
+
+@pytest.mark.parametrize("speed_units", [0, 100])
+def test_a_long_move_runs_at_the_speed_limit_then_lags(speed_units):
+    """5000 steps (multi-turn): at the speed limit (no-load 470 rpm, or the moving speed's 91.6
+    rpm) until the P gain's output falls below it, at an error of speed x lag; then the lag."""
+    servo = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.0), SERVO)
+    servo.write(Addr.CW_LIMIT, bytes((0xFF, 0x0F, 0xFF, 0x0F)))
+    servo.write(Addr.TORQUE_ENABLE, b"\x01")
+    servo.write(Addr.MOVING_SPEED, speed_units.to_bytes(2, "little"))
+    start = servo.position_steps
+    servo.write(Addr.GOAL_POSITION, int(start + 5000).to_bytes(2, "little"))
+    rpm = 470.0 if speed_units == 0 else speed_units * 0.916
+    speed, lag = rpm / 60 * 4096, 50.0 / (8 * 470.0)
+    linear_s = (5000 - speed * lag) / speed
+    servo.advance(0.5 * linear_s)
+    assert servo.position_steps - start == pytest.approx(0.5 * linear_s * speed)
+    servo.advance(0.5 * linear_s + lag)
+    assert servo.position_steps - start == pytest.approx(5000 - speed * lag * math.exp(-1))
+
+
 def test_an_emulated_servo_stops_within_its_hold_band_and_holds_there():
     servo = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.5, seed=7), SERVO)
     assert 0 < abs(servo.position_steps - SERVO.zero_position) <= 0.5  # the start is held too
@@ -329,5 +362,31 @@ def test_an_emulated_servo_stops_within_its_hold_band_and_holds_there():
 
     exact = EmulatedMx12(3, ServoEmuConfig(hold_band_steps=0.0), SERVO)
     exact.write(Addr.TORQUE_ENABLE, b"\x01")
-    _move(exact, 1000)
-    assert exact.position_steps == 1000.0
+    _move(exact, 1000)  # no band: the lag closes in on the goal (150 lags in 2 s)
+    assert exact.position_steps == pytest.approx(1000.0, abs=1e-9)
+
+
+def test_a_goal_moves_the_servo_from_the_poll_that_read_it():
+    """The rig's loop wakes when bytes come: a goal read at a poll 5 ms after the last one moves
+    the servo from then, not from the last poll (before it was sent): at the next poll, 1 ms
+    on, it has moved by the lag over 1 ms, not over 6 ms."""
+    device = Mx12Bus([SERVO], ServoEmuConfig(hold_band_steps=0.0))
+    port = serial.Serial(device.slave_path, timeout=0.02)
+    try:
+        servo = device.servos[3]
+        servo.write(Addr.TORQUE_ENABLE, b"\x01")
+        device.poll(now_s=0.0)
+        start = servo.position_steps
+        goal = int(start) + 100
+        port.write(Packet(3, 0x03, bytes([Addr.GOAL_POSITION, *goal.to_bytes(2, "little")]),
+                          True).encode())  # fmt: skip
+        port.flush()
+        time.sleep(0.01)
+        device.poll(now_s=0.005)
+        assert servo.position_steps == start
+        device.poll(now_s=0.006)
+        moved = servo.position_steps - start
+        assert moved == pytest.approx((goal - start) * -math.expm1(-0.001 / (50 / (8 * 470))))
+    finally:
+        port.close()
+        device.close()

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from gyrohost.ident.servo_render import GRID_S, fit_response, lagged, rendered
+from gyrohost.estimator.servo_motion import lagged
+from gyrohost.ident.servo_render import GRID_S, fit_response, rendered
 
 DELAY_S, LAG_S = 0.012, 0.03
 REPORT_PERIOD_S, TICK_S = 0.04, 0.01
@@ -60,20 +61,22 @@ def test_a_log_s_reports_are_rendered_with_the_rig_s_servo_response(tmp_path):
     """An in-process recording (servos: a first-order 50 ms lag, read at 25 Hz): the response
     fitted to the reports is the rig's, and the rendered lengths are its commands through it."""
     from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import servo_speed_m_s
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.simcheck import record_log, write_rigs
-    from gyrohost.sil.scoring import SERVO_LAG_S
+    from gyrohost.sil.emulator_keys import emulated_servo_lag_s
 
     nominal, truth = write_rigs(tmp_path, 2.5)
     log = record_log(truth, 1, tmp_path / "log")
     config = load_rig_config(nominal)
+    lag_s, speed = emulated_servo_lag_s(config), servo_speed_m_s(config)
     reports = load_recording(log, config, 4)
     commands = load_recording(log, config, 4, commanded=True)
     assert commands.servo_response is None
     response = reports.servo_response
     assert abs(response.delay_s) < 1e-3
-    assert response.lag_s == pytest.approx(SERVO_LAG_S, rel=0.02)
+    assert response.lag_s == pytest.approx(lag_s, rel=0.02)
     t = np.arange(0.0, commands.t_imu_s[-1], 0.005)
-    exact = lagged(commands.t_servos_s, commands.servos_m, t, SERVO_LAG_S)
+    exact = lagged(commands.t_servos_s, commands.servos_m, t, lag_s, speed)
     read = [np.interp(t, reports.t_servos_s, v) for v in reports.servos_m.T]
     assert np.max(np.abs(np.column_stack(read) - exact)) < 2e-5  # m: the reads' 15 um steps

@@ -14,10 +14,9 @@ from gyrohost.ident.logs import load_recording
 from gyrohost.ident.params import parameters
 from gyrohost.ident.shooting import UNPREDICTABLE, predictable, segment_starts
 from gyrohost.ident.simcheck import FACTORS, MOUNTING_RPY_RAD, record_log, write_rigs
+from gyrohost.sil.emulator_keys import emulated_servo_lag_s
 from gyrohost.simrig.truth import rig_scene
 from gyrotensegrity import Model, load_scene
-
-SERVO_LAG_S = 0.05  # the rig models' servos (identify_check)
 
 
 @pytest.mark.parametrize(
@@ -49,7 +48,7 @@ def test_segments_continue_the_truth_and_start_on_the_manifold(tmp_path):
     jumps = {}
     for name in ("truth", "nominal"):
         scene = load_scene(tmp_path / f"{name}.toml")
-        motion = forward.simulate(scene, config, rec, None, SERVO_LAG_S)
+        motion = forward.simulate(scene, config, rec, None, emulated_servo_lag_s(config))
         assert len(motion.starts) == 3
         assert len(motion.omega_rad_s) == len(rec.t_imu_s)
         model = Model(rig_scene(scene))
@@ -81,10 +80,12 @@ def test_segments_past_the_roll_over_are_left_out_of_the_fit(tmp_path):
     log = record_log(truth, 1, tmp_path / "log")
     config = load_rig_config(nominal)
     scene = load_scene(config.scene_path)
-    est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S)
+    est = replace(for_rig(config), servo_lag_s=emulated_servo_lag_s(config))
     groups = ["J3", "stiffness", "damping", "mounting", "gyro-bias", "accel-bias"]
     rec = load_recording(log, config, 4, commanded=True, segment_s=4.0)
-    result = fit(scene, config, est, parameters(scene, config, groups, SERVO_LAG_S), [rec])
+    result = fit(
+        scene, config, est, parameters(scene, config, groups, emulated_servo_lag_s(config)), [rec]
+    )
     dropped = [(t0, round(t1, 1)) for _, t0, t1 in result.dropped]
     assert (8.0, 12.0) in dropped and (0.0, 4.0) not in dropped, dropped
     assert abs(result.theta[0] - np.log(FACTORS["J3"])) < np.log(1.10)
@@ -99,7 +100,9 @@ def test_an_estimate_of_another_model_is_refused_naming_the_log(tmp_path):
         rec, segment_start="estimate", t_estimate_s=np.arange(3.0), estimate_x=np.zeros((3, 7))
     )
     with pytest.raises(forward.IdentDataError, match=r"log: estimate\.csv holds 7 .* has 24"):
-        forward.simulate(load_scene(tmp_path / "nominal.toml"), config, rec, None, SERVO_LAG_S)
+        forward.simulate(
+            load_scene(tmp_path / "nominal.toml"), config, rec, None, emulated_servo_lag_s(config)
+        )
 
 
 @dataclass

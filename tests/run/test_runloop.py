@@ -24,7 +24,7 @@ CONFIG = load_rig_config(shipped("config", "sim-rig"))
 L0 = 0.43105229381822  # both D-bar strings at rest, m
 SPIN = 74.87462492  # rad/s
 SHORT = RunSettings(lead_in_s=0.2, settle_s=0.2)
-INPUT_STREAMS = ("imu", "wheels", "servos", "command")
+INPUT_STREAMS = ("imu", "wheels", "servos", "command", "servo_goals")
 OUTPUT_STREAMS = ("estimate", "nodes", "innov_imu_rate", "innov_wheels", "innov_servos")
 RUN_STREAMS = ("truth", "loop", "events")
 
@@ -101,6 +101,13 @@ def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch, capsys):
     assert phases == ["connect", "hold", "spinup", "lead_in", "schedule", "settle"]
     cmd = read_stream(folder, "command")
     assert cmd["s13_rest_m"].min() == pytest.approx(L0 - 0.05, abs=1e-9)
+    # each goal the servos were sent is a tick's, stamped when it went out: after that tick
+    goals = read_stream(folder, "servo_goals")
+    tick = np.searchsorted(cmd["t_s"], goals["t_s"], "right") - 1
+    sent = np.flatnonzero(tick >= 0)
+    assert len(sent) > 0.5 * len(goals)
+    for i in sent:  # a goal made at its tick or one before (only the newest goes out)
+        assert goals["s13_rest_m"][i] in cmd["s13_rest_m"][: tick[i] + 1]
     truth = read_stream(folder, "truth")
     assert truth["s13_rest_m"][-1] == pytest.approx(L0 - 0.05, abs=2e-3)  # servo followed
     assert_safe_state(folder, result)

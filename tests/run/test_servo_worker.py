@@ -1,4 +1,5 @@
-"""The servo worker: goals go out as the loop gives them; reads are stamped when sampled."""
+"""The servo worker: goals go out as the loop gives them, each a sample stamped when it went
+onto the bus; reads are stamped when sampled."""
 
 import queue
 import threading
@@ -13,8 +14,10 @@ class _Bus:
     def __init__(self):
         self.goals = []
         self.sent = threading.Event()
+        self.goals_sent_ns = 0
 
     def command_lengths(self, goals):
+        self.goals_sent_ns = 5_000 + len(self.goals)  # the driver's stamp, before its write
         self.goals.append(goals)
         self.sent.set()
 
@@ -33,6 +36,8 @@ def test_goals_are_sent_at_once_not_at_the_next_read():
         worker.command({"s13": 0.40})
         assert bus.sent.wait(5.0), "the goal waited for the next read (20 s)"
         assert bus.goals == [{"s13": 0.40}]
+        goal = out.get(timeout=5.0)
+        assert (goal.device, goal.t_ns, goal.value) == ("servo_goals", 5_000, {"s13": 0.40})
         assert out.empty()  # no read made for the goal
     finally:
         worker.stop()

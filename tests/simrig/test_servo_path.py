@@ -1,12 +1,19 @@
-"""The emulated servos' paths (servo_emu.ServoPath): straight between the times a servo changes
-speed, which the truth steps its physics through."""
+"""The emulated servos' paths (servo_emu.ServoPath): straight pieces within a tolerance of the
+servo's positions, which the truth steps its physics through."""
 
+import numpy as np
 import pytest
 
 from gyrohost.config import ServoConfig
-from gyrohost.drivers.mx12 import Addr, steps_to_length
+from gyrohost.drivers.mx12 import (
+    P_GAIN_FACTORY,
+    Addr,
+    position_lag_s,
+    steps_per_metre,
+    steps_to_length,
+)
 from gyrohost.simrig.config import ServoEmuConfig
-from gyrohost.simrig.servo_emu import Mx12Bus, ServoPath
+from gyrohost.simrig.servo_emu import PATH_TOLERANCE_STEPS, Mx12Bus, ServoPath
 
 SERVO = ServoConfig(name="left", id=1, pulley_radius_m=0.01, length_at_zero_m=0.4, string="s13")
 
@@ -21,23 +28,41 @@ def test_a_path_keeps_only_its_bends():
     assert path.steps_at(0.0035) == pytest.approx(15.0)
 
 
-def test_a_move_bends_where_it_starts_and_where_it_reaches_its_goal():
-    """200 steps at the MX-12W's 470 rpm (32,100 steps/s) take 6.2 ms: the path bends at the
-    tick the goal came in and within the tick it arrives, and is straight between."""
-    bus = Mx12Bus([SERVO], ServoEmuConfig(hold_band_steps=0.0))
+def test_a_curve_is_kept_within_the_tolerance_in_fewer_pieces():
+    """A lag's curve sampled every 0.1 ms: the path passes within the tolerance of every
+    sample, with far fewer points (a piece ends only where the curve leaves its line)."""
+    path = ServoPath()
+    t = np.arange(0.0, 0.1, 1e-4)
+    curve = 200.0 * (1.0 - np.exp(-t / 0.0133))
+    for ti, pi in zip(t, curve, strict=True):
+        path.add(float(ti), float(pi))
+    off = np.array([path.steps_at(ti) for ti in t]) - curve
+    assert np.max(np.abs(off)) <= PATH_TOLERANCE_STEPS
+    assert len(path.t_s) < len(t) / 5
+
+
+def test_a_move_bends_where_it_starts_and_where_it_stops():
+    """200 steps at the factory P gain (a 13.3 ms lag): the path follows the lag from the
+    tick the goal came in (within the tolerance at the ticks, where the emulator knows its
+    position) and stops within its hold band."""
+    bus = Mx12Bus([SERVO], ServoEmuConfig(hold_band_steps=0.5))
     try:
         servo = bus.servos[1]
         assert bus.lengths_at(0.0) == {1: bus.string_length_m(1)}  # before any tick: present
         servo.write(Addr.TORQUE_ENABLE, b"\x01")
         bus.tick(0.0)
+        start = servo.position_steps
         servo.write(Addr.GOAL_POSITION, (200).to_bytes(2, "little"))
-        for k in range(1, 11):
+        for k in range(1, 201):
             bus.tick(k * 0.001)
-        start, arrival = bus.turns_between(-1.0, 1.0)
-        assert start == 0.0
-        assert arrival == pytest.approx(200 / (470 / 60 * 4096), rel=1e-3)
-        length = steps_to_length(SERVO, 100.0)  # halfway, at half the time
-        assert bus.lengths_at(arrival / 2)[1] == pytest.approx(length, abs=1e-9)
-        assert bus.lengths_at(0.01)[1] == pytest.approx(steps_to_length(SERVO, 200.0))
+        lag = position_lag_s(P_GAIN_FACTORY, 470.0)
+        assert bus.turns_between(-1.0, 1.0)[0] == 0.0
+        tolerance_m = PATH_TOLERANCE_STEPS / steps_per_metre(SERVO)
+        for t in (0.002, 0.011, 0.03):
+            steps = 200.0 - (200.0 - start) * np.exp(-t / lag)
+            length = steps_to_length(SERVO, steps)
+            assert bus.lengths_at(t)[1] == pytest.approx(length, abs=tolerance_m)
+        assert bus.lengths_at(0.2)[1] == steps_to_length(SERVO, servo.position_steps)
+        assert 0.0 < 200.0 - servo.position_steps <= 0.5
     finally:
         bus.close()

@@ -10,6 +10,8 @@ in multi-turn mode (4096 steps per turn) has length
 
 import math
 
+import numpy as np
+
 from gyrohost.config import ServoConfig
 
 MODEL_MX12W = 104
@@ -20,6 +22,8 @@ LOAD_UNIT = 0.001
 """Present load per unit, fraction of the maximum torque (0.1 %)."""
 MULTI_TURN_LIMIT = 4095
 SPEED_MAX_UNITS = 1023
+P_GAIN_FACTORY = 8
+"""The MX-12W's P gain (address 28) as shipped (its D gain 8, I gain 0)."""
 
 
 class Addr:
@@ -36,6 +40,7 @@ class Addr:
     MULTI_TURN_OFFSET = 20
     RESOLUTION_DIVIDER = 22
     TORQUE_ENABLE = 24
+    P_GAIN = 28
     GOAL_POSITION = 30
     MOVING_SPEED = 32
     TORQUE_LIMIT = 34
@@ -87,6 +92,42 @@ def sign_magnitude_from_signed(value: int) -> int:
     if abs(value) > 0x3FF:
         raise ValueError(f"{value} does not fit a 10-bit magnitude")
     return (abs(value) & 0x3FF) | (0x400 if value < 0 else 0)
+
+
+def position_lag_s(p_gain: int, no_load_speed_rpm: float) -> float:
+    """The time constant of an MX's position loop below its speed limit, s.
+
+    The manual equates a P gain with the older servos' compliance slope (P 8, 32, 128 for
+    slopes of 128, 32, 8 AX steps of 300/1024 deg): the output rises in proportion to the
+    error over a band of ``300 / P`` degrees and is full beyond it, and full output turns the
+    shaft at its no-load speed. The shaft then closes an error ``e`` inside the band at
+    ``no_load * e / band``: a first-order lag of ``band / no_load`` = ``50 / (P * rpm)`` s
+    (13.3 ms at the factory P 8 and 470 rpm). Friction and load slow it; a step response on
+    the rig measures it (``gyrotens identify`` fits it from the servos' reads). A P gain of
+    0 gives no output: an infinite lag.
+    """
+    if p_gain <= 0:
+        return math.inf
+    return 50.0 / (p_gain * no_load_speed_rpm)
+
+
+def lag_error_after(error, dt_s: float, lag_s: float, max_speed) -> np.ndarray:
+    """A position loop's error after ``dt_s`` s from ``error``: closing at ``max_speed`` (same
+    units per s) while its output asks for more, as a first-order lag ``lag_s`` within
+    (:func:`position_lag_s`), exactly. Element-wise over arrays; an infinite speed limit
+    leaves the lag alone.
+
+    The error closes at the limit until it is down to ``max_speed lag_s``, taking
+    ``t1 = (|e| - max_speed lag_s) / max_speed``; it then decays as ``exp(-(dt - t1) / lag)``.
+    """
+    error = np.asarray(error, dtype=float)
+    size, knee = np.abs(error), np.asarray(max_speed, dtype=float) * lag_s
+    over = size > knee
+    with np.errstate(invalid="ignore", divide="ignore"):  # inf * 0 in the branch not taken
+        t_knee = np.where(over, (size - knee) / max_speed, 0.0)
+        linear = np.where(over, np.maximum(size - max_speed * dt_s, knee), size)
+    decayed = np.minimum(size, knee) * np.exp(-np.maximum(dt_s - t_knee, 0.0) / lag_s)
+    return np.sign(error) * np.where(dt_s <= t_knee, linear, decayed)
 
 
 def steps_per_metre(servo: ServoConfig) -> float:

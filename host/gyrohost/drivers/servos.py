@@ -212,6 +212,7 @@ class StringServoBus:
         self.port = PortHandler(config.port, config.reply_timeout_s)
         self.packets = sdk.PacketHandler(1.0)
         self.low_latency = False
+        self.goals_sent_ns = 0  # time.monotonic_ns() just before the newest goals went out
         self._open = False
 
     # --- port ---------------------------------------------------------------------------------
@@ -422,10 +423,14 @@ class StringServoBus:
         for name, (steps, speed) in goals.items():
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
+        # stamped before the write: after it, the thread may wait for the GIL for milliseconds
         if self.port.in_reply_wait:
             group.makeParam()
-            self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
+            packet = _sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param)
+            self.goals_sent_ns = time.monotonic_ns()
+            self.port.write_packet(packet)
             return
+        self.goals_sent_ns = time.monotonic_ns()
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
@@ -455,10 +460,10 @@ class StringServoBus:
         for servo in self.config.servo:
             group.addParam(servo.id, addr, n)
         group.makeParam()
+        sent_ns = time.monotonic_ns()  # every servo samples on the one request, just after it
         result = self.packets.bulkReadTx(self.port, group.param, 3 * len(self.config.servo))
         if result != sdk.COMM_SUCCESS:
             self._check(self.config.servo[0], result, 0, "bulk read request")
-        sent_ns = time.monotonic_ns()  # every servo samples on the one request
         raw = {}
         for servo in self.config.servo:
             data, result, error = self.packets.readRx(self.port, servo.id, n)

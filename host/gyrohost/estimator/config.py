@@ -143,6 +143,9 @@ class EstimatorConfig:
     jacobian: str = field(default="analytic", metadata={"choices": ("analytic", "complex-step")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
+    # the servos close a goal step at most at this string speed (their moving speed), by the
+    # lag within it (gyrohost.drivers.mx12.lag_error_after); unset: the lag alone
+    servo_speed_m_s: float = field(default=math.inf, metadata=_pos("servo speed limit", 1e-4))
     # the wheels follow the commanded speeds (set_input's wheel_speed_rad_s) through this lag,
     # at most at the board's ramp rate (ACCEL_RAD_S2); 0: the speeds are held (the model's input)
     wheel_lag_s: float = field(default=0.0, metadata=_pos("wheel response time", 0.0, 10.0))
@@ -268,15 +271,16 @@ def for_rig(rig, path: str | Path | None = None) -> EstimatorConfig:
     """The EKF's configuration for a run on ``rig`` (a ``gyrohost.config.RigConfig``).
 
     Layers, each overriding the keys it names: the defaults; the IMU's output period, time-out
-    and mounting from ``[imu]`` (:func:`imu_keys`); the rig's ``[estimator]`` keys; the
-    ``[estimator]`` table of the file ``path`` (``gyrotens run --estimator``).
+    and mounting from ``[imu]`` and the servos' speed limit from ``[servos]``
+    (:func:`rig_keys`); the rig's ``[estimator]`` keys; the ``[estimator]`` table of the file
+    ``path`` (``gyrotens run --estimator``).
 
     Raises
     ------
     EstimatorConfigError
         An unknown key or bad value, naming the file and the key.
     """
-    return config_from_dict({**imu_keys(rig), **rig_overrides(rig, path)}, rig.source)
+    return config_from_dict({**rig_keys(rig), **rig_overrides(rig, path)}, rig.source)
 
 
 def rig_overrides(rig, path: str | Path | None = None) -> dict:
@@ -317,6 +321,8 @@ def _check(f, value, where: str):
         if value not in f.metadata["choices"]:
             raise EstimatorConfigError(f"{where} is {value!r}, one of {f.metadata['choices']}")
         return value
+    if value == default and not isinstance(value, bool):  # an infinite default reads back
+        return float(value)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise EstimatorConfigError(f"{where} must be a finite number, got {value!r}")
     lo, hi = f.metadata["lo"], f.metadata["hi"]
@@ -339,13 +345,25 @@ def _check_array(default: tuple, value, where: str) -> tuple:
     return tuple(kind(v) for v in value)
 
 
-def imu_keys(rig) -> dict:
-    """Keys a rig configuration's ``[imu]`` table fixes: output period, time-out, mounting."""
-    return {
+def rig_keys(rig) -> dict:
+    """Keys a rig configuration's device tables fix: the IMU's output period, time-out and
+    mounting (``[imu]``); the servos' speed limit, the moving speed the driver writes with
+    every goal (``[servos.servo] max_speed_m_s``; one limit in the filter: the slowest's)."""
+    keys = {
         "imu_timeout_s": rig.imu.timeout_s,
         "imu_period_s": 1.0 / rig.imu.rate_hz,
         "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),
     }
+    if any(s.string for s in rig.servos.servo):
+        keys["servo_speed_m_s"] = servo_speed_m_s(rig)
+    return keys
+
+
+def servo_speed_m_s(rig) -> float:
+    """The string speed the servos of ``rig`` close a goal step at most at: the moving speed
+    the driver writes with every goal, ``max_speed_m_s``, the slowest wound servo's (inf:
+    none winds a string)."""
+    return min((s.max_speed_m_s for s in rig.servos.servo if s.string), default=math.inf)
 
 
 def imu_taken_s(config: EstimatorConfig, t_s: float) -> float:
@@ -361,33 +379,6 @@ identification's truth (NEES 3e5 for 28)."""
 EXACT_IMU_TIMES = {"imu_latency_s": 0.0, "imu_time_std_s": 0.0}
 """Keys for IMU samples that carry their own times (in-process runs): no latency, no
 uncertainty about it (a real-time rig's configuration gives both)."""
-
-
-PULL_SPEED_M_S = 0.1
-"""The strings' speed the rest-length jitter is sized for (:func:`sawtooth_psd`): the paper's
-pulls, m/s."""
-
-
-def sawtooth_psd(command_period_s, servo_speed_m_s=math.inf):
-    """The rest-length jitter ``rest_jitter_psd_m2_s`` (m^2 s) of a rig whose servos move in
-    steps about the filter's continuous rest lengths, pulled at :data:`PULL_SPEED_M_S` (``v``).
-
-    A servo given a goal every command period ``T`` covers the goal's step at its speed ``V``
-    and holds: about the ramp it rises and falls by ``p = v T (1 - v/V)`` once a period, a
-    spread ``p^2 / 12`` (0 for ``T = 0``, servos that follow their lag smoothly). A wave of peak
-    to peak ``p`` and period ``P`` is taken as white noise of density ``2 (p^2 / 12) P``
-    (docs/estimator-noise.md#the-rest-length-jitter).
-
-    Parameters
-    ----------
-    command_period_s : float
-        The servos' goal period ``T``, s (0: no goal steps).
-    servo_speed_m_s : float
-        The servos' moving speed ``V``, m/s.
-    """
-    v = PULL_SPEED_M_S
-    held = max(1.0 - v / servo_speed_m_s, 0.0)
-    return v**2 / 6.0 * command_period_s**3 * held**2
 
 
 def servo_hold_std(count_m, band_steps):

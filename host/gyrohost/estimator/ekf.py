@@ -14,6 +14,7 @@ Typical use (the run loop and ``gyrotens replay``)::
 """
 
 import bisect
+from collections import deque
 from enum import IntFlag
 
 import numpy as np
@@ -34,7 +35,12 @@ from .imu_prediction import predict_imu
 from .layout import from_model_state, layout_of
 from .manifold import Manifold
 from .process_model import ProcessModel, check_model
+from .servo_motion import step_input
 from .timeouts import SourceMonitor
+
+GOALS_KEPT = 64
+"""Rest-length goals the filter remembers: at a goal a tick, 0.64 s, far more than a servo read
+is ever behind the filter."""
 
 SOURCES = (
     fuse_imu_rate.SOURCE,
@@ -122,6 +128,9 @@ class TensegrityEKF:
         self.t_start = self.t
         self.imu_lag_s = 0.0  # how far the filter was ahead of the last IMU sample, s
         self.u = model.input_at(self.t)
+        # the rest-length goals in effect from each time on, newest last: a read sampled before
+        # the filter's time is compared with the rest lengths taken back through them
+        self.goal_history = deque([(self.t, self.u[: model.alpha].copy())], maxlen=GOALS_KEPT)
         self.log = log
         self.monitors = {s: SourceMonitor(s, _timeout(config, s)) for s in SOURCES}
         self.stale_last = False
@@ -205,16 +214,17 @@ class TensegrityEKF:
 
     # -- time update ----------------------------------------------------------------------------
     def set_input(self, rest_length_m, t_s=None, wheel_speed_rad_s=None):
-        """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now), held until the next
-        command. A command ahead of the filter waits for the prediction to reach ``t_s`` (the
-        run loop stamps its command when it sends it; samples taken before that can still
-        arrive), so samples fused meanwhile see the input they were taken under. With
-        ``wheel_speed_rad_s``
-        (n_w,), scene wheel order, the wheels' commanded spins too, in effect
-        ``wheel_delay_s`` after ``t_s`` (the wheel states follow them with ``wheel_lag_s``;
-        none given: the previous ones; the first in effect at once)."""
+        """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now; None: the previous
+        ones), held until the next command. A command ahead of the filter waits for the
+        prediction to reach ``t_s`` (the run stamps a goal when it goes onto the bus; samples
+        taken before that can still arrive), so samples fused meanwhile see the input they
+        were taken under. With ``wheel_speed_rad_s`` (n_w,), scene wheel order, the wheels'
+        commanded spins too, in effect ``wheel_delay_s`` after ``t_s`` (the wheel states
+        follow them with ``wheel_lag_s``; none given: the previous ones; the first in effect
+        at once)."""
         stamp = self.t if t_s is None else max(float(t_s), self.t)
-        self._queue(stamp, "rest", np.array(rest_length_m, float))
+        if rest_length_m is not None:
+            self._queue(stamp, "rest", np.array(rest_length_m, float))
         if wheel_speed_rad_s is not None:
             speeds = np.array(wheel_speed_rad_s, float)
             if self.process.wheel_command_rad_s is None:
@@ -243,6 +253,7 @@ class TensegrityEKF:
                 self.process.goal_stepped(values - self.u[: self.model.alpha])
                 self.u = self.u.copy()
                 self.u[: self.model.alpha] = values
+                self.goal_history.append((due_s, values))
         return self._commands[0][0] if self._commands else np.inf
 
     def advance(self, t_s: float, hold: bool = False) -> float:
@@ -286,7 +297,7 @@ class TensegrityEKF:
         self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
 
     def _predict_reference(self, dt: float) -> None:
-        x_next, F = self.process.step(self.x, self.u, dt, self._A)
+        x_next, F = self.process.step(self.x, step_input(self, dt), dt, self._A)
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
         Q = self.process.noise(dt, F, self.x, self.P)
@@ -296,7 +307,7 @@ class TensegrityEKF:
 
     def _predict_fast(self, dt: float) -> None:
         """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
-        x_next, P, _ = self.fast_step(self.x, self.kf.P, self.u, dt, self._A)
+        x_next, P, _ = self.fast_step(self.x, self.kf.P, step_input(self, dt), dt, self._A)
         Q = self.process.noise(dt, None, self.x)  # the kinks' term is in P already
         P[: len(Q), : len(Q)] += Q
         self.kf.x, self.kf.P = x_next.reshape(-1, 1), P

@@ -23,6 +23,7 @@ import numpy as np
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
 from .fusion import gate, judge
+from .servo_motion import step_input
 
 SOURCES = (fuse_imu_rate.SOURCE, fuse_imu_accel.SOURCE, fuse_imu_angle.SOURCE)
 
@@ -61,7 +62,7 @@ class FastCycle:
         Innovation` list, or None where a stage refused (the filter unchanged)."""
         ekf = self.ekf
         process, n = ekf.process, ekf.layout.size
-        step, sp0 = ekf.fast_step.step_spec(ekf.u, dt, ekf._A is not None)
+        step, sp0 = ekf.fast_step.step_spec(step_input(ekf, dt), dt, ekf._A is not None)
         spec, z = self._spec, self._lag + 8
         spec[: len(step)] = step
         spec[self._lag] = ekf.imu_lag_s

@@ -8,6 +8,7 @@ the string force depends on the distance of its nodes and on this rest length.
 import numpy as np
 
 from .fusion import Innovation, Measurement, fuse
+from .servo_motion import rest_before
 
 SOURCE = "servos"
 
@@ -17,16 +18,15 @@ def predict(ekf, x, strings, lag_s=0.0):
     filter's time, and the (linear) Jacobian (k, n).
 
     A read sampled before the filter's time (the run loop predicts to every tick) is compared
-    with the rest lengths taken back along their first-order lag towards the command ``c``:
-    ``rest(t - lag) = c + (rest(t) - c) exp(lag / servo_lag_s)`` (the command held over the
-    lag).
+    with the rest lengths taken back along the servos' motion through the goals in effect
+    meanwhile (:func:`.servo_motion.rest_before`): towards a goal ``c``, ``rest(t - lag) = c +
+    (rest(t) - c) exp(lag / servo_lag_s)`` within the lag, back along the speed limit beyond.
     """
     L = ekf.layout
-    gain = np.exp(lag_s / ekf.config.servo_lag_s)
-    command = np.asarray(ekf.u[: L.n_strings], float)[strings]
+    rest, gain = rest_before(ekf, x[L.rest], lag_s)
     H = np.zeros((len(strings), L.size))
-    H[np.arange(len(strings)), L.rest.start + strings] = gain
-    return command + (x[L.rest][strings] - command) * gain, H
+    H[np.arange(len(strings)), L.rest.start + strings] = gain[strings]
+    return rest[strings], H
 
 
 def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
@@ -37,12 +37,14 @@ def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
     (``rest_psd_m2_s lag_s``, the walk's variance over the lag): it adds to the read's noise.
     So does, while a servo moves, its read's offset from the rest length the strings pull with,
     as a time (``servo_time_std_s``) through the rest length's rate in the model,
-    ``(command - rest) / servo_lag_s``: a servo at rest reads exactly where it holds.
+    ``(command - rest) / servo_lag_s`` at most the speed limit: a servo at rest reads exactly
+    where it holds.
     """
     strings = np.asarray(strings, dtype=int)
     hx, H = predict(ekf, ekf.x, strings, lag_s)
     c = ekf.config
     rate = ekf.process.rest_rate(ekf.x[ekf.layout.rest], ekf.u)[strings]
+    rate = np.clip(rate, -c.servo_speed_m_s, c.servo_speed_m_s)
     R = np.diag(
         c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s + (c.servo_time_std_s * rate) ** 2
     )

@@ -4,10 +4,12 @@ The IMU's sample times are reconstructed from its arrival stamps by :class:`Regu
 (online, ``gyrohost.run.dispatch``) or :func:`regular_times` (a logged stream, before it is
 handed here); the wheel board's from its own clock by :class:`DeviceClock` (:func:`wheel_times`
 for a logged stream). Samples of all streams are merged by time; at equal
-times commands come first, then the IMU, the wheels and the servos (a fixed order, so a replay
-is deterministic). Before each sample the filter predicts to its time; a gap longer than
-``process_dt_s`` is bridged in prediction steps, each reported like a sample (this is where
-time-outs are raised).
+times commands come first (the servos' goals, then the wheels'), then the IMU, the wheels and
+the servos (a fixed order, so a replay is deterministic). The rest lengths' input comes from the
+``servo_goals`` stream, stamped when the goals went onto the bus, where the log has it
+(:func:`.streams.rest_goals`), the wheels' from ``command``. Before each sample the filter
+predicts to its time; a gap longer than ``process_dt_s`` is bridged in prediction steps, each
+reported like a sample (this is where time-outs are raised).
 """
 
 import math
@@ -17,7 +19,7 @@ import numpy as np
 
 from . import streams as cols
 
-_ORDER = (cols.COMMAND, cols.IMU, cols.WHEELS, cols.SERVOS)
+_ORDER = (cols.SERVO_GOALS, cols.COMMAND, cols.IMU, cols.WHEELS, cols.SERVOS)
 
 
 def _servo_map(model, names):
@@ -185,6 +187,7 @@ def run(ekf, data, on_step=None):
     cmd_cols = cols.wheel_command_columns(n_w)
     if command is None or any(c not in command.dtype.names for c in cmd_cols):
         cmd_cols = None  # a log without wheel commands: the wheels held
+    goals_from = cols.rest_goals(data)
     dt = ekf.config.process_dt_s
     for taken, name, i in events(data, ekf.config.imu_latency_s):
         while taken - ekf.t > dt * (1.0 + 1e-9):
@@ -193,9 +196,12 @@ def run(ekf, data, on_step=None):
                 on_step(ekf, "predict")
         row = data[name][i]
         t = float(row["t_s"])  # the stamp: the IMU's is taken back by its latency again
-        if name == cols.COMMAND:
-            wheels = None if cmd_cols is None else [row[c] for c in cmd_cols]
-            ekf.set_input([row[c] for c in rest_cols], t, wheels)
+        if name in (cols.COMMAND, cols.SERVO_GOALS):
+            rest = [row[c] for c in rest_cols] if name == goals_from else None
+            wheels = (
+                None if cmd_cols is None or name != cols.COMMAND else [row[c] for c in cmd_cols]
+            )
+            ekf.set_input(rest, t, wheels)
             continue
         if name == cols.IMU:
             ekf.fuse_imu(

@@ -10,7 +10,10 @@ Input streams
     ``wheels``: ``t_s``, ``omega_<i>_rad_s`` for board wheels i = 0..3 (scene wheel order).
     ``servos``: ``t_s``, ``<string>_length_m`` for every scene string a servo winds.
     ``command``: ``t_s``, ``<string>_rest_m`` for every scene string (commanded rest length),
-    ``omega_cmd_<i>_rad_s`` for board wheels i = 0..3.
+    ``omega_cmd_<i>_rad_s`` for board wheels i = 0..3; stamped at the tick that made them.
+    ``servo_goals``: ``t_s``, ``<string>_rest_m`` for every scene string: the rest lengths the
+    servos were sent, stamped when they went onto the bus (a goal leaves up to a few
+    milliseconds after its tick); the estimator's rest-length input where a log has it.
 
 Output streams
     ``estimate``: ``t_s, status`` then the state (:meth:`FilterLayout.labels`), the standard
@@ -25,6 +28,7 @@ WHEELS = "wheels"
 WHEEL_DEVICE_TIME = "device_t_us"  # the board's own clock at the sample, us
 SERVOS = "servos"
 COMMAND = "command"
+SERVO_GOALS = "servo_goals"
 ESTIMATE = "estimate"
 TRUTH = "truth"  # the simulated rig's, scored by a replay (gyrohost.run.replay)
 IMU_RATE = ("omega_x_rad_s", "omega_y_rad_s", "omega_z_rad_s")
@@ -64,6 +68,19 @@ def rest_column(string: str) -> str:
 def command_columns(strings, n_wheels: int = BOARD_WHEELS) -> list[str]:
     """``strings``: all scene strings, scene order."""
     return ["t_s", *(rest_column(s) for s in strings), *wheel_command_columns(n_wheels)]
+
+
+def goals_columns(strings) -> list[str]:
+    """``strings``: all scene strings, scene order."""
+    return ["t_s", *(rest_column(s) for s in strings)]
+
+
+def rest_goals(data: dict) -> str:
+    """The name of the stream of ``data`` (stream name -> rows) whose ``<string>_rest_m``
+    columns are the servos' goals: ``servo_goals`` where the log has rows of it, else
+    ``command`` (logs made before it)."""
+    goals = data.get(SERVO_GOALS)
+    return SERVO_GOALS if goals is not None and len(goals) else COMMAND
 
 
 def estimate_columns(state_labels) -> list[str]:

@@ -337,7 +337,8 @@ def _corrected(data: dict, a, k: int, config: RigConfig) -> dict:
     out[streams.IMU] = imu
     strings = [s.string for s in config.servos.servo if s.string]
     for name, column in ((streams.SERVOS, streams.servo_length_column),
-                         (streams.COMMAND, streams.rest_column)):  # fmt: skip
+                         (streams.COMMAND, streams.rest_column),
+                         (streams.SERVO_GOALS, streams.rest_column)):  # fmt: skip
         if name in data:
             rows = data[name].copy()
             for s, offset in zip(strings, a.offsets_m, strict=True):

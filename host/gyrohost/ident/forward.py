@@ -16,10 +16,12 @@ import numpy as np
 
 from gyrohost.config import IMU_FRAME_NODES, RigConfig
 from gyrohost.estimator import streams
+from gyrohost.estimator.config import servo_speed_m_s
 from gyrohost.estimator.fuse_imu_angle import FLOOR
+from gyrohost.estimator.servo_motion import lagged
 from gyrohost.geometry import levelling_rotvec, rotation_zyx
 from gyrohost.ident import shooting
-from gyrohost.ident.servo_render import ServoResponse, lagged, rendered
+from gyrohost.ident.servo_render import ServoResponse, rendered
 from gyrohost.simrig.config import TruthConfig
 from gyrohost.simrig.truth import Truth, torque_driven
 from gyrotensegrity import Scene
@@ -114,10 +116,11 @@ def recording(
     cols = [*streams.IMU_RATE, *streams.IMU_ACCEL, *streams.IMU_ANGLE]
     wheels = data[streams.WHEELS]
     strings = [s.string for s in config.servos.servo if s.string]
+    goals = data.get(streams.rest_goals(data))
     if commanded:
-        if streams.COMMAND not in data:
+        if goals is None:
             raise IdentDataError(f"{name}: stream '{streams.COMMAND}' missing")
-        servos, servo_cols = data[streams.COMMAND], [streams.rest_column(s) for s in strings]
+        servos, servo_cols = goals, [streams.rest_column(s) for s in strings]
     else:
         servos, servo_cols = data[streams.SERVOS], [streams.servo_length_column(s) for s in strings]
     missing = [c for c in servo_cols if c not in servos.dtype.names]
@@ -133,11 +136,12 @@ def recording(
     t_servos, lengths = servos["t_s"] - t0, np.column_stack([servos[c] for c in servo_cols])
     response = None
     rest_cols = [streams.rest_column(s) for s in strings]
-    if not commanded and command is not None and len(command) > 1:
-        if all(c in command.dtype.names for c in rest_cols):
-            t_rest = command["t_s"] - t0
-            rest = np.column_stack([command[c] for c in rest_cols])
-            t_servos, lengths, response = rendered(t_servos, lengths, t_rest, rest)
+    if not commanded and goals is not None and len(goals) > 1:
+        if all(c in goals.dtype.names for c in rest_cols):
+            t_rest = goals["t_s"] - t0
+            rest = np.column_stack([goals[c] for c in rest_cols])
+            speed = servo_speed_m_s(config)
+            t_servos, lengths, response = rendered(t_servos, lengths, t_rest, rest, speed)
     return Recording(
         name,
         imu["t_s"][keep] - t0,
@@ -226,7 +230,8 @@ def simulate(
     n = int(np.ceil(rec.t_imu_s[-1] / dt)) + 1
     t_steps = dt * np.arange(n + 1)
     if rec.commanded:
-        lengths = lagged(rec.t_servos_s, rec.servos_m, t_steps, servo_lag_s) + offsets
+        speed = servo_speed_m_s(config)
+        lengths = lagged(rec.t_servos_s, rec.servos_m, t_steps, servo_lag_s, speed) + offsets
     else:
         lengths = _interp(t_steps, rec.t_servos_s, rec.servos_m) + offsets
     speeds = _interp(t_steps, rec.t_wheels_s, rec.wheels_rad_s)

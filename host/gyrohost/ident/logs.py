@@ -16,7 +16,7 @@ from gyrohost.ident.forward import Recording, recording
 from gyrohost.run.errors import LogError
 from gyrohost.run.log import read_meta, read_stream
 from gyrohost.run.log_screen import LogScreen
-from gyrohost.run.replay import FUSED
+from gyrohost.run.replay import FUSED, LATER
 from gyrohost.run.summary import real_time_lost
 
 FIRST_PHASE, LAST_PHASE = "lead_in", "rampdown"
@@ -172,7 +172,8 @@ def read_fused(folder: Path, warn=None, every: bool = True) -> dict:
     """
     screen = LogScreen(FUSED)
     try:
-        names = FUSED if every else [n for n in FUSED if n in read_meta(folder)["streams"]]
+        logged = read_meta(folder)["streams"]
+        names = [n for n in FUSED if (every and n not in LATER) or n in logged]
         data = {name: read_stream(folder, name, warn, screen) for name in names}
     except LogError as exc:
         raise IdentDataError(str(exc)) from None

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.signal import lfilter
+
+from gyrohost.estimator.servo_motion import lagged
 
 GRID_S = 1e-3
 """Time step of the rendered lengths, s (each of the model's steps takes their mean over it)."""
@@ -41,30 +42,12 @@ class ServoResponse:
     rms_m: float
 
 
-def held(t_cmd_s, cmd_m, t_s) -> np.ndarray:
-    """Commands ``cmd_m`` (shape (kc, n)), each held from its stamp ``t_cmd_s`` until the next,
-    at times ``t_s`` (shape (k,)): shape (k, n); before the first, the first."""
-    return cmd_m[np.clip(np.searchsorted(t_cmd_s, t_s, "right") - 1, 0, None)]
-
-
-def lagged(t_cmd_s, cmd_m, t_s, lag_s: float) -> np.ndarray:
-    """Commands ``cmd_m`` (shape (kc, n), each held from its stamp ``t_cmd_s``) through a
-    first-order lag ``lag_s`` (s), at the uniform grid ``t_s`` (shape (k,)): shape (k, n);
-    the servo starts at the first command."""
-    u = held(t_cmd_s, cmd_m, t_s)
-    if lag_s <= 0.0:
-        return u
-    a = 1.0 - np.exp(-(t_s[1] - t_s[0]) / lag_s)
-    # y[k+1] = y[k] + a (u[k] - y[k]): the lag's exact step over a held input
-    zi = u[:1]  # y[0] = zi: the servo at the first command
-    return lfilter([0.0, a], [1.0, a - 1.0], u, axis=0, zi=zi)[0]
-
-
-def fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m) -> ServoResponse:
+def fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m, speed_m_s=np.inf) -> ServoResponse:
     """The delay and lag whose response to the commands (shapes (kc,), (kc, n)) is closest to
     the reports (shapes (kr,), (kr, n)) in the least-squares sense, over the reports the
     commands precede: the best of the grid :data:`DELAYS_S` x :data:`LAGS_S`, refined
-    (Nelder-Mead; the grid's lags are 12 % apart, a ramp's corners need closer)."""
+    (Nelder-Mead; the grid's lags are 12 % apart, a ramp's corners need closer). The servos
+    close their error at most at ``speed_m_s`` (m/s)."""
     t = _grid(t_rep_s, t_cmd_s)
     use = t_rep_s >= t_cmd_s[0] + DELAYS_S[-1]
 
@@ -76,19 +59,19 @@ def fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m) -> ServoResponse:
     grid = [
         (mean_square(d, y), d, lag_s)
         for lag_s in LAGS_S
-        for y in [lagged(t_cmd_s, cmd_m, t, lag_s)]
+        for y in [lagged(t_cmd_s, cmd_m, t, lag_s, speed_m_s)]
         for d in DELAYS_S
     ]
     _, delay0, lag0 = min(grid)
     sol = minimize(
-        lambda p: mean_square(p[0], lagged(t_cmd_s, cmd_m, t, max(p[1], 0.0))),
+        lambda p: mean_square(p[0], lagged(t_cmd_s, cmd_m, t, max(p[1], 0.0), speed_m_s)),
         [delay0, lag0],
         method="Nelder-Mead",
         options={"xatol": 1e-5, "fatol": 1e-14, "initial_simplex": _simplex(delay0, lag0)},
     )
     delay_s = float(np.clip(sol.x[0], DELAYS_S[0], DELAYS_S[-1]))
     lag_s = max(float(sol.x[1]), 0.0)
-    rms = np.sqrt(mean_square(delay_s, lagged(t_cmd_s, cmd_m, t, lag_s)))
+    rms = np.sqrt(mean_square(delay_s, lagged(t_cmd_s, cmd_m, t, lag_s, speed_m_s)))
     return ServoResponse(delay_s, lag_s, float(rms))
 
 
@@ -97,9 +80,12 @@ def _simplex(delay_s: float, lag_s: float) -> np.ndarray:
     return np.array([[delay_s, lag_s], [delay_s + 1e-3, lag_s], [delay_s, lag_s + step]])
 
 
-def rendered(t_rep_s, rep_m, t_cmd_s, cmd_m) -> tuple[np.ndarray, np.ndarray, ServoResponse]:
+def rendered(
+    t_rep_s, rep_m, t_cmd_s, cmd_m, speed_m_s=np.inf
+) -> tuple[np.ndarray, np.ndarray, ServoResponse]:
     """The rest lengths on a :data:`GRID_S` grid: the commands through the fitted
-    :class:`ServoResponse`, plus the reports' difference from it interpolated between them.
+    :class:`ServoResponse` (at most at ``speed_m_s``), plus the reports' difference from it
+    interpolated between them.
 
     Returns
     -------
@@ -107,9 +93,9 @@ def rendered(t_rep_s, rep_m, t_cmd_s, cmd_m) -> tuple[np.ndarray, np.ndarray, Se
     lengths_m : ndarray, shape (k, n), m
     response : ServoResponse
     """
-    response = fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m)
+    response = fit_response(t_rep_s, rep_m, t_cmd_s, cmd_m, speed_m_s)
     t = _grid(t_rep_s, t_cmd_s)
-    y = lagged(t_cmd_s, cmd_m, t, response.lag_s)
+    y = lagged(t_cmd_s, cmd_m, t, response.lag_s, speed_m_s)
     shifted = [np.interp(t - response.delay_s, t, v) for v in y.T]
     at_reports = [np.interp(t_rep_s - response.delay_s, t, v) for v in y.T]
     lengths = np.column_stack(

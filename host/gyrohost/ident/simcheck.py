@@ -186,13 +186,12 @@ def fit_inputs(nominal_config: Path, logs, groups=GROUPS, segment_s=0.0, command
     from gyrohost.ident.fit import nominal_lag
     from gyrohost.ident.logs import load_recording
     from gyrohost.ident.params import parameters
-    from gyrohost.sil.scoring import SERVO_LAG_S
     from gyrotensegrity import Model, load_scene
 
     config = load_rig_config(nominal_config)
     scene = load_scene(config.scene_path)
-    # the rig models' servos, and their IMU samples stamped when taken
-    est = replace(for_rig(config), servo_lag_s=SERVO_LAG_S, **EXACT_IMU_TIMES)
+    # the rig models' IMU samples stamped when taken
+    est = replace(for_rig(config), **EXACT_IMU_TIMES)
     n_w = len(Model(scene).wheel_bars)
     recs = [
         load_recording(log, config, n_w, commanded=commanded, segment_s=segment_s) for log in logs

@@ -81,7 +81,7 @@ class Sample:
     Attributes
     ----------
     device : str
-        ``imu``, ``wheels`` or ``servos``.
+        ``imu``, ``wheels``, ``servos`` or ``servo_goals`` (the goals the servo worker sent).
     t_ns : int
         Host arrival time (``time.monotonic_ns``), ns.
     value : object
@@ -265,7 +265,13 @@ class ServoWorker(_Reader):
         with self._goal_lock:
             goals, self._goals = self._goals, None
         if goals:
-            self.bus.command_lengths(goals)
+            self._send(goals)
+
+    def _send(self, goals: dict[str, float]) -> None:
+        """Send ``goals`` and queue them as a ``servo_goals`` sample stamped when they went
+        onto the bus, which the estimator takes them from."""
+        self.bus.command_lengths(goals)
+        self.out.put(Sample("servo_goals", self.bus.goals_sent_ns, goals))
 
     def command(self, lengths_m: dict[str, float]) -> None:
         """Queue string length goals (name -> m); only the newest is sent, at once: the
@@ -289,7 +295,7 @@ class ServoWorker(_Reader):
         read = now >= self._next_read_s
         try:
             if goals:
-                self.bus.command_lengths(goals)
+                self._send(goals)
             if read:
                 self._next_read_s = max(self._next_read_s, now) + self.period_s
                 states = self.bus.read_states()

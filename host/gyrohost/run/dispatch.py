@@ -1,8 +1,9 @@
 """Per-device handling of the samples the readers queue: log each one, fuse the newest.
 
-One small handler per device (:class:`ImuHandler`, :class:`WheelHandler`, :class:`ServoHandler`)
-writes its device's stream row and hands the sample to the estimator; :class:`Dispatcher`
-drains the queue once a tick, in time order, and decides which samples are fused.
+One small handler per device (:class:`ImuHandler`, :class:`WheelHandler`, :class:`ServoHandler`,
+and :class:`GoalHandler` for the goals the servo worker sent) writes its device's stream row and
+hands the sample to the estimator; :class:`Dispatcher` drains the queue once a tick, in time
+order, and decides which samples are fused.
 """
 
 import queue
@@ -124,6 +125,39 @@ class ServoHandler:
             ekf.fuse_servos(t_s, [s.length_m for s in v], idx)
 
 
+class GoalHandler:
+    """The goals the servo worker sent (servo name -> string length, m): the ``servo_goals``
+    stream, and the estimator's rest-length input from the time they went onto the bus.
+
+    Parameters
+    ----------
+    stream : Stream
+    strings : list of str
+        Scene strings, scene order.
+    servo_strings : dict
+        Servo name -> the scene string it winds.
+    rest_m : sequence of float
+        Every string's rest length before the first goal, scene order: strings no goal names
+        keep theirs.
+    """
+
+    device = "servo_goals"
+    every_sample = True  # an input: each goal holds until the next, none may be left out
+
+    def __init__(self, stream, strings, servo_strings: dict, rest_m):
+        self.stream = stream
+        self.index = {name: strings.index(s) for name, s in servo_strings.items()}
+        self.rest = np.array(rest_m, dtype=float)
+
+    def take(self, t_s: float, v, ekf) -> None:
+        """Log the goals sent at host time ``t_s``; give them to ``ekf`` unless None."""
+        for name, length in v.items():
+            self.rest[self.index[name]] = length
+        self.stream.write(t_s, *self.rest)
+        if ekf is not None:
+            ekf.set_input(self.rest.copy(), t_s)
+
+
 class Dispatcher:
     """Drains the readers' queue once a tick and hands each sample to its device's handler.
 
@@ -162,8 +196,11 @@ class Dispatcher:
         samples = sorted((i for i in items if isinstance(i, Sample)), key=lambda s: s.t_ns)
         for sample in samples:
             t_s = (sample.t_ns - t0_ns) * 1e-9
-            fuse = ekf is not None and t_s >= ekf.t_start and self._newest(sample, samples)
-            self.handlers[sample.device].take(t_s, sample.value, ekf if fuse else None)
+            handler = self.handlers[sample.device]
+            every = getattr(handler, "every_sample", False)
+            fuse = ekf is not None and t_s >= ekf.t_start
+            fuse = fuse and (every or self._newest(sample, samples))
+            handler.take(t_s, sample.value, ekf if fuse else None)
         return len(samples), faults
 
     def _newest(self, sample: Sample, samples: list) -> bool:

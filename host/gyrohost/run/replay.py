@@ -194,8 +194,10 @@ def compare_live(live, times, states, layout) -> dict:
     return out
 
 
-FUSED = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND)
+FUSED = (streams.IMU, streams.WHEELS, streams.SERVOS, streams.COMMAND, streams.SERVO_GOALS)
 """The streams the filter fuses: their rows are screened (:mod:`gyrohost.run.log_screen`)."""
+LATER = (streams.SERVO_GOALS,)
+"""Fused streams that logs made before them lack (the servos' goals came from ``command``)."""
 
 
 def read_inputs(log: Path, warn: Callable[[str], None] | None = None, screen=None) -> dict:
@@ -267,10 +269,12 @@ def started(model, config: EstimatorConfig, data: dict):
     ekf = TensegrityEKF(model, config, x0=x0, t0_s=t0)
     if len(before.get(streams.COMMAND, ())):
         last = before[streams.COMMAND][-1]
+        goals = before.get(streams.rest_goals(before), ())
+        goal = goals[-1] if len(goals) else last
         cmd = [c for c in streams.wheel_command_columns(layout_of(model).n_wheels)
                if c in last.dtype.names]  # fmt: skip
         ekf.set_input(
-            [last[streams.rest_column(s.name)] for s in model.scene.strings],
+            [goal[streams.rest_column(s.name)] for s in model.scene.strings],
             wheel_speed_rad_s=[last[c] for c in cmd] if cmd else None,
         )
     else:  # no command yet: the servos hold where they start (not the scene's input at t0)

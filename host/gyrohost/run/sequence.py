@@ -45,7 +45,13 @@ from gyrohost.estimator.imu_model import ImuGeometry
 from gyrohost.gcfreeze import heap_frozen
 from gyrohost.run.connect import connect_devices, with_ports
 from gyrohost.run.devices import ImuReader, ServoWorker, failure_text
-from gyrohost.run.dispatch import Dispatcher, ImuHandler, ServoHandler, WheelHandler
+from gyrohost.run.dispatch import (
+    Dispatcher,
+    GoalHandler,
+    ImuHandler,
+    ServoHandler,
+    WheelHandler,
+)
 from gyrohost.run.errors import RunError, StartStateRefused
 from gyrohost.run.estimation import EstimatorProcess, start_state
 from gyrohost.run.health import fails_run
@@ -530,8 +536,8 @@ class RunLoop:
             if not np.array_equal(omega, self.omega_cmd):  # one frame, no reply awaited
                 self.wheels.set_speeds(list(omega), confirm=False)
                 self.omega_cmd = omega
-            if self.ekf is not None:  # from the tick's time on, when the devices get it
-                self.ekf.set_input(rest, t_s, self.omega_cmd[: self.n_wheels])
+            if self.ekf is not None:  # the wheels' from the tick on; the rests' as sent
+                self.ekf.set_input(None, t_s, self.omega_cmd[: self.n_wheels])
         self.streams.command.write(t_s, *self.rest_cmd, *self.omega_cmd)
 
     # --- the log ------------------------------------------------------------------------------
@@ -544,6 +550,7 @@ class RunLoop:
             ImuHandler(self.streams.imu, self.estimator_config),
             WheelHandler(self.streams.wheels, len(self.model.wheel_bars), self.estimator_config),
             self.servo_handler,
+            GoalHandler(self.streams.servo_goals, self.strings, self._wound(), self.rest0),
         ]
         self.dispatcher = Dispatcher(self.queue, handlers, self.settings.max_fused_per_tick)
         if self.rig is not None:
@@ -551,6 +558,11 @@ class RunLoop:
         if self.maneuver is not None:
             self.replans = ReplanWriter(log, lambda: self.t_schedule_s)
             self.replans.write(self.maneuver.records)  # the first plan, made before the run
+
+    def _wound(self) -> dict:
+        """Servo name -> the scene string it winds, for the servos that wind one."""
+        pairs = zip(self.config.servos.servo, self.servo_strings, strict=True)
+        return {s.name: string for s, string in pairs if string in self.strings}
 
     def notice(self, message: str) -> None:
         """A line the user must see now: to ``notify`` (else stderr) and the events stream."""

@@ -101,6 +101,7 @@ class RunStreams:
     wheels: object
     servos: object
     command: object
+    servo_goals: object
 
 
 def open_run_streams(log, strings, servo_strings) -> RunStreams:
@@ -154,6 +155,11 @@ def open_run_streams(log, strings, servo_strings) -> RunStreams:
             cols.COMMAND,
             cols.command_columns(strings),
             description="commanded rest lengths (m) and wheel speeds (rad/s), every tick",
+        ),
+        servo_goals=log.stream(
+            cols.SERVO_GOALS,
+            cols.goals_columns(strings),
+            description="rest lengths (m) as the servos were sent them, when they were",
         ),
     )
 

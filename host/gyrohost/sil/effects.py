@@ -22,18 +22,16 @@ from gyrohost.estimator.consistency import sample_initial
 from gyrohost.estimator.ekf import TensegrityEKF
 from gyrohost.sil.emulator_keys import emulator_keys
 from gyrohost.sil.montecarlo import START_SEED_OFFSET, sampled_truth, score_run
-from gyrohost.sil.scoring import RIG_MODEL_KEYS, SERVO_LAG_S, rig_model_run
+from gyrohost.sil.scoring import RIG_MODEL_KEYS, rig_model_run
 
 TICK_S = 0.01  # the run loop's period, s
 MIN_DELAY_S = 5e-4  # the smallest arrival delay, s
 MAX_FUSED_PER_TICK = 4  # the run loop's default (gyrohost.run.settings)
-# A command sent at a late tick reaches the truth's servos at the truth's next step, a wait the
-# filter cannot know sample by sample: its mean is carried by the servo lag
-# (:func:`late_command_wait_s`), its scatter (about 1 ms at Exp(1 ms) lateness) by the rest-length
-# walk: at the manoeuvre's 0.03-0.1 m/s a command switched 1 ms off moves the rest length by
-# v 10 ms 1 ms / servo lag each 10 ms tick, a walk of 3e-9 to 3e-8 m^2/s, set a little above for
-# the lag's own approximation (the SIL's 1e-10, made for commands on the exact 10 ms grid, gave
-# NEES 57 539; the default 1e-6 left the rest block at 0.09 of 2; docs/estimator.md)
+# A command sent at a late tick moves the truth's servos from its send; the filter, whose clock
+# the IMU's regridded samples set, cannot place each such tick sample by sample: the scatter
+# (about 1 ms at Exp(1 ms) lateness) is carried by the rest-length walk: at the manoeuvre's
+# 0.03-0.1 m/s a command switched 1 ms off moves the rest length by v 10 ms 1 ms / servo lag
+# each 10 ms tick, a walk of 1e-8 to 1e-7 m^2/s at the 13 ms lag (docs/estimator.md)
 LATE_COMMAND_REST_PSD_M2_S = 5e-8
 SERVO_PERIOD_S = 0.04  # the servo worker's read period (gyrohost.run.settings: 25 Hz), s
 # how long after the servos sample a read it reaches the host (the end of the bulk read): a
@@ -123,17 +121,6 @@ def loop_streams(data, frames, effects: Effects, rng, delay_s: float):
     return out, arrival
 
 
-def late_command_wait_s(late_s: float, step_s: float) -> float:
-    """Mean wait of a command sent at a tick late by Exp(``late_s``) for the truth's next step
-    (``step_s``, a divisor of the tick period), s: ``step - E[late mod step]``, which for the
-    exponential is ``step - late + step / (exp(step / late) - 1)``.
-
-    A delay ``d`` ahead of a first-order lag ``tau`` is, to first order in ``d / tau``, a lag
-    ``tau + d``: what the filter's servo lag takes on.
-    """
-    return step_s - late_s + step_s / np.expm1(step_s / late_s)
-
-
 def cut_streams(data, frames, duration_s: float):
     """The streams and telemetry frames of a run up to ``duration_s`` (the truth runs on)."""
     data = {name: arr[arr["t_s"] <= duration_s + 1e-9] for name, arr in data.items()}
@@ -206,15 +193,13 @@ def score_with_effects(
     if effects.servo_cycle:  # the filter is told each command at its tick
         data[streams.COMMAND] = commands_at(model, data[streams.COMMAND], ticks)
     fed, arrival = loop_streams(data, frames, effects, rng, delay_s)
-    # the real-time rig's noise, these servos' lag, the samples' own times (each delay of
-    # this harness is its own and known: no uncertainty about them)
-    rig_keys = {"servo_lag_s": SERVO_LAG_S, **EXACT_IMU_TIMES}
-    keys = {**emulator_keys(config), **(rig_keys if effects.rig_noise else RIG_MODEL_KEYS)}
+    # the real-time rig's noise, the samples' own times (each delay of this harness is its own
+    # and known: no uncertainty about them)
+    keys = {**emulator_keys(config), **(EXACT_IMU_TIMES if effects.rig_noise else RIG_MODEL_KEYS)}
     if effects.imu_regrid:  # the grid's times lead the samples by the smallest delay
         keys["imu_latency_s"] = MIN_DELAY_S
     if effects.late_ticks:
         keys["rest_psd_m2_s"] = LATE_COMMAND_REST_PSD_M2_S
-        keys["servo_lag_s"] += late_command_wait_s(late_s, dt_s)
     if effects.wheel_frames:  # fitted to the newest frame at each tick (wheel_clock)
         keys.update(TICKED_WHEEL_KEYS)
     keys.update(overrides or {})

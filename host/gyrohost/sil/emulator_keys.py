@@ -8,23 +8,29 @@ setting reaches their filter.
 
 import math
 
-from gyrohost.config import LOOP_RATE_HZ, RigConfig
-from gyrohost.drivers.mx12 import steps_per_metre
+from gyrohost.config import RigConfig
+from gyrohost.drivers.mx12 import P_GAIN_FACTORY, position_lag_s, steps_per_metre
 from gyrohost.estimator.config import (
     MIN_WHEEL_WALK,
     SPEED_FILTER_DELAY_S,
-    imu_keys,
     imu_wire_counts,
-    sawtooth_psd,
+    rig_keys,
     servo_hold_std,
 )
 from gyrohost.simrig.config import sim_config
+from gyrohost.simrig.sim import IDLE_WAIT_S
+
+
+def emulated_servo_lag_s(rig: RigConfig) -> float:
+    """The emulated MX-12W's position-loop lag, s: its factory P gain at the ``[sim.servos]``
+    no-load speed (:func:`~gyrohost.drivers.mx12.position_lag_s`)."""
+    return position_lag_s(P_GAIN_FACTORY, sim_config(rig).servos.no_load_speed_rpm)
 
 
 def emulator_keys(rig: RigConfig) -> dict:
     """The EKF's keys describing the simulated rig of ``rig`` (its ``[sim]`` tables): the noise
     of its emulated devices, the attachment of its IMU, the steps of its truth, with the
-    :func:`~gyrohost.estimator.config.imu_keys` of its ``[imu]`` table.
+    :func:`~gyrohost.estimator.config.rig_keys` of its ``[imu]`` table.
 
     White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
     format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
@@ -41,6 +47,9 @@ def emulator_keys(rig: RigConfig) -> dict:
 
     accel_white = emu.accel_noise_density_m_s2_rthz * root
     wheels = sim.wheels
+    count_m = max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0)
+    lag_s = emulated_servo_lag_s(rig)
+    time_std_s = IDLE_WAIT_S / math.sqrt(12.0)
     return {
         # the grid the host rebuilds from the earliest arrivals lies this much after the
         # samples: the truth's step computed before the sample goes out, then the pty and the
@@ -61,36 +70,20 @@ def emulator_keys(rig: RigConfig) -> dict:
         "init_accel_bias_std_m_s2": emu.accel_bias_std_m_s2,
         "imu_angle_std_rad": std(emu.angle_noise_std_rad, angle_count),
         "init_gyro_bias_std_rad_s": max(emu.gyro_bias_std_rad_s, 1e-6),
-        **imu_keys(rig),
-        # the MX-12W emulator moves to each tick's goal at up to its max_speed_m_s: on the
-        # paper's pulls a first-order lag of 5 ms of the tick's command on average; within the
-        # tick it covers the goal step and holds, so it strays from the lag by up to the step,
-        # a position spread uniformly over it (std step / sqrt(12)) that the rest lengths keep
-        # while they move; holding still, they sit within the hold below
-        # (docs/estimator-noise.md#resting-servos)
-        "servo_lag_s": 0.005,
-        # at rest it reads within a count of where it holds, and 5e-5 m left for the rest put
-        # the servo NIS at 1.8-2.0 of 2 on three real-time batches (2e-4: 0.87-1.06, below its
-        # bounds on one; docs/estimator-noise.md#the-servos-reads-moving-and-at-rest)
-        "servo_length_std_m": 5.0e-5,
-        "servo_step_std_ratio": 1.0 / math.sqrt(12.0),
+        **rig_keys(rig),
+        # the MX-12W emulator follows each goal through its position loop's lag (the P gain's)
+        # at most at its moving speed (rig_keys' servo_speed_m_s) and reads its shaft to a
+        # count; it serves a read, and takes a goal, within one of the rig's polls after the
+        # host's stamp (uniform): the read's time std, and through the lag a goal step's
+        # spread, std step x time std / lag (docs/estimator-noise.md#the-servos)
+        "servo_lag_s": lag_s,
+        "servo_length_std_m": count_m / math.sqrt(12.0),
+        "servo_time_std_s": time_std_s,
+        "servo_step_std_ratio": time_std_s / lag_s,
         # a resting servo holds within its band of the command's count, and no walk beyond it
-        # (1e-7 kept 15-23 um at rest where the truth stays within 6 um, the rest block near 0;
-        # docs/estimator-noise.md#resting-servos)
+        # (docs/estimator-noise.md#resting-servos)
         "rest_psd_m2_s": 0.0,
-        "rest_hold_std_m": servo_hold_std(
-            max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0),
-            sim.servos.hold_band_steps,
-        ),
-        # the strings see their rest lengths in steps about the filter's continuous ones, which
-        # the kink rectifies: the servos' goal steps, one per tick of the run loop, each covered
-        # at the servo's speed (the fastest servo's: the largest steps;
-        # docs/estimator-noise.md#the-rest-length-jitter)
-        "rest_jitter_psd_m2_s": sawtooth_psd(
-            1.0 / LOOP_RATE_HZ,
-            max((s.max_speed_m_s for s in rig.servos.servo), default=math.inf),
-        ),
-        "kink_model": "mean",
+        "rest_hold_std_m": servo_hold_std(count_m, sim.servos.hold_band_steps),
         # the wheel board emulator's telemetry: the encoder's quantisation through the
         # firmware's low-pass (0.0146 rad/s RMS, docs/rig.md), in integer mrad/s on the wire
         # both ways (commands rounded, readings truncated)

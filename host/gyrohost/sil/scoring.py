@@ -9,8 +9,9 @@ table, the step-by-step figure of NEES and NIS with their bounds
 In process, on a simulated clock (deterministic timing): the rig's truth model
 (:class:`gyrohost.simrig.truth.Truth`: speed-controlled wheels, servo calibration, its own IMU frame
 and finite-difference rate, gravity felt by the IMU) stepped at its ``dt_s`` under the scene's
-rest-length schedule; the servos follow the command with a first-order lag (``SERVO_LAG_S``)
-and report quantised positions through their calibration; the IMU samples go through the rig's
+rest-length schedule; the servos follow the command as the emulated MX-12W does (its position
+loop's lag, :func:`.emulator_keys.emulated_servo_lag_s`, at most at its speed) and report
+quantised positions through their calibration; the IMU samples go through the rig's
 BWT61CL emulator (noise densities, biases, int16 quantisation of the wire format; seed = run
 number) and are parsed back by the IMU driver's parser; the wheels are spun by the rig's
 wheel-board emulator (spun up to the scene's spins before t = 0, wheel angles drawn from the
@@ -39,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrohost import parallel
+from gyrohost.drivers.mx12 import lag_error_after
 from gyrohost.estimator import streams
 from gyrohost.estimator.config import EXACT_IMU_TIMES
 from gyrohost.estimator.consistency import (
@@ -51,7 +53,7 @@ from gyrohost.estimator.consistency import (
 from gyrohost.resources import resolve
 from gyrohost.run.log import read_stream
 from gyrohost.run.replay import prepare
-from gyrohost.sil.emulator_keys import emulator_keys
+from gyrohost.sil.emulator_keys import emulated_servo_lag_s, emulator_keys
 from gyrohost.sil.montecarlo import (
     START_SEED_OFFSET,
     ScoredRun,
@@ -68,16 +70,15 @@ from .errors import SilError
 DEFAULT_RUNS = 20  # runs a SIL simulates or records when --runs is not given
 WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run starts, s
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
-SERVO_LAG_S = 0.05  # the servos' response to a position command, s (first order)
 # Keys for the in-process SIL (on top of emulator_keys), each checked by the marginal NEES of its
 # block (docs/estimator.md). The rig's truth has no random forces and moves its rest lengths as
-# the servos do: one filter step from the true state reproduces the truth to round-off. White
+# the servos do (the lag at most at their speed, as the filter's): one filter step from the true
+# state reproduces the truth to round-off. White
 # node accelerations keep a little (3e-8). The servos here are exactly the filter's first-order
 # lag (no read off it, no goal-step spread, no hold): reads to the step's quantisation (4.4 um),
 # and a walk of 1e-13 m^2/s for what the model misses where the dynamics pin them (1e-10: rest
 # block 0.12 of 2; 1e-14: 22). Wheels as the rig's.
 RIG_MODEL_KEYS = {
-    "servo_lag_s": SERVO_LAG_S,
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "servo_time_std_s": 0.0,
@@ -215,7 +216,7 @@ def rig_model_run(
     try:
         rows, truth_x, truth_R = _rig_model_rows(
             model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s,
-            inputs,
+            inputs, emulated_servo_lag_s(config),
         )  # fmt: skip
     finally:
         board.close()
@@ -253,11 +254,11 @@ def _commands(model, schedule=None):
 
 
 def _rig_model_rows(
-    model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s, inputs
+    model, truth, emu, board, servos, duration_s, command_times_s, schedule_times_s, inputs, lag_s
 ):
     """Step truth, servos, IMU emulator and wheel board; the streams and the truth samples.
     ``inputs``: the host's commands (:func:`_commands`), wheel speeds sent to the board when
-    they change."""
+    they change; ``lag_s``: the servos' position-loop lag, s."""
     from gyrohost.drivers.imu import Bwt61Parser
     from gyrohost.drivers.mx12 import length_to_steps, steps_to_length
     from gyrohost.estimator.layout import from_model_state
@@ -265,13 +266,13 @@ def _rig_model_rows(
     parser = Bwt61Parser()
     strings = [s.name for s in model.scene.strings]
     servo_strings = [strings.index(s.string) for s in servos]
+    pairs = list(zip(servos, servo_strings, strict=True))
     position = {s.id: s.length_at_zero_m for s in servos}
     spins = board.commanded  # what the host commands
     truth.wheel_input_rad_s[:] = board.true_speeds()  # spun up before t = 0
     truth.u = truth.model.pack_input(truth.rest_length_m, truth.wheel_input_rad_s)
     dt = truth.dt_s
     imu_every = int(round(0.01 / dt))
-    gain = 1.0 - np.exp(-dt / SERVO_LAG_S)
     rows = {streams.IMU: [], streams.WHEELS: [], streams.SERVOS: [], streams.COMMAND: []}
     truth_x, truth_R = [], []
     sends = np.arange(0.0, duration_s + dt, 0.01) if command_times_s is None else command_times_s
@@ -307,11 +308,42 @@ def _rig_model_rows(
         u = truth.model.pack_input(rest, board.true_speeds())
         truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
         truth_R.append(imu.R_wb @ emu.R_bs)  # the sensor axes, as the filter's attitude
-        for s, i in zip(servos, servo_strings, strict=True):
-            position[s.id] += gain * (command[i] - position[s.id])
+        # goals sent within the step move the servos from their send on
+        later = [(sends[j] - t, inputs(made[j])[0])
+                 for j in range(sent, len(sends)) if sends[j] < t + dt - 1e-9]  # fmt: skip
+        ends, paths = servo_paths(pairs, position, command, later, dt, lag_s)
+        turns = [(t + e, {sid: p[j] for sid, p in paths.items()}) for j, e in enumerate(ends[:-1])]
+        position = {sid: p[-1] for sid, p in paths.items()}
         board.dev.tick(t + dt)  # the wheels' speeds at the step's end, where the truth goes
-        truth.step(dict(position), board.true_speeds())
+        truth.step(dict(position), board.true_speeds(), turns)
     return rows, truth_x, truth_R
+
+
+SERVO_PIECES = np.linspace(0.2, 1.0, 5)
+"""Where in a truth step the in-process servos' paths bend at least (fractions of the step): a
+lag's curve against the chord of a whole step is off by ``e h^2 / (8 lag^2)``, 26 um for a 1.5
+mm goal step at 13 ms; against a fifth of the step, a twenty-fifth of that."""
+
+
+def servo_paths(pairs, start_m, goals_m, later, dt_s, lag_s):
+    """The servos' string lengths over a step of ``dt_s`` s from ``start_m`` (servo ID -> m)
+    under the goals ``goals_m`` (every string, m) and those ``later`` sends (offset in the
+    step, s; goals) put in effect: the lag at most at each servo's speed, exactly. Returns the
+    offsets where the paths bend (:data:`SERVO_PIECES` and the sends'; the last the step's
+    end) and each servo's lengths there (ID -> list)."""
+    ends = sorted({*np.round(SERVO_PIECES * dt_s, 12), *(offset for offset, _ in later)})
+    paths = {}
+    for servo, i in pairs:
+        x, last, goal, pending = start_m[servo.id], 0.0, goals_m[i], list(later)
+        path = []
+        for end in ends:
+            x = goal - float(lag_error_after(goal - x, end - last, lag_s, servo.max_speed_m_s))
+            last = end
+            while pending and pending[0][0] <= end + 1e-12:
+                goal = pending.pop(0)[1][i]
+            path.append(x)
+        paths[servo.id] = path
+    return ends, paths
 
 
 class _WheelBoard:

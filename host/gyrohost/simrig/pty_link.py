@@ -142,9 +142,10 @@ class PtyDevice:
         run side by side, the ticks run up to each frame's arrival before the frame is handled.
         A pty keeps no arrival times: with :attr:`FRAME_END` set, a frame is taken as arrived
         when its last byte did, the bytes spread evenly over the time since the last poll (a
-        steady sender's); otherwise all at the start of that time, so that a command takes
-        effect for everything the device does in it (an IMU's samples, a servo's motion). Over
-        a usual poll interval (about a millisecond) either is as good as exact. After the
+        steady sender's); otherwise all at the poll's time: the rig's loop wakes when bytes
+        come in, so that is when they came to the wake-up's latency, where the last poll's time
+        would place a request before it was sent (a servo's read showing where it was up to a
+        poll earlier, a goal moving it before the host sent it). After the
         emulator was held up (a loaded CPU), delimited frames the driver sent meanwhile keep
         their spacing among the ticks instead of all arriving after the whole gap: a board's
         heartbeat timer, say, counts the silence between them, not the emulator's. A silence of
@@ -174,7 +175,7 @@ class PtyDevice:
         """``data`` cut after each :attr:`FRAME_END`, each piece with the time its last byte is
         taken to have arrived, s (see :meth:`poll`)."""
         if self.FRAME_END is None:
-            return [(since_s, data)] if data else []
+            return [(now_s, data)] if data else []
         pieces, start, n = [], 0, len(data)
         while start < n:
             end = data.find(self.FRAME_END, start) + 1 or n

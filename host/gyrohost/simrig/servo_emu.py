@@ -17,10 +17,17 @@ When that exceeds the torque limit the servo latches the overload bit and, as it
 says by default, drops its torque; writing torque enable 1 clears the latch. The rig reads
 :meth:`Mx12Bus.string_length_m` (the present rest length) to feed the model.
 
-Modelling choice: with torque off the position stays (the MX gearbox is not back-driven here).
-A servo that reaches its goal stops anywhere within ``hold_band_steps`` of it (uniform, drawn
-from ``seed`` and its ID) and holds there until the goal changes: its shaft, which the truth
-reads, is continuous, its present position a count.
+Motion: the position loop closes its error at the speed limit (the moving speed, or the no-load
+speed) while the P gain's output asks for more, and as a first-order lag of the P gain's time
+constant within (:func:`~gyrohost.drivers.mx12.position_lag_s`: 13.3 ms as shipped), so a goal
+step every tick is followed smoothly. Near its goal the output no longer overcomes friction:
+the servo stops there and holds until the goal changes; where, within ``hold_band_steps`` of
+the goal, is drawn for each move (uniform, from ``seed`` and its ID). Its shaft, which the
+truth reads, is continuous, its present position a count.
+
+Modelling choices: with torque off the position stays (the MX gearbox is not back-driven here);
+at power-up a servo sits anywhere within its hold band of its start (uniform, drawn from
+``seed`` and its ID).
 """
 
 import math
@@ -36,10 +43,13 @@ from gyrohost.drivers.mx12 import (
     LOAD_UNIT,
     MODEL_MX12W,
     MULTI_TURN_LIMIT,
+    P_GAIN_FACTORY,
     SPEED_UNIT_RAD_S,
     STEPS_PER_TURN,
     Addr,
     int16_from_word,
+    lag_error_after,
+    position_lag_s,
     sign_magnitude_from_signed,
     signed_from_sign_magnitude,
     steps_to_length,
@@ -71,7 +81,7 @@ _DEFAULTS = {  # address: (value, size); MX-12W factory values (Protocol 1.0 man
     Addr.SHUTDOWN: (36, 1),  # overheating | overload
     Addr.RESOLUTION_DIVIDER: (1, 1),
     26: (8, 1),  # D gain
-    28: (8, 1),  # P gain
+    Addr.P_GAIN: (P_GAIN_FACTORY, 1),
     Addr.TORQUE_LIMIT: (1023, 2),
     42: (120, 1),  # present voltage, 0.1 V
     43: (30, 1),  # present temperature, degC
@@ -173,12 +183,13 @@ class EmulatedMx12:
         stay)."""
         start = self.spec.zero_position if self.spec is not None else 0
         self.position_steps = self._settle(start)
+        self._moving_to, self._stop_steps = None, 0.0
         self.velocity_steps_s = 0.0
         self.overload_latched = False
         self._store_goal(start)
 
     def _settle(self, goal: int) -> float:
-        """Where the shaft stops at ``goal``, steps: anywhere within the hold band."""
+        """Where the shaft sits at power-up at ``goal``, steps: anywhere within the hold band."""
         self._held_goal = goal
         band = self.emu.hold_band_steps
         return goal + self._rng.uniform(-band, band)
@@ -274,16 +285,17 @@ class EmulatedMx12:
         if goal == self._held_goal and abs(goal - self.position_steps) <= self.emu.hold_band_steps:
             self.velocity_steps_s = 0.0
             return None
+        if goal != self._moving_to:  # a new move: where friction will stop this one
+            self._moving_to = goal
+            self._stop_steps = self._rng.uniform(0.0, self.emu.hold_band_steps)
         max_steps_s = _units_to_steps_s(min(speed_units or no_load, no_load))
-        error = goal - self.position_steps
-        arrived = None
-        if abs(error) <= max_steps_s * dt_s:
-            step = self._settle(goal) - self.position_steps
-            arrived = abs(error) / max_steps_s if max_steps_s > 0 else 0.0
-        else:
-            step = math.copysign(max_steps_s * dt_s, error)
-            self._held_goal = None
-        self.position_steps += step
+        lag_s = position_lag_s(self.table[Addr.P_GAIN], self.emu.no_load_speed_rpm)
+        error, arrived = _approach(
+            goal - self.position_steps, dt_s, lag_s, max_steps_s, self._stop_steps
+        )
+        step = goal - error - self.position_steps
+        self.position_steps = goal - error
+        self._held_goal = goal if arrived is not None else None
         self.velocity_steps_s = step / dt_s if dt_s > 0 else 0.0
         return arrived
 
@@ -315,33 +327,44 @@ class EmulatedMx12:
 
 
 class ServoPath:
-    """A servo's position over emulator time, as straight pieces between the times its speed
-    changed: moving at its speed or holding, a servo's path is straight between ticks, and
-    bends only where a move starts (a tick after a new goal) or reaches its goal (within a
-    tick, at the time :meth:`EmulatedMx12.advance` gives). The truth steps its physics through
-    these bends (:meth:`gyrohost.simrig.truth.Truth.step`), so a rest length moves when the
-    servo does, not spread over the truth's step.
+    """A servo's position over emulator time, as straight pieces through the positions of its
+    ticks: a point that its piece's line passes within :data:`PATH_TOLERANCE_STEPS` of (with
+    every point that piece already absorbed) moves the piece's end instead of adding one. A
+    hold or a move at the speed limit is one piece; a lag's curve a piece every tick or few,
+    bending where a move starts (a tick after a new goal) and where it stops (within a tick, at
+    the time :meth:`EmulatedMx12.advance` gives). The truth steps its physics through these
+    bends (:meth:`gyrohost.simrig.truth.Truth.step`), so a rest length moves when the servo
+    does, not spread over the truth's step.
 
-    Only the bends of the last :data:`PATH_KEPT_S` are kept; a point on the present straight
-    piece moves the piece's end instead of adding one."""
+    Only the bends of the last :data:`PATH_KEPT_S` are kept."""
 
     def __init__(self):
         self.t_s: deque = deque()
         self.steps: deque = deque()
+        self._absorbed: list = []
 
     def add(self, t_s: float, position_steps: float) -> None:
         """The position at ``t_s`` (after every point added so far)."""
         t, p = self.t_s, self.steps
         if t and t_s <= t[-1]:
             return
-        if len(t) >= 2 and _straight(t[-2], p[-2], t[-1], p[-1], t_s, position_steps):
+        if len(t) >= 2 and self._on_line(t[-2], p[-2], t_s, position_steps):
+            self._absorbed.append((t[-1], p[-1]))
             t[-1], p[-1] = t_s, position_steps
         else:
+            self._absorbed = []
             t.append(t_s)
             p.append(position_steps)
         while len(t) > 2 and t[1] < t_s - PATH_KEPT_S:
             t.popleft()
             p.popleft()
+
+    def _on_line(self, t0, p0, t1, p1) -> bool:
+        """Whether the line from (t0, p0) to (t1, p1) passes within the tolerance of the last
+        piece's end and of every point it absorbed."""
+        slope = (p1 - p0) / (t1 - t0)
+        points = [*self._absorbed, (self.t_s[-1], self.steps[-1])]
+        return all(abs(p0 + slope * (t - t0) - p) <= PATH_TOLERANCE_STEPS for t, p in points)
 
     def steps_at(self, t_s: float) -> float:
         """The position at ``t_s``, steps (the nearest end outside the path)."""
@@ -354,14 +377,27 @@ class ServoPath:
 
 PATH_KEPT_S = 1.0
 """Emulator time a servo's path is kept for, s: far more than the truth lags its devices."""
+PATH_TOLERANCE_STEPS = 0.02
+"""How far the path's straight pieces may pass from the positions they stand for, steps: a
+fiftieth of the count the servo reads (0.3 um of string on a 1 cm pulley)."""
 
 
-def _straight(t0, p0, t1, p1, t2, p2) -> bool:
-    """Whether the point (t2, p2) continues the piece (t0, p0)-(t1, p1) at its speed (to a
-    millionth of a step per second, or of the speed)."""
-    v01 = (p1 - p0) / (t1 - t0)
-    v12 = (p2 - p1) / (t2 - t1)
-    return abs(v12 - v01) <= 1e-6 * max(1.0, abs(v01))
+def _approach(error, dt_s, lag_s, max_steps_s, band_steps):
+    """The position loop's error after ``dt_s`` s from ``error`` (steps), and how far into
+    ``dt_s`` (s) it fell to ``band_steps`` (where the output no longer overcomes friction and
+    the servo stops), or None: :func:`~gyrohost.drivers.mx12.lag_error_after`, exact, so the
+    path does not depend on the ticks."""
+    size = abs(error)
+    if size <= band_steps:
+        return error, 0.0
+    knee = max_steps_s * lag_s
+    to_knee = (size - knee) / max_steps_s if size > knee else 0.0
+    to_band = math.inf
+    if band_steps > 0:
+        to_band = to_knee + lag_s * math.log(min(size, knee) / band_steps)
+    if dt_s >= to_band:
+        return math.copysign(band_steps, error), to_band
+    return float(lag_error_after(error, dt_s, lag_s, max_steps_s)), None
 
 
 def _units_to_steps_s(units: float) -> float:

@@ -75,9 +75,10 @@ MIN_PIECE_S = 1e-6
 """Shortest piece of a step through the servos' turns, s: two turns closer than this (two
 servos arriving together, apart by round-off) are one, far below any motion the truth resolves,
 and a piece of no length is no step."""
-PIECES_PER_STEP = 8
-"""Pieces of a step the IMU's history makes room for: each servo turns at most twice a step
-(a move's start and its arrival) while goals come every tick (two steps)."""
+PIECES_PER_STEP = 32
+"""Pieces of a step the IMU's history makes room for: a servo following its lag bends at
+most at every tick of its emulator (one a millisecond while the rig idles, one per frame
+served), rarely more than ten in a 5 ms step."""
 
 
 def truth_scene(config: RigConfig, scene: str | Path | None = None) -> Scene:
@@ -340,10 +341,10 @@ class Truth:
 
         The rest lengths move in a straight line from where the last step left them to the
         servos' lengths at each of ``turns`` and then at the step's end, the physics stepped
-        through each piece (first-order hold on the servos' own path: a servo that covers a
-        goal step in 2 ms and holds moves the string then, where one line over the step would
-        spread the move over it and shift it by up to half a step, by a part of the step the
-        phase of the host's ticks held for a whole run). A speed-driven truth's spins move in a
+        through each piece (first-order hold on the servos' own path: a servo that stops
+        within a step stops the string then, where one line over the step would spread the
+        move's corners over it, shifted by a part of the step the phase of the host's ticks
+        held for a whole run). A speed-driven truth's spins move in a
         straight line over the whole step (the board's speeds change smoothly); a torque-driven
         truth's speed loop holds its torque over it.
 
