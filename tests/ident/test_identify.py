@@ -121,8 +121,11 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     """The default method: the output error, then the filter's likelihood for the mounting,
     the latency and its noise, started from the output error's values. The scene is the first
     stage's (its J3), its header both reports, the overlay the second stage's mounting and
-    noise; the filter's innovations are plotted beside the residuals."""
+    noise and the servos' lag fitted to their reads; the filter's innovations are plotted
+    beside the residuals."""
+    from gyrohost.config import load_rig_config
     from gyrohost.ident.report import read_identified
+    from gyrohost.sil.emulator_keys import emulated_servo_lag_s
 
     nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
     log = record_log(truth, 2, tmp_path / "log")
@@ -142,6 +145,10 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     reported = read_identified(header)
     assert yaw == pytest.approx(reported["mounting.yaw"][0], rel=1e-5)  # the second stage's
     assert {"imu_latency_s", "accel_psd_m2_s3"} <= set(overlay["estimator"])
+    # the servos' lag, fitted to their reads: the in-process servos' own
+    lag_s = emulated_servo_lag_s(load_rig_config(nominal))
+    assert overlay["estimator"]["servo_lag_s"] == pytest.approx(lag_s, rel=0.05)
+    assert 0.0 <= overlay["estimator"]["servo_delay_s"] < 1e-3  # goals taken at once here
     assert (tmp_path / "ident-innovations.png").stat().st_size > 10_000
 
 

@@ -180,6 +180,7 @@ def run(args) -> int:
     from gyrohost.ident.log_config import config_for_logs
     from gyrohost.ident.logs import log_warnings
     from gyrohost.ident.params import parameters
+    from gyrohost.ident.servo_render import fitted_response
     from gyrohost.ident.weighing import with_weighing
     from gyrohost.ident.wheel_error import describe, wheel_walk
     from gyrohost.resources import ResourceError
@@ -243,7 +244,7 @@ def run(args) -> int:
             f"wheels' speed error (settled reports less commands, less the reports' noise): "
             f"{describe(walk)}; the filter's wheel walk {walk.psd:.3g} rad^2/s^3"
         )
-    _write(args, result, config_used, structure, walk)
+    _write(args, result, config_used, structure, walk, fitted_response(recs))
     return 0
 
 
@@ -309,11 +310,12 @@ def _warn_undetermined(result) -> None:
         )
 
 
-def _write(args, result, config, structure=None, walk=None) -> None:
+def _write(args, result, config, structure=None, walk=None, servo=None) -> None:
     """Write the identified scene (``structure``'s when the fit was staged, its header both
     stages' reports), the configuration overlay (``result``'s, on ``config``; a staged fit's
     keeps what the first stage determined and the second left; the wheels' walk ``walk``
-    measured from the logs) and the residuals' plots."""
+    measured from the logs; the servos' response ``servo`` fitted to their reads) and the
+    residuals' plots."""
     from gyrohost.ident import report
 
     out = args.out
@@ -323,7 +325,7 @@ def _write(args, result, config, structure=None, walk=None) -> None:
     out.write_text(report.identified_scene(first, config, args.logs, later))
     overlay = args.overlay or out.with_name(out.stem + "-config.toml")
     overlay.parent.mkdir(parents=True, exist_ok=True)
-    overlay.write_text(report.overlay_toml(result, config, structure, walk))
+    overlay.write_text(report.overlay_toml(result, config, structure, walk, servo))
     plot = out.with_name(out.stem + "-residuals.png")
     report.plot_residuals(first, plot)
     print(f"identified scene: {out}\nconfiguration overlay: {overlay}\nresiduals: {plot}")

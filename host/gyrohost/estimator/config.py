@@ -91,9 +91,9 @@ class EstimatorConfig:
     # count, where the servo stops about it): a walk of the rest lengths that keeps it as their
     # spread through the lag, whatever the step, m
     rest_hold_std_m: float = field(default=0.0, metadata=_std("resting servo spread", RIG_SIZE_M))
-    # a servo that covers each goal step at its moving speed strays from the first-order lag
-    # within the step by up to the step: std ratio x |goal step|, the spread the rest lengths
-    # keep about the lag until the next goal (0: none)
+    # a goal step's spread about the first-order lag, std ratio x |goal step|, kept about the
+    # lag until the next goal: a goal taken at an uncertain time (time std / lag), or a servo
+    # that covers each goal step at its moving speed and holds (1/sqrt(12)); 0: none
     servo_step_std_ratio: float = field(default=0.0, metadata=_pos("servo in-step std", 0.0, 10.0))
     # white noise of the rest lengths as the string forces see them (the servo's motion within a
     # step, pulley compliance): acts on the nodes only through taut strings, m^2 s
@@ -143,6 +143,9 @@ class EstimatorConfig:
     jacobian: str = field(default="analytic", metadata={"choices": ("analytic", "complex-step")})
     rk4_substep_s: float = field(default=1.0e-3, metadata=_pos("rk4 substep", 1e-5, 0.1))
     servo_lag_s: float = field(default=0.05, metadata=_pos("servo response time", 1e-3, 10.0))
+    # a goal reaches the servos this long after its stamp (the bus and the servo taking it up;
+    # gyrotens identify fits it with the lag), s
+    servo_delay_s: float = field(default=0.0, metadata=_pos("servo goal delay", 0.0, 0.1))
     # the servos close a goal step at most at this string speed (their moving speed), by the
     # lag within it (gyrohost.drivers.mx12.lag_error_after); unset: the lag alone
     servo_speed_m_s: float = field(default=math.inf, metadata=_pos("servo speed limit", 1e-4))

@@ -215,16 +215,16 @@ class TensegrityEKF:
     # -- time update ----------------------------------------------------------------------------
     def set_input(self, rest_length_m, t_s=None, wheel_speed_rad_s=None):
         """Commanded rest lengths (alpha,) m from ``t_s`` on (default: now; None: the previous
-        ones), held until the next command. A command ahead of the filter waits for the
-        prediction to reach ``t_s`` (the run stamps a goal when it goes onto the bus; samples
-        taken before that can still arrive), so samples fused meanwhile see the input they
-        were taken under. With ``wheel_speed_rad_s`` (n_w,), scene wheel order, the wheels'
-        commanded spins too, in effect ``wheel_delay_s`` after ``t_s`` (the wheel states
-        follow them with ``wheel_lag_s``; none given: the previous ones; the first in effect
-        at once)."""
+        ones), in effect ``servo_delay_s`` after it, held until the next command. A command
+        ahead of the filter waits for the prediction to reach ``t_s`` (the run stamps a goal
+        when it goes onto the bus; samples taken before that can still arrive), so samples
+        fused meanwhile see the input they were taken under. With ``wheel_speed_rad_s``
+        (n_w,), scene wheel order, the wheels' commanded spins too, in effect ``wheel_delay_s``
+        after ``t_s`` (the wheel states follow them with ``wheel_lag_s``; none given: the
+        previous ones; the first in effect at once)."""
         stamp = self.t if t_s is None else max(float(t_s), self.t)
         if rest_length_m is not None:
-            self._queue(stamp, "rest", np.array(rest_length_m, float))
+            self._queue(stamp + self.config.servo_delay_s, "rest", np.array(rest_length_m, float))
         if wheel_speed_rad_s is not None:
             speeds = np.array(wheel_speed_rad_s, float)
             if self.process.wheel_command_rad_s is None:

@@ -32,7 +32,8 @@ given the wheel board's commands (:attr:`ProcessModel.wheel_command_rad_s`) and
 time in each Runge-Kutta stage) and the wheel follows the setpoint with the lag
 ``wheel_lag_s``; the rest
 lengths follow the commanded ones through a first-order lag ``servo_lag_s`` (the servos'
-response); the gyro bias is constant. Process noise is white: node accelerations
+response; at most at their speed limit, through the input :mod:`.servo_motion` gives each
+step); the gyro bias is constant. Process noise is white: node accelerations
 (``accel_psd_m2_s3``), random walks of wheel speeds, rest lengths and bias;
 :meth:`ProcessModel.noise` gives its discrete covariance.
 """
@@ -152,11 +153,11 @@ class ProcessModel(ProcessNoise):
     def goal_stepped(self, step_m) -> None:
         """The servos' goals moved by ``step_m`` (alpha,) m.
 
-        A servo covers its goal step at its moving speed, then holds: until the next goal its
-        position strays from the first-order lag by up to the step. That spread, std
-        ``servo_step_std_ratio |step|`` (``1/sqrt(12)`` for a position uniform over the step),
-        the rest lengths keep about their lag until the next goal (:meth:`lag_factor`, as the
-        hold).
+        A goal reaches the servo at a time known only to ``servo_time_std_s``: through the lag
+        its position strays by ``|step| time std / lag`` (``servo_step_std_ratio |step|``; for
+        a servo that covers its goal step at its moving speed and holds, ``1/sqrt(12)``, a
+        position uniform over the step). That spread the rest lengths keep about their lag
+        until the next goal (:meth:`lag_factor`, as the hold).
         """
         step = np.asarray(step_m, float) if self._commanded else np.zeros(len(step_m))
         self.rest_step_var_m2 = (self.config.servo_step_std_ratio * step) ** 2

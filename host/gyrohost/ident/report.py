@@ -128,13 +128,16 @@ def _combination(v: np.ndarray, names: list[str]) -> str:
     return " ".join(terms)
 
 
-def overlay_toml(result: FitResult, config, before: FitResult | None = None, walk=None) -> str:
+def overlay_toml(
+    result: FitResult, config, before: FitResult | None = None, walk=None, servo=None
+) -> str:
     """The rig configuration keys the fit changes: the IMU's mounting, each fitted servo's
     ``length_at_zero_m`` (its zero offset added); the mounting's covariance for the estimator
     (:func:`mounting_covariance`). Determined parameters only, or those of ``before`` (an
     earlier stage, whose values ``config`` carries) where ``result`` leaves them; with
     ``walk`` (:class:`.wheel_error.WheelWalk`) the filter's wheel walk measured from the
-    logs."""
+    logs; with ``servo`` (:class:`.servo_render.ServoResponse`) the filter's servo lag
+    fitted to the servos' reads."""
     a = apply_result(result, config)
     fitted = _determined_groups(result) | _determined_groups(before)
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
@@ -144,6 +147,12 @@ def overlay_toml(result: FitResult, config, before: FitResult | None = None, wal
     if cov is None and before is not None:
         cov = mounting_covariance(before)
     estimator = _estimator_keys(result, a, fitted, cov)
+    if servo is not None:
+        estimator += [
+            f"servo_lag_s = {float(servo.lag_s)!r}  # fitted to the servos' reads (reads less "
+            f"the response {1e3 * servo.rms_m:.3f} mm RMS)",
+            f"servo_delay_s = {max(float(servo.delay_s), 0.0)!r}  # with the lag",
+        ]
     if walk is not None:
         estimator.append(
             f"wheel_accel_psd_rad2_s3 = {float(walk.psd)!r}  # the wheels' speed error "

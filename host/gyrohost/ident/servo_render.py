@@ -107,6 +107,12 @@ def rendered(
     return t, lengths, response
 
 
+def fitted_response(recs) -> ServoResponse | None:
+    """The servos' response fitted to the reads of the first of the recordings ``recs`` whose
+    strings were rendered by it (None: none was)."""
+    return next((r.servo_response for r in recs if getattr(r, "servo_response", None)), None)
+
+
 def _grid(t_rep_s, t_cmd_s) -> np.ndarray:
     t0 = min(t_rep_s[0], t_cmd_s[0])
     t1 = max(t_rep_s[-1], t_cmd_s[-1])
