@@ -66,3 +66,13 @@ def test_a_move_bends_where_it_starts_and_where_it_stops():
         assert 0.0 < 200.0 - servo.position_steps <= 0.5
     finally:
         bus.close()
+
+
+def test_a_long_hold_is_one_piece_checked_in_constant_time():
+    """A minute held at 1 kHz ticks: one piece; each tick weighs against the slopes the piece
+    allows, not against every point it absorbed (a list of them grew with the hold)."""
+    path = ServoPath()
+    for k in range(60_000):
+        path.add(k * 1e-3, 100.0 + 1e-3 * np.sin(k))  # within the tolerance of a flat line
+    assert len(path.t_s) == 2
+    assert path._slopes[1] - path._slopes[0] < 2 * PATH_TOLERANCE_STEPS / 59.0

@@ -341,30 +341,33 @@ class ServoPath:
     def __init__(self):
         self.t_s: deque = deque()
         self.steps: deque = deque()
-        self._absorbed: list = []
+        self._slopes = (-math.inf, math.inf)  # the last piece's slopes its points allow
 
     def add(self, t_s: float, position_steps: float) -> None:
         """The position at ``t_s`` (after every point added so far)."""
         t, p = self.t_s, self.steps
         if t and t_s <= t[-1]:
             return
-        if len(t) >= 2 and self._on_line(t[-2], p[-2], t_s, position_steps):
-            self._absorbed.append((t[-1], p[-1]))
-            t[-1], p[-1] = t_s, position_steps
-        else:
-            self._absorbed = []
-            t.append(t_s)
-            p.append(position_steps)
+        if len(t) >= 2:
+            lo, hi = self._slopes_through(t[-2], p[-2], t[-1], p[-1])
+            if lo <= (position_steps - p[-2]) / (t_s - t[-2]) <= hi:
+                self._slopes = (lo, hi)
+                t[-1], p[-1] = t_s, position_steps
+                return
+        self._slopes = (-math.inf, math.inf)
+        t.append(t_s)
+        p.append(position_steps)
         while len(t) > 2 and t[1] < t_s - PATH_KEPT_S:
             t.popleft()
             p.popleft()
 
-    def _on_line(self, t0, p0, t1, p1) -> bool:
-        """Whether the line from (t0, p0) to (t1, p1) passes within the tolerance of the last
-        piece's end and of every point it absorbed."""
-        slope = (p1 - p0) / (t1 - t0)
-        points = [*self._absorbed, (self.t_s[-1], self.steps[-1])]
-        return all(abs(p0 + slope * (t - t0) - p) <= PATH_TOLERANCE_STEPS for t, p in points)
+    def _slopes_through(self, t0, p0, t1, p1) -> tuple[float, float]:
+        """The slopes of the lines from (t0, p0) that pass within the tolerance of (t1, p1)
+        and of every point the piece absorbed before (kept as their intersection: each point
+        is checked once)."""
+        lo, hi = self._slopes
+        dt, tol = t1 - t0, PATH_TOLERANCE_STEPS
+        return max(lo, (p1 - tol - p0) / dt), min(hi, (p1 + tol - p0) / dt)
 
     def steps_at(self, t_s: float) -> float:
         """The position at ``t_s``, steps (the nearest end outside the path)."""
