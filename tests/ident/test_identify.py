@@ -124,6 +124,7 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     noise and the servos' lag fitted to their reads; the filter's innovations are plotted
     beside the residuals."""
     from gyrohost.config import load_rig_config
+    from gyrohost.drivers.mx12 import steps_per_metre
     from gyrohost.ident.report import read_identified
     from gyrohost.sil.emulator_keys import emulated_servo_lag_s
 
@@ -146,9 +147,14 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     assert yaw == pytest.approx(reported["mounting.yaw"][0], rel=1e-5)  # the second stage's
     assert {"imu_latency_s", "accel_psd_m2_s3"} <= set(overlay["estimator"])
     # the servos' lag, fitted to their reads: the in-process servos' own
-    lag_s = emulated_servo_lag_s(load_rig_config(nominal))
-    assert overlay["estimator"]["servo_lag_s"] == pytest.approx(lag_s, rel=0.05)
-    assert 0.0 <= overlay["estimator"]["servo_delay_s"] < 1e-3  # goals taken at once here
+    # the in-process servos take each goal at its send: the fit is the response itself, to
+    # what reads of a count each allow (the sibling fit's 2 %, test_servo_render), the delay
+    # under the time a count takes at the excitation's 0.12 m/s pulls
+    rig = load_rig_config(nominal)
+    count_m = 1.0 / steps_per_metre(rig.servos.servo[0])
+    lag_s = emulated_servo_lag_s(rig)
+    assert overlay["estimator"]["servo_lag_s"] == pytest.approx(lag_s, rel=0.02)
+    assert 0.0 <= overlay["estimator"]["servo_delay_s"] < count_m / 0.12
     assert (tmp_path / "ident-innovations.png").stat().st_size > 10_000
 
 
