@@ -424,13 +424,11 @@ class StringServoBus:
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
         # stamped before the write: after it, the thread may wait for the GIL for milliseconds
+        self.goals_sent_ns = time.monotonic_ns()
         if self.port.in_reply_wait:
             group.makeParam()
-            packet = _sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param)
-            self.goals_sent_ns = time.monotonic_ns()
-            self.port.write_packet(packet)
+            self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
             return
-        self.goals_sent_ns = time.monotonic_ns()
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(

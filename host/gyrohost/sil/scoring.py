@@ -309,8 +309,8 @@ def _rig_model_rows(
         truth_x.append(from_model_state(truth.model, truth.stepper.x, u, emu.gyro_bias_rad_s))
         truth_R.append(imu.R_wb @ emu.R_bs)  # the sensor axes, as the filter's attitude
         # goals sent within the step move the servos from their send on
-        later = [(sends[j] - t, inputs(made[j])[0])
-                 for j in range(sent, len(sends)) if sends[j] < t + dt - 1e-9]  # fmt: skip
+        within = np.searchsorted(sends, t + dt - 1e-9, "left")
+        later = [(sends[j] - t, inputs(made[j])[0]) for j in range(sent, within)]
         ends, paths = servo_paths(pairs, position, command, later, dt, lag_s)
         turns = [(t + e, {sid: p[j] for sid, p in paths.items()}) for j, e in enumerate(ends[:-1])]
         position = {sid: p[-1] for sid, p in paths.items()}
