@@ -20,9 +20,9 @@ prior, and the figure is the white noise alone; a filter without that state fold
 left after the device's own calibration (``FF AA 67``) into the figure
 (``sqrt(white^2 + bias^2)``).
 
-The servos' reads are left out: a held servo reads where it holds (the emulator exactly), and
-``servo_length_std_m`` carries what they do while moving
-(docs/estimator-noise.md#the-servos-reads-moving-and-at-rest).
+The servos' reads are left out: a held servo reads the count it holds at, and
+``servo_length_std_m`` with ``servo_time_std_s`` carry what they do while moving
+(docs/estimator-noise.md#the-servos).
 """
 
 import math

@@ -30,7 +30,7 @@ def emulated_servo_lag_s(rig: RigConfig) -> float:
 def emulator_keys(rig: RigConfig) -> dict:
     """The EKF's keys describing the simulated rig of ``rig`` (its ``[sim]`` tables): the noise
     of its emulated devices, the attachment of its IMU, the steps of its truth, with the
-    :func:`~gyrohost.estimator.config.rig_keys` of its ``[imu]`` table.
+    :func:`~gyrohost.estimator.config.rig_keys` of its ``[imu]`` and ``[servos]`` tables.
 
     White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
     format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
@@ -81,7 +81,7 @@ def emulator_keys(rig: RigConfig) -> dict:
         "servo_time_std_s": time_std_s,
         "servo_step_std_ratio": time_std_s / lag_s,
         # a resting servo holds within its band of the command's count, and no walk beyond it
-        # (docs/estimator-noise.md#resting-servos)
+        # (docs/estimator-noise.md#the-servos)
         "rest_psd_m2_s": 0.0,
         "rest_hold_std_m": servo_hold_std(count_m, sim.servos.hold_band_steps),
         # the wheel board emulator's telemetry: the encoder's quantisation through the

@@ -336,10 +336,9 @@ class SimulatedRig:
 
         The truth holds its inputs first-order between its steps' ends: a reader that
         interpolates between every step's sample has what the physics had, where one sampling
-        the latest step now and then interpolates over steps it missed. A servo moves its
-        string a goal step in about 2 ms once per tick; sampled once per tick, the rest length
-        interpolated between samples can be up to a goal step off, by an offset the ticks'
-        phase against the steps holds for a whole run."""
+        the latest step now and then interpolates over steps it missed: sampled once per tick,
+        a rest length moving a goal step a tick is off by up to that step between samples, by
+        an offset the ticks' phase against the steps holds for a whole run."""
         with self._lock:
             out = list(self._steps_kept or ())
             if self._steps_kept is not None:
