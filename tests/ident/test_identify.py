@@ -269,3 +269,28 @@ def test_a_scale_resolution_below_zero_is_refused_before_a_log_is_read(
         capsys.readouterr().err
     )
     assert not any(tmp_path.iterdir())
+
+
+def test_the_strings_covariance_is_the_fits_and_the_estimator_reads_it():
+    """The overlay's ``string_cov_rel2``: the fitted stiffness's and damping's log-factor
+    sigmas with their correlation, in a form the estimator's keys take; none unless both are
+    determined."""
+    from types import SimpleNamespace
+
+    from gyrohost.estimator.config import config_from_dict, string_covariance
+    from gyrohost.ident.params import Param
+    from gyrohost.ident.report import _string_keys
+    from gyrohost.ident.report import string_covariance as fitted_covariance
+
+    params = [
+        Param(g, g, True, v, "") for g, v in (("J3", 2e-5), ("stiffness", 200.0), ("damping", 2.0))
+    ]
+    corr = np.array([[1.0, 0.1, 0.2], [0.1, 1.0, 0.6], [0.2, 0.6, 1.0]])
+    result = SimpleNamespace(params=params, sigma=np.array([0.01, 0.05, 0.12]),
+                             determined=np.array([True, True, True]), correlation=corr)  # fmt: skip
+    cov = fitted_covariance(result)
+    np.testing.assert_allclose(cov, [[0.05**2, 0.6 * 0.05 * 0.12], [0.6 * 0.05 * 0.12, 0.12**2]])
+    keys = tomllib.loads("\n".join(_string_keys(cov)))
+    assert np.array_equal(string_covariance(config_from_dict(keys)), cov)
+    result.determined[2] = False
+    assert fitted_covariance(result) is None and _string_keys(None) == []

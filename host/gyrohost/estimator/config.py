@@ -146,6 +146,10 @@ class EstimatorConfig:
     # a goal reaches the servos this long after its stamp (the bus and the servo taking it up;
     # gyrotens identify fits it with the lag), s
     servo_delay_s: float = field(default=0.0, metadata=_pos("servo goal delay", 0.0, 0.1))
+    # how well servo_delay_s holds for a run: a run's delay is where the phase of its ticks puts
+    # its goals in the rig's latency spread, fixed for the run; nonzero makes its error a state
+    # (gyrohost.estimator.param_errors), zero takes the delay as exact
+    servo_delay_std_s: float = field(default=0.0, metadata=_pos("servo goal delay std", 0.0, 0.1))
     # the servos close a goal step at most at this string speed (their moving speed), by the
     # lag within it (gyrohost.drivers.mx12.lag_error_after); unset: the lag alone
     servo_speed_m_s: float = field(default=math.inf, metadata=_pos("servo speed limit", 1e-4))
@@ -194,6 +198,10 @@ class EstimatorConfig:
     # state (:func:`mounting_covariance`); zero takes the mounting as exact
     imu_mounting_std_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     imu_mounting_cov_rad2: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 3
+    # how well the scene's string stiffness and damping are known (covariance of their log
+    # factors, e.g. from gyrotens identify): nonzero makes their errors states
+    # (gyrohost.estimator.param_errors); zero takes the scene's as exact
+    string_cov_rel2: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 2
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
 
 
@@ -233,9 +241,18 @@ def mounting_covariance(config: EstimatorConfig):
     return cov if cov.any() else None
 
 
+def string_covariance(config: EstimatorConfig):
+    """Prior covariance (2, 2) of the errors of the scene's string stiffness and damping (log
+    factors): ``string_cov_rel2``; None when zero (the scene's taken as exact, no state)."""
+    import numpy as np
+
+    cov = np.array(config.string_cov_rel2, float)
+    return cov if cov.any() else None
+
+
 def _check_mounting(config: EstimatorConfig, source: str) -> None:
-    """The mounting's uncertainty: stds not negative, a covariance symmetric and positive
-    semi-definite, not both given."""
+    """The mounting's and the strings' uncertainties: stds not negative, a covariance
+    symmetric and positive semi-definite, not both given for the mounting."""
     import numpy as np
 
     std, cov = np.array(config.imu_mounting_std_rad), np.array(config.imu_mounting_cov_rad2)
@@ -246,12 +263,17 @@ def _check_mounting(config: EstimatorConfig, source: str) -> None:
         raise EstimatorConfigError(
             f"{where}s 'imu_mounting_std_rad' and 'imu_mounting_cov_rad2': give one of them"
         )
+    _check_covariance(cov, f"{where} 'imu_mounting_cov_rad2'")
+    _check_covariance(np.array(config.string_cov_rel2), f"{where} 'string_cov_rel2'")
+
+
+def _check_covariance(cov, where: str) -> None:
+    import numpy as np
+
     if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
-        raise EstimatorConfigError(f"{where} 'imu_mounting_cov_rad2' must be symmetric")
+        raise EstimatorConfigError(f"{where} must be symmetric")
     if np.linalg.eigvalsh(cov).min() < -1e-12 * max(np.abs(cov).max(), 1e-300):
-        raise EstimatorConfigError(
-            f"{where} 'imu_mounting_cov_rad2' must be positive semi-definite"
-        )
+        raise EstimatorConfigError(f"{where} must be positive semi-definite")
 
 
 def load_config(path: str | Path) -> EstimatorConfig:

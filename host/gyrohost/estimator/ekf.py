@@ -22,7 +22,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from gyrotensegrity import SimulationError
 
-from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
+from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels, param_errors
 from .config import imu_taken_s, mounting_covariance
 from .errors import EstimatorError
 from .fast_cycle import fast_cycle
@@ -34,6 +34,7 @@ from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
 from .layout import from_model_state, layout_of
 from .manifold import Manifold
+from .param_errors import ParamErrors
 from .process_model import ProcessModel, check_model
 from .servo_motion import step_input
 from .timeouts import SourceMonitor
@@ -117,6 +118,7 @@ class TensegrityEKF:
         self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
+        self.params = ParamErrors(self.process, L) if L.n_string_errors + L.n_goal_delay else None
         self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
@@ -164,9 +166,13 @@ class TensegrityEKF:
         std[L.mounting] = 0.0
         std[L.accel_bias] = c.init_accel_bias_std_m_s2
         std[L.wheel_noise] = fuse_wheels.white_std(c)
+        strings, std[L.goal_delay] = param_errors.prior(c)
+        std[L.string_errors] = 0.0
         P = np.diag(std**2)
         if L.n_mounting:
             P[L.mounting, L.mounting] = mounting_covariance(c)
+        if L.n_string_errors:
+            P[L.string_errors, L.string_errors] = strings
         return P
 
     # -- state access ---------------------------------------------------------------------------
@@ -297,19 +303,26 @@ class TensegrityEKF:
         self.kf.x = self.manifold.project_state(self.x).reshape(-1, 1)
 
     def _predict_reference(self, dt: float) -> None:
-        x_next, F = self.process.step(self.x, step_input(self, dt), dt, self._A)
+        u = step_input(self, dt)
+        x, x_next, F = self.x.copy(), *self.process.step(self.x, u, dt, self._A)
         self.kf.x_next = x_next.reshape(-1, 1)
         self.kf.F = F
         Q = self.process.noise(dt, F, self.x, self.P)
         self.kf.Q = np.zeros_like(F)  # the wheel noise states change at wheel samples only
         self.kf.Q[: len(Q), : len(Q)] = Q
         self.kf.predict()
+        if self.params is not None:
+            x_next, P = self.params.step(x, self.x, self.P, F, u, dt)
+            self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 
     def _predict_fast(self, dt: float) -> None:
         """:meth:`_predict_reference`'s step in one kernel call (:mod:`.fast_prediction`)."""
-        x_next, P, _ = self.fast_step(self.x, self.kf.P, step_input(self, dt), dt, self._A)
+        u = step_input(self, dt)
+        x_next, P, F = self.fast_step(self.x, self.kf.P, u, dt, self._A)
         Q = self.process.noise(dt, None, self.x)  # the kinks' term is in P already
         P[: len(Q), : len(Q)] += Q
+        if self.params is not None:
+            x_next, P = self.params.step(self.x, x_next, P, F, u, dt)
         self.kf.x, self.kf.P = x_next.reshape(-1, 1), P
 
     def _check_finite(self, what: str) -> None:

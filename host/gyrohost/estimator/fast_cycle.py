@@ -16,7 +16,8 @@ the filter takes the stages from the same state: they raise the filter's error, 
 to the reference, as they do without this module.
 
 Covered: the configurations of :mod:`.fast_prediction` without the mounting as a state (its
-three Jacobian columns are the stages' :func:`.imu_prediction.with_mounting`).
+three Jacobian columns are the stages' :func:`.imu_prediction.with_mounting`) and without the
+parameters' errors (their part of the step is :mod:`.param_errors`').
 """
 
 import numpy as np
@@ -31,7 +32,7 @@ SOURCES = (fuse_imu_rate.SOURCE, fuse_imu_accel.SOURCE, fuse_imu_angle.SOURCE)
 def fast_cycle(ekf, rotation_tolerance: float):
     """A :class:`FastCycle` of the filter ``ekf`` where it covers the configuration (module
     docstring), else None; ``rotation_tolerance`` as the filter's check of the IMU's axes."""
-    covered = ekf.fast_imu is not None and not ekf.layout.n_mounting
+    covered = ekf.fast_imu is not None and not ekf.layout.n_mounting and ekf.params is None
     return FastCycle(ekf, rotation_tolerance) if covered else None
 
 

@@ -6,7 +6,8 @@ with the wheel telemetry's noise as a state)::
 
     x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
           | rest (alpha, m) | b_g (3, rad/s) | d_mount (3, rad, optional)
-          | b_a (3, m/s^2, optional) | a_w (n_w, rad/s, optional) ]
+          | b_a (3, m/s^2, optional) | a_w (n_w, rad/s, optional)
+          | d_strings (2, optional) | d_goal (1, s, optional) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
 :mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
@@ -17,15 +18,18 @@ gives the mounting an uncertainty: :func:`.config.mounting_covariance`), ``b_a``
 accelerometer's bias in sensor axes (a random constant, present when the configuration gives it
 a prior: ``init_accel_bias_std_m_s2``), ``a_w`` the white term
 of the last wheel sample's noise, which the next sample's noise shares (``wheel_noise_ma1``,
-:mod:`.fuse_wheels`). Wheel angles are left out (nothing observes them, nothing depends on
-them).
+:mod:`.fuse_wheels`), ``d_strings`` the errors of the strings' stiffness and damping (relative:
+log factors on the scene's) and ``d_goal`` the error of the servos' goal delay
+(``servo_delay_s``), random constants present when the configuration gives them an
+uncertainty (:mod:`.param_errors`). Wheel angles are left out (nothing observes them,
+nothing depends on them).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .config import mounting_covariance
+from .config import mounting_covariance, string_covariance
 
 
 @dataclass(frozen=True)
@@ -38,10 +42,12 @@ class FilterLayout:
     n_wheel_noise: int = 0  # n_wheels with the wheel noise as a state, else 0
     n_mounting: int = 0  # 3 with the mounting's error as a state, else 0
     n_accel_bias: int = 0  # 3 with the accelerometer's bias as a state, else 0
+    n_string_errors: int = 0  # 2 with the strings' stiffness and damping errors, else 0
+    n_goal_delay: int = 0  # 1 with the servos' goal delay error as a state, else 0
 
     @property
     def size(self) -> int:
-        return self.n_base + self.n_wheel_noise
+        return self.n_base + self.n_wheel_noise + self.n_string_errors + self.n_goal_delay
 
     @property
     def n_base(self) -> int:
@@ -84,7 +90,20 @@ class FilterLayout:
 
     @property
     def wheel_noise(self) -> slice:
-        return slice(self.n_base, self.size)
+        return slice(self.n_base, self.n_base + self.n_wheel_noise)
+
+    @property
+    def string_errors(self) -> slice:
+        return slice(self.wheel_noise.stop, self.wheel_noise.stop + self.n_string_errors)
+
+    @property
+    def goal_delay(self) -> slice:
+        return slice(self.string_errors.stop, self.size)
+
+    @property
+    def params(self) -> slice:
+        """The identified parameters' errors: the strings' and the goal delay's."""
+        return slice(self.wheel_noise.stop, self.size)
 
     def labels(self) -> list[str]:
         """Column names of the state entries, with units."""
@@ -95,7 +114,9 @@ class FilterLayout:
         names += [f"gyro_bias_{a}_rad_s" for a in "xyz"]
         names += [f"mounting_{a}_rad" for a in ("roll", "pitch", "yaw")[: self.n_mounting]]
         names += [f"accel_bias_{a}_m_s2" for a in "xyz"[: self.n_accel_bias]]
-        return names + [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
+        names += [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
+        names += ["stiffness_error", "damping_error"][: self.n_string_errors]
+        return names + ["goal_delay_error_s"][: self.n_goal_delay]
 
 
 def layout_of(model, config=None) -> FilterLayout:
@@ -107,7 +128,9 @@ def layout_of(model, config=None) -> FilterLayout:
     noise = n_w if config.wheel_noise_ma1 != 0.0 else 0
     mounting = 3 if mounting_covariance(config) is not None else 0
     accel_bias = 3 if config.init_accel_bias_std_m_s2 > 0.0 else 0
-    return FilterLayout(model.m, n_w, model.alpha, noise, mounting, accel_bias)
+    strings = 2 if string_covariance(config) is not None else 0
+    goal = 1 if config.servo_delay_std_s > 0.0 else 0
+    return FilterLayout(model.m, n_w, model.alpha, noise, mounting, accel_bias, strings, goal)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

@@ -146,7 +146,10 @@ def overlay_toml(
     cov = mounting_covariance(result)
     if cov is None and before is not None:
         cov = mounting_covariance(before)
-    estimator = _estimator_keys(result, a, fitted, cov)
+    strings = string_covariance(result)
+    if strings is None and before is not None:
+        strings = string_covariance(before)
+    estimator = _estimator_keys(result, a, fitted, cov) + _string_keys(strings)
     if servo is not None:
         estimator += [
             f"servo_lag_s = {float(servo.lag_s)!r}  # fitted to the servos' reads (reads less "
@@ -194,6 +197,19 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov) -> list[str]:
     return lines
 
 
+def _string_keys(cov) -> list[str]:
+    """The overlay's lines of the strings' stiffness and damping covariance ``cov`` (None:
+    none)."""
+    if cov is None:
+        return []
+    rows = ", ".join(_array(row) for row in cov)
+    return [
+        "# how well the fit knows the strings' stiffness and damping (their log factors,",
+        "# squared): the EKF estimates their errors (docs/estimator.md)",
+        f"string_cov_rel2 = [{rows}]",
+    ]
+
+
 def _array(values) -> str:
     return f"[{', '.join(repr(float(x)) for x in values)}]"
 
@@ -204,6 +220,19 @@ def mounting_covariance(result: FitResult):
     idx = [i for i, p in enumerate(result.params) if p.group == "mounting"]
     sigma = np.array([result.value_sigma(i) for i in idx])
     if len(idx) != 3 or not np.all(result.determined[idx]):
+        return None
+    return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
+
+
+def string_covariance(result: FitResult):
+    """Covariance (2, 2) of the fitted stiffness's and damping's log factors (relative
+    1-sigmas and their correlation); None unless both were fitted and are determined."""
+    names = [p.name for p in result.params]
+    if "stiffness" not in names or "damping" not in names:
+        return None
+    idx = [names.index("stiffness"), names.index("damping")]
+    sigma = result.sigma[idx]
+    if not np.all(result.determined[idx]) or not np.all(np.isfinite(sigma)):
         return None
     return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
 

@@ -80,6 +80,9 @@ def emulator_keys(rig: RigConfig) -> dict:
         "servo_length_std_m": count_m / math.sqrt(12.0),
         "servo_time_std_s": time_std_s,
         "servo_step_std_ratio": time_std_s / lag_s,
+        # where a run's ticks fall in that poll is fixed for the run: its goals' mean delay is
+        # off the fitted one by as much, a state (gyrohost.estimator.param_errors)
+        "servo_delay_std_s": time_std_s,
         # a resting servo holds within its band of the command's count, and no walk beyond it
         # (docs/estimator-noise.md#the-servos)
         "rest_psd_m2_s": 0.0,

@@ -74,10 +74,10 @@ PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through it
 # block (docs/estimator.md). The rig's truth has no random forces and moves its rest lengths as
 # the servos do (the lag at most at their speed, as the filter's): one filter step from the true
 # state reproduces the truth to round-off. White node accelerations keep a little (3e-8). The
-# servos here are exactly the filter's motion (no read off it, no goal-step spread, no hold):
-# reads to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s, set for what the old
-# 50 ms lag's model missed where the dynamics pin the rest lengths; the exact motion leaves far
-# less (reports/estimator-history.md, "The servos as a position loop"). Wheels as the rig's.
+# servos here are exactly the filter's motion (no read off it, no goal-step spread or delay, no
+# hold): reads to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s, set for what the
+# old 50 ms lag's model missed where the dynamics pin the rest lengths; the exact motion leaves
+# far less (reports/estimator-history.md, "The servos as a position loop"). Wheels as the rig's.
 RIG_MODEL_KEYS = {
     "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
@@ -85,6 +85,7 @@ RIG_MODEL_KEYS = {
     "rest_psd_m2_s": 1e-13,
     "rest_hold_std_m": 0.0,
     "servo_step_std_ratio": 0.0,
+    "servo_delay_std_s": 0.0,
     "rest_jitter_psd_m2_s": 0.0,
     **EXACT_IMU_TIMES,  # the SIL's samples carry their own times
 }
