@@ -42,10 +42,7 @@ def string_columns(process, x, x_next, F, dt) -> np.ndarray:
     accelerations' response, for the damping's force follows the strings' rates, which the
     stiff strings turn within a step."""
     L = process.layout
-    margin, _ = process.tension_margins(x)
-    # the accelerations are affine in each taut string's rest length: any taut point gives its
-    # column (:meth:`.process_noise.ProcessNoise.taut_columns`)
-    a = process._rest_columns(x, x[L.rest] - np.maximum(-margin, 0.0) - 1e-3)
+    a = process.taut_rest_columns(x, process.tension_margins(x)[0])
     n = L.q_dot.stop
     G = F[:n, L.q_dot] @ a @ _force_weights(process, x)
     G[L.q_dot] += a @ _force_weights(process, x_next)

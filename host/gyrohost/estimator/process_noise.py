@@ -178,16 +178,19 @@ class ProcessNoise:
             and (m/s)/m.
         """
         L = self.layout
-        rest = x[L.rest]
-        # the string force is affine in its rest length while taut (slope -k along the string)
-        # and the accelerations are affine in the string forces: any taut point gives the
-        # column; 1 mm of margin keeps every string taut whatever its state
-        taut_rest = rest - np.maximum(-margin, 0.0) - 1e-3
-        a = self._rest_columns(x, taut_rest)
+        a = self.taut_rest_columns(x, margin)
         n = L.q_dot.stop
         G = F[:n, L.q_dot] @ a
         G[L.q_dot] += a
         return 0.5 * dt * G
+
+    def taut_rest_columns(self, x, margin):
+        """``d eta2_ddot / d rest`` (3 m, alpha) at ``x``, each string held taut (``margin``
+        as :meth:`taut_columns`)."""
+        # the string force is affine in its rest length while taut (slope -k along the string)
+        # and the accelerations are affine in the string forces: any taut point gives the
+        # column; 1 mm of margin keeps every string taut whatever its state
+        return self._rest_columns(x, x[self.layout.rest] - np.maximum(-margin, 0.0) - 1e-3)
 
     def _rest_columns(self, x, rest):
         """``d eta2_ddot / d rest`` (3 m, alpha) at the state ``x`` with rest lengths ``rest``:
