@@ -220,7 +220,7 @@ def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
             )
         values[key] = _check(known[key], value, f"{source}: estimator key '{key}'")
     config = replace(EstimatorConfig(), **values)
-    _check_mounting(config, source)
+    _check_uncertainties(config, source)
     if len(set(config.imu_frame_nodes)) != 3:
         raise EstimatorConfigError(
             f"{source}: estimator key 'imu_frame_nodes' names {list(config.imu_frame_nodes)}: "
@@ -250,7 +250,7 @@ def string_covariance(config: EstimatorConfig):
     return cov if cov.any() else None
 
 
-def _check_mounting(config: EstimatorConfig, source: str) -> None:
+def _check_uncertainties(config: EstimatorConfig, source: str) -> None:
     """The mounting's and the strings' uncertainties: stds not negative, a covariance
     symmetric and positive semi-definite, not both given for the mounting."""
     import numpy as np

@@ -22,8 +22,8 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from gyrotensegrity import SimulationError
 
-from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels, param_errors
-from .config import imu_taken_s, mounting_covariance
+from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
+from .config import imu_taken_s, mounting_covariance, string_covariance
 from .errors import EstimatorError
 from .fast_cycle import fast_cycle
 from .fast_imu import fast_imu
@@ -166,13 +166,13 @@ class TensegrityEKF:
         std[L.mounting] = 0.0
         std[L.accel_bias] = c.init_accel_bias_std_m_s2
         std[L.wheel_noise] = fuse_wheels.white_std(c)
-        strings, std[L.goal_delay] = param_errors.prior(c)
         std[L.string_errors] = 0.0
+        std[L.goal_delay] = c.servo_delay_std_s
         P = np.diag(std**2)
         if L.n_mounting:
             P[L.mounting, L.mounting] = mounting_covariance(c)
         if L.n_string_errors:
-            P[L.string_errors, L.string_errors] = strings
+            P[L.string_errors, L.string_errors] = string_covariance(c)
         return P
 
     # -- state access ---------------------------------------------------------------------------

@@ -43,8 +43,7 @@ def fuse_servos(ekf, lengths_m, strings, lag_s=0.0) -> Innovation:
     strings = np.asarray(strings, dtype=int)
     hx, H = predict(ekf, ekf.x, strings, lag_s)
     c = ekf.config
-    rate = ekf.process.rest_rate(ekf.x[ekf.layout.rest], ekf.u)[strings]
-    rate = np.clip(rate, -c.servo_speed_m_s, c.servo_speed_m_s)
+    rate = ekf.process.servo_speed(ekf.x[ekf.layout.rest], ekf.u)[strings]
     R = np.diag(
         c.servo_length_std_m**2 + c.rest_psd_m2_s * lag_s + (c.servo_time_std_s * rate) ** 2
     )

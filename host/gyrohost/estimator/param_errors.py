@@ -27,13 +27,6 @@ the covariance, ``G`` the step's response to them (:func:`string_columns`,
 
 import numpy as np
 
-from .config import string_covariance
-
-
-def prior(config) -> tuple[np.ndarray | None, float]:
-    """The strings' prior covariance (2, 2) (None: no state) and the goal delay's std, s."""
-    return string_covariance(config), float(config.servo_delay_std_s)
-
 
 def string_columns(process, x, x_next, F, dt) -> np.ndarray:
     """The node motion's response (6 m, 2) over a step of ``dt`` s from ``x`` to ``x_next``
@@ -42,25 +35,28 @@ def string_columns(process, x, x_next, F, dt) -> np.ndarray:
     accelerations' response, for the damping's force follows the strings' rates, which the
     stiff strings turn within a step."""
     L = process.layout
-    a = process.taut_rest_columns(x, process.tension_margins(x)[0])
+    weights, margin = _force_weights(process, x)
+    a = process.taut_rest_columns(x, margin)
     n = L.q_dot.stop
-    G = F[:n, L.q_dot] @ a @ _force_weights(process, x)
-    G[L.q_dot] += a @ _force_weights(process, x_next)
+    G = F[:n, L.q_dot] @ a @ weights
+    G[L.q_dot] += a @ _force_weights(process, x_next)[0]
     return 0.5 * dt * G
 
 
-def _force_weights(process, x) -> np.ndarray:
+def _force_weights(process, x) -> tuple[np.ndarray, np.ndarray]:
     """Each string's force error (alpha, 2) per relative error of the stiffness and the
     damping at ``x``, as rest-length errors: ``-e`` and ``-(c/k) ds/dt`` (the damping while the
-    string shortens), 0 for a slack string."""
+    string shortens), 0 for a slack string; and the strings' tension margins (alpha,) m
+    (:meth:`.process_noise.ProcessNoise.tension_margins`' values)."""
     L, dyn = process.layout, process.dyn
-    margin, _ = process.tension_margins(x)
     s, s_dot = process.string_lengths(x[: L.n_dynamic])
+    stretch, damping = s - x[L.rest], dyn.c_s / dyn.k_s * s_dot
+    margin = stretch + np.minimum(damping, 0.0)
     taut = margin > 0.0
     W = np.zeros((L.n_strings, 2))
-    W[:, 0] = -(s - x[L.rest]) * taut
-    W[:, 1] = -(dyn.c_s / dyn.k_s) * s_dot * (taut & (s_dot < 0.0))
-    return W
+    W[:, 0] = -stretch * taut
+    W[:, 1] = -damping * (taut & (damping < 0.0))
+    return W, margin
 
 
 def goal_delay_column(process, x, x_next, u, u_before, F) -> np.ndarray:
@@ -69,13 +65,9 @@ def goal_delay_column(process, x, x_next, u, u_before, F) -> np.ndarray:
     of the goal delay: ``-(r_dot1 - F_rr r_dot0)``, ``r_dot0`` the rate at the start under the
     goals before, for a later goal step moves the rest lengths later. Under goals that hold
     over both steps it is 0; at a goal step ``g - g0`` at the start, ``-F_rr (g - g0) / lag``."""
-    L, c = process.layout, process.config
-
-    def rate(state, inputs):
-        r_dot = process.rest_rate(state[L.rest], inputs)
-        return np.clip(r_dot, -c.servo_speed_m_s, c.servo_speed_m_s)
-
-    return -(rate(x_next, u) - np.diag(F[L.rest, L.rest]) * rate(x, u_before))
+    rest = process.layout.rest
+    r_dot1 = process.servo_speed(x_next[rest], u)
+    return -(r_dot1 - np.diag(F[rest, rest]) * process.servo_speed(x[rest], u_before))
 
 
 class ParamErrors:

@@ -175,6 +175,12 @@ class ProcessModel(ProcessNoise):
         their first-order lag ``servo_lag_s`` behind the commanded ones in the input ``u``."""
         return (u[: self.layout.n_strings] - rest) / self.config.servo_lag_s
 
+    def servo_speed(self, rest, u):
+        """The servos' string speeds (alpha,) m/s at rest lengths ``rest`` (alpha,) under ``u``:
+        the lag's rate (:meth:`rest_rate`), at most their speed limit ``servo_speed_m_s``."""
+        limit = self.config.servo_speed_m_s
+        return np.clip(self.rest_rate(rest, u), -limit, limit)
+
     def wheel_acceleration(self, omega, u):
         """Spin accelerations (K, n_w) rad/s^2 of the wheel states ``omega`` (K, n_w), real or
         complex: the lag behind the board's setpoints when commanded, else the model's."""

@@ -182,11 +182,10 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov) -> list[str]:
     the filter's own latency and noise where the fit determined them."""
     lines = []
     if cov is not None:
-        rows = ", ".join(_array(row) for row in cov)
         lines += [
             "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF estimates",
             "# its error (docs/estimator.md)",
-            f"imu_mounting_cov_rad2 = [{rows}]",
+            f"imu_mounting_cov_rad2 = {_matrix(cov)}",
         ]
     if "imu-latency" in fitted:
         lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by gyrotens identify")
@@ -202,11 +201,10 @@ def _string_keys(cov) -> list[str]:
     none)."""
     if cov is None:
         return []
-    rows = ", ".join(_array(row) for row in cov)
     return [
         "# how well the fit knows the strings' stiffness and damping (their log factors,",
         "# squared): the EKF estimates their errors (docs/estimator.md)",
-        f"string_cov_rel2 = [{rows}]",
+        f"string_cov_rel2 = {_matrix(cov)}",
     ]
 
 
@@ -214,14 +212,17 @@ def _array(values) -> str:
     return f"[{', '.join(repr(float(x)) for x in values)}]"
 
 
+def _matrix(rows) -> str:
+    return f"[{', '.join(_array(row) for row in rows)}]"
+
+
 def mounting_covariance(result: FitResult):
     """Covariance (3, 3), rad^2, of the fitted mounting's roll, pitch and yaw (from their
     1-sigmas and correlations); None unless all three were fitted and are determined."""
     idx = [i for i, p in enumerate(result.params) if p.group == "mounting"]
-    sigma = np.array([result.value_sigma(i) for i in idx])
-    if len(idx) != 3 or not np.all(result.determined[idx]):
+    if len(idx) != 3:
         return None
-    return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
+    return _covariance(result, idx, [result.value_sigma(i) for i in idx])
 
 
 def string_covariance(result: FitResult):
@@ -231,8 +232,13 @@ def string_covariance(result: FitResult):
     if "stiffness" not in names or "damping" not in names:
         return None
     idx = [names.index("stiffness"), names.index("damping")]
-    sigma = result.sigma[idx]
-    if not np.all(result.determined[idx]) or not np.all(np.isfinite(sigma)):
+    return _covariance(result, idx, result.sigma[idx])
+
+
+def _covariance(result: FitResult, idx, sigma):
+    """The covariance of the parameters ``idx`` with 1-sigmas ``sigma`` and the fit's
+    correlations; None unless every one is determined (its sigma finite and below 1)."""
+    if not np.all(result.determined[idx]):
         return None
     return result.correlation[np.ix_(idx, idx)] * np.outer(sigma, sigma)
 
