@@ -30,6 +30,7 @@ class ImuHandler:
     """
 
     device = "imu"
+    every_sample = False  # a measurement: the newest of a tick will do
 
     def __init__(self, stream, config):
         self.stream = stream
@@ -59,6 +60,7 @@ class WheelHandler:
     """
 
     device = "wheels"
+    every_sample = False  # a measurement: the newest of a tick will do
     SEQ_MOD = 1 << 16
     """The telemetry's sequence number counts modulo this (docs/protocol.md)."""
 
@@ -106,6 +108,7 @@ class ServoHandler:
     """
 
     device = "servos"
+    every_sample = False  # a measurement: the newest of a tick will do
 
     def __init__(self, stream, strings, servo_strings):
         self.stream, self.strings, self.servo_strings = stream, strings, servo_strings
@@ -166,7 +169,8 @@ class Dispatcher:
     samples : queue.Queue
         Where the readers put :class:`~gyrohost.run.devices.Sample` and faults.
     handlers : list
-        One handler per device (``device`` names it, as in ``Sample.device``).
+        One handler per device (``device`` names it, as in ``Sample.device``; with
+        ``every_sample`` True each of its samples is given to the estimator, else the newest).
     max_fused_per_tick : int
         Samples of one device fused per tick at most (the newest); older ones are only logged,
         so a loop that fell behind catches up instead of spiralling.
@@ -197,9 +201,8 @@ class Dispatcher:
         for sample in samples:
             t_s = (sample.t_ns - t0_ns) * 1e-9
             handler = self.handlers[sample.device]
-            every = getattr(handler, "every_sample", False)
             fuse = ekf is not None and t_s >= ekf.t_start
-            fuse = fuse and (every or self._newest(sample, samples))
+            fuse = fuse and (handler.every_sample or self._newest(sample, samples))
             handler.take(t_s, sample.value, ekf if fuse else None)
         return len(samples), faults
 
