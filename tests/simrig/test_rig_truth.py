@@ -137,8 +137,12 @@ def test_imu_truth_between_steps_is_the_motion_then():
 
 
 def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth():
-    from gyrohost.simrig.imu_emu import TRUTH_WAIT_S, Bwt61Emulator
+    """A sample is taken on the grid, encoded once the truth knows its time, and goes out when
+    its 330 bits have crossed the wire at 115200 baud."""
+    from gyrohost.simrig.imu_emu import TRUTH_WAIT_S, Bwt61Emulator, wire_time_s
 
+    wire_s = wire_time_s(100)
+    assert wire_s == pytest.approx(3 * 11 * 10 / 115200)
     asked, known = [], {"until": 0.005}
     emu = Bwt61Emulator(
         truth_source=lambda t: asked.append(t) or Truth(SCENE, TruthConfig(), []).imu_truth(0.0),
@@ -146,13 +150,18 @@ def test_the_imu_emulator_samples_its_own_grid_waiting_for_the_truth():
     )
     try:
         emu.tick(0.0031)  # the grid lies on multiples of the period: nothing due yet
-        emu.tick(0.0104)  # due at 0.01, the truth not there yet: the sample waits
+        emu.tick(0.0104)  # taken at 0.01, the truth not there yet: the sample waits
+        assert asked == []
         known["until"] = 0.015
-        emu.tick(0.0122)  # sent now, showing 0.01
-        emu.tick(0.0203)  # due at 0.02, the truth not there: waits
-        emu.tick(0.02 + TRUTH_WAIT_S - 1e-4)  # still waits
+        emu.tick(0.0105)  # the truth is there: encoded, its bytes still on the wire
+        assert (asked, emu.samples_sent) == (pytest.approx([0.01]), 0)
+        assert emu.next_send_s == pytest.approx(0.01 + wire_s)
+        emu.tick(0.01 + wire_s + 1e-6)  # its last byte is due: sent, showing 0.01
         assert emu.samples_sent == 1
-        emu.tick(0.02 + TRUTH_WAIT_S + 1e-4)  # waited its longest: sent with what the truth has
+        emu.tick(0.0203 + wire_s)  # taken at 0.02, the truth not there: waits
+        emu.tick(0.02 + wire_s + TRUTH_WAIT_S - 1e-4)  # still waits
+        assert emu.samples_sent == 1
+        emu.tick(0.02 + wire_s + TRUTH_WAIT_S + 1e-4)  # waited its longest: sent as it stands
     finally:
         emu.close()
     assert asked == pytest.approx([0.01, 0.02])

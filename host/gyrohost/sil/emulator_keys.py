@@ -18,6 +18,7 @@ from gyrohost.estimator.config import (
     servo_hold_std,
 )
 from gyrohost.simrig.config import sim_config
+from gyrohost.simrig.imu_emu import wire_time_s
 from gyrohost.simrig.sim import IDLE_WAIT_S
 
 
@@ -51,14 +52,14 @@ def emulator_keys(rig: RigConfig) -> dict:
     lag_s = emulated_servo_lag_s(rig)
     time_std_s = IDLE_WAIT_S / math.sqrt(12.0)
     return {
-        # the grid the host rebuilds from the earliest arrivals lies this much after the
-        # samples: the truth's step computed before the sample goes out, then the pty and the
-        # reader thread, so it depends on the machine (the positions' NEES fits best at 1.5 ms
-        # on one, 0.8 ms on a faster one, and rises by about 10 per ms off in the fastest
-        # turn): the middle, with its spread as the samples' time uncertainty
-        # (docs/estimator-noise.md#the-imus-latency-depends-on-the-machine)
-        "imu_latency_s": 0.0012,
-        "imu_time_std_s": 0.001,
+        # a sample is whole for the host when its last byte has crossed the wire, that long
+        # after it was taken (plus the truth's own latency, a drawn sensor's); the rig's loop
+        # wakes for it then, and the grid the host rebuilds keeps the earliest arrivals: it
+        # lies behind the samples by the wire and the loop's and the reader's shortest
+        # wake-up, a tenth of a millisecond, which leaves no time uncertainty worth a key
+        # (docs/estimator-noise.md#the-imus-latency)
+        "imu_latency_s": wire_time_s(rig.imu.rate_hz) + sim.truth.imu_latency_s,
+        "imu_time_std_s": 0.0,
         # the node accelerations' noise: the servos' goal steps and the loop's late ticks,
         # which the in-process SIL's 3e-8 does not see; 5e-7 holds the NEES mid-bounds on three
         # idle batches scored from drawn starts, 1e-7 leaves it at the upper bound and 2e-6

@@ -75,6 +75,16 @@ this much history for them); a longer one loses the samples beyond, as a full UA
 _VERTICAL = rotation_zyx(-np.pi / 2, 0.0, 0.0)
 _RATES = {0x63: 100, 0x64: 20}
 _BAUDS = {100: 115200, 20: 9600}
+SAMPLE_BITS = 3 * 11 * 10
+"""Bits of one sample on the wire: three 11-byte frames, each byte a start bit, eight data bits
+and a stop bit (8N1)."""
+
+
+def wire_time_s(rate_hz: int) -> float:
+    """How long one sample's bytes take on the wire at the baud rate of output rate ``rate_hz``
+    (115200 baud at 100 Hz: 2.86 ms), s: its last byte, which completes it for the host, is
+    that long after the first, sent when the sample was taken."""
+    return SAMPLE_BITS / _BAUDS[rate_hz]
 
 
 def sensor_in_body(mounting_rpy_rad, rotation_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -132,6 +142,7 @@ class Bwt61Emulator(PtyDevice):
         self._truth = ImuTruth()
         self._rx = bytearray()
         self._next_emit_s: float | None = None
+        self._pending: bytes | None = None  # the next sample's bytes, before their send time
 
     # --- truth and configuration --------------------------------------------------------------
     def set_truth(
@@ -184,23 +195,39 @@ class Bwt61Emulator(PtyDevice):
         return self.truth_source(now_s) if self.truth_source is not None else self._truth
 
     # --- PtyDevice hooks ----------------------------------------------------------------------
+    @property
+    def next_send_s(self) -> float | None:
+        """When the next sample's last byte is due, s (None before the first tick): the rig's
+        loop wakes then, so that the sample reaches the host as late as the wire makes it."""
+        if self._next_emit_s is None:
+            return None
+        return self._next_emit_s + wire_time_s(self.rate_hz)
+
     def tick(self, now_s: float) -> None:
         if self._next_emit_s is None:  # the grid on the truth's steps (multiples of the
-            # period from rig time zero): a sample goes out as soon as the truth steps to it,
-            # not up to a step later, a delay no real sensor has
+            # period from rig time zero): the truth of a sample is known by the time its
+            # bytes have crossed the wire, not up to a step later, a delay no real sensor has
             self._next_emit_s = math.ceil(now_s / self.period_s - 1e-9) * self.period_s
         behind_s = now_s - self._next_emit_s - MAX_BACKLOG_S
         if behind_s > 0.0:  # a longer stall: its samples are lost, the grid's phase is kept
             self._next_emit_s += self.period_s * math.ceil(behind_s / self.period_s)
+            self._pending = None
         # the device samples on its own grid whatever the rig loop does, as the real sensor's
-        # clock does: samples the loop was held up for go out late, together (the host puts
-        # them back on the grid); each shows the truth at its grid time, once that is known
-        # (a truth lagging longer than TRUTH_WAIT_S is sent as it stands)
+        # clock does, and a sample is whole once its bytes have crossed the wire: samples the
+        # loop was held up for go out late, together (the host puts them back on the grid);
+        # each shows the truth at its grid time, once that is known (a truth lagging longer
+        # than TRUTH_WAIT_S is sent as it stands)
         while now_s >= self._next_emit_s:
-            waited_s = now_s - self._next_emit_s
-            if waited_s < TRUTH_WAIT_S and not self._truth_known(self._next_emit_s):
+            if self._pending is None:  # encoded once the truth is known: the bytes then
+                # wait for the wire only, not for the encoding's computation
+                waited_s = now_s - self.next_send_s
+                if waited_s < TRUTH_WAIT_S and not self._truth_known(self._next_emit_s):
+                    return
+                self._pending = self.encode_sample(self._current_truth(self._next_emit_s))
+            if now_s < self.next_send_s:
                 return
-            self.send(self.encode_sample(self._current_truth(self._next_emit_s)), now_s)
+            self.send(self._pending, now_s)
+            self._pending = None
             self.samples_sent += 1
             self._next_emit_s += self.period_s
 

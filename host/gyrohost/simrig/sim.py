@@ -240,12 +240,25 @@ class SimulatedRig:
                     with self._cond:
                         self._idle_at_s = now
                         self._cond.notify_all()
-                wait = min(due - target, IDLE_WAIT_S) if self.clock == "real" else IDLE_WAIT_S
+                wait = self._wait_s(now, due - target)
                 select.select(links, [], [], wait)
         except BaseException as exc:  # reported by check()/advance(); the thread must not vanish
             self.loop_error = exc
             with self._cond:
                 self._cond.notify_all()
+
+    def _wait_s(self, now_s: float, step_due_s: float) -> float:
+        """How long the loop may wait for driver input, s: to the truth's next step or the IMU's
+        next sample on a real clock (the sample reaches the host when it is due, not up to a
+        poll later), at most :data:`IDLE_WAIT_S`. A sample past its time waits for the truth,
+        which the step brings."""
+        if self.clock != "real":
+            return IDLE_WAIT_S
+        waits = [step_due_s, IDLE_WAIT_S]
+        send_s = self.imu.next_send_s
+        if send_s is not None and send_s > now_s:
+            waits.append(send_s - now_s)
+        return max(min(waits), 0.0)
 
     def _step(self, lateness_s: float) -> None:
         start = time.perf_counter()
