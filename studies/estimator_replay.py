@@ -1,6 +1,6 @@
 """The estimator replayed over runs recorded on the real-time simulated rig, batch by batch.
 
-``python -m studies estimator_replay [--batch F L M N P]``: each batch's runs (``data/``,
+``python -m studies estimator_replay [--batch T]``: each batch's runs (``data/``,
 recorded with ``gyrotens sil --realtime`` through the run loop, every other job on the machine
 stopped) replayed with the keys a run on the simulated rig takes today (``for_rig``), each
 started off the truth by its seed's draw; printed per batch: the run-averaged NEES and the NIS
@@ -8,11 +8,12 @@ of every source against the 95 % bounds of their average, the share of time step
 wheel block and the tilt error. The recordings fix the loop's timing, so the replaying machine
 enters only through its round-off.
 
-The batches: F (8 runs) and L (10, on a machine whose IMU samples reach the host 0.7 ms sooner)
-with wheels that hold their speeds exactly; M and N (10 each, on L's machine and another) with
-the emulated wheels' speed-loop error; P (10) with the servos' hold band as well. Per run the
-archive holds the log's ``meta.json`` and the streams a replay reads; the live ``estimate`` cut
-to its first and last row, the span a replay covers.
+The batch: T (10 runs), recorded with the emulators the shipped keys describe (an IMU sample
+sent when its bits have crossed the wire). Recordings of earlier emulators do not replay with
+today's keys, whose figures derive from the emulators; their batches left the repository
+(reports/estimator-history.md). Per run the archive holds the log's ``meta.json`` and the
+streams a replay reads; the live ``estimate`` cut to its first and last row, the span a replay
+covers.
 """
 
 import argparse
@@ -28,13 +29,7 @@ from gyrohost.sil.montecarlo import START_SEED_OFFSET, summarise
 from gyrohost.sil.scoring import score_log
 
 DATA = Path(__file__).parent / "data"
-BATCHES = {
-    "F": ("realtime-runs.tar.xz", 8),
-    "L": ("realtime-runs-L.tar.xz", 10),
-    "M": ("realtime-runs-M.tar.xz", 10),
-    "N": ("realtime-runs-N.tar.xz", 10),
-    "P": ("realtime-runs-P.tar.xz", 10),
-}
+BATCHES = {"T": ("realtime-runs-T.tar.xz", 10)}
 
 
 def unpacked(batch: str, root: Path) -> list[Path]:

@@ -45,7 +45,7 @@ REAL_TIME = (
 @pytest.fixture(scope="session")
 def realtime_run(tmp_path_factory) -> Path:
     """A log folder of a real-time run of the simulated rig (the first of the estimator's
-    recorded batch P01): the devices' streams, the live estimate and the rig's truth, its scene
+    recorded batch T): the devices' streams, the live estimate and the rig's truth, its scene
     the shipped dbar-gyro. Shared: read it, write elsewhere."""
     import json
     import tarfile
@@ -54,7 +54,7 @@ def realtime_run(tmp_path_factory) -> Path:
 
     root = tmp_path_factory.mktemp("realtime-run")
     with tarfile.open(
-        Path(__file__).parent / "estimator" / "data" / "realtime-run-P01.tar.xz"
+        Path(__file__).parent / "estimator" / "data" / "realtime-run-T01.tar.xz"
     ) as tar:
         tar.extractall(root, members=[m for m in tar if m.name.startswith("run01")], filter="data")
     folder = root / "run01"

@@ -20,6 +20,10 @@ from gyrotensegrity import Model, scene_from_dict
         ({"accel_psd_m2_s3": 1e5}, r"'accel_psd_m2_s3' is 100000\.0, must be in \[0\.0, 10000"),
         ({"init_position_std_m": 11.0}, r"'init_position_std_m' is 11\.0"),
         ({"imu_frame_nodes": ["n1", "n1", "n1"]}, r"\['n1', 'n1', 'n1'\]: three different nodes"),
+        (  # a sample's 330 bits at 9600 baud (20 Hz): 34 ms, past the 30 ms the grid allows
+            {"imu_latency_s": 0.0344, "imu_period_s": 0.05},
+            r"'imu_latency_s' = 0\.0344 s exceeds 'imu_max_delay_s' = 0\.03 s",
+        ),
     ],
 )
 def test_an_implausible_key_names_itself(keys, message):

@@ -1,5 +1,5 @@
 """The estimator replayed over one run recorded on the real-time simulated rig through the run loop
-(``data/realtime-run-P01.tar.xz``, the first run of a batch: the log's ``meta.json`` and the streams
+(``data/realtime-run-T01.tar.xz``, the first run of a batch: the log's ``meta.json`` and the streams
 a replay reads, the live ``estimate`` cut to its first and last row), with the keys a run on the
 simulated rig takes today. A recording fixes the loop's timing, so what is checked here holds on any
 machine: the replay is deterministic, a seeded start is off the truth by its draw, and the filter
@@ -27,7 +27,7 @@ def run(tmp_path_factory):
     """The recorded batch's first run, pointed at the shipped scene (``meta.json`` holds the
     recording machine's path)."""
     root = tmp_path_factory.mktemp("realtime")
-    with tarfile.open(DATA / "realtime-run-P01.tar.xz") as tar:
+    with tarfile.open(DATA / "realtime-run-T01.tar.xz") as tar:
         tar.extractall(root, filter="data", members=[
             m for m in tar.getmembers() if m.name.startswith("run01")
         ])  # fmt: skip

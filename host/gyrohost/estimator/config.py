@@ -221,6 +221,12 @@ def config_from_dict(data: dict, source: str = "<dict>") -> EstimatorConfig:
         values[key] = _check(known[key], value, f"{source}: estimator key '{key}'")
     config = replace(EstimatorConfig(), **values)
     _check_uncertainties(config, source)
+    if config.imu_period_s > 0.0 and config.imu_latency_s > config.imu_max_delay_s:
+        raise EstimatorConfigError(
+            f"{source}: estimator key 'imu_latency_s' = {config.imu_latency_s} s exceeds "
+            f"'imu_max_delay_s' = {config.imu_max_delay_s} s: the host places a sample at most "
+            "that long before its arrival; raise imu_max_delay_s above the latency"
+        )
     if len(set(config.imu_frame_nodes)) != 3:
         raise EstimatorConfigError(
             f"{source}: estimator key 'imu_frame_nodes' names {list(config.imu_frame_nodes)}: "

@@ -67,8 +67,8 @@ def quantise(values: np.ndarray, scale: float) -> list[int]:
 TRUTH_WAIT_S = 0.02
 """Longest a sample waits for the truth to reach its time before it goes with an older state:
 late but right is what a real sensor's link does to a sample; a state 5-15 ms old while the
-D-bar turns at 2 rad/s is a sampling-time error no real sensor has. Two periods, inside the
-host's ``imu_max_delay_s`` (0.03 s) with the pty's few ms."""
+D-bar turns at 2 rad/s is a sampling-time error no real sensor has. Two periods: with the
+wire's 2.86 ms (100 Hz) inside the host's ``imu_max_delay_s`` (0.03 s)."""
 MAX_BACKLOG_S = 0.1
 """Longest stall of the rig loop whose samples the emulator still sends, late (the truth keeps
 this much history for them); a longer one loses the samples beyond, as a full UART buffer."""
@@ -108,7 +108,7 @@ class Bwt61Emulator(PtyDevice):
         is used.
     truth_ready : callable, optional
         ``truth_ready(t_s) -> bool``: ``truth_source`` knows time ``t_s``; a sample waits for
-        it up to :data:`TRUTH_WAIT_S` past its time, then goes with what the source has.
+        it up to :data:`TRUTH_WAIT_S` past its send time, then goes with what the source has.
     rotation_deg : sequence of 3 float, deg
         The sensor turned further by this roll, pitch, yaw (Z-Y-X, about the body axes) from
         where ``imu.mounting_rpy_rad`` puts it: a mounting the host's calibration does not know.

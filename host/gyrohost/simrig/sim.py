@@ -10,7 +10,7 @@ Clocks:
 - ``"real"``: rig time is wall time since :meth:`SimulatedRig.start`; the truth steps when due.
   A step that starts more than one step period after its due time counts as late. The devices
   always run on wall time, so their rates hold on a loaded CPU; the truth then lags (the IMU
-  waits for it half a sample period at most), by at most ``MAX_LAG_S``: beyond that it slips,
+  waits for it ``imu_emu.TRUTH_WAIT_S`` at most), by at most ``MAX_LAG_S``: beyond that it slips,
   i.e. runs slower than wall time. Lateness and slip are reported (:class:`RigStats`).
 - ``"sim"``: rig time stands still until :meth:`SimulatedRig.advance` moves it; the loop then
   steps and ticks through the interval as fast as it can and returns. In between, the loop still
