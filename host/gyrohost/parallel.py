@@ -26,9 +26,21 @@ from dataclasses import dataclass
 
 from gyrohost.errors import GyrohostError
 
+STALL_CHECK_S = 5.0
+"""How often a map waiting on Dask asks whether any worker still runs one of its cases, s."""
+STALL_S = 60.0
+"""How long every worker may sit idle while cases are pending before the map gives up, s: Dask
+hands a waiting case to an idle worker within milliseconds, so a minute of idleness means it
+lost the case (its scheduler and a worker disagreeing), and would otherwise wait forever."""
+
 
 class ExecutorError(GyrohostError, RuntimeError):
-    """The executor cannot run: Dask is not installed or the scheduler cannot be reached."""
+    """The executor cannot run: Dask is not installed, the scheduler cannot be reached, or it
+    lost cases."""
+
+
+class CasesLost(ExecutorError):
+    """Dask lost cases: its workers sat idle while they were pending."""
 
 
 @dataclass(frozen=True)
@@ -180,7 +192,7 @@ class Executor:
         return result
 
     def _dask_map(self, fn, items, keep_going, on_done):
-        from distributed import as_completed, progress
+        from distributed import progress
 
         futures = [self.client.submit(fn, item, pure=False) for item in items]
         index = {f.key: k for k, f in enumerate(futures)}
@@ -190,7 +202,7 @@ class Executor:
             bar.start()
         results: list = [None] * len(items)
         try:
-            for future in as_completed(futures):
+            for future in self._finished(futures, index):
                 k = index[future.key]
                 if future.status == "error":
                     if not keep_going:
@@ -205,6 +217,38 @@ class Executor:
             if bar is not None:
                 bar.join(timeout=5.0)
         return results
+
+    def _finished(self, futures, index):
+        """The futures as they finish (those of one wait in the items' order); an
+        :class:`CasesLost` naming the cases left when every worker has sat idle for
+        :data:`STALL_S` with cases pending."""
+        from distributed import wait
+
+        pending, idle_s = set(futures), 0.0
+        while pending:
+            try:
+                done, pending = wait(pending, timeout=STALL_CHECK_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                idle_s = idle_s + STALL_CHECK_S if self._workers_idle() else 0.0
+                if idle_s >= STALL_S:
+                    cases = sorted(index[f.key] for f in pending)
+                    raise CasesLost(
+                        f"Dask lost {len(cases)} case(s) (items {cases}): no worker has run "
+                        f"any for {idle_s:g} s while they were pending; run again, or --serial"
+                    ) from None
+                continue
+            idle_s = 0.0
+            yield from sorted(done, key=lambda f: index[f.key])
+
+    def _workers_idle(self) -> bool:
+        """No worker runs a task, by the workers' own account (the scheduler's may be what
+        went wrong)."""
+        return not any(self.client.run(_executing).values())
+
+
+def _executing(dask_worker) -> int:
+    """Tasks the worker runs now (called on it by :meth:`Executor._workers_idle`)."""
+    return dask_worker.state.executing_count
 
 
 def add_arguments(parser, serial_default=False) -> None:

@@ -4,10 +4,12 @@ failed cases are recorded while the others go on; finished cases are kept and no
 import math
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
+from gyrohost import parallel
 from gyrohost.cli import main
 from gyrohost.parallel import Executor, ExecutorError, Failure
 from gyrohost.sweep import load_spec, read_table, run_sweep
@@ -121,6 +123,25 @@ def test_executor_keeps_order_and_failures_on_dask(cluster):
     assert sorted(done) == [0, 1, 2]
     with pytest.raises(ValueError, match="negative"):
         cluster.map(sqrt_or_fail, [1.0, -2.0])
+
+
+def test_a_case_dask_lost_ends_the_map_with_an_error_naming_it(cluster, monkeypatch):
+    """Workers that sit idle while a case is pending mean Dask lost it: the map ends with an
+    error naming the case instead of waiting forever (a running case, here taken for an idle
+    worker's, stands for the lost one)."""
+    monkeypatch.setattr(parallel, "STALL_CHECK_S", 0.1)
+    monkeypatch.setattr(parallel, "STALL_S", 0.3)
+    monkeypatch.setattr(Executor, "_workers_idle", lambda self: True)
+    with pytest.raises(ExecutorError, match=r"Dask lost 1 case\(s\) \(items \[1\]\)"):
+        cluster.map(time.sleep, [0.0, 2.0])
+    time.sleep(2.0)  # the case runs to its end on its worker
+
+
+def test_a_case_that_runs_longer_than_the_stall_bound_is_waited_for(cluster, monkeypatch):
+    """The workers' own account: one that runs a case is not idle, however long it takes."""
+    monkeypatch.setattr(parallel, "STALL_CHECK_S", 0.1)
+    monkeypatch.setattr(parallel, "STALL_S", 0.3)
+    assert cluster.map(time.sleep, [1.0]) == [None]
 
 
 def test_serial_executor_raises_the_first_error_unless_keep_going():

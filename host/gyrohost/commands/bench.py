@@ -35,6 +35,7 @@ def _log(msg):
 
 def run(args) -> int:
     from gyrohost.bench import extremes, peers, report, timing, trade
+    from gyrohost.commands.errors import executor_status
     from gyrotensegrity.fast import FastDynamics
 
     out = args.out
@@ -82,8 +83,11 @@ def run(args) -> int:
         }
     if "extremes" not in args.skip:
         _log("extremes")
-        with parallel.from_args(args) as executor:
-            data["extremes"] = extremes.sweep(args.quick, _log, executor)
+        try:
+            with parallel.from_args(args) as executor:
+                data["extremes"] = extremes.sweep(args.quick, _log, executor)
+        except parallel.ExecutorError as exc:
+            return executor_status("bench", exc)
     data["bench_wall_s"] = time.perf_counter() - start
     files = report.plots(out, data)
     report.write_json(out / "bench.json", data)

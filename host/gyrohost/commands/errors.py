@@ -25,3 +25,14 @@ def device_step(command: str, step: Callable[[], object]) -> int:
         print(f"gyrotens {command}: error: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def executor_status(command: str, exc: GyrohostError) -> int:
+    """The exit status of an executor's error (:class:`~gyrohost.parallel.ExecutorError`): Dask
+    losing cases is a failure, printed, 1; no Dask or no scheduler is bad input, exit 2."""
+    from gyrohost.parallel import CasesLost
+
+    if isinstance(exc, CasesLost):
+        print(f"gyrotens {command}: error: {exc}", file=sys.stderr)
+        return 1
+    raise CliError(str(exc)) from None

@@ -18,9 +18,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.commands.errors import CliError
+    from gyrohost.commands.errors import CliError, executor_status
     from gyrohost.errors import ConfigError
     from gyrohost.estimator.errors import EstimatorConfigError
+    from gyrohost.parallel import ExecutorError
     from gyrohost.resources import ResourceError
     from gyrohost.run import ScheduleRefused
     from gyrohost.run.errors import LogError
@@ -40,4 +41,6 @@ def run(args) -> int:
         raise CliError(str(exc)) from None  # bad input: a message, exit 2
     except LogError as exc:  # --score-only: a run folder missing or damaged
         raise CliError(f"{exc} (--score-only scores the runs --realtime recorded there)") from None
+    except ExecutorError as exc:
+        return executor_status("sil", exc)
     return 0

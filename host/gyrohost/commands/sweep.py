@@ -30,7 +30,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from gyrohost.commands.errors import CliError
+    from gyrohost.commands.errors import CliError, executor_status
     from gyrohost.parallel import ExecutorError
     from gyrohost.sweep import SpecError, load_spec, run_sweep
     from gyrohost.sweep.plots import goal_score
@@ -56,7 +56,7 @@ def run(args) -> int:
             estimate = partial(_estimate, slots=executor.slots())
             result = run_sweep(spec, args.out, executor, on_first=estimate)
     except ExecutorError as exc:
-        raise CliError(str(exc)) from None
+        return executor_status("sweep", exc)
     wall_s = time.perf_counter() - ready
     print(
         f"\n{len(result.rows)} cases: {result.ran} run, {result.kept} kept from {args.out}, "
