@@ -118,11 +118,11 @@ def test_cli_writes_scene_overlay_and_plot(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_path, capsys):
-    """The default method: the output error, then the filter's likelihood for the mounting,
-    the latency and its noise, started from the output error's values. The scene is the first
-    stage's (its J3), its header both reports, the overlay the second stage's mounting and
-    noise and the servos' lag fitted to their reads; the filter's innovations are plotted
-    beside the residuals."""
+    """The default method: the output error, then the filter's likelihood for the mounting
+    and its noise, started from the output error's values. The scene is the first stage's (its
+    J3), its header both reports, the overlay the second stage's mounting and noise, the first
+    stage's latency with its 1-sigma as the samples' time uncertainty, and the servos' lag
+    fitted to their reads; the filter's innovations are plotted beside the residuals."""
     from gyrohost.config import load_rig_config
     from gyrohost.drivers.mx12 import steps_per_metre
     from gyrohost.ident.report import read_identified
@@ -135,9 +135,10 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     argv += ["--params", "J3,mounting,imu-latency", "--until", "1.0", "--max-evaluations", "3"]
     assert main(argv) == 0
     text = capsys.readouterr().out
-    first, _, second = text.partition("then the sensor by the filter's likelihood: 5 parameters")
+    first, _, second = text.partition("then the sensor by the filter's likelihood: 4 parameters")
     assert "by the output error" in first and "J3" in first and "accel_psd" not in first
     assert "accel_psd" in second and "mounting.yaw" in second and "J3 " not in second
+    assert "imu_latency" in first and "imu_latency" not in second
     assert "mounting.yaw started" in second  # its start along the yaw (ident/staged.py)
     header = out.read_text()
     assert header.count("mounting.yaw") == 3  # each stage's row, the second's start
@@ -146,6 +147,9 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     reported = read_identified(header)
     assert yaw == pytest.approx(reported["mounting.yaw"][0], rel=1e-5)  # the second stage's
     assert {"imu_latency_s", "accel_psd_m2_s3"} <= set(overlay["estimator"])
+    latency, sigma = reported["imu_latency"]  # the first stage's, to the report's digits
+    assert overlay["estimator"]["imu_latency_s"] == pytest.approx(latency, rel=1e-5)
+    assert overlay["estimator"]["imu_time_std_s"] == pytest.approx(sigma, rel=1e-2)
     # the servos' lag, fitted to their reads: the in-process servos' own
     # the in-process servos take each goal at its send: the fit is the response itself, to
     # what reads of a count each allow (the sibling fit's 2 %, test_servo_render), the delay

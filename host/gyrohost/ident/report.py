@@ -149,7 +149,10 @@ def overlay_toml(
     strings = string_covariance(result)
     if strings is None and before is not None:
         strings = string_covariance(before)
-    estimator = _estimator_keys(result, a, fitted, cov) + _string_keys(strings)
+    time_std = latency_sigma(result)
+    if time_std is None and before is not None:
+        time_std = latency_sigma(before)
+    estimator = _estimator_keys(result, a, fitted, cov, time_std) + _string_keys(strings)
     if servo is not None:
         estimator += [
             f"servo_lag_s = {float(servo.lag_s)!r}  # fitted to the servos' reads (reads less "
@@ -177,9 +180,10 @@ def _determined_groups(result: FitResult | None) -> set:
     return {p.group for p, ok in zip(result.params, result.determined, strict=True) if ok}
 
 
-def _estimator_keys(result: FitResult, a, fitted: set, cov) -> list[str]:
+def _estimator_keys(result: FitResult, a, fitted: set, cov, time_std) -> list[str]:
     """The overlay's ``[estimator]`` lines: the mounting's covariance ``cov`` (or None), and
-    the filter's own latency and noise where the fit determined them."""
+    the filter's own latency (with its 1-sigma ``time_std`` as the samples' time uncertainty,
+    or None) and noise where the fit determined them."""
     lines = []
     if cov is not None:
         lines += [
@@ -189,6 +193,8 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov) -> list[str]:
         ]
     if "imu-latency" in fitted:
         lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by gyrotens identify")
+        if time_std is not None:  # a sample's time is known as well as the latency, no better
+            lines.append(f"imu_time_std_s = {time_std!r}  # the fitted latency's 1-sigma")
     if "process-noise" in fitted:
         nominal = next(p.nominal for p in result.params if p.group == "process-noise")
         psd = float(nominal * a.accel_psd_factor)
@@ -235,6 +241,14 @@ def string_covariance(result: FitResult):
     return _covariance(result, idx, result.sigma[idx])
 
 
+def latency_sigma(result: FitResult) -> float | None:
+    """The fitted IMU latency's 1-sigma, s; None unless it was fitted and is determined."""
+    i = next((i for i, p in enumerate(result.params) if p.group == "imu-latency"), None)
+    if i is None or not result.determined[i]:
+        return None
+    return float(result.value_sigma(i))
+
+
 def _covariance(result: FitResult, idx, sigma):
     """The covariance of the parameters ``idx`` with 1-sigmas ``sigma`` and the fit's
     correlations; None unless every one is determined (its sigma finite and below 1)."""
@@ -244,9 +258,10 @@ def _covariance(result: FitResult, idx, sigma):
 
 
 def apply_result(result: FitResult, config):
-    """:func:`.params.apply` of the estimate, parameters not determined at their nominal; with
-    an undetermined common scale, the estimate moved along it until the bars' parameter is at
-    its nominal (the same motion), the others where that leaves them."""
+    """:func:`.params.apply` of the estimate, parameters not determined (or not fitted, as the
+    configuration's IMU latency) at their nominal; with an undetermined common scale, the
+    estimate moved along it until the bars' parameter is at its nominal (the same motion), the
+    others where that leaves them."""
     theta = result.theta
     valley = result.scale_valley
     if valley is not None:
@@ -256,7 +271,8 @@ def apply_result(result: FitResult, config):
     else:
         keep = result.determined
     theta = np.where(keep, theta, 0.0)
-    return apply(result.scene, config, result.params, theta, result.servo_lag_s)
+    latency_s = float(config.estimator.get("imu_latency_s", 0.0))  # where the fit left it
+    return apply(result.scene, config, result.params, theta, result.servo_lag_s, 1, latency_s)
 
 
 def identified_scene(result: FitResult, config, logs, later: FitResult | None = None) -> str:
