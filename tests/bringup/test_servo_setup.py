@@ -75,7 +75,8 @@ def test_zero_reads_the_position_and_a_confirmed_move_tells_the_sign(
         assert status == 0, err
         assert f"zero_position = 1500\nlength_at_zero_m = 0.3\nlength_sign = {sign}" in out
         emulated = bus.servos[1]
-        assert abs(emulated.position_steps - 1500) <= 2  # moved back
+        # moved back: read within 2 counts of the goal, a count the position rounded
+        assert abs(emulated.position_steps - 1500) < 2.5
         assert emulated.table[Addr.TORQUE_ENABLE] == 0 and emulated.word(Addr.TORQUE_LIMIT) == 1023
     finally:
         bus.close()
