@@ -387,7 +387,7 @@ def latency_starts(params, est: EstimatorConfig) -> list[np.ndarray]:
     start near the bound may end in it. The cost varies along the latency no faster than the
     IMU's signals, which it samples at ``imu_period_s``: no basin is narrower than a period,
     so starts half a period apart each have one within reach, and the lowest end is kept."""
-    index = _latency_index(params)
+    index = latency_index(params)
     if index is None:
         return [np.zeros(len(params))]
     spacing = 0.5 * est.imu_period_s
@@ -397,7 +397,8 @@ def latency_starts(params, est: EstimatorConfig) -> list[np.ndarray]:
     return list(starts)
 
 
-def _latency_index(params) -> int | None:
+def latency_index(params) -> int | None:
+    """The index of the IMU latency among ``params``; None when it is not fitted."""
     return next((i for i, p in enumerate(params) if p.name == "imu_latency"), None)
 
 
@@ -411,7 +412,7 @@ def _latency_tries(params, starts, tried) -> list:
     """(start, cost, end) of the latency, s, for each of several starts (empty for one)."""
     if len(starts) < 2:
         return []
-    i = _latency_index(params)
+    i = latency_index(params)
     nominal = params[i].nominal
     pairs = zip(starts, tried, strict=True)
     return [(nominal + t[i], float(sol.cost), nominal + sol.x[i]) for t, sol in pairs]

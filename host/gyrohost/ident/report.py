@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrohost.ident.fit import BAR_GROUPS, INVOLVED, FitResult
+from gyrohost.ident.fit import BAR_GROUPS, INVOLVED, FitResult, latency_index
 from gyrohost.ident.params import apply
 from gyrohost.ident.profile import VALLEY_STEP
 from gyrohost.ident.scenefile import scene_toml
@@ -143,16 +143,10 @@ def overlay_toml(
     out = ["# gyrotens identify: keys to merge into the rig configuration (docs/identification.md)"]
     if "mounting" in fitted:
         out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
-    cov = mounting_covariance(result)
-    if cov is None and before is not None:
-        cov = mounting_covariance(before)
-    strings = string_covariance(result)
-    if strings is None and before is not None:
-        strings = string_covariance(before)
-    time_std = latency_sigma(result)
-    if time_std is None and before is not None:
-        time_std = latency_sigma(before)
-    estimator = _estimator_keys(result, a, fitted, cov, time_std) + _string_keys(strings)
+    cov = _latest(mounting_covariance, result, before)
+    time_std = _latest(latency_sigma, result, before)
+    estimator = _estimator_keys(result, a, fitted, cov, time_std)
+    estimator += _string_keys(_latest(string_covariance, result, before))
     if servo is not None:
         estimator += [
             f"servo_lag_s = {float(servo.lag_s)!r}  # fitted to the servos' reads (reads less "
@@ -172,6 +166,12 @@ def overlay_toml(
             out += ["", "[[servos.servo]]", f'name = "{s.name}"']
             out.append(f"length_at_zero_m = {float(s.length_at_zero_m + offset)!r}")
     return "\n".join(out) + "\n"
+
+
+def _latest(of, result: FitResult, before: FitResult | None):
+    """``of(result)``, or where that is None, ``of(before)`` (an earlier stage's, or None)."""
+    value = of(result)
+    return of(before) if value is None and before is not None else value
 
 
 def _determined_groups(result: FitResult | None) -> set:
@@ -243,7 +243,7 @@ def string_covariance(result: FitResult):
 
 def latency_sigma(result: FitResult) -> float | None:
     """The fitted IMU latency's 1-sigma, s; None unless it was fitted and is determined."""
-    i = next((i for i, p in enumerate(result.params) if p.group == "imu-latency"), None)
+    i = latency_index(result.params)
     if i is None or not result.determined[i]:
         return None
     return float(result.value_sigma(i))
