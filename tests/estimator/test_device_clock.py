@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from fake_loop import Ekf, Stream
 
-from gyrohost.estimator.config import EstimatorConfig
+from gyrohost.config import load_rig_config
+from gyrohost.estimator.config import EstimatorConfig, rig_keys
 from gyrohost.estimator.sample_feed import DeviceClock, device_times, wheel_times
+from gyrohost.resources import shipped
 from gyrohost.run.dispatch import WheelHandler
 
 OFFSET_S = 12.345  # the board booted this long before the host's clock reads 0 ... less
@@ -33,6 +35,20 @@ def test_the_board_clock_takes_the_jitter_out_of_the_arrival_stamps():
     # but for 1 % of windows (uniform over 11 ms: 0.955^100)
     assert np.max(np.abs(t[100:] - true_s[100:])) < 5e-4
     assert np.ptp(arrival - true_s) > 0.01
+
+
+def test_a_frame_s_time_on_the_wire_is_taken_off_the_link_s_delay():
+    """No frame arrives sooner than its bits take on the wire: the clock puts a sample that much
+    earlier than the fastest arrival shows (rig_keys gives the telemetry's, 38 bytes at the
+    [wheelboard] baud)."""
+    rng = np.random.default_rng(3)
+    device_us = 20_000 * np.arange(300) + 13_000_000
+    arrival = arrivals(device_us, rng)
+    wire_s = 0.00038
+    shifted = device_times(arrival, device_us, wire_s)
+    np.testing.assert_allclose(shifted, device_times(arrival, device_us) - wire_s, atol=1e-12)
+    keys = rig_keys(load_rig_config(shipped("config", "sim-rig")))
+    assert keys["wheel_wire_s"] == pytest.approx(38 * 10 / 1_000_000)
 
 
 def test_a_wrapped_board_clock_continues_and_a_reset_one_starts_again():

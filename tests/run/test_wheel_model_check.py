@@ -26,7 +26,7 @@ def test_a_board_ramp_or_low_pass_the_estimator_does_not_know_is_named():
     (ramp,) = wheel_model_differences({**DEFAULTS, "ACCEL_RAD_S2": 150}, est)
     assert "ACCEL_RAD_S2 is 150" in ramp and "wheel_accel_rad_s2 100: set it to 150" in ramp
     (low_pass,) = wheel_model_differences({**DEFAULTS, "SPEED_FILTER_SHIFT": 4}, est)
-    assert "SPEED_FILTER_SHIFT 4 reports speeds 15 ms behind" in low_pass
-    assert "wheel_filter_s is 7 ms" in low_pass
+    assert "SPEED_FILTER_SHIFT 4 reports speeds 15.5 ms behind" in low_pass
+    assert "wheel_filter_s is 7.5 ms: set it to 0.0155" in low_pass
     held = replace(est, wheel_lag_s=0.0)  # commands not modelled: nothing to compare
     assert wheel_model_differences({**DEFAULTS, "ACCEL_RAD_S2": 150}, held) == []

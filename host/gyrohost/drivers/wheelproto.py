@@ -323,6 +323,13 @@ def encode(name: str, **fields: int) -> bytes:
     return encode_raw(spec.id, payload)
 
 
+def wire_time_s(name: str, baud: int) -> float:
+    """Time the frame of message ``name`` takes on the wire at ``baud``, s: its id, payload
+    and CRC, COBS's one code byte (a frame under 254 bytes) and the delimiter, 10 bits a byte
+    (8N1)."""
+    return (1 + BY_NAME[name].size + 2 + 2) * 10.0 / baud
+
+
 def encode_raw(msg_id: int, payload: bytes) -> bytes:
     """Wire bytes of an arbitrary id and payload (tests use it to build bad frames)."""
     if len(payload) > MAX_PAYLOAD:

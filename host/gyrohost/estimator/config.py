@@ -21,13 +21,13 @@ _DEG = math.pi / 180.0
 def speed_filter_delay_s(shift: int) -> float:
     """How far the wheel board's reported speed trails the wheel's own while it changes
     steadily, s: the firmware's low-pass ``y += (x - y) / 2^shift`` per tick trails a ramp by
-    ``2^shift - 1`` ticks. The emulator's encoder delta is its tick's own speed; a real
-    encoder's is the last tick's mean, half a tick (0.5 ms) more."""
-    return (2**shift - 1) / wp.TICK_HZ
+    ``2^shift - 1`` ticks, and its input, the encoder's count difference over the last tick, is
+    that tick's mean speed, half a tick behind the tick's end."""
+    return (2**shift - 0.5) / wp.TICK_HZ
 
 
 SPEED_FILTER_DELAY_S = speed_filter_delay_s(wp.PARAM_BY_NAME["SPEED_FILTER_SHIFT"].default)
-"""The delay of the firmware's default SPEED_FILTER_SHIFT (3): 7 ms."""
+"""The delay of the firmware's default SPEED_FILTER_SHIFT (3): 7.5 ms."""
 
 
 def _pos(doc: str, lo: float = 0.0, hi: float = math.inf) -> dict:
@@ -176,6 +176,10 @@ class EstimatorConfig:
     # when the wheel board's samples were taken: "device", its own clock (t_us) put on the
     # host's (driver.DeviceClock); "arrival", as the host stamped them
     wheel_times: str = field(default="device", metadata={"choices": ("device", "arrival")})
+    # a telemetry frame's time on the wire, s: the device clock puts a sample at its board
+    # time plus the shortest delay the frames arrived with, less this (its bits at the link's
+    # baud, which no frame arrives sooner than); rig_keys derives it from [wheelboard] baud
+    wheel_wire_s: float = field(default=0.0, metadata=_pos("wheel telemetry wire time", 0.0, 0.1))
     # the wheel board's wire resolution (SET_SPEEDS and telemetry in integer mrad/s): the board
     # spins to each command rounded to it, and its telemetry truncates towards zero (a reading
     # low in magnitude by half of it on average); 0: both exact, rad/s
@@ -378,9 +382,11 @@ def _check_array(default: tuple, value, where: str) -> tuple:
 
 def rig_keys(rig) -> dict:
     """Keys a rig configuration's device tables fix: the IMU's output period, time-out and
-    mounting (``[imu]``); the servos' speed limit, the moving speed the driver writes with
-    every goal (``[servos.servo] max_speed_m_s``; one limit in the filter: the slowest's)."""
+    mounting (``[imu]``); the wheel board's telemetry frame's time on the wire at its baud
+    (``[wheelboard]``); the servos' speed limit, the moving speed the driver writes with every
+    goal (``[servos.servo] max_speed_m_s``; one limit in the filter: the slowest's)."""
     keys = {
+        "wheel_wire_s": wp.wire_time_s("TELEMETRY", rig.wheelboard.baud),
         "imu_timeout_s": rig.imu.timeout_s,
         "imu_period_s": 1.0 / rig.imu.rate_hz,
         "imu_mounting_rpy_rad": tuple(rig.imu.mounting_rpy_rad),

@@ -70,14 +70,17 @@ def fuse_wheels(ekf, omega_rad_s) -> Innovation:
 
     Its noise is the telemetry's white term (:func:`white_std`) plus, while the wheels change
     speed, the uncertainty of the sample's time stamp (``wheel_time_std_s``) through their rate
-    of change: ``(d omega/dt)^2 wheel_time_std_s^2`` per wheel.
+    of change, ``(d omega/dt)^2 wheel_time_std_s^2``, and what the low-pass taken as a delay
+    leaves out where that rate bends: its response's next term, ``(tau_f^2 d^2 omega/dt^2)^2``
+    (docs/estimator-noise.md#the-wheels), per wheel.
     """
     z = np.asarray(omega_rad_s, float)
     hx, H = predict(ekf, ekf.x)
     L, c = ekf.layout, ekf.config
     var_a = white_std(c) ** 2
     rate = ekf.process.wheel_acceleration(ekf.x[None, L.omega], ekf.u)[0]
-    R = np.diag(var_a + (c.wheel_time_std_s * rate) ** 2)
+    curve = c.wheel_filter_s**2 * ekf.process.wheel_jerk(ekf.x[L.omega])
+    R = np.diag(var_a + (c.wheel_time_std_s * rate) ** 2 + curve**2)
     if not L.n_wheel_noise:
         return fuse(ekf, Measurement(SOURCE, z, hx, H, R))[0]
     P = ekf.P

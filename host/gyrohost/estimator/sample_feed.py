@@ -102,18 +102,25 @@ class DeviceClock:
     :func:`device_times` for a whole stream).
 
     The time is the device's plus an offset, the smallest ``arrival - device`` of the last
-    :attr:`WINDOW` samples: a sample never arrives before it was taken, and the fastest of many
-    shows the link's shortest delay (the window follows the two crystals' drift, 1e-4 at most:
-    0.2 ms over it). Arrival stamps alone carry the link's and the reader's jitter, 0-11 ms on
-    the simulated rig, which in a speed ramp reads as 1 rad/s. A device clock that wraps is
-    unwrapped; one that steps back (the board reset) starts the window again.
+    :attr:`WINDOW` samples less ``wire_s``: a sample never arrives before it was taken and its
+    frame has crossed the wire, and the fastest of many shows the link's shortest delay (the
+    window follows the two crystals' drift, 1e-4 at most: 0.2 ms over it). Arrival stamps
+    alone carry the link's and the reader's jitter, 0-11 ms on the simulated rig, which in a
+    speed ramp reads as 1 rad/s. A device clock that wraps is unwrapped; one that steps back
+    (the board reset) starts the window again.
+
+    Parameters
+    ----------
+    wire_s : float
+        A frame's time on the wire, s (``wheel_wire_s``).
     """
 
     WINDOW = 100
     """Samples over which the smallest delay is taken (2 s of 50 Hz telemetry)."""
     WRAP_US = 1 << 32
 
-    def __init__(self):
+    def __init__(self, wire_s: float = 0.0):
+        self.wire_s = wire_s
         self._recent: deque = deque(maxlen=self.WINDOW)
         self._last_us: int | None = None
         self._wraps = 0
@@ -129,13 +136,14 @@ class DeviceClock:
                 self._wraps = 0
         self._last_us = d
         device_s = (d + self._wraps * self.WRAP_US) * 1e-6
-        self._recent.append(float(arrival_s) - device_s)
-        return min(device_s + min(self._recent), float(arrival_s))  # round-off: not after it
+        sent_s = float(arrival_s) - self.wire_s
+        self._recent.append(sent_s - device_s)
+        return min(device_s + min(self._recent), sent_s)  # round-off: not after it
 
 
-def device_times(arrival_s, device_us):
+def device_times(arrival_s, device_us, wire_s=0.0):
     """:class:`DeviceClock` over a whole stream (causal), shape (k,) s."""
-    clock = DeviceClock()
+    clock = DeviceClock(wire_s)
     return np.array([clock(a, d) for a, d in zip(arrival_s, device_us, strict=True)])
 
 
@@ -145,7 +153,7 @@ def wheel_times(wheels, config):
     arrival."""
     if config.wheel_times == "arrival" or cols.WHEEL_DEVICE_TIME not in wheels.dtype.names:
         return np.array(wheels["t_s"], float)
-    return device_times(wheels["t_s"], wheels[cols.WHEEL_DEVICE_TIME])
+    return device_times(wheels["t_s"], wheels[cols.WHEEL_DEVICE_TIME], config.wheel_wire_s)
 
 
 def events(data, imu_latency_s: float = 0.0):

@@ -14,7 +14,7 @@ from gyrohost.run.errors import LimitBreach
 
 WHEEL_MODEL_PARAMS = ("ACCEL_RAD_S2", "SPEED_FILTER_SHIFT")
 """The board's parameters the estimator's wheel model repeats (its ramp and its low-pass)."""
-FILTER_TOLERANCE_S = 1e-3  # a real encoder's half tick, and some
+FILTER_TOLERANCE_S = 0.5e-3  # half a tick: two shifts' delays lie a tick or more apart
 
 
 def wheel_model_differences(board_params: dict, est) -> list[str]:
@@ -35,9 +35,9 @@ def wheel_model_differences(board_params: dict, est) -> list[str]:
     delay_s = speed_filter_delay_s(shift)
     if abs(delay_s - est.wheel_filter_s) > FILTER_TOLERANCE_S:
         out.append(
-            f"SPEED_FILTER_SHIFT {shift} reports speeds {1e3 * delay_s:g} ms behind a ramp "
-            f"(0.5 ms more from a real encoder), the estimator's wheel_filter_s is "
-            f"{1e3 * est.wheel_filter_s:g} ms ([estimator] of the configuration)"
+            f"SPEED_FILTER_SHIFT {shift} reports speeds {1e3 * delay_s:g} ms behind a ramp, "
+            f"the estimator's wheel_filter_s is {1e3 * est.wheel_filter_s:g} ms: set it to "
+            f"{delay_s:g} ([estimator] of the configuration)"
         )
     return out
 

@@ -66,7 +66,7 @@ class WheelHandler:
 
     def __init__(self, stream, n_wheels: int, config):
         self.stream, self.n_wheels = stream, n_wheels
-        self.clock = DeviceClock() if config.wheel_times == "device" else None
+        self.clock = DeviceClock(config.wheel_wire_s) if config.wheel_times == "device" else None
         self.sequence_gaps = 0  # places where telemetry frames went missing
         self.frames_lost = 0
         self._last_seq: int | None = None
