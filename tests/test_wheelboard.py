@@ -42,6 +42,10 @@ class BytesPort:
     def __init__(self, data: bytes):
         self.data, self.written = bytearray(data), bytearray()
 
+    @property
+    def in_waiting(self) -> int:
+        return min(len(self.data), 7)
+
     def read(self, n: int) -> bytes:
         if not self.data:
             time.sleep(0.005)

@@ -2,6 +2,7 @@
 
 import array
 import fcntl
+import math
 import os
 import queue
 import termios
@@ -29,6 +30,8 @@ def board():
     client = wb.WheelBoard(device.slave_path, on_fault=events.put)
     client.connect()
     client.control = start_control_thread(client)  # set: the host's control thread hangs
+    # streaming: a reply can come sooner than the first frame's bits have crossed the wire
+    assert wait_for(lambda: client.last_telemetry is not None)
     yield device, client, events
     client.close()
     device.close()
@@ -248,7 +251,8 @@ def test_ripple_and_lag_on_the_emulator_clock():
     """Driven tick by tick on its own clock (no thread): ramp, lag, then a 5 % ripple."""
     emu = WheelEmuConfig(time_constant_s=0.02, ripple_fraction=0.05, speed_error_std_rad_s=0.0)
     dev, trace = _spun_up(emu, 20000, 1500)
-    assert dev.ticks == 1500 and dev.telemetry_sent == 750
+    # a frame every other tick, the 750th still on the wire (38 bytes at 1 Mbaud)
+    assert dev.ticks == 1500 and dev.telemetry_sent == 749
     # 0.1 s of ramp at 100 rad/s^2: setpoint 10 rad/s, the 20 ms lag 100 x 0.02 = 2 rad/s behind
     assert trace[99] == pytest.approx(8.0, abs=0.5)  # (+-5 % ripple)
     steady = np.array(trace[500:])  # ramp done at 0.2 s, lag settled well before 0.5 s
@@ -268,6 +272,41 @@ def test_the_speed_loop_error_is_gauss_markov_at_the_motor_time_constant():
         assert rho == pytest.approx(np.exp(-lag_ticks * 1e-3 / 0.05), abs=0.05)
     _, exact = _spun_up(replace(emu, speed_error_std_rad_s=0.0), 50000, 2000)
     assert np.all(np.array(exact[1000:]) == pytest.approx(50.0, abs=1e-3))  # the lag alone
+
+
+def test_a_setpoint_acts_from_the_tick_after_its_frame_and_telemetry_crosses_the_wire():
+    """As the firmware: a tick reads the encoder of the wheel turned under the last tick's
+    drive, then ramps the setpoint; the telemetry of a tick leaves when its bits have crossed
+    the wire; a truth step ending between ticks sees the wheel carried on by its lag."""
+    emu = WheelEmuConfig(time_constant_s=0.05, speed_error_std_rad_s=0.0)
+    with WheelBoardEmulator(emu, baud=1_000_000) as dev:
+        dev.tick(0.0)
+        speeds = dict.fromkeys(("w0_mrad_s", "w1_mrad_s", "w2_mrad_s", "w3_mrad_s"), 0)
+        dev.handle_rx(wp.encode("SET_SPEEDS", **(speeds | {"w0_mrad_s": 10000})), 0.0005)
+        dev.tick(0.001)  # the frame's tick: the setpoint ramps, the wheel has not moved yet
+        assert dev.wheel_speeds_rad_s()[0] == 0.0 and dev.setpoints[0] == 100
+        dev.tick(0.002)  # one tick under 0.1 rad/s: the lag's exact step
+        expected = 0.1 * (1.0 - math.exp(-0.001 / 0.05))
+        assert dev.wheel_speeds_rad_s()[0] == pytest.approx(expected, rel=1e-12)
+        halfway = dev.wheel_speeds_rad_s(at_s=0.0025)[0]
+        assert expected < halfway < dev.setpoints[0] / 1000.0
+        assert dev.telemetry_sent == 0  # tick 2's frame is still on the wire
+        assert dev.next_send_s == pytest.approx(0.002 + wp.wire_time_s("TELEMETRY", 1_000_000))
+        dev.tick(dev.next_send_s)
+        assert dev.telemetry_sent == 1
+
+
+def test_a_reply_leaves_behind_the_telemetry_on_the_wire():
+    """One UART: a frame taken before a request reaches the host before its reply."""
+    with WheelBoardEmulator(WheelEmuConfig()) as dev:
+        fd = os.open(dev.slave_path, os.O_RDONLY | os.O_NONBLOCK)
+        dev.tick(0.0)
+        dev.tick(0.002)  # tick 2's telemetry on the wire
+        dev.handle_rx(wp.encode("GET_STATS"), 0.0021)
+        time.sleep(0.05)
+        names = [m.name for m in wp.FrameDecoder().feed(os.read(fd, 4096))]
+        os.close(fd)
+        assert names == ["TELEMETRY", "STATS"]
 
 
 def _spun_up(emu, w0_mrad_s, ticks):

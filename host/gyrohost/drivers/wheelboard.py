@@ -379,7 +379,9 @@ class WheelBoard:
     def _read_loop(self) -> None:
         while not self._stop.is_set():
             try:
-                data = self._port.read(256)
+                # what has come, as soon as a byte has: a frame's arrival stamp is when it
+                # came, not when a fixed count filled or the read timed out
+                data = self._port.read(max(self._port.in_waiting, 1))
             except (OSError, ValueError, TypeError):
                 if self._stop.is_set():
                     return

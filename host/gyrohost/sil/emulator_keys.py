@@ -9,6 +9,7 @@ setting reaches their filter.
 import math
 
 from gyrohost.config import RigConfig
+from gyrohost.drivers import wheelproto as wp
 from gyrohost.drivers.mx12 import P_GAIN_FACTORY, position_lag_s, steps_per_metre
 from gyrohost.estimator.config import (
     MIN_WHEEL_WALK,
@@ -96,26 +97,22 @@ def emulator_keys(rig: RigConfig) -> dict:
         # the emulated motors follow the board's ramped setpoint with their lag, erring from it
         # by a first-order Gauss-Markov process of that time constant: the lag model's walk
         # with the same stationary spread (2 std^2 / lag), at least MIN_WHEEL_WALK; the
-        # reported speed trails theirs by the firmware's low-pass
+        # reported speed trails theirs by the firmware's low-pass and the encoder's half tick
         "wheel_lag_s": wheels.time_constant_s,
         "wheel_accel_psd_rad2_s3": max(
             2.0 * wheels.speed_error_std_rad_s**2 / wheels.time_constant_s, MIN_WHEEL_WALK
         ),
         "wheel_filter_s": SPEED_FILTER_DELAY_S,
-        # with the loop on time the telemetry of a speed step starts when the lags alone say:
-        # a delay of 20 ms (what a late loop showed) puts the model behind the board through
-        # every ramp (docs/estimator.md#wheel-commands)
+        # the board takes a command at its next tick and holds each step of the ramp for a
+        # tick: the ramp starts where the frame came, give or take half a tick (uniform, the
+        # tick / sqrt(12)); the pty brings the frame within a tenth of a millisecond of the
+        # host's stamp, no delay worth a key (docs/estimator-noise.md#the-wheels)
         "wheel_delay_s": 0.0,
-        # its frames arrive 0-11 ms after they were taken, but are fused at the board's own
-        # time (wheel_times "device"), late by the link's shortest delay (about 1 ms): 2 ms (0:
-        # the wheel states overconfident in some ramps; 10 ms while they were fused at arrival,
-        # docs/estimator.md)
-        "wheel_time_std_s": 0.002,
-        # the host stamps a command when it sends it; the emulated board acts on it when the
-        # rig's loop next serves its pty, between the truth's steps, which on a loaded two-core
-        # machine is up to a step later: uniform over the step, dt / sqrt(12) (without it the
-        # wheel-steps run test lost the wheels in two of four loaded suites)
-        "wheel_command_time_std_s": sim.truth.dt_s / math.sqrt(12.0),
+        "wheel_command_time_std_s": 1.0 / wp.TICK_HZ / math.sqrt(12.0),
+        # a frame leaves when its bits have crossed the wire, fused at the board's own time
+        # less that (wheel_wire_s, rig_keys'): it lies behind the sample by the loop's and the
+        # reader's shortest wake-up, a tenth of a millisecond, as the IMU's grid
+        "wheel_time_std_s": 0.0,
         "imu_frame_nodes": tuple(sim.truth.imu_frame_nodes),
         "imu_gravity_m_s2": tuple(sim.truth.imu_gravity_m_s2),
     }

@@ -125,7 +125,7 @@ class SimulatedRig:
     def _wheel_board(self, config: RigConfig):
         emu = self.sim.wheels
         if self.wheels_kind == "emulator":
-            return WheelBoardEmulator(emu)
+            return WheelBoardEmulator(emu, config.wheelboard.baud)
         try:
             return simavr.simavr_wheel_board(
                 emu.simavr_elf, emu.simavr_harness, emu.simavr_options, config.base_dir
@@ -248,16 +248,18 @@ class SimulatedRig:
                 self._cond.notify_all()
 
     def _wait_s(self, now_s: float, step_due_s: float) -> float:
-        """How long the loop may wait for driver input, s: to the truth's next step or the IMU's
-        next sample on a real clock (the sample reaches the host when it is due, not up to a
-        poll later), at most :data:`IDLE_WAIT_S`. A sample past its time waits for the truth,
-        which the step brings."""
+        """How long the loop may wait for driver input, s: to the truth's next step or a
+        device's next sample on a real clock (the IMU's, the wheel board's telemetry: a sample
+        reaches the host when its bits have crossed the wire, not up to a poll later), at most
+        :data:`IDLE_WAIT_S`. An IMU sample past its time waits for the truth, which the step
+        brings."""
         if self.clock != "real":
             return IDLE_WAIT_S
         waits = [step_due_s, IDLE_WAIT_S]
-        send_s = self.imu.next_send_s
-        if send_s is not None and send_s > now_s:
-            waits.append(send_s - now_s)
+        for dev in self.devices.values():
+            send_s = getattr(dev, "next_send_s", None)  # the simavr board streams by itself
+            if send_s is not None and send_s > now_s:
+                waits.append(send_s - now_s)
         return max(min(waits), 0.0)
 
     def _step(self, lateness_s: float) -> None:
@@ -285,7 +287,7 @@ class SimulatedRig:
         turns = [
             (t - self._slip_s, self._lengths_at(t)) for t in self.servos.turns_between(start, end)
         ]
-        wheels = np.asarray(self.wheels.wheel_speeds_rad_s()) * self._spin_sign
+        wheels = np.asarray(self.wheels.wheel_speeds_rad_s(at_s=end)) * self._spin_sign
         return self._lengths_at(end), wheels, turns
 
     def _lengths_at(self, t_s: float) -> dict:

@@ -326,8 +326,10 @@ class SimavrWheelBoard:
         """The harness's UART0 pty: the wheel board's serial port."""
         return self.harness.pty
 
-    def wheel_speeds_rad_s(self) -> list[float]:
-        """True motor speeds of the latest SPEED line, rad/s (zeros before the first).
+    def wheel_speeds_rad_s(self, at_s: float | None = None) -> list[float]:
+        """True motor speeds of the latest SPEED line, rad/s (zeros before the first; the
+        harness reports its motors at its own rate, so ``at_s``, the emulated board's
+        signature, is not used).
 
         Raises
         ------

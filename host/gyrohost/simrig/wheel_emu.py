@@ -27,7 +27,10 @@ from boot on the emulator's clock, so simulated-time runs are exact:
   ticks, in the direction being braked, below ``STOP_RAD_S`` as a mean; at most
   ``STOP_TICKS``);
 - TELEMETRY every TELEMETRY_DIV ticks: control-step time, sequence number, speeds, drive levels,
-  status and fault word.
+  status and fault word; a frame leaves when its bits have crossed the wire at the link's baud
+  (replies go at once, behind the frames already on the wire);
+- each tick runs in the firmware's order: the wheels turn under the last tick's drive, the
+  encoder is read, the setpoints ramp.
 
 Motor model (not the firmware's): while a wheel's outputs are enabled its true speed follows the
 ramped setpoint with a first-order lag (``time_constant_s``); with outputs off it coasts down
@@ -54,6 +57,7 @@ setpoints are 0; the wheels keep spinning and coast down.
 
 import math
 import random
+from collections import deque
 
 from gyrohost.drivers import wheelproto as wp
 from gyrohost.simrig.config import WheelEmuConfig
@@ -118,15 +122,18 @@ class WheelBoardEmulator(PtyDevice):
     boots : int
         Number of boots so far (1 after construction).
     telemetry_sent : int
-        TELEMETRY frames produced since construction (over all boots).
+        TELEMETRY frames sent since construction (over all boots; a frame is sent once its
+        bits have crossed the wire).
     """
 
     FRAME_END = 0  # COBS: every frame ends in 0x00
 
-    def __init__(self, emu: WheelEmuConfig | None = None) -> None:
+    def __init__(self, emu: WheelEmuConfig | None = None, baud: int = 1_000_000) -> None:
         emu = emu if emu is not None else WheelEmuConfig()
         super().__init__(FaultFilter(emu.faults))
         self.emu = emu
+        self.telemetry_wire_s = wp.wire_time_s("TELEMETRY", baud)
+        self._on_wire: deque[tuple[float, bytes]] = deque()  # (last byte's time, telemetry)
         # the EEPROM's parameter image; None: no valid slot
         self.saved = None if emu.blank_eeprom else _defaults()
         self.omega_rad_s = [0.0] * wp.N_WHEELS
@@ -195,13 +202,48 @@ class WheelBoardEmulator(PtyDevice):
             self.measured = [0.0] * wp.N_WHEELS
             self.enabled = [False] * wp.N_WHEELS
 
-    def wheel_speeds_rad_s(self) -> list[float]:
-        """True wheel speeds, rad/s (a copy, taken under the lock)."""
+    def wheel_speeds_rad_s(self, at_s: float | None = None) -> list[float]:
+        """True wheel speeds, rad/s (a copy, taken under the lock): at the last tick, or
+        carried on from it to the emulator time ``at_s`` s by the motors' lag (or coast),
+        without the speed error's next increment: the truth's steps end between the ticks."""
         with self.lock:
-            return list(self.omega_rad_s)
+            if at_s is None or self._boot_s is None:
+                return list(self.omega_rad_s)
+            dt_s = max(at_s - self._state_s(), 0.0)
+            return [self._relaxed(i, dt_s) * self._ripple_factor(i) for i in range(wp.N_WHEELS)]
+
+    def _state_s(self) -> float:
+        """The emulator time the wheels' state is at, s: the last tick's, or the last coast's
+        while down."""
+        if self._down_until_s is not None:
+            return self._down_last_s
+        return self._boot_s + self.ticks / wp.TICK_HZ
 
     # --- PtyDevice hooks ----------------------------------------------------------------------
+    @property
+    def next_send_s(self) -> float | None:
+        """When the next telemetry frame's last byte has crossed the wire, s (None while none
+        is due): the rig's loop wakes then, so that it reaches the host as the wire makes it."""
+        if self._on_wire:
+            return self._on_wire[0][0]
+        div = self.params[_P["TELEMETRY_DIV"]]
+        if self._boot_s is None or self._down_until_s is not None or div == 0:
+            return None
+        tick = self.ticks + max(div - self._telem_count, 1)
+        return self._boot_s + tick / wp.TICK_HZ + self.telemetry_wire_s
+
     def tick(self, now_s: float) -> None:
+        self._ticks_to(now_s)
+        self._release(lambda due_s: due_s <= now_s)
+
+    def _release(self, due) -> None:
+        """Send the telemetry frames on the wire whose last byte is ``due`` (a predicate of
+        its time), in order."""
+        while self._on_wire and due(self._on_wire[0][0]):
+            self.send(self._on_wire.popleft()[1], self._t_s)
+            self.telemetry_sent += 1
+
+    def _ticks_to(self, now_s: float) -> None:
         self._t_s = now_s
         if self._down(now_s):
             return
@@ -226,6 +268,7 @@ class WheelBoardEmulator(PtyDevice):
             self._reset_request = None
             self._down_until_s = now_s + down_s
             self._down_last_s = now_s
+            self._on_wire.clear()  # the UART's bytes in flight are lost
             self.enabled = [False] * wp.N_WHEELS
         if self._down_until_s is None:
             return False
@@ -285,6 +328,10 @@ class WheelBoardEmulator(PtyDevice):
             getattr(self, f"_on_{msg.name.lower()}")(msg.fields)
 
     def _send_msg(self, name: str, **fields: int) -> None:
+        """Send a reply at once, behind the telemetry frames already on the wire (the UART's
+        order: a fault latched before a CLEAR_FAULTS shows in no frame after its ACK); those
+        then leave a little early, and only around requests."""
+        self._release(lambda _due_s: True)
         self.send(wp.encode(name, **fields), self._t_s)
 
     def _error(self, req_id: int, name: str, detail: int) -> None:
@@ -395,6 +442,10 @@ class WheelBoardEmulator(PtyDevice):
 
     # --- control tick -------------------------------------------------------------------------
     def _control_tick(self) -> None:
+        """One 1 kHz tick in the firmware's order: the wheels have turned under the last tick's
+        drive (a setpoint acts from the tick that set it on, never before the frame that asked
+        for it), the encoder is read, then the setpoints ramp and the drive is set."""
+        self._physics(1.0 / wp.TICK_HZ)
         p = self.params
         self._since_host_ms = min(self._since_host_ms + 1, 0xFFFF)
         if self._since_host_ms >= p[_P["HEARTBEAT_MS"]]:
@@ -410,7 +461,6 @@ class WheelBoardEmulator(PtyDevice):
                 self.targets[i] = 0  # never resumes by itself after a clear
             self.setpoints[i] = ramp_step(self.setpoints[i], self.targets[i], step)
             self.enabled[i] = self._drives(i)
-        self._physics(1.0 / wp.TICK_HZ)
         self._measure()
         if self._save_done_tick is not None and self.ticks >= self._save_done_tick:
             self._save_done_tick = None
@@ -441,22 +491,33 @@ class WheelBoardEmulator(PtyDevice):
 
     def _physics(self, dt_s: float) -> None:
         emu = self.emu
-        on = math.exp(-dt_s / emu.time_constant_s)
-        off = math.exp(-dt_s / emu.coast_time_constant_s)
         # the exact step of the Gauss-Markov error: its stationary variance is kept
+        on = math.exp(-dt_s / emu.time_constant_s)
         error_std = emu.speed_error_std_rad_s * math.sqrt(1.0 - on * on)
         for i in range(wp.N_WHEELS):
-            base = self._base_rad_s[i]
-            if self.enabled[i]:
-                base = self.setpoints[i] / 1000.0 + (base - self.setpoints[i] / 1000.0) * on
-                if error_std:
-                    base += self._rng.gauss(0.0, error_std)
-            else:
-                base *= off
+            base = self._relaxed(i, dt_s)
+            if self.enabled[i] and error_std:
+                base += self._rng.gauss(0.0, error_std)
             self._base_rad_s[i] = base
-            ripple = emu.ripple_fraction * math.sin(emu.ripple_per_rev * self.angle_rad[i])
-            self.omega_rad_s[i] = base * (1.0 + ripple)
-            self.angle_rad[i] = (self.angle_rad[i] + self.omega_rad_s[i] * dt_s) % (2 * math.pi)
+            omega = base * self._ripple_factor(i)
+            # the angle turned is the step's mean speed (trapezoid): an encoder's count
+            # difference is the last tick's mean speed, half a tick behind its end's
+            mean_rad_s = 0.5 * (self.omega_rad_s[i] + omega)
+            self.omega_rad_s[i] = omega
+            self.angle_rad[i] = (self.angle_rad[i] + mean_rad_s * dt_s) % (2 * math.pi)
+
+    def _relaxed(self, i: int, dt_s: float) -> float:
+        """Wheel ``i``'s speed without ripple ``dt_s`` s on, rad/s: its lag towards the held
+        setpoint while driven, its coast otherwise (the speed error's increment aside)."""
+        base, emu = self._base_rad_s[i], self.emu
+        if not self.enabled[i]:
+            return base * math.exp(-dt_s / emu.coast_time_constant_s)
+        setpoint = self.setpoints[i] / 1000.0
+        return setpoint + (base - setpoint) * math.exp(-dt_s / emu.time_constant_s)
+
+    def _ripple_factor(self, i: int) -> float:
+        emu = self.emu
+        return 1.0 + emu.ripple_fraction * math.sin(emu.ripple_per_rev * self.angle_rad[i])
 
     def _measure(self) -> None:
         p = self.params
@@ -522,5 +583,7 @@ class WheelBoardEmulator(PtyDevice):
             fields[f"w{i}_mrad_s"] = int(self.measured[i] * 1000.0)  # toward zero, as speed.h
             fields[f"d{i}_q15"] = self.drive[i]
         self.seq = (self.seq + 1) & 0xFFFF
-        self.telemetry_sent += 1
-        self._send_msg("TELEMETRY", **fields)
+        # taken at its tick, whole for the host once its bits have crossed the wire (replies,
+        # whose time nothing reads, go at once)
+        sent_s = max(self._state_s(), self._on_wire[-1][0] if self._on_wire else -math.inf)
+        self._on_wire.append((sent_s + self.telemetry_wire_s, wp.encode("TELEMETRY", **fields)))
