@@ -434,13 +434,13 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
  * start (n_w), commands (n_w), jitter density (m^2 s), the mean kink's jitter std (m; 0: the
- * sharp kink)]. follow = 0: the wheels accelerate at the given constant accelerations; 1: they
+ * sharp kink), the filter's step (process_dt_s, s)]. follow = 0: the wheels accelerate at the given constant accelerations; 1: they
  * lag (wheel_lag) behind setpoints ramping at wheel_accel from the start setpoints towards the
  * commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
     int follow, have_A;
-    double jitter, kink_sd;
+    double jitter, kink_sd, filter_dt;
     const double *rest_cmd, *wheel_acc, *sp0, *cmd;
 } StepSpec;
 
@@ -458,10 +458,11 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->cmd = p->sp0 + nw;
     p->jitter = p->cmd[nw];
     p->kink_sd = p->cmd[nw + 1];
+    p->filter_dt = p->cmd[nw + 2];
 }
 
 static int64_t step_spec_size(const int64_t* d) {
-    return 8 + d[2] + 3 * d[3];
+    return 9 + d[2] + 3 * d[3];
 }
 
 /* E max(a - Z, 0) = a Phi(a) + phi(a), Z standard normal (gyrohost.estimator.kink). */
@@ -693,9 +694,10 @@ static double margin_variance(const double* g, const double* P, int64_t n, int64
 /* Po[:6m, :6m] += sum_i var_i G_i G_i^T, the force errors at the strings' kinks
  * (gyrohost.estimator.process_noise.kink_noise): G_i = dt/2 (b_i + F b_i), b_i = (0, d acc /
  * d rest_i) with string i held taut; var_i = (q / dt) kink_weight(mu_i / sqrt(q / dt)) for the
- * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i) for the
- * linearisation, sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
- * x. Jt: 3 m x D work. */
+ * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i) x
+ * filter_dt / dt for the linearisation (a filter step's error, spread over a split step's
+ * parts), sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at x. Jt:
+ * 3 m x D work. */
 static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
                           const double* x, const double* P, const double* F, double* Po,
                           double* Jt, double* v, double* w) {
@@ -732,7 +734,8 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         double sigma2 = margin_variance(g, P, n, m, r0 + i);
         /* beyond KINK_REACH of its standard deviations the force is a line to round-off */
         int near = sigma2 > 0.0 && fabs(margin) < KINK_REACH * sqrt(sigma2);
-        wt[i] = near ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) : 0.0;
+        wt[i] = near ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) * p->filter_dt / dt
+                     : 0.0;
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
             /* under the mean kink the prediction carries the mean force already */

@@ -88,6 +88,29 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     assert not added[n:].any() and not added[:, n:].any()
 
 
+def test_a_split_step_gets_the_whole_step_s_linearisation_noise(model):
+    """The linearisation's error is a filter step's (``process_dt_s``): a step cut in two by
+    another sample's time gets about half of it in each half, as white noise would (the
+    response ``G`` halves with the step, its square quarters: without the share a half got 0.3
+    of the whole, the halves' sum well under it). The strings' stiff response within the step
+    (``F`` against the identity) moves the half's share off 0.5 (0.6 here)."""
+    from gyrohost.estimator import EstimatorConfig
+    from gyrohost.estimator.layout import from_model_state, layout_of
+    from gyrohost.estimator.process_model import ProcessModel
+
+    pm = ProcessModel(model, EstimatorConfig())
+    L = layout_of(model)
+    x = from_model_state(model, model.initial_state(), model.input_at(0.0))
+    root = np.random.default_rng(3).standard_normal((L.size, L.size)) * 1e-3
+    P = root @ root.T
+    velocities = []
+    for dt in (0.01, 0.005):
+        _, F = pm.step(x, model.input_at(0.0), dt)
+        added = pm.noise(dt, F, x, P) - pm.noise(dt)
+        velocities.append(np.trace(added[L.q_dot, L.q_dot]))
+    assert 0.4 < velocities[1] / velocities[0] < 0.8, velocities
+
+
 def test_the_margins_and_their_gradient_in_closed_form_are_the_complex_steps(model):
     """On a moving state with one string on each side of its ``min`` (the damped stretch the
     smaller where the string shortens)."""

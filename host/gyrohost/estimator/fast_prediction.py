@@ -59,11 +59,12 @@ class FastPrediction:
         L = process.layout
         self.n, self.nd, self.alpha, self.nw = n, L.n_dynamic, L.n_strings, L.n_wheels
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
-        # accelerations, setpoints, commands, jitter density, mean kink's std] (the kernel's
-        # StepSpec)
-        self.spec_size = 8 + self.alpha + 3 * self.nw
+        # accelerations, setpoints, commands, jitter density, mean kink's std, filter step]
+        # (the kernel's StepSpec)
+        c = process.config
+        self.spec_size = 9 + self.alpha + 3 * self.nw
         self._spec = np.zeros(self.spec_size)
-        self._spec[-2:] = process.config.rest_jitter_psd_m2_s, kink_std(process.config)
+        self._spec[-3:] = c.rest_jitter_psd_m2_s, kink_std(c), c.process_dt_s
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
 

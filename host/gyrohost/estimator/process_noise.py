@@ -98,7 +98,9 @@ class ProcessNoise:
           with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`tension_margins`), and no line
           in ``mu`` follows the force: the best leaves ``k^2 sigma^2 v(mu_hat / sigma)``
           (:func:`unexplained_variance`: 0.09 at the kink, 0 away from it), which ``F P F^T``
-          cannot carry. The filter's own line (the slope at the estimate) misses by more, by
+          cannot carry; an error of a filter step (``process_dt_s``), so that a step split by
+          another sample's time gets ``process_dt_s / dt`` of it (``G G^T`` grows with the
+          step's square: the parts would sum to less than the whole). The filter's own line (the slope at the estimate) misses by more, by
           ``(H - Phi)^2 sigma^2`` and the mean's offset; that part is left out: it grows with
           ``P`` near a kink, and a filter that has lost the structure (the nominal scene on an
           identification run) then grew ``P`` without bound until its bars went singular.
@@ -108,7 +110,9 @@ class ProcessNoise:
         sigma2 = np.einsum("ij,jk,ik->i", g, P[: L.n_dynamic, : L.n_dynamic], g)
         var = np.zeros_like(margin)
         near = (sigma2 > 0.0) & (np.abs(margin) < KINK_REACH * np.sqrt(sigma2))
-        var[near] = sigma2[near] * unexplained_variance(margin[near] / np.sqrt(sigma2[near]))
+        share = self.config.process_dt_s / dt  # a split step's parts: the whole step's, summed
+        a = margin[near] / np.sqrt(sigma2[near])
+        var[near] = share * sigma2[near] * unexplained_variance(a)
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
