@@ -100,8 +100,9 @@ class ProcessNoise:
           (:func:`unexplained_variance`: 0.09 at the kink, 0 away from it), which ``F P F^T``
           cannot carry; an error of a filter step (``process_dt_s``), so that a step split by
           another sample's time gets ``process_dt_s / dt`` of it (``G G^T`` grows with the
-          step's square: the parts would sum to less than the whole). The filter's own line (the slope at the estimate) misses by more, by
-          ``(H - Phi)^2 sigma^2`` and the mean's offset; that part is left out: it grows with
+          step's square: the parts would sum to less than the whole). The filter's own line
+          (the slope at the estimate) misses by more, by ``(H - Phi)^2 sigma^2`` and the mean's
+          offset; that part is left out: it grows with
           ``P`` near a kink, and a filter that has lost the structure (the nominal scene on an
           identification run) then grew ``P`` without bound until its bars went singular.
         """
