@@ -100,4 +100,4 @@ def test_a_run_steps_the_wheels_and_the_estimator_follows(tmp_path):
         for i in range(4)
     ]
     mean_square = np.mean(np.square(z)[:, late], axis=1)
-    assert np.all(mean_square < 5.0), mean_square  # 0.34-0.66 in eight runs
+    assert np.all(mean_square < 5.0), mean_square  # 0.91-1.23 in three idle runs
