@@ -90,7 +90,7 @@ def test_a_run_steps_the_wheels_and_the_estimator_follows(tmp_path):
     assert np.mean(innov["accepted"][during]) > 0.9, np.mean(innov["accepted"][during])
     # and the wheel states are the wheels' own speeds, not the board's low-passed reports
     # (which trail them by 7.5 ms, 0.75 rad/s in a ramp): their errors against the truth's, in
-    # their own sigmas, have a mean square below 1 at idle (1042 with the reports' lag in the
+    # their own sigmas, have a mean square about 1 at idle (1042 with the reports' lag in the
     # state)
     truth = read_stream(folder, "truth")
     late = est["t_s"] > t0
