@@ -434,9 +434,9 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
  * start (n_w), commands (n_w), jitter density (m^2 s), the mean kink's jitter std (m; 0: the
- * sharp kink), the filter's step (process_dt_s, s)]. follow = 0: the wheels accelerate at the given constant accelerations; 1: they
- * lag (wheel_lag) behind setpoints ramping at wheel_accel from the start setpoints towards the
- * commands. */
+ * sharp kink), the filter's step (process_dt_s, s)]. follow = 0: the wheels accelerate at the
+ * given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at wheel_accel
+ * from the start setpoints towards the commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
     int follow, have_A;

@@ -43,7 +43,7 @@ def reported_misses(model, **keys):
         ekf.advance((k - 0.5) * TICK_S)
         hx, _ = predict(ekf, ekf.x)
         misses.append(np.abs(hx - (s0 + np.sign(s0) * ticks[k][2])))
-        jerk = ekf.process.wheel_jerk(ekf.x[omega])
+        jerk = ekf.process.wheel_jerk(ekf.process.wheel_acceleration(ekf.x[None, omega], ekf.u)[0])
         curves.append(np.abs(ekf.config.wheel_filter_s**2 * jerk))
     return np.array(misses), np.array(curves)
 

@@ -79,7 +79,7 @@ def fuse_wheels(ekf, omega_rad_s) -> Innovation:
     L, c = ekf.layout, ekf.config
     var_a = white_std(c) ** 2
     rate = ekf.process.wheel_acceleration(ekf.x[None, L.omega], ekf.u)[0]
-    curve = c.wheel_filter_s**2 * ekf.process.wheel_jerk(ekf.x[L.omega])
+    curve = c.wheel_filter_s**2 * ekf.process.wheel_jerk(rate)
     R = np.diag(var_a + (c.wheel_time_std_s * rate) ** 2 + curve**2)
     if not L.n_wheel_noise:
         return fuse(ekf, Measurement(SOURCE, z, hx, H, R))[0]

@@ -189,17 +189,18 @@ class ProcessModel(ProcessNoise):
             return np.broadcast_to(self.dyn.wheel_acceleration(u), omega.shape)
         return (target - omega) / lag
 
-    def wheel_jerk(self, omega):
-        """Rate of the spin accelerations (n_w,) rad/s^3 at the wheel states ``omega`` (n_w,):
-        ``(d setpoint/dt - d omega/dt) / lag``, the setpoint ramping at ``wheel_accel_rad_s2``
-        towards the command while short of it; zeros where the wheels are not commanded."""
+    def wheel_jerk(self, omega_dot):
+        """Rate of the spin accelerations (n_w,) rad/s^3 where they are ``omega_dot`` (n_w,)
+        rad/s^2 (:meth:`wheel_acceleration`): ``(d setpoint/dt - d omega/dt) / lag``, the
+        setpoint ramping at ``wheel_accel_rad_s2`` towards the command while short of it;
+        zeros where the wheels are not commanded."""
         lag = self.config.wheel_lag_s
         if self.wheel_command_rad_s is None or lag == 0.0:
-            return np.zeros_like(omega)
+            return np.zeros_like(omega_dot)
         ramp = self.config.wheel_accel_rad_s2 * np.sign(
             self.wheel_command_rad_s - self.wheel_setpoint_rad_s
         )
-        return (ramp - self.wheel_acceleration(omega[None], None)[0]) / lag
+        return (ramp - omega_dot) / lag
 
     def wheel_acceleration_slope(self) -> float:
         """d(wheel acceleration)/d omega of each wheel, 1/s: ``-1 / wheel_lag_s`` where the wheels

@@ -106,6 +106,9 @@ class PtyDevice:
     FRAME_END: int | None = None
     """The byte that ends every frame the driver sends, for a protocol that has one (COBS'
     0x00); it places the frames read at once in time (:meth:`poll`)."""
+    next_send_s: float | None = None
+    """When the device's next sample is whole for the host, s, for a device that streams on its
+    own clock (None: it answers, or has nothing due); the simulated rig's loop wakes then."""
 
     def __init__(self, faults: FaultFilter | None = None) -> None:
         self.link = PtyLink()

@@ -257,7 +257,7 @@ class SimulatedRig:
             return IDLE_WAIT_S
         waits = [step_due_s, IDLE_WAIT_S]
         for dev in self.devices.values():
-            send_s = getattr(dev, "next_send_s", None)  # the simavr board streams by itself
+            send_s = dev.next_send_s
             if send_s is not None and send_s > now_s:
                 waits.append(send_s - now_s)
         return max(min(waits), 0.0)

@@ -321,6 +321,8 @@ class SimavrWheelBoard:
             self.harness.stop()
             raise
 
+    next_send_s = None  # the harness streams on its own: the rig's loop need not wake for it
+
     @property
     def slave_path(self) -> str:
         """The harness's UART0 pty: the wheel board's serial port."""

@@ -234,12 +234,12 @@ class WheelBoardEmulator(PtyDevice):
 
     def tick(self, now_s: float) -> None:
         self._ticks_to(now_s)
-        self._release(lambda due_s: due_s <= now_s)
+        self._release(now_s)
 
-    def _release(self, due) -> None:
-        """Send the telemetry frames on the wire whose last byte is ``due`` (a predicate of
-        its time), in order."""
-        while self._on_wire and due(self._on_wire[0][0]):
+    def _release(self, until_s: float) -> None:
+        """Send, in order, the telemetry frames on the wire whose last byte is due by
+        ``until_s``, s."""
+        while self._on_wire and self._on_wire[0][0] <= until_s:
             self.send(self._on_wire.popleft()[1], self._t_s)
             self.telemetry_sent += 1
 
@@ -331,7 +331,7 @@ class WheelBoardEmulator(PtyDevice):
         """Send a reply at once, behind the telemetry frames already on the wire (the UART's
         order: a fault latched before a CLEAR_FAULTS shows in no frame after its ACK); those
         then leave a little early, and only around requests."""
-        self._release(lambda _due_s: True)
+        self._release(math.inf)
         self.send(wp.encode(name, **fields), self._t_s)
 
     def _error(self, req_id: int, name: str, detail: int) -> None:
