@@ -669,12 +669,13 @@ static double kink_weight(double a) {
 
 #define KINK_REACH 7.0 /* gyrohost.estimator.process_noise.KINK_REACH */
 
-/* Var f - Cov(f, Z)^2 of f = max(a + Z, 0), Z standard normal: what no line in Z captures
- * (gyrohost.estimator.kink.unexplained_variance). */
-static double unexplained_variance(double a) {
+/* Var f - Cov(f, Z)^2 of f = (a + Z + j) 1[a + Z > 0], Z standard normal, j >= 0 the force's
+ * jump: what no line in Z captures (gyrohost.estimator.kink.unexplained_variance). */
+static double unexplained_variance(double a, double j) {
     double Phi = 0.5 * erfc(-a / sqrt(2.0)),
-           phi = exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846), mean = a * Phi + phi;
-    return (a * a + 1.0) * Phi + a * phi - mean * mean - Phi * Phi;
+           phi = exp(-0.5 * a * a) / sqrt(2.0 * 3.14159265358979323846), b = a + j;
+    return b * b * Phi * (1.0 - Phi) + 2.0 * b * phi * (1.0 - Phi) + Phi - a * phi - phi * phi -
+           Phi * Phi - 2.0 * j * Phi * phi - j * j * phi * phi;
 }
 
 /* g P g^T over the dynamic block of P (n x n) for g (D) nonzero only at q, q_dot (6 m) and
@@ -694,10 +695,10 @@ static double margin_variance(const double* g, const double* P, int64_t n, int64
 /* Po[:6m, :6m] += sum_i var_i G_i G_i^T, the force errors at the strings' kinks
  * (gyrohost.estimator.process_noise.kink_noise): G_i = dt/2 (b_i + F b_i), b_i = (0, d acc /
  * d rest_i) with string i held taut; var_i = (q / dt) kink_weight(mu_i / sqrt(q / dt)) for the
- * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i) x
- * filter_dt / dt for the linearisation (a filter step's error, spread over a split step's
- * parts), sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at x. Jt:
- * 3 m x D work. */
+ * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i, J_i /
+ * sigma_i) x filter_dt / dt for the linearisation (a filter step's error, spread over a split
+ * step's parts), sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
+ * x, J_i the force's jump as a length ((c/k) s_dot of a lengthening string). Jt: 3 m x D work. */
 static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
                           const double* x, const double* P, const double* F, double* Po,
                           double* Jt, double* v, double* w) {
@@ -734,7 +735,9 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         double sigma2 = margin_variance(g, P, n, m, r0 + i);
         /* beyond KINK_REACH of its standard deviations the force is a line to round-off */
         int near = sigma2 > 0.0 && fabs(margin) < KINK_REACH * sqrt(sigma2);
-        wt[i] = near ? sigma2 * unexplained_variance(margin / sqrt(sigma2)) * p->filter_dt / dt
+        /* a lengthening string pulls with its damping as soon as it is taut: a jump */
+        double sigma = sqrt(sigma2), jump = on_damped ? 0.0 : ratio * sdot / sigma;
+        wt[i] = near ? sigma2 * unexplained_variance(margin / sigma, jump) * p->filter_dt / dt
                      : 0.0;
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);

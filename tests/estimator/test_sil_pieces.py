@@ -1,6 +1,7 @@
 """The pieces of the SIL that the consistency studies build on, checked exactly: the in-process
 servos' paths through a goal sent within a step, the kink weight of the rest-length jitter and the
-linearisation's residual, the kink noise's columns through a string near its kink. The Monte
+linearisation's residual (with the damper's jump), the kink noise's columns through a string near
+its kink. The Monte
 Carlo itself (NEES and NIS of 6-20 seeds against the bounds of their average, and the share of
 time steps inside them) is a statistical claim and a study: ``python -m studies estimator_sil``
 and ``python -m studies estimator_effects`` (reports/)."""
@@ -53,6 +54,27 @@ def test_unexplained_variance_is_what_the_best_line_leaves_of_the_rectifier():
     assert abs(unexplained_variance(-8.0)) < 1e-12 and abs(unexplained_variance(8.0)) < 1e-12
 
 
+def test_unexplained_variance_with_a_jump_is_the_best_line_s_residual_by_quadrature():
+    """A string that goes taut while it lengthens pulls at once with its damping: the force is
+    ``(a + z + j) 1[a + z > 0]``. The best line's residual against a weighted least-squares fit
+    over the midpoints of a fine grid of ``z`` whose cells' edges hold every ``-a`` (the jump
+    falls between cells: midpoint rule, error far below the 1e-6 asked); at the kink it is
+    ``(1/4 - 1/(2 pi)) (1 + j^2)``."""
+    from gyrohost.estimator.kink import unexplained_variance
+
+    h = 5e-5
+    z = np.arange(-12.0 + h / 2, 12.0, h)
+    w = np.exp(-0.5 * z * z) * h / np.sqrt(2.0 * np.pi)
+    for a, j in ((0.0, 3.0), (1.0, 2.0), (-2.0, 5.0), (0.5, 0.1), (-0.7, 0.0)):
+        f = (a + z + j) * (a + z > 0.0)
+        mean_f, mean_z = w @ f, w @ z
+        slope = (w @ ((f - mean_f) * (z - mean_z))) / (w @ (z - mean_z) ** 2)
+        residual = w @ (f - mean_f - slope * (z - mean_z)) ** 2
+        assert abs(unexplained_variance(a, j) - residual) < 1e-6, (a, j)
+    kink = 0.25 - 1.0 / (2.0 * np.pi)
+    assert unexplained_variance(0.0, 4.0) == pytest.approx(kink * 17.0, rel=1e-12)
+
+
 def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the_string(model):
     """With no jitter, the kink's noise is the linearisation's: the margin's variance ``g P
     g^T`` (``g`` here from central differences of the margins), times ``1/4 - 1/(2 pi)`` at the
@@ -86,6 +108,24 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     expected = (G * (0.25 - 1.0 / (2.0 * np.pi)) * sigma2) @ G.T
     assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
     assert not added[n:].any() and not added[:, n:].any()
+    # lengthening, each string's force jumps by its damping at the kink: (c/k) s_dot = J
+    # adds (J / sigma)^2 times as much again
+    x_moving = x.copy()
+    x_moving[L.q_dot] = np.random.default_rng(2).normal(scale=0.05, size=3 * L.m)
+    s, s_dot = pm.string_lengths(x_moving)
+    damping = pm.dyn.c_s / pm.dyn.k_s * s_dot
+    x_moving[L.rest] = s + np.minimum(damping, 0.0)  # at the kink again, min(stretch, damped)
+    jump = np.maximum(damping, 0.0)
+    assert np.any(jump > 0.0) and np.any(jump == 0.0)
+    _, F = pm.step(x_moving, model.input_at(0.0), dt)
+    margin, g = pm.tension_margins(x_moving)
+    assert np.all(np.abs(margin) < 1e-12)
+    sigma2 = np.einsum("ij,jk,ik->i", g, P[: L.n_dynamic, : L.n_dynamic], g)
+    G = pm.taut_columns(dt, F, x_moving, margin)
+    added = pm.noise(dt, F, x_moving, P) - pm.noise(dt)
+    var = (0.25 - 1.0 / (2.0 * np.pi)) * (sigma2 + jump**2)
+    expected = (G * var) @ G.T
+    assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
 
 
 def test_a_split_step_gets_the_whole_step_s_linearisation_noise(model):

@@ -32,19 +32,32 @@ def kink_weight(a):
     return np.where(a <= 0.0, slack, taut)
 
 
-def unexplained_variance(a):
-    """``Var f - Cov(f, Z)^2`` for ``f = max(a + Z, 0)``, Z standard normal (shape of ``a``):
-    ``(a^2 + 1) Phi(a) + a phi(a) - (a Phi(a) + phi(a))^2 - Phi(a)^2``.
+def unexplained_variance(a, j=0.0):
+    """``Var f - Cov(f, Z)^2`` for ``f = (a + Z + j) 1[a + Z > 0]``, Z standard normal (shape of
+    ``a`` and ``j``, ``j >= 0``): with ``b = a + j``,
+    ``b^2 Phi (1 - Phi) + 2 b phi (1 - Phi) + Phi - a phi - phi^2 - Phi^2 - 2 j Phi phi - j^2
+    phi^2`` at ``a``.
 
     A tension-only string's force when the filter's tension margin is off the estimate by ``Z``
     standard deviations and ``a`` is the estimated margin in the same units, in units of the
     margin's variance: what no straight line in the margin captures of it (the residual of the
-    best one, of slope ``Cov(f, Z) = Phi(a)``). About 0.09 at the kink, 0 away from it (taut or
-    slack, the force is a line there). The filter's own line, of slope 0 or 1, misses at least
-    this much.
+    best one, of slope ``Cov(f, Z) = Phi(a) + j phi(a)``). A string that goes taut while it
+    lengthens pulls at once with its damping, ``j`` the jump as a length in the same units
+    (``(c/k) d(length)/dt``; 0 for a string shortening, whose force starts from zero). About
+    ``0.09 (1 + j^2)`` at the kink, 0 away from it (taut or slack, the force is a line there).
+    The filter's own line, of slope 0 or 1, misses at least this much.
     """
-    a = np.asarray(a, dtype=float)
+    a, j = np.asarray(a, dtype=float), np.asarray(j, dtype=float)
     Phi = ndtr(a)
     phi = np.exp(-0.5 * a * a) / np.sqrt(2.0 * np.pi)
-    mean = a * Phi + phi
-    return (a * a + 1.0) * Phi + a * phi - mean * mean - Phi * Phi
+    b = a + j
+    return (
+        b * b * Phi * (1.0 - Phi)
+        + 2.0 * b * phi * (1.0 - Phi)
+        + Phi
+        - a * phi
+        - phi * phi
+        - Phi * Phi
+        - 2.0 * j * Phi * phi
+        - j * j * phi * phi
+    )

@@ -96,9 +96,11 @@ class ProcessNoise:
           at the kink, 1 well taut), less the mean the mean kink carries;
         - the linearisation: the estimate's margin is uncertain, ``mu ~ N(mu_hat, sigma^2)``
           with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`tension_margins`), and no line
-          in ``mu`` follows the force: the best leaves ``k^2 sigma^2 v(mu_hat / sigma)``
-          (:func:`unexplained_variance`: 0.09 at the kink, 0 away from it), which ``F P F^T``
-          cannot carry; an error of a filter step (``process_dt_s``), so that a step split by
+          in ``mu`` follows the force, which jumps by ``k J`` where a lengthening string goes
+          taut (its damper pulls at once, :meth:`margin_jumps`): the best line leaves ``k^2
+          sigma^2 v(mu_hat / sigma, J / sigma)`` (:func:`unexplained_variance`: ``0.09 (1 +
+          (J / sigma)^2)`` at the kink, 0 away from it), which ``F P F^T`` cannot carry; an
+          error of a filter step (``process_dt_s``), so that a step split by
           another sample's time gets ``process_dt_s / dt`` of it (``G G^T`` grows with the
           step's square: the parts would sum to less than the whole). The filter's own line
           (the slope at the estimate) misses by more, by ``(H - Phi)^2 sigma^2`` and the mean's
@@ -112,8 +114,9 @@ class ProcessNoise:
         var = np.zeros_like(margin)
         near = (sigma2 > 0.0) & (np.abs(margin) < KINK_REACH * np.sqrt(sigma2))
         share = self.config.process_dt_s / dt  # a split step's parts: the whole step's, summed
-        a = margin[near] / np.sqrt(sigma2[near])
-        var[near] = share * sigma2[near] * unexplained_variance(a)
+        sigma = np.sqrt(sigma2[near])
+        jump = self.margin_jumps(x)[near] / sigma
+        var[near] = share * sigma2[near] * unexplained_variance(margin[near] / sigma, jump)
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
@@ -126,6 +129,12 @@ class ProcessNoise:
             return np.zeros((n, n))
         G = self.taut_columns(dt, F, x, margin)
         return (G * var) @ G.T
+
+    def margin_jumps(self, x):
+        """The jump (alpha,) m of each string's force, as a length, where its tension margin
+        crosses zero at ``x`` (n,): ``(c/k) d(length)/dt`` of a string lengthening (taut, it
+        pulls with its damping at once), 0 of one shortening (its force rises from zero)."""
+        return np.maximum(self.dyn.c_s / self.dyn.k_s * self.string_lengths(x)[1], 0.0)
 
     def tension_margins(self, x):
         """The strings' tension margins ``mu`` (alpha,) m (:meth:`kink_noise`) at ``x`` and
