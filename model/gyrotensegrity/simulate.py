@@ -11,7 +11,7 @@ import time
 import numpy as np
 import scipy
 
-from . import __version__, diagnostics
+from . import __version__, diagnostics, engagement
 from .dynamics import rhs
 from .errors import SimulationError
 from .integrators import ADAPTIVE, FIXED_STEP, adaptive_solver, check_name, fixed_step
@@ -445,7 +445,8 @@ class Stepper:
     The input is held over each step (zero-order hold), or, given its value at the step's end
     too, follows the straight line between the two (first-order hold: a device's output that
     moves on within the step, as a servo's or a wheel's, is not held back in steps). The step is
-    divided into RK4 substeps of at most ``max_dt``.
+    divided into RK4 substeps of at most ``max_dt``, each split where a string goes taut (its
+    force jumps there, :mod:`.engagement`).
 
     Parameters
     ----------
@@ -489,13 +490,14 @@ class Stepper:
         h = dt / n
         t0, du = self.t, None if u_end is None else (np.asarray(u_end, float) - u) / dt
 
+        def u_at(t):
+            return u if du is None else u + (t - t0) * du
+
         def f(t, x):
-            return self.dynamics(t, x, u if du is None else u + (t - t0) * du)
+            return self.dynamics(t, x, u_at(t))
 
         for j in range(n):
-            self.x = fixed_step(
-                self.method, self.model, f, self.t + j * h, self.x, h, self.projector
-            )
+            self.x = self._substep(f, u_at, self.t + j * h, self.x, h)
         self.t += dt
         member = nonfinite_member(self.model, self.x)
         if member:
@@ -503,6 +505,33 @@ class Stepper:
                 f"t = {self.t:.6g} s: state is not finite at {member}", self.t, member
             )
         return self.x
+
+    def _substep(self, f, u_at, t, x, h):
+        """One RK4 substep of ``h`` s from ``x`` at ``t``, ended where a string goes taut and
+        stepped on from there (each split leaves one more string taut)."""
+        for _ in range(self.model.alpha + 1):
+            x_end = self._rk4(f, t, x, h)
+            share = self._taut_share(f, u_at, (t, x, h), x_end)
+            if share is None:
+                break
+            x, t, h = self._rk4(f, t, x, share * h), t + share * h, (1.0 - share) * h
+        return x_end
+
+    def _taut_share(self, f, u_at, piece, x_end):
+        """The share of the substep ``piece`` (t, x, h) that ends at ``x_end`` at which a string
+        goes taut (:func:`.engagement.taut_fraction`), or None."""
+        t, x, h = piece
+        start = (x, u_at(t))
+        if not engagement.tautening(self.model, start, (x_end, u_at(t + h))):
+            return None
+
+        def at(share):
+            return self._rk4(f, t, x, share * h), u_at(t + share * h)
+
+        return engagement.taut_fraction(self.model, start, at)
+
+    def _rk4(self, f, t, x, h):
+        return fixed_step(self.method, self.model, f, t, x, h, self.projector)
 
     def nodes(self):
         """Node positions and velocities (3, n), m and m/s."""
