@@ -668,6 +668,7 @@ static double kink_weight(double a) {
 }
 
 #define KINK_REACH 7.0 /* gyrohost.estimator.process_noise.KINK_REACH */
+#define RK4_JUMP_VARIANCE (1.0 / 36.0) /* gyrohost.estimator.process_noise.RK4_JUMP_VARIANCE */
 
 /* Var f - Cov(f, Z)^2 of f = (a + Z + j) 1[a + Z > 0], Z standard normal, j >= 0 the force's
  * jump: what no line in Z captures (gyrohost.estimator.kink.unexplained_variance). */
@@ -698,7 +699,8 @@ static double margin_variance(const double* g, const double* P, int64_t n, int64
  * rest-length jitter of density q, plus sigma_i^2 unexplained_variance(mu_i / sigma_i, J_i /
  * sigma_i) x filter_dt / dt for the linearisation (a filter step's error, spread over a split
  * step's parts), sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
- * x, J_i the force's jump as a length ((c/k) s_dot of a lengthening string). Jt: 3 m x D work. */
+ * x, J_i the force's jump as a length ((c/k) s_dot of a lengthening string), plus J_i^2 / 36
+ * where the string goes taut within the step. Jt: 3 m x D work. */
 static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
                           const double* x, const double* P, const double* F, double* Po,
                           double* Jt, double* v, double* w) {
@@ -736,9 +738,13 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         /* beyond KINK_REACH of its standard deviations the force is a line to round-off */
         int near = sigma2 > 0.0 && fabs(margin) < KINK_REACH * sqrt(sigma2);
         /* a lengthening string pulls with its damping as soon as it is taut: a jump */
-        double sigma = sqrt(sigma2), jump = on_damped ? 0.0 : ratio * sdot / sigma;
-        wt[i] = near ? sigma2 * unexplained_variance(margin / sigma, jump) * p->filter_dt / dt
+        double sigma = sqrt(sigma2), jump = on_damped ? 0.0 : ratio * sdot;
+        wt[i] = near ? sigma2 * unexplained_variance(margin / sigma, jump / sigma) *
+                           p->filter_dt / dt
                      : 0.0;
+        /* taut within the step: the RK4 stages place its jump to within RK4_JUMP_VARIANCE */
+        if (margin <= 0.0 && margin + sdot * dt > 0.0 && jump > 0.0)
+            wt[i] += RK4_JUMP_VARIANCE * jump * jump;
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
             /* under the mean kink the prediction carries the mean force already */

@@ -114,7 +114,8 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     x_moving[L.q_dot] = np.random.default_rng(2).normal(scale=0.05, size=3 * L.m)
     s, s_dot = pm.string_lengths(x_moving)
     damping = pm.dyn.c_s / pm.dyn.k_s * s_dot
-    x_moving[L.rest] = s + np.minimum(damping, 0.0)  # at the kink again, min(stretch, damped)
+    # at the kink again (min(stretch, damped) = 0), a hair taut: none goes taut in the step
+    x_moving[L.rest] = s + np.minimum(damping, 0.0) - 1e-12
     jump = np.maximum(damping, 0.0)
     assert np.any(jump > 0.0) and np.any(jump == 0.0)
     _, F = pm.step(x_moving, model.input_at(0.0), dt)
@@ -126,6 +127,14 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     var = (0.25 - 1.0 / (2.0 * np.pi)) * (sigma2 + jump**2)
     expected = (G * var) @ G.T
     assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
+    # slack by half a step's lengthening and exactly known: each lengthening string goes taut
+    # mid-step, where the RK4 stages place its jump to within J^2 / 36; no other term
+    x_moving[L.rest] = s + 0.5 * s_dot * dt
+    _, F = pm.step(x_moving, model.input_at(0.0), dt)
+    G = pm.taut_columns(dt, F, x_moving, pm.tension_margins(x_moving)[0])
+    added = pm.noise(dt, F, x_moving, np.zeros_like(P)) - pm.noise(dt)
+    expected = (G * jump**2 / 36.0) @ G.T
+    assert np.abs(added[:n, :n] - expected).max() < 1e-12 * np.abs(expected).max()
 
 
 def test_a_split_step_gets_the_whole_step_s_linearisation_noise(model):

@@ -20,6 +20,13 @@ linearisation's noise to count: beyond, no line misses more than round-off (``v(
 4e-14, :func:`.kink.unexplained_variance`)."""
 
 
+RK4_JUMP_VARIANCE = 1.0 / 36.0
+"""Variance of the error of one RK4 step across a jump in the force at a uniform share ``theta``
+of the step, as a share of the step: the stages (weights 1/6, 2/3, 1/6 at 0, 1/2, 1) count the
+jump for ``5/6`` of the step before the midpoint, ``1/6`` after, where it acts for ``1 -
+theta``; the error ``theta - 1/6`` or ``theta - 5/6`` has mean 0 and mean square 1/36."""
+
+
 class ProcessNoise:
     """Discrete process noise of :class:`~gyrohost.estimator.process_model.ProcessModel`."""
 
@@ -84,11 +91,13 @@ class ProcessNoise:
         """Node-motion covariance (6 m, 6 m) of the strings' force errors at their kinks.
 
         String i pulls with ``k max(mu_i, 0)``, ``mu_i = min(stretch, stretch + c/k
-        d(length)/dt)`` its tension margin as a length (taut while positive). Two errors of the
-        prediction's force act along the string as if taut, each as a rest-length error ``d``
-        over the step: ``Q = sum_i var_i G_i G_i^T`` with ``G_i`` the step's response to the
-        taut string's ``d acceleration / d rest_i`` (:meth:`taut_columns`), so a slack string at
-        the linearisation point still gets the noise of its re-engaging:
+        d(length)/dt)`` its tension margin as a length (taut while positive); one that goes
+        taut lengthens, and its damper pulls at once: the force jumps by ``k J``, ``J = (c/k)
+        d(length)/dt``. Three errors of the prediction's force act along the string as if taut,
+        each as a rest-length error ``d`` over the step: ``Q = sum_i var_i G_i G_i^T`` with
+        ``G_i`` the step's response to the taut string's ``d acceleration / d rest_i``
+        (:meth:`taut_columns`), so a slack string at the linearisation point still gets the
+        noise of its re-engaging:
 
         - the rest-length jitter, white with density ``q`` = ``rest_jitter_psd_m2_s`` (per step
           ``N(0, s^2)``, ``s^2 = q / dt``): the force error ``k (max(mu - d, 0) - max(mu,
@@ -96,17 +105,19 @@ class ProcessNoise:
           at the kink, 1 well taut), less the mean the mean kink carries;
         - the linearisation: the estimate's margin is uncertain, ``mu ~ N(mu_hat, sigma^2)``
           with ``sigma^2 = g P g^T`` (``g = d mu / dx``, :meth:`tension_margins`), and no line
-          in ``mu`` follows the force, which jumps by ``k J`` where a lengthening string goes
-          taut (its damper pulls at once, :meth:`margin_jumps`): the best line leaves ``k^2
-          sigma^2 v(mu_hat / sigma, J / sigma)`` (:func:`unexplained_variance`: ``0.09 (1 +
-          (J / sigma)^2)`` at the kink, 0 away from it), which ``F P F^T`` cannot carry; an
-          error of a filter step (``process_dt_s``), so that a step split by
-          another sample's time gets ``process_dt_s / dt`` of it (``G G^T`` grows with the
-          step's square: the parts would sum to less than the whole). The filter's own line
-          (the slope at the estimate) misses by more, by ``(H - Phi)^2 sigma^2`` and the mean's
-          offset; that part is left out: it grows with
-          ``P`` near a kink, and a filter that has lost the structure (the nominal scene on an
-          identification run) then grew ``P`` without bound until its bars went singular.
+          in ``mu`` follows the force: the best leaves ``k^2 sigma^2 v(mu_hat / sigma, J /
+          sigma)`` (:func:`unexplained_variance`: ``0.09 (1 + (J / sigma)^2)`` at the kink, 0
+          away from it), which ``F P F^T`` cannot carry; an error of a filter step
+          (``process_dt_s``), so that a step split by another sample's time gets
+          ``process_dt_s / dt`` of it (``G G^T`` grows with the step's square: the parts would
+          sum to less than the whole). The filter's own line (the slope at the estimate)
+          misses by more, by ``(H - Phi)^2 sigma^2`` and the mean's offset; that part is left
+          out: it grows with ``P`` near a kink, and a filter that has lost the structure (the
+          nominal scene on an identification run) then grew ``P`` without bound until its bars
+          went singular;
+        - the step across a jump: a string slack at the step's start that its rate takes taut
+          within the step (``mu <= 0 < mu + d(length)/dt dt``) jumps at a time the RK4 stages
+          place to within ``J^2`` :data:`RK4_JUMP_VARIANCE`.
         """
         L = self.layout
         margin, g = self.tension_margins(x)
@@ -114,9 +125,14 @@ class ProcessNoise:
         var = np.zeros_like(margin)
         near = (sigma2 > 0.0) & (np.abs(margin) < KINK_REACH * np.sqrt(sigma2))
         share = self.config.process_dt_s / dt  # a split step's parts: the whole step's, summed
+        s_dot = self.string_lengths(x)[1]
+        jump = np.maximum(self.dyn.c_s / self.dyn.k_s * s_dot, 0.0)
         sigma = np.sqrt(sigma2[near])
-        jump = self.margin_jumps(x)[near] / sigma
-        var[near] = share * sigma2[near] * unexplained_variance(margin[near] / sigma, jump)
+        var[near] = (
+            share * sigma2[near] * unexplained_variance(margin[near] / sigma, jump[near] / sigma)
+        )
+        tautening = (margin <= 0.0) & (margin + s_dot * dt > 0.0) & (jump > 0.0)
+        var[tautening] += RK4_JUMP_VARIANCE * jump[tautening] ** 2
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
@@ -129,12 +145,6 @@ class ProcessNoise:
             return np.zeros((n, n))
         G = self.taut_columns(dt, F, x, margin)
         return (G * var) @ G.T
-
-    def margin_jumps(self, x):
-        """The jump (alpha,) m of each string's force, as a length, where its tension margin
-        crosses zero at ``x`` (n,): ``(c/k) d(length)/dt`` of a string lengthening (taut, it
-        pulls with its damping at once), 0 of one shortening (its force rises from zero)."""
-        return np.maximum(self.dyn.c_s / self.dyn.k_s * self.string_lengths(x)[1], 0.0)
 
     def tension_margins(self, x):
         """The strings' tension margins ``mu`` (alpha,) m (:meth:`kink_noise`) at ``x`` and
