@@ -274,6 +274,24 @@ def test_a_filter_that_breaks_is_refused_at_the_start_and_fenced_off_later(tmp_p
         fresh(np.zeros(1))
 
 
+def test_a_noise_factor_beyond_floats_is_a_counted_break_not_a_crash(tmp_path, monkeypatch):
+    """A trial step of the process-noise factor that overflows (where the likelihood is flat the
+    solver may take one) is walled like any break, without warnings; so is a trial under which
+    every run breaks before its first fusion (no innovation at all)."""
+    problem = _problem(tmp_path, groups=("process-noise",))
+    whole = problem(np.zeros(1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        far = problem(np.array([1000.0]))
+    assert not caught, [str(w.message) for w in caught]
+    assert len(far) == len(whole) and np.any(far == FAILED_RESIDUAL)
+    assert len(problem.failures) == 1 and "accel_psd inf" in problem.failures[0], problem.failures
+    monkeypatch.setattr(filter_fit, "_run", lambda *args: ([], "t = 0 s: prediction failed"))
+    nothing = problem(np.array([2.0]))
+    assert len(nothing) == len(whole) and np.all(nothing == FAILED_RESIDUAL)
+    assert len(problem.failures) == 2
+
+
 def test_a_filter_diverging_far_out_is_a_counted_break_not_a_crash(tmp_path):
     """Strings 400 times too stiff make the 10 ms prediction diverge until the IMU's predicted
     attitude is not finite: a break the fit walls off and names, without warnings."""

@@ -176,9 +176,10 @@ class FilterProblem(output_fit.WalledResiduals):
         the square root of its spread: half their squares sum to the negative
         log-likelihood, up to a constant), and why runs broke."""
         runs = self.runs(theta)
-        w = np.concatenate([_likelihood_terms(r) for run, _ in runs for r in run])
-        if self._spreads is None:
-            self._spreads = np.concatenate([_spread_entry(r) for run, _ in runs for r in run])
+        fused = [r for run, _ in runs for r in run]  # none where every run broke at once
+        w = np.concatenate([_likelihood_terms(r) for r in fused]) if fused else np.empty(0)
+        if self._spreads is None and fused:
+            self._spreads = np.concatenate([_spread_entry(r) for r in fused])
         broke = [why for _, why in runs if why] + ([] if np.all(np.isfinite(w)) else ["NaN"])
         return w, broke
 

@@ -61,8 +61,12 @@ class Param:
     step: float = 3e-2
 
     def value(self, theta: float) -> float:
-        """The physical value of ``theta``."""
-        return self.nominal * np.exp(theta) if self.relative else self.nominal + theta
+        """The physical value of ``theta`` (a relative one past the floats: infinite, a trial
+        the filter refuses)."""
+        if not self.relative:
+            return self.nominal + theta
+        with np.errstate(over="ignore"):
+            return self.nominal * np.exp(theta)
 
 
 def wheel_J3(scene: Scene) -> dict[str, float]:
@@ -214,7 +218,10 @@ def apply(
     by = {p.name: (p, float(t)) for p, t in zip(params, theta, strict=True)}
 
     def factor(name):
-        return np.exp(by[name][1]) if name in by else 1.0
+        if name not in by:
+            return 1.0
+        with np.errstate(over="ignore"):  # infinite past the floats: a trial the filter refuses
+            return np.exp(by[name][1])
 
     def absolute(name, default):
         return by[name][0].value(by[name][1]) if name in by else default
