@@ -109,8 +109,8 @@ def test_file_keys_reach_the_simulated_clock_filter_and_the_rig_s_do_not(tmp_pat
     extra.write_text("[estimator]\nservo_length_std_m = 0.01\nimu_angle_std_rad = 1.0\n")
     keys = sil_keys(extra)
     assert keys["servo_length_std_m"] == 0.01 and keys["imu_angle_std_rad"] == 1.0
-    assert keys["accel_psd_m2_s3"] == RIG_MODEL_KEYS["accel_psd_m2_s3"]  # not overridden
-    assert config.estimator["accel_psd_m2_s3"] != RIG_MODEL_KEYS["accel_psd_m2_s3"]
+    assert keys["servo_time_std_s"] == RIG_MODEL_KEYS["servo_time_std_s"]  # not overridden
+    assert config.estimator["servo_time_std_s"] != RIG_MODEL_KEYS["servo_time_std_s"]
     (result,) = sil_results(config, runs=1, duration_s=0.3, estimator=extra)
     for source in ("servos", "imu_angle"):
         _, nis, dof = result.nis[source]

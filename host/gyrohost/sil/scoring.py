@@ -72,14 +72,12 @@ WHEEL_SPIN_UP_S = 2.0  # the wheel board spins up (ramp and lag) before the run 
 PTY_WAIT_S = 1.0  # longest wait for the wheel board's frames to come through its pty, s
 # Keys for the in-process SIL (on top of emulator_keys), each checked by the marginal NEES of its
 # block (docs/estimator.md). The rig's truth has no random forces and moves its rest lengths as
-# the servos do (the lag at most at their speed, as the filter's): one filter step from the true
-# state reproduces the truth to round-off. White node accelerations keep a little (3e-8). The
+# the servos do (the lag at most at their speed, as the filter's); node noise as the rig's. The
 # servos here are exactly the filter's motion (no read off it, no goal-step spread or delay, no
 # hold): reads to the step's quantisation (4.4 um), and a walk of 1e-13 m^2/s, set for what the
 # old 50 ms lag's model missed where the dynamics pin the rest lengths; the exact motion leaves
 # far less (reports/estimator-history.md, "The servos as a position loop"). Wheels as the rig's.
 RIG_MODEL_KEYS = {
-    "accel_psd_m2_s3": 3e-8,
     "servo_length_std_m": 4.4e-6,
     "servo_time_std_s": 0.0,
     "rest_psd_m2_s": 1e-13,
