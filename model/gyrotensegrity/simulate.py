@@ -474,6 +474,7 @@ class Stepper:
         self.t = float(t0)
         self.max_dt = float(max_dt)
         self.method = "rk4-projected" if project else "rk4"
+        self.tautening = engagement.Tautening(model)
 
     def step(self, dt, u=None, u_end=None):
         """Advance by ``dt`` seconds under input ``u`` (default: the scene's input at ``t``),
@@ -522,13 +523,13 @@ class Stepper:
         goes taut (:func:`.engagement.taut_fraction`), or None."""
         t, x, h = piece
         start = (x, u_at(t))
-        if not engagement.tautening(self.model, start, (x_end, u_at(t + h))):
+        if not self.tautening.between(start, (x_end, u_at(t + h))):
             return None
 
         def at(share):
             return self._rk4(f, t, x, share * h), u_at(t + share * h)
 
-        return engagement.taut_fraction(self.model, start, at)
+        return self.tautening.share(start, at)
 
     def _rk4(self, f, t, x, h):
         return fixed_step(self.method, self.model, f, t, x, h, self.projector)

@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 
 import gyrotensegrity
 from gyrotensegrity import Model, Stepper, load_scene
-from gyrotensegrity.engagement import stretches, taut_fraction, tautening
+from gyrotensegrity.engagement import Tautening
 from gyrotensegrity.integrators import fixed_step
 from gyrotensegrity.projection import project_velocities
 from gyrotensegrity.simulate import dynamics_of
@@ -27,7 +27,7 @@ def going_taut():
     x[model.layout.q_dot] = np.random.default_rng(1).normal(scale=0.1, size=3 * model.m)
     x = project_velocities(model, x)
     u = model.input_at(0.0)
-    s = stretches(model, x, np.zeros_like(u))
+    s = Tautening(model).stretches(x, np.zeros_like(u))
     N, N_dot = model.nodes(x)
     st = model.structure
     S = N[:, st.string_end] - N[:, st.string_start]
@@ -41,8 +41,10 @@ def reference(model, x, u):
     """DOP853 over the step, stopped where string 0 goes taut and restarted there."""
     f, _ = dynamics_of(model, fast=True)
 
+    tautening = Tautening(model)
+
     def taut(t, y):
-        return stretches(model, y, u)[0]
+        return tautening.stretches(y, u)[0]
 
     taut.terminal, taut.direction = True, 1.0
     first = solve_ivp(lambda t, y: f(t, y, u), (0.0, H), x, "DOP853", rtol=1e-12, atol=1e-14,
@@ -75,8 +77,13 @@ def test_the_crossing_is_found_on_its_taut_side(going_taut):
     def at(share):
         return fixed_step("rk4", model, lambda t, y: f(t, y, u), 0.0, x, share * H), u
 
-    assert tautening(model, (x, u), at(1.0))
-    share = taut_fraction(model, (x, u), at)
+    tautening = Tautening(model)
+    N, _ = model.nodes(x)
+    st = model.structure
+    lengths = np.linalg.norm(N[:, st.string_end] - N[:, st.string_start], axis=0)
+    np.testing.assert_allclose(tautening.stretches(x, u), lengths - u[: model.alpha], atol=1e-15)
+    assert tautening.between((x, u), at(1.0))
+    share = tautening.share((x, u), at)
     assert 0.3 < share < 0.5
-    assert 0.0 < stretches(model, *at(share))[0] < 1e-12
-    assert not tautening(model, at(share), at(1.0))
+    assert 0.0 < tautening.stretches(*at(share))[0] < 1e-12
+    assert not tautening.between(at(share), at(1.0))
