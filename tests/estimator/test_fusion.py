@@ -192,3 +192,18 @@ def test_predicted_axes_that_are_not_a_rotation_raise_with_member(model, config,
     rate, accel, angle = imu_sample(ekf)
     with pytest.raises(EstimatorError, match=r"not a rotation \(R\^T R off the identity by 1\)"):
         ekf.fuse_imu(ekf.t + config.imu_latency_s, rate, accel, angle)
+
+
+def test_an_update_whose_stacked_covariance_is_singular_raises_with_its_sources(model, config):
+    """Two samples each with a positive definite ``S`` (each passes its gate) whose stacked
+    ``S`` is singular (the same row twice, no sensor noise): the reference update's inverse
+    fails, and the filter stops with an error naming them (the likelihood fit walls such a
+    trial off), not a linear-algebra traceback."""
+    ekf = TensegrityEKF(model, config, fast=False)
+    H = np.zeros((1, len(ekf.x)))
+    H[0, 0] = 1.0
+    sources = ("imu_rate", "imu_accel")
+    twice = [Measurement(s, np.array([1e-4]), np.zeros(1), H, np.zeros((1, 1))) for s in sources]
+    with pytest.raises(EstimatorError, match="update of imu_rate, imu_accel is singular") as caught:
+        fuse(ekf, *twice)
+    assert caught.value.member == "imu_rate, imu_accel"

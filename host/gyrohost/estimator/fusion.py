@@ -20,6 +20,8 @@ from scipy.stats import chi2
 
 from gyrotensegrity.fast import _fastkernel
 
+from .errors import EstimatorError
+
 
 @dataclass(frozen=True)
 class Innovation:
@@ -128,7 +130,12 @@ def _fuse_reference(ekf, measurements) -> list[Innovation]:
             i += k
         # filterpy forms y = z - Hx(x); passing the innovation as z and 0 as Hx keeps the
         # wrapped angle residuals computed above
-        kf.update(y.reshape(-1, 1), lambda _x: H, lambda _x: np.zeros((len(y), 1)), R=R)
+        try:
+            kf.update(y.reshape(-1, 1), lambda _x: H, lambda _x: np.zeros((len(y), 1)), R=R)
+        except np.linalg.LinAlgError:  # each S passed its Cholesky, the stacked one is singular
+            sources = ", ".join(meas.source for _, meas in keep)
+            what = f"t = {ekf.t:.6g} s: the update of {sources} is singular (the covariance)"
+            raise EstimatorError(what, ekf.t, sources) from None
         ekf.constrain()
     for r in results:
         ekf.emit(r)
