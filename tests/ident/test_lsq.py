@@ -60,3 +60,41 @@ def test_a_start_on_a_lower_bound_still_moves():
         xtol=1e-10,
     )  # fmt: skip
     np.testing.assert_allclose(sol.x, [0.04, 0.003], atol=1e-6)
+
+
+def test_a_flat_direction_stops_at_its_ceiling():
+    """A residual that falls on without end along one parameter (the likelihood's flat side in
+    the node noise: a factor of 1e170 broke every run) ends at the upper bound; the other
+    parameter still reaches its minimum. A start on the ceiling starts a step below it."""
+
+    def falling(theta):
+        return np.array([np.exp(-theta[0]), theta[1] - 0.2])
+
+    for start in (0.0, 5.0):
+        sol = lsq.solve(
+            falling, lambda ts: [falling(t) for t in ts], np.array([start, 0.0]), [0.3, 0.01],
+            [-np.inf, -np.inf], [5.0, np.inf], xtol=1e-10,
+        )  # fmt: skip
+        assert 5.0 - 1e-3 < sol.x[0] <= 5.0  # the trust region keeps strictly inside
+        assert sol.x[1] == pytest.approx(0.2, abs=1e-6)
+
+
+def test_the_node_noise_is_fitted_below_the_accelerometer_s_own_density():
+    """The process-noise factor's ceiling: the accelerometer's white noise as a density; a
+    nominal above it keeps its own value as the ceiling."""
+    from dataclasses import replace
+
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrohost.ident.params import parameters
+    from gyrohost.resources import shipped
+    from gyrotensegrity import load_scene
+
+    config = load_rig_config(shipped("config", "sim-rig"))
+    est = for_rig(config)
+    density = est.imu_accel_std_m_s2**2 / config.imu.rate_hz
+    (p,) = parameters(load_scene(config.scene_path), config, ["process-noise"], 0.01, 1, est, True)
+    assert p.value(p.upper) == pytest.approx(density, rel=1e-12)
+    loud = replace(est, accel_psd_m2_s3=10.0 * density)
+    (p,) = parameters(load_scene(config.scene_path), config, ["process-noise"], 0.01, 1, loud, True)
+    assert p.upper == 0.0

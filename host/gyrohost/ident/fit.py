@@ -439,6 +439,7 @@ def solver(params, progress, max_nfev: int, ftol: float, scaled: bool = False):
     step of the latency in, every such step was refused, and the fit ended on ``xtol`` with
     the latency and the noise scale where they started."""
     lower = np.array([p.lower for p in params])
+    upper = np.array([p.upper for p in params])
     steps = [p.step for p in params]
     options = {"x_scale": np.array(steps, float)} if scaled else {}
 
@@ -452,7 +453,7 @@ def solver(params, progress, max_nfev: int, ftol: float, scaled: bool = False):
         return lsq.solve(
             lambda theta: reported([problem(theta)])[0],
             lambda thetas: reported(problem.batch(thetas)),
-            theta0, steps, lower, xtol=1e-10, ftol=ftol, max_nfev=max_nfev, **options,
+            theta0, steps, lower, upper, xtol=1e-10, ftol=ftol, max_nfev=max_nfev, **options,
         )  # fmt: skip
 
     return solve

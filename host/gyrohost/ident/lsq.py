@@ -60,14 +60,17 @@ def off_the_bounds(theta0, lower, steps) -> np.ndarray:
     return theta0
 
 
-def solve(residual: Residual, batch: Batch, theta0, steps, lower, **options) -> OptimizeResult:
-    """``least_squares(residual, theta0, bounds=(lower, inf), **options)`` with the Jacobian of
+def solve(
+    residual: Residual, batch: Batch, theta0, steps, lower, upper=np.inf, **options
+) -> OptimizeResult:
+    """``least_squares(residual, theta0, bounds=(lower, upper), **options)`` with the Jacobian of
     :func:`forward_jacobian` over ``steps`` (shape (p,), positive) from ``batch``; the residual
     at the point of each Jacobian is the one the solver has just evaluated there."""
     steps = np.asarray(steps, float)
     if np.any(steps <= 0.0):
         raise ValueError(f"steps must be positive, got {steps.tolist()}")
     theta0 = off_the_bounds(theta0, lower, steps)
+    theta0 = np.minimum(theta0, np.asarray(upper, float) - steps)  # the same below a ceiling
     last_theta, last_r = None, None
 
     def remembered(theta):
@@ -79,4 +82,4 @@ def solve(residual: Residual, batch: Batch, theta0, steps, lower, **options) -> 
         same = last_theta is not None and np.array_equal(last_theta, theta)
         return forward_jacobian(batch, theta, last_r if same else remembered(theta), steps)
 
-    return least_squares(remembered, theta0, jac=jacobian, bounds=(lower, np.inf), **options)
+    return least_squares(remembered, theta0, jac=jacobian, bounds=(lower, upper), **options)

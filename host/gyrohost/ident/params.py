@@ -45,8 +45,8 @@ class Param:
     nominal : float
         The configuration's value (physical unit), reported beside the estimate.
     unit : str
-    lower : float
-        Lower bound of ``theta``.
+    lower, upper : float
+        Bounds of ``theta``.
     step : float
         Finite-difference step of ``theta`` for the Jacobian: wide enough to step over the
         small jumps of the fixed-step simulation where a string goes slack (its damping stops).
@@ -59,6 +59,7 @@ class Param:
     unit: str
     lower: float = -np.inf
     step: float = 3e-2
+    upper: float = np.inf
 
     def value(self, theta: float) -> float:
         """The physical value of ``theta`` (a relative one past the floats: infinite, a trial
@@ -93,6 +94,15 @@ def bias_name(group: str, axis: str, recording: int, recordings: int) -> str:
     (a MEMS bias changes from one power-up to the next), ``gyro_bias.x[2]`` for the second."""
     name = f"{group.replace('-', '_')}.{axis}"
     return name if recordings == 1 else f"{name}[{recording + 1}]"
+
+
+def accel_psd_ceiling(est, config) -> float:
+    """The largest node-acceleration noise the likelihood may fit, m^2/s^3: the accelerometer's
+    own white noise as a density (``imu_accel_std_m_s2^2 / rate_hz``). Above it the filter's
+    prediction of the frame's acceleration is worse than one sample of it, the IMU carries the
+    motion alone and the likelihood is flat; there the solver's trust region grew until a
+    factor of 1e170 broke every run and left the other parameters undetermined."""
+    return est.imu_accel_std_m_s2**2 / config.imu.rate_hz
 
 
 def parameters(
@@ -165,7 +175,9 @@ def parameters(
             nominal = 0.0 if est is None else est.imu_latency_s  # latency >= 0
             out.append(Param("imu_latency", g, False, nominal, "s", -nominal, LATENCY_STEP_S))
         elif g == "process-noise":
-            out.append(Param("accel_psd", g, True, est.accel_psd_m2_s3, "m^2/s^3", step=0.3))
+            nominal, ceiling = est.accel_psd_m2_s3, accel_psd_ceiling(est, config)
+            upper = max(np.log(ceiling / nominal), 0.0)  # a nominal above it may stay
+            out.append(Param("accel_psd", g, True, nominal, "m^2/s^3", step=0.3, upper=upper))
         else:
             out.append(Param("servo_lag", g, False, servo_lag_s, "s", -servo_lag_s, 5e-3))
     return out
