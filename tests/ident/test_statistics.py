@@ -371,3 +371,48 @@ def test_a_residual_of_another_length_is_walled_and_named():
         "3 residuals where the first evaluation had 4 at J3 1, bar_mass 1, stiffness 1, "
         "damping 1, mounting.roll 0"
     ]
+
+
+def test_held_loose_is_the_covariance_given_the_loose_ones():
+    """The Schur complement: the inverse of the information of the others alone."""
+    from gyrohost.ident.fit import held_loose
+
+    root = RNG.normal(size=(3, 3))
+    cov = root @ root.T + np.diag([0.1, 0.1, 40.0])
+    loose = np.array([False, False, True])
+    held = held_loose(cov, loose)
+    keep = ~loose
+    np.testing.assert_allclose(
+        held[np.ix_(keep, keep)], np.linalg.inv(np.linalg.inv(cov)[np.ix_(keep, keep)]), rtol=1e-10
+    )
+    assert not held[loose].any() and not held[:, loose].any()
+    assert held_loose(cov, np.zeros(3, bool)) is cov
+
+
+def test_a_loose_parameter_does_not_break_the_others_profiles():
+    """Two parameters correlated, the second barely seen (a node noise on a log that does not
+    fix it: linearised sigma 3.3) and its model broken beyond 5 (the filter at a factor e^5):
+    the first's profile along the full covariance steps the second by tens and breaks, so it
+    had no sigma; with the second held it reads the first's own, and the second stays loose."""
+    from gyrohost.ident.fit import secant_sigmas
+
+    class Loose:
+        dynamic = np.array([True, True])
+
+        def __init__(self):
+            self.failures = []
+
+        def __call__(self, theta):
+            if abs(theta[1]) > 5.0:
+                self.failures.append("broke")
+                return np.full(2, FAILED_RESIDUAL)
+            return np.array([10.0 * theta[0] + 0.3 * theta[1], 0.3 * theta[1]])
+
+        def batch(self, thetas):
+            return [self(t) for t in thetas]
+
+    J = np.array([[10.0, 0.3], [0.0, 0.3]])
+    cov = np.linalg.inv(J.T @ J)  # sigmas 0.14 and 3.3, correlation -0.95
+    sigma, _ = secant_sigmas(Loose(), np.zeros(2), cov, np.ones(2, bool), 1.0, 0.0)
+    assert sigma[0] == pytest.approx(0.1, rel=1e-6)  # theta[1] held: the cost 50 theta[0]^2
+    assert sigma[1] >= 1.0

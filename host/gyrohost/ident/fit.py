@@ -557,15 +557,34 @@ def scale_direction(problem: Problem, theta, members) -> np.ndarray:
 
 def secant_sigmas(problem: Problem, theta, cov, separable, s2: float, cost0: float):
     """Linearised sigmas, with those of the separable parameters that need a simulation
-    replaced by :func:`.profile.secant_sigma`; and the largest roughness met (cost units)."""
+    replaced by :func:`.profile.secant_sigma`; and the largest roughness met (cost units).
+    The others' profiles hold the loose parameters (:func:`held_loose`)."""
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    loose = sigma >= DETERMINED_SIGMA
+    held = held_loose(cov, loose)
     roughness = 0.0
     for i in np.flatnonzero(separable & problem.dynamic):
         e = np.zeros(len(theta))
         e[i] = 1.0
-        sigma[i], rough = profile.secant_sigma(problem, theta, cov, e, s2, cost0)
+        along = cov if loose[i] else held
+        sigma[i], rough = profile.secant_sigma(problem, theta, along, e, s2, cost0)
         roughness = max(roughness, rough)
     return sigma, roughness
+
+
+def held_loose(cov, loose):
+    """``cov`` (p, p) of the other parameters with the ``loose`` ones (mask, shape (p,): a
+    linearised sigma of :data:`DETERMINED_SIGMA` or more) held at the optimum: the Schur
+    complement. A profile moves its parameter along ``cov``'s column, every correlated one by
+    its share of its own sigma; a loose one's is a factor e or more (a flat likelihood: the node
+    noise on a log that does not fix it), so each mounting profile stepped the noise by factors
+    of 1e30 and beyond, broke the filter, and left the mounting undetermined with it."""
+    if not loose.any():
+        return cov
+    gain = cov[:, loose] @ np.linalg.pinv(cov[np.ix_(loose, loose)])
+    held = cov - gain @ cov[loose, :]
+    held[loose, :], held[:, loose] = 0.0, 0.0
+    return held
 
 
 def _scaled(cov, sigma, separable):
