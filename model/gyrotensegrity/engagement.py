@@ -54,12 +54,13 @@ class Tautening:
         goes taut, on the taut side: regula falsi (Illinois) on the largest stretch of the
         strings slack at the start, ``at(share)`` giving the state and the input that share of
         the step on."""
-        slack = self.damped & (self.stretches(*start) <= 0.0)
+        before = self.stretches(*start)
+        slack = self.damped & (before <= 0.0)
 
         def lead(share):
             return float(np.max(self.stretches(*at(share))[slack]))
 
-        lo, hi, g_lo, g_hi, side = 0.0, 1.0, lead(0.0), lead(1.0), 0
+        lo, hi, g_lo, g_hi, side = 0.0, 1.0, float(np.max(before[slack])), lead(1.0), 0
         for _ in range(MAX_ITERATIONS):
             if hi - lo <= TOLERANCE:
                 break
