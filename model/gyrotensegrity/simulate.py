@@ -520,7 +520,7 @@ class Stepper:
 
     def _taut_share(self, f, u_at, piece, x_end):
         """The share of the substep ``piece`` (t, x, h) that ends at ``x_end`` at which a string
-        goes taut (:func:`.engagement.taut_fraction`), or None."""
+        goes taut (:meth:`.engagement.Tautening.share`), or None."""
         t, x, h = piece
         start = (x, u_at(t))
         if not self.tautening.between(start, (x_end, u_at(t + h))):

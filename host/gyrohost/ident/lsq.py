@@ -31,7 +31,9 @@ def forward_jacobian(batch: Batch, theta, r0: np.ndarray, steps) -> np.ndarray:
     r0 : ndarray, shape (n,)
         The residual at ``theta``.
     steps : ndarray, shape (p,)
-        Each parameter's step (units of ``theta``), positive: the upper bounds are open.
+        Each parameter's step (units of ``theta``), positive: forward also from an upper bound
+        (the node noise's, :func:`.params.accel_psd_ceiling`, bounds the fit's answer; the
+        filter holds a step past it).
     """
     theta = np.asarray(theta, float)
     moved = theta + np.diag(np.asarray(steps, float))
@@ -44,9 +46,9 @@ FEASIBLE_MARGIN = 1e-10
 bound is moved this far inside it (scipy 1.17, ``least_squares``)."""
 
 
-def off_the_bounds(theta0, lower, steps) -> np.ndarray:
+def off_the_bounds(theta0, lower, upper, steps) -> np.ndarray:
     """``theta0`` with each parameter that starts on its lower bound (within
-    :data:`FEASIBLE_MARGIN`) one step above it.
+    :data:`FEASIBLE_MARGIN`) one step above it, on its upper bound one step below it.
 
     scipy's trust region starts as wide as the scaled start is long (``trf``: ``Delta =
     norm(x0 ...)``, 1 only for a start of exactly 0). A fit that starts from 0 with a parameter
@@ -54,9 +56,10 @@ def off_the_bounds(theta0, lower, steps) -> np.ndarray:
     the bound, a first trust region some 1e-15 wide, and every step refused until ``xtol``
     ends it where it began. One step inside, the region starts a step wide and grows."""
     theta0 = np.array(theta0, float)
-    lower = np.asarray(lower, float)
-    on = np.isfinite(lower) & (theta0 - lower <= FEASIBLE_MARGIN * np.maximum(1.0, np.abs(lower)))
-    theta0[on] = lower[on] + steps[on]
+    for bound, inward in ((np.asarray(lower, float), 1.0), (np.asarray(upper, float), -1.0)):
+        gap = inward * (theta0 - bound)
+        on = np.isfinite(bound) & (gap <= FEASIBLE_MARGIN * np.maximum(1.0, np.abs(bound)))
+        theta0[on] = bound[on] + inward * steps[on]
     return theta0
 
 
@@ -69,8 +72,7 @@ def solve(
     steps = np.asarray(steps, float)
     if np.any(steps <= 0.0):
         raise ValueError(f"steps must be positive, got {steps.tolist()}")
-    theta0 = off_the_bounds(theta0, lower, steps)
-    theta0 = np.minimum(theta0, np.asarray(upper, float) - steps)  # the same below a ceiling
+    theta0 = off_the_bounds(theta0, lower, np.broadcast_to(upper, steps.shape), steps)
     last_theta, last_r = None, None
 
     def remembered(theta):

@@ -101,7 +101,7 @@ def accel_psd_ceiling(est, config) -> float:
     own white noise as a density (``imu_accel_std_m_s2^2 / rate_hz``). Above it the filter's
     prediction of the frame's acceleration is worse than one sample of it, the IMU carries the
     motion alone and the likelihood is flat; there the solver's trust region grew until a
-    factor of 1e170 broke every run and left the other parameters undetermined."""
+    factor of 1e163 broke the filter and left the other parameters undetermined."""
     return est.imu_accel_std_m_s2**2 / config.imu.rate_hz
 
 
