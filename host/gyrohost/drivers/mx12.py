@@ -123,6 +123,8 @@ def lag_error_after(error, dt_s: float, lag_s: float, max_speed) -> np.ndarray:
     error = np.asarray(error, dtype=float)
     size, knee = np.abs(error), np.asarray(max_speed, dtype=float) * lag_s
     over = size > knee
+    if not over.any():  # the lag alone (the filter asks every step: the short way)
+        return error * np.exp(-np.maximum(dt_s, 0.0) / lag_s)
     with np.errstate(invalid="ignore", divide="ignore"):  # inf * 0 in the branch not taken
         t_knee = np.where(over, (size - knee) / max_speed, 0.0)
         linear = np.where(over, np.maximum(size - max_speed * dt_s, knee), size)

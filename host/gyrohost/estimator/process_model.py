@@ -3,7 +3,9 @@
 Two variants (``process_method``):
 
 ``lean`` (default)
-    One classic RK4 step over the whole filter step (10 ms) for the state; for the covariance
+    Classic RK4 for the state, in as few equal substeps of the filter step (10 ms) as keep its
+    error on the model's fastest oscillation within :data:`RK4_STEP_ERROR` (two on the simulated
+    D-bar, one on the prism); for the covariance
     the RK4 step of the linearised dynamics, ``F = I + A dt + (A dt)^2/2 + (A dt)^3/6 +
     (A dt)^4/24`` (equal to ``exp(A dt)`` to 1e-3 here: the eigenvalues of ``A dt`` stay below
     0.6 although ``|A dt|`` ~ 30; scipy's ``expm`` gave the same F at 50 times the cost), with
@@ -41,6 +43,7 @@ step); the gyro bias is constant. Process noise is white: node accelerations
 import numpy as np
 from scipy.special import ndtr
 
+from gyrotensegrity.diagnostics import highest_frequency
 from gyrotensegrity.fast import FastDynamics
 from gyrotensegrity.fast_jacobian import FastJacobian, JacobianUnsupported, outer_rows
 
@@ -50,6 +53,26 @@ from .kink import expected_positive_part
 from .layout import layout_of
 from .motor_reaction import MotorReaction
 from .process_noise import ProcessNoise
+
+RK4_STEP_ERROR = 1e-3
+"""RK4's largest error per substep on the model's fastest oscillation, as a share of its
+amplitude: ``(omega h)^5 / 120`` (the leading term of ``exp(i omega h)`` less RK4's
+polynomial), so substeps of ``omega h <= (120 RK4_STEP_ERROR)^(1/5)`` = 0.65. One 10 ms step
+of the D-bar's strings (120 rad/s) errs by 2 % per step: the mean strays from a structure that
+drifts while a slack string leaves it a mechanism, the filter's noise says nothing of it, and
+its NEES grows without bound; at this share it stays at its dof with no node noise, and halving
+it changes no figure (docs/estimator-noise.md, "Node accelerations")."""
+
+RK4_ACCURATE = (120.0 * RK4_STEP_ERROR) ** 0.2
+"""``omega h`` of a substep whose error is :data:`RK4_STEP_ERROR`."""
+
+
+def accurate_substep(model) -> float:
+    """The longest RK4 substep, s, that keeps the error on ``model``'s fastest oscillation
+    (:func:`gyrotensegrity.diagnostics.highest_frequency`) within :data:`RK4_STEP_ERROR`; inf
+    for a model with no oscillation."""
+    omega, _ = highest_frequency(model)
+    return RK4_ACCURATE / omega if omega > 0.0 else np.inf
 
 
 def on_wire(omega_rad_s, config):
@@ -82,6 +105,8 @@ class ProcessModel(ProcessNoise):
         self.dyn = FastDynamics(model)
         self.layout = layout_of(model)
         self.columns = np.arange(self.layout.n_dynamic)
+        self.lean_substep_s = accurate_substep(model)
+        """The lean model's longest RK4 substep, s (:func:`accurate_substep`)."""
         self._noise: dict[float, np.ndarray] = {}
         self.wheel_command_rad_s: np.ndarray | None = None
         """Commanded spins (n_w,) rad/s the wheels follow (``wheel_lag_s`` > 0); None: the
@@ -342,32 +367,38 @@ class ProcessModel(ProcessNoise):
         if A is None:
             self._aim(sp0, 0.0)
             _, A = self.linearise(xd, u)
-        X = xd[None, :]
-        k1, k2, k3, k4 = self._rk4_stages(X, u, dt, sp0, 0.0)
-        x_next = xd + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)[0]
-        Ad = A * dt
+        x_next = self._rk4_substeps(xd[None, :], u, dt, sp0)[0]
+        n = self.substeps(dt)
+        Ad = A * (dt / n)
         Ad2 = Ad @ Ad
         Ad3 = Ad2 @ Ad
         F = np.eye(len(xd)) + Ad + Ad2 / 2.0 + Ad3 / 6.0 + Ad3 @ Ad / 24.0
-        return x_next, F
+        return x_next, np.linalg.matrix_power(F, n)
 
     def substeps(self, dt) -> int:
-        """RK4 steps the process model takes over ``dt`` s: one (lean), or substeps of at
-        most ``rk4_substep_s`` (rk4)."""
-        if self.config.process_method == "lean":
-            return 1
-        return max(1, int(np.ceil(dt / self.config.rk4_substep_s - 1e-9)))
+        """RK4 substeps the process model takes over ``dt`` s, each at most
+        ``lean_substep_s`` (lean) or ``rk4_substep_s`` (rk4) long."""
+        longest = (
+            self.lean_substep_s if self.config.process_method == "lean" else self.config.rk4_substep_s
+        )
+        return max(1, int(np.ceil(dt / longest - 1e-9)))
 
     def _rk4(self, xd, u, dt, sp0):
+        if self.jac is not None:
+            n = self.substeps(dt)
+            return self._rk4_closed_form(xd, u, dt / n, n, sp0)
+        X = self._rk4_substeps(complex_step.perturbed(xd, self.columns), u, dt, sp0)
+        return complex_step.split(X)
+
+    def _rk4_substeps(self, X, u, dt, sp0):
+        """The batch of states ``X`` (K, n_dynamic) after :meth:`substeps` RK4 substeps over
+        ``dt`` s."""
         n = self.substeps(dt)
         h = dt / n
-        if self.jac is not None:
-            return self._rk4_closed_form(xd, u, h, n, sp0)
-        X = complex_step.perturbed(xd, self.columns)
         for j in range(n):
             k1, k2, k3, k4 = self._rk4_stages(X, u, h, sp0, j * h)
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        return complex_step.split(X)
+        return X
 
     def _rk4_closed_form(self, x, u, h, n, sp0):
         """``n`` RK4 substeps of ``h`` s with the step's Jacobian by the chain rule through the

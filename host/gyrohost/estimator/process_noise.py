@@ -64,9 +64,9 @@ class ProcessNoise:
 
     def lag_factor(self, dt):
         """The step's factor on a rest length's offset from its command: the filter's
-        integrator over ``dt`` s of the lag ``servo_lag_s`` (the lean model's one RK4 step, the
-        rk4 model's substeps). A walk ``var (1 - factor^2)`` keeps the spread ``var`` about the
-        lag whatever the steps: the hold's, a goal step's."""
+        integrator over ``dt`` s of the lag ``servo_lag_s`` (its RK4 substeps). A walk ``var (1
+        - factor^2)`` keeps the spread ``var`` about the lag whatever the steps: the hold's, a
+        goal step's."""
         n = self.substeps(dt)
         z = -dt / n / self.config.servo_lag_s
         return (1.0 + z * (1.0 + z / 2.0 * (1.0 + z / 3.0 * (1.0 + z / 4.0)))) ** n
@@ -117,7 +117,8 @@ class ProcessNoise:
           went singular;
         - the step across a jump: a string slack at the step's start that its rate takes taut
           within the step (``mu <= 0 < mu + d(length)/dt dt``) jumps at a time the RK4 stages
-          place to within ``J^2`` :data:`RK4_JUMP_VARIANCE`.
+          of its substep place to within ``(J / n)^2`` :data:`RK4_JUMP_VARIANCE` of the step
+          (``n`` substeps, :meth:`substeps`).
         """
         L = self.layout
         margin, g = self.tension_margins(x)
@@ -132,7 +133,7 @@ class ProcessNoise:
             share * sigma2[near] * unexplained_variance(margin[near] / sigma, jump[near] / sigma)
         )
         tautening = (margin <= 0.0) & (margin + s_dot * dt > 0.0) & (jump > 0.0)
-        var[tautening] += RK4_JUMP_VARIANCE * jump[tautening] ** 2
+        var[tautening] += RK4_JUMP_VARIANCE * (jump[tautening] / self.substeps(dt)) ** 2
         q = self.config.rest_jitter_psd_m2_s
         if q > 0.0:
             a = margin / np.sqrt(q / dt)
