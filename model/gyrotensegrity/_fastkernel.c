@@ -87,6 +87,25 @@ static void cholesky_subst(const double* A, double* b, int64_t n) {
     cholesky_subst_ld(A, n, b, n);
 }
 
+/* Columns c0..c1-1 of B (n rows of leading dimension ld) <- A^-1 B with A's Cholesky factor L
+ * (lower triangle of A, n x n): cholesky_subst on every column at once, a row at a time (the
+ * Jacobian's thirty columns in one pass, not thirty). */
+static void cholesky_subst_rows(const double* A, int64_t n, double* B, int64_t ld, int64_t c0,
+                                int64_t c1) {
+    for (int64_t i = 0; i < n; i++) {
+        double *bi = B + i * ld, r = 1.0 / A[i * n + i];
+        for (int64_t k = 0; k < i; k++)
+            for (int64_t c = c0; c < c1; c++) bi[c] -= A[i * n + k] * B[k * ld + c];
+        for (int64_t c = c0; c < c1; c++) bi[c] *= r;
+    }
+    for (int64_t i = n - 1; i >= 0; i--) {
+        double *bi = B + i * ld, r = 1.0 / A[i * n + i];
+        for (int64_t k = i + 1; k < n; k++)
+            for (int64_t c = c0; c < c1; c++) bi[c] -= A[k * n + i] * B[k * ld + c];
+        for (int64_t c = c0; c < c1; c++) bi[c] *= r;
+    }
+}
+
 static int64_t cholesky_solve(double* A, double* b, int64_t n) {
     int64_t status = cholesky_factor(A, n);
     if (!status) cholesky_subst(A, b, n);
@@ -230,7 +249,7 @@ static int64_t evaluate(const Consts* k, const int64_t* d, const double* x, cons
 static int64_t jacobian_work(const int64_t* d) {
     int64_t m = d[0], beta = d[1], alpha = d[2], nw = d[3];
     int64_t K = beta + alpha, D = 6 * m + nw + alpha;
-    return 27 * K + 3 * m + 11 * beta + 3 * alpha + beta * beta + beta * m + (3 * m + beta) * D;
+    return 27 * K + 3 * m + 10 * beta + 3 * alpha + beta * beta + beta * m + (3 * m + beta) * D;
 }
 
 /* Per member, the derivative of its force column (bars: gyroscopic, strings: tension) with
@@ -324,7 +343,7 @@ static int64_t jacobian_columns(const Consts* k, const int64_t* d, const double*
     const double *q = x, *qd = x + 3 * m, *om = x + 6 * m, *rest = x + 6 * m + nw;
     double *pos = w, *vel = pos + 3 * K, *cols = vel + 3 * K, *Dq = cols + 3 * K;
     double *Dd = Dq + 9 * K, *f0 = Dd + 9 * K, *V = f0 + 3 * m, *gxb = V + 3 * beta;
-    double *Dr = gxb + 3 * beta, *mu = Dr + 3 * alpha, *tmp = mu + beta, *Z = tmp + beta;
+    double *Dr = gxb + 3 * beta, *mu = Dr + 3 * alpha, *Z = mu + beta;
     double *P = Z + beta * beta, *YmuE = P + 3 * beta, *Jf = YmuE + beta * m;
     double* Jr = Jf + 3 * m * D;
 
@@ -397,11 +416,7 @@ static int64_t jacobian_columns(const Consts* k, const int64_t* d, const double*
                 row[a * m + l] -=
                     P[a * beta + j] * k->EE_T[l * K + j] + pos[a * K + j] * YmuE[j * m + l];
     }
-    for (int64_t c = c0; c < c1; c++) {
-        for (int64_t j = 0; j < beta; j++) tmp[j] = Jr[j * D + c];
-        cholesky_subst(Z, tmp, beta);
-        for (int64_t j = 0; j < beta; j++) Jr[j * D + c] = tmp[j];
-    }
+    cholesky_subst_rows(Z, beta, Jr, D, c0, c1);
     /* z_ddot = a0 + (B mu^) E M^-1 */
     for (int64_t r = 0; r < 3; r++) {
         for (int64_t j = 0; j < m; j++) {
@@ -434,12 +449,13 @@ static int64_t jacobian(const Consts* k, const int64_t* d, const double* x, doub
  * dynamics leave alone (biases, ...). spec (doubles): [dt, servo_lag, wheel_lag, wheel_accel,
  * follow, have_A, rest command (alpha), wheel accelerations (n_w), setpoints at the step's
  * start (n_w), commands (n_w), jitter density (m^2 s), the mean kink's jitter std (m; 0: the
- * sharp kink), the filter's step (process_dt_s, s)]. follow = 0: the wheels accelerate at the
+ * sharp kink), the filter's step (process_dt_s, s), RK4 substeps (ProcessModel.substeps)].
+ * follow = 0: the wheels accelerate at the
  * given constant accelerations; 1: they lag (wheel_lag) behind setpoints ramping at wheel_accel
  * from the start setpoints towards the commands. */
 typedef struct {
     double dt, servo_lag, wheel_lag, wheel_accel;
-    int follow, have_A;
+    int follow, have_A, substeps;
     double jitter, kink_sd, filter_dt;
     const double *rest_cmd, *wheel_acc, *sp0, *cmd;
 } StepSpec;
@@ -459,10 +475,11 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->jitter = p->cmd[nw];
     p->kink_sd = p->cmd[nw + 1];
     p->filter_dt = p->cmd[nw + 2];
+    p->substeps = (int)p->cmd[nw + 3];
 }
 
 static int64_t step_spec_size(const int64_t* d) {
-    return 9 + d[2] + 3 * d[3];
+    return 10 + d[2] + 3 * d[3];
 }
 
 /* E max(a - Z, 0) = a Phi(a) + phi(a), Z standard normal (gyrohost.estimator.kink). */
@@ -518,28 +535,14 @@ static void mean_pulling(const Consts* k, const int64_t* d, const double* z, dou
     }
 }
 
-/* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
- * (work); w: the kernel's work. */
-static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSpec* p,
-                                 const double* z, double tau, double* dz, double* xm, double* um,
-                                 double* out, double* w) {
-    int64_t m = d[0], alpha = d[2], nw = d[3], ntq = d[4];
+/* dz/dt of z at time tau into the step but the accelerations (dz[3m:6m]): positions move with
+ * the rates, the wheels follow their setpoints (or the given accelerations), the rest lengths
+ * their lag. */
+static void other_rates(const int64_t* d, const StepSpec* p, const double* z, double tau,
+                        double* dz) {
+    int64_t m = d[0], alpha = d[2], nw = d[3];
     const double *om = z + 6 * m, *rest = om + nw;
-    for (int64_t i = 0; i < 6 * m; i++) xm[i] = z[i];
-    for (int64_t i = 0; i < nw; i++) xm[6 * m + i] = 0.0; /* wheel angles: no force sees them */
-    for (int64_t t = 0; t < ntq; t++) {
-        double s = 0.0;
-        for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
-        xm[6 * m + nw + t] = s;
-    }
-    mean_pulling(k, d, z, p->kink_sd, um, NULL);
-    for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
-    int64_t status = evaluate(k, d, xm, um, out, w);
-    if (status) return status;
-    for (int64_t i = 0; i < 3 * m; i++) {
-        dz[i] = z[3 * m + i];
-        dz[3 * m + i] = out[3 * m + i];
-    }
+    for (int64_t i = 0; i < 3 * m; i++) dz[i] = z[3 * m + i];
     double reach = p->wheel_accel * tau;
     for (int64_t i = 0; i < nw; i++) {
         if (p->follow) {
@@ -552,6 +555,28 @@ static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSp
     }
     for (int64_t i = 0; i < alpha; i++)
         dz[6 * m + nw + i] = (p->rest_cmd[i] - rest[i]) / p->servo_lag;
+}
+
+/* dz/dt at time tau into the step; xm, um, out: the kernel's state, input and derivative
+ * (work); w: the kernel's work. */
+static int64_t filter_derivative(const Consts* k, const int64_t* d, const StepSpec* p,
+                                 const double* z, double tau, double* dz, double* xm, double* um,
+                                 double* out, double* w) {
+    int64_t m = d[0], alpha = d[2], nw = d[3], ntq = d[4];
+    const double* om = z + 6 * m;
+    for (int64_t i = 0; i < 6 * m; i++) xm[i] = z[i];
+    for (int64_t i = 0; i < nw; i++) xm[6 * m + i] = 0.0; /* wheel angles: no force sees them */
+    for (int64_t t = 0; t < ntq; t++) {
+        double s = 0.0;
+        for (int64_t i = 0; i < nw; i++) s += k->tsel[t * nw + i] * om[i];
+        xm[6 * m + nw + t] = s;
+    }
+    mean_pulling(k, d, z, p->kink_sd, um, NULL);
+    for (int64_t i = 0; i < nw; i++) um[alpha + i] = om[i]; /* speed wheels read it from u */
+    int64_t status = evaluate(k, d, xm, um, out, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m; i++) dz[3 * m + i] = out[3 * m + i];
+    other_rates(d, p, z, tau, dz);
     return 0;
 }
 
@@ -656,7 +681,7 @@ static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
     int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = mean_jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
-    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 3 * D * D + D * n + 6 * K + 2 * D +
+    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 4 * D * D + D * n + 6 * K + 2 * D +
            3 * m + 9 * m * alpha + alpha + (ev > jw ? ev : jw);
 }
 
@@ -700,7 +725,8 @@ static double margin_variance(const double* g, const double* P, int64_t n, int64
  * sigma_i) x filter_dt / dt for the linearisation (a filter step's error, spread over a split
  * step's parts), sigma_i^2 = g_i P g_i^T the variance of the tension margin mu_i (a length) at
  * x, J_i the force's jump as a length ((c/k) s_dot of a lengthening string), plus J_i^2 / 36
- * where the string goes taut within the step. Jt: 3 m x D work. */
+ * where the string goes taut within the step (J_i / substeps: its substep's stages). Jt: 3 m x D
+ * work. */
 static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
                           const double* x, const double* P, const double* F, double* Po,
                           double* Jt, double* v, double* w) {
@@ -742,9 +768,12 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         wt[i] = near ? sigma2 * unexplained_variance(margin / sigma, jump / sigma) *
                            p->filter_dt / dt
                      : 0.0;
-        /* taut within the step: the RK4 stages place its jump to within RK4_JUMP_VARIANCE */
-        if (margin <= 0.0 && margin + sdot * dt > 0.0 && jump > 0.0)
-            wt[i] += RK4_JUMP_VARIANCE * jump * jump;
+        /* taut within the step: its substep's RK4 stages place its jump to within
+         * RK4_JUMP_VARIANCE of the substep */
+        if (margin <= 0.0 && margin + sdot * dt > 0.0 && jump > 0.0) {
+            double share = jump / (p->substeps > 0 ? p->substeps : 1);
+            wt[i] += RK4_JUMP_VARIANCE * share * share;
+        }
         if (q > 0.0) {
             double a = margin / sqrt(q / dt), mean = expected_positive_part(a) - (a > 0.0 ? a : 0.0);
             /* under the mean kink the prediction carries the mean force already */
@@ -772,47 +801,93 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
     return 0;
 }
 
-/* One lean step: z' by one classic RK4 step, F = I + Ad + Ad^2/2 + Ad^3/6 + Ad^4/24 with
- * Ad = A dt (A given in Ain, D x D, or made at z), Po = F P F^T (F the identity beyond D; n x
- * n). F (D x D) is returned for the process noise. Status as evaluate(). */
+/* A (D x D) of the lean model from the accelerations' Jacobian Jq (3 m x D): rows of q take
+ * the identity on q_dot, the wheels' and rest lengths' rows their diagonal slopes. */
+static void dense_A(const int64_t* d, const double* Jq, double wslope, double rslope, double* A) {
+    int64_t m = d[0], nw = d[3], D = 6 * m + nw + d[2];
+    for (int64_t i = 0; i < D * D; i++) A[i] = 0.0;
+    for (int64_t i = 0; i < 3 * m; i++) A[i * D + 3 * m + i] = 1.0;
+    for (int64_t i = 0; i < 3 * m * D; i++) A[3 * m * D + i] = Jq[i];
+    for (int64_t i = 6 * m; i < D; i++) A[i * D + i] = i < 6 * m + nw ? wslope : rslope;
+}
+
+/* One RK4 stage at z, tau into the step: its slope dz (D) and the accelerations' Jacobian Jq
+ * (3 m x D) in one evaluation of the closed form (mean_jacobian). */
+static int64_t stage(const Consts* k, const int64_t* d, const StepSpec* p, const double* z,
+                     double tau, double* dz, double* Jq, double* acc, double* w) {
+    int64_t m = d[0];
+    int64_t status = mean_jacobian(k, d, p->kink_sd, z, acc, Jq, w);
+    if (status) return status;
+    for (int64_t i = 0; i < 3 * m; i++) dz[3 * m + i] = acc[i];
+    other_rates(d, p, z, tau, dz);
+    return 0;
+}
+
+/* One lean step (gyrohost.estimator.process_model._lean): p->substeps classic RK4 substeps of
+ * h = dt / substeps for z, and F (D x D, returned for the process noise) their Jacobian by the
+ * chain rule through the stages: per substep D2 = A2 (I + h/2 A1), D3 = A3 (I + h/2 D2), D4 =
+ * A4 (I + h D3), F <- (I + h/6 (A1 + 2 D2 + 2 D3 + D4)) F, A_i at the stage's state (the first
+ * stage's A given in Ain, D x D, when have_A; a later substep's first the substep before's last,
+ * within h^2 of its start); Po = F P F^T (F the identity beyond D; n x n).
+ * Status as evaluate(). */
 static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, int64_t n,
                          const double* x, const double* P, const double* Ain, double* xo,
                          double* Po, double* F, double* w) {
     int64_t m = d[0], nw = d[3], ntq = d[4], D = 6 * m + nw + d[2], sz = 6 * m + nw + ntq;
-    double *k1 = w, *k2 = k1 + D, *k3 = k2 + D, *k4 = k3 + D, *zs = k4 + D;
-    double *xm = zs + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
-    double *Jq = acc + 3 * m, *T1 = Jq + 3 * m * D, *T2 = T1 + D * D, *T3 = T2 + D * D;
-    double *FP = T3 + D * D;
+    double *ks = w, *kst = ks + D, *zs = kst + D, *xc = zs + D;
+    double *xm = xc + 2 * D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
+    double *Jq = acc + 3 * m, *T = Jq + 3 * m * D, *Dk = T + D * D, *S = Dk + D * D;
+    double *Ft = S + D * D, *FP = Ft + D * D;
     double *kw = FP + D * n + 6 * (d[1] + d[2]) + 2 * D + 3 * m + 9 * m * d[2] + d[2];
     double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
-    double dt = p->dt;
-    int64_t status;
-    if (p->have_A) {
-        for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
-        if (nw) wslope = Ain[(6 * m) * D + 6 * m];
-    } else {
-        status = mean_jacobian(k, d, p->kink_sd, x, acc, Jq, kw);
+    int64_t steps = p->substeps > 0 ? p->substeps : 1, status = 0;
+    double h = p->dt / (double)steps;
+    static const double frac[3] = {0.5, 0.5, 1.0}, weight[3] = {2.0, 2.0, 1.0};
+    if (p->have_A && nw) wslope = Ain[(6 * m) * D + 6 * m];
+    for (int64_t i = 0; i < D; i++) xc[i] = x[i];
+    for (int64_t j = 0; j < steps; j++) {
+        double t0 = j * h;
+        if (j == 0 && p->have_A) {
+            for (int64_t i = 0; i < 3 * m * D; i++) Jq[i] = Ain[3 * m * D + i];
+            status = filter_derivative(k, d, p, xc, t0, kst, xm, um, out, kw);
+        } else if (j > 0) { /* Jq: the substep before's last stage's, at xc + h k3 */
+            status = filter_derivative(k, d, p, xc, t0, kst, xm, um, out, kw);
+        } else {
+            status = stage(k, d, p, xc, t0, kst, Jq, acc, kw);
+        }
         if (status) return status;
+        dense_A(d, Jq, wslope, rslope, S); /* S = A1 */
+        for (int64_t i = 0; i < D * D; i++) T[i] = 0.5 * h * S[i];
+        for (int64_t i = 0; i < D; i++) {
+            T[i * D + i] += 1.0;
+            ks[i] = kst[i];
+        }
+        for (int s2 = 0; s2 < 3; s2++) { /* stages 2 to 4 */
+            for (int64_t i = 0; i < D; i++) zs[i] = xc[i] + frac[s2] * h * kst[i];
+            status = stage(k, d, p, zs, t0 + frac[s2] * h, kst, Jq, acc, kw);
+            if (status) return status;
+            apply_A(d, Jq, 1.0, wslope, rslope, 0.0, T, Dk); /* D_i = A_i T */
+            double next = s2 == 0 ? 0.5 * h : h;             /* T = I + (h/2 or h) D_i */
+            for (int64_t i = 0; i < D * D; i++) {
+                S[i] += weight[s2] * Dk[i];
+                T[i] = next * Dk[i];
+            }
+            for (int64_t i = 0; i < D; i++) {
+                T[i * D + i] += 1.0;
+                ks[i] += weight[s2] * kst[i];
+            }
+        }
+        for (int64_t i = 0; i < D; i++) xc[i] += (h / 6.0) * ks[i];
+        double* Fs = j == 0 ? F : Ft; /* the substep's I + h/6 S */
+        for (int64_t i = 0; i < D * D; i++) Fs[i] = (h / 6.0) * S[i];
+        for (int64_t i = 0; i < D; i++) Fs[i * D + i] += 1.0;
+        if (j > 0) {
+            gemm(0, (int)D, (int)D, (int)D, 1.0, Ft, (int)D, F, (int)D, 0.0, Dk, (int)D);
+            for (int64_t i = 0; i < D * D; i++) F[i] = Dk[i];
+        }
     }
-    /* RK4 for the state */
-    status = filter_derivative(k, d, p, x, 0.0, k1, xm, um, out, kw);
-    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k1[i];
-    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k2, xm, um, out, kw);
-    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + 0.5 * dt * k2[i];
-    if (!status) status = filter_derivative(k, d, p, zs, 0.5 * dt, k3, xm, um, out, kw);
-    for (int64_t i = 0; !status && i < D; i++) zs[i] = x[i] + dt * k3[i];
-    if (!status) status = filter_derivative(k, d, p, zs, dt, k4, xm, um, out, kw);
-    if (status) return status;
-    for (int64_t i = 0; i < D; i++)
-        xo[i] = x[i] + (dt / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    for (int64_t i = 0; i < D; i++) xo[i] = xc[i];
     for (int64_t i = D; i < n; i++) xo[i] = x[i];
-    /* F by the Taylor series, nested: I + Ad (I + Ad/2 (I + Ad/3 (I + Ad/4))), Ad = A dt */
-    for (int64_t i = 0; i < D * D; i++) T3[i] = 0.0;
-    for (int64_t i = 0; i < D; i++) T3[i * D + i] = 1.0;
-    apply_A(d, Jq, dt / 4.0, wslope, rslope, 1.0, T3, T1);
-    apply_A(d, Jq, dt / 3.0, wslope, rslope, 1.0, T1, T2);
-    apply_A(d, Jq, dt / 2.0, wslope, rslope, 1.0, T2, T1);
-    apply_A(d, Jq, dt, wslope, rslope, 1.0, T1, F);
     propagate(D, n, F, P, FP, Po);
     return kink_noise(k, d, p, n, x, P, F, Po, Jq, FP + D * n, kw);
 }

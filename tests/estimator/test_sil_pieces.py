@@ -128,12 +128,13 @@ def test_an_uncertain_margin_at_the_kink_adds_its_unexplained_variance_along_the
     expected = (G * var) @ G.T
     assert np.abs(added[:n, :n] - expected).max() < 1e-6 * np.abs(expected).max()
     # slack by half a step's lengthening and exactly known: each lengthening string goes taut
-    # mid-step, where the RK4 stages place its jump to within J^2 / 36; no other term
+    # mid-step, where the RK4 stages of its substep (of n) place its jump to within (J / n)^2
+    # / 36 of the step; no other term
     x_moving[L.rest] = s + 0.5 * s_dot * dt
     _, F = pm.step(x_moving, model.input_at(0.0), dt)
     G = pm.taut_columns(dt, F, x_moving, pm.tension_margins(x_moving)[0])
     added = pm.noise(dt, F, x_moving, np.zeros_like(P)) - pm.noise(dt)
-    expected = (G * jump**2 / 36.0) @ G.T
+    expected = (G * (jump / pm.substeps(dt)) ** 2 / 36.0) @ G.T
     assert np.abs(added[:n, :n] - expected).max() < 1e-12 * np.abs(expected).max()
 
 

@@ -309,7 +309,8 @@ def _budget(data):
     out = [
         "## Estimator budget (D-bar, per IMU sample of 10 ms)",
         "",
-        "One process step = RK4 over 10 ms (4 derivative calls, the estimator's lean model); "
+        "One process step = one RK4 step over 10 ms (4 derivative calls; the estimator's lean "
+        "model takes as many as its accuracy needs, two on the D-bar); "
         "Jacobian = one batched complex-step call over all dynamic states.",
         "",
         "| dynamics | process step us | Jacobian us | states |",

@@ -3,8 +3,8 @@
 The reference is :meth:`.process_model.ProcessModel.step` (``process_method = "lean"``) followed
 by filterpy's ``F P F^T``: Python around small numpy operations, each costing more than the
 arithmetic it does. ``gyrotensegrity._fastkernel.lean_step`` does the same arithmetic (the RK4
-step through the kernel's accelerations, ``A`` from the kernel's closed-form Jacobian unless the
-IMU prediction made one, ``F`` by the same Taylor series, ``F P F^T`` and the rest-length
+substeps through the kernel's closed-form Jacobian at every stage, the first one the IMU
+prediction's where it made one, ``F`` chained through them, ``F P F^T`` and the rest-length
 kinks' noise, which needs this ``F`` and ``P``) in one call; the rest of the
 process noise stays with :class:`.process_noise.ProcessNoise` (cached for the repeated step).
 tests/estimator/test_fast_prediction.py holds the two equal to round-off.
@@ -59,12 +59,12 @@ class FastPrediction:
         L = process.layout
         self.n, self.nd, self.alpha, self.nw = n, L.n_dynamic, L.n_strings, L.n_wheels
         # [dt, servo lag, wheel lag, wheel accel, follow, have A, rest command, wheel
-        # accelerations, setpoints, commands, jitter density, mean kink's std, filter step]
-        # (the kernel's StepSpec)
+        # accelerations, setpoints, commands, jitter density, mean kink's std, filter step,
+        # RK4 substeps] (the kernel's StepSpec)
         c = process.config
-        self.spec_size = 9 + self.alpha + 3 * self.nw
+        self.spec_size = 10 + self.alpha + 3 * self.nw
         self._spec = np.zeros(self.spec_size)
-        self._spec[-3:] = c.rest_jitter_psd_m2_s, kink_std(c), c.process_dt_s
+        self._spec[-4:-1] = c.rest_jitter_psd_m2_s, kink_std(c), c.process_dt_s
         self._work = np.empty(self.kernel.lean_work(dyn._dims, n))
         self._no_A = np.zeros((self.nd, self.nd))
 
@@ -75,6 +75,7 @@ class FastPrediction:
         sp0 = p.wheel_setpoint_rad_s
         follow = p.wheel_target_rad_s is not None and c.wheel_lag_s != 0.0
         spec[:6] = dt, c.servo_lag_s, c.wheel_lag_s, c.wheel_accel_rad_s2, follow, have_A
+        spec[-1] = p.substeps(dt)
         a, nw = 6 + self.alpha, self.nw
         spec[6:a] = u[: self.alpha]
         if follow:

@@ -3,23 +3,21 @@
 Two variants (``process_method``):
 
 ``lean`` (default)
-    Classic RK4 for the state, in as few equal substeps of the filter step (10 ms) as keep its
-    error on the model's fastest oscillation within :data:`RK4_STEP_ERROR` (two on the simulated
-    D-bar, one on the prism); for the covariance
-    the RK4 step of the linearised dynamics, ``F = I + A dt + (A dt)^2/2 + (A dt)^3/6 +
-    (A dt)^4/24`` (equal to ``exp(A dt)`` to 1e-3 here: the eigenvalues of ``A dt`` stay below
-    0.6 although ``|A dt|`` ~ 30; scipy's ``expm`` gave the same F at 50 times the cost), with
-    ``A = df/dx`` (below) -- the one the accelerometer fusion has just made at the prior when
-    there is one (the posterior differs from it by the update only), else a fresh one. Where a
-    string turns taut or slack within the step the true Jacobian jumps and this F is only an
-    average.
+    Classic RK4 in as few equal substeps of the filter step (10 ms) as keep its error on the
+    model's fastest oscillation within :data:`RK4_STEP_ERROR` (two on the simulated D-bar, one
+    on the prism), and ``F`` its Jacobian by the chain rule through the stages' ``A = df/dx``
+    (below), the first one the accelerometer fusion's where it has just made one at the prior
+    (the posterior differs from it by the update only). Both matter: with one step, or with
+    ``F`` from the start's ``A`` alone (``I + A dt + ... + (A dt)^4/24``), the mean and the
+    covariance stray from a structure that turns while a string holds it, and the NEES grows
+    without bound (docs/estimator-noise.md, "Node accelerations"). Where a string turns taut
+    or slack within a substep the true Jacobian jumps and this F is only an average.
 ``rk4``
-    RK4 with substeps of at most ``rk4_substep_s`` (the truth model's integrator), differentiated
-    exactly through every stage (the complex-step batch pushed through, or the stages' closed-form
-    Jacobians chained).
+    RK4 with substeps of at most ``rk4_substep_s``, differentiated exactly through every stage
+    (the complex-step batch pushed through, or the stages' closed-form Jacobians chained).
 
 ``A = df/dx`` comes in closed form (``jacobian = "analytic"``, the default:
-:class:`gyrotensegrity.fast_jacobian.FastJacobian`; the rk4 variant then chains the stages'
+:class:`gyrotensegrity.fast_jacobian.FastJacobian`; both variants then chain the stages'
 Jacobians) or from one batched complex-step evaluation through
 :class:`gyrotensegrity.fast.FastDynamics` (``"complex-step"``); the two agree to round-off
 (tests/estimator/test_jacobians.py).
@@ -364,23 +362,14 @@ class ProcessModel(ProcessNoise):
         self.wheel_setpoint_rad_s = self.wheel_target_rad_s
 
     def _lean(self, xd, u, dt, A, sp0):
-        if A is None:
-            self._aim(sp0, 0.0)
-            _, A = self.linearise(xd, u)
-        x_next = self._rk4_substeps(xd[None, :], u, dt, sp0)[0]
         n = self.substeps(dt)
-        Ad = A * (dt / n)
-        Ad2 = Ad @ Ad
-        Ad3 = Ad2 @ Ad
-        F = np.eye(len(xd)) + Ad + Ad2 / 2.0 + Ad3 / 6.0 + Ad3 @ Ad / 24.0
-        return x_next, np.linalg.matrix_power(F, n)
+        return self._rk4_closed_form(xd, u, dt / n, n, sp0, A, carry=True)
 
     def substeps(self, dt) -> int:
         """RK4 substeps the process model takes over ``dt`` s, each at most
         ``lean_substep_s`` (lean) or ``rk4_substep_s`` (rk4) long."""
-        longest = (
-            self.lean_substep_s if self.config.process_method == "lean" else self.config.rk4_substep_s
-        )
+        c = self.config
+        longest = self.lean_substep_s if c.process_method == "lean" else c.rk4_substep_s
         return max(1, int(np.ceil(dt / longest - 1e-9)))
 
     def _rk4(self, xd, u, dt, sp0):
@@ -400,14 +389,21 @@ class ProcessModel(ProcessNoise):
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return X
 
-    def _rk4_closed_form(self, x, u, h, n, sp0):
+    def _rk4_closed_form(self, x, u, h, n, sp0, A_first=None, carry=False):
         """``n`` RK4 substeps of ``h`` s with the step's Jacobian by the chain rule through the
-        stages (``d k_i = A(x_i) d x_i``; the wheels' setpoints at each stage's time)."""
+        stages (``d k_i = A(x_i) d x_i``; the wheels' setpoints at each stage's time), the
+        first stage's ``A`` given in ``A_first`` where a caller made it at ``x``; with
+        ``carry`` every later substep's first ``A`` is the one before's last (made at ``x + h
+        k3``, within ``h^2`` of the substep's start: one Jacobian fewer per substep, the lean
+        model's NEES unchanged)."""
         eye = np.eye(len(x))
-        F = eye
+        F, A_next = eye, A_first
         for j in range(n):
             self._aim(sp0, j * h)
-            k1, A1 = self.linearise(x, u)
+            if A_next is not None:
+                k1, A1 = self.derivative(x[None, :], u)[0], A_next
+            else:
+                k1, A1 = self.linearise(x, u)
             self._aim(sp0, (j + 0.5) * h)
             k2, A2 = self.linearise(x + 0.5 * h * k1, u)
             D2 = A2 @ (eye + 0.5 * h * A1)
@@ -418,6 +414,7 @@ class ProcessModel(ProcessNoise):
             D4 = A4 @ (eye + h * D3)
             x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
             F = (eye + (h / 6.0) * (A1 + 2.0 * D2 + 2.0 * D3 + D4)) @ F
+            A_next = A4 if carry else None
         return x, F
 
     def _rk4_stages(self, X, u, h, sp0, t_s):

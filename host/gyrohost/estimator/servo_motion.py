@@ -2,8 +2,8 @@
 (:func:`gyrohost.drivers.mx12.lag_error_after`), in the filter and in identification.
 
 The process model steps the rest lengths by its integrator of a lag towards its input
-(``servo_lag_s``: one RK4 step of the whole prediction step in the lean model), which also
-carries the analytic and compiled Jacobians. That integrator is not the lag's exponential (5 um
+(``servo_lag_s``: the RK4 substeps of the prediction step), which also carries the analytic and
+compiled Jacobians. That integrator is not the lag's exponential (5 um
 short over 10 ms of a 13 ms lag), and a servo that closes a large goal step at its speed limit
 moves less than the lag would: the input is the goal the integrator needs to end the step
 exactly where the servo does (:func:`step_input`), the goal itself to that integrator's error

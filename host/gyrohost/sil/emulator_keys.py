@@ -61,11 +61,11 @@ def emulator_keys(rig: RigConfig) -> dict:
         # (docs/estimator-noise.md#the-imus-latency)
         "imu_latency_s": wire_time_s(rig.imu.rate_hz) + sim.truth.imu_latency_s,
         "imu_time_std_s": 0.0,
-        # nothing moves the truth's nodes at random; the node noise carries what the filter's
-        # one RK4 step per IMU sample leaves of the motion (the in-process SIL) and an excess
-        # of the real-time runs not yet explained: 3e-8 holds the positions block at its dof
-        # on ten real-time runs and the in-process SIL over 5 s; identify's likelihood leaves
-        # it undetermined on identification runs (docs/estimator-noise.md#node-accelerations)
+        # nothing moves the truth's nodes at random, and the filter's integration leaves
+        # nothing (the in-process SIL holds its dof with none); the node noise carries an
+        # excess of the real-time runs not yet explained: 3e-8 holds their positions block
+        # near its dof; identify's likelihood leaves it undetermined on identification runs
+        # (docs/estimator-noise.md#node-accelerations)
         "accel_psd_m2_s3": 3.0e-8,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
         # the bias is a random constant, not white noise: a state with its spread as prior
