@@ -59,7 +59,7 @@ polynomial), so substeps of ``omega h <= (120 RK4_STEP_ERROR)^(1/5)`` = 0.65. On
 of the D-bar's strings (120 rad/s) errs by 2 % per step: the mean strays from a structure that
 drifts while a slack string leaves it a mechanism, the filter's noise says nothing of it, and
 its NEES grows without bound; at this share it stays at its dof with no node noise, and halving
-it changes no figure (docs/estimator-noise.md, "Node accelerations")."""
+the substep changes no figure (docs/estimator-noise.md, "Node accelerations")."""
 
 RK4_ACCURATE = (120.0 * RK4_STEP_ERROR) ** 0.2
 """``omega h`` of a substep whose error is :data:`RK4_STEP_ERROR`."""
