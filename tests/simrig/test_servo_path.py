@@ -76,3 +76,33 @@ def test_a_long_hold_is_one_piece_checked_in_constant_time():
         path.add(k * 1e-3, 100.0 + 1e-3 * np.sin(k))  # within the tolerance of a flat line
     assert len(path.t_s) == 2
     assert path._slopes[1] - path._slopes[0] < 2 * PATH_TOLERANCE_STEPS / 59.0
+
+
+def test_a_goal_read_while_the_rig_catches_up_moves_the_servo_from_the_present():
+    """The rig's loop, held up, polls the bus at a past truth step's end: a goal the host sent
+    meanwhile came at the present, so the servo holds until then (read at the step's end, the
+    goal moved it 50 ms before the host sent it)."""
+    import time
+
+    from gyrohost.simrig.servo_emu import INST_WRITE, Packet
+
+    bus = Mx12Bus([SERVO], ServoEmuConfig(hold_band_steps=0.5))
+    try:
+        servo = bus.servos[1]
+        servo.write(Addr.TORQUE_ENABLE, b"\x01")
+        bus.poll(now_s=0.0)
+        start = servo.position_steps
+        goal = Packet(
+            1, INST_WRITE, bytes([Addr.GOAL_POSITION]) + (200).to_bytes(2, "little"), True
+        )
+        with open(bus.slave_path, "wb", buffering=0) as port:
+            port.write(goal.encode())
+            time.sleep(0.05)  # the bytes in the pty before the polls
+            bus.poll(now_s=0.01, present_s=0.06)
+            assert servo.position_steps == start  # the goal not taken at the past step's end
+            bus.poll(now_s=0.06, present_s=0.06)
+            assert servo.position_steps == start  # taken now, moving from now on
+            bus.poll(now_s=0.07)
+            assert servo.position_steps > start
+    finally:
+        bus.close()

@@ -138,7 +138,9 @@ class PtyDevice:
         """Send bytes to the driver through the fault filter."""
         self.link.write(self.faults.process(data, now_s))
 
-    def poll(self, now_s: float | None = None, timeout_s: float = 0.0) -> None:
+    def poll(
+        self, now_s: float | None = None, timeout_s: float = 0.0, present_s: float | None = None
+    ) -> None:
         """Run one iteration: read input (waiting up to ``timeout_s`` s), tick, release stalls.
 
         The bytes read came in since the last poll. As on a board whose tick interrupt and UART
@@ -162,8 +164,14 @@ class PtyDevice:
             Emulator time, s; ``time.monotonic()`` when omitted (read after the wait).
         timeout_s : float
             Longest wait for input, s.
+        present_s : float, optional
+            The rig's present, s, where ``now_s`` is a truth step's end that its loop, held up,
+            catches up to: a device that takes bytes as arriving at the poll's time reads none
+            at such a poll (they came at the present: a goal read there moved the servo before
+            the host sent it); the poll at the present reads them.
         """
-        data = self.link.read(timeout_s)
+        behind = present_s is not None and now_s is not None and now_s < present_s
+        data = b"" if behind and self.FRAME_END is None else self.link.read(timeout_s)
         t = time.monotonic() if now_s is None else now_s
         with self.lock:
             since = t if self._polled_s is None else min(self._polled_s, t)

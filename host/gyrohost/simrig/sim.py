@@ -230,7 +230,9 @@ class SimulatedRig:
                 target = self._truth_target_s(now)
                 due = self.truth.t_s + self.truth.dt_s
                 if due <= target + 1e-9:
-                    self._poll(due)  # the devices' outputs at the step's end (_step_inputs)
+                    # the devices' outputs at the step's end (_step_inputs); bytes that came
+                    # meanwhile are read at the present (PtyDevice.poll)
+                    self._poll(due, now if self.clock == "real" else None)
                     self._step(target - due)
                     # Devices keep wall time even while a loaded CPU makes the truth lag.
                     self._poll(self._target_s() if self.clock == "real" else self.truth.t_s)
@@ -295,7 +297,7 @@ class SimulatedRig:
         lengths = self.servos.lengths_at(t_s)
         return {sid: lengths[sid] for sid in self.truth.servo_strings}
 
-    def _poll(self, t_s: float) -> None:
+    def _poll(self, t_s: float, present_s: float | None = None) -> None:
         self._dev_t_s = t_s = max(t_s, self._dev_t_s)
         with self._lock:
             due = [action for when, action in self._timers if when <= t_s]
@@ -303,7 +305,7 @@ class SimulatedRig:
             for action in due:
                 action()
             for dev in self.devices.values():
-                dev.poll(now_s=t_s, timeout_s=0.0)
+                dev.poll(now_s=t_s, timeout_s=0.0, present_s=present_s)
 
     # --- truth read-outs ----------------------------------------------------------------------
     def _imu_truth(self, rig_t_s: float):

@@ -357,8 +357,11 @@ class SimavrWheelBoard:
             return 0
         return sample.frames - self._frames0
 
-    def poll(self, now_s: float | None = None, timeout_s: float = 0.0) -> None:
-        """Check that the harness still runs (the rig loop calls this on every pass).
+    def poll(
+        self, now_s: float | None = None, timeout_s: float = 0.0, present_s: float | None = None
+    ) -> None:
+        """Check that the harness still runs (the rig loop calls this on every pass; the
+        harness reads its own pty and keeps its own time, so the times are not used).
 
         Raises
         ------
