@@ -165,14 +165,16 @@ class PtyDevice:
         timeout_s : float
             Longest wait for input, s.
         present_s : float, optional
-            The rig's present, s, where ``now_s`` is a truth step's end that its loop, held up,
-            catches up to: a device that takes bytes as arriving at the poll's time reads none
-            at such a poll (they came at the present: a goal read there moved the servo before
-            the host sent it); the poll at the present reads them.
+            The rig's present, s, where ``now_s`` is a truth step's end behind it (the rig's
+            loop stepping its truth): a device that takes bytes as arriving at the poll's time
+            runs to the present instead, where they came (read at the step's end, a goal moved
+            the servo before the host sent it, by up to a hold-up), and keeps its path for the
+            step (:meth:`.servo_emu.Mx12Bus.lengths_at`).
         """
-        behind = present_s is not None and now_s is not None and now_s < present_s
-        data = b"" if behind and self.FRAME_END is None else self.link.read(timeout_s)
+        data = self.link.read(timeout_s)
         t = time.monotonic() if now_s is None else now_s
+        if present_s is not None and self.FRAME_END is None:
+            t = max(t, present_s)
         with self.lock:
             since = t if self._polled_s is None else min(self._polled_s, t)
             self._polled_s = t

@@ -230,8 +230,8 @@ class SimulatedRig:
                 target = self._truth_target_s(now)
                 due = self.truth.t_s + self.truth.dt_s
                 if due <= target + 1e-9:
-                    # the devices' outputs at the step's end (_step_inputs); bytes that came
-                    # meanwhile are read at the present (PtyDevice.poll)
+                    # the devices' outputs at the step's end (_step_inputs); a device that takes
+                    # bytes at the poll's time runs to the present (PtyDevice.poll)
                     self._poll(due, now if self.clock == "real" else None)
                     self._step(target - due)
                     # Devices keep wall time even while a loaded CPU makes the truth lag.
