@@ -475,7 +475,7 @@ static void step_spec(const double* s, const int64_t* d, StepSpec* p) {
     p->jitter = p->cmd[nw];
     p->kink_sd = p->cmd[nw + 1];
     p->filter_dt = p->cmd[nw + 2];
-    p->substeps = (int)p->cmd[nw + 3];
+    p->substeps = p->cmd[nw + 3] > 1.0 ? (int)p->cmd[nw + 3] : 1;
 }
 
 static int64_t step_spec_size(const int64_t* d) {
@@ -681,7 +681,7 @@ static int64_t lean_work(const int64_t* d, int64_t n) {
     int64_t K = beta + alpha, D = 6 * m + nw + alpha, nb = beta + 3 * cu;
     int64_t ev = 9 * K + 6 * m + 3 * beta + nw + nb + nb * nb, jw = mean_jacobian_work(d);
     int64_t sz = 6 * m + nw + ntq;
-    return 5 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 4 * D * D + D * n + 6 * K + 2 * D +
+    return 4 * D + 2 * sz + alpha + nw + 3 * m + 3 * m * D + 4 * D * D + D * n + 6 * K + 2 * D +
            3 * m + 9 * m * alpha + alpha + (ev > jw ? ev : jw);
 }
 
@@ -771,7 +771,7 @@ static int64_t kink_noise(const Consts* k, const int64_t* d, const StepSpec* p, 
         /* taut within the step: its substep's RK4 stages place its jump to within
          * RK4_JUMP_VARIANCE of the substep */
         if (margin <= 0.0 && margin + sdot * dt > 0.0 && jump > 0.0) {
-            double share = jump / (p->substeps > 0 ? p->substeps : 1);
+            double share = jump / p->substeps;
             wt[i] += RK4_JUMP_VARIANCE * share * share;
         }
         if (q > 0.0) {
@@ -835,12 +835,12 @@ static int64_t lean_step(const Consts* k, const int64_t* d, const StepSpec* p, i
                          double* Po, double* F, double* w) {
     int64_t m = d[0], nw = d[3], ntq = d[4], D = 6 * m + nw + d[2], sz = 6 * m + nw + ntq;
     double *ks = w, *kst = ks + D, *zs = kst + D, *xc = zs + D;
-    double *xm = xc + 2 * D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
+    double *xm = xc + D, *out = xm + sz, *um = out + sz, *acc = um + d[2] + nw;
     double *Jq = acc + 3 * m, *T = Jq + 3 * m * D, *Dk = T + D * D, *S = Dk + D * D;
     double *Ft = S + D * D, *FP = Ft + D * D;
     double *kw = FP + D * n + 6 * (d[1] + d[2]) + 2 * D + 3 * m + 9 * m * d[2] + d[2];
     double wslope = p->follow ? -1.0 / p->wheel_lag : 0.0, rslope = -1.0 / p->servo_lag;
-    int64_t steps = p->substeps > 0 ? p->substeps : 1, status = 0;
+    int64_t steps = p->substeps, status = 0;
     double h = p->dt / (double)steps;
     static const double frac[3] = {0.5, 0.5, 1.0}, weight[3] = {2.0, 2.0, 1.0};
     if (p->have_A && nw) wslope = Ain[(6 * m) * D + 6 * m];

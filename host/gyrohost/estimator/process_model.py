@@ -362,8 +362,7 @@ class ProcessModel(ProcessNoise):
         self.wheel_setpoint_rad_s = self.wheel_target_rad_s
 
     def _lean(self, xd, u, dt, A, sp0):
-        n = self.substeps(dt)
-        return self._rk4_closed_form(xd, u, dt / n, n, sp0, A, carry=True)
+        return self._rk4_closed_form(xd, u, dt, sp0, A, carry=True)
 
     def substeps(self, dt) -> int:
         """RK4 substeps the process model takes over ``dt`` s, each at most
@@ -374,8 +373,7 @@ class ProcessModel(ProcessNoise):
 
     def _rk4(self, xd, u, dt, sp0):
         if self.jac is not None:
-            n = self.substeps(dt)
-            return self._rk4_closed_form(xd, u, dt / n, n, sp0)
+            return self._rk4_closed_form(xd, u, dt, sp0)
         X = self._rk4_substeps(complex_step.perturbed(xd, self.columns), u, dt, sp0)
         return complex_step.split(X)
 
@@ -389,13 +387,15 @@ class ProcessModel(ProcessNoise):
             X = X + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return X
 
-    def _rk4_closed_form(self, x, u, h, n, sp0, A_first=None, carry=False):
-        """``n`` RK4 substeps of ``h`` s with the step's Jacobian by the chain rule through the
-        stages (``d k_i = A(x_i) d x_i``; the wheels' setpoints at each stage's time), the
-        first stage's ``A`` given in ``A_first`` where a caller made it at ``x``; with
-        ``carry`` every later substep's first ``A`` is the one before's last (made at ``x + h
-        k3``, within ``h^2`` of the substep's start: one Jacobian fewer per substep, the lean
-        model's NEES unchanged)."""
+    def _rk4_closed_form(self, x, u, dt, sp0, A_first=None, carry=False):
+        """:meth:`substeps` RK4 substeps of ``h`` over ``dt`` s with the step's Jacobian by the
+        chain rule through the stages (``d k_i = A(x_i) d x_i``; the wheels' setpoints at each
+        stage's time), the first stage's ``A`` given in ``A_first`` where a caller made it at
+        ``x``; with ``carry`` every later substep's first ``A`` is the one before's last (made
+        at ``x + h k3``, within ``h^2`` of the substep's start: one Jacobian fewer per substep,
+        the lean model's NEES unchanged)."""
+        n = self.substeps(dt)
+        h = dt / n
         eye = np.eye(len(x))
         F, A_next = eye, A_first
         for j in range(n):
