@@ -20,7 +20,11 @@ from gyrohost.estimator.config import (
 )
 from gyrohost.simrig.config import sim_config
 from gyrohost.simrig.imu_emu import wire_time_s
-from gyrohost.simrig.sim import IDLE_WAIT_S
+
+SERVO_BUS_SPAN_S = 1.0e-3
+"""The span over which a goal or a read request reaches an emulated servo after the host's
+stamp, s, taken uniform: the millisecond a real rig's USB frame bounds it by. The emulated bus
+takes the bytes as they arrive, a few tenths of a millisecond after the stamp (docs/rig.md)."""
 
 
 def emulated_servo_lag_s(rig: RigConfig) -> float:
@@ -51,7 +55,7 @@ def emulator_keys(rig: RigConfig) -> dict:
     wheels = sim.wheels
     count_m = max((1.0 / steps_per_metre(s) for s in rig.servos.servo), default=0.0)
     lag_s = emulated_servo_lag_s(rig)
-    time_std_s = IDLE_WAIT_S / math.sqrt(12.0)
+    time_std_s = SERVO_BUS_SPAN_S / math.sqrt(12.0)
     return {
         # a sample is whole for the host when its last byte has crossed the wire, that long
         # after it was taken (plus the truth's own latency, a drawn sensor's); the rig's loop
@@ -76,14 +80,14 @@ def emulator_keys(rig: RigConfig) -> dict:
         **rig_keys(rig),
         # the MX-12W emulator follows each goal through its position loop's lag (the P gain's)
         # at most at its moving speed (rig_keys' servo_speed_m_s) and reads its shaft to a
-        # count; it serves a read, and takes a goal, within one of the rig's polls after the
-        # host's stamp (uniform): the read's time std, and through the lag a goal step's
-        # spread, std step x time std / lag (docs/estimator-noise.md#the-servos)
+        # count; it serves a read, and takes a goal, within SERVO_BUS_SPAN_S of the host's
+        # stamp: the read's time std, and through the lag a goal step's spread, std step x
+        # time std / lag (docs/estimator-noise.md#the-servos)
         "servo_lag_s": lag_s,
         "servo_length_std_m": count_m / math.sqrt(12.0),
         "servo_time_std_s": time_std_s,
         "servo_step_std_ratio": time_std_s / lag_s,
-        # where a run's ticks fall in that poll is fixed for the run: its goals' mean delay is
+        # where a run's ticks fall in that span is fixed for the run: its goals' mean delay is
         # off the fitted one by as much, a state (gyrohost.estimator.param_errors)
         "servo_delay_std_s": time_std_s,
         # a resting servo holds within its band of the command's count, and no walk beyond it

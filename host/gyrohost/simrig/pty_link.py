@@ -19,6 +19,7 @@ import threading
 import time
 import tty
 
+from gyrohost.simrig.arrivals import ArrivalStamps
 from gyrohost.simrig.faults import FaultFilter
 
 from .errors import PtyLinkError
@@ -117,6 +118,9 @@ class PtyDevice:
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._polled_s: float | None = None
+        self._stamps: ArrivalStamps | None = None
+        self._origin_s = 0.0
+        self._pending: list[tuple[float, bytes]] = []
         self.loop_error: BaseException | None = None
 
     @property
@@ -145,12 +149,13 @@ class PtyDevice:
 
         The bytes read came in since the last poll. As on a board whose tick interrupt and UART
         run side by side, the ticks run up to each frame's arrival before the frame is handled.
-        A pty keeps no arrival times: with :attr:`FRAME_END` set, a frame is taken as arrived
-        when its last byte did, the bytes spread evenly over the time since the last poll (a
-        steady sender's); otherwise all at the poll's time: the rig's loop wakes when bytes
-        come in, so that is when they came to the wake-up's latency, where the last poll's time
-        would place a request before it was sent (a servo's read showing where it was up to a
-        poll earlier, a goal moving it before the host sent it). After the
+        Bytes stamped where they arrived (:meth:`stamp_arrivals`) are taken at their stamps.
+        Otherwise, as a pty keeps no arrival times: with :attr:`FRAME_END` set, a frame is
+        taken as arrived when its last byte did, the bytes spread evenly over the time since
+        the last poll (a steady sender's); otherwise all at the poll's time: the rig's loop
+        wakes when bytes come in, so that is when they came to the wake-up's latency, where the
+        last poll's time would place a request before it was sent (a servo's read showing where
+        it was up to a poll earlier, a goal moving it before the host sent it). After the
         emulator was held up (a loaded CPU), delimited frames the driver sent meanwhile keep
         their spacing among the ticks instead of all arriving after the whole gap: a board's
         heartbeat timer, say, counts the silence between them, not the emulator's. A silence of
@@ -171,18 +176,43 @@ class PtyDevice:
             the servo before the host sent it, by up to a hold-up), and keeps its path for the
             step (:meth:`.servo_emu.Mx12Bus.lengths_at`).
         """
-        data = self.link.read(timeout_s)
+        data = self.link.read(timeout_s) if self._stamps is None else b""
         t = time.monotonic() if now_s is None else now_s
         if present_s is not None and self.FRAME_END is None:
             t = max(t, present_s)
         with self.lock:
             since = t if self._polled_s is None else min(self._polled_s, t)
             self._polled_s = t
-            for arrived_s, frames in self._arrivals(data, since, t):
+            arrivals = self._arrivals(data, since, t) if data else self._stamped(since, t)
+            for arrived_s, frames in arrivals:
                 self.tick(arrived_s)
                 self.handle_rx(frames, arrived_s)
             self.tick(t)
             self.link.write(self.faults.release(t))
+
+    def stamp_arrivals(self, origin_s: float) -> None:
+        """From now on take the driver's bytes at the times they arrived, stamped by a child
+        process (:class:`~gyrohost.simrig.arrivals.ArrivalStamps`), rather than as arriving at
+        :meth:`poll`; ``origin_s`` is ``time.monotonic()`` at the caller's time zero (a poll's
+        ``now_s``). Bytes stamped after a poll's time wait for a later poll."""
+        if self._stamps is None:
+            self._stamps = ArrivalStamps(self.link.fileno())
+            self._origin_s = origin_s
+
+    def waitable(self):
+        """What to ``select`` on for the driver's input: the stamped arrivals' pipe or the
+        link."""
+        return self.link if self._stamps is None else self._stamps
+
+    def _stamped(self, since_s: float, now_s: float) -> list[tuple[float, bytes]]:
+        """The stamped arrivals up to ``now_s``, each at its time or, stamped before the last
+        poll (the child was slow to pass it on), at ``since_s``."""
+        if self._stamps is None:
+            return []
+        self._pending += [(stamp - self._origin_s, data) for stamp, data in self._stamps.take()]
+        due = [(max(t, since_s), data) for t, data in self._pending if t <= now_s]
+        self._pending = self._pending[len(due) :]
+        return due
 
     def _arrivals(self, data: bytes, since_s: float, now_s: float) -> list[tuple[float, bytes]]:
         """``data`` cut after each :attr:`FRAME_END`, each piece with the time its last byte is
@@ -232,6 +262,9 @@ class PtyDevice:
     def close(self) -> None:
         """Stop and close the pty pair."""
         self.stop()
+        if self._stamps is not None:
+            self._stamps.close()
+            self._stamps = None
         self.link.close()
 
     def __enter__(self) -> "PtyDevice":

@@ -145,6 +145,8 @@ class SimulatedRig:
         """Start the loop thread (idempotent); returns ``self``."""
         if self._thread is None:
             self._t0_wall = time.monotonic()
+            if self.clock == "real":  # a sim clock's bytes arrive at its polls, reproducibly
+                self.servos.stamp_arrivals(self._t0_wall)
             self._cpu0_s = time.process_time()
             self._thread = threading.Thread(target=self._run, name="rig", daemon=True)
             self._thread.start()
@@ -223,7 +225,7 @@ class SimulatedRig:
 
     # --- the loop -----------------------------------------------------------------------------
     def _run(self) -> None:
-        links = [dev.link for dev in self.devices.values() if dev.link is not None]
+        inputs = [dev.waitable() for dev in self.devices.values() if dev.link is not None]
         try:
             while not self._stop.is_set():
                 now = self._target_s()
@@ -243,7 +245,7 @@ class SimulatedRig:
                         self._idle_at_s = now
                         self._cond.notify_all()
                 wait = self._wait_s(now, due - target)
-                select.select(links, [], [], wait)
+                select.select(inputs, [], [], wait)
         except BaseException as exc:  # reported by check()/advance(); the thread must not vanish
             self.loop_error = exc
             with self._cond:
