@@ -120,7 +120,7 @@ class PtyDevice:
         self._polled_s: float | None = None
         self._stamps: ArrivalStamps | None = None
         self._origin_s = 0.0
-        self._pending: list[tuple[float, bytes]] = []
+        self._arrived: list[tuple[float, bytes]] = []
         self.loop_error: BaseException | None = None
 
     @property
@@ -209,9 +209,9 @@ class PtyDevice:
         poll (the child was slow to pass it on), at ``since_s``."""
         if self._stamps is None:
             return []
-        self._pending += [(stamp - self._origin_s, data) for stamp, data in self._stamps.take()]
-        due = [(max(t, since_s), data) for t, data in self._pending if t <= now_s]
-        self._pending = self._pending[len(due) :]
+        self._arrived += [(stamp - self._origin_s, data) for stamp, data in self._stamps.take()]
+        due = [(max(t, since_s), data) for t, data in self._arrived if t <= now_s]
+        self._arrived = self._arrived[len(due) :]
         return due
 
     def _arrivals(self, data: bytes, since_s: float, now_s: float) -> list[tuple[float, bytes]]:
