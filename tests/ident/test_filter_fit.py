@@ -11,6 +11,7 @@ import sys
 import threading
 import time
 import warnings
+from dataclasses import replace
 from multiprocessing import get_context
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import pytest
 
 from gyrohost.cli import main
 from gyrohost.ident import filter_fit
-from gyrohost.ident.errors import IdentDataError
+from gyrohost.ident.errors import IdentDataError, ParamsError
 from gyrohost.ident.fit import FAILED_RESIDUAL
 from gyrohost.ident.params import parameters
 from gyrohost.ident.simcheck import (
@@ -52,8 +53,25 @@ def _problem(tmp_path, workers=1, groups=("J3",)):
     log = record_log(truth, 3, tmp_path / "log")
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
+    if "process-noise" in groups:  # the simulated rig's filter takes none: some to scale
+        est = replace(est, accel_psd_m2_s3=1e-6)
     params = parameters(scene, config, list(groups), est.servo_lag_s, 1, est, True)
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
+
+
+def test_process_noise_on_a_filter_without_node_noise_is_refused(tmp_path):
+    """The simulated rig's filter takes no node noise; a factor on none leaves none: asked
+    for, the group is refused by name."""
+    from gyrohost.config import load_rig_config
+    from gyrohost.estimator.config import for_rig
+    from gyrotensegrity import load_scene
+
+    nominal, _ = write_rigs(tmp_path, 1.0)
+    config = load_rig_config(nominal)
+    scene, est = load_scene(config.scene_path), for_rig(config)
+    assert est.accel_psd_m2_s3 == 0.0
+    with pytest.raises(ParamsError, match=r"process-noise scales .*accel_psd_m2_s3, which is 0"):
+        parameters(scene, config, ["process-noise"], est.servo_lag_s, 1, est, True)
 
 
 def test_the_likelihood_is_lowest_near_the_imus_true_latency(tmp_path):
@@ -139,6 +157,7 @@ from gyrohost.config import load_rig_config
 from gyrohost.estimator.config import for_rig
 from gyrohost.ident.simcheck import record_log, write_rigs
 from gyrohost.ident import filter_fit
+from gyrohost.ident.errors import IdentDataError, ParamsError
 from gyrohost.ident.params import parameters
 from gyrotensegrity import load_scene
 
@@ -293,13 +312,14 @@ def test_a_noise_factor_beyond_floats_is_a_counted_break_not_a_crash(tmp_path, m
 
 
 def test_a_filter_diverging_far_out_is_a_counted_break_not_a_crash(tmp_path):
-    """Strings 400 times too stiff make the 10 ms prediction diverge until the IMU's predicted
-    attitude is not finite: a break the fit walls off and names, without warnings."""
+    """Strings 3000 times too stiff (e^8) make the prediction diverge, its substeps taken for
+    the stiffness in the filter's model, until the bars' constraints are singular: a break the
+    fit walls off and names, without warnings."""
     problem = _problem(tmp_path, groups=("stiffness",))
     problem(np.zeros(1))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        far = problem(np.array([6.0]))
+        far = problem(np.array([8.0]))
     assert not caught, [str(w.message) for w in caught]
     assert np.any(far == FAILED_RESIDUAL)
     assert len(problem.failures) == 1 and "stiffness" in problem.failures[0], problem.failures

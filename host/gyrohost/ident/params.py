@@ -124,7 +124,8 @@ def parameters(
     Raises
     ------
     ParamsError
-        An unknown group, ``J3`` with ``J3-each``, or a filter group fitted otherwise.
+        An unknown group, ``J3`` with ``J3-each``, a filter group fitted otherwise, or
+        ``process-noise`` where the filter takes no node noise to scale.
     """
     unknown = [g for g in groups if g not in GROUPS]
     if unknown:
@@ -134,6 +135,9 @@ def parameters(
     if not by_filter and (asked := [g for g in groups if g in FILTER_GROUPS]):
         raise ParamsError(f"{', '.join(asked)}: fitted by the filter's likelihood only "
                           "(--method filter)")  # fmt: skip
+    if "process-noise" in groups and est is not None and est.accel_psd_m2_s3 == 0.0:
+        raise ParamsError("process-noise scales [estimator] accel_psd_m2_s3, which is 0 here "
+                          "(no node noise): give it a value to scale")  # fmt: skip
     J3 = wheel_J3(scene)
     if not J3 and ("J3" in groups or "J3-each" in groups):
         raise ParamsError(f"scene {scene.name} has no wheel: J3 cannot be identified")

@@ -55,13 +55,15 @@ def sensor_start(structure, config):
 def sensor_problem(structure, config, logs, groups, until_s=None, warn=None):
     """What the filter fits after ``structure`` (the output error's :class:`.fit.FitResult`):
     ``(scene, config, est, params, recs)`` for :func:`.filter_fit.fit`, the parameters those of
-    :data:`SENSOR_GROUPS` in ``groups`` (the filter's own process noise always), the logs
+    :data:`SENSOR_GROUPS` in ``groups`` (the filter's own process noise always, where it
+    takes any), the logs
     ``logs`` read over :data:`SENSOR_WINDOW_S` (or ``until_s`` if shorter)."""
     scene, start = sensor_start(structure, config)
     est = for_rig(start)
     window = SENSOR_WINDOW_S if until_s is None else min(until_s, SENSOR_WINDOW_S)
     recs = [filter_fit.load(log, window, warn) for log in logs]
-    refined = [g for g in SENSOR_GROUPS if g in groups or g == "process-noise"]
+    noisy = est.accel_psd_m2_s3 > 0.0  # a factor on no node noise leaves none
+    refined = [g for g in SENSOR_GROUPS if g in groups or (g == "process-noise" and noisy)]
     params = parameters(scene, start, refined, est.servo_lag_s, len(recs), est, True)
     return scene, start, est, params, recs
 

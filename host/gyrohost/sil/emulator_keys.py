@@ -66,11 +66,8 @@ def emulator_keys(rig: RigConfig) -> dict:
         "imu_latency_s": wire_time_s(rig.imu.rate_hz) + sim.truth.imu_latency_s,
         "imu_time_std_s": 0.0,
         # nothing moves the truth's nodes at random, and the filter's integration leaves
-        # nothing (the in-process SIL holds its dof with none); the node noise carries an
-        # excess of the real-time runs not yet explained: 3e-8 holds their positions block
-        # near its dof; identify's likelihood leaves it undetermined on identification runs
-        # (docs/estimator-noise.md#node-accelerations)
-        "accel_psd_m2_s3": 3.0e-8,
+        # nothing (docs/estimator-noise.md#node-accelerations)
+        "accel_psd_m2_s3": 0.0,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
         # the bias is a random constant, not white noise: a state with its spread as prior
         "imu_accel_std_m_s2": std(accel_white, accel_count),
