@@ -300,3 +300,19 @@ def test_a_length_on_the_limit_is_commanded_within_it(rig):
         bus.command_lengths({"left": 0.50 + 1e-6})  # beyond rounding: refused
     states = wait_until_at(bus, [0.10, 0.30])
     assert 0.10 <= states[0].length_m <= 0.10 + STEP_M
+
+
+@pytest.mark.parametrize("read_mode", ["bulk", "single"])
+def test_goals_and_reads_are_stamped_when_their_packet_goes_out(rig, read_mode, monkeypatch):
+    """Work before the write (the SDK's own, or a wait for the GIL) does not move the stamps: a
+    goal's and a read's time is when its packet went to the OS, not when the call began."""
+    _, bus = rig(read_mode)
+    delay_s = 0.02
+    clear = type(bus.port).clearPort
+    monkeypatch.setattr(type(bus.port), "clearPort", lambda p: time.sleep(delay_s) or clear(p))
+    called_ns = time.monotonic_ns()
+    bus.command_lengths([0.30, 0.30])
+    assert bus.goals_sent_ns >= called_ns + delay_s * 1e9
+    called_ns = time.monotonic_ns()
+    (state, *_) = bus.read_states()
+    assert state.t_ns >= called_ns + delay_s * 1e9

@@ -106,6 +106,10 @@ class PortHandler(sdk.PortHandler):
         """Callable run while a reply is awaited and the line is quiet (goals that must not
         wait for a silent servo's time-out); it may write whole packets, never read."""
         self._last_rx_s = 0.0
+        self.written_ns = 0
+        """``time.monotonic_ns()`` just before the newest packet went to the OS: a stamp taken
+        before the SDK's own work around the write was late by up to milliseconds where the
+        thread waited for the GIL in between (0.5-1.4 ms at the 99th percentile of goals)."""
         self.in_reply_wait = False
         """True while :attr:`while_waiting` runs: a packet must then go out without the SDK's
         ``txPacket``, which flushes the input (the reply awaited, or the next one of a bulk
@@ -148,6 +152,10 @@ class PortHandler(sdk.PortHandler):
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.reply_timeout_ms
         self._last_rx_s = time.monotonic()
+
+    def writePort(self, packet) -> int:
+        self.written_ns = time.monotonic_ns()
+        return super().writePort(packet)
 
     def readPort(self, length: int) -> bytes:
         data = super().readPort(length)
@@ -212,7 +220,7 @@ class StringServoBus:
         self.port = PortHandler(config.port, config.reply_timeout_s)
         self.packets = sdk.PacketHandler(1.0)
         self.low_latency = False
-        self.goals_sent_ns = 0  # time.monotonic_ns() just before the newest goals went out
+        self.goals_sent_ns = 0  # time.monotonic_ns() just before the newest goals went to the OS
         self._open = False
 
     # --- port ---------------------------------------------------------------------------------
@@ -423,13 +431,13 @@ class StringServoBus:
         for name, (steps, speed) in goals.items():
             word = mx12.word_from_int16(steps)
             group.addParam(self.servos[name].id, [word & 0xFF, word >> 8, speed & 0xFF, speed >> 8])
-        # stamped before the write: after it, the thread may wait for the GIL for milliseconds
-        self.goals_sent_ns = time.monotonic_ns()
         if self.port.in_reply_wait:
             group.makeParam()
             self.port.write_packet(_sync_write_packet(mx12.Addr.GOAL_POSITION, 4, group.param))
+            self.goals_sent_ns = self.port.written_ns
             return
         result = group.txPacket()
+        self.goals_sent_ns = self.port.written_ns
         if result != sdk.COMM_SUCCESS:
             raise ServoCommError(
                 f"servo bus {self.config.port}: sync write of goals failed: "
@@ -445,21 +453,20 @@ class StringServoBus:
         return [self._read_one(servo) for servo in self.config.servo]
 
     def _read_one(self, servo: ServoConfig) -> ServoState:
-        sent_ns = time.monotonic_ns()
         data, result, error = self.packets.readTxRx(
             self.port, servo.id, mx12.Addr.PRESENT_POSITION, STATE_BYTES
         )
         self._check(servo, result, 0, "read present position/speed/load")
         # the servo samples between our request and its reply
-        return self._state(servo, data, error, (sent_ns + time.monotonic_ns()) // 2)
+        return self._state(servo, data, error, (self.port.written_ns + time.monotonic_ns()) // 2)
 
     def _bulk_read(self, addr: int, n: int) -> dict[str, tuple[list[int], int, int]]:
         group = sdk.GroupBulkRead(self.port, self.packets)
         for servo in self.config.servo:
             group.addParam(servo.id, addr, n)
         group.makeParam()
-        sent_ns = time.monotonic_ns()  # every servo samples on the one request, just after it
         result = self.packets.bulkReadTx(self.port, group.param, 3 * len(self.config.servo))
+        sent_ns = self.port.written_ns  # every servo samples on the one request, just after it
         if result != sdk.COMM_SUCCESS:
             self._check(self.config.servo[0], result, 0, "bulk read request")
         raw = {}
