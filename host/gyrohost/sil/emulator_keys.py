@@ -61,8 +61,8 @@ def emulator_keys(rig: RigConfig) -> dict:
         # after it was taken (plus the truth's own latency, a drawn sensor's); the rig's loop
         # wakes for it then, and the grid the host rebuilds keeps the earliest arrivals: it
         # lies behind the samples by the wire and the loop's and the reader's shortest
-        # wake-up, a tenth of a millisecond, which leaves no time uncertainty worth a key
-        # (docs/estimator-noise.md#the-imus-latency)
+        # wake-up (0.1-0.2 ms, the machine's: gyrotens identify fits the whole latency), no
+        # spread (docs/estimator-noise.md#the-imus-latency)
         "imu_latency_s": wire_time_s(rig.imu.rate_hz) + sim.truth.imu_latency_s,
         "imu_time_std_s": 0.0,
         # nothing moves the truth's nodes at random, and the filter's integration leaves
