@@ -4,10 +4,13 @@ a servo moves to a goal from when its bytes came, not from the emulator's next p
 import os
 import time
 
+import pytest
+
 from gyrohost.config import ServoConfig
 from gyrohost.drivers.mx12 import Addr
 from gyrohost.simrig.arrivals import ArrivalStamps
 from gyrohost.simrig.config import ServoEmuConfig
+from gyrohost.simrig.errors import PtyLinkError
 from gyrohost.simrig.pty_link import PtyLink
 from gyrohost.simrig.servo_emu import INST_WRITE, Mx12Bus, Packet
 
@@ -78,3 +81,16 @@ def test_bytes_stamped_after_a_poll_wait_for_a_later_one():
             assert bus.packets_seen == 1
     finally:
         bus.close()
+
+
+def test_a_stopped_child_is_named_not_a_silent_bus():
+    link = PtyLink()
+    stamps = ArrivalStamps(link.fileno(), link.slave_path)
+    try:
+        stamps._proc.kill()
+        stamps._proc.wait()
+        with pytest.raises(PtyLinkError, match=f"child of {link.slave_path} stopped"):
+            stamps.take()
+    finally:
+        stamps.close()
+        link.close()

@@ -2,29 +2,23 @@
 
 A device takes a driver's bytes when they arrive: a servo moves to a goal then, and samples the
 position it reports then. A pty keeps no arrival times, and an emulator that steps a physics
-model learns of bytes only at its next poll: the simulated rig's loop, busy with a truth step
-(0.8 ms, up to 2 ms on two cores), took a servo goal up to 3 ms after the host wrote it, 0.4 ms
-on average. :class:`ArrivalStamps` reads the pty's master in a small child process that does
+model learns of bytes only at its next poll, a truth step (about a millisecond) later at worst.
+:class:`ArrivalStamps` reads the pty's master in a small child process that does
 nothing else, so it wakes as the bytes come and stamps them with ``time.monotonic()`` (a clock
 every process on the machine shares), and passes them on down a pipe with their stamps.
 
-The child runs this file as a script (standard library only, no package import: it starts in a
-few tens of milliseconds) with three inherited descriptors: the pty's master to read, the pipe
-to write records to, and a pipe from the parent whose end-of-file tells it to stop (the parent
-closing it, or dying).
+The child runs :mod:`.stamp_child` as a script.
 """
 
 import os
 import select
-import struct
 import subprocess
 import sys
-import time
 
-RECORD = struct.Struct("<dH")
-"""A record's header: the arrival stamp (``time.monotonic()``, s) and the byte count."""
-READ_SIZE = 4000
-"""Most bytes read into one record: header and bytes stay within an atomic pipe write."""
+from . import stamp_child
+from .errors import PtyLinkError
+from .stamp_child import RECORD
+
 START_TIMEOUT_S = 5.0
 """Longest wait for the child to report that it reads the pty, s."""
 
@@ -34,21 +28,38 @@ class ArrivalStamps:
 
     The parent keeps writing its replies to ``master_fd``; it must no longer read from it.
 
+    Parameters
+    ----------
+    master_fd : int
+    name : str
+        What the errors call the pty (its slave's path).
+
     Raises
     ------
+    PtyLinkError
+        The child did not report ready in time.
     OSError
-        The child could not be started or did not report ready in time.
+        The child could not be started.
     """
 
-    def __init__(self, master_fd: int) -> None:
+    def __init__(self, master_fd: int, name: str = "a pty") -> None:
+        self.name = name
         records_r, records_w = os.pipe()
         stop_r, stop_w = os.pipe()
         try:
             self._proc = subprocess.Popen(
-                [sys.executable, "-I", "-S", __file__, str(master_fd), str(records_w), str(stop_r)],
+                [
+                    sys.executable,
+                    "-I",
+                    "-S",
+                    stamp_child.__file__,
+                    *map(str, (master_fd, records_w, stop_r)),
+                ],
                 pass_fds=(master_fd, records_w, stop_r),
                 start_new_session=True,  # a Ctrl-C at the terminal is the rig's to handle
                 stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,  # its end is the parent's to report (take)
             )
         finally:
             os.close(records_w)
@@ -57,7 +68,7 @@ class ArrivalStamps:
         ready, _, _ = select.select([records_r], [], [], START_TIMEOUT_S)
         if not ready or os.read(records_r, 1) != b"R":
             self.close()
-            raise OSError(f"the arrival-stamping child for pty fd {master_fd} did not start")
+            raise PtyLinkError(f"the arrival-stamping child of {name} did not start")
         os.set_blocking(records_r, False)
 
     def fileno(self) -> int:
@@ -66,12 +77,24 @@ class ArrivalStamps:
 
     def take(self) -> list[tuple[float, bytes]]:
         """Every whole record arrived so far: (arrival stamp, s of ``time.monotonic()``, bytes),
-        oldest first."""
-        try:
-            while chunk := os.read(self._records, 65536):
-                self._buffer += chunk
-        except BlockingIOError:
-            pass
+        oldest first.
+
+        Raises
+        ------
+        PtyLinkError
+            The child has stopped: no bytes would be taken any more.
+        """
+        while True:
+            try:
+                chunk = os.read(self._records, 65536)
+            except BlockingIOError:
+                break
+            if not chunk:
+                raise PtyLinkError(
+                    f"the arrival-stamping child of {self.name} stopped "
+                    f"(exit code {self._proc.poll()})"
+                )
+            self._buffer += chunk
         out, view = [], self._buffer
         while len(view) >= RECORD.size:
             stamp, n = RECORD.unpack_from(view)
@@ -94,28 +117,3 @@ class ArrivalStamps:
             self._proc.kill()
             self._proc.wait()
         os.close(self._records)
-
-
-def _serve(master_fd: int, records_fd: int, stop_fd: int) -> None:
-    """The child: read the master as bytes come, write stamped records, until told to stop."""
-    os.write(records_fd, b"R")
-    while True:
-        ready, _, _ = select.select([master_fd, stop_fd], [], [])
-        if stop_fd in ready:
-            return
-        try:
-            data = os.read(master_fd, READ_SIZE)
-        except BlockingIOError:
-            continue
-        except OSError:  # the driver's side hung up (EIO): nothing to read until it reopens
-            time.sleep(0.001)
-            continue
-        if data:
-            os.write(records_fd, RECORD.pack(time.monotonic(), len(data)) + data)
-
-
-if __name__ == "__main__":
-    try:
-        _serve(*(int(arg) for arg in sys.argv[1:4]))
-    except (BrokenPipeError, KeyboardInterrupt):  # the parent is gone
-        pass

@@ -196,7 +196,7 @@ class PtyDevice:
         :meth:`poll`; ``origin_s`` is ``time.monotonic()`` at the caller's time zero (a poll's
         ``now_s``). Bytes stamped after a poll's time wait for a later poll."""
         if self._stamps is None:
-            self._stamps = ArrivalStamps(self.link.fileno())
+            self._stamps = ArrivalStamps(self.link.fileno(), self.link.slave_path)
             self._origin_s = origin_s
 
     def waitable(self):
