@@ -204,9 +204,10 @@ class FitResult:
         return self.params[i].value(self.theta[i])
 
     def value_sigma(self, i: int) -> float:
-        """Physical 1-sigma of parameter ``i``."""
+        """Physical 1-sigma of parameter ``i``: a log factor's sigma times the value it gives
+        (its derivative), not the nominal one, which a value far from it would scale."""
         p = self.params[i]
-        return self.sigma[i] * (abs(p.nominal) if p.relative else 1.0)
+        return self.sigma[i] * (abs(self.value(i)) if p.relative else 1.0)
 
     def strong_correlations(self, threshold=0.8) -> list[tuple[str, str, float]]:
         """Pairs of determined parameters with |correlation| above ``threshold``."""
