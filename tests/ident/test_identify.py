@@ -149,7 +149,10 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     yaw = overlay["imu"]["mounting_rpy_rad"][2]
     reported = read_identified(header)
     assert yaw == pytest.approx(reported["mounting.yaw"][0], rel=1e-5)  # the second stage's
-    assert {"imu_latency_s", "accel_psd_m2_s3"} <= set(overlay["estimator"])
+    assert {"imu_latency_s", "accel_psd_m2_s3", "j3_var_rel2"} <= set(overlay["estimator"])
+    (row,) = [line.split() for line in header.splitlines() if line.startswith("# J3 ")][:1]
+    j3 = float(row[4]) / float(row[3])  # 1-sigma over the value: its log factor's
+    assert overlay["estimator"]["j3_var_rel2"] == pytest.approx(j3**2, rel=0.05)
     latency, sigma = reported["imu_latency"]  # the first stage's, to the report's digits
     assert overlay["estimator"]["imu_latency_s"] == pytest.approx(latency, rel=1e-5)
     assert overlay["estimator"]["imu_time_std_s"] == pytest.approx(sigma, rel=1e-2)

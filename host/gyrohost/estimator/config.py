@@ -206,6 +206,9 @@ class EstimatorConfig:
     # factors, e.g. from gyrotens identify): nonzero makes their errors states
     # (gyrohost.estimator.param_errors); zero takes the scene's as exact
     string_cov_rel2: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 2
+    # how well the scene's wheel J3 is known (the variance of its log factor, one for every
+    # wheel, e.g. from gyrotens identify): nonzero makes its error a state; zero takes it exact
+    j3_var_rel2: float = field(default=0.0, metadata=_pos("J3 variance", 0.0, 1.0))
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
 
 

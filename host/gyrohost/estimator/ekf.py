@@ -118,7 +118,7 @@ class TensegrityEKF:
         self.fast = fast  # also the fusion's (:func:`.fusion.fuse`)
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
-        self.params = ParamErrors(self.process, L) if L.n_string_errors + L.n_goal_delay else None
+        self.params = ParamErrors(self.process, L) if L.params.stop > L.params.start else None
         self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)
@@ -167,6 +167,7 @@ class TensegrityEKF:
         std[L.accel_bias] = c.init_accel_bias_std_m_s2
         std[L.wheel_noise] = fuse_wheels.white_std(c)
         std[L.string_errors] = 0.0
+        std[L.j3_error] = np.sqrt(c.j3_var_rel2)
         std[L.goal_delay] = c.servo_delay_std_s
         P = np.diag(std**2)
         if L.n_mounting:

@@ -10,11 +10,14 @@ ticks falls in the rig's latency spread, the same for the whole run and differen
 a ramp's rest lengths then lag by ``speed x delay`` for the whole run, which a per-goal jitter
 does not describe.
 
-Both are carried as states (``layout.string_errors``, ``layout.goal_delay``), with the
-dynamics linear in them about the scene's values (their errors are a few percent, a fraction of
-a millisecond): each prediction step adds ``G theta`` to the state and the matching terms to
-the covariance, ``G`` the step's response to them (:func:`string_columns`,
-:func:`goal_delay_column`). The measurements see them through the states they move.
+The wheels' J3, identified to a few tenths of a percent, sets how far the spinning wheels turn
+the structure: an error of its 1-sigma, taken as exact, can leave a run's NEES several times
+its dof. All three are carried as states (``layout.string_errors``, ``layout.j3_error``,
+``layout.goal_delay``), with the dynamics linear in them about the scene's values (their
+errors are a few percent, a fraction of a millisecond): each prediction step adds
+``G theta`` to the state and the matching terms to the covariance, ``G`` the step's response
+to them (:func:`string_columns`, :func:`j3_column`, :func:`goal_delay_column`). The
+measurements see them through the states they move.
 
 - A string pulls with ``k e + c ds/dt`` (``e`` its stretch, the damping while it shortens):
   a relative error ``d_k`` of the stiffness is the force of a rest-length error ``-e d_k``,
@@ -41,6 +44,17 @@ def string_columns(process, x, x_next, F, dt) -> np.ndarray:
     G = F[:n, L.q_dot] @ a @ weights
     G[L.q_dot] += a @ _force_weights(process, x_next)[0]
     return 0.5 * dt * G
+
+
+def j3_column(process, x, x_next, F, u, dt) -> np.ndarray:
+    """The node motion's response (6 m,) over a step of ``dt`` s from ``x`` to ``x_next`` (n,)
+    under ``u`` (``F`` its Jacobian) to the wheels' J3 relative error: the trapezoid rule
+    ``dt/2 (F b(x) + b(x_next))``, ``b`` the accelerations' response
+    (:meth:`.process_model.ProcessModel.j3_response`)."""
+    L = process.layout
+    g = F[: L.q_dot.stop, L.q_dot] @ process.j3_response(x, u)
+    g[L.q_dot] += process.j3_response(x_next, u)
+    return 0.5 * dt * g
 
 
 def _force_weights(process, x) -> tuple[np.ndarray, np.ndarray]:
@@ -91,6 +105,9 @@ class ParamErrors:
         if L.n_string_errors:
             k = L.string_errors.start - L.params.start
             G[self.motion, k : k + 2] = string_columns(self.process, x, x_next, F, dt)
+        if L.n_j3_error:
+            k = L.j3_error.start - L.params.start
+            G[self.motion, k] = j3_column(self.process, x, x_next, F, u, dt)
         if L.n_goal_delay:
             before = u if self._u_before is None else self._u_before
             G[self.rest, -1] = goal_delay_column(self.process, x, x_next, u, before, F)

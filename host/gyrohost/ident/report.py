@@ -147,6 +147,7 @@ def overlay_toml(
     time_std = _latest(latency_sigma, result, before)
     estimator = _estimator_keys(result, a, fitted, cov, time_std)
     estimator += _string_keys(_latest(string_covariance, result, before))
+    estimator += _j3_keys(_latest(j3_variance, result, before))
     if servo is not None:
         estimator += [
             f"servo_lag_s = {float(servo.lag_s)!r}  # fitted to the servos' reads (reads less "
@@ -214,6 +215,16 @@ def _string_keys(cov) -> list[str]:
     ]
 
 
+def _j3_keys(variance) -> list[str]:
+    """The overlay's line of the wheels' J3 variance ``variance`` (None: none)."""
+    if variance is None:
+        return []
+    return [
+        f"j3_var_rel2 = {variance!r}  # how well the fit knows J3 (its log factor, squared): "
+        "the EKF estimates its error"
+    ]
+
+
 def _array(values) -> str:
     return f"[{', '.join(repr(float(x)) for x in values)}]"
 
@@ -239,6 +250,15 @@ def string_covariance(result: FitResult):
         return None
     idx = [names.index("stiffness"), names.index("damping")]
     return _covariance(result, idx, result.sigma[idx])
+
+
+def j3_variance(result: FitResult) -> float | None:
+    """The variance of the fitted J3's log factor (its relative 1-sigma, squared); None unless
+    the one J3 of every wheel was fitted and is determined."""
+    names = [p.name for p in result.params]
+    if "J3" not in names or not result.determined[names.index("J3")]:
+        return None
+    return float(result.sigma[names.index("J3")] ** 2)
 
 
 def latency_sigma(result: FitResult) -> float | None:
