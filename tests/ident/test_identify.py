@@ -155,7 +155,7 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     assert overlay["estimator"]["j3_var_rel2"] == pytest.approx(j3**2, rel=0.05)
     latency, sigma = reported["imu_latency"]  # the first stage's, to the report's digits
     assert overlay["estimator"]["imu_latency_s"] == pytest.approx(latency, rel=1e-5)
-    assert overlay["estimator"]["imu_time_std_s"] == pytest.approx(sigma, rel=1e-2)
+    assert overlay["estimator"]["imu_latency_std_s"] == pytest.approx(sigma, rel=1e-2)
     # the servos' lag, fitted to their reads: the in-process servos' own
     # the in-process servos take each goal at its send: the fit is the response itself, to
     # what reads of a count each allow (the sibling fit's 2 %, test_servo_render), the delay

@@ -134,6 +134,9 @@ class EstimatorConfig:
     # the IMU's smallest delay from sampling to the host's stamp (transfer, the reader's
     # wake-up): a reconstructed grid time is that much after the sample was taken, s
     imu_latency_s: float = field(default=0.0, metadata=_pos("IMU latency", 0.0, 0.1))
+    # how well imu_latency_s is known (1-sigma, e.g. from gyrotens identify): nonzero makes its
+    # error a state, the same for the whole run (gyrohost.estimator.imu_latency), s
+    imu_latency_std_s: float = field(default=0.0, metadata=_pos("IMU latency std", 0.0, 0.1))
     # process model
     process_dt_s: float = field(default=0.01, metadata=_pos("largest predict step", 1e-4, 0.1))
     process_method: str = field(default="lean", metadata={"choices": ("lean", "rk4")})

@@ -30,6 +30,7 @@ from .fast_imu import fast_imu
 from .fast_manifold import fast_manifold
 from .fast_prediction import fast_prediction
 from .fusion import fuse
+from .imu_latency import with_latency_error
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
 from .layout import from_model_state, layout_of
@@ -168,6 +169,7 @@ class TensegrityEKF:
         std[L.wheel_noise] = fuse_wheels.white_std(c)
         std[L.string_errors] = 0.0
         std[L.j3_error] = np.sqrt(c.j3_var_rel2)
+        std[L.imu_latency] = c.imu_latency_std_s
         std[L.goal_delay] = c.servo_delay_std_s
         P = np.diag(std**2)
         if L.n_mounting:
@@ -388,13 +390,14 @@ class TensegrityEKF:
         pred = self._imu_prediction()
         self._A = pred.A  # the lean process model's next linearisation
         if self.fast_imu is not None:
-            return fuse(self, *self.fast_imu.measurements(pred, omega_rad_s, accel_m_s2, euler_rad))
-        return fuse(
-            self,
-            fuse_imu_rate.measurement(self, pred, omega_rad_s),
-            fuse_imu_accel.measurement(self, pred, accel_m_s2),
-            fuse_imu_angle.measurement(self, pred, euler_rad),
-        )
+            made = self.fast_imu.measurements(pred, omega_rad_s, accel_m_s2, euler_rad)
+        else:
+            made = (
+                fuse_imu_rate.measurement(self, pred, omega_rad_s),
+                fuse_imu_accel.measurement(self, pred, accel_m_s2),
+                fuse_imu_angle.measurement(self, pred, euler_rad),
+            )
+        return fuse(self, *with_latency_error(self, pred, made))
 
     def _imu_prediction(self):
         """:func:`.imu_prediction.predict_imu` at the estimate, refused where the model refuses

@@ -7,7 +7,8 @@ with the wheel telemetry's noise as a state)::
     x = [ vec(eta2) (3 m, m) | vec(eta2_dot) (3 m, m/s) | omega_w (n_w, rad/s)
           | rest (alpha, m) | b_g (3, rad/s) | d_mount (3, rad, optional)
           | b_a (3, m/s^2, optional) | a_w (n_w, rad/s, optional)
-          | d_strings (2, optional) | d_J3 (1, optional) | d_goal (1, s, optional) ]
+          | d_strings (2, optional) | d_J3 (1, optional) | d_lat (1, s, optional)
+          | d_goal (1, s, optional) ]
 
 ``eta2`` are the model's independent node coordinates (row by row, as in
 :mod:`gyrotensegrity.model`), ``omega_w`` the spin of every wheel about ``+b``, ``rest`` the
@@ -19,8 +20,9 @@ accelerometer's bias in sensor axes (a random constant, present when the configu
 a prior: ``init_accel_bias_std_m_s2``), ``a_w`` the white term
 of the last wheel sample's noise, which the next sample's noise shares (``wheel_noise_ma1``,
 :mod:`.fuse_wheels`), ``d_strings`` the errors of the strings' stiffness and damping (relative:
-log factors on the scene's), ``d_J3`` that of the wheels' J3 (a log factor on every wheel's)
-and ``d_goal`` the error of the servos' goal delay
+log factors on the scene's), ``d_J3`` that of the wheels' J3 (a log factor on every wheel's),
+``d_lat`` that of the IMU's latency (:mod:`.imu_latency`) and ``d_goal`` the error of the
+servos' goal delay
 (``servo_delay_s``), random constants present when the configuration gives them an
 uncertainty (:mod:`.param_errors`). Wheel angles are left out (nothing observes them,
 nothing depends on them).
@@ -46,10 +48,11 @@ class FilterLayout:
     n_string_errors: int = 0  # 2 with the strings' stiffness and damping errors, else 0
     n_goal_delay: int = 0  # 1 with the servos' goal delay error as a state, else 0
     n_j3_error: int = 0  # 1 with the wheels' J3 error as a state, else 0
+    n_imu_latency: int = 0  # 1 with the IMU latency's error as a state, else 0
 
     @property
     def size(self) -> int:
-        n_params = self.n_string_errors + self.n_j3_error + self.n_goal_delay
+        n_params = self.n_string_errors + self.n_j3_error + self.n_imu_latency + self.n_goal_delay
         return self.n_base + self.n_wheel_noise + n_params
 
     @property
@@ -104,12 +107,17 @@ class FilterLayout:
         return slice(self.string_errors.stop, self.string_errors.stop + self.n_j3_error)
 
     @property
+    def imu_latency(self) -> slice:
+        return slice(self.j3_error.stop, self.j3_error.stop + self.n_imu_latency)
+
+    @property
     def goal_delay(self) -> slice:
-        return slice(self.j3_error.stop, self.size)
+        return slice(self.imu_latency.stop, self.size)
 
     @property
     def params(self) -> slice:
-        """The identified parameters' errors: the strings', J3's and the goal delay's."""
+        """The identified parameters' errors: the strings', J3's, the IMU latency's and the
+        goal delay's."""
         return slice(self.wheel_noise.stop, self.size)
 
     def labels(self) -> list[str]:
@@ -124,6 +132,7 @@ class FilterLayout:
         names += [f"wheel_noise{k}_rad_s" for k in range(self.n_wheel_noise)]
         names += ["stiffness_error", "damping_error"][: self.n_string_errors]
         names += ["j3_error"][: self.n_j3_error]
+        names += ["imu_latency_error_s"][: self.n_imu_latency]
         return names + ["goal_delay_error_s"][: self.n_goal_delay]
 
 
@@ -139,7 +148,9 @@ def layout_of(model, config=None) -> FilterLayout:
     strings = 2 if string_covariance(config) is not None else 0
     goal = 1 if config.servo_delay_std_s > 0.0 else 0
     j3 = 1 if config.j3_var_rel2 > 0.0 else 0
-    return FilterLayout(model.m, n_w, model.alpha, noise, mounting, accel_bias, strings, goal, j3)
+    latency = 1 if config.imu_latency_std_s > 0.0 else 0
+    sizes = (noise, mounting, accel_bias, strings, goal, j3, latency)
+    return FilterLayout(model.m, n_w, model.alpha, *sizes)
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

@@ -183,8 +183,8 @@ def _determined_groups(result: FitResult | None) -> set:
 
 def _estimator_keys(result: FitResult, a, fitted: set, cov, time_std) -> list[str]:
     """The overlay's ``[estimator]`` lines: the mounting's covariance ``cov`` (or None), and
-    the filter's own latency (with its 1-sigma ``time_std`` as the samples' time uncertainty,
-    or None) and noise where the fit determined them."""
+    the filter's own latency (with its 1-sigma ``time_std``, or None) and noise where the fit
+    determined them."""
     lines = []
     if cov is not None:
         lines += [
@@ -194,8 +194,8 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov, time_std) -> list[st
         ]
     if "imu-latency" in fitted:
         lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by gyrotens identify")
-        if time_std is not None:  # a sample's time is known as well as the latency, no better
-            lines.append(f"imu_time_std_s = {time_std!r}  # the fitted latency's 1-sigma")
+        if time_std is not None:  # the filter carries the latency's error as a state
+            lines.append(f"imu_latency_std_s = {time_std!r}  # the fitted latency's 1-sigma")
     if "process-noise" in fitted:
         nominal = next(p.nominal for p in result.params if p.group == "process-noise")
         psd = float(nominal * a.accel_psd_factor)
