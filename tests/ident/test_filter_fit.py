@@ -53,23 +53,21 @@ def _problem(tmp_path, workers=1, groups=("J3",)):
     log = record_log(truth, 3, tmp_path / "log")
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
-    if "process-noise" in groups:  # the simulated rig's filter takes none: some to scale
-        est = replace(est, accel_psd_m2_s3=1e-6)
     params = parameters(scene, config, list(groups), est.servo_lag_s, 1, est, True)
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
 
 
 def test_process_noise_on_a_filter_without_node_noise_is_refused(tmp_path):
-    """The simulated rig's filter takes no node noise; a factor on none leaves none: asked
-    for, the group is refused by name."""
+    """A filter that takes no node noise: a factor on none leaves none, so the group, asked
+    for, is refused by name."""
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
     from gyrotensegrity import load_scene
 
     nominal, _ = write_rigs(tmp_path, 1.0)
     config = load_rig_config(nominal)
-    scene, est = load_scene(config.scene_path), for_rig(config)
-    assert est.accel_psd_m2_s3 == 0.0
+    scene = load_scene(config.scene_path)
+    est = replace(for_rig(config), accel_psd_m2_s3=0.0)
     with pytest.raises(ParamsError, match=r"process-noise scales .*accel_psd_m2_s3, which is 0"):
         parameters(scene, config, ["process-noise"], est.servo_lag_s, 1, est, True)
 
