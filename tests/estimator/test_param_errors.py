@@ -13,6 +13,7 @@ from gyrohost.estimator.config import EstimatorConfig, config_from_dict
 from gyrohost.estimator.errors import EstimatorConfigError
 from gyrohost.estimator.layout import from_model_state
 from gyrohost.estimator.param_errors import (
+    J3Response,
     ParamErrors,
     goal_delay_column,
     j3_column,
@@ -81,7 +82,7 @@ def _j3_column_error(model, x, u, dt):
     config = EstimatorConfig(servo_lag_s=LAG_S)
     process = ProcessModel(model, config)
     x_next, F = process.step(x, u, dt)
-    column = j3_column(process, x, x_next, F, u, dt)
+    column = j3_column(J3Response(process), x, x_next, F, u, dt)
     eps = 1e-5
     bars = [
         b if b.wheel is None else replace(b, wheel=replace(b.wheel, J3=model.J3[i] * math.exp(eps)))
@@ -154,7 +155,7 @@ def test_the_covariance_step_is_the_augmented_f_p_f_t(model, taut_state):
     cols = np.arange(L.params.start, L.params.stop)
     G = np.zeros((L.size, 4))
     G[: 6 * model.m, :2] = string_columns(process, x, x_next, F, dt)
-    G[: 6 * model.m, 2] = j3_column(process, x, x_next, F, u, dt)
+    G[: 6 * model.m, 2] = j3_column(J3Response(process), x, x_next, F, u, dt)
     G[L.rest, 3] = goal_delay_column(process, x, x_next, u, before, F)
     F_aug = F.copy()
     F_aug[:, cols] += G

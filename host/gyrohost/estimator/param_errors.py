@@ -28,7 +28,14 @@ measurements see them through the states they move.
   step's map of the start's, under the goals before) to ``-d r_dot1``.
 """
 
+from dataclasses import replace
+
 import numpy as np
+
+from gyrotensegrity.fast import FastDynamics
+from gyrotensegrity.model import Model
+
+from .motor_reaction import MotorReaction
 
 
 def string_columns(process, x, x_next, F, dt) -> np.ndarray:
@@ -46,15 +53,52 @@ def string_columns(process, x, x_next, F, dt) -> np.ndarray:
     return 0.5 * dt * G
 
 
-def j3_column(process, x, x_next, F, u, dt) -> np.ndarray:
+def j3_column(response, x, x_next, F, u, dt) -> np.ndarray:
     """The node motion's response (6 m,) over a step of ``dt`` s from ``x`` to ``x_next`` (n,)
     under ``u`` (``F`` its Jacobian) to the wheels' J3 relative error: the trapezoid rule
-    ``dt/2 (F b(x) + b(x_next))``, ``b`` the accelerations' response
-    (:meth:`.process_model.ProcessModel.j3_response`)."""
-    L = process.layout
-    g = F[: L.q_dot.stop, L.q_dot] @ process.j3_response(x, u)
-    g[L.q_dot] += process.j3_response(x_next, u)
+    ``dt/2 (F b(x) + b(x_next))``, ``b`` the accelerations' ``response`` (a
+    :class:`J3Response`)."""
+    L = response.process.layout
+    g = F[: L.q_dot.stop, L.q_dot] @ response(x, u)
+    g[L.q_dot] += response(x_next, u)
     return 0.5 * dt * g
+
+
+J3_STEP = 1e-4
+"""Relative step of the wheels' J3 for the accelerations' response to it (:class:`J3Response`):
+the response is nearly linear in J3, so a forward difference errs by about this share of it,
+and its round-off is 1e-12 of the accelerations."""
+
+
+class J3Response:
+    """The accelerations' response (3 m,) m/s^2 of ``process`` (a
+    :class:`.process_model.ProcessModel`) at a filter state to a relative error of the wheels'
+    J3 (one log factor on every wheel's, as identify fits it): a forward difference of
+    :data:`J3_STEP` through a twin of its dynamics whose wheels' J3 are stepped (their axial
+    inertia, the gyroscopic terms and the motors' reaction)."""
+
+    def __init__(self, process):
+        self.process = process
+        scene, J3 = process.model.scene, process.model.J3
+        bars = [
+            b if b.wheel is None else replace(b, wheel=replace(b.wheel, J3=(1 + J3_STEP) * J3[i]))
+            for i, b in enumerate(scene.bars)
+        ]
+        model = Model(replace(scene, bars=bars), omit=tuple(process.model.omitted))
+        self.dyn = FastDynamics(model)
+        self.reaction = MotorReaction(self.dyn) if process.reaction is not None else None
+
+    def __call__(self, x, u) -> np.ndarray:
+        p = self.process
+        X = np.asarray(x, float)[None, : p.layout.n_dynamic]
+        base = p.derivative(X, u)[0, p.layout.q_dot]
+        own = p.dyn, p.reaction  # the same evaluation, with the twin's dynamics in place
+        p.dyn, p.reaction = self.dyn, self.reaction
+        try:
+            stepped = p.derivative(X, u)[0, p.layout.q_dot]
+        finally:
+            p.dyn, p.reaction = own
+        return (stepped - base) / J3_STEP
 
 
 def _force_weights(process, x) -> tuple[np.ndarray, np.ndarray]:
@@ -94,6 +138,7 @@ class ParamErrors:
         self.motion = np.arange(L.q.start, L.q_dot.stop)
         self.rest = np.arange(L.rest.start, L.rest.stop)
         self.columns = np.arange(L.params.start, L.params.stop)
+        self.j3 = J3Response(process) if L.n_j3_error else None
         self._u_before = None  # the input of the last step
 
     def step(self, x, x_next, P_next, F, u, dt):
@@ -107,7 +152,7 @@ class ParamErrors:
             G[self.motion, k : k + 2] = string_columns(self.process, x, x_next, F, dt)
         if L.n_j3_error:
             k = L.j3_error.start - L.params.start
-            G[self.motion, k] = j3_column(self.process, x, x_next, F, u, dt)
+            G[self.motion, k] = j3_column(self.j3, x, x_next, F, u, dt)
         if L.n_goal_delay:
             before = u if self._u_before is None else self._u_before
             G[self.rest, -1] = goal_delay_column(self.process, x, x_next, u, before, F)

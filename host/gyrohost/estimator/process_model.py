@@ -38,16 +38,12 @@ step); the gyro bias is constant. Process noise is white: node accelerations
 :meth:`ProcessModel.noise` gives its discrete covariance.
 """
 
-from contextlib import contextmanager
-from dataclasses import replace
-
 import numpy as np
 from scipy.special import ndtr
 
 from gyrotensegrity.diagnostics import highest_frequency
 from gyrotensegrity.fast import FastDynamics
 from gyrotensegrity.fast_jacobian import FastJacobian, JacobianUnsupported, outer_rows
-from gyrotensegrity.model import Model
 
 from . import complex_step
 from .errors import EstimatorConfigError
@@ -90,12 +86,6 @@ def check_model(model) -> None:
         raise EstimatorConfigError(f"scene {model.scene.name!r}: the estimator needs bars")
 
 
-J3_STEP = 1e-4
-"""Relative step of the wheels' J3 for the accelerations' response to it
-(:meth:`ProcessModel.j3_response`): the response is nearly linear in J3, so a forward
-difference errs by about this share of it, and its round-off is 1e-12 of the accelerations."""
-
-
 class ProcessModel(ProcessNoise):
     """The filter's discrete process model (its noise: :class:`ProcessNoise`).
 
@@ -126,7 +116,6 @@ class ProcessModel(ProcessNoise):
         self.jac = self._closed_form() if config.jacobian == "analytic" else None
         self.reaction = MotorReaction(self.dyn) if config.wheel_reaction == "body" else None
         """The wheels' reaction on the whole structure (hinged rig), or None (the paper's)."""
-        self._j3_twin = None  # the dynamics with the wheels' J3 stepped (j3_response)
         self.rest_step_var_m2 = np.zeros(self.layout.n_strings)
         """Spread (alpha,) m^2 the rest lengths keep about their lag from the last goal step."""
         self._commanded = False  # the first goals set the lag's target, they are no step
@@ -136,40 +125,6 @@ class ProcessModel(ProcessNoise):
             return FastJacobian(self.dyn)
         except JacobianUnsupported as exc:
             raise EstimatorConfigError(f"estimator key 'jacobian' is 'analytic': {exc}") from None
-
-    def j3_response(self, x, u) -> np.ndarray:
-        """The accelerations' response (3 m,) m/s^2 at the filter state ``x`` under ``u`` to a
-        relative error of the wheels' J3 (one log factor on every wheel's, as identify fits
-        it): a forward difference of :data:`J3_STEP` through a twin of the model whose wheels'
-        J3 are stepped (their axial inertia, the gyroscopic terms and the motors' reaction)."""
-        if self._j3_twin is None:
-            self._j3_twin = self._twin(1.0 + J3_STEP)
-        X = np.asarray(x, float)[None, : self.layout.n_dynamic]
-        base = self.derivative(X, u)[0, self.layout.q_dot]
-        with self._dynamics(*self._j3_twin):
-            stepped = self.derivative(X, u)[0, self.layout.q_dot]
-        return (stepped - base) / J3_STEP
-
-    def _twin(self, j3_factor: float):
-        """The fast dynamics (and the motors' reaction, where modelled) of this model with
-        every wheel's J3 times ``j3_factor``."""
-        scene, J3 = self.model.scene, self.model.J3
-        bars = [
-            b if b.wheel is None else replace(b, wheel=replace(b.wheel, J3=j3_factor * J3[i]))
-            for i, b in enumerate(scene.bars)
-        ]
-        dyn = FastDynamics(Model(replace(scene, bars=bars), omit=tuple(self.model.omitted)))
-        return dyn, (MotorReaction(dyn) if self.reaction is not None else None)
-
-    @contextmanager
-    def _dynamics(self, dyn, reaction):
-        """Evaluate with ``dyn`` and ``reaction`` in place of the model's own."""
-        own = self.dyn, self.reaction
-        self.dyn, self.reaction = dyn, reaction
-        try:
-            yield
-        finally:
-            self.dyn, self.reaction = own
 
     def derivative(self, X, u, with_node_accelerations=False):
         """dx/dt of the dynamic part of a batch of filter states (and N_ddot (K, 3, n) if asked).
