@@ -5,9 +5,10 @@ acting as the filter's lag behind the sample, its key and prior."""
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from gyrohost.estimator import TensegrityEKF, fuse_imu_accel, fuse_imu_angle, fuse_imu_rate
-from gyrohost.estimator.imu_latency import with_latency_error
+from gyrohost.estimator.imu_latency import sample_lag_s, with_latency_columns
 from gyrohost.estimator.imu_prediction import predict_imu
 
 STD_S = 1e-3
@@ -22,7 +23,7 @@ def _filter(model, config, x):
 def _measurements(ekf, u):
     pred = predict_imu(ekf, ekf.x, u)
     made = [m.measurement(ekf, pred, np.zeros(3)) for m in SOURCES]
-    return with_latency_error(ekf, pred, made)
+    return with_latency_columns(ekf, pred, made)
 
 
 def test_the_latency_is_a_state_with_its_prior(model, config, moving_state):
@@ -59,10 +60,13 @@ def test_the_latency_columns_are_minus_the_measurements_rate_along_the_motion(
 
 def test_the_estimate_acts_as_a_lag_behind_the_sample(model, config, moving_state):
     """An estimated error ``d`` moves each prediction as the filter's lag ``d`` behind the
-    sample does (:func:`.imu_prediction.at_sample_time`; the attitude's on the sample's side)."""
+    sample does (:func:`.imu_prediction.at_sample_time`; the attitude's on the sample's side):
+    it adds to the lag (:func:`sample_lag_s`), nothing else of the measurements moves."""
     x, _, u = moving_state
     ekf = _filter(model, config, x)
     ekf.x[ekf.layout.imu_latency] = 2e-3
+    assert sample_lag_s(ekf, ekf.t - 1e-3) == pytest.approx(3e-3, rel=1e-12)
+    ekf.imu_lag_s = sample_lag_s(ekf, ekf.t)  # a sample placed at the filter's time
     estimated = _measurements(ekf, u)
     ekf.x[ekf.layout.imu_latency] = 0.0
     ekf.imu_lag_s = 2e-3

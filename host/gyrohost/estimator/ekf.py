@@ -30,7 +30,7 @@ from .fast_imu import fast_imu
 from .fast_manifold import fast_manifold
 from .fast_prediction import fast_prediction
 from .fusion import fuse
-from .imu_latency import with_latency_error
+from .imu_latency import sample_lag_s, with_latency_columns
 from .imu_model import ImuGeometry, euler_zyx
 from .imu_prediction import predict_imu
 from .layout import from_model_state, layout_of
@@ -378,7 +378,7 @@ class TensegrityEKF:
         list of Innovation (empty when the sample was stale)
         """
         taken_s = imu_taken_s(self.config, t_s)
-        self.imu_lag_s = max(self.t - taken_s, 0.0)
+        self.imu_lag_s = sample_lag_s(self, taken_s)
         held = self._arrive(taken_s, fuse_imu_rate.SOURCE, self.cycle is not None)
         if held is None:
             return []
@@ -397,7 +397,7 @@ class TensegrityEKF:
                 fuse_imu_accel.measurement(self, pred, accel_m_s2),
                 fuse_imu_angle.measurement(self, pred, euler_rad),
             )
-        return fuse(self, *with_latency_error(self, pred, made))
+        return fuse(self, *with_latency_columns(self, pred, made))
 
     def _imu_prediction(self):
         """:func:`.imu_prediction.predict_imu` at the estimate, refused where the model refuses
