@@ -144,8 +144,8 @@ def overlay_toml(
     if "mounting" in fitted:
         out += ["[imu]", f"mounting_rpy_rad = {_array(a.mounting_rpy_rad)}"]
     cov = _latest(mounting_covariance, result, before)
-    time_std = _latest(latency_sigma, result, before)
-    estimator = _estimator_keys(result, a, fitted, cov, time_std)
+    latency_std = _latest(latency_sigma, result, before)
+    estimator = _estimator_keys(result, a, fitted, cov, latency_std)
     estimator += _string_keys(_latest(string_covariance, result, before))
     estimator += _j3_keys(_latest(j3_variance, result, before))
     if servo is not None:
@@ -181,9 +181,9 @@ def _determined_groups(result: FitResult | None) -> set:
     return {p.group for p, ok in zip(result.params, result.determined, strict=True) if ok}
 
 
-def _estimator_keys(result: FitResult, a, fitted: set, cov, time_std) -> list[str]:
+def _estimator_keys(result: FitResult, a, fitted: set, cov, latency_std) -> list[str]:
     """The overlay's ``[estimator]`` lines: the mounting's covariance ``cov`` (or None), and
-    the filter's own latency (with its 1-sigma ``time_std``, or None) and noise where the fit
+    the filter's own latency (with its 1-sigma ``latency_std``, or None) and noise where the fit
     determined them."""
     lines = []
     if cov is not None:
@@ -194,8 +194,8 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov, time_std) -> list[st
         ]
     if "imu-latency" in fitted:
         lines.append(f"imu_latency_s = {float(a.imu_latency_s)!r}  # fitted by gyrotens identify")
-        if time_std is not None:  # the filter carries the latency's error as a state
-            lines.append(f"imu_latency_std_s = {time_std!r}  # the fitted latency's 1-sigma")
+        if latency_std is not None:  # the filter carries the latency's error as a state
+            lines.append(f"imu_latency_std_s = {latency_std!r}  # the fitted latency's 1-sigma")
     if "process-noise" in fitted:
         nominal = next(p.nominal for p in result.params if p.group == "process-noise")
         psd = float(nominal * a.accel_psd_factor)
