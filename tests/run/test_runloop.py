@@ -112,7 +112,9 @@ def test_a_run_completes_and_logs_every_stream(tmp_path, monkeypatch, capsys):
     assert truth["s13_rest_m"][-1] == pytest.approx(L0 - 0.05, abs=2e-3)  # servo followed
     assert_safe_state(folder, result)
     loop = result.summary["loop"]
-    assert loop["ticks"] > 50 and loop["period_p99_s"] >= loop["period_mean_s"] > 0  # no timing
+    # orders that hold for any periods (one long period can lift the mean above the p99)
+    assert loop["ticks"] > 50 and loop["period_max_s"] >= loop["period_p99_s"] > 0  # no timing
+    assert loop["period_max_s"] >= loop["period_mean_s"] > 0
     ticks = read_stream(folder, "loop")
     assert len(ticks) == loop["ticks"]  # asserts: the CPU is shared
     fed = np.isin(ticks["phase"], ["schedule", "settle"])
