@@ -103,9 +103,9 @@ def test_mounting_jacobians_match_complex_step(model, config, moving_state):
 
 # The in-process SIL (docs/estimator.md) with the IMU turned off the configured mounting by
 # about the fit's 1-sigma of one short excitation, in each angle. With the matching std the
-# mounting's error is a state, scored against its truth (dof 28 + 3); one seed's time-averaged
-# NEES stays under 3 x dof, where a filter that diverged from the turned IMU grows without
-# bound. How consistent it is over seeds, and how overconfident without the std, is the
+# mounting's error is a (considered) state, scored against its truth (dof 28 + 3); one seed's
+# time-averaged NEES stays under 3 x dof, where a filter that diverged from the turned IMU grows
+# without bound. How consistent it is over seeds, and how overconfident without the std, is the
 # estimator studies' to measure (a threshold on a few seeds' average is one a CPU can flip).
 MOUNTING_ERROR_RAD = np.array([3e-4, -3e-4, 3e-4])
 
@@ -121,7 +121,7 @@ def mis_mounted():
     return with_sim_keys(config, "truth", imu_rotation_deg=turn)
 
 
-def test_a_mis_identified_mounting_with_its_std_is_a_state_the_filter_tracks(mis_mounted):
+def test_a_mis_identified_mounting_with_its_std_keeps_the_filter_bounded(mis_mounted):
     from gyrohost.sil.scoring import RIG_MODEL_KEYS, mounting_error, score_rig_model_run
 
     keys = {**RIG_MODEL_KEYS, "imu_mounting_std_rad": (3e-4,) * 3}

@@ -212,6 +212,12 @@ class EstimatorConfig:
     # how well the scene's wheel J3 is known (the variance of its log factor, one for every
     # wheel, e.g. from gyrotens identify): nonzero makes its error a state; zero takes it exact
     j3_var_rel2: float = field(default=0.0, metadata=_pos("J3 variance", 0.0, 1.0))
+    # the errors above, the IMU latency's and the goal delay's, where states: "considered" keeps
+    # them at their prior and carries their covariance (a run's seconds cannot learn them, its
+    # transients would land in them: gyrohost.estimator.consider); "estimated" updates them
+    parameter_errors: str = field(
+        default="considered", metadata={"choices": ("considered", "estimated")}
+    )
     imu_gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.80665)
 
 

@@ -24,6 +24,7 @@ from gyrotensegrity import SimulationError
 
 from . import fuse_imu_accel, fuse_imu_angle, fuse_imu_rate, fuse_servos, fuse_wheels
 from .config import imu_taken_s, mounting_covariance, string_covariance
+from .consider import considered_columns
 from .errors import EstimatorError
 from .fast_cycle import fast_cycle
 from .fast_imu import fast_imu
@@ -120,6 +121,7 @@ class TensegrityEKF:
         self.fast_step = fast_prediction(self.process, L.size) if fast else None
         self.imu = ImuGeometry(model, config)
         self.params = ParamErrors(self.process, L) if L.params.stop > L.params.start else None
+        self.considered = considered_columns(L, config.parameter_errors)
         self.manifold = (fast and fast_manifold(model, L)) or Manifold(model, L)
         self.position_columns = np.arange(L.q.start, L.q.stop)
         self.motion_columns = np.arange(L.q.start, L.q_dot.stop)

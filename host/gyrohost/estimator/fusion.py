@@ -7,7 +7,8 @@ covariance ``S = H P H^T + R`` and the normalised innovation squared ``NIS = y^T
 computed first; the test ratio ``NIS / gate`` (gate = chi-square quantile of ``gate_probability``
 with ``dim z`` degrees of freedom) decides: ``<= 1`` the sample is fused with filterpy's
 ``ExtendedKalmanFilter.update`` (Joseph form) and the estimate is put back on the constraint
-manifold; ``> 1`` it is rejected and counted. Either way an :class:`Innovation` is returned
+manifold (the considered states' entries kept: :mod:`.consider`); ``> 1`` it is rejected and
+counted. Either way an :class:`Innovation` is returned
 and passed to the filter's log callback.
 """
 
@@ -20,6 +21,7 @@ from scipy.stats import chi2
 
 from gyrotensegrity.fast import _fastkernel
 
+from . import consider
 from .errors import EstimatorError
 
 
@@ -95,7 +97,8 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
 
     All measurements were linearised at the same estimate (one IMU sample: rate, specific force
     and angles); fusing them together is the same as fusing them one after the other without
-    relinearising. The estimate is then put back on the constraint manifold.
+    relinearising. The estimate is then put back on the constraint manifold, and the
+    considered states' entries and covariance block back to their prior (:mod:`.consider`).
 
     With ``ekf.fast`` the same in the compiled kernel (:func:`_fuse_fast`).
 
@@ -103,9 +106,13 @@ def fuse(ekf, *measurements: Measurement) -> list[Innovation]:
     -------
     list of Innovation, one per measurement, in order
     """
+    before = consider.snapshot(ekf)
     if getattr(ekf, "fast", False) and _fastkernel is not None:
-        return _fuse_fast(ekf, measurements)
-    return _fuse_reference(ekf, measurements)
+        results = _fuse_fast(ekf, measurements)
+    else:
+        results = _fuse_reference(ekf, measurements)
+    consider.restore(ekf, before)
+    return results
 
 
 def _fuse_reference(ekf, measurements) -> list[Innovation]:
