@@ -43,6 +43,9 @@ def test_the_window_is_the_logs_phases_cut_by_until(tmp_path):
         filter_fit.load(log, until_s=0.005)
 
 
+NODE_PSD_M2_S3 = 3e-8
+
+
 def _problem(tmp_path, workers=1, groups=("J3",)):
     from gyrohost.config import load_rig_config
     from gyrohost.estimator.config import for_rig
@@ -53,6 +56,8 @@ def _problem(tmp_path, workers=1, groups=("J3",)):
     log = record_log(truth, 3, tmp_path / "log")
     config = load_rig_config(nominal)
     scene, est = load_scene(config.scene_path), for_rig(config)
+    if "process-noise" in groups:  # a node noise for the factor to scale: the sim keys take none
+        est = replace(est, accel_psd_m2_s3=NODE_PSD_M2_S3)
     params = parameters(scene, config, list(groups), est.servo_lag_s, 1, est, True)
     return filter_fit.FilterProblem(scene, config, est, params, [filter_fit.load(log)], workers)
 

@@ -91,7 +91,7 @@ def test_the_node_noise_is_fitted_below_the_accelerometer_s_own_density():
     from gyrotensegrity import load_scene
 
     config = load_rig_config(shipped("config", "sim-rig"))
-    est = for_rig(config)
+    est = replace(for_rig(config), accel_psd_m2_s3=3e-8)  # a node noise to scale
     density = est.imu_accel_std_m_s2**2 / config.imu.rate_hz
     (p,) = parameters(load_scene(config.scene_path), config, ["process-noise"], 0.01, 1, est, True)
     assert p.value(p.upper) == pytest.approx(density, rel=1e-12)

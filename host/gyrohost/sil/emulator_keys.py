@@ -27,6 +27,13 @@ stamp, s, taken uniform: the millisecond a real rig's USB frame bounds it by. Th
 takes the bytes as they arrive, a few tenths of a millisecond after the stamp (docs/rig.md)."""
 
 
+IMU_WAKE_UP_STD_S = 2.0e-4
+"""How far the host's IMU grid lies behind the samples beyond the wire, s, taken as a run's
+constant of this 1-sigma: the pty's shortest delivery and the rig's and the reader's wake-up,
+0.11-0.20 ms on the three runs measured (docs/estimator-noise.md#the-imus-latency), a few
+tenths of a millisecond on a loaded machine."""
+
+
 def emulated_servo_lag_s(rig: RigConfig) -> float:
     """The emulated MX-12W's position-loop lag, s: its factory P gain at the ``[sim.servos]``
     no-load speed (:func:`~gyrohost.drivers.mx12.position_lag_s`)."""
@@ -39,9 +46,8 @@ def emulator_keys(rig: RigConfig) -> dict:
     :func:`~gyrohost.estimator.config.rig_keys` of its ``[imu]`` and ``[servos]`` tables.
 
     White noise std = density * sqrt(rate / 2), combined with the quantisation of the wire
-    format (one count / sqrt(12)); the accelerometer's bias (no state of the filter: calibrate
-    it away with ``FF AA 67`` where possible) is folded into its noise. Returns a dict for
-    :func:`config_from_dict`.
+    format (one count / sqrt(12)); the IMU's biases are states with their spreads as priors.
+    Returns a dict for :func:`config_from_dict`.
     """
     rate_count, accel_count, angle_count = imu_wire_counts()
     root = math.sqrt(rig.imu.rate_hz / 2.0)
@@ -61,16 +67,15 @@ def emulator_keys(rig: RigConfig) -> dict:
         # after it was taken (plus the truth's own latency, a drawn sensor's); the rig's loop
         # wakes for it then, and the grid the host rebuilds keeps the earliest arrivals: it
         # lies behind the samples by the wire and the loop's and the reader's shortest
-        # wake-up (0.1-0.2 ms, the machine's: gyrotens identify fits the whole latency), no
-        # spread (docs/estimator-noise.md#the-imus-latency)
+        # wake-up, the same for the whole run (0.11-0.20 ms measured, the machine's): a
+        # considered latency error of IMU_WAKE_UP_STD_S, no spread
+        # (docs/estimator-noise.md#the-imus-latency; gyrotens identify fits the whole latency)
         "imu_latency_s": wire_time_s(rig.imu.rate_hz) + sim.truth.imu_latency_s,
+        "imu_latency_std_s": IMU_WAKE_UP_STD_S,
         "imu_time_std_s": 0.0,
         # nothing moves the truth's nodes at random, and the filter's integration leaves
-        # nothing; the node noise carries what the filter's model leaves of the real-time runs:
-        # the pty's shortest delivery in the IMU's latency on nominal runs, an identified
-        # scene's errors not carried as states on identified ones; 3e-8 chosen by their NEES
-        # (docs/estimator-noise.md#node-accelerations)
-        "accel_psd_m2_s3": 3.0e-8,
+        # nothing (docs/estimator-noise.md#node-accelerations)
+        "accel_psd_m2_s3": 0.0,
         "imu_rate_std_rad_s": std(emu.gyro_noise_density_rad_s_rthz * root, rate_count),
         # the bias is a random constant, not white noise: a state with its spread as prior
         "imu_accel_std_m_s2": std(accel_white, accel_count),
