@@ -188,7 +188,7 @@ def _estimator_keys(result: FitResult, a, fitted: set, cov, latency_std) -> list
     lines = []
     if cov is not None:
         lines += [
-            "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF estimates",
+            "# how well the fit knows the mounting's roll, pitch, yaw (rad^2): the EKF carries",
             "# its error (docs/estimator.md)",
             f"imu_mounting_cov_rad2 = {_matrix(cov)}",
         ]
@@ -210,7 +210,7 @@ def _string_keys(cov) -> list[str]:
         return []
     return [
         "# how well the fit knows the strings' stiffness and damping (their log factors,",
-        "# squared): the EKF estimates their errors (docs/estimator.md)",
+        "# squared): the EKF carries their errors (docs/estimator.md)",
         f"string_cov_rel2 = {_matrix(cov)}",
     ]
 
@@ -221,7 +221,7 @@ def _j3_keys(variance) -> list[str]:
         return []
     return [
         f"j3_var_rel2 = {variance!r}  # how well the fit knows J3 (its log factor, squared): "
-        "the EKF estimates its error"
+        "the EKF carries its error"
     ]
 
 

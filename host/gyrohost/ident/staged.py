@@ -16,8 +16,9 @@ of each log.
 The IMU's latency stays the output error's: the filter's likelihood steps by as much as the
 latency's whole signal where a sample's time crosses a string's kink, and its fits landed 1.5 to
 3.4 ms late on held-out truths (the output error's: -0.3 to +0.9 ms). The run's filter
-carries the latency's error as a state with its 1-sigma (``imu_latency_std_s``, the overlay);
-this one does not, or its noise scale fits the model's errors as the latency's.
+carries the latency's error with its 1-sigma (``imu_latency_std_s``, the overlay); this one
+keeps the rig's key (the simulated rigs' 0.2 ms of the host's wake-ups, a considered error):
+with the output error's 1-sigma its likelihood would fit the model's errors as the latency's.
 """
 
 from dataclasses import replace
