@@ -17,7 +17,9 @@ its dof. All three are carried as states (``layout.string_errors``, ``layout.j3_
 errors are a few percent, a fraction of a millisecond): each prediction step adds
 ``G theta`` to the state and the matching terms to the covariance, ``G`` the step's response
 to them (:func:`string_columns`, :func:`j3_column`, :func:`goal_delay_column`). The
-measurements see them through the states they move.
+measurements see them through the states they move; by default the filter considers them
+(:mod:`.consider`: their estimate stays 0, ``G theta`` adds nothing, the covariance's terms
+carry them).
 
 - A string pulls with ``k e + c ds/dt`` (``e`` its stretch, the damping while it shortens):
   a relative error ``d_k`` of the stiffness is the force of a rest-length error ``-e d_k``,
