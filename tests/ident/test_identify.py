@@ -129,6 +129,10 @@ def test_staged_refines_the_sensor_by_the_filter_and_writes_both_reports(tmp_pat
     from gyrohost.sil.emulator_keys import emulated_servo_lag_s
 
     nominal, truth = write_rigs(tmp_path, 1.5, weighed=True)
+    # a filter that takes node noise, as a real rig's does (the simulated rigs' takes none)
+    text = nominal.read_text()
+    assert "accel_psd_m2_s3 = 0.0 " in text
+    nominal.write_text(text.replace("accel_psd_m2_s3 = 0.0 ", "accel_psd_m2_s3 = 3e-08 ", 1))
     log = record_log(truth, 2, tmp_path / "log")
     out = tmp_path / "ident.toml"
     argv = ["identify", str(log), "-o", str(out), "--config", str(nominal), "--workers", "1"]
