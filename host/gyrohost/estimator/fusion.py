@@ -8,8 +8,7 @@ computed first; the test ratio ``NIS / gate`` (gate = chi-square quantile of ``g
 with ``dim z`` degrees of freedom) decides: ``<= 1`` the sample is fused with filterpy's
 ``ExtendedKalmanFilter.update`` (Joseph form) and the estimate is put back on the constraint
 manifold (the considered states' entries kept: :mod:`.consider`); ``> 1`` it is rejected and
-counted. Either way an :class:`Innovation` is returned
-and passed to the filter's log callback.
+counted. Either way an :class:`Innovation` is returned and passed to the filter's log callback.
 """
 
 import math
