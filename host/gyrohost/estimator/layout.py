@@ -149,8 +149,18 @@ def layout_of(model, config=None) -> FilterLayout:
     goal = 1 if config.servo_delay_std_s > 0.0 else 0
     j3 = 1 if config.j3_var_rel2 > 0.0 else 0
     latency = 1 if config.imu_latency_std_s > 0.0 else 0
-    sizes = (noise, mounting, accel_bias, strings, goal, j3, latency)
-    return FilterLayout(model.m, n_w, model.alpha, *sizes)
+    return FilterLayout(
+        model.m,
+        n_w,
+        model.alpha,
+        n_wheel_noise=noise,
+        n_mounting=mounting,
+        n_accel_bias=accel_bias,
+        n_string_errors=strings,
+        n_goal_delay=goal,
+        n_j3_error=j3,
+        n_imu_latency=latency,
+    )
 
 
 def from_model_state(model, x_model, u, gyro_bias=(0.0, 0.0, 0.0)):

@@ -183,7 +183,10 @@ class PtyDevice:
         with self.lock:
             since = t if self._polled_s is None else min(self._polled_s, t)
             self._polled_s = t
-            arrivals = self._arrivals(data, since, t) if data else self._stamped(since, t)
+            if self._stamps is None:
+                arrivals = self._arrivals(data, since, t)
+            else:
+                arrivals = self._stamped(since, t)
             for arrived_s, frames in arrivals:
                 self.tick(arrived_s)
                 self.handle_rx(frames, arrived_s)
@@ -207,8 +210,6 @@ class PtyDevice:
     def _stamped(self, since_s: float, now_s: float) -> list[tuple[float, bytes]]:
         """The stamped arrivals up to ``now_s``, each at its time or, stamped before the last
         poll (the child was slow to pass it on), at ``since_s``."""
-        if self._stamps is None:
-            return []
         self._arrived += [(stamp - self._origin_s, data) for stamp, data in self._stamps.take()]
         due = [(max(t, since_s), data) for t, data in self._arrived if t <= now_s]
         self._arrived = self._arrived[len(due) :]
